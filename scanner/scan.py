@@ -1,0 +1,362 @@
+"""The data model: a sampled ``Trace``, a generic ``Recording`` and one ``Scan`` of a material sample.
+
+SPEC section 3. Every object validates itself on construction, so a ``Scan`` that exists is a scan the
+rest of the pipeline can trust: every channel has the shape, rate and unit of the table below and only
+finite samples. Missing channels are allowed (features that need them become NaN); wrong ones are not.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+SCHEMA_VERSION = 1
+JUDGED_SCALE = (0.0, 0.25, 0.5, 0.75, 1.0)
+"""The five-step scale of the operator's judged adhesive tack and yielding (paper section IV-A)."""
+
+
+class ScanError(ValueError):
+    """A trace, recording or scan violates the data model; the message names the field."""
+
+
+@dataclass(frozen=True)
+class ChannelSpec:
+    """Expected layout of one scan channel: rate in Hz, unit, axes (0 = 1-D) and the step recording it."""
+
+    fs: float
+    unit: str
+    axes: int
+    step: str
+    description: str
+
+
+CHANNELS: Mapping[str, ChannelSpec] = MappingProxyType({
+    "v_ft": ChannelSpec(3000.0, "g", 3, "finger_tap", "TU1 acceleration, finger tap"),
+    "v_fs": ChannelSpec(3000.0, "g", 3, "finger_slide", "TU1 acceleration, finger slide"),
+    "v_tt": ChannelSpec(3000.0, "g", 3, "tool_tap", "TU1 acceleration, tool tap"),
+    "v_ts": ChannelSpec(3000.0, "g", 3, "tool_slide", "TU1 acceleration, tool slide"),
+    "a_fs": ChannelSpec(44100.0, "FS", 0, "finger_slide", "audio during the finger slide, full scale"),
+    "a_ts": ChannelSpec(44100.0, "FS", 0, "tool_slide", "audio during the tool slide, full scale"),
+    "r_fs": ChannelSpec(3000.0, "V", 0, "finger_slide", "IR reflectance during the finger slide"),
+    "r_ts": ChannelSpec(3000.0, "V", 0, "tool_slide", "IR reflectance during the tool slide"),
+    "f_frn": ChannelSpec(3000.0, "N", 0, "friction", "normal force during the friction slide"),
+    "f_frt": ChannelSpec(3000.0, "N", 0, "friction", "tangential force during the friction slide"),
+    "f_press": ChannelSpec(3000.0, "N", 0, "press", "normal force while pressing 4.0 mm"),
+    "f_fold": ChannelSpec(3000.0, "N", 0, "fold", "normal force while folding"),
+    "alpha_f": ChannelSpec(3000.0, "deg", 0, "fold", "flex angle while folding"),
+    "t_cool": ChannelSpec(20.0, "degC", 0, "thermal", "MLX90614 object temperature after heating"),
+    "m": ChannelSpec(3000.0, "-", 0, "static", "metal electrode, +1 conductive, -1 not"),
+    "dB": ChannelSpec(80.0, "uT", 0, "static", "change of magnetic field magnitude"),
+})
+"""The scan channels of SPEC section 3, in file order."""
+
+IMAGES: Mapping[str, str] = MappingProxyType({
+    "I_disp": "disp",
+    "I_macro": "macro",
+    "I_illu": "illu",
+})
+"""Photo variables -> short name used in file names and feature names (SPEC 3, 7.2)."""
+
+ROLES = frozenset({
+    "vibration", "pressure_dc", "temperature", "heat_flow", "electrodes", "taxels", "force_xyz", "audio",
+})
+"""Channel roles read by the related-work feature sets (SPEC 3, 7.5)."""
+
+_SAFE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
+_OPERATOR = re.compile(r"^[^\x00-\x1f\x7f/\\<>\"']{1,64}$")
+_LABEL = re.compile(r"^C\d{1,3}S\d{1,3}M\d{1,3}P\d{1,3}X\d{1,3}$")
+
+
+@dataclass(frozen=True)
+class Trace:
+    """A uniformly sampled signal: ``data`` of shape (n,) or (n, channels) (or (n, h, w) for taxels).
+
+    The array is stored read-only as float64 so features can never modify a scan in place.
+    """
+
+    data: np.ndarray
+    fs: float
+    unit: str
+
+    def __post_init__(self) -> None:
+        try:
+            array = np.array(self.data, dtype=np.float64, copy=True)
+        except (TypeError, ValueError) as exc:
+            raise ScanError(f"trace data is not numeric: {exc}") from None
+        if array.ndim not in (1, 2, 3):
+            raise ScanError(f"trace data must be 1-D, 2-D or 3-D, got shape {array.shape}")
+        if array.shape[0] == 0 or array.size == 0:
+            raise ScanError(f"trace is empty (shape {array.shape})")
+        bad = ~np.isfinite(array)
+        if bad.any():
+            first = int(np.argwhere(bad)[0][0])
+            raise ScanError(f"trace has {int(bad.sum())} non-finite samples (first at sample {first})")
+        try:
+            fs = float(self.fs)
+        except (TypeError, ValueError):
+            raise ScanError(f"sample rate must be a number, got {self.fs!r}") from None
+        if not math.isfinite(fs) or fs <= 0:
+            raise ScanError(f"sample rate must be finite and positive, got {self.fs!r}")
+        if not isinstance(self.unit, str) or not self.unit.strip():
+            raise ScanError(f"unit must be a non-empty string, got {self.unit!r}")
+        array.flags.writeable = False
+        object.__setattr__(self, "data", array)
+        object.__setattr__(self, "fs", fs)
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return int(self.data.shape[0])
+
+    @property
+    def duration(self) -> float:
+        """Length in seconds (n / fs)."""
+        return self.n / self.fs
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Trace):
+            return NotImplemented
+        return (self.fs == other.fs and self.unit == other.unit
+                and self.data.shape == other.data.shape and bool(np.array_equal(self.data, other.data)))
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+def _check_judged(name: str, value: float) -> float:
+    value = float(value)
+    if math.isnan(value):
+        return value
+    if value not in JUDGED_SCALE:
+        raise ScanError(f"meta.{name} = {value!r} is not on the five-step scale {JUDGED_SCALE} (or NaN)")
+    return value
+
+
+def _check_optional_number(name: str, value: Any, *, positive: bool = False) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ScanError(f"meta.{name} must be a number or NaN, got {value!r}") from None
+    if math.isinf(number) or (positive and number <= 0):
+        raise ScanError(f"meta.{name} = {value!r} must be {'positive' if positive else 'finite'} or NaN")
+    return number
+
+
+def check_sample_id(sample_id: str) -> str:
+    """Sample ids become folder names: 1-64 characters of letters, digits, '.', '_', '-'."""
+    if not isinstance(sample_id, str) or not _SAFE_ID.match(sample_id):
+        raise ScanError(f"sample id {sample_id!r} must be 1-64 letters, digits, '.', '_' or '-' "
+                        "and start with a letter or digit")
+    return sample_id
+
+
+@dataclass(frozen=True)
+class ScanMeta:
+    """The ``meta`` struct of SPEC section 3 (``fs``, ``units`` and ``raw_volts`` derive from the traces).
+
+    Unknown numeric values (ambient temperature not read, mass not weighed, tack not judged) are NaN.
+    """
+
+    label: str
+    operator: str
+    sample_id: str
+    scan_index: int
+    session_id: str
+    started: str
+    t_amb: float = math.nan
+    mass_g: float = math.nan
+    volume_cm3: float = math.nan
+    atk: float = math.nan
+    cyd: float = math.nan
+    rigid: bool = False
+    device: Mapping[str, str] = field(default_factory=dict)
+    calibration: Mapping[str, float] = field(default_factory=dict)
+    software_version: str = ""
+    schema_version: int = SCHEMA_VERSION
+    notes: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.label, str) or not _LABEL.match(self.label):
+            raise ScanError(f"meta.label {self.label!r} is not a C?S?M?P?X? material label")
+        if not isinstance(self.operator, str) or not _OPERATOR.match(self.operator.strip() or "\x00"):
+            raise ScanError(f"meta.operator {self.operator!r} must be 1-64 printable characters "
+                            "without quotes, slashes or angle brackets")
+        check_sample_id(self.sample_id)
+        if not isinstance(self.session_id, str) or not _SAFE_ID.match(self.session_id):
+            raise ScanError(f"meta.session_id {self.session_id!r} must be 1-64 letters, digits, '.', '_', '-'")
+        if isinstance(self.scan_index, bool) or not float(self.scan_index).is_integer() or self.scan_index < 1:
+            raise ScanError(f"meta.scan_index must be a positive integer, got {self.scan_index!r}")
+        object.__setattr__(self, "scan_index", int(self.scan_index))
+        if not isinstance(self.started, str) or not _is_iso8601(self.started):
+            raise ScanError(f"meta.started {self.started!r} is not an ISO 8601 date-time")
+        object.__setattr__(self, "t_amb", _check_optional_number("t_amb", self.t_amb))
+        object.__setattr__(self, "mass_g", _check_optional_number("mass_g", self.mass_g, positive=True))
+        object.__setattr__(self, "volume_cm3",
+                           _check_optional_number("volume_cm3", self.volume_cm3, positive=True))
+        object.__setattr__(self, "atk", _check_judged("atk", self.atk))
+        object.__setattr__(self, "cyd", _check_judged("cyd", self.cyd))
+        object.__setattr__(self, "rigid", bool(self.rigid))
+        if self.schema_version != SCHEMA_VERSION:
+            raise ScanError(f"meta.schema_version {self.schema_version!r} is not supported "
+                            f"(this software reads {SCHEMA_VERSION})")
+        object.__setattr__(self, "device", MappingProxyType({str(k): str(v) for k, v in self.device.items()}))
+        object.__setattr__(self, "calibration", MappingProxyType(
+            {str(k): _check_optional_number(f"calibration.{k}", v) for k, v in self.calibration.items()}))
+
+    @property
+    def scan_id(self) -> str:
+        """``<sample_id>-<scan_index:03d>``: unique within a database."""
+        return f"{self.sample_id}-{self.scan_index:03d}"
+
+
+def _is_iso8601(text: str) -> bool:
+    from datetime import datetime
+
+    try:
+        datetime.fromisoformat(text)
+    except ValueError:
+        return False
+    return True
+
+
+@dataclass(frozen=True)
+class Scan:
+    """One pass of all exploratory procedures over one material sample (SPEC section 3).
+
+    ``traces`` maps channel names of :data:`CHANNELS` to :class:`Trace`; ``images`` maps ``I_disp``,
+    ``I_macro``, ``I_illu`` to RGB ``uint8`` arrays of shape (h, w, 3); ``raw`` keeps the DAQ volts of a
+    channel (saved as ``<name>_raw``) so a calibration can be redone.
+    """
+
+    meta: ScanMeta
+    traces: Mapping[str, Trace] = field(default_factory=dict)
+    images: Mapping[str, np.ndarray] = field(default_factory=dict)
+    raw: Mapping[str, Trace] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.meta, ScanMeta):
+            raise ScanError("scan.meta must be a ScanMeta")
+        for name, trace in self.traces.items():
+            _check_channel(name, trace)
+        if self.meta.rigid and ({"f_fold", "alpha_f"} & set(self.traces)):
+            raise ScanError("meta.rigid = 1 means the fold was skipped, but f_fold/alpha_f are present")
+        for name, trace in self.raw.items():
+            if name not in CHANNELS:
+                raise ScanError(f"raw channel {name!r} is not a scan channel")
+            if not isinstance(trace, Trace) or trace.unit != "V":
+                raise ScanError(f"raw channel {name}_raw must be a Trace in V")
+        images = {}
+        for name, image in self.images.items():
+            images[name] = _check_image(name, image)
+        ordered = {name: self.traces[name] for name in CHANNELS if name in self.traces}
+        object.__setattr__(self, "traces", MappingProxyType(ordered))
+        object.__setattr__(self, "images", MappingProxyType(images))
+        object.__setattr__(self, "raw", MappingProxyType(dict(self.raw)))
+
+    @property
+    def scan_id(self) -> str:
+        return self.meta.scan_id
+
+    def __getitem__(self, name: str) -> Trace:
+        try:
+            return self.traces[name]
+        except KeyError:
+            raise KeyError(f"scan {self.scan_id} has no channel {name!r}") from None
+
+    def get(self, name: str) -> Trace | None:
+        """The trace of a channel, or None if the scan does not have it."""
+        return self.traces.get(name)
+
+    def missing_channels(self) -> list[str]:
+        """Channels of SPEC 3 this scan does not have (fold channels count as present when rigid)."""
+        absent = [name for name in CHANNELS if name not in self.traces]
+        if self.meta.rigid:
+            absent = [name for name in absent if name not in ("f_fold", "alpha_f")]
+        return absent
+
+
+def _check_channel(name: str, trace: Trace) -> None:
+    spec = CHANNELS.get(name)
+    if spec is None:
+        raise ScanError(f"{name!r} is not a scan channel (known: {', '.join(CHANNELS)})")
+    if not isinstance(trace, Trace):
+        raise ScanError(f"{name} must be a Trace, got {type(trace).__name__}")
+    if trace.fs != spec.fs:
+        raise ScanError(f"{name} is sampled at {trace.fs:g} Hz, expected {spec.fs:g} Hz")
+    if trace.unit != spec.unit:
+        raise ScanError(f"{name} has unit {trace.unit!r}, expected {spec.unit!r}")
+    expected = (trace.n, spec.axes) if spec.axes else (trace.n,)
+    if trace.data.shape != expected:
+        want = f"(n, {spec.axes})" if spec.axes else "(n,)"
+        raise ScanError(f"{name} has shape {trace.data.shape}, expected {want}")
+
+
+def _check_image(name: str, image: np.ndarray) -> np.ndarray:
+    if name not in IMAGES:
+        raise ScanError(f"{name!r} is not a photo variable (known: {', '.join(IMAGES)})")
+    array = np.asarray(image)
+    if array.dtype != np.uint8 or array.ndim != 3 or array.shape[2] != 3 or min(array.shape[:2]) < 1:
+        raise ScanError(f"{name} must be an RGB uint8 image of shape (h, w, 3), "
+                        f"got {array.dtype} {array.shape}")
+    view = array.view()
+    view.flags.writeable = False
+    return view
+
+
+@dataclass(frozen=True)
+class Recording:
+    """A generic recording from another sensor or dataset (SPEC 3 "Generic recordings").
+
+    ``channels`` are named traces at their own rates; ``roles`` map a role of :data:`ROLES` to a channel
+    name, which is how the related-work feature sets (SPEC 7.5) find their inputs; ``label`` is the class
+    (any string; a taxonomy label where known), ``group`` the object/sample ids used for grouped splits.
+    """
+
+    name: str
+    channels: Mapping[str, Trace]
+    roles: Mapping[str, str] = field(default_factory=dict)
+    label: str | None = None
+    group: Mapping[str, str] = field(default_factory=dict)
+    meta: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise ScanError("recording name must be a non-empty string")
+        if not self.channels:
+            raise ScanError(f"recording {self.name!r} has no channels")
+        for channel, trace in self.channels.items():
+            if not isinstance(trace, Trace):
+                raise ScanError(f"recording {self.name!r}: channel {channel!r} must be a Trace")
+        for role, channel in self.roles.items():
+            if role not in ROLES:
+                raise ScanError(f"recording {self.name!r}: unknown role {role!r} (known: {', '.join(sorted(ROLES))})")
+            if channel not in self.channels:
+                raise ScanError(f"recording {self.name!r}: role {role!r} names missing channel {channel!r}")
+            _check_role_shape(self.name, role, self.channels[channel])
+        object.__setattr__(self, "channels", MappingProxyType(dict(self.channels)))
+        object.__setattr__(self, "roles", MappingProxyType(dict(self.roles)))
+        object.__setattr__(self, "group", MappingProxyType({str(k): str(v) for k, v in self.group.items()}))
+        object.__setattr__(self, "meta", MappingProxyType(dict(self.meta)))
+
+    def role(self, role: str) -> Trace | None:
+        """The trace playing ``role``, or None."""
+        channel = self.roles.get(role)
+        return None if channel is None else self.channels[channel]
+
+
+_ROLE_NDIM = {"electrodes": 2, "taxels": 3, "force_xyz": 2}
+
+
+def _check_role_shape(name: str, role: str, trace: Trace) -> None:
+    ndim = _ROLE_NDIM.get(role, 1)
+    if role in ("vibration", "audio") and trace.data.ndim == 2:
+        return  # multi-axis vibration/audio is combined by the feature set (DFT321 or mean)
+    if trace.data.ndim != ndim:
+        raise ScanError(f"recording {name!r}: role {role!r} needs a {ndim}-D channel, got shape {trace.data.shape}")
+    if role == "force_xyz" and trace.data.shape[1] != 3:
+        raise ScanError(f"recording {name!r}: role 'force_xyz' needs shape (n, 3), got {trace.data.shape}")
