@@ -1,5 +1,12 @@
 """texplorer scanner: data model, devices, guided session, preprocessing, storage and the CLI."""
 
+from __future__ import annotations
+
+import importlib
+from types import ModuleType
+
+from scanner.database import Database, DatabaseError
+from scanner.matfile import ScanFormatError, load_scan, save_scan
 from scanner.scan import (
     CHANNELS,
     IMAGES,
@@ -17,5 +24,15 @@ __version__ = "0.1.0"
 
 __all__ = [
     "CHANNELS", "IMAGES", "JUDGED_SCALE", "ROLES", "SCHEMA_VERSION",
-    "Recording", "Scan", "ScanError", "ScanMeta", "Trace", "__version__",
+    "Database", "DatabaseError", "Recording", "Scan", "ScanError", "ScanFormatError", "ScanMeta", "Trace",
+    "__version__", "load_scan", "save_scan",
 ]
+
+_LAZY_SUBMODULES = {"simulate", "preprocess"}
+
+
+def __getattr__(name: str) -> ModuleType:
+    # ``scanner.simulate.synthetic_database(...)`` works after a plain ``import scanner``.
+    if name in _LAZY_SUBMODULES:
+        return importlib.import_module(f"scanner.{name}")
+    raise AttributeError(f"module 'scanner' has no attribute {name!r}")

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from types import MappingProxyType
 from typing import Any
 
@@ -71,6 +71,8 @@ ROLES = frozenset({
 _SAFE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
 _OPERATOR = re.compile(r"^[^\x00-\x1f\x7f/\\<>\"']{1,64}$")
 _LABEL = re.compile(r"^C\d{1,3}S\d{1,3}M\d{1,3}P\d{1,3}X\d{1,3}$")
+_FIELD = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,62}$")
+"""MATLAB struct field names: device and calibration keys become fields of ``meta``."""
 
 
 @dataclass(frozen=True)
@@ -204,7 +206,10 @@ class ScanMeta:
         if self.schema_version != SCHEMA_VERSION:
             raise ScanError(f"meta.schema_version {self.schema_version!r} is not supported "
                             f"(this software reads {SCHEMA_VERSION})")
-        object.__setattr__(self, "device", MappingProxyType({str(k): str(v) for k, v in self.device.items()}))
+        for key in (*self.device, *self.calibration):
+            if not isinstance(key, str) or not _FIELD.match(key):
+                raise ScanError(f"meta key {key!r} in device/calibration is not a valid MATLAB field name")
+        object.__setattr__(self, "device", MappingProxyType({k: str(v) for k, v in self.device.items()}))
         object.__setattr__(self, "calibration", MappingProxyType(
             {str(k): _check_optional_number(f"calibration.{k}", v) for k, v in self.calibration.items()}))
 
@@ -212,6 +217,22 @@ class ScanMeta:
     def scan_id(self) -> str:
         """``<sample_id>-<scan_index:03d>``: unique within a database."""
         return f"{self.sample_id}-{self.scan_index:03d}"
+
+    def __eq__(self, other: object) -> bool:
+        # NaN marks "not measured"; two metas that both lack a value are equal.
+        if not isinstance(other, ScanMeta):
+            return NotImplemented
+        return all(_same(getattr(self, f.name), getattr(other, f.name)) for f in fields(self))
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    if isinstance(a, Mapping) and isinstance(b, Mapping):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    return a == b
 
 
 def _is_iso8601(text: str) -> bool:
@@ -261,6 +282,15 @@ class Scan:
     @property
     def scan_id(self) -> str:
         return self.meta.scan_id
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Scan):
+            return NotImplemented
+        return (self.meta == other.meta and dict(self.traces) == dict(other.traces)
+                and dict(self.raw) == dict(other.raw) and self.images.keys() == other.images.keys()
+                and all(np.array_equal(self.images[k], other.images[k]) for k in self.images))
+
+    __hash__ = None  # type: ignore[assignment]
 
     def __getitem__(self, name: str) -> Trace:
         try:

@@ -1,0 +1,191 @@
+"""The ``texplorer`` command line (SPEC section 2).
+
+Every subcommand that uses a database takes ``--db PATH`` (default ``$TEXPLORER_DB``, else
+``./texplorer-data``). Errors are one line on stderr and a non-zero exit; ``--debug`` shows the traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+
+from tqdm import tqdm
+
+import scanner
+from scanner.database import Database, DatabaseError
+from scanner.matfile import ScanFormatError
+from scanner.scan import ScanError
+
+DEFAULT_DB = "texplorer-data"
+EXIT_ERROR = 1
+EXIT_PROBLEMS = 3
+"""``db check`` found missing, changed or unknown files."""
+
+Handler = Callable[[argparse.Namespace], int]
+
+
+def default_db() -> Path:
+    return Path(os.environ.get("TEXPLORER_DB") or DEFAULT_DB)
+
+
+def progress(description: str) -> Callable[[Iterable], Iterable]:
+    """A tqdm progress bar on stderr (hidden when stderr is not a terminal)."""
+    return lambda items: tqdm(items, desc=description, unit="scan", file=sys.stderr, disable=None,
+                              leave=False)
+
+
+def _open_db(args: argparse.Namespace, *, create: bool = False) -> Database:
+    return Database(args.db, create=create)
+
+
+# -- db ----------------------------------------------------------------------------------------------
+
+def cmd_db_list(args: argparse.Namespace) -> int:
+    db = _open_db(args)
+    records = db.records(label=args.label, sample=args.sample, session=args.session, operator=args.operator)
+    print(f"{'scan':<28} {'label':<14} {'sample':<24} {'session':<16} {'operator':<10} started")
+    for r in records:
+        print(f"{r.scan_id:<28} {r.label:<14} {r.sample_id:<24} {r.session_id:<16} {r.operator:<10} {r.started}")
+    print(f"{len(records)} scan(s)")
+    return 0
+
+
+def cmd_db_show(args: argparse.Namespace) -> int:
+    db = _open_db(args)
+    record = db.record(args.scan_id)
+    scan = db.get(args.scan_id, images=False)
+    meta = scan.meta
+    print(f"scan        {record.scan_id}\nlabel       {meta.label}\nsample      {meta.sample_id} "
+          f"(scan {meta.scan_index})\nsession     {meta.session_id}, operator {meta.operator}, "
+          f"started {meta.started}")
+    print(f"t_amb       {meta.t_amb:g} degC   mass {meta.mass_g:g} g   volume {meta.volume_cm3:g} cm^3   "
+          f"atk {meta.atk:g}   cyd {meta.cyd:g}   rigid {int(meta.rigid)}")
+    print(f"file        {record.path}\ncontent     {record.content_hash}")
+    print("channels:")
+    for name, trace in scan.traces.items():
+        shape = "x".join(str(n) for n in trace.data.shape)
+        print(f"  {name:<8} {shape:>10}  {trace.fs:>7g} Hz  {trace.duration:6.2f} s  {trace.unit:<5} "
+              f"min {trace.data.min():10.4g}  max {trace.data.max():10.4g}")
+    missing = scan.missing_channels()
+    if missing:
+        print(f"missing:    {', '.join(missing)}")
+    for entry in db.files(args.scan_id):
+        print(f"  {entry.role:<8} {entry.path}  {entry.size} bytes  sha256 {entry.sha256[:16]}...")
+    return 0
+
+
+def cmd_db_check(args: argparse.Namespace) -> int:
+    db = _open_db(args)
+    report = db.check(progress=progress("checking"))
+    for label, paths in (("missing", report.missing), ("changed", report.changed), ("unknown", report.unknown)):
+        for path in paths:
+            print(f"{label:<8} {path}")
+    print(f"{report.checked} file(s) checked: {len(report.missing)} missing, {len(report.changed)} changed, "
+          f"{len(report.unknown)} unknown")
+    return 0 if report.ok else EXIT_PROBLEMS
+
+
+def cmd_db_rebuild(args: argparse.Namespace) -> int:
+    db = _open_db(args)
+    report = db.rebuild(progress=progress("rebuilding"))
+    for line in report.skipped:
+        print(f"skipped  {line}")
+    print(f"catalog rebuilt: {report.scans} scan(s), {len(report.skipped)} file(s) skipped")
+    return 0
+
+
+# -- demo --------------------------------------------------------------------------------------------
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    from scanner.simulate import synthetic_database
+
+    started = time.perf_counter()
+    db = synthetic_database(args.db, materials=args.materials, scans_per_material=args.scans, seed=args.seed,
+                            image_size=(args.image_size, args.image_size), progress=True)
+    summary = db.summary()
+    print(f"database {args.db}: {summary['scans']} scans of {summary['materials']} materials "
+          f"({summary['samples']} samples, {summary['files']} files) in {time.perf_counter() - started:.1f} s")
+    by_class: dict[str, int] = {}
+    for record in db.records():
+        by_class[record.label[:2]] = by_class.get(record.label[:2], 0) + 1
+    print("scans per major class: " + ", ".join(f"{c} {n}" for c, n in sorted(by_class.items())))
+    return 0
+
+
+# -- parser ------------------------------------------------------------------------------------------
+
+def _add_db_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--db", type=Path, default=default_db(),
+                        help="database folder (default: $TEXPLORER_DB, else ./texplorer-data)")
+    parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show tracebacks on errors")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="texplorer", description="Multimodal material scanner: acquisition, "
+                                     "database, features and classification.")
+    parser.add_argument("--version", action="version", version=f"texplorer {scanner.__version__}")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    demo = commands.add_parser("demo", help="build a synthetic database from the simulated scanner and summarise it",
+                               description="Simulated scanner -> database (later: features -> evaluation).")
+    _add_db_option(demo)
+    demo.add_argument("--materials", nargs="+", metavar="SLUG", help="material slugs (default: whole library)")
+    demo.add_argument("--scans", type=int, default=5, help="scans per material (default 5)")
+    demo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    demo.add_argument("--image-size", type=int, default=512, help="photo size in pixels (default 512)")
+    demo.set_defaults(handler=cmd_demo)
+
+    db = commands.add_parser("db", help="inspect and repair the database", description="Inspect and repair the "
+                             "scan database (catalog.sqlite + .mat files).")
+    db_commands = db.add_subparsers(dest="db_command", metavar="ACTION", required=True)
+    listing = db_commands.add_parser("list", help="list scans, optionally filtered")
+    _add_db_option(listing)
+    listing.add_argument("--label", help="label or label prefix, e.g. C6 for every stone")
+    listing.add_argument("--sample", help="sample id")
+    listing.add_argument("--session", help="session id")
+    listing.add_argument("--operator", help="operator")
+    listing.set_defaults(handler=cmd_db_list)
+    show = db_commands.add_parser("show", help="show one scan's metadata, channels and files")
+    _add_db_option(show)
+    show.add_argument("scan_id")
+    show.set_defaults(handler=cmd_db_show)
+    check = db_commands.add_parser("check", help="verify the SHA-256 of every file; report missing, changed, "
+                                   "unknown files (exit 3 if any)")
+    _add_db_option(check)
+    check.set_defaults(handler=cmd_db_check)
+    rebuild = db_commands.add_parser("rebuild", help="recreate the catalog from the .mat files alone")
+    _add_db_option(rebuild)
+    rebuild.set_defaults(handler=cmd_db_rebuild)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    args.debug = getattr(args, "debug", False)
+    try:
+        return args.handler(args)
+    except KeyboardInterrupt:
+        print("texplorer: interrupted", file=sys.stderr)
+        return 130
+    except (DatabaseError, ScanFormatError, ScanError, OSError, ValueError) as exc:
+        if args.debug:
+            raise
+        print(f"texplorer: error: {exc}", file=sys.stderr)
+        return EXIT_ERROR
+    except Exception as exc:
+        if args.debug:
+            raise
+        print(f"texplorer: error: {type(exc).__name__}: {exc} (run with --debug for the traceback)",
+              file=sys.stderr)
+        return EXIT_ERROR
+
+
+if __name__ == "__main__":
+    sys.exit(main())

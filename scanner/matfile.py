@@ -1,0 +1,309 @@
+"""The ``.mat`` scan format (SPEC section 3): one MATLAB v5 file per scan, photos as PNG beside it.
+
+Layout of ``<scan>.mat`` (``scipy.io.savemat``, ``long_field_names=True``, ``do_compression=True``):
+
+- one float64 variable per channel of :data:`scanner.scan.CHANNELS` that the scan has; 1-D channels are
+  column vectors (n x 1), accelerations n x 3; raw DAQ volts as ``<channel>_raw``;
+- ``I_disp``, ``I_macro``, ``I_illu``: file names of the photos, PNG files in the same folder;
+- ``meta``: a struct with ``label``, ``operator``, ``sample_id``, ``scan_index``, ``session_id``,
+  ``started``, ``t_amb``, ``mass_g``, ``volume_cm3``, ``atk``, ``cyd``, ``rigid``, ``fs`` (struct: channel
+  -> Hz), ``units`` (struct: channel -> unit), ``raw_volts`` (0/1), ``device`` (struct of strings),
+  ``calibration`` (struct of numbers), ``software_version``, ``schema_version``, ``notes``.
+  Unknown numbers (not weighed, not judged) are NaN.
+
+In MATLAB or Octave: ``s = load('granite-01-001.mat'); plot(s.v_ts); s.meta.fs.v_ts``.
+In Python: ``scipy.io.loadmat(path, simplify_cells=True)``.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import scipy.io
+from scipy.io.matlab import mat_struct
+
+from scanner.files import atomic_write_bytes, atomic_writer
+from scanner.scan import CHANNELS, IMAGES, SCHEMA_VERSION, Scan, ScanError, ScanMeta, Trace
+
+REQUIRED_META = ("label", "operator", "sample_id", "scan_index", "session_id", "started",
+                 "fs", "units", "schema_version")
+_OPTIONAL_NUMBERS = ("t_amb", "mass_g", "volume_cm3", "atk", "cyd")
+
+
+class ScanFormatError(ValueError):
+    """A ``.mat`` scan file cannot be read as a valid scan; the message names the file and the field."""
+
+    def __init__(self, path: str | os.PathLike[str], field: str | None, reason: str) -> None:
+        self.path = Path(path)
+        self.field = field
+        where = f"{self.path}: {field}" if field else str(self.path)
+        super().__init__(f"{where}: {reason}")
+
+
+def photo_file_name(mat_path: Path, variable: str) -> str:
+    """``<stem>_<disp|macro|illu>.png`` beside the ``.mat`` file."""
+    return f"{mat_path.stem}_{IMAGES[variable]}.png"
+
+
+def scan_files(path: str | os.PathLike[str], scan: Scan) -> list[Path]:
+    """Every file :func:`save_scan` writes for ``scan`` at ``path`` (photos first, the ``.mat`` last)."""
+    mat_path = Path(path)
+    return [mat_path.with_name(photo_file_name(mat_path, v)) for v in IMAGES if v in scan.images] + [mat_path]
+
+
+def encode_png(rgb: np.ndarray) -> bytes:
+    """Lossless PNG bytes of an RGB uint8 image."""
+    ok, buffer = cv2.imencode(".png", cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR),
+                              [cv2.IMWRITE_PNG_COMPRESSION, 3])
+    if not ok:
+        raise ScanError(f"cannot encode image of shape {rgb.shape} as PNG")
+    return buffer.tobytes()
+
+
+def decode_image(data: bytes) -> np.ndarray | None:
+    """RGB uint8 array from PNG/JPEG bytes, or None if they are not a readable image."""
+    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
+    return None if image is None else cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+
+
+def _meta_struct(scan: Scan) -> dict[str, Any]:
+    meta = scan.meta
+    return {
+        "label": meta.label,
+        "operator": meta.operator,
+        "sample_id": meta.sample_id,
+        "scan_index": float(meta.scan_index),
+        "session_id": meta.session_id,
+        "started": meta.started,
+        "t_amb": meta.t_amb,
+        "mass_g": meta.mass_g,
+        "volume_cm3": meta.volume_cm3,
+        "atk": meta.atk,
+        "cyd": meta.cyd,
+        "rigid": float(meta.rigid),
+        "fs": {name: trace.fs for name, trace in (*scan.raw.items(), *scan.traces.items())},
+        "units": {name: trace.unit for name, trace in scan.traces.items()},
+        "raw_volts": float(bool(scan.raw)),
+        "device": dict(meta.device),
+        "calibration": dict(meta.calibration),
+        "software_version": meta.software_version,
+        "schema_version": float(meta.schema_version),
+        "notes": meta.notes,
+    }
+
+
+def scan_to_variables(scan: Scan, mat_path: Path) -> dict[str, Any]:
+    """The MATLAB variables of a scan, as passed to ``scipy.io.savemat``."""
+    variables: dict[str, Any] = {name: trace.data for name, trace in scan.traces.items()}
+    variables.update({f"{name}_raw": trace.data for name, trace in scan.raw.items()})
+    variables.update({var: photo_file_name(mat_path, var) for var in IMAGES if var in scan.images})
+    variables["meta"] = _meta_struct(scan)
+    return variables
+
+
+_HEADER_TEXT_BYTES = 116
+_HEADER = f"MATLAB 5.0 MAT-file, texplorer scan, schema {SCHEMA_VERSION}".encode("ascii")
+
+
+def encode_mat(variables: dict[str, Any]) -> bytes:
+    """MATLAB v5 bytes; the header's free text is fixed so the same scan always gives the same bytes.
+
+    ``savemat`` writes its creation time into the 116-byte descriptive header, which MATLAB only
+    displays; replacing it makes files content-addressable (same scan -> same SHA-256).
+    """
+    buffer = io.BytesIO()
+    scipy.io.savemat(buffer, variables, long_field_names=True, do_compression=True, oned_as="column")
+    data = bytearray(buffer.getvalue())
+    data[:_HEADER_TEXT_BYTES] = _HEADER.ljust(_HEADER_TEXT_BYTES, b" ")
+    return bytes(data)
+
+
+def save_scan(scan: Scan, path: str | os.PathLike[str]) -> list[Path]:
+    """Write ``scan`` to ``path`` (a ``.mat`` file) and its photos beside it, each atomically.
+
+    Photos are written first, so a ``.mat`` file never names a photo that is not there. Returns the
+    written paths, the ``.mat`` last.
+    """
+    mat_path = Path(path)
+    if mat_path.suffix != ".mat":
+        raise ValueError(f"{mat_path}: a scan file must end in .mat")
+    mat_path.parent.mkdir(parents=True, exist_ok=True)
+    for variable in IMAGES:
+        if variable in scan.images:
+            atomic_write_bytes(mat_path.with_name(photo_file_name(mat_path, variable)),
+                               encode_png(scan.images[variable]))
+    with atomic_writer(mat_path) as handle:
+        handle.write(encode_mat(scan_to_variables(scan, mat_path)))
+    return scan_files(mat_path, scan)
+
+
+def _to_python(value: Any) -> Any:
+    """MATLAB values from ``loadmat(squeeze_me=False, struct_as_record=False)`` as plain Python."""
+    if isinstance(value, mat_struct):
+        return {name: _to_python(getattr(value, name)) for name in value._fieldnames}
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind == "U":
+            return "".join(value.ravel().tolist())
+        if value.dtype == object:
+            return _to_python(value.ravel()[0]) if value.size == 1 else [_to_python(v) for v in value.ravel()]
+        if value.size == 1 and value.dtype.kind in "fiub":
+            return float(value.ravel()[0])
+    if isinstance(value, str):
+        return value
+    return value
+
+
+def _read_variables(path: Path) -> dict[str, Any]:
+    try:
+        return scipy.io.loadmat(path, squeeze_me=False, struct_as_record=False, chars_as_strings=True)
+    except FileNotFoundError:
+        raise ScanFormatError(path, None, "file not found") from None
+    except Exception as exc:  # scipy raises many types for truncated or foreign files
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ScanFormatError(path, None, f"not a readable MATLAB v5 .mat file ({reason})") from None
+
+
+def _meta_number(path: Path, meta: dict[str, Any], name: str, default: float = math.nan) -> float:
+    value = meta.get(name, default)
+    if isinstance(value, np.ndarray) and value.size == 0:
+        return default
+    if not isinstance(value, float):
+        raise ScanFormatError(path, f"meta.{name}", f"must be a number, got {type(value).__name__}")
+    return value
+
+
+def _meta_text(path: Path, meta: dict[str, Any], name: str, default: str | None = None) -> str:
+    value = meta.get(name, default)
+    if isinstance(value, np.ndarray) and value.size == 0:
+        value = ""
+    if value is None:
+        raise ScanFormatError(path, f"meta.{name}", "required field is missing")
+    if not isinstance(value, str):
+        raise ScanFormatError(path, f"meta.{name}", f"must be text, got {type(value).__name__}")
+    return value
+
+
+def _meta_struct_field(path: Path, meta: dict[str, Any], name: str) -> dict[str, Any]:
+    value = meta.get(name, {})
+    if isinstance(value, np.ndarray) and value.size == 0:
+        return {}
+    if not isinstance(value, dict):
+        raise ScanFormatError(path, f"meta.{name}", "must be a struct")
+    return value
+
+
+def _parse_meta(path: Path, variables: dict[str, Any]) -> tuple[dict[str, Any], ScanMeta]:
+    if "meta" not in variables:
+        raise ScanFormatError(path, "meta", "required variable is missing")
+    meta = _to_python(variables["meta"])
+    if not isinstance(meta, dict):
+        raise ScanFormatError(path, "meta", "must be a struct")
+    for name in REQUIRED_META:
+        if name not in meta:
+            raise ScanFormatError(path, f"meta.{name}", "required field is missing")
+    schema = _meta_number(path, meta, "schema_version")
+    if schema != SCHEMA_VERSION:
+        raise ScanFormatError(path, "meta.schema_version",
+                              f"unknown schema version {schema:g} (this software reads {SCHEMA_VERSION})")
+    try:
+        scan_meta = ScanMeta(
+            label=_meta_text(path, meta, "label"),
+            operator=_meta_text(path, meta, "operator"),
+            sample_id=_meta_text(path, meta, "sample_id"),
+            scan_index=_meta_number(path, meta, "scan_index"),
+            session_id=_meta_text(path, meta, "session_id"),
+            started=_meta_text(path, meta, "started"),
+            rigid=_meta_number(path, meta, "rigid", 0.0) != 0.0,
+            device={k: str(v) for k, v in _meta_struct_field(path, meta, "device").items()},
+            calibration=_meta_struct_field(path, meta, "calibration"),
+            software_version=_meta_text(path, meta, "software_version", ""),
+            schema_version=int(schema),
+            notes=_meta_text(path, meta, "notes", ""),
+            **{name: _meta_number(path, meta, name) for name in _OPTIONAL_NUMBERS},
+        )
+    except ScanError as exc:
+        raise ScanFormatError(path, "meta", str(exc)) from None
+    return meta, scan_meta
+
+
+def _channel_array(path: Path, name: str, value: Any, axes: int) -> np.ndarray:
+    if not isinstance(value, np.ndarray) or value.dtype.kind not in "fiu":
+        raise ScanFormatError(path, name, "must be a numeric array")
+    if axes == 0 and value.ndim == 2 and 1 in value.shape:
+        value = value.ravel()  # MATLAB users save row or column vectors; both are a 1-D channel
+    expected = f"(n, {axes})" if axes else "(n,) column or row vector"
+    if (axes and (value.ndim != 2 or value.shape[1] != axes)) or (not axes and value.ndim != 1):
+        raise ScanFormatError(path, name, f"wrong shape {value.shape}, expected {expected}")
+    if value.shape[0] == 0:
+        raise ScanFormatError(path, name, "is empty")
+    bad = ~np.isfinite(value)
+    if bad.any():
+        raise ScanFormatError(path, name, f"{int(bad.sum())} non-finite samples "
+                                          f"(first at sample {int(np.argwhere(bad)[0][0])})")
+    return value.astype(np.float64, copy=False)
+
+
+def _read_traces(path: Path, variables: dict[str, Any], meta: dict[str, Any],
+                 suffix: str = "") -> dict[str, Trace]:
+    rates = _meta_struct_field(path, meta, "fs")
+    units = _meta_struct_field(path, meta, "units")
+    traces = {}
+    for name, spec in CHANNELS.items():
+        if name + suffix not in variables:
+            continue
+        data = _channel_array(path, name + suffix, variables[name + suffix], spec.axes)
+        rate = rates.get(name)
+        if not isinstance(rate, float):
+            raise ScanFormatError(path, f"meta.fs.{name}", "sample rate is missing")
+        if rate != spec.fs:
+            raise ScanFormatError(path, f"meta.fs.{name}", f"sample rate {rate:g} Hz, expected {spec.fs:g} Hz")
+        unit = "V" if suffix else units.get(name)
+        if unit != spec.unit and not suffix:
+            raise ScanFormatError(path, f"meta.units.{name}", f"unit {unit!r}, expected {spec.unit!r}")
+        traces[name] = Trace(data, rate, unit)
+    return traces
+
+
+def _read_images(path: Path, variables: dict[str, Any]) -> dict[str, np.ndarray]:
+    images = {}
+    for variable in IMAGES:
+        if variable not in variables:
+            continue
+        name = _to_python(variables[variable])
+        if not isinstance(name, str) or not name or Path(name).name != name:
+            raise ScanFormatError(path, variable, f"must be a plain file name, got {name!r}")
+        image_path = path.with_name(name)
+        try:
+            data = image_path.read_bytes()
+        except OSError as exc:
+            raise ScanFormatError(path, variable, f"photo {name} cannot be read ({exc.strerror})") from None
+        image = decode_image(data)
+        if image is None:
+            raise ScanFormatError(path, variable, f"photo {name} is not a readable PNG or JPEG")
+        images[variable] = image
+    return images
+
+
+def load_scan(path: str | os.PathLike[str], *, images: bool = True) -> Scan:
+    """Read and validate a scan written by :func:`save_scan` (or by MATLAB in the same layout).
+
+    Raises :class:`ScanFormatError` naming the file and field for a truncated or foreign file, a wrong
+    shape, non-finite samples, a missing required field, a wrong or missing rate, an unknown schema
+    version or an unreadable photo. Missing optional channels are fine. ``images=False`` skips the photos.
+    """
+    mat_path = Path(path)
+    variables = _read_variables(mat_path)
+    meta, scan_meta = _parse_meta(mat_path, variables)
+    traces = _read_traces(mat_path, variables, meta)
+    raw = _read_traces(mat_path, variables, meta, suffix="_raw") if meta.get("raw_volts") else {}
+    photos = _read_images(mat_path, variables) if images else {}
+    try:
+        return Scan(scan_meta, traces, photos, raw)
+    except ScanError as exc:
+        raise ScanFormatError(mat_path, None, str(exc)) from None
