@@ -1,11 +1,49 @@
-"""Preprocessing of raw scanner signals (SPEC section 6): pure functions, no state, no I/O."""
+"""Preprocessing of raw scanner signals (SPEC section 6): pure functions, no state, no I/O.
+
+Slide signals go band limit -> 1 s window -> DFT321, in that order (SPEC 6): filtering the whole recording
+first keeps the filter transients out of the window. The quality checks used by the guided session live
+here too, because they are decided on the same preprocessed signals.
+
+Quality checks come in two forms. ``check_*`` functions return a list of human-readable problems (empty
+means the step is fine), which is what a session shows before offering a redo. :func:`slide_window` and
+:func:`slide_signal` raise :class:`QualityError` instead, because without a slide there is no window to
+return; its message is the same problem text.
+"""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from fractions import Fraction
+from functools import lru_cache
+
 import numpy as np
+from scipy import signal
+
+from scanner.scan import Trace
 
 IMAGE_BORDER_PX = 100
 """Pixels cropped from every border of a photo before any image feature (SPEC 6)."""
+
+VIBRATION_FS = 3000.0
+"""Sample rate of the DAQ channels (accelerometer, IR, FSR, flex, metal), Hz."""
+
+AUDIO_FS = 44100.0
+"""Sample rate of the microphone, Hz."""
+
+BAND_HZ = (10.0, 1000.0)
+"""Pass band of the slide vibration signals (SPEC 6)."""
+
+WINDOW_SECONDS = 1.0
+"""Length of the slide window cut from each slide recording (SPEC 6)."""
+
+NO_SLIDE = "no slide detected"
+SHORT_WINDOW = "window shorter than 1 s"
+CLIPPED = "clipped"
+NO_CONTACT = "no contact force"
+
+
+class QualityError(ValueError):
+    """A recorded step fails a quality check; the message is the problem as shown to the operator."""
 
 
 def crop_image(image: np.ndarray, border: int = IMAGE_BORDER_PX) -> np.ndarray:
@@ -24,10 +62,317 @@ def grayscale(rgb: np.ndarray) -> np.ndarray:
     rgb = np.asarray(rgb)
     if rgb.ndim != 3 or rgb.shape[2] != 3:
         raise ValueError(f"expected an RGB image of shape (h, w, 3), got {rgb.shape}")
-    rgb = rgb.astype(np.float64)
-    return 0.299 * rgb[..., 0] + 0.587 * rgb[..., 1] + 0.114 * rgb[..., 2]
+    # Channel by channel with one scratch array: the same IEEE operations, in the same order, as the
+    # expression in the docstring, without a (h, w, 3) float64 copy (seconds on a 12 MP photo).
+    gray = np.multiply(rgb[..., 0], 0.299, dtype=np.float64)
+    scratch = np.multiply(rgb[..., 1], 0.587, dtype=np.float64)
+    gray += scratch
+    np.multiply(rgb[..., 2], 0.114, out=scratch, dtype=np.float64)
+    gray += scratch
+    return gray
 
 
 def gray_uint8(gray: np.ndarray) -> np.ndarray:
     """8-bit version of a float gray image: ``floor(gray + 0.5)`` clipped to 0..255 (SPEC 6)."""
     return np.clip(np.floor(np.asarray(gray, dtype=np.float64) + 0.5), 0, 255).astype(np.uint8)
+
+
+def _axes(v: np.ndarray) -> np.ndarray:
+    """A recording as (n, axes) float64; a 1-D recording is one axis."""
+    array = np.asarray(v, dtype=np.float64)
+    if array.ndim == 1:
+        return array[:, None]
+    if array.ndim != 2:
+        raise ValueError(f"expected a recording of shape (n,) or (n, axes), got {array.shape}")
+    return array
+
+
+def slide_start(v: np.ndarray, *, fs: float = VIBRATION_FS, frame: int = 30, noise_frames: int = 25,
+                factor: float = 10.0) -> int | None:
+    """Sample index where a slide starts in a resting-then-sliding vibration recording (SPEC 6).
+
+    Each axis loses its mean over the first 0.25 s (gravity and offset). The frame energy is the sum of the
+    squared samples over a ``frame``-sample frame (10 ms) and over all axes; the noise level is the mean
+    energy of the first ``noise_frames`` frames. The start is the first frame, searching from frame 0 and
+    ignoring a trailing partial frame, whose energy is strictly greater than ``factor`` x noise.
+
+    Parameters
+    ----------
+    v : array of shape (n, axes) or (n,)
+        Acceleration in g.
+    fs : float
+        Sample rate in Hz (fixes the 0.25 s baseline).
+    frame, noise_frames, factor
+        Frame length in samples, frames in the noise estimate, threshold over the noise level.
+
+    Returns
+    -------
+    int or None
+        Start sample index (frame index x ``frame``), or None if no frame exceeds the threshold.
+
+    Raises
+    ------
+    QualityError
+        If the recording holds fewer than ``noise_frames`` whole frames (no noise level to compare with).
+    """
+    a = _axes(v)
+    n_frames = a.shape[0] // frame
+    if n_frames < noise_frames:
+        raise QualityError(f"{SHORT_WINDOW}: {a.shape[0]} samples hold fewer than the {noise_frames} "
+                           f"frames of {frame} samples needed for the noise level")
+    baseline = a[:int(round(0.25 * fs))].mean(axis=0)
+    centred = a[:n_frames * frame] - baseline
+    energy = np.sum((centred**2).reshape(n_frames, frame, a.shape[1]), axis=(1, 2))
+    noise = energy[:noise_frames].mean()
+    above = np.flatnonzero(energy > factor * noise)
+    return None if above.size == 0 else int(above[0]) * frame
+
+
+def _exact_samples(seconds: float | Fraction, fs: float, what: str) -> int:
+    count = Fraction(seconds) * Fraction(fs)
+    if count.denominator != 1:
+        raise ValueError(f"{what} at {float(count):g} is not a whole sample at {fs:g} Hz")
+    return int(count)
+
+
+@dataclass(frozen=True)
+class SlideWindow:
+    """The 1 s slide window shared by the vibration, IR and audio of one slide (SPEC 6).
+
+    ``start`` is the vibration sample index from :func:`slide_start`. IR is sampled with the vibration, so
+    it uses the same samples; audio starts at ``start * audio_fs / fs``, which must be a whole sample
+    (it is for every 10 ms frame boundary: 30 samples at 3000 Hz are 441 at 44100 Hz).
+
+    Examples
+    --------
+    >>> w = SlideWindow(1500)
+    >>> w.vibration, w.audio
+    (slice(1500, 4500, None), slice(22050, 66150, None))
+    """
+
+    start: int
+    fs: float = VIBRATION_FS
+    audio_fs: float = AUDIO_FS
+    seconds: float = WINDOW_SECONDS
+
+    def __post_init__(self) -> None:
+        if isinstance(self.start, bool) or int(self.start) != self.start or self.start < 0:
+            raise ValueError(f"window start must be a non-negative sample index, got {self.start!r}")
+        object.__setattr__(self, "start", int(self.start))
+        _exact_samples(Fraction(self.start) / Fraction(self.fs), self.audio_fs, "audio start")
+        _exact_samples(self.seconds, self.fs, "window length")
+        _exact_samples(self.seconds, self.audio_fs, "audio window length")
+
+    @property
+    def length(self) -> int:
+        """Samples of vibration (and IR) in the window: 3000."""
+        return _exact_samples(self.seconds, self.fs, "window length")
+
+    @property
+    def audio_start(self) -> int:
+        """First audio sample: ``start x audio_fs / fs``, exact."""
+        return _exact_samples(Fraction(self.start) / Fraction(self.fs), self.audio_fs, "audio start")
+
+    @property
+    def audio_length(self) -> int:
+        """Samples of audio in the window: 44100."""
+        return _exact_samples(self.seconds, self.audio_fs, "audio window length")
+
+    @property
+    def vibration(self) -> slice:
+        """Vibration samples of the window."""
+        return slice(self.start, self.start + self.length)
+
+    @property
+    def ir(self) -> slice:
+        """IR reflectance samples of the window (recorded on the DAQ with the vibration)."""
+        return self.vibration
+
+    @property
+    def audio(self) -> slice:
+        """Audio samples of the window."""
+        return slice(self.audio_start, self.audio_start + self.audio_length)
+
+
+def slide_window(v: np.ndarray, *, fs: float = VIBRATION_FS, audio_samples: int | None = None,
+                 ir_samples: int | None = None, audio_fs: float = AUDIO_FS, frame: int = 30,
+                 noise_frames: int = 25, factor: float = 10.0) -> SlideWindow:
+    """The 1 s window after the slide start of a vibration recording (SPEC 6).
+
+    ``audio_samples`` and ``ir_samples``, when given, are the lengths of the parallel audio and IR
+    recordings, which must hold the whole window too.
+
+    Raises
+    ------
+    QualityError
+        "no slide detected" if no frame exceeds the threshold; "window shorter than 1 s" if less than
+        1 s of any of the recordings follows the start.
+    """
+    start = slide_start(v, fs=fs, frame=frame, noise_frames=noise_frames, factor=factor)
+    if start is None:
+        raise QualityError(NO_SLIDE)
+    window = SlideWindow(start, fs=fs, audio_fs=audio_fs)
+    lengths = {"vibration": (len(v), window.vibration, fs), "IR": (ir_samples, window.ir, fs),
+               "audio": (audio_samples, window.audio, audio_fs)}
+    for what, (n, part, rate) in lengths.items():
+        if n is not None and n < part.stop:
+            raise QualityError(f"{SHORT_WINDOW}: {what} has {max(n - part.start, 0) / rate:.3f} s "
+                               f"after the slide start at {start / fs:.3f} s")
+    return window
+
+
+def check_slide(v: np.ndarray, *, fs: float = VIBRATION_FS, audio_samples: int | None = None,
+                ir_samples: int | None = None, factor: float = 10.0) -> list[str]:
+    """Problems of a slide recording: "no slide detected", "window shorter than 1 s: ..." or none.
+
+    The same decision as :func:`slide_window`, as a list for the session's redo prompt.
+    """
+    try:
+        slide_window(v, fs=fs, audio_samples=audio_samples, ir_samples=ir_samples, factor=factor)
+    except QualityError as problem:
+        return [str(problem)]
+    return []
+
+
+def check_clipped(volts: np.ndarray, low: float = 0.0, high: float = 5.0) -> list[str]:
+    """["clipped: ..."] if any sample reached the input range ``[low, high]`` V, else [].
+
+    A sample at or beyond a rail is counted: a saturated ADC or sensor output sits exactly at it.
+    """
+    values = np.asarray(volts, dtype=np.float64)
+    if not low < high:
+        raise ValueError(f"clipping range must have low < high, got [{low}, {high}]")
+    at_rail = int(np.count_nonzero((values <= low) | (values >= high)))
+    if at_rail == 0:
+        return []
+    return [f"{CLIPPED}: {at_rail} of {values.size} samples at the {low:g}..{high:g} V limits"]
+
+
+def check_contact(force: np.ndarray, min_newtons: float = 0.5) -> list[str]:
+    """["no contact force: ..."] if the force never reaches ``min_newtons``, else [].
+
+    The default 0.5 N is about five times the unloaded FSR reading of eq. 1 (0.098 N at 0 V), so resting
+    the unit on a sample without pressing does not pass.
+    """
+    values = np.asarray(force, dtype=np.float64)
+    if values.size == 0:
+        return [f"{NO_CONTACT}: the recording is empty"]
+    peak = float(values.max())
+    if peak >= min_newtons:
+        return []
+    return [f"{NO_CONTACT}: peak {peak:.3f} N is below {min_newtons:g} N"]
+
+
+@lru_cache(maxsize=8)
+def _bandpass(fs: float) -> np.ndarray:
+    return signal.butter(4, list(BAND_HZ), btype="bandpass", fs=fs, output="sos")
+
+
+def band_limit(v: np.ndarray, fs: float = VIBRATION_FS) -> np.ndarray:
+    """Each axis band-limited to 10-1000 Hz, zero phase (SPEC 6).
+
+    ``scipy.signal.butter(4, [10, 1000], btype="bandpass", fs=fs, output="sos")`` applied forward and
+    backward with ``sosfiltfilt`` along the samples of the *whole* recording.
+
+    Parameters
+    ----------
+    v : array of shape (n,) or (n, axes)
+    fs : float
+        Sample rate in Hz; must exceed 2000 Hz so the upper band edge lies below Nyquist.
+    """
+    array = np.asarray(v, dtype=np.float64)
+    if fs <= 2 * BAND_HZ[1]:
+        raise ValueError(f"sample rate {fs:g} Hz is too low for a {BAND_HZ[1]:g} Hz band edge")
+    sos = _bandpass(float(fs))
+    padlen = 3 * (2 * len(sos) + 1 - min((sos[:, 2] == 0).sum(), (sos[:, 5] == 0).sum()))
+    if array.shape[0] <= padlen:
+        raise ValueError(f"recording of {array.shape[0]} samples is too short to band-limit "
+                         f"(needs more than {padlen})")
+    return signal.sosfiltfilt(sos, array, axis=0)
+
+
+def dft321(a: np.ndarray) -> np.ndarray:
+    """Combine the axes of a vibration into one signal with the same spectrum energy (Landin et al. 2010).
+
+    With ``A_x, A_y, A_z`` the FFTs of the axes, bin k of the result has magnitude
+    ``sqrt(|A_x|^2 + |A_y|^2 + |A_z|^2)`` and the phase of ``A_x + A_y + A_z`` for k = 0..N//2; the
+    other bins are the complex conjugate mirror and the result is the real part of the inverse FFT
+    (SPEC 6). It preserves energy, ``sum(y^2) == sum over axes of sum(a^2)``, for even and odd N.
+
+    Parameters
+    ----------
+    a : array of shape (n, axes) or (n,)
+
+    Returns
+    -------
+    ndarray of shape (n,)
+        A single axis is returned unchanged (as a copy).
+    """
+    array = _axes(a)
+    if array.shape[1] == 1:
+        # The formula is the identity for one axis; skipping it keeps the samples bit-exact.
+        return array[:, 0].copy()
+    n = array.shape[0]
+    spectra = np.fft.rfft(array, axis=0)
+    magnitude = np.sqrt(np.sum(spectra.real**2 + spectra.imag**2, axis=1))
+    phase = np.angle(np.sum(spectra, axis=1))
+    return np.fft.irfft(magnitude * np.exp(1j * phase), n=n)
+
+
+def slide_signal(trace: Trace, window: SlideWindow | None = None) -> np.ndarray:
+    """The slide signal ``v`` (from ``v_ts``) or ``v_f`` (from ``v_fs``): band limit, window, DFT321.
+
+    SPEC 6, in that order. ``window`` defaults to the one detected on ``trace`` itself.
+
+    Raises
+    ------
+    QualityError
+        If no slide is detected or less than 1 s follows the start.
+    """
+    data = trace.data
+    if window is None:
+        window = slide_window(data, fs=trace.fs)
+    if window.vibration.stop > trace.n:
+        raise QualityError(f"{SHORT_WINDOW}: {(trace.n - window.start) / trace.fs:.3f} s after the start")
+    return dft321(band_limit(data, trace.fs)[window.vibration])
+
+
+def fsr_newtons(volts: np.ndarray) -> np.ndarray:
+    """FSR force from its voltage, paper eq. 1: ``f = 9.81 m/s^2 * 0.01 kg * exp(1.33 V^-1 * f')``.
+
+    Interpretation (SPEC 5) of the garbled equation: an exponential fit of the FSR divider output, so
+    0 V reads 0.0981 N (the 10 g reference mass).
+    """
+    return 9.81 * 0.01 * np.exp(1.33 * np.asarray(volts, dtype=np.float64))
+
+
+def flex_degrees(volts: np.ndarray, v0: float, deg0: float, v1: float, deg1: float) -> np.ndarray:
+    """Flex sensor angle by a two-point calibration: the line through (v0, deg0) and (v1, deg1) (SPEC 5)."""
+    if v0 == v1:
+        raise ValueError(f"flex calibration needs two different voltages, got {v0} V twice")
+    slope = (deg1 - deg0) / (v1 - v0)
+    return deg0 + slope * (np.asarray(volts, dtype=np.float64) - v0)
+
+
+def metal_sign(volts: np.ndarray, threshold: float = 2.5) -> np.ndarray:
+    """Metal electrode: +1 (conductive, the electrodes are shorted) below ``threshold`` V, else -1 (SPEC 5)."""
+    return np.where(np.asarray(volts, dtype=np.float64) < threshold, 1.0, -1.0)
+
+
+def accel_g(volts: np.ndarray, zero: float = 1.65, sensitivity: float = 0.330) -> np.ndarray:
+    """ADXL335 acceleration in g: ``(volts - zero) / sensitivity`` (zero-g 1.65 V, 0.330 V/g; SPEC 5)."""
+    if not sensitivity > 0:
+        raise ValueError(f"accelerometer sensitivity must be positive V/g, got {sensitivity}")
+    return (np.asarray(volts, dtype=np.float64) - zero) / sensitivity
+
+
+def remove_friction_offset(f_frt: np.ndarray, fs: float = VIBRATION_FS) -> np.ndarray:
+    """``f_frt`` minus its mean over the first 0.1 s (300 samples at 3000 Hz), SPEC 6.
+
+    The tangential FSR is preloaded by the casing; the unit does not touch the sample at first, so that
+    mean is the zero of the friction force. A recording shorter than 0.1 s uses all of it.
+    """
+    values = np.asarray(f_frt, dtype=np.float64)
+    if values.ndim != 1 or values.size == 0:
+        raise ValueError(f"f_frt must be a non-empty 1-D force trace, got shape {values.shape}")
+    return values - values[:int(round(0.1 * fs))].mean()
