@@ -1,0 +1,409 @@
+"""Audio features, 35 per signal (SPEC section 7.3; paper section IV-D).
+
+The paper computes "35 well-known audio features" with the MATLAB toolbox of Giannakopoulos & Pikrakis
+(*Introduction to Audio Analysis: A MATLAB Approach*, 2014; repository
+``pikrakis/Introduction-to-Audio-Analysis---a-MATLAB-approach``, ``library/stFeatureExtraction.m`` and the
+``feature_*.m`` files it calls). This module follows that toolbox's formulas, rewritten for frame matrices:
+every family function takes a 2-D array with one frame (or one frame's spectrum) per row and returns one
+value (or one vector) per row, with no loop over frames.
+
+Short-term analysis (``stFeatureExtraction.m``): window ``round(0.050 fs)`` and step ``round(0.025 fs)``
+samples with MATLAB rounding (half away from zero: 2205 and 1103 at 44.1 kHz, 38 frames in 1 s); each frame
+is multiplied by a symmetric Hamming window; its spectrum is ``|fft(frame)| / N`` over the first
+``ceil(N/2)`` bins (``getDFT.m``); a frame with ``sum(|frame|) <= eps`` is silent and contributes zeros to
+every feature. Each feature of ``compute`` is the mean over the frames. Deliberate differences from the
+toolbox (SPEC 7.3): the columns are in ``NAMES`` order (the toolbox puts the MFCCs before the harmonic
+ratio and F0), and the toolbox's 3-point median filter on its last feature row (meant for F0, it hits the
+12th chroma value) is not applied.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from scipy import fft as sp_fft
+
+EPS = float(np.finfo(np.float64).eps)
+"""MATLAB's ``eps`` (2^-52): the toolbox's guard against division by zero and ``log(0)``."""
+
+WINDOW_S = 0.050
+STEP_S = 0.025
+N_BLOCKS = 10
+ROLLOFF_C = 0.90
+N_MFCC = 13
+N_CHROMA = 12
+AUTOCORR_TOL = 1e-12
+"""Autocorrelation values within this fraction of ``R(0)`` are FFT round-off and count as exactly 0."""
+MIN_WINDOW = 20
+"""Shortest window (samples) for which the 10 spectral sub-bands of the entropy are non-empty."""
+
+NAMES: tuple[str, ...] = (
+    "zcr",
+    "energy",
+    "energy_entropy",
+    "spectral_centroid",
+    "spectral_spread",
+    "spectral_entropy",
+    "spectral_flux",
+    "spectral_rolloff",
+    "harmonic_ratio",
+    "f0",
+    *(f"mfcc_{i:02d}" for i in range(1, N_MFCC + 1)),
+    *(f"chroma_{i:02d}" for i in range(1, N_CHROMA + 1)),
+)
+"""The 35 feature names in column order; the caller prefixes them with ``audio.finger.``/``audio.tool.``."""
+
+
+def matlab_round(x: float) -> int:
+    """Round half away from zero, as MATLAB's ``round`` (numpy rounds half to even: 1102.5 -> 1102).
+
+    Computed from the exact fractional part, so 0.49999999999999994 still rounds down.
+    """
+    magnitude = abs(x)
+    floor = math.floor(magnitude)
+    rounded = floor + 1 if magnitude - floor >= 0.5 else floor
+    return int(math.copysign(rounded, x))
+
+
+def window_and_step(fs: float) -> tuple[int, int]:
+    """Window and step in samples, ``round(0.050 fs)`` and ``round(0.025 fs)`` (``stFeatureExtraction.m``).
+
+    >>> window_and_step(44100.0)
+    (2205, 1103)
+    """
+    return matlab_round(WINDOW_S * fs), matlab_round(STEP_S * fs)
+
+
+def frames(signal: np.ndarray, fs: float = 44100.0) -> np.ndarray:
+    """Hamming-windowed short-term frames, one per row, shape ``(n_frames, N)``.
+
+    ``n_frames = floor((L - N) / step) + 1`` frames start at ``0, step, 2 step, ...`` and each is
+    multiplied by the symmetric Hamming window ``0.54 - 0.46 cos(2 pi n / (N - 1))`` (MATLAB
+    ``window(@hamming, N)``), as in ``stFeatureExtraction.m``.
+
+    Raises
+    ------
+    ValueError
+        If ``fs`` is not a positive finite number or gives a window under 20 samples, or the signal is
+        not 1-D, not finite, or shorter than one window.
+    """
+    x = _checked_signal(signal, fs)
+    window, step = window_and_step(fs)
+    framed = np.lib.stride_tricks.sliding_window_view(x, window)[::step]
+    return framed * np.hamming(window)
+
+
+def spectrum(framed: np.ndarray) -> np.ndarray:
+    """Magnitude spectra ``|fft(frame)| / N`` over the first ``ceil(N/2)`` bins (``getDFT.m``)."""
+    n = framed.shape[1]
+    return np.abs(sp_fft.rfft(framed, axis=1)[:, : (n + 1) // 2]) / n
+
+
+def zcr(framed: np.ndarray) -> np.ndarray:
+    """Zero-crossing rate ``Z = 1/(2N) sum_n |sgn x(n) - sgn x(n-1)|`` with ``x(-1) = 0`` (``feature_zcr.m``).
+
+    Because the sample before the frame counts as 0, a frame with a non-zero first sample gets an extra
+    ``1/(2N)``; a sample that is exactly 0 counts as half a crossing on each side.
+    """
+    signs = np.sign(framed)
+    changes = np.abs(np.diff(signs, axis=1, prepend=0.0)).sum(axis=1)
+    return changes / (2.0 * framed.shape[1])
+
+
+def energy(framed: np.ndarray) -> np.ndarray:
+    """Short-term energy ``E = 1/N sum_n x(n)^2`` (``feature_energy.m``)."""
+    return np.mean(framed**2, axis=1)
+
+
+def _block_entropy(values: np.ndarray, n_blocks: int) -> np.ndarray:
+    """Entropy ``-sum_j e_j log2(e_j + eps)`` of the normalised energies ``e_j`` of ``n_blocks`` sub-blocks.
+
+    The row is cut into ``n_blocks`` contiguous blocks of ``floor(len / n_blocks)`` values, trailing values
+    dropped; ``e_j`` = block energy / (energy of the whole row + eps), as both toolbox entropies do.
+    """
+    length = values.shape[1] // n_blocks
+    total = np.sum(values**2, axis=1, keepdims=True)
+    blocks = values[:, : length * n_blocks].reshape(values.shape[0], n_blocks, length)
+    shares = np.sum(blocks**2, axis=2) / (total + EPS)
+    return -np.sum(shares * np.log2(shares + EPS), axis=1)
+
+
+def energy_entropy(framed: np.ndarray, n_blocks: int = N_BLOCKS) -> np.ndarray:
+    """Entropy of energy over ``n_blocks`` sub-frames (``feature_energy_entropy.m``), in bits.
+
+    0 when one sub-frame holds all the energy, ``log2(n_blocks)`` when all hold the same.
+    """
+    return _block_entropy(framed, n_blocks)
+
+
+def spectral_centroid_spread(spectra: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """Spectral centroid and spread, both divided by ``fs/2`` (``feature_spectral_centroid.m``).
+
+    With ``K`` bins, the toolbox's frequency axis ``m_k = fs/(2K) * k`` for ``k = 1..K`` (one bin above the
+    DFT's ``(k-1) fs/N``) and ``X`` the spectrum divided by its maximum:
+    ``C = sum(m X) / (sum X + eps)``, ``S = sqrt(sum((m - C)^2 X) / (sum X + eps))``. An all-zero spectrum
+    gives 0 for both.
+    """
+    n_bins = spectra.shape[1]
+    m = fs / (2.0 * n_bins) * np.arange(1, n_bins + 1)
+    peak = spectra.max(axis=1, keepdims=True)
+    x = np.divide(spectra, peak, out=np.zeros_like(spectra), where=peak > 0)
+    weight = x.sum(axis=1) + EPS
+    centroid = (x @ m) / weight
+    spread = np.sqrt(np.sum((m - centroid[:, None]) ** 2 * x, axis=1) / weight)
+    return centroid / (fs / 2.0), spread / (fs / 2.0)
+
+
+def spectral_entropy(spectra: np.ndarray, n_blocks: int = N_BLOCKS) -> np.ndarray:
+    """Entropy of the spectral energy over ``n_blocks`` sub-bands (``feature_spectral_entropy.m``), in bits.
+
+    Same formula as ``energy_entropy`` on the magnitude spectrum; a flat spectrum gives
+    ``log2(n_blocks)`` up to the trailing bins the sub-bands drop.
+    """
+    return _block_entropy(spectra, n_blocks)
+
+
+def spectral_flux(spectra: np.ndarray) -> np.ndarray:
+    """Spectral flux ``F_i = sum_k (X_i(k)/sum X_i - X_{i-1}(k)/sum(X_{i-1} + eps))^2`` (``feature_spectral_flux.m``).
+
+    The first frame is compared with itself, as ``stFeatureExtraction.m`` does, so its flux is ~0. An
+    all-zero current spectrum contributes 0 in place of the toolbox's 0/0.
+    """
+    previous = np.concatenate([spectra[:1], spectra[:-1]])
+    total = spectra.sum(axis=1, keepdims=True)
+    current = np.divide(spectra, total, out=np.zeros_like(spectra), where=total > 0)
+    prior = previous / np.sum(previous + EPS, axis=1, keepdims=True)
+    return np.sum((current - prior) ** 2, axis=1)
+
+
+def spectral_rolloff(spectra: np.ndarray, c: float = ROLLOFF_C) -> np.ndarray:
+    """Spectral roll-off ``j / K`` (``feature_spectral_rolloff.m``).
+
+    ``j`` is the first 0-based bin at which the cumulative spectral energy ``sum_{k<=j} X(k)^2`` exceeds
+    ``c`` times the total; ``K`` the number of bins. If no bin does (an all-zero spectrum) the toolbox's
+    loop runs off the end and gives ``(K-1)/K``.
+    """
+    power = spectra**2
+    cumulative = np.cumsum(power, axis=1)
+    exceeded = cumulative > c * power.sum(axis=1, keepdims=True)
+    first = np.where(exceeded.any(axis=1), exceeded.argmax(axis=1), spectra.shape[1] - 1)
+    return first / spectra.shape[1]
+
+
+def harmonic(framed: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """Harmonic ratio and fundamental frequency in Hz per frame (``feature_harmonic.m``).
+
+    With ``R(m)`` the autocorrelation at lag ``m``, ``m0`` the first lag ``m >= 2`` where ``R`` crosses
+    from ``>= 0`` to ``< 0`` (``N`` if none) and ``M = min(round(0.016 fs), N-1)``, the normalised
+    autocorrelation is ``Gamma(m) = R(m) / (sqrt(R(0) sum_{n<N-m} x(n)^2) + eps)`` for ``m0 <= m <= M``
+    and 0 below ``m0``. If ``Gamma`` is noise-like (its zero-crossing rate, ``zcr``, exceeds 0.15) both
+    values are 0 (unvoiced). Otherwise ``HR = max Gamma`` at lag ``T0`` (first maximum) and
+    ``f0 = fs / T0``, set to 0 when it exceeds 5000 Hz or ``HR < 0.1``.
+
+    ``R`` is computed by FFT, as MATLAB's ``xcorr`` does; deliberately, values within ``1e-12 R(0)`` of
+    zero are set to 0, so that nearly silent frames get the exact-arithmetic result on every machine
+    instead of one decided by round-off.
+    """
+    n = framed.shape[1]
+    n_fft = sp_fft.next_fast_len(2 * n - 1, real=True)
+    autocorr = sp_fft.irfft(np.abs(sp_fft.rfft(framed, n_fft, axis=1)) ** 2, n_fft, axis=1)[:, :n]
+    squares = framed**2
+    frame_energy = squares.sum(axis=1, keepdims=True)
+    # FFT round-off (~1e-15 R(0)) would otherwise decide the sign tests and, divided by the eps of an
+    # all-zero head, the whole Gamma of a nearly silent frame; exact arithmetic gives 0 there.
+    autocorr[np.abs(autocorr) <= AUTOCORR_TOL * frame_energy] = 0.0
+    first_zero = _first_downward_crossing(autocorr)
+    max_lag = min(matlab_round(0.016 * fs), n - 1)
+    lags = np.arange(1, max_lag + 1)
+    head_energy = np.cumsum(squares, axis=1)[:, n - lags - 1]
+    denominator = np.sqrt(frame_energy * head_energy) + EPS
+    gamma = np.where(lags >= first_zero[:, None], autocorr[:, lags] / denominator, 0.0)
+    voiced = zcr(gamma) <= 0.15
+    ratio = np.where(voiced, gamma.max(axis=1), 0.0)
+    f0 = fs / (gamma.argmax(axis=1) + 1.0)
+    f0 = np.where(voiced & (f0 <= 5000.0) & (ratio >= 0.1), f0, 0.0)
+    return ratio, f0
+
+
+def _first_downward_crossing(autocorr: np.ndarray) -> np.ndarray:
+    """Per row, the first lag ``m >= 2`` with ``R(m) < 0 <= R(m-1)``; the frame length ``N`` if none."""
+    crossing = (autocorr[:, 2:] < 0) & (autocorr[:, 1:-1] >= 0)
+    return np.where(crossing.any(axis=1), crossing.argmax(axis=1) + 2, autocorr.shape[1])
+
+
+@lru_cache(maxsize=8)
+def mfcc_filter_bank(n_bins: int, fs: float) -> np.ndarray:
+    """The toolbox's 40 triangular filters, shape ``(40, n_bins)`` (``feature_mfccs_init.m``, after Slaney).
+
+    Edge frequencies: 13 linear from 133.3333 Hz in steps of 66.66666666 Hz, then 29 log-spaced by the
+    factor 1.0711703; filter ``j`` rises from edge ``j`` to edge ``j+1`` and falls to edge ``j+2``, with
+    peak height ``2 / (upper - lower)`` (equal area). The filters are evaluated on the toolbox's axis
+    ``f_k = k fs / n_bins`` for ``k = 0..n_bins-1`` although only the first half of the spectrum is passed
+    in, so bin ``k`` stands for twice its true frequency; kept deliberately to match the toolbox.
+    The returned array is read-only (it is cached).
+    """
+    linear = 133.3333 + np.arange(13) * 66.66666666
+    logarithmic = linear[-1] * 1.0711703 ** np.arange(1, 27 + 3)
+    edges = np.concatenate([linear, logarithmic])
+    lower, centre, upper = edges[:-2, None], edges[1:-1, None], edges[2:, None]
+    height = 2.0 / (upper - lower)
+    freqs = np.arange(n_bins) / n_bins * fs
+    rising = ((freqs > lower) & (freqs <= centre)) * height * (freqs - lower) / (centre - lower)
+    falling = ((freqs > centre) & (freqs < upper)) * height * (upper - freqs) / (upper - centre)
+    bank = rising + falling
+    bank.flags.writeable = False
+    return bank
+
+
+@lru_cache(maxsize=1)
+def _dct_matrix(n_ceps: int = N_MFCC, n_filters: int = 40) -> np.ndarray:
+    """Orthonormal DCT-II rows ``sqrt(2/J) cos(k (2j+1) pi / (2J))``, row 0 scaled by ``1/sqrt(2)``."""
+    k = np.arange(n_ceps)[:, None]
+    j = np.arange(n_filters)[None, :]
+    matrix = np.sqrt(2.0 / n_filters) * np.cos(k * (2 * j + 1) * np.pi / (2 * n_filters))
+    matrix[0] *= np.sqrt(0.5)
+    matrix.flags.writeable = False
+    return matrix
+
+
+def mfcc(spectra: np.ndarray, fs: float) -> np.ndarray:
+    """13 MFCCs per frame, ``c = DCT(log10(W X + eps))`` (``feature_mfccs.m``), shape ``(n_frames, 13)``.
+
+    ``W`` is ``mfcc_filter_bank(K, fs)`` for the ``K`` spectrum bins and the DCT is the orthonormal DCT-II
+    of the 40 filter outputs, first 13 coefficients. A silent spectrum gives ``c_0 = sqrt(40) log10(eps)``
+    and zeros elsewhere.
+    """
+    bank = mfcc_filter_bank(spectra.shape[1], float(fs))
+    return np.log10(spectra @ bank.T + EPS) @ _dct_matrix().T
+
+
+@lru_cache(maxsize=8)
+def _chroma_classes(n: int, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per DFT bin of an ``n``-sample frame: whether it is in 55-2000 Hz, and its pitch class 0..11.
+
+    The toolbox's chromatic scale is ``55 * 2^(i/12)`` Hz for every ``i >= 0`` up to the highest bin
+    frequency; a bin takes the nearest note (first on ties), and note ``i`` has class ``i mod 12``, so
+    class 0 (``chroma_01``) is A, class 1 A#, ..., class 11 G#.
+    """
+    freqs = np.arange(n // 2) * (fs / n)
+    in_band = (freqs >= 55.0) & (freqs <= 2000.0)
+    top = freqs[-1]
+    n_notes = int(np.floor(12.0 * np.log2(top / 55.0))) + 2 if top >= 55.0 else 0
+    notes = 55.0 * 2.0 ** (np.arange(n_notes) / 12.0)
+    notes = notes[notes <= top]
+    if notes.size == 0:
+        # every bin then lies below 55 Hz and is out of band, so its class is never used
+        notes = np.array([55.0])
+    classes = np.argmin(np.abs(freqs[:, None] - notes[None, :]), axis=1) % N_CHROMA
+    in_band.flags.writeable = False
+    classes.flags.writeable = False
+    return in_band, classes
+
+
+def chroma(framed: np.ndarray, fs: float) -> np.ndarray:
+    """12 chroma values per frame, ``C = y / (c + 1)`` (``feature_chroma_vector.m``), shape ``(n_frames, 12)``.
+
+    Each frame is scaled to peak 1, ``|fft|`` is taken over the first ``floor(N/2)`` bins (not divided by
+    ``N``), bins outside 55-2000 Hz are zeroed, then only strict local maxima are kept (neighbours outside
+    the array count as 0). ``y`` sums the kept magnitudes per pitch class, ``c`` counts them. Pitch classes
+    start at A (55 Hz): ``chroma_01`` is A, ``chroma_02`` A#, ..., ``chroma_12`` G#. An all-zero frame
+    gives zeros.
+    """
+    n = framed.shape[1]
+    in_band, classes = _chroma_classes(n, float(fs))
+    peak = np.abs(framed).max(axis=1, keepdims=True)
+    magnitude = np.abs(sp_fft.rfft(framed, axis=1)[:, : n // 2]) * in_band
+    magnitude = np.divide(magnitude, peak, out=np.zeros_like(magnitude), where=peak > 0)
+    padded = np.pad(magnitude, ((0, 0), (1, 1)))
+    is_peak = (magnitude > padded[:, :-2]) & (magnitude > padded[:, 2:])
+    membership = np.eye(N_CHROMA)[classes]
+    sums = (magnitude * is_peak) @ membership
+    counts = is_peak.astype(np.float64) @ membership
+    return sums / (counts + 1.0)
+
+
+def frame_features(signal: np.ndarray, fs: float = 44100.0) -> np.ndarray:
+    """The per-frame feature matrix, shape ``(n_frames, 35)``, columns in ``NAMES`` order.
+
+    Rows of silent frames (``sum(|windowed frame|) <= eps``) are all zero, as in ``stFeatureExtraction.m``;
+    they still serve as the previous spectrum of the next frame's flux.
+
+    Raises
+    ------
+    ValueError
+        For bad input, see ``frames``.
+    """
+    framed = frames(signal, fs)
+    spectra = spectrum(framed)
+    centroid, spread = spectral_centroid_spread(spectra, fs)
+    ratio, f0 = harmonic(framed, fs)
+    table = np.column_stack([
+        zcr(framed),
+        energy(framed),
+        energy_entropy(framed),
+        centroid,
+        spread,
+        spectral_entropy(spectra),
+        spectral_flux(spectra),
+        spectral_rolloff(spectra),
+        ratio,
+        f0,
+        mfcc(spectra, fs),
+        chroma(framed, fs),
+    ])
+    silent = np.sum(np.abs(framed), axis=1) <= EPS
+    table[silent] = 0.0
+    return table
+
+
+def compute(signal: np.ndarray, fs: float = 44100.0) -> dict[str, float]:
+    """The 35 audio features of one windowed signal: the mean of each ``frame_features`` column.
+
+    Parameters
+    ----------
+    signal : np.ndarray
+        1-D audio samples (full scale), normally the 1 s slide window of 44100 samples (SPEC 6).
+    fs : float
+        Sampling rate in Hz.
+
+    Returns
+    -------
+    dict[str, float]
+        Feature name (``NAMES``) to value; every value is finite.
+
+    Raises
+    ------
+    ValueError
+        If the signal is not 1-D, has non-finite samples or is shorter than one window, or ``fs`` is not a
+        positive finite number or is too low for a 20-sample window.
+
+    Examples
+    --------
+    >>> t = np.arange(44100) / 44100.0
+    >>> round(compute(np.sin(2 * np.pi * 441.0 * t))["f0"], 6)
+    441.0
+    """
+    means = frame_features(signal, fs).mean(axis=0)
+    return {name: float(value) for name, value in zip(NAMES, means, strict=True)}
+
+
+def _checked_signal(signal: np.ndarray, fs: float) -> np.ndarray:
+    """The signal as float64 after checking it and ``fs``; raises ValueError naming the problem."""
+    if not isinstance(fs, int | float | np.integer | np.floating) or not math.isfinite(fs) or fs <= 0:
+        raise ValueError(f"audio sampling rate must be a positive finite number, got {fs!r}")
+    window, _ = window_and_step(fs)
+    if window < MIN_WINDOW:
+        raise ValueError(f"audio sampling rate {fs} Hz gives a {window}-sample window; need >= {MIN_WINDOW}")
+    x = np.asarray(signal)
+    if x.ndim != 1:
+        raise ValueError(f"audio signal must be 1-D, got shape {x.shape}")
+    if not (np.issubdtype(x.dtype, np.number) and not np.iscomplexobj(x)):
+        raise ValueError(f"audio signal must be real numbers, got dtype {x.dtype}")
+    x = x.astype(np.float64)
+    if not np.all(np.isfinite(x)):
+        raise ValueError("audio signal contains NaN or infinite samples")
+    if x.size < window:
+        raise ValueError(f"audio signal has {x.size} samples, fewer than one {window}-sample window")
+    return x
