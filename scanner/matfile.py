@@ -160,10 +160,10 @@ def _to_python(value: Any) -> Any:
 
 
 def _read_variables(path: Path) -> dict[str, Any]:
+    if not path.is_file():
+        raise ScanFormatError(path, None, "file not found")
     try:
         return scipy.io.loadmat(path, squeeze_me=False, struct_as_record=False, chars_as_strings=True)
-    except FileNotFoundError:
-        raise ScanFormatError(path, None, "file not found") from None
     except Exception as exc:  # scipy raises many types for truncated or foreign files
         reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise ScanFormatError(path, None, f"not a readable MATLAB v5 .mat file ({reason})") from None

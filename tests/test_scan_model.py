@@ -1,0 +1,132 @@
+"""The data model validates itself on construction (SPEC 3)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import make_meta, make_scan
+
+from scanner.scan import CHANNELS, Recording, Scan, ScanError, Trace
+
+
+def test_trace_stores_a_read_only_float64_copy():
+    source = np.arange(6, dtype=np.int32).reshape(3, 2)
+    trace = Trace(source, 3000, "g")
+    source[0, 0] = 99
+    assert trace.data.dtype == np.float64 and trace.data[0, 0] == 0.0
+    with pytest.raises(ValueError):
+        trace.data[0, 0] = 1.0
+    assert trace.n == 3 and trace.duration == pytest.approx(1e-3)
+
+
+@pytest.mark.parametrize(
+    ("data", "fs", "unit", "message"),
+    [
+        ([1.0, math.nan, 2.0], 3000, "g", "non-finite samples (first at sample 1)"),
+        ([1.0, math.inf], 3000, "g", "non-finite"),
+        ([], 3000, "g", "empty"),
+        (np.zeros((2, 2, 2, 2)), 3000, "g", "1-D, 2-D or 3-D"),
+        ([1.0], 0, "g", "finite and positive"),
+        ([1.0], -3000, "g", "finite and positive"),
+        ([1.0], math.nan, "g", "finite and positive"),
+        ([1.0], "fast", "g", "must be a number"),
+        ([1.0], 3000, "", "unit"),
+        (["a", "b"], 3000, "g", "not numeric"),
+    ],
+)
+def test_trace_rejects_bad_input(data, fs, unit, message):
+    with pytest.raises(ScanError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        Trace(data, fs, unit)
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("label", "C6S1M1P2", "not a C\\?S\\?M\\?P\\?X\\? material label"),
+        ("label", "granite", "material label"),
+        ("operator", "", "operator"),
+        ("operator", "<script>", "operator"),
+        ("sample_id", "../etc", "sample id"),
+        ("sample_id", "a/b", "sample id"),
+        ("session_id", "", "session_id"),
+        ("scan_index", 0, "positive integer"),
+        ("scan_index", 1.5, "positive integer"),
+        ("started", "yesterday", "ISO 8601"),
+        ("atk", 0.3, "five-step scale"),
+        ("cyd", 2.0, "five-step scale"),
+        ("mass_g", -3.0, "positive"),
+        ("volume_cm3", math.inf, "positive"),
+        ("t_amb", math.inf, "finite"),
+        ("schema_version", 2, "not supported"),
+        ("device", {"bad key": "x"}, "MATLAB field name"),
+    ],
+)
+def test_meta_rejects_bad_fields(field, value, message):
+    with pytest.raises(ScanError, match=message):
+        make_meta(**{field: value})
+
+
+def test_meta_allows_unknown_values_as_nan_and_compares_them_equal():
+    a = make_meta(atk=math.nan, cyd=math.nan, mass_g=math.nan, t_amb=math.nan)
+    b = make_meta(atk=math.nan, cyd=math.nan, mass_g=math.nan, t_amb=math.nan)
+    assert a == b and a.scan_id == "granite-01-001"
+    assert a != make_meta(atk=math.nan, cyd=math.nan, mass_g=1.0, t_amb=math.nan)
+
+
+def test_scan_checks_rate_unit_and_shape_of_every_channel():
+    meta = make_meta()
+    with pytest.raises(ScanError, match="v_ts is sampled at 1000 Hz, expected 3000 Hz"):
+        Scan(meta, {"v_ts": Trace(np.zeros((10, 3)), 1000, "g")})
+    with pytest.raises(ScanError, match="v_ts has unit 'm/s\\^2', expected 'g'"):
+        Scan(meta, {"v_ts": Trace(np.zeros((10, 3)), 3000, "m/s^2")})
+    with pytest.raises(ScanError, match=r"v_ts has shape \(10, 2\), expected \(n, 3\)"):
+        Scan(meta, {"v_ts": Trace(np.zeros((10, 2)), 3000, "g")})
+    with pytest.raises(ScanError, match=r"f_press has shape \(10, 1\), expected \(n,\)"):
+        Scan(meta, {"f_press": Trace(np.zeros((10, 1)), 3000, "N")})
+    with pytest.raises(ScanError, match="'v_xx' is not a scan channel"):
+        Scan(meta, {"v_xx": Trace(np.zeros((10, 3)), 3000, "g")})
+
+
+def test_rigid_scan_has_no_fold_channels():
+    with pytest.raises(ScanError, match="rigid"):
+        make_scan(rigid=True)
+    scan = make_scan(rigid=True, drop=("f_fold", "alpha_f"))
+    assert scan.missing_channels() == []
+    assert make_scan(drop=("alpha_f",)).missing_channels() == ["alpha_f"]
+
+
+def test_scan_images_must_be_rgb_uint8():
+    meta = make_meta()
+    with pytest.raises(ScanError, match="RGB uint8"):
+        Scan(meta, images={"I_disp": np.zeros((10, 10), np.uint8)})
+    with pytest.raises(ScanError, match="RGB uint8"):
+        Scan(meta, images={"I_disp": np.zeros((10, 10, 3), np.float64)})
+    with pytest.raises(ScanError, match="not a photo variable"):
+        Scan(meta, images={"I_side": np.zeros((10, 10, 3), np.uint8)})
+
+
+def test_scan_orders_channels_like_the_spec_and_gives_clear_key_errors(scan):
+    assert list(scan.traces) == list(CHANNELS)
+    assert scan.get("nope") is None
+    with pytest.raises(KeyError, match="granite-01-001 has no channel 'nope'"):
+        scan["nope"]
+
+
+def test_recording_checks_roles():
+    vib = Trace(np.zeros(100), 2200, "V")
+    taxels = Trace(np.zeros((10, 4, 4)), 100, "kPa")
+    rec = Recording("r1", {"vib": vib, "tax": taxels}, {"vibration": "vib", "taxels": "tax"}, label="felt",
+                    group={"object": "felt-1"})
+    assert rec.role("taxels") is taxels and rec.role("audio") is None
+    with pytest.raises(ScanError, match="unknown role 'smell'"):
+        Recording("r1", {"vib": vib}, {"smell": "vib"})
+    with pytest.raises(ScanError, match="names missing channel 'nope'"):
+        Recording("r1", {"vib": vib}, {"vibration": "nope"})
+    with pytest.raises(ScanError, match="role 'taxels' needs a 3-D channel"):
+        Recording("r1", {"vib": vib}, {"taxels": "vib"})
+    with pytest.raises(ScanError, match="force_xyz"):
+        Recording("r1", {"f": Trace(np.zeros((5, 2)), 100, "N")}, {"force_xyz": "f"})
+    with pytest.raises(ScanError, match="no channels"):
+        Recording("r1", {})
