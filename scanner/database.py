@@ -277,11 +277,11 @@ class Database:
 
     def records(self, *, label: str | None = None, sample: str | None = None, session: str | None = None,
                 operator: str | None = None) -> list[ScanRecord]:
-        """Catalog rows, optionally filtered; ``label`` may be a prefix ("C6" = every stone)."""
+        """Catalog rows, optionally filtered; ``label`` may be a class prefix ("C6" = every stone, not C60)."""
         clauses, params = [], []
         if label:
-            clauses.append("label LIKE ? ESCAPE '\\'")
-            params.append(label.replace("\\", "\\\\").replace("%", "\\%").replace("_", "\\_") + "%")
+            clauses.append("label >= ? AND label < ?")
+            params.extend(_label_range(label))
         for column, value in (("sample_id", sample), ("session_id", session), ("operator", operator)):
             if value:
                 clauses.append(f"{column} = ?")
@@ -405,6 +405,21 @@ class Database:
             if broken.exists():
                 os.replace(broken, self.root / f"{CATALOG}{suffix}.broken-{stamp}")
         self._create_schema()
+
+
+_NEXT_PART = {"C": "S", "S": "M", "M": "P", "P": "X"}
+
+
+def _label_range(prefix: str) -> tuple[str, str]:
+    """Index-friendly range of labels under a class prefix: "C6" -> ["C6S", "C6S~"), a full label -> itself.
+
+    Closing the prefix with the next part's letter keeps "C6" from matching "C60S1...".
+    """
+    last_letter = next((ch for ch in reversed(prefix) if ch.isalpha()), "")
+    if last_letter == "X" or last_letter not in _NEXT_PART or not prefix[-1].isdigit():
+        return prefix, prefix + "\x00"
+    start = prefix + _NEXT_PART[last_letter]
+    return start, start + "~"
 
 
 def _record(row: sqlite3.Row) -> ScanRecord:

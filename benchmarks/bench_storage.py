@@ -1,0 +1,114 @@
+"""Storage benchmark: .mat save/load against numpy.save/load of the same arrays, catalog queries at 10,000 scans.
+
+Ratios are against references run in the same process, so they compare across machines.
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from conftest import make_scan  # noqa: E402
+
+from scanner.database import Database, FileEntry  # noqa: E402
+from scanner.matfile import load_scan, save_scan  # noqa: E402
+
+
+def best_of(fn, repeat: int = 5) -> float:
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return min(times)
+
+
+def bench_mat(folder: Path) -> None:
+    scan = make_scan(seconds=5.0, images=False)  # full-length traces: 5 s at SPEC rates, no photos
+    arrays = {name: trace.data for name, trace in scan.traces.items()}
+    megabytes = sum(a.nbytes for a in arrays.values()) / 1e6
+
+    def np_save() -> None:
+        with open(folder / "ref.npz", "wb") as handle:
+            np.savez(handle, **arrays)
+
+    def np_load() -> None:
+        with np.load(folder / "ref.npz") as data:
+            for name in data.files:
+                data[name]
+
+    t_save = best_of(lambda: save_scan(scan, folder / "s.mat"))
+    t_load = best_of(lambda: load_scan(folder / "s.mat", images=False))
+    t_np_save, t_np_load = best_of(np_save), best_of(np_load)
+
+    def np_save_compressed() -> None:
+        with open(folder / "ref.npz", "wb") as handle:
+            np.savez_compressed(handle, **arrays)
+
+    t_np_compressed = best_of(np_save_compressed)
+    size = (folder / "s.mat").stat().st_size / 1e6
+    print(f".mat scan with {len(arrays)} channels, {megabytes:.1f} MB of samples, {size:.1f} MB on disk (compressed)")
+    print(f"  save  {t_save * 1e3:7.1f} ms  {megabytes / t_save:6.1f} MB/s   numpy.savez {t_np_save * 1e3:6.1f} ms"
+          f"   ratio {t_save / t_np_save:5.1f}x;  numpy.savez_compressed {t_np_compressed * 1e3:6.1f} ms"
+          f"   ratio {t_save / t_np_compressed:5.1f}x  (save includes fsync)")
+    print(f"  load  {t_load * 1e3:7.1f} ms  {megabytes / t_load:6.1f} MB/s   numpy.load  {t_np_load * 1e3:6.1f} ms"
+          f"   ratio {t_load / t_np_load:5.1f}x  (includes validation)")
+
+
+def fill_catalog(db: Database, n: int) -> None:
+    template = make_scan(images=False, seconds=0.01)
+    labels = [f"C{c}S{s}M1P{p}X1" for c in range(1, 9) for s in range(1, 4) for p in range(1, 3)]
+    conn = db._conn  # rows only: the benchmark is about queries, not about writing 10,000 files
+    conn.execute("BEGIN IMMEDIATE")
+    for i in range(n):
+        label = labels[i % len(labels)]
+        meta = template.meta.__class__(**{**{f: getattr(template.meta, f) for f in template.meta.__dataclass_fields__},
+                                          "label": label, "sample_id": f"sample-{i // 5:05d}",
+                                          "scan_index": i % 5 + 1, "session_id": f"session-{i // 50:04d}",
+                                          "operator": f"op{i % 7}"})
+        scan = template.__class__(meta, template.traces)
+        path = f"scans/{label}/{meta.sample_id}/{scan.scan_id}.mat"
+        db._insert(conn, scan, [FileEntry(path, "mat", "0" * 64, 1)])
+    conn.execute("COMMIT")
+
+
+def bench_catalog(folder: Path, n: int = 10_000) -> None:
+    db = Database(folder / "db")
+    start = time.perf_counter()
+    fill_catalog(db, n)
+    print(f"catalog of {n} scans filled in {time.perf_counter() - start:.1f} s")
+    raw = db._conn
+    queries = {
+        "record(scan_id)": (lambda i: db.record(f"sample-{i % (n // 5):05d}-001"),
+                           lambda i: raw.execute("SELECT * FROM scans WHERE scan_id = ?",
+                                                 (f"sample-{i % (n // 5):05d}-001",)).fetchone()),
+        "records(sample=...)": (lambda i: db.records(sample=f"sample-{i % (n // 5):05d}"),
+                                lambda i: raw.execute("SELECT * FROM scans WHERE sample_id = ?",
+                                                      (f"sample-{i % (n // 5):05d}",)).fetchall()),
+        "records(label='C6S2')": (lambda i: db.records(label="C6S2"),
+                                  lambda i: raw.execute("SELECT * FROM scans WHERE label LIKE 'C6S2M%'").fetchall()),
+        "records(operator=...)": (lambda i: db.records(operator=f"op{i % 7}"),
+                                  lambda i: raw.execute("SELECT * FROM scans WHERE operator = ?",
+                                                        (f"op{i % 7}",)).fetchall()),
+    }
+    for name, (ours, reference) in queries.items():
+        count = 200 if "label" in name or "operator" in name else 5000
+        t_ours = best_of(lambda ours=ours, count=count: [ours(i) for i in range(count)], 3) / count
+        t_ref = best_of(lambda reference=reference, count=count: [reference(i) for i in range(count)], 3) / count
+        print(f"  {name:<24} {1 / t_ours:9.0f} queries/s   raw sqlite3 {1 / t_ref:9.0f}/s   ratio {t_ours / t_ref:4.1f}x")
+    db.close()
+
+
+def main() -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        bench_mat(Path(tmp))
+        bench_catalog(Path(tmp))
+
+
+if __name__ == "__main__":
+    main()
