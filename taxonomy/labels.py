@@ -51,13 +51,13 @@ def _example(letters: str) -> str:
     return "".join(f"{letter}{_EXAMPLE[letter]}" for letter in letters)
 
 
-def _misplaced(found: str, letter: str, position: int) -> str:
+def _misplaced(found: str, written: str, letter: str, position: int) -> str:
     if found.isspace():
         return f"whitespace at character {position + 1}"
     if found in LABEL_PARTS:
         return (f"{found}<number> where {letter}<number> was expected, "
                 f"parts come in the order {', '.join(LABEL_PARTS)}")
-    return f"unexpected {found!r} at character {position + 1} where {letter}<number> was expected"
+    return f"unexpected {written!r} at character {position + 1} where {letter}<number> was expected"
 
 
 def _check_number(letter: str, number: str, after: str) -> int:
@@ -83,13 +83,14 @@ def _fail(reason: str) -> NoReturn:
 
 def _read_numbers(text: str, letters: str) -> tuple[int, ...]:
     """Walk ``text`` letter by letter; the first deviation from ``letters`` is the reported reason."""
+    upper = text.translate(_UPPER)
     numbers = []
     position = 0
     for letter in letters:
         if position == len(text):
             raise _Malformed(f"missing {letter}<number>")
-        if text[position] != letter:
-            raise _Malformed(_misplaced(text[position], letter, position))
+        if upper[position] != letter:
+            raise _Malformed(_misplaced(upper[position], text[position], letter, position))
         number = _NUMBER.match(text, position + 1)
         numbers.append(_check_number(letter, number.group(), text[number.end():]))
         position = number.end()
@@ -118,7 +119,7 @@ def parse_code(text: Any, letters: str = LABEL_PARTS) -> tuple[int, ...]:
     if not stripped:
         raise LabelError(f"{_shown(text)} is not a {noun}: empty {expected}")
     try:
-        return _read_numbers(stripped.translate(_UPPER), letters)
+        return _read_numbers(stripped, letters)
     except _Malformed as reason:
         raise LabelError(f"{_shown(text)} is not a {noun}: {reason} {expected}") from None
 

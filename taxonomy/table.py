@@ -277,6 +277,8 @@ class Taxonomy:
     def to_csv(self, path: str | os.PathLike[str]) -> Path:
         """Write the merged table in the shipped format, atomically (temporary file + ``os.replace``)."""
         path = Path(path)
+        # The temporary file is private (0600); the table is meant to be shared, so keep the old mode.
+        mode = path.stat().st_mode & 0o777 if path.exists() else 0o644
         handle = tempfile.NamedTemporaryFile("w", encoding="utf-8", newline="", dir=path.parent,
                                              prefix=f".{path.name}.", suffix=".tmp", delete=False)
         try:
@@ -286,6 +288,7 @@ class Taxonomy:
                 writer.writerows((e.kind, e.code, e.name, e.description) for e in self._entries.values())
                 handle.flush()
                 os.fsync(handle.fileno())
+            os.chmod(handle.name, mode)
             os.replace(handle.name, path)
         except BaseException:
             Path(handle.name).unlink(missing_ok=True)
