@@ -228,7 +228,7 @@ def _parse_meta(path: Path, variables: dict[str, Any]) -> tuple[dict[str, Any], 
             **{name: _meta_number(path, meta, name) for name in _OPTIONAL_NUMBERS},
         )
     except ScanError as exc:
-        raise ScanFormatError(path, "meta", str(exc)) from None
+        raise ScanFormatError(path, exc.field or "meta", exc.reason) from None
     return meta, scan_meta
 
 
@@ -306,4 +306,4 @@ def load_scan(path: str | os.PathLike[str], *, images: bool = True) -> Scan:
     try:
         return Scan(scan_meta, traces, photos, raw)
     except ScanError as exc:
-        raise ScanFormatError(mat_path, None, str(exc)) from None
+        raise ScanFormatError(mat_path, exc.field, exc.reason) from None

@@ -16,13 +16,23 @@ from typing import Any
 
 import numpy as np
 
+from taxonomy.labels import Label, LabelError
+
 SCHEMA_VERSION = 1
 JUDGED_SCALE = (0.0, 0.25, 0.5, 0.75, 1.0)
 """The five-step scale of the operator's judged adhesive tack and yielding (paper section IV-A)."""
 
 
 class ScanError(ValueError):
-    """A trace, recording or scan violates the data model; the message names the field."""
+    """A trace, recording or scan violates the data model; the message names the field.
+
+    ``field`` (e.g. ``"meta.atk"``) is set where one field is at fault, so file readers can report it.
+    """
+
+    def __init__(self, reason: str, field: str | None = None) -> None:
+        self.reason = reason
+        self.field = field
+        super().__init__(f"{field}: {reason}" if field else reason)
 
 
 @dataclass(frozen=True)
@@ -70,7 +80,6 @@ ROLES = frozenset({
 
 _SAFE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
 _OPERATOR = re.compile(r"^[^\x00-\x1f\x7f/\\<>\"']{1,64}$")
-_LABEL = re.compile(r"^C\d{1,3}S\d{1,3}M\d{1,3}P\d{1,3}X\d{1,3}$")
 _FIELD = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,62}$")
 """MATLAB struct field names: device and calibration keys become fields of ``meta``."""
 
@@ -135,7 +144,7 @@ def _check_judged(name: str, value: float) -> float:
     if math.isnan(value):
         return value
     if value not in JUDGED_SCALE:
-        raise ScanError(f"meta.{name} = {value!r} is not on the five-step scale {JUDGED_SCALE} (or NaN)")
+        raise ScanError(f"{value!r} is not on the five-step scale {JUDGED_SCALE} (or NaN)", f"meta.{name}")
     return value
 
 
@@ -143,9 +152,9 @@ def _check_optional_number(name: str, value: Any, *, positive: bool = False) -> 
     try:
         number = float(value)
     except (TypeError, ValueError):
-        raise ScanError(f"meta.{name} must be a number or NaN, got {value!r}") from None
+        raise ScanError(f"must be a number or NaN, got {value!r}", f"meta.{name}") from None
     if math.isinf(number) or (positive and number <= 0):
-        raise ScanError(f"meta.{name} = {value!r} must be {'positive' if positive else 'finite'} or NaN")
+        raise ScanError(f"{value!r} must be {'positive' if positive else 'finite'} or NaN", f"meta.{name}")
     return number
 
 
@@ -153,7 +162,7 @@ def check_sample_id(sample_id: str) -> str:
     """Sample ids become folder names: 1-64 characters of letters, digits, '.', '_', '-'."""
     if not isinstance(sample_id, str) or not _SAFE_ID.match(sample_id):
         raise ScanError(f"sample id {sample_id!r} must be 1-64 letters, digits, '.', '_' or '-' "
-                        "and start with a letter or digit")
+                        "and start with a letter or digit", "meta.sample_id")
     return sample_id
 
 
@@ -183,19 +192,21 @@ class ScanMeta:
     notes: str = ""
 
     def __post_init__(self) -> None:
-        if not isinstance(self.label, str) or not _LABEL.match(self.label):
-            raise ScanError(f"meta.label {self.label!r} is not a C?S?M?P?X? material label")
+        try:
+            object.__setattr__(self, "label", Label.parse(self.label).format())
+        except LabelError as exc:
+            raise ScanError(str(exc), "meta.label") from None
         if not isinstance(self.operator, str) or not _OPERATOR.match(self.operator.strip() or "\x00"):
-            raise ScanError(f"meta.operator {self.operator!r} must be 1-64 printable characters "
-                            "without quotes, slashes or angle brackets")
+            raise ScanError(f"{self.operator!r} must be 1-64 printable characters "
+                            "without quotes, slashes or angle brackets", "meta.operator")
         check_sample_id(self.sample_id)
         if not isinstance(self.session_id, str) or not _SAFE_ID.match(self.session_id):
-            raise ScanError(f"meta.session_id {self.session_id!r} must be 1-64 letters, digits, '.', '_', '-'")
+            raise ScanError(f"{self.session_id!r} must be 1-64 letters, digits, '.', '_', '-'", "meta.session_id")
         if isinstance(self.scan_index, bool) or not float(self.scan_index).is_integer() or self.scan_index < 1:
-            raise ScanError(f"meta.scan_index must be a positive integer, got {self.scan_index!r}")
+            raise ScanError(f"must be a positive integer, got {self.scan_index!r}", "meta.scan_index")
         object.__setattr__(self, "scan_index", int(self.scan_index))
         if not isinstance(self.started, str) or not _is_iso8601(self.started):
-            raise ScanError(f"meta.started {self.started!r} is not an ISO 8601 date-time")
+            raise ScanError(f"{self.started!r} is not an ISO 8601 date-time", "meta.started")
         object.__setattr__(self, "t_amb", _check_optional_number("t_amb", self.t_amb))
         object.__setattr__(self, "mass_g", _check_optional_number("mass_g", self.mass_g, positive=True))
         object.__setattr__(self, "volume_cm3",
@@ -204,11 +215,11 @@ class ScanMeta:
         object.__setattr__(self, "cyd", _check_judged("cyd", self.cyd))
         object.__setattr__(self, "rigid", bool(self.rigid))
         if self.schema_version != SCHEMA_VERSION:
-            raise ScanError(f"meta.schema_version {self.schema_version!r} is not supported "
-                            f"(this software reads {SCHEMA_VERSION})")
+            raise ScanError(f"{self.schema_version!r} is not supported (this software reads {SCHEMA_VERSION})",
+                            "meta.schema_version")
         for key in (*self.device, *self.calibration):
             if not isinstance(key, str) or not _FIELD.match(key):
-                raise ScanError(f"meta key {key!r} in device/calibration is not a valid MATLAB field name")
+                raise ScanError(f"key {key!r} is not a valid MATLAB field name", "meta.device/calibration")
         object.__setattr__(self, "device", MappingProxyType({k: str(v) for k, v in self.device.items()}))
         object.__setattr__(self, "calibration", MappingProxyType(
             {str(k): _check_optional_number(f"calibration.{k}", v) for k, v in self.calibration.items()}))
@@ -265,7 +276,7 @@ class Scan:
         for name, trace in self.traces.items():
             _check_channel(name, trace)
         if self.meta.rigid and ({"f_fold", "alpha_f"} & set(self.traces)):
-            raise ScanError("meta.rigid = 1 means the fold was skipped, but f_fold/alpha_f are present")
+            raise ScanError("1 means the fold was skipped, but f_fold/alpha_f are present", "meta.rigid")
         for name, trace in self.raw.items():
             if name not in CHANNELS:
                 raise ScanError(f"raw channel {name!r} is not a scan channel")
@@ -317,13 +328,13 @@ def _check_channel(name: str, trace: Trace) -> None:
     if not isinstance(trace, Trace):
         raise ScanError(f"{name} must be a Trace, got {type(trace).__name__}")
     if trace.fs != spec.fs:
-        raise ScanError(f"{name} is sampled at {trace.fs:g} Hz, expected {spec.fs:g} Hz")
+        raise ScanError(f"sampled at {trace.fs:g} Hz, expected {spec.fs:g} Hz", name)
     if trace.unit != spec.unit:
-        raise ScanError(f"{name} has unit {trace.unit!r}, expected {spec.unit!r}")
+        raise ScanError(f"unit {trace.unit!r}, expected {spec.unit!r}", name)
     expected = (trace.n, spec.axes) if spec.axes else (trace.n,)
     if trace.data.shape != expected:
         want = f"(n, {spec.axes})" if spec.axes else "(n,)"
-        raise ScanError(f"{name} has shape {trace.data.shape}, expected {want}")
+        raise ScanError(f"shape {trace.data.shape}, expected {want}", name)
 
 
 def _check_image(name: str, image: np.ndarray) -> np.ndarray:
