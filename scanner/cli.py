@@ -98,6 +98,46 @@ def cmd_db_rebuild(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- features ----------------------------------------------------------------------------------------
+
+def feature_space(db: Database, workers: int | None, label: str | None = None):
+    """Extract (or read from the cache) the 193 features of every scan in ``db``."""
+    import functools
+
+    from features import ScanSource, extract_many
+    from scanner.matfile import load_scan
+
+    sources = [ScanSource(r.scan_id, r.label, r.sample_id, functools.partial(load_scan, db.root / r.path),
+                          cache_key=r.content_hash) for r in db.records(label=label)]
+    if not sources:
+        raise DatabaseError(f"{db.root}: no scans{f' with label {label}' if label else ''} to extract")
+    return extract_many(sources, workers=workers, cache=db)
+
+
+def _report_space(space, seconds: float) -> None:
+    import numpy as np
+
+    nan_columns = int(np.isnan(space.X).any(axis=0).sum()) if len(space) else 0
+    print(f"{len(space)} scans x {len(space.columns)} features in {seconds:.1f} s "
+          f"({nan_columns} column(s) with NaN, {len(space.failed)} scan(s) failed)")
+    for scan_id, reason in space.failed:
+        print(f"failed   {scan_id}: {reason}")
+
+
+def cmd_features(args: argparse.Namespace) -> int:
+    db = _open_db(args)
+    started = time.perf_counter()
+    space = feature_space(db, args.workers, args.label)
+    _report_space(space, time.perf_counter() - started)
+    out = args.out or db.root / "features.csv"
+    space.to_csv(out)
+    print(f"wrote {out}")
+    if args.mat:
+        space.to_mat(args.mat)
+        print(f"wrote {args.mat}")
+    return EXIT_ERROR if space.failed else 0
+
+
 # -- demo --------------------------------------------------------------------------------------------
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -113,6 +153,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
     for record in db.records():
         by_class[record.label[:2]] = by_class.get(record.label[:2], 0) + 1
     print("scans per major class: " + ", ".join(f"{c} {n}" for c, n in sorted(by_class.items())))
+    started = time.perf_counter()
+    space = feature_space(db, args.workers)
+    _report_space(space, time.perf_counter() - started)
+    print(f"wrote {space.to_csv(db.root / 'features.csv')}")
     return 0
 
 
@@ -139,7 +183,18 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--scans", type=int, default=5, help="scans per material (default 5)")
     demo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     demo.add_argument("--image-size", type=int, default=512, help="photo size in pixels (default 512)")
+    demo.add_argument("--workers", type=int, help="feature extraction processes (default: number of cores)")
     demo.set_defaults(handler=cmd_demo)
+
+    features = commands.add_parser("features", help="extract the 193 features of every scan into a feature table",
+                                   description="Extract the 193 features of every scan (cached in the database "
+                                   "by scan content and feature-code version) and write features.csv.")
+    _add_db_option(features)
+    features.add_argument("--workers", type=int, help="processes (default: number of cores)")
+    features.add_argument("--out", type=Path, help="CSV file (default: <db>/features.csv)")
+    features.add_argument("--mat", type=Path, help="also write the feature space as a .mat file")
+    features.add_argument("--label", help="only scans with this label or class prefix")
+    features.set_defaults(handler=cmd_features)
 
     db = commands.add_parser("db", help="inspect and repair the database", description="Inspect and repair the "
                              "scan database (catalog.sqlite + .mat files).")

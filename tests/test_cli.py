@@ -1,0 +1,79 @@
+"""The texplorer command line: db list/show/check/rebuild, one-line errors, --debug tracebacks."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+from conftest import make_scan
+
+from scanner.cli import EXIT_PROBLEMS, main
+from scanner.database import Database
+
+
+@pytest.fixture
+def db_path(tmp_path):
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0, sample_id="granite-01", scan_index=1))
+    db.add(make_scan(1, label="C7S1M1P8X1", sample_id="steel-01", scan_index=1, operator="cd",
+                     rigid=True, drop=("f_fold", "alpha_f")))
+    db.close()
+    return tmp_path / "db"
+
+
+def test_db_list_filters(db_path, capsys):
+    assert main(["db", "list", "--db", str(db_path)]) == 0
+    out = capsys.readouterr().out
+    assert "granite-01-001" in out and "steel-01-001" in out and out.rstrip().endswith("2 scan(s)")
+    assert main(["db", "list", "--db", str(db_path), "--label", "C7"]) == 0
+    out = capsys.readouterr().out
+    assert "steel-01-001" in out and "granite-01-001" not in out
+    assert main(["db", "list", "--db", str(db_path), "--operator", "nobody"]) == 0
+    assert capsys.readouterr().out.rstrip().endswith("0 scan(s)")
+
+
+def test_db_show(db_path, capsys):
+    assert main(["db", "show", "granite-01-001", "--db", str(db_path)]) == 0
+    out = capsys.readouterr().out
+    assert "label       C6S1M1P2X1" in out and "v_ts" in out and "44100 Hz" in out and "I_disp" in out
+    assert main(["db", "show", "steel-01-001", "--db", str(db_path)]) == 0
+    assert "rigid 1" in capsys.readouterr().out
+
+
+def test_db_check_exit_codes(db_path, capsys):
+    assert main(["db", "check", "--db", str(db_path)]) == 0
+    assert "0 missing, 0 changed, 0 unknown" in capsys.readouterr().out
+    next(db_path.glob("scans/C7*/steel-01/*_illu.png")).unlink()
+    assert main(["db", "check", "--db", str(db_path)]) == EXIT_PROBLEMS
+    out = capsys.readouterr().out
+    assert "missing  scans/C7S1M1P8X1/steel-01/steel-01-001_illu.png" in out
+
+
+def test_db_rebuild(db_path, capsys):
+    (db_path / "catalog.sqlite").unlink()
+    for extra in db_path.glob("catalog.sqlite-*"):
+        extra.unlink()
+    assert main(["db", "rebuild", "--db", str(db_path)]) == 0
+    assert "catalog rebuilt: 2 scan(s), 0 file(s) skipped" in capsys.readouterr().out
+
+
+def test_errors_are_one_line_without_traceback(tmp_path, db_path):
+    run = subprocess.run([sys.executable, "-m", "scanner.cli", "db", "show", "nope", "--db", str(db_path)],
+                         capture_output=True, text=True)
+    assert run.returncode == 1 and run.stdout == ""
+    assert run.stderr.strip().splitlines() == [f"texplorer: error: no scan 'nope' in {db_path}"]
+    run = subprocess.run([sys.executable, "-m", "scanner.cli", "db", "list", "--db", str(tmp_path / "none")],
+                         capture_output=True, text=True)
+    assert run.returncode == 1 and len(run.stderr.strip().splitlines()) == 1 and "no database here" in run.stderr
+    run = subprocess.run([sys.executable, "-m", "scanner.cli", "db", "show", "nope", "--db", str(db_path),
+                          "--debug"], capture_output=True, text=True)
+    assert run.returncode == 1 and "Traceback" in run.stderr
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["db", "--help"], ["db", "check", "--help"], ["demo", "--help"],
+                                  ["features", "--help"]])
+def test_help_everywhere(argv, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 0 and "usage: texplorer" in capsys.readouterr().out
