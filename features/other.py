@@ -1,0 +1,391 @@
+"""The 15 "other" features: density, metal, magnetism, IR reflectance, cooling, vibration and tap (SPEC 7.4).
+
+The paper's Table III of these features is an image that did not survive, so this set is the project's own
+(SPEC 7.4). Each feature (or family) is a pure function of arrays; :func:`compute` gathers the inputs of
+one :class:`scanner.Scan`, preprocessed as in SPEC 6, and returns the 15 values in :data:`NAMES` order.
+A value that is undefined (0/0, a missing channel or meta value, a failed fit, a stored slide that fails
+its quality check) is NaN, never 0 or inf.
+
+Notation: ``v`` is the tool-slide signal (``v_ts`` band-limited, 1 s window, DFT321), ``v_f`` the same for
+the finger slide ``v_fs``; ``mean`` and ``std`` are population statistics.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable
+
+import numpy as np
+from scipy import optimize, signal
+
+from features.tactum import MissingDataWarning, spectral_centroid
+from scanner.preprocess import QualityError, band_limit, dft321, slide_signal, slide_window
+from scanner.scan import Scan, Trace
+
+NAMES = (
+    "other.density", "other.metal", "other.magnet_mean", "other.magnet_peak", "other.reflect_static",
+    "other.reflect_mean", "other.cooling_rate", "other.vib_std", "other.vib_kurtosis", "other.vib_energy",
+    "other.finger_vib_energy", "other.finger_vib_centroid", "other.tap_peak", "other.tap_centroid",
+    "other.tap_decay",
+)
+"""The other feature names, in feature-space order (SPEC 7.4)."""
+
+VIBRATION_FS = 3000.0
+"""Sample rate of the accelerometer and IR channels, Hz."""
+
+T_COOL_FS = 20.0
+"""Sample rate of the MLX90614 object temperature ``t_cool``, Hz."""
+
+TAP_SAMPLES = 150
+"""Samples of the tap response analysed from the tap peak on: 50 ms at 3000 Hz (SPEC 7.4)."""
+
+TAP_MIN_SAMPLES = 30
+"""Fewer tap-response samples than this (10 ms) leave the tap centroid and decay undefined (SPEC 7.4)."""
+
+TAP_TAU0 = 0.01
+"""Starting guess of the tap decay time constant, s (SPEC 7.4)."""
+
+
+def _samples(x: np.ndarray, name: str) -> np.ndarray:
+    array = np.asarray(x, dtype=np.float64)
+    if array.ndim != 1 or array.size == 0:
+        raise ValueError(f"{name} must be a non-empty 1-D array, got shape {array.shape}")
+    if not np.isfinite(array).all():
+        raise ValueError(f"{name} has non-finite samples")
+    return array
+
+
+def _axes(a: np.ndarray, name: str) -> np.ndarray:
+    array = np.asarray(a, dtype=np.float64)
+    if array.ndim != 2 or array.shape[0] == 0:
+        raise ValueError(f"{name} must be a non-empty (n, axes) array, got shape {array.shape}")
+    if not np.isfinite(array).all():
+        raise ValueError(f"{name} has non-finite samples")
+    return array
+
+
+# --- density, metal, magnetism ------------------------------------------------------------------------
+
+def density(mass_g: float, volume_cm3: float) -> float:
+    """Density ``mass / volume`` in g/cm^3 (SPEC 7.4); NaN if either was not measured (NaN).
+
+    Examples
+    --------
+    >>> density(27.0, 10.0)
+    2.7
+    """
+    mass, volume = float(mass_g), float(volume_cm3)
+    for name, value in (("mass_g", mass), ("volume_cm3", volume)):
+        if math.isinf(value) or value <= 0:
+            raise ValueError(f"{name} must be positive and finite (or NaN if not measured), got {value!r}")
+    return mass / volume
+
+
+def metal(m: np.ndarray) -> float:
+    """1 if the sample conducts, ``mean(m) > 0``, else 0 (SPEC 7.4); ``m`` is the electrode in {-1, +1}.
+
+    A tie (as many +1 as -1 samples) is not conductive: the electrodes did not close for most of the time.
+    """
+    return 1.0 if float(np.mean(_samples(m, "m"))) > 0 else 0.0
+
+
+def magnet_mean(dB: np.ndarray) -> float:
+    """Mean change of the magnetic field magnitude against the calibration, ``mean(dB)`` in uT (SPEC 7.4)."""
+    return float(np.mean(_samples(dB, "dB")))
+
+
+def magnet_peak(dB: np.ndarray) -> float:
+    """The ``dB`` sample of largest magnitude, with its sign, in uT (SPEC 7.4); the first one on ties.
+
+    A ferromagnetic sample pulls the field strongly in either direction depending on the pole facing the
+    sensor, so the sign is kept and the magnitude decides.
+
+    Examples
+    --------
+    >>> magnet_peak(np.array([1.0, 3.0, -7.0, 5.0]))
+    -7.0
+    """
+    values = _samples(dB, "dB")
+    return float(values[np.argmax(np.abs(values))])
+
+
+# --- IR reflectance -----------------------------------------------------------------------------------
+
+def reflect_static(r_ts: np.ndarray, start: int) -> float:
+    """Mean IR reflectance of the tool slide while the unit rests, ``mean(r_ts[:start])`` in V (SPEC 7.4).
+
+    ``start`` is the slide start of ``v_ts`` (:func:`scanner.preprocess.slide_start`); NaN if it is 0
+    (no resting samples).
+    """
+    values = _samples(r_ts, "r_ts")
+    if isinstance(start, bool) or int(start) != start or not 0 <= start <= values.size:
+        raise ValueError(f"slide start must be a sample index in 0..{values.size}, got {start!r}")
+    return math.nan if start == 0 else float(np.mean(values[:int(start)]))
+
+
+def reflect_mean(r_window: np.ndarray) -> float:
+    """Mean IR reflectance in the 1 s slide window of the tool slide, in V (SPEC 7.4)."""
+    return float(np.mean(_samples(r_window, "r_window")))
+
+
+# --- cooling ------------------------------------------------------------------------------------------
+
+def cooling_rate(t_cool: np.ndarray, t_amb: float, fs: float = T_COOL_FS) -> float:
+    """Rate r (1/s) of the least-squares fit ``T(t) = t_amb + (T_max - t_amb) exp(-r t)`` (SPEC 7.4).
+
+    Fitted from the maximum of ``t_cool`` on (the first maximum on ties), with T_max the measured maximum,
+    t = 0 at it, only r free and residuals in degC (``scipy.optimize.least_squares``, Levenberg-Marquardt,
+    started at the log-linear estimate).
+
+    NaN if ``t_amb`` is NaN, fewer than two samples follow from the maximum on, ``T_max == t_amb`` (r does
+    not change the model), or the least-squares optimum is r = infinity (every later sample fits the
+    instant drop to ``t_amb`` at least as well as any finite rate does).
+
+    Examples
+    --------
+    >>> t = np.arange(200) / 20.0
+    >>> round(cooling_rate(22.0 + 8.0 * np.exp(-0.3 * t), 22.0), 9)
+    0.3
+    """
+    values = _samples(t_cool, "t_cool")
+    if not math.isfinite(fs) or fs <= 0:
+        raise ValueError(f"t_cool sample rate must be positive and finite, got {fs!r}")
+    tail = values[int(np.argmax(values)):]
+    excess = float(tail[0] - t_amb)
+    if math.isnan(excess) or tail.size < 2 or excess == 0:
+        return math.nan
+    t = np.arange(tail.size) / fs
+
+    def residuals(r: np.ndarray) -> np.ndarray:
+        return t_amb + excess * np.exp(-r[0] * t) - tail
+
+    def jacobian(r: np.ndarray) -> np.ndarray:
+        return (-excess * t * np.exp(-r[0] * t))[:, None]
+
+    with np.errstate(over="ignore", invalid="ignore"):
+        fit = optimize.least_squares(residuals, [_log_linear_rate(tail - t_amb, excess, t)], jac=jacobian,
+                                     method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    rate = float(fit.x[0])
+    if not (fit.success and math.isfinite(rate) and np.all(np.isfinite(fit.fun))):
+        return math.nan
+    instant_drop = float(np.sum((t_amb - tail[1:]) ** 2))
+    return rate if float(np.sum(fit.fun**2)) < instant_drop else math.nan
+
+
+def _log_linear_rate(above: np.ndarray, excess: float, t: np.ndarray) -> float:
+    """Starting rate: ``log((T - t_amb) / excess) = -r t`` fitted through the origin where the log exists."""
+    ratio = above / excess
+    usable = (ratio > 0) & (t > 0)
+    if not usable.any():
+        return 1.0 / t[-1]
+    return float(-np.sum(t[usable] * np.log(ratio[usable])) / np.sum(t[usable] ** 2))
+
+
+# --- slide vibration ----------------------------------------------------------------------------------
+
+def vib_std(v: np.ndarray) -> float:
+    """Standard deviation (population) of the slide signal, ``std(v)`` in g (SPEC 7.4)."""
+    return float(np.std(_samples(v, "v")))
+
+
+def vib_kurtosis(v: np.ndarray) -> float:
+    """Pearson kurtosis (not excess) of the slide signal, ``mu4 / sigma^4`` (SPEC 7.4).
+
+    3 for Gaussian noise, 1.5 for a sine; NaN for a constant signal (0/0).
+
+    Examples
+    --------
+    >>> round(vib_kurtosis(np.sin(2 * np.pi * np.arange(3000) / 30.0)), 9)
+    1.5
+    """
+    values = _samples(v, "v")
+    centred = values - values.mean()
+    variance = float(np.mean(centred**2))
+    return math.nan if variance == 0 else float(np.mean(centred**4)) / variance**2
+
+
+def vib_energy(v: np.ndarray) -> float:
+    """Mean power of a slide signal, ``mean(v^2)`` in g^2 (SPEC 7.4): vib_energy and finger_vib_energy."""
+    return float(np.mean(_samples(v, "v") ** 2))
+
+
+def vib_centroid(v: np.ndarray, fs: float = VIBRATION_FS) -> float:
+    """Spectral centroid of a slide signal in Hz, as ``tactum.mico`` (SPEC 7.1 item 5).
+
+    ``finger_vib_centroid`` is that of ``v_f``. NaN for an all-zero signal.
+    """
+    return spectral_centroid(_samples(v, "v"), fs)
+
+
+# --- tool tap -----------------------------------------------------------------------------------------
+
+def tap_energy(a: np.ndarray) -> np.ndarray:
+    """Per-sample energy of the band-limited tool tap summed over the axes, ``sum over axes a^2`` (g^2)."""
+    return np.sum(_axes(a, "v_tt") ** 2, axis=1)
+
+
+def tap_peak(a: np.ndarray) -> float:
+    """Tap peak ``sqrt(energy[p])`` in g, p = argmax of :func:`tap_energy` (SPEC 7.4)."""
+    return float(np.sqrt(np.max(tap_energy(a))))
+
+
+def tap_response(a: np.ndarray, length: int = TAP_SAMPLES,
+                 min_length: int = TAP_MIN_SAMPLES) -> np.ndarray | None:
+    """DFT321 of the ``length`` samples from the tap peak p on (fewer if the recording ends sooner).
+
+    ``a`` is the band-limited tool tap (n, 3); p = argmax of :func:`tap_energy`, the first on ties.
+    None if fewer than ``min_length`` samples remain from p on (SPEC 7.4).
+    """
+    array = _axes(a, "v_tt")
+    p = int(np.argmax(tap_energy(array)))
+    segment = array[p:p + length]
+    return None if segment.shape[0] < min_length else dft321(segment)
+
+
+def tap_centroid(y: np.ndarray, fs: float = VIBRATION_FS) -> float:
+    """Spectral centroid of the tap response y in Hz (SPEC 7.4, the centroid of SPEC 7.1 item 5)."""
+    return spectral_centroid(_samples(y, "y"), fs)
+
+
+def _decay(t: np.ndarray, amplitude: float, tau: float) -> np.ndarray:
+    return amplitude * np.exp(-t / tau)
+
+
+def tap_decay(y: np.ndarray, fs: float = VIBRATION_FS) -> float:
+    """Decay time constant tau (s) of the tap response: ``A exp(-t / tau)`` fitted to ``|hilbert(y)|``.
+
+    ``scipy.optimize.curve_fit`` with p0 = (max envelope, 0.01 s), t = 0 at the first sample of y
+    (SPEC 7.4). NaN if the envelope is all zero, if the fit raises, or if tau is non-finite or not
+    positive.
+    """
+    envelope = np.abs(signal.hilbert(_samples(y, "y")))
+    if not envelope.any():
+        return math.nan
+    t = np.arange(envelope.size) / fs
+    try:
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            # An undetermined covariance says nothing about tau itself; SPEC 7.4 rejects only bad taus.
+            warnings.simplefilter("ignore", optimize.OptimizeWarning)
+            (_, tau), _ = optimize.curve_fit(_decay, t, envelope, p0=(float(envelope.max()), TAP_TAU0))
+    except (RuntimeError, ValueError):
+        return math.nan
+    tau = float(tau)
+    return tau if math.isfinite(tau) and tau > 0 else math.nan
+
+
+def tap_features(a: np.ndarray, fs: float = VIBRATION_FS) -> tuple[float, float, float]:
+    """``(tap_peak, tap_centroid, tap_decay)`` of the band-limited tool tap ``a`` (n, 3) (SPEC 7.4).
+
+    Centroid and decay are NaN if fewer than 30 samples follow the tap peak (see :func:`tap_response`).
+    """
+    y = tap_response(a)
+    if y is None:
+        return tap_peak(a), math.nan, math.nan
+    return tap_peak(a), tap_centroid(y, fs), tap_decay(y, fs)
+
+
+# --- the scan -----------------------------------------------------------------------------------------
+
+class _Unavailable(Exception):
+    """An input of a feature group is missing or fails its check; the message names it."""
+
+
+def _trace(scan: Scan, name: str) -> Trace:
+    trace = scan.get(name)
+    if trace is None:
+        raise _Unavailable(f"{name} is missing")
+    return trace
+
+
+def _meta_value(scan: Scan, name: str, meaning: str) -> float:
+    value = float(getattr(scan.meta, name))
+    if math.isnan(value):
+        raise _Unavailable(f"meta.{name} ({meaning}) is unknown")
+    return value
+
+
+def _density(scan: Scan) -> tuple[float, ...]:
+    return (density(_meta_value(scan, "mass_g", "mass"), _meta_value(scan, "volume_cm3", "volume")),)
+
+
+def _metal(scan: Scan) -> tuple[float, ...]:
+    return (metal(_trace(scan, "m").data),)
+
+
+def _magnet(scan: Scan) -> tuple[float, ...]:
+    dB = _trace(scan, "dB").data
+    return magnet_mean(dB), magnet_peak(dB)
+
+
+def _reflectance(scan: Scan) -> tuple[float, ...]:
+    v_ts, r_ts = _trace(scan, "v_ts"), _trace(scan, "r_ts")
+    try:
+        window = slide_window(v_ts.data, fs=v_ts.fs, ir_samples=r_ts.n)
+    except QualityError as problem:
+        raise _Unavailable(f"v_ts/r_ts: {problem}") from None
+    return reflect_static(r_ts.data, window.start), reflect_mean(r_ts.data[window.ir])
+
+
+def _cooling(scan: Scan) -> tuple[float, ...]:
+    t_cool = _trace(scan, "t_cool")
+    return (cooling_rate(t_cool.data, _meta_value(scan, "t_amb", "ambient temperature"), t_cool.fs),)
+
+
+def _slide(scan: Scan, name: str) -> np.ndarray:
+    try:
+        return slide_signal(_trace(scan, name))
+    except QualityError as problem:
+        raise _Unavailable(f"{name}: {problem}") from None
+
+
+def _tool_vibration(scan: Scan) -> tuple[float, ...]:
+    v = _slide(scan, "v_ts")
+    return vib_std(v), vib_kurtosis(v), vib_energy(v)
+
+
+def _finger_vibration(scan: Scan) -> tuple[float, ...]:
+    v_f = _slide(scan, "v_fs")
+    return vib_energy(v_f), vib_centroid(v_f, scan["v_fs"].fs)
+
+
+def _tap(scan: Scan) -> tuple[float, ...]:
+    v_tt = _trace(scan, "v_tt")
+    try:
+        a = band_limit(v_tt.data, v_tt.fs)
+    except ValueError as problem:
+        raise _Unavailable(f"v_tt: {problem}") from None
+    return tap_features(a, v_tt.fs)
+
+
+_GROUPS: tuple[tuple[tuple[str, ...], Callable[[Scan], tuple[float, ...]]], ...] = (
+    (("other.density",), _density),
+    (("other.metal",), _metal),
+    (("other.magnet_mean", "other.magnet_peak"), _magnet),
+    (("other.reflect_static", "other.reflect_mean"), _reflectance),
+    (("other.cooling_rate",), _cooling),
+    (("other.vib_std", "other.vib_kurtosis", "other.vib_energy"), _tool_vibration),
+    (("other.finger_vib_energy", "other.finger_vib_centroid"), _finger_vibration),
+    (("other.tap_peak", "other.tap_centroid", "other.tap_decay"), _tap),
+)
+"""Feature groups sharing their inputs: (names, function of the scan returning their values)."""
+
+
+def compute(scan: Scan) -> dict[str, float]:
+    """The 15 other features of a scan, in :data:`NAMES` order (SPEC 7.4).
+
+    Inputs are preprocessed as in SPEC 6: ``v`` and ``v_f`` (band limit, slide window, DFT321), the IR
+    of ``r_ts`` at the slide start and in the slide window of ``v_ts``, the band-limited ``v_tt``. The
+    features of a group whose input is missing (a channel, ``meta.mass_g``, ``meta.volume_cm3`` or
+    ``meta.t_amb``) or fails its slide check are NaN, with one :class:`MissingDataWarning` naming the
+    input and the features it made NaN.
+    """
+    values: dict[str, float] = {}
+    for names, group in _GROUPS:
+        try:
+            values.update(zip(names, (float(x) for x in group(scan)), strict=True))
+        except _Unavailable as problem:
+            values.update(dict.fromkeys(names, math.nan))
+            warnings.warn(f"scan {scan.scan_id}: {problem}; {', '.join(names)} set to NaN",
+                          MissingDataWarning, stacklevel=2)
+    return {name: values[name] for name in NAMES}
