@@ -498,12 +498,14 @@ def crx(f_press: np.ndarray, rigid: bool) -> float:
 # --- 14, 15. TCO, TPR ----------------------------------------------------------------------------------
 
 def tco(t_cool: np.ndarray, t_amb: float) -> float:
-    """Thermal cooling, paper eq. 25: ``max(t_cool) - t_amb`` (K)."""
+    """Thermal cooling, paper eq. 28-29: ``max(t_cool) - t_amb`` (K)."""
     return float(np.max(_samples(t_cool, "t_cool")) - t_amb)
 
 
 def tpr(t_cool: np.ndarray, t_amb: float, fs: float = 20.0) -> float:
-    """Thermal persistence, paper eq. 26: ``sqrt((max(t_cool[first 5 s]) - t_amb)^2 + (t_cool[-1] - t_amb)^2)``.
+    """Thermal persistence, paper eq. 30: ``sqrt((t_max,5s - t_amb)^2 + (t_cool[-1] - t_amb)^2)``.
+
+    ``t_max,5s = max(t_cool[first 5 s])`` (SPEC 7.1 item 15).
 
     ``t_cool`` sampled at ``fs`` (20 Hz) with t = 0 at its first sample; the first 5 s are t < 5 s.
     """

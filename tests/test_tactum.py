@@ -486,7 +486,7 @@ def test_compute_uses_the_preprocessed_tool_slide():
 
 def _simulated(slug: str, seed: int) -> Scan:
     simulate = pytest.importorskip("scanner.simulate")
-    return simulate.synthetic_scan(slug, seed=seed)
+    return simulate.synthetic_scan(slug, seed=seed, image_size=(256, 256))
 
 
 @pytest.mark.parametrize(("soft", "hard"), [("polyurethane-foam", "mild-steel-brushed")])
