@@ -426,3 +426,41 @@ def test_tap_decay_of_a_growing_response_is_nan():
 def test_tap_features_reject_a_one_dimensional_tap():
     with pytest.raises(ValueError, match=r"\(n, axes\)"):
         other.tap_features(np.ones(100), FS)
+
+
+# --- simulated materials --------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def simulated():
+    """Other features of simulated scans, by (material slug, seed); skips a material the library lacks."""
+    simulate = pytest.importorskip("scanner.simulate")
+    slugs = simulate.load_materials()
+    cache: dict[tuple[str, int], dict[str, float]] = {}
+
+    def features(slug: str, seed: int) -> dict[str, float]:
+        if slug not in slugs:
+            pytest.skip(f"the simulated material library has no {slug!r}")
+        if (slug, seed) not in cache:
+            cache[slug, seed] = other.compute(simulate.synthetic_scan(slug, seed=seed, image_size=(64, 64)))
+        return cache[slug, seed]
+
+    return features
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_simulated_metal_conducts_and_foam_does_not(simulated, seed):
+    assert simulated("mild-steel-brushed", seed)["other.metal"] == 1.0
+    assert simulated("polyurethane-foam", seed)["other.metal"] == 0.0
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_simulated_ferromagnetic_steel_moves_the_field_far_more_than_aluminium(simulated, seed):
+    steel = abs(simulated("mild-steel-brushed", seed)["other.magnet_peak"])
+    aluminium = abs(simulated("aluminium-sheet", seed)["other.magnet_peak"])
+    assert steel > 10 * aluminium
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_simulated_balsa_is_much_lighter_than_pine(simulated, seed):
+    balsa, pine = simulated("balsa-planed", seed), simulated("pine-planed", seed)
+    assert balsa["other.density"] < 0.5 * pine["other.density"]
