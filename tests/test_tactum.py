@@ -116,6 +116,7 @@ def test_vs_keeps_only_the_planted_spikes():
     spikes = [400, 1700, 2999]         # the last one sits where MA100 shrinks to 50 samples
     va[spikes] += height
     va[1000] += 0.02                   # a bump below std + mean + MA100: removed
+    va[420] += 0.04                    # above std + mean, but MA100 there holds the spike at 400: removed
     kept = 3 * (base + height)
     assert tactum.vs(va) == pytest.approx(math.log10(1.0 + kept / n), rel=1e-12)
     assert tactum.vs(np.full(n, 0.3)) == 0.0
