@@ -1,0 +1,412 @@
+"""Image features (SPEC 7.2): closed-form answers on synthetic images, plus the libraries SPEC names."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+from skimage.feature import local_binary_pattern
+
+from features import image
+from scanner.preprocess import crop_image, grayscale
+
+LN2 = math.log(2.0)
+
+
+def textured_photo(h: int = 300, w: int = 330, seed: int = 0) -> np.ndarray:
+    """Noise plus a grating, in colour: every feature is non-degenerate on it."""
+    rng = np.random.default_rng(seed)
+    rows, cols = np.mgrid[0:h, 0:w]
+    base = 120 + 60 * np.sin(2 * np.pi * cols / 23) * np.cos(2 * np.pi * rows / 41)
+    noise = rng.normal(0, 25, (h, w, 3))
+    tint = np.array([1.0, 0.7, 0.4])
+    return np.clip(base[..., None] * tint + noise, 0, 255).astype(np.uint8)
+
+
+# --- names and the whole photo ------------------------------------------------------------------------
+
+
+def test_names_are_the_31_columns_in_spec_order():
+    assert len(image.NAMES) == 31
+    assert image.NAMES[:5] == ("color", "brightness", "edginess", "dft_80", "dft_85")
+    assert image.NAMES[5:19] == tuple(f"haralick_{i:02d}" for i in range(1, 15))
+    assert image.NAMES[19:21] == ("tamura_coarseness", "tamura_contrast")
+    assert image.NAMES[21:] == tuple(f"lbp_{i}" for i in range(10))
+
+
+def test_compute_gives_31_finite_values_equal_to_the_single_features():
+    photo = textured_photo()
+    values = image.compute(photo)
+    assert tuple(values) == image.NAMES
+    assert all(math.isfinite(v) and isinstance(v, float) for v in values.values())
+
+    cropped = crop_image(photo)
+    gray = grayscale(cropped)
+    assert values["color"] == image.color(cropped)
+    assert values["brightness"] == image.brightness(gray)
+    assert values["tamura_contrast"] == image.tamura_contrast(gray)
+    assert values["tamura_coarseness"] == image.tamura_coarseness(gray)
+    assert [values[f"haralick_{i:02d}"] for i in range(1, 15)] == image.haralick(gray).tolist()
+    assert [values[f"lbp_{i}"] for i in range(10)] == image.lbp_histogram(gray).tolist()
+    assert sum(values[f"lbp_{i}"] for i in range(10)) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_compute_crops_100_px_before_anything():
+    photo = np.zeros((300, 320, 3), np.uint8)
+    photo[100:200, 100:220] = (0, 255, 0)  # the cropped centre is pure green, the border black
+    values = image.compute(photo)
+    assert values["color"] == 125.0
+    assert values["brightness"] == pytest.approx(0.587 * 255 / 255, rel=1e-12)
+    assert values["edginess"] == 0.0
+
+
+@pytest.mark.parametrize(("photo", "message"), [
+    (np.zeros((300, 300, 3), np.float64), "uint8"),
+    (np.zeros((300, 300), np.uint8), r"shape \(h, w, 3\)"),
+    (np.zeros((300, 300, 4), np.uint8), r"shape \(h, w, 3\)"),
+    ([[1, 2, 3]], "uint8"),
+    (np.zeros((200, 300, 3), np.uint8), "too small to crop"),
+    (np.zeros((250, 300, 3), np.uint8), "smaller than the 64x64 px Tamura coarseness"),
+])
+def test_compute_rejects_bad_photos(photo, message):
+    with pytest.raises(ValueError, match=message):
+        image.compute(photo)
+
+
+# --- colour, brightness, edginess ---------------------------------------------------------------------
+
+
+def solid(rgb: tuple[int, int, int], h: int = 6, w: int = 7) -> np.ndarray:
+    return np.full((h, w, 3), rgb, np.uint8)
+
+
+@pytest.mark.parametrize(("rgb", "hue_bin_centre"), [
+    ((0, 255, 0), 125.0),     # green: 120 degrees -> bin [120, 130)
+    ((255, 0, 0), 5.0),       # red: 0 degrees
+    ((0, 0, 255), 245.0),     # blue: 240 degrees
+    ((255, 255, 0), 65.0),    # yellow: 60 degrees
+    ((255, 204, 204), 5.0),   # S = 255 - 204 = 51, i.e. exactly 0.2: counts
+    ((51, 0, 0), 5.0),        # V = 51 / 255 = 0.2: counts
+    ((255, 205, 205), -1.0),  # S = 50 < 0.2 * 255
+    ((50, 0, 0), -1.0),       # V = 50 < 0.2 * 255
+    ((128, 128, 128), -1.0),  # gray: no saturation
+])
+def test_color_is_the_centre_of_the_dominant_hue_bin(rgb, hue_bin_centre):
+    assert image.color(solid(rgb)) == hue_bin_centre
+
+
+def test_color_takes_the_fullest_bin_and_the_first_on_ties():
+    photo = solid((255, 0, 0), w=8)
+    photo[:, 4:] = (0, 255, 0)
+    assert image.color(photo) == 5.0  # 24 red, 24 green pixels: the lower bin wins
+    photo[:, 3] = (0, 255, 0)
+    assert image.color(photo) == 125.0
+
+
+def test_brightness_is_the_mean_gray_over_255():
+    assert image.brightness(np.full((5, 5), 255.0)) == 1.0
+    assert image.brightness(np.array([[0.0, 255.0], [0.0, 255.0]])) == 0.5
+    assert image.brightness(np.full((3, 4), 51.0)) == pytest.approx(0.2, rel=1e-15)
+
+
+def test_edginess_of_a_step_edge_is_one_column():
+    step = np.zeros((40, 50), np.uint8)
+    step[:, 25:] = 255
+    # Both columns beside the step have the same Sobel magnitude; non-maximum suppression keeps one.
+    assert image.edginess(step) == pytest.approx(40 / (40 * 50), rel=1e-15)
+    assert image.edginess(np.full((40, 50), 77, np.uint8)) == 0.0
+
+
+def test_edginess_wants_an_8_bit_image():
+    with pytest.raises(ValueError, match="uint8"):
+        image.edginess(np.zeros((10, 10)))
+
+
+# --- DFT peak means -----------------------------------------------------------------------------------
+
+
+def test_dft_peak_means_of_cosine_gratings_are_their_half_amplitudes():
+    m, n = 32, 64
+    rows, cols = np.mgrid[0:m, 0:n]
+    a1, a2 = 10.0, 8.2  # a2 / a1 = 0.82: above the 0.80 threshold, below 0.85
+    gray = (100 + a1 * np.cos(2 * np.pi * 3 * cols / n) + a2 * np.cos(2 * np.pi * (2 * rows / m + 5 * cols / n))
+            + 30 * np.sin(2 * np.pi * 7 * cols / n))  # a sine has no real part, however strong
+    # A cosine of amplitude A puts A * M * N / 2 at (k, l) and (-k, -l); normalised by sqrt(M N).
+    half = np.sqrt(m * n) / 2
+    dft_80, dft_85 = image.dft_peak_means(gray)
+    assert dft_80 == pytest.approx((a1 + a2) / 2 * half, rel=1e-9)
+    assert dft_85 == pytest.approx(a1 * half, rel=1e-9)
+
+
+@pytest.mark.parametrize("shape", [(2, 2), (2, 3), (3, 2), (5, 5), (6, 5), (5, 6), (6, 6), (31, 40), (40, 31)])
+def test_dft_peak_means_follow_the_full_spectrum_definition(shape):
+    gray = np.random.default_rng(sum(shape)).uniform(0, 255, shape)
+    spectrum = np.fft.fft2(gray - gray.mean()).real / np.sqrt(gray.size)
+    fractions = (0.8, 0.85, 0.0, -10.0)  # the last one keeps every value: the mean of the whole spectrum
+    expected = [spectrum[spectrum >= f * spectrum.max()].mean() for f in fractions]
+    assert image.dft_peak_means(gray, fractions) == pytest.approx(expected, rel=1e-10)
+
+
+# --- Haralick -----------------------------------------------------------------------------------------
+
+
+def test_quantize_uses_floor_of_gray_times_32_over_256():
+    gray = np.array([[0.0, 7.999, 8.0, 127.9], [128.0, 247.99, 248.0, 255.0]])
+    assert image.quantize(gray).tolist() == [[0, 0, 1, 15], [16, 30, 31, 31]]
+    assert image.quantize(gray).dtype == np.uint8
+
+
+def test_glcm_counts_pairs_both_ways_per_direction():
+    q = np.array([[0, 0, 1], [2, 1, 1]])
+    expected = {  # hand-enumerated pairs (reference, neighbour), each also counted reversed
+        (0, 1): [[2, 1, 0], [1, 2, 1], [0, 1, 0]],    # (0,0) (0,1) (2,1) (1,1)
+        (-1, 0): [[0, 1, 1], [1, 2, 0], [1, 0, 0]],   # (2,0) (1,0) (1,1)
+        (-1, 1): [[0, 0, 1], [0, 2, 0], [1, 0, 0]],   # (2,0) (1,1)
+        (-1, -1): [[0, 2, 0], [2, 0, 0], [0, 0, 0]],  # (1,0) (1,0)
+    }
+    for offset, counts in expected.items():
+        counts = np.array(counts, float)
+        np.testing.assert_array_equal(image.glcm(q, offset, levels=3), counts / counts.sum())
+
+
+def test_glcm_rejects_levels_out_of_range():
+    with pytest.raises(ValueError, match="0..2"):
+        image.glcm(np.array([[0, 3]]), (0, 1), levels=3)
+    with pytest.raises(ValueError, match="no pixel pairs"):
+        image.glcm(np.array([[0, 1]]), (-1, 0), levels=2)
+
+
+def test_haralick_of_a_constant_image():
+    f = image.haralick(np.full((20, 30), 100.0))  # level q = 12, 1-based 13
+    assert f[0] == 1.0  # ASM
+    assert f[1] == 0.0  # contrast
+    assert math.isnan(f[2]) and math.isnan(f[11])  # correlation and IMC1 are 0/0
+    assert f[3] == 0.0 and f[4] == 1.0
+    assert f[5] == 26.0  # sum average: 13 + 13
+    assert f[6] == 0.0 and f[7] == 0.0 and f[8] == 0.0 and f[9] == 0.0 and f[10] == 0.0
+    assert f[12] == 0.0  # IMC2: HXY2 = HXY = 0
+    assert f[13] == 0.0  # fewer than two occupied levels
+
+
+def test_haralick_of_a_checkerboard():
+    # 9 rows (odd), so the diagonal pairs split evenly into a-a and b-b.
+    rows, cols = np.mgrid[0:9, 0:10]
+    gray = np.where((rows + cols) % 2 == 0, 40.0, 120.0)  # levels q = 5 and 15, 1-based 6 and 16
+    ia, ib = 6, 16
+    d = ib - ia
+    # 0 and 90 degrees: p(a,b) = p(b,a) = 1/2. 45 and 135 degrees: p(a,a) = p(b,b) = 1/2.
+    # Averages of the two kinds of GLCM:
+    expected = [
+        0.5,                            # ASM: 1/2 in both
+        d**2 / 2,                       # contrast: d^2 and 0
+        0.0,                            # correlation: -1 and +1
+        d**2 / 4,                       # variance of a fair two-level marginal
+        (1 / (1 + d**2) + 1) / 2,       # IDM
+        ia + ib,                        # sum average, 1-based
+        d**2 / 2,                       # sum variance: 0 and d^2 (sums 2 ia and 2 ib, half each)
+        LN2 / 2,                        # sum entropy: 0 and ln 2
+        LN2,                            # entropy
+        0.0,                            # difference variance: |i - j| is constant in both
+        0.0,                            # difference entropy
+        -1.0,                           # IMC1: (ln 2 - 2 ln 2) / ln 2
+        math.sqrt(3) / 2,               # IMC2: sqrt(1 - exp(-2 (2 ln 2 - ln 2)))
+        1.0,                            # maximal correlation: Q has eigenvalues 1, 1
+    ]
+    np.testing.assert_allclose(image.haralick(gray), expected, rtol=1e-12, atol=1e-12)
+
+
+def two_level_glcm_features() -> list[float]:
+    """The 14 features of P = [[1/2, 1/8], [1/8, 1/4]] on levels 1, 2, derived by hand."""
+    hx = -(5 / 8 * math.log(5 / 8) + 3 / 8 * math.log(3 / 8))
+    hxy = 7 / 4 * LN2  # -(1/2 ln 1/2 + 2 (1/8) ln 1/8 + 1/4 ln 1/4)
+    hxy1 = -(1 / 2 * math.log(25 / 64) + 2 / 8 * math.log(15 / 64) + 1 / 4 * math.log(9 / 64))
+    hxy2 = 2 * hx
+    return [
+        11 / 32,                                        # 1/4 + 2/64 + 1/16
+        1 / 4,                                          # p_{x-y}(1) = 1/4
+        7 / 15,                                         # cov 7/64 over variance 15/64
+        15 / 64,                                        # (5/8)(3/8)
+        7 / 8,                                          # 3/4 + (1/4) / 2
+        11 / 4,                                         # p_{x+y} = 1/2, 1/4, 1/4 at k = 2, 3, 4
+        11 / 16,                                        # (9/16)/2 + (1/16)/4 + (25/16)/4
+        3 / 2 * LN2,
+        hxy,
+        3 / 16,                                         # variance of a 3/4 : 1/4 split of 0 and 1
+        -(3 / 4 * math.log(3 / 4) + 1 / 4 * math.log(1 / 4)),
+        (hxy - hxy1) / hx,
+        math.sqrt(1 - math.exp(-2 * (hxy2 - hxy))),
+        7 / 15,                                         # |ac - b^2| / (px1 px2) for a 2x2 GLCM
+    ]
+
+
+def test_haralick_from_a_hand_computed_two_level_glcm():
+    p = np.array([[1 / 2, 1 / 8], [1 / 8, 1 / 4]])
+    np.testing.assert_allclose(image.haralick_from_glcm(p), two_level_glcm_features(), rtol=1e-12)
+    padded = np.zeros((32, 32))
+    padded[:2, :2] = p  # unoccupied higher levels change nothing
+    np.testing.assert_allclose(image.haralick_from_glcm(padded), two_level_glcm_features(), rtol=1e-12)
+
+
+def test_haralick_from_glcm_rejects_non_distributions():
+    with pytest.raises(ValueError, match="square"):
+        image.haralick_from_glcm(np.ones((2, 3)) / 6)
+    with pytest.raises(ValueError, match="sum to 1"):
+        image.haralick_from_glcm(np.ones((2, 2)))
+
+
+def test_haralick_agrees_with_mahotas_after_its_documented_differences():
+    mahotas = pytest.importorskip("mahotas")
+    rng = np.random.default_rng(3)
+    gray = np.cumsum(rng.uniform(0, 1, (60, 70)), axis=1)
+    gray = gray / gray.max() * 255
+    theirs = mahotas.features.haralick(image.quantize(gray), use_x_minus_y_variance=True)  # (4 directions, 13)
+    theirs[:, 5] += 2  # 0-based levels in the sum average
+    theirs[:, [7, 8, 10]] *= LN2  # log2 entropies
+    info = -np.log(1 - theirs[:, 12] ** 2) / 2 * LN2  # HXY2 - HXY back in nats
+    theirs[:, 12] = np.sqrt(1 - np.exp(-2 * info))
+    np.testing.assert_allclose(image.haralick(gray)[:13], theirs.mean(axis=0), rtol=1e-10)
+
+
+# --- Tamura -------------------------------------------------------------------------------------------
+
+
+def test_tamura_contrast_of_two_level_images():
+    half = np.array([[10.0, 30.0]] * 4)  # p = 1/2: sigma = 10, kurtosis 1
+    assert image.tamura_contrast(half) == pytest.approx(10.0, rel=1e-14)
+    quarter = np.array([[0.0, 0.0, 0.0, 8.0]] * 3)  # p = 1/4, d = 8
+    sigma = math.sqrt(3 / 16) * 8
+    kurtosis = (3 / 16) * (27 / 64 + 1 / 64) / (3 / 16) ** 2  # p q (q^3 + p^3) / (p q)^2 = 7/3
+    assert image.tamura_contrast(quarter) == pytest.approx(sigma / kurtosis**0.25, rel=1e-14)
+
+
+@pytest.mark.parametrize("value", [0.0, 0.1, 40.32, 77.7, 255.0])
+def test_tamura_contrast_of_a_constant_image_is_zero(value):
+    assert image.tamura_contrast(np.full((31, 47), value)) == 0.0
+
+
+def stripes(width: int, h: int, w: int) -> np.ndarray:
+    """Vertical 0/255 stripes ``width`` px wide with an edge at column 32 (the first one counted)."""
+    cols = np.arange(w)
+    return np.tile(np.where(((cols - 32) // width) % 2 == 0, 0.0, 255.0), (h, 1))
+
+
+def test_tamura_coarseness_of_wide_stripes():
+    # Stripes 64 px wide: a window pair straddles at most one edge. At distance t from it, E_k = 255 (1 - |t|/2^k)
+    # for |t| < 2^k, else 0; so t = 0 ties at every k (S = 2), 1 <= |t| <= 31 picks k = 5 (S = 32), and pixels
+    # farther away see no difference at all (S = 2). Per 64-column stripe: 62 pixels of 32, 2 of 2.
+    gray = stripes(64, 80, 2 * 64 + 63)
+    assert image.tamura_coarseness(gray) == pytest.approx((62 * 32 + 2 * 2) / 64, rel=1e-15)
+    assert image.tamura_coarseness(gray.T) == pytest.approx((62 * 32 + 2 * 2) / 64, rel=1e-15)
+
+
+def test_tamura_coarseness_of_narrow_stripes_prefers_the_smaller_window_on_ties():
+    # Stripes 8 px wide: windows of 16 and 32 px average whole periods (E = 0); E_8 = E_4 everywhere and
+    # E_2 is smaller except on the edge. By position t in a stripe: S = 2, 4, 4, 4, 2, 4, 4, 4.
+    gray = stripes(8, 70, 4 * 8 + 63)
+    assert image.tamura_coarseness(gray) == pytest.approx(28 / 8, rel=1e-15)
+
+
+def test_tamura_coarseness_of_a_constant_image_is_the_smallest_window():
+    assert image.tamura_coarseness(np.full((64, 64), 93.3)) == 2.0
+    assert image.tamura_coarseness(np.zeros((70, 80))) == 2.0
+
+
+def tamura_coarseness_by_definition(gray: np.ndarray, kmax: int = 5) -> float:
+    """SPEC 7.2 read literally: explicit window means per pixel."""
+    h, w = gray.shape
+    margin, tolerance = 2**kmax, 1e-9 * gray.max()
+    best = []
+    for r in range(margin, h - margin + 1):
+        for c in range(margin, w - margin + 1):
+            e = []
+            for k in range(1, kmax + 1):
+                s, half = 2**k, 2 ** (k - 1)
+                horizontal = gray[r - half:r + half, c:c + s].mean() - gray[r - half:r + half, c - s:c].mean()
+                vertical = gray[r:r + s, c - half:c + half].mean() - gray[r - s:r, c - half:c + half].mean()
+                e.append(max(abs(horizontal), abs(vertical)))
+            e = np.array(e)
+            best.append(2 ** (1 + int(np.argmax(e >= e.max() - tolerance))))
+    return float(np.mean(best))
+
+
+@pytest.mark.parametrize("kind", ["noise", "levels", "blocks"])
+def test_tamura_coarseness_follows_the_definition_pixel_by_pixel(kind):
+    rng = np.random.default_rng(5)
+    shape = (75, 90)
+    if kind == "noise":
+        gray = rng.uniform(0, 255, shape)
+    elif kind == "levels":
+        gray = rng.integers(0, 3, shape) * 100.0
+    else:
+        gray = np.kron(rng.integers(0, 2, (19, 23)), np.ones((4, 4)))[:75, :90] * 255.0
+    assert image.tamura_coarseness(gray) == tamura_coarseness_by_definition(gray)
+
+
+def test_tamura_coarseness_needs_room_for_the_largest_window():
+    with pytest.raises(ValueError, match="smaller than the 64x64 px"):
+        image.tamura_coarseness(np.zeros((63, 100)))
+    assert image.tamura_coarseness(np.zeros((8, 8)), kmax=2) == 2.0
+
+
+# --- LBP ----------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("value", [0.0, 0.1, 40.32, 128.0, 255.0])
+def test_lbp_of_a_constant_image_is_all_in_bin_8(value):
+    # Every neighbour equals the centre, so every bit is 1: a uniform code with eight ones.
+    expected = np.zeros(10)
+    expected[8] = 1.0
+    np.testing.assert_array_equal(image.lbp_histogram(np.full((12, 15), value)), expected)
+
+
+@pytest.mark.parametrize("transpose", [False, True])
+def test_lbp_of_a_ramp_is_all_in_bin_5(transpose):
+    # Along a ramp the three neighbours behind the centre are lower and the other five are >= it:
+    # one run of five ones, a uniform code labelled 5.
+    ramp = np.tile(np.arange(20.0), (16, 1))
+    expected = np.zeros(10)
+    expected[5] = 1.0
+    np.testing.assert_array_equal(image.lbp_histogram(ramp.T if transpose else ramp), expected)
+
+
+def test_lbp_of_a_single_bright_pixel():
+    # 5x5 zeros with one bright pixel in the middle: the 3x3 interior has the peak (no neighbour >= it,
+    # label 0) and eight pixels that see it among otherwise equal neighbours (all ones, label 8).
+    gray = np.zeros((5, 5))
+    gray[2, 2] = 100.0
+    expected = np.zeros(10)
+    expected[0], expected[8] = 1 / 9, 8 / 9
+    np.testing.assert_allclose(image.lbp_histogram(gray), expected, rtol=1e-15)
+
+
+@pytest.mark.parametrize("shape", [(3, 3), (6, 9), (41, 37)])
+@pytest.mark.parametrize("kind", ["noise", "few_levels", "smooth"])
+def test_lbp_matches_scikit_image_exactly(shape, kind):
+    rng = np.random.default_rng(shape[0] * shape[1])
+    if kind == "noise":
+        gray = rng.uniform(0, 255, shape)
+    elif kind == "few_levels":  # many exact ties between neighbours
+        gray = rng.integers(0, 3, shape) * 40.32
+    else:
+        gray = np.cumsum(np.cumsum(rng.uniform(0, 1, shape), axis=0), axis=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # skimage warns about float images; SPEC asks for float64
+        codes = local_binary_pattern(gray, 8, 1, method="uniform")[1:-1, 1:-1]
+    expected = np.bincount(codes.astype(int).ravel(), minlength=10) / codes.size
+    np.testing.assert_array_equal(image.lbp_histogram(gray), expected)
+
+
+# --- gray input checks --------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("function", [image.brightness, image.dft_peak_means, image.haralick,
+                                      image.tamura_coarseness, image.lbp_histogram])
+def test_gray_features_reject_bad_images(function):
+    with pytest.raises(ValueError, match="2-D gray image"):
+        function(np.zeros((70, 70, 3)))
+    nan_image = np.zeros((70, 70))
+    nan_image[3, 4] = np.nan
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        function(nan_image)
