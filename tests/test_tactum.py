@@ -215,6 +215,27 @@ def test_marg_of_a_cosine_grating(axis, frequency, weight):
     assert tactum.marg(v, gray) == pytest.approx(2.0 * (peak_mean - contrast), rel=1e-9)
 
 
+def spec_kept_peak_mean(gray: np.ndarray) -> float:
+    """SPEC 7.1 item 3 written out: full fft2, fftshift, G' element by element."""
+    m, n = gray.shape
+    x = np.fft.fftshift(np.fft.fft2(gray - gray.mean()).real / math.sqrt(m * n))
+    g_prime = np.ones((m, n))
+    for i in range(max(0, m // 2 - 100), min(m, m // 2 + 100)):
+        for j in range(max(0, n // 2 - 100), min(n, n // 2 + 100)):
+            g_prime[i, j] = 1 - math.exp(-((i - m // 2) ** 2 + (j - n // 2) ** 2) / (2 * 25.0**2))
+    kept = x >= 0.75 * x.max()
+    return float(np.mean((x * g_prime)[kept]))
+
+
+@pytest.mark.parametrize("shape", [(64, 64), (63, 65), (230, 301), (256, 255)])
+def test_kept_peak_mean_from_the_half_spectrum_equals_the_full_spectrum(shape):
+    rng = np.random.default_rng(shape[0])
+    rows, cols = np.mgrid[:shape[0], :shape[1]]
+    gray = (5 * rng.uniform(size=shape) + 50 * np.cos(2 * np.pi * (7 * rows / shape[0] + 11 * cols / shape[1]))
+            + 30 * np.cos(2 * np.pi * (-100 * rows / shape[0] + 3 * cols / shape[1])))
+    assert tactum.kept_peak_mean(gray) == pytest.approx(spec_kept_peak_mean(gray), rel=1e-12)
+
+
 # --- 4. MiRO ----------------------------------------------------------------------------------------------
 
 def _two_level_signal(c1: float, c5: float, n: int = 3000) -> np.ndarray:
