@@ -214,7 +214,7 @@ def _doh(patches: np.ndarray, sigma: float) -> np.ndarray:
     radius = _radius(sigma)
     local = patches[:, centre - radius:centre + radius + 1, centre - radius:centre + radius + 1]
     w0, w1, w2 = (gaussian_weights(sigma, order) for order in (0, 1, 2))
-    # Filter along the rows (axis 0) first, as gaussian_filter does, then take the centre column sum.
+    # Axis 0 first, then axis 1: gaussian_filter's order, so the rounding stays close to whole-image values.
     rows = np.matmul(np.stack([w0, w1, w2]), local)
     l_yy = rows[:, 2, :] @ w0
     l_xx = rows[:, 0, :] @ w2
