@@ -151,6 +151,8 @@ def cooling_rate(t_cool: np.ndarray, t_amb: float, fs: float = T_COOL_FS) -> flo
     values = _samples(t_cool, "t_cool")
     if not math.isfinite(fs) or fs <= 0:
         raise ValueError(f"t_cool sample rate must be positive and finite, got {fs!r}")
+    if math.isinf(t_amb):
+        raise ValueError(f"t_amb must be finite (or NaN if unknown), got {t_amb!r}")
     tail = values[int(np.argmax(values)):]
     excess = float(tail[0] - t_amb)
     if math.isnan(excess) or tail.size < 2 or excess == 0:

@@ -282,6 +282,12 @@ def test_cooling_rate_is_the_least_squares_rate_in_degc():
     assert cost(rate) < cost(rate * 0.99) and cost(rate) < cost(rate * 1.01)
 
 
+@pytest.mark.parametrize(("t_amb", "fs"), [(math.inf, 20.0), (22.0, 0.0), (22.0, math.nan)])
+def test_cooling_rate_rejects_infinite_ambient_or_bad_rate(t_amb, fs):
+    with pytest.raises(ValueError, match="t_amb|sample rate"):
+        other.cooling_rate(t_cool_trace(), t_amb, fs)
+
+
 def test_cooling_rate_of_a_flat_trace_is_zero():
     assert other.cooling_rate(np.full(50, 30.0), 22.0) == pytest.approx(0.0, abs=1e-9)
 
