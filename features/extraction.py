@@ -1,0 +1,203 @@
+"""The 193 features of a scan (SPEC section 7) and their parallel, cached extraction into a feature space.
+
+Order: 15 TacTUM, 93 image (disp, macro, illu x 31), 70 audio (finger, tool x 35), 15 other.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import functools
+import hashlib
+import math
+import os
+import sys
+import warnings
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+from tqdm import tqdm
+
+from features import audio, image, other, tactum
+from features.space import FeatureSpace
+from scanner.preprocess import IMAGE_BORDER_PX, QualityError, slide_window
+from scanner.scan import IMAGES, Scan
+
+AUDIO_SIGNALS = {"finger": ("v_fs", "a_fs"), "tool": ("v_ts", "a_ts")}
+"""Audio feature prefix -> (vibration that fixes the slide window, audio channel)."""
+
+NAMES: tuple[str, ...] = (
+    *tactum.NAMES,
+    *(f"image.{short}.{name}" for short in IMAGES.values() for name in image.NAMES),
+    *(f"audio.{which}.{name}" for which in AUDIO_SIGNALS for name in audio.NAMES),
+    *other.NAMES,
+)
+"""The 193 feature names in SPEC order."""
+
+_CODE_FILES = ("features/tactum.py", "features/image.py", "features/audio.py", "features/other.py",
+               "features/extraction.py", "scanner/preprocess.py")
+
+
+@functools.cache
+def code_version() -> str:
+    """Hash of the feature code: a cached feature vector is reused only with the code that computed it."""
+    root = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256()
+    for relative in _CODE_FILES:
+        digest.update(relative.encode() + b"\0" + (root / relative).read_bytes())
+    return digest.hexdigest()[:20]
+
+
+def _nan(names: Iterable[str]) -> dict[str, float]:
+    return dict.fromkeys(names, math.nan)
+
+
+def image_features(scan: Scan) -> dict[str, float]:
+    """31 features for each photo (SPEC 7.2); NaN with a warning for a missing or too small photo."""
+    values: dict[str, float] = {}
+    for variable, short in IMAGES.items():
+        names = [f"image.{short}.{name}" for name in image.NAMES]
+        photo = scan.images.get(variable)
+        if photo is None:
+            warnings.warn(f"scan {scan.scan_id}: no photo {variable}; its image features are NaN", stacklevel=2)
+            values.update(_nan(names))
+        elif min(photo.shape[:2]) <= 2 * IMAGE_BORDER_PX:
+            warnings.warn(f"scan {scan.scan_id}: photo {variable} of {photo.shape[1]}x{photo.shape[0]} px is too "
+                          f"small to crop {IMAGE_BORDER_PX} px borders; its image features are NaN", stacklevel=2)
+            values.update(_nan(names))
+        else:
+            computed = image.compute(photo)
+            values.update({f"image.{short}.{name}": computed[name] for name in image.NAMES})
+    return values
+
+
+def audio_features(scan: Scan) -> dict[str, float]:
+    """35 features of the finger and of the tool audio in the 1 s slide window (SPEC 6, 7.3)."""
+    values: dict[str, float] = {}
+    for which, (vibration, sound) in AUDIO_SIGNALS.items():
+        names = [f"audio.{which}.{name}" for name in audio.NAMES]
+        v, a = scan.get(vibration), scan.get(sound)
+        missing = [name for name, trace in ((sound, a), (vibration, v)) if trace is None]
+        if missing:
+            warnings.warn(f"scan {scan.scan_id}: no {' or '.join(missing)}; audio.{which} features are NaN",
+                          stacklevel=2)
+            values.update(_nan(names))
+            continue
+        try:
+            window = slide_window(v.data, fs=v.fs, audio_samples=a.n, audio_fs=a.fs)
+        except QualityError as problem:
+            warnings.warn(f"scan {scan.scan_id}: {vibration}: {problem}; audio.{which} features are NaN",
+                          stacklevel=2)
+            values.update(_nan(names))
+            continue
+        computed = audio.compute(a.data[window.audio], fs=a.fs)
+        values.update({f"audio.{which}.{name}": computed[name] for name in audio.NAMES})
+    return values
+
+
+def extract(scan: Scan) -> dict[str, float]:
+    """The 193 named features of a scan in SPEC order (section 7); NaN where a value is undefined."""
+    values = {**tactum.compute(scan), **image_features(scan), **audio_features(scan), **other.compute(scan)}
+    if tuple(values) != NAMES:
+        raise RuntimeError("feature modules returned names out of SPEC order")  # a programming error
+    return values
+
+
+# -- many scans ----------------------------------------------------------------------------------------
+
+class FeatureCache(Protocol):
+    """Where feature vectors are kept between runs (``scanner.Database`` implements it)."""
+
+    def cached_features(self, content_hash: str, code_version: str) -> dict[str, float] | None: ...
+
+    def store_features(self, content_hash: str, code_version: str, values: dict[str, float]) -> None: ...
+
+
+@dataclass(frozen=True)
+class ScanSource:
+    """A scan to extract, loaded where it is processed (in a worker process), with its row identity."""
+
+    scan_id: str
+    label: str
+    group: str
+    load: Callable[[], Scan]
+    cache_key: str | None = None
+
+
+def _return(scan: Scan) -> Scan:
+    return scan
+
+
+def source_of(scan: Scan) -> ScanSource:
+    """Wrap an in-memory scan (no cache key: it has no stored content hash)."""
+    return ScanSource(scan.scan_id, scan.meta.label, scan.meta.sample_id, functools.partial(_return, scan))
+
+
+def _extract_source(source: ScanSource) -> tuple[list[float] | None, str | None]:
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # missing-channel warnings are expected on partial scans
+            values = extract(source.load())
+    except Exception as exc:  # one broken scan must not stop the others; reported with its id
+        return None, f"{type(exc).__name__}: {exc}"
+    return list(values.values()), None
+
+
+def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None, *,
+                 cache: FeatureCache | None = None, progress: bool = True) -> FeatureSpace:
+    """Features of many scans as a :class:`FeatureSpace`, rows in input order.
+
+    ``workers`` processes (default: the number of cores; 1 = in this process). A scan that fails is
+    reported in ``FeatureSpace.failed`` with its id and the reason, the others are kept. With a
+    ``cache``, sources with a ``cache_key`` (the scan's content hash) are looked up first and stored after,
+    keyed by :func:`code_version` too, so a second run over unchanged scans only reads the cache.
+    """
+    sources = [s if isinstance(s, ScanSource) else source_of(s) for s in scans]
+    version = code_version()
+    rows: list[list[float] | None] = [None] * len(sources)
+    errors: dict[int, str] = {}
+    todo = []
+    for i, source in enumerate(sources):
+        cached = cache.cached_features(source.cache_key, version) if cache and source.cache_key else None
+        if cached is not None and tuple(cached) == NAMES:
+            rows[i] = list(cached.values())
+        else:
+            todo.append(i)
+    bar = tqdm(total=len(todo), desc="features", unit="scan", file=sys.stderr, disable=None if progress else True,
+               leave=False)
+    workers = max(1, min(workers or os.cpu_count() or 1, len(todo) or 1))
+    for i, (row, error) in _run(_extract_source, [sources[i] for i in todo], todo, workers, bar.update):
+        if error is not None:
+            errors[i] = error
+            continue
+        rows[i] = row
+        if cache is not None and sources[i].cache_key:
+            cache.store_features(sources[i].cache_key, version, dict(zip(NAMES, row, strict=True)))
+    bar.close()
+    kept = [i for i in range(len(sources)) if rows[i] is not None]
+    return FeatureSpace(
+        X=np.array([rows[i] for i in kept], dtype=np.float64).reshape(len(kept), len(NAMES)),
+        columns=NAMES,
+        scan_ids=[sources[i].scan_id for i in kept],
+        label_text=[sources[i].label for i in kept],
+        groups=[sources[i].group for i in kept],
+        failed=[(sources[i].scan_id, errors[i]) for i in sorted(errors)],
+    )
+
+
+def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,
+         tick: Callable[[int], object]) -> Iterable[tuple[int, tuple]]:
+    """``(index, fn(item))`` for every item, in this process or a process pool (completion order)."""
+    if workers == 1:
+        for index, item in zip(indices, items, strict=True):
+            result = fn(item)
+            tick(1)
+            yield index, result
+        return
+    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = {pool.submit(fn, item): index for index, item in zip(indices, items, strict=True)}
+        for future in concurrent.futures.as_completed(futures):
+            tick(1)
+            yield futures[future], future.result()
