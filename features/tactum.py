@@ -299,9 +299,10 @@ def kept_peak_mean(gray: np.ndarray) -> float:
     multiplicity[0] = 1.0
     if n % 2 == 0:
         multiplicity[-1] = 1.0
-    kept = half >= threshold
-    count = kept.sum(axis=0) @ multiplicity
-    total = np.where(kept, half, 0.0).sum(axis=0) @ multiplicity
+    kept = np.flatnonzero(half >= threshold)
+    weight = multiplicity[kept % half.shape[1]]
+    count = weight.sum()
+    total = half.ravel()[kept] @ weight
     dy = np.arange(max(-GAUSS_HALF, -(m // 2)), min(GAUSS_HALF, m - m // 2))
     dx = np.arange(max(-GAUSS_HALF, -(n // 2)), min(GAUSS_HALF, n - n // 2))
     window = _full_spectrum_window(half, np.mod(dy, m), np.mod(dx, n), n)
