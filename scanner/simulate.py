@@ -504,7 +504,7 @@ def sample_of(material: Material, sample_id: str) -> Material:
     """The material as one physical sample: a few percent off the library's typical values.
 
     Deterministic in (slug, sample_id), so every scan of a sample sees the same piece: its volume (80-125 %
-    of the typical sample), density (+-1 %), roughness and friction (+-5 %), heat rise (+-5 %) and colour.
+    of the typical sample), density (+-1 %, at most 2 %), roughness and friction (+-5 %), heat rise (+-5 %) and colour.
     """
     rng = np.random.default_rng(zlib.crc32(f"{material.slug}/{sample_id}".encode()))
     scale = rng.normal(1.0, 0.05, size=5)
@@ -514,7 +514,7 @@ def sample_of(material: Material, sample_id: str) -> Material:
                    for color in look.colors)
     return replace(
         material,
-        density_g_cm3=material.density_g_cm3 * float(rng.normal(1.0, 0.01)),
+        density_g_cm3=material.density_g_cm3 * float(np.clip(rng.normal(1.0, 0.01), 0.98, 1.02)),
         sample_volume_cm3=material.sample_volume_cm3 * float(rng.uniform(0.8, 1.25)),
         roughness=replace(rough, micro_um=rough.micro_um * scale[0],
                           macro_height_um=rough.macro_height_um * min(scale[1], 1.1)),
@@ -1318,14 +1318,14 @@ def photos(material: Material, rng: np.random.Generator, operator: OperatorDraw,
 # --------------------------------------------------------------------------------------------------
 
 def tu4(material: Material, rng: np.random.Generator, operator: OperatorDraw) -> dict[str, float]:
-    """TU4: mass (scale: 0.1 g steps) and volume (displacement: +-1 %, 0.5 cm^3 steps) of the sample, and
+    """TU4: mass (scale: 0.1 g steps) and volume (displacement: read within +-1.5 %, 0.5 cm^3 steps), and
     the operator's judged adhesive tack and yielding (the material's typical value, off by the operator's
     occasional +-0.25, kept on the five-step scale)."""
     volume = material.sample_volume_cm3
     mass = material.density_g_cm3 * volume
     return {
         "mass_g": max(0.1, _quantise(mass + rng.normal(0.0, 0.05), 0.1)),
-        "volume_cm3": max(0.5, _quantise(volume * rng.normal(1.0, 0.01), 0.5)),
+        "volume_cm3": max(0.5, _quantise(volume * rng.uniform(0.985, 1.015), 0.5)),
         "atk": float(np.clip(material.adhesive_tack + operator.atk_offset, 0.0, 1.0)),
         "cyd": float(np.clip(material.yielding + operator.cyd_offset, 0.0, 1.0)),
     }
