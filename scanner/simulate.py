@@ -71,6 +71,12 @@ STEPS = ("finger_tap", "finger_slide", "tool_tap", "tool_slide", "static", "ther
 """Procedure steps in the order of SPEC 4; each has a step function in :data:`STEP_FUNCTIONS`."""
 
 
+Rng = np.random.Generator
+Arrays = dict[str, np.ndarray]
+Layers = tuple[np.ndarray, np.ndarray]
+"""A texture's colour field (0 = dominant colour .. 1 = last colour) and its surface height."""
+
+
 class MaterialLibraryError(ValueError):
     """The material library file is malformed; the message names the file, the material and the field."""
 
@@ -290,7 +296,8 @@ def _compliance(table: Mapping[str, Any], where: _Where) -> Compliance:
             raise where.fail(present[0], "is only allowed for foldable materials")
         fold = (0.0, 0.0, 0.0)
     return Compliance(stiffness, _number(table, "elastic_modulus_mpa", where, 0.001, 1e6),
-                      _number(table, "loss_factor", where, 0.0, 1.0), _number(table, "relaxation", where, 0.0, 0.9),
+                      _number(table, "loss_factor", where, 0.0, 1.0),
+                      _number(table, "relaxation", where, 0.0, 0.9),
                       _number(table, "relaxation_time_s", where, 0.05, 20.0), foldable, *fold)
 
 
@@ -464,7 +471,7 @@ SPEED_RANGE_MM_S = (20.0, 240.0)
 SLIDE_START_RANGE_S = (0.42, 0.75)
 
 
-def draw_operator(rng: np.random.Generator, *, t_amb: float | None = None,
+def draw_operator(rng: Rng, *, t_amb: float | None = None,
                   fold_skip_probability: float = 0.5) -> OperatorDraw:
     """Draw one scan's operator variability.
 
@@ -504,7 +511,8 @@ def sample_of(material: Material, sample_id: str) -> Material:
     """The material as one physical sample: a few percent off the library's typical values.
 
     Deterministic in (slug, sample_id), so every scan of a sample sees the same piece: its volume (80-125 %
-    of the typical sample), density (+-1 %, at most 2 %), roughness and friction (+-5 %), heat rise (+-5 %) and colour.
+    of the typical sample), density (+-1 %, at most 2 %), roughness and friction (+-5 %), heat rise (+-5 %)
+    and colour.
     """
     rng = np.random.default_rng(zlib.crc32(f"{material.slug}/{sample_id}".encode()))
     scale = rng.normal(1.0, 0.05, size=5)
@@ -541,14 +549,14 @@ def _quantise(x: Any, step: float) -> Any:
     return np.round(np.asarray(x, dtype=np.float64) / step) * step if np.ndim(x) else round(x / step) * step
 
 
-def _adxl335(accel_g: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+def _adxl335(accel_g: np.ndarray, rng: Rng) -> np.ndarray:
     """Acceleration (n, 3) in g as the DAQ reads it: sensor noise, +-3.6 g rails, DAQ quantisation."""
     noisy = accel_g + rng.standard_normal(accel_g.shape) * ADXL_NOISE_G
     volts = ADXL_ZERO_V + ADXL_V_PER_G * np.clip(noisy, -ADXL_RANGE_G, ADXL_RANGE_G)
     return (_quantise(volts, DAQ_LSB_V) - ADXL_ZERO_V) / ADXL_V_PER_G
 
 
-def _fsr(force_n: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+def _fsr(force_n: np.ndarray, rng: Rng) -> np.ndarray:
     """An FSR400 reading in N: the force through its volts and back with paper eq. (1).
 
     Eq. (1) maps 0 V to 0.098 N, so forces below that read as 0.098 N: the FSR's turn-on floor.
@@ -558,7 +566,7 @@ def _fsr(force_n: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return FSR_F0_N * np.exp(FSR_K_PER_V * _quantise(volts, DAQ_LSB_V))
 
 
-def _mlx90614(temperature: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+def _mlx90614(temperature: np.ndarray, rng: Rng) -> np.ndarray:
     """Object temperature with 0.02 degC noise, quantised to the MLX90614's 0.02 degC steps."""
     return _quantise(temperature + rng.normal(0.0, 0.02, temperature.shape), 0.02)
 
@@ -577,7 +585,7 @@ def _times(seconds: float, fs: float) -> np.ndarray:
     return np.arange(int(round(seconds * fs))) / fs
 
 
-def _band_noise(rng: np.random.Generator, n: int, fs: float, lo: float, hi: float) -> np.ndarray:
+def _band_noise(rng: Rng, n: int, fs: float, lo: float, hi: float) -> np.ndarray:
     """Unit-rms Gaussian noise band-limited to [lo, hi] Hz (brick-wall in the frequency domain)."""
     spectrum = rng.standard_normal(n // 2 + 1) + 1j * rng.standard_normal(n // 2 + 1)
     freqs = np.fft.rfftfreq(n, 1.0 / fs)
@@ -668,7 +676,7 @@ def _damping_ratio(material: Material, tip: Tip) -> float:
 MACRO_DX_MM = 0.05
 
 
-def _micro_derivatives(rough: Roughness, rng: np.random.Generator, n: int, dx: float,
+def _micro_derivatives(rough: Roughness, rng: Rng, n: int, dx: float,
                        contact_mm: float) -> tuple[np.ndarray, np.ndarray]:
     """Slope and curvature (1/mm) of a self-affine micro-profile on a grid of ``n`` points ``dx`` mm apart.
 
@@ -686,18 +694,18 @@ def _micro_derivatives(rough: Roughness, rng: np.random.Generator, n: int, dx: f
     return np.fft.irfft(ik * spectrum, n), np.fft.irfft(ik**2 * spectrum, n)
 
 
-def _feature_train(rough: Roughness, rng: np.random.Generator, length_mm: float) -> tuple[np.ndarray, ...]:
+def _feature_train(rough: Roughness, rng: Rng, length_mm: float) -> tuple[np.ndarray, ...]:
     """Centres, widths and heights (mm) of the macro features along ``length_mm`` of path."""
     spacing, disorder = rough.macro_spacing_mm, 1.0 - rough.macro_regularity
     count = int(length_mm / spacing) + 3
     centres = (rng.uniform(0, spacing) + spacing * np.arange(-1, count - 1)
                + disorder * 0.35 * spacing * rng.standard_normal(count))
     widths = rough.macro_duty * spacing * np.clip(1 + disorder * 0.3 * rng.standard_normal(count), 0.3, 2.0)
-    heights = rough.macro_height_um * 1e-3 * np.clip(1 + disorder * 0.3 * rng.standard_normal(count), 0.2, 2.0)
+    heights = rough.macro_height_um * 1e-3 * np.clip(1 + disorder * 0.3 * rng.standard_normal(count), 0.2, 2)
     return np.sort(centres), widths, heights
 
 
-def _macro_profile(rough: Roughness, rng: np.random.Generator, n: int, dx: float) -> np.ndarray:
+def _macro_profile(rough: Roughness, rng: Rng, n: int, dx: float) -> np.ndarray:
     """Macro height (mm) on the grid: smoothed rectangular bumps (height > 0) or pits/holes (height < 0)."""
     if rough.macro_height_um == 0.0:
         return np.zeros(n)
@@ -738,12 +746,13 @@ def _slide_path(seconds: float, fs: float, start_s: float, speed: float, motion:
     ramp, f_mod, phase, depth = motion
     t = _times(seconds, fs)
     moving = t - start_s
-    v = speed * _smoothstep(moving / ramp) * (1 + depth * np.sin(2 * np.pi * f_mod * np.maximum(moving, 0) + phase))
+    hand = 1 + depth * np.sin(2 * np.pi * f_mod * np.maximum(moving, 0) + phase)
+    v = speed * _smoothstep(moving / ramp) * hand
     x = np.concatenate(([0.0], np.cumsum(0.5 * (v[1:] + v[:-1])) / fs))
     return _Path(v, np.gradient(v, 1 / fs), x)
 
 
-def _draw_motion(rng: np.random.Generator) -> np.ndarray:
+def _draw_motion(rng: Rng) -> np.ndarray:
     return np.array([rng.uniform(0.08, 0.2), rng.uniform(0.5, 1.5), rng.uniform(0, 2 * np.pi),
                      rng.uniform(0.05, 0.15)])
 
@@ -771,7 +780,7 @@ def _lookup(grid: np.ndarray, position: np.ndarray) -> np.ndarray:
     return np.interp(position, np.arange(grid.size), grid)
 
 
-def _surface(material: Material, rng: np.random.Generator, tip: Tip, length_mm: float,
+def _surface(material: Material, rng: Rng, tip: Tip, length_mm: float,
              n_fine: int, macro: np.ndarray | None = None) -> _Surface:
     """The surface the tip follows over ``length_mm``; pass ``macro`` to share one macro profile."""
     n = int(2 ** np.ceil(np.log2(max(n_fine, 1024))))
@@ -788,7 +797,7 @@ def _surface(material: Material, rng: np.random.Generator, tip: Tip, length_mm: 
 # TU1: taps
 # --------------------------------------------------------------------------------------------------
 
-def _tap_train(material: Material, rng: np.random.Generator, operator: OperatorDraw, tip: Tip) -> np.ndarray:
+def _tap_train(material: Material, rng: Rng, operator: OperatorDraw, tip: Tip) -> np.ndarray:
     """(n, 3) acceleration in g of 3-5 taps: each a decaying contact resonance plus the hand's stop.
 
     ``a(t) = A exp(-t/tau) sin(2 pi f t)`` with f the contact resonance, ``tau = 1 / (2 pi f zeta)`` and
@@ -812,12 +821,12 @@ def _tap_train(material: Material, rng: np.random.Generator, operator: OperatorD
     return unit @ _tilt(*operator.tilt_deg).T + _gravity(t.size, operator.tilt_deg)
 
 
-def finger_tap(material: Material, rng: np.random.Generator, operator: OperatorDraw) -> dict[str, np.ndarray]:
+def finger_tap(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
     """TU1 finger tap: ``v_ft`` (SPEC 4 step 1)."""
     return {"v_ft": _adxl335(_tap_train(material, rng, operator, FINGER), rng)}
 
 
-def tool_tap(material: Material, rng: np.random.Generator, operator: OperatorDraw) -> dict[str, np.ndarray]:
+def tool_tap(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
     """TU1 tool tap: ``v_tt`` (SPEC 4 step 3)."""
     return {"v_tt": _adxl335(_tap_train(material, rng, operator, TOOL), rng)}
 
@@ -838,17 +847,18 @@ STICK_SLIP_G = 0.2
 """Tangential stick-slip excitation per unit kinetic friction at 130 mm/s (g)."""
 
 
-def _onset_jolt(rng: np.random.Generator, t: np.ndarray, start_s: float) -> np.ndarray:
+def _onset_jolt(rng: Rng, t: np.ndarray, start_s: float) -> np.ndarray:
     """(n, 3) g: the hand's jerk and the unit's ringing as it breaks loose (what the start detector sees)."""
     since = t - start_s
     width = rng.uniform(0.004, 0.008)
     pulse = np.where((since >= 0) & (since < width), np.sin(np.pi * np.clip(since, 0, None) / width), 0.0)
-    ring = np.where(since >= 0, np.exp(-np.clip(since, 0, None) / 0.006), 0.0) * np.sin(2 * np.pi * 1150 * since)
+    after = np.clip(since, 0, None)
+    ring = np.where(since >= 0, np.exp(-after / 0.006), 0.0) * np.sin(2 * np.pi * 1150 * since)
     amplitude = rng.uniform(0.15, 0.35)
     return amplitude * np.column_stack([pulse + 0.5 * ring, 0.3 * ring, 0.5 * pulse + 0.4 * ring])
 
 
-def _slide(material: Material, rng: np.random.Generator, operator: OperatorDraw, tip: Tip,
+def _slide(material: Material, rng: Rng, operator: OperatorDraw, tip: Tip,
            speed: float, start_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Acceleration (n, 3) g at 3000 Hz, audio at 44100 Hz and IR volts at 3000 Hz of one TU1 slide."""
     motion = _draw_motion(rng)
@@ -861,7 +871,7 @@ def _slide(material: Material, rng: np.random.Generator, operator: OperatorDraw,
 
     contact = _resonance_sos(contact_frequency_hz(material, tip), _damping_ratio(material, tip), FS_AUDIO)
     rolling = ROLLING_G * (fast.v / 130.0) * _band_noise(rng, fast.x.size, FS_AUDIO, 50.0, 3000.0)
-    stick_slip = STICK_SLIP_G * np.sqrt(fast.v / 130.0) * _band_noise(rng, fast.x.size, FS_AUDIO, 50.0, 3000.0)
+    stick_slip = STICK_SLIP_G * np.sqrt(fast.v / 130.0) * _band_noise(rng, fast.x.size, FS_AUDIO, 50.0, 3e3)
     seen_z = signal.sosfilt(contact, normal + rolling) * tip.gain
     seen_x = signal.sosfilt(contact, material.friction.kinetic * (lateral + stick_slip) + rolling) * tip.gain
     unit = np.column_stack([seen_x, 0.3 * seen_z + 0.2 * seen_x, seen_z])
@@ -879,7 +889,7 @@ def _slide(material: Material, rng: np.random.Generator, operator: OperatorDraw,
     return vibration, audio, _ir(material, rng, slow.x, macro)
 
 
-def _audio(rng: np.random.Generator, tip_g: np.ndarray, path: _Path, tip: Tip) -> np.ndarray:
+def _audio(rng: Rng, tip_g: np.ndarray, path: _Path, tip: Tip) -> np.ndarray:
     """Microphone signal: the tip's contact vibration through a radiation filter, room noise, 16 bits.
 
     Radiation from the small contact region rises as f^2 below ~1 kHz (second-order high-pass); the
@@ -895,7 +905,7 @@ def _audio(rng: np.random.Generator, tip_g: np.ndarray, path: _Path, tip: Tip) -
     return _quantise(np.clip(audio, -1.0, 1.0 - 2.0**-15), 2.0**-15)
 
 
-def _pink(rng: np.random.Generator, n: int) -> np.ndarray:
+def _pink(rng: Rng, n: int) -> np.ndarray:
     """Unit-rms 1/f noise (room noise)."""
     spectrum = rng.standard_normal(n // 2 + 1) + 1j * rng.standard_normal(n // 2 + 1)
     f = np.fft.rfftfreq(n, 1.0 / FS_AUDIO)
@@ -904,7 +914,7 @@ def _pink(rng: np.random.Generator, n: int) -> np.ndarray:
     return x / np.sqrt(np.mean(x**2))
 
 
-def _ir(material: Material, rng: np.random.Generator, x: np.ndarray, macro: np.ndarray) -> np.ndarray:
+def _ir(material: Material, rng: Rng, x: np.ndarray, macro: np.ndarray) -> np.ndarray:
     """IR reflectance volts along the path: albedo texture and the depth of the macro profile.
 
     ``V = 0.1 + 4.6 level (1 + variation n(x)) / (1 + depth / 1.5 mm)``, both seen through the sensor's
@@ -921,13 +931,14 @@ def _ir(material: Material, rng: np.random.Generator, x: np.ndarray, macro: np.n
     return _quantise(np.clip(volts, 0.0, 5.0), DAQ_LSB_V)
 
 
-def finger_slide(material: Material, rng: np.random.Generator, operator: OperatorDraw) -> dict[str, np.ndarray]:
+def finger_slide(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
     """TU1 finger slide: ``v_fs``, ``a_fs``, ``r_fs`` (SPEC 4 step 2)."""
-    v, a, r = _slide(material, rng, operator, FINGER, operator.finger_speed_mm_s, operator.finger_slide_start_s)
+    speed, start = operator.finger_speed_mm_s, operator.finger_slide_start_s
+    v, a, r = _slide(material, rng, operator, FINGER, speed, start)
     return {"v_fs": v, "a_fs": a, "r_fs": r}
 
 
-def tool_slide(material: Material, rng: np.random.Generator, operator: OperatorDraw) -> dict[str, np.ndarray]:
+def tool_slide(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
     """TU1 tool slide: ``v_ts``, ``a_ts``, ``r_ts`` (SPEC 4 step 4)."""
     v, a, r = _slide(material, rng, operator, TOOL, operator.tool_speed_mm_s, operator.tool_slide_start_s)
     return {"v_ts": v, "a_ts": a, "r_ts": r}
@@ -937,7 +948,7 @@ def tool_slide(material: Material, rng: np.random.Generator, operator: OperatorD
 # TU2: static touch and thermal
 # --------------------------------------------------------------------------------------------------
 
-def static_touch(material: Material, rng: np.random.Generator, operator: OperatorDraw) -> dict[str, np.ndarray]:
+def static_touch(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
     """TU2 static touch, 1 s: metal electrodes ``m`` and magnetometer ``dB`` (SPEC 4 step 5).
 
     ``m``: +1 where a conductive sample pulls the electrode below 2.5 V, else -1; the electrodes bounce
@@ -962,7 +973,7 @@ def static_touch(material: Material, rng: np.random.Generator, operator: Operato
     return {"m": m, "dB": _quantise(db, 0.1)}
 
 
-def thermal(material: Material, rng: np.random.Generator, operator: OperatorDraw) -> dict[str, np.ndarray]:
+def thermal(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
     """TU2 thermal: ``t_cool``, 10 s at 20 Hz after heating the Peltier element for 3 s (SPEC 4 step 5).
 
     The heated spot cools as ``t_amb + dT exp(-r t)`` (paper eq. 26); ``dT`` is the library's heat rise,
@@ -992,7 +1003,7 @@ def _envelope(t: np.ndarray, on: float, rise: float, off: float, fall: float) ->
     return _smoothstep((t - on) / rise) * (1.0 - _smoothstep((t - off) / fall))
 
 
-def friction_slide(material: Material, rng: np.random.Generator, operator: OperatorDraw) -> dict[str, np.ndarray]:
+def friction_slide(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
     """TU2 friction slide: normal ``f_frn`` and tangential ``f_frt`` in N (SPEC 4 step 6, paper Fig. 11).
 
     The unit rests, the operator presses (normal force rising to ``friction_normal_n``), then pushes: the
@@ -1006,7 +1017,8 @@ def friction_slide(material: Material, rng: np.random.Generator, operator: Opera
     normal = operator.friction_normal_n * _envelope(t, on, press_time, off, rng.uniform(0.15, 0.3))
     normal *= 1 + 0.03 * _band_noise(rng, t.size, FS_DAQ, 0.5, 6.0)
     push_at = on + press_time * rng.uniform(0.6, 1.0)
-    push = fric.static * operator.friction_normal_n * 1.3 * _smoothstep((t - push_at) / rng.uniform(0.15, 0.35))
+    push_time = rng.uniform(0.15, 0.35)
+    push = fric.static * operator.friction_normal_n * 1.3 * _smoothstep((t - push_at) / push_time)
     slipping = np.cumsum((push >= fric.static * normal) & (t > push_at)) > 0
     if not slipping.any():
         slipping[int(off * FS_DAQ)] = True
@@ -1020,7 +1032,7 @@ def friction_slide(material: Material, rng: np.random.Generator, operator: Opera
     return {"f_frn": _fsr(normal, rng), "f_frt": _fsr(np.maximum(tangential, 0.0) + offset, rng)}
 
 
-def _sliding_fluctuation(material: Material, rng: np.random.Generator, operator: OperatorDraw,
+def _sliding_fluctuation(material: Material, rng: Rng, operator: OperatorDraw,
                          t: np.ndarray, slip_at: int) -> np.ndarray:
     """Relative tangential-force fluctuation while sliding: macro slope under the finger plus stick-slip."""
     speed = operator.friction_speed_mm_s * (t >= t[slip_at])
@@ -1029,10 +1041,11 @@ def _sliding_fluctuation(material: Material, rng: np.random.Generator, operator:
     ridge = np.gradient(_tip_path(macro, MACRO_DX_MM, FINGER_CONTACT.radius_mm), MACRO_DX_MM)
     stick_slip = min(0.15, 0.03 * np.sqrt(1 + material.roughness.micro_um / 10)) * _band_noise(
         rng, t.size, FS_DAQ, 5.0, 150.0)
-    return np.where(t >= t[slip_at], np.clip(0.8 * _lookup(ridge, x / MACRO_DX_MM) + stick_slip, -0.9, 2.0), 0.0)
+    relative = np.clip(0.8 * _lookup(ridge, x / MACRO_DX_MM) + stick_slip, -0.9, 2.0)
+    return np.where(t >= t[slip_at], relative, 0.0)
 
 
-def press(material: Material, rng: np.random.Generator, operator: OperatorDraw) -> dict[str, np.ndarray]:
+def press(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
     """TU2 press: ``f_press`` in N with the indentation fixed at 4.0 mm by the casing (SPEC 4 step 7).
 
     A deformable sample reaches the stop and reads ``k * 4.0 mm``, then relaxes by ``relaxation`` with time
@@ -1053,7 +1066,7 @@ def press(material: Material, rng: np.random.Generator, operator: OperatorDraw) 
     return {"f_press": _fsr(force, rng)}
 
 
-def fold(material: Material, rng: np.random.Generator, operator: OperatorDraw) -> dict[str, np.ndarray]:
+def fold(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
     """TU2 fold: ``f_fold`` in N and ``alpha_f`` in deg (SPEC 4 step 8, paper Fig. 13).
 
     Foldable: one or two folds of ``fold_angle_deg * fold_extent``, each smooth over 0.4-1.0 s, held, then
@@ -1078,7 +1091,7 @@ def fold(material: Material, rng: np.random.Generator, operator: OperatorDraw) -
             "alpha_f": _quantise(flex * FLEX_V_PER_DEG, DAQ_LSB_V) / FLEX_V_PER_DEG}
 
 
-def _fold_angle(material: Material, rng: np.random.Generator, operator: OperatorDraw, t: np.ndarray,
+def _fold_angle(material: Material, rng: Rng, operator: OperatorDraw, t: np.ndarray,
                 first: float) -> np.ndarray:
     """Flex angle (deg) of one or two folds; a yielding sample keeps part of the fold."""
     amplitude = material.compliance.fold_angle_deg * operator.fold_extent
@@ -1104,7 +1117,7 @@ PHOTO_FOV_MM = {"I_disp": 60.0, "I_macro": 15.0, "I_illu": 60.0}
 """Field of view across the image width: the 4x lens shows a quarter of the normal view."""
 
 
-def _noise(rng: np.random.Generator, shape: tuple[int, int], scale_px: float, stretch: float = 1.0) -> np.ndarray:
+def _noise(rng: Rng, shape: tuple[int, int], scale_px: float, stretch: float = 1.0) -> np.ndarray:
     """Unit-variance smooth noise with correlation length ``scale_px`` (rows) and ``scale_px*stretch`` (cols).
 
     Features finer than a pixel average out: the amplitude falls with the scale below one pixel.
@@ -1134,12 +1147,12 @@ def _grid(size: int) -> tuple[np.ndarray, np.ndarray]:
     return np.meshgrid(axis, axis)
 
 
-def _texture_smooth(look: Appearance, rng: np.random.Generator, size: int, ppm: float) -> tuple[np.ndarray, ...]:
+def _texture_smooth(look: Appearance, rng: Rng, size: int, ppm: float) -> Layers:
     clouds = 0.5 + 0.25 * _noise(rng, (size, size), ppm / look.frequency_per_mm)
     return look.contrast * clouds, np.zeros((size, size), np.float32)
 
 
-def _texture_grain(look: Appearance, rng: np.random.Generator, size: int, ppm: float) -> tuple[np.ndarray, ...]:
+def _texture_grain(look: Appearance, rng: Rng, size: int, ppm: float) -> Layers:
     """Growth rings along the columns, warped by slow noise; late wood is the ``duty`` share of each ring."""
     _, rows = _grid(size)
     period = ppm / look.frequency_per_mm
@@ -1151,24 +1164,24 @@ def _texture_grain(look: Appearance, rng: np.random.Generator, size: int, ppm: f
     return look.contrast * np.clip(late + 0.15 * pores, 0, 1), -late
 
 
-def _texture_speckle(look: Appearance, rng: np.random.Generator, size: int, ppm: float) -> tuple[np.ndarray, ...]:
+def _texture_speckle(look: Appearance, rng: Rng, size: int, ppm: float) -> Layers:
     """Mineral grains: a dark phase (``0.4 duty`` of the area), a second phase (``duty``), the rest first."""
     grain = ppm / look.frequency_per_mm
     dark = _noise(rng, (size, size), 0.7 * grain)
     second = _noise(rng, (size, size), grain)
     cut_dark, cut_second = np.quantile(dark, 1 - 0.4 * look.duty), np.quantile(second, 1 - look.duty)
-    field = 0.5 / (1 + np.exp(-(second - cut_second) / 0.08)) + 0.5 / (1 + np.exp(-(dark - cut_dark) / 0.08)) * 2
+    field = 0.5 / (1 + np.exp(-(second - cut_second) / 0.08)) + 1.0 / (1 + np.exp(-(dark - cut_dark) / 0.08))
     field = np.clip(field, 0, 1) + 0.12 * _noise(rng, (size, size), 0.15 * grain)
     return look.contrast * field, _noise(rng, (size, size), 0.5 * grain)
 
 
-def _texture_granular(look: Appearance, rng: np.random.Generator, size: int, ppm: float) -> tuple[np.ndarray, ...]:
+def _texture_granular(look: Appearance, rng: Rng, size: int, ppm: float) -> Layers:
     grains = _noise(rng, (size, size), 0.5 * ppm / look.frequency_per_mm)
     field = 1 / (1 + np.exp(-2 * grains))
     return look.contrast * field, grains
 
 
-def _texture_cellular(look: Appearance, rng: np.random.Generator, size: int, ppm: float) -> tuple[np.ndarray, ...]:
+def _texture_cellular(look: Appearance, rng: Rng, size: int, ppm: float) -> Layers:
     """Foam-like cells around random seeds: walls along the cell boundaries, cavities (``duty``) inside."""
     cell = ppm / look.frequency_per_mm
     count = int(size * size / max(cell, 1.0) ** 2)
@@ -1184,19 +1197,19 @@ def _texture_cellular(look: Appearance, rng: np.random.Generator, size: int, ppm
     return look.contrast * cavity, -cavity
 
 
-def _texture_fibrous(look: Appearance, rng: np.random.Generator, size: int, ppm: float) -> tuple[np.ndarray, ...]:
+def _texture_fibrous(look: Appearance, rng: Rng, size: int, ppm: float) -> Layers:
     scale = 0.3 * ppm / look.frequency_per_mm
     fibres = _noise(rng, (size, size), scale, stretch=10.0) + 0.5 * _noise(rng, (size, size), scale)
     field = 1 / (1 + np.exp(-1.5 * fibres))
     return look.contrast * field, fibres
 
 
-def _texture_brushed(look: Appearance, rng: np.random.Generator, size: int, ppm: float) -> tuple[np.ndarray, ...]:
+def _texture_brushed(look: Appearance, rng: Rng, size: int, ppm: float) -> Layers:
     streaks = _noise(rng, (size, size), 0.5 * ppm / look.frequency_per_mm, stretch=40.0)
     return look.contrast * (0.5 + 0.25 * streaks), 0.3 * streaks
 
 
-def _texture_veined(look: Appearance, rng: np.random.Generator, size: int, ppm: float) -> tuple[np.ndarray, ...]:
+def _texture_veined(look: Appearance, rng: Rng, size: int, ppm: float) -> Layers:
     """Marble: thin veins along the level lines of a turbulent field."""
     cols, rows = _grid(size)
     period = ppm / look.frequency_per_mm
@@ -1207,7 +1220,7 @@ def _texture_veined(look: Appearance, rng: np.random.Generator, size: int, ppm: 
     return look.contrast * np.clip(veins + cloud, 0, 1), np.zeros((size, size), np.float32)
 
 
-def _texture_weave(look: Appearance, rng: np.random.Generator, size: int, ppm: float) -> tuple[np.ndarray, ...]:
+def _texture_weave(look: Appearance, rng: Rng, size: int, ppm: float) -> Layers:
     """Plain weave: threads ``duty`` of the pitch wide, alternating over and under."""
     cols, rows = _grid(size)
     pitch = ppm / look.frequency_per_mm
@@ -1223,7 +1236,7 @@ def _texture_weave(look: Appearance, rng: np.random.Generator, size: int, ppm: f
     return look.contrast * np.clip(1 - thread + fibres, 0, 1), thread
 
 
-def _texture_perforated(look: Appearance, rng: np.random.Generator, size: int, ppm: float) -> tuple[np.ndarray, ...]:
+def _texture_perforated(look: Appearance, rng: Rng, size: int, ppm: float) -> Layers:
     """A square grid of round holes, diameter ``duty`` of the pitch, with sharp edges."""
     cols, rows = _grid(size)
     pitch = ppm / look.frequency_per_mm
@@ -1236,14 +1249,14 @@ def _texture_perforated(look: Appearance, rng: np.random.Generator, size: int, p
     return look.contrast * np.clip(hole + sheen, 0, 1), -hole
 
 
-def _texture_ribbed(look: Appearance, rng: np.random.Generator, size: int, ppm: float) -> tuple[np.ndarray, ...]:
+def _texture_ribbed(look: Appearance, rng: Rng, size: int, ppm: float) -> Layers:
     _, rows = _grid(size)
     ridge = 0.5 + 0.5 * np.cos(2 * np.pi * rows / (ppm / look.frequency_per_mm) + rng.uniform(0, 2 * np.pi))
     fibres = 0.3 * _noise(rng, (size, size), 0.05 * ppm, stretch=6.0)
     return look.contrast * np.clip(0.7 * ridge + fibres, 0, 1), ridge
 
 
-TEXTURE_FUNCTIONS: Mapping[str, Callable[..., tuple[np.ndarray, ...]]] = {
+TEXTURE_FUNCTIONS: Mapping[str, Callable[[Appearance, Rng, int, float], Layers]] = {
     "smooth": _texture_smooth, "grain": _texture_grain, "speckle": _texture_speckle,
     "granular": _texture_granular, "cellular": _texture_cellular, "fibrous": _texture_fibrous,
     "brushed": _texture_brushed, "veined": _texture_veined, "weave": _texture_weave,
@@ -1261,7 +1274,7 @@ def _place(image: np.ndarray, angle_deg: float, shift: np.ndarray, out: tuple[in
     return cv2.warpAffine(image, matrix, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
 
 
-def _photo(material: Material, rng: np.random.Generator, operator: OperatorDraw, kind: str,
+def _photo(material: Material, rng: Rng, operator: OperatorDraw, kind: str,
            size: tuple[int, int]) -> np.ndarray:
     """One RGB uint8 photo: texture, rotation and position, relief shading, lighting, vignetting, noise."""
     look = material.appearance
@@ -1278,7 +1291,8 @@ def _photo(material: Material, rng: np.random.Generator, operator: OperatorDraw,
     rgb = rgb * _shading(placed[..., 1], relief, rng.uniform(-2.6, -2.0))[..., None]
     cols, rows = np.meshgrid(np.linspace(-1, 1, w, dtype=np.float32), np.linspace(-1, 1, h, dtype=np.float32))
     radius = np.hypot(cols, rows) / np.sqrt(2)
-    light = operator.light_gain * rng.normal(1.0, 0.02) * (1 - (0.45 if kind == "I_macro" else 0.3) * radius**3)
+    vignetting = 1 - (0.45 if kind == "I_macro" else 0.3) * radius**3
+    light = operator.light_gain * rng.normal(1.0, 0.02) * vignetting
     side = rng.uniform(0, 2 * np.pi)
     light = light * (1 + 0.06 * (cols * np.cos(side) + rows * np.sin(side)))
     rgb = rgb * light[..., None] * rng.normal(1.0, 0.015, 3).astype(np.float32)
@@ -1300,13 +1314,13 @@ def _shading(height: np.ndarray, relief: float, light_angle: float) -> np.ndarra
     return np.clip(1 + 0.35 * relief * slope / spread, 0.3, 1.7)
 
 
-def _highlight(gloss: float, rng: np.random.Generator, cols: np.ndarray, rows: np.ndarray) -> np.ndarray:
+def _highlight(gloss: float, rng: Rng, cols: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """The flash's specular spot near the image centre, as strong as the surface is glossy."""
     centre = rng.normal(0.0, 0.08, 2)
     return 0.45 * gloss * np.exp(-((cols - centre[0]) ** 2 + (rows - centre[1]) ** 2) / (2 * 0.15**2))
 
 
-def photos(material: Material, rng: np.random.Generator, operator: OperatorDraw,
+def photos(material: Material, rng: Rng, operator: OperatorDraw,
            image_size: tuple[int, int] = (512, 512)) -> dict[str, np.ndarray]:
     """TU3 photos ``I_disp``, ``I_macro`` (4x lens: a quarter of the field, coarser texture, softer) and
     ``I_illu`` (flash: brighter, specular highlight, flatter relief), RGB uint8 of ``image_size`` (h, w)."""
@@ -1317,7 +1331,7 @@ def photos(material: Material, rng: np.random.Generator, operator: OperatorDraw,
 # TU4: mass, volume, judged values
 # --------------------------------------------------------------------------------------------------
 
-def tu4(material: Material, rng: np.random.Generator, operator: OperatorDraw) -> dict[str, float]:
+def tu4(material: Material, rng: Rng, operator: OperatorDraw) -> dict[str, float]:
     """TU4: mass (scale: 0.1 g steps) and volume (displacement: read within +-1.5 %, 0.5 cm^3 steps), and
     the operator's judged adhesive tack and yielding (the material's typical value, off by the operator's
     occasional +-0.25, kept on the five-step scale)."""
@@ -1383,13 +1397,18 @@ def synthetic_scan(material: Material | str, *, seed: int, scan_index: int = 1, 
               for step in STEPS if step not in ("photos", "tu4") for name, data in results[step].items()}
     meta = ScanMeta(
         label=material.label, operator=operator, sample_id=sample_id, scan_index=scan_index,
-        session_id=session_id, started=started or (_EPOCH + timedelta(minutes=15 * (scan_index - 1))).isoformat(),
+        session_id=session_id, started=started or _default_start(scan_index),
         t_amb=draw.t_amb, rigid=not material.compliance.foldable and draw.skips_rigid_fold,
         device={"simulator": SIMULATOR, "material": material.slug, "seed": str(seed),
                 "daq": "NI USB-6002 (simulated)", "sensor_board": "TEXPLORER-SB (simulated)",
                 "camera": "procedural"},
         software_version=_software_version(), notes=_notes(draw), **results["tu4"])
     return Scan(meta, traces, results["photos"])
+
+
+def _default_start(scan_index: int) -> str:
+    """A fixed, plausible start time (scans 15 min apart), so equal arguments give equal scans."""
+    return (_EPOCH + timedelta(minutes=15 * (scan_index - 1))).isoformat()
 
 
 def _software_version() -> str:
@@ -1414,7 +1433,8 @@ def scan_seed(seed: int, slug: str, scan_index: int) -> int:
 
 
 def synthetic_scans(materials: Iterable[str] | None = None, scans_per_material: int = 5, seed: int = 0,
-                    image_size: tuple[int, int] = (512, 512), fold_skip_probability: float = 0.5) -> Iterator[Scan]:
+                    image_size: tuple[int, int] = (512, 512),
+                    fold_skip_probability: float = 0.5) -> Iterator[Scan]:
     """Scans 1..n of one sample per material (sample id ``<slug>-01``), material by material.
 
     ``materials``: slugs of the default library, or None for all of it. Scan k of material m is

@@ -159,10 +159,12 @@ def test_a_valid_library_file_loads(tmp_path):
     ('magnetic = "none"', 'magnetic = "super"', r"magnetic = 'super' is unknown \(one of: ferro, para, none"),
     ('magnet_response_ut = 0.0', 'magnet_response_ut = 3.0', r"magnet_response_ut = 3\.0 does not fit"),
     ('texture = "speckle"', 'texture = "plaid"', r"appearance\.texture = 'plaid' is unknown"),
-    ('label = "C6S1M1P2X1"', 'label = "C6S1M1P2"', r"label = 'C6S1M1P2' is not of the form C<c>S<s>M<m>P<p>X<x>"),
+    ('label = "C6S1M1P2X1"', 'label = "C6S1M1P2"',
+     r"label = 'C6S1M1P2' is not of the form C<c>S<s>M<m>P<p>X<x>"),
     ('conductive = false', 'conductive = "no"', r"conductive must be true or false"),
     ("adhesive_tack = 0.0", "adhesive_tack = 0.3", r"adhesive_tack = 0\.3 is not on the five-step scale"),
-    ("colors = [[170, 165, 160], [40, 38, 38]]", "colors = [[170, 165]]", r"appearance\.colors must be 1-3 RGB"),
+    ("colors = [[170, 165, 160], [40, 38, 38]]", "colors = [[170, 165]]",
+     r"appearance\.colors must be 1-3 RGB"),
     ("micro_um = 0.1", "micro_um = 0.1\nmicro_nm = 3.0", r"roughness\.micro_nm is not a known field"),
     ("foldable = false", "foldable = false\nfold_angle_deg = 20.0",
      r"compliance\.fold_angle_deg is only allowed for foldable materials"),
@@ -240,7 +242,8 @@ def test_same_seed_gives_a_bit_identical_scan_and_another_seed_does_not(oak_scan
 
 def test_scans_of_a_database_are_reproducible_one_by_one():
     scans = list(sim.synthetic_scans(["float-glass"], scans_per_material=2, seed=3, image_size=SMALL))
-    assert [(s.meta.sample_id, s.meta.scan_index) for s in scans] == [("float-glass-01", 1), ("float-glass-01", 2)]
+    ids = [(s.meta.sample_id, s.meta.scan_index) for s in scans]
+    assert ids == [("float-glass-01", 1), ("float-glass-01", 2)]
     alone = sim.synthetic_scan("float-glass", seed=sim.scan_seed(3, "float-glass", 2), scan_index=2,
                                sample_id="float-glass-01", image_size=SMALL)
     assert alone.meta == scans[1].meta and alone["v_ts"] == scans[1]["v_ts"]
@@ -271,7 +274,8 @@ def test_synthetic_database_stores_every_scan(tmp_path):
 
 # -- TU1: slides and taps ---------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("slug", ["polyurethane-foam", "float-glass", "sandpaper-p80", "perforated-steel-plate"])
+@pytest.mark.parametrize("slug", ["polyurethane-foam", "float-glass", "sandpaper-p80",
+                                  "perforated-steel-plate"])
 def test_slide_start_is_found_after_the_rest_with_a_second_of_slide(slug, library):
     for seed in range(3):
         draw = operator(seed)
@@ -285,7 +289,8 @@ def test_slide_start_is_found_after_the_rest_with_a_second_of_slide(slug, librar
 
 
 def test_the_ir_reads_a_static_level_before_the_slide(library):
-    out = sim.tool_slide(library["granite-polished"], np.random.default_rng(0), operator(0, tool_slide_start_s=0.6))
+    draw = operator(0, tool_slide_start_s=0.6)
+    out = sim.tool_slide(library["granite-polished"], np.random.default_rng(0), draw)
     rest, moving = out["r_ts"][:1500], out["r_ts"][2100:]
     assert rest.std() < 0.005 and moving.std() > 10 * rest.std()
 
@@ -427,7 +432,8 @@ def test_friction_slide_has_stiction_kinetic_ratio_and_release(library):
     sliding = slice(int(2.0 * 3000), int(3.5 * 3000))
     ratio = tangential[sliding].mean() / normal[sliding].mean()
     assert ratio == pytest.approx(oak.friction.kinetic, rel=0.08)
-    assert tangential.max() / normal[int(np.argmax(tangential))] == pytest.approx(oak.friction.static, rel=0.1)
+    peak = int(np.argmax(tangential))
+    assert tangential[peak] / normal[peak] == pytest.approx(oak.friction.static, rel=0.1)
 
 
 def test_fsr_floor_is_eq_1_at_zero_volts(library):
@@ -460,14 +466,16 @@ def test_density_from_mass_and_volume(slug, library):
     sample = sim.sample_of(library[slug], f"{slug}-01")
     for seed in range(1, 6):
         measured = sim.tu4(sample, np.random.default_rng(seed), operator(seed))
-        assert measured["mass_g"] / measured["volume_cm3"] == pytest.approx(library[slug].density_g_cm3, rel=0.05)
+        density = measured["mass_g"] / measured["volume_cm3"]
+        assert density == pytest.approx(library[slug].density_g_cm3, rel=0.05)
 
 
 def test_judged_values_stay_on_the_scale(library):
     paper = library["printer-paper"]  # yielding 0.75
     assert sim.tu4(paper, np.random.default_rng(0), operator(0, cyd_offset=0.25))["cyd"] == 1.0
     assert sim.tu4(paper, np.random.default_rng(0), operator(0, cyd_offset=-0.25))["cyd"] == 0.5
-    assert sim.tu4(library["float-glass"], np.random.default_rng(0), operator(0, atk_offset=-0.25))["atk"] == 0.0
+    glass = library["float-glass"]  # adhesive tack 0
+    assert sim.tu4(glass, np.random.default_rng(0), operator(0, atk_offset=-0.25))["atk"] == 0.0
 
 
 def test_photos_are_rgb_uint8_of_the_asked_size_and_differ_between_materials(library):
@@ -489,7 +497,8 @@ def test_perforated_photo_shows_the_hole_pitch(library):
     """8 mm pitch over the 60 mm field of a 256 px photo: a hole every 34.1 px along the rows."""
     look = dataclasses.replace(library["perforated-steel-plate"].appearance, orientation_deg=0.0)
     plate = dataclasses.replace(library["perforated-steel-plate"], appearance=look)
-    image = sim.photos(plate, np.random.default_rng(0), operator(0, photo_rotation_deg=0.0), (256, 256))["I_disp"]
+    draw = operator(0, photo_rotation_deg=0.0)
+    image = sim.photos(plate, np.random.default_rng(0), draw, (256, 256))["I_disp"]
     profile = image.astype(float).mean(axis=(0, 2))
     spectrum = np.abs(np.fft.rfft(profile - profile.mean()))
     assert np.argmax(spectrum) in (7, 8)  # 60 / 8 = 7.5 cycles across the image
