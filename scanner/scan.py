@@ -139,6 +139,19 @@ class Trace:
     __hash__ = None  # type: ignore[assignment]
 
 
+def _rebuild_args(obj: Any) -> tuple[Any, ...]:
+    """Constructor arguments of a frozen dataclass with read-only mappings turned back into dicts."""
+    return tuple(dict(v) if isinstance(v, MappingProxyType) else v for v in (getattr(obj, f.name) for f in fields(obj)))
+
+
+class _Picklable:
+    """Pickle by re-running the validating constructor: mapping proxies cannot be pickled, and a scan that
+    crosses a process boundary (parallel feature extraction) is checked again on arrival."""
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        return self.__class__, _rebuild_args(self)
+
+
 def _check_judged(name: str, value: float) -> float:
     value = float(value)
     if math.isnan(value):
@@ -167,7 +180,7 @@ def check_sample_id(sample_id: str) -> str:
 
 
 @dataclass(frozen=True)
-class ScanMeta:
+class ScanMeta(_Picklable):
     """The ``meta`` struct of SPEC section 3 (``fs``, ``units`` and ``raw_volts`` derive from the traces).
 
     Unknown numeric values (ambient temperature not read, mass not weighed, tack not judged) are NaN.
@@ -257,7 +270,7 @@ def _is_iso8601(text: str) -> bool:
 
 
 @dataclass(frozen=True)
-class Scan:
+class Scan(_Picklable):
     """One pass of all exploratory procedures over one material sample (SPEC section 3).
 
     ``traces`` maps channel names of :data:`CHANNELS` to :class:`Trace`; ``images`` maps ``I_disp``,
@@ -350,7 +363,7 @@ def _check_image(name: str, image: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class Recording:
+class Recording(_Picklable):
     """A generic recording from another sensor or dataset (SPEC 3 "Generic recordings").
 
     ``channels`` are named traces at their own rates; ``roles`` map a role of :data:`ROLES` to a channel

@@ -130,3 +130,13 @@ def test_recording_checks_roles():
         Recording("r1", {"f": Trace(np.zeros((5, 2)), 100, "N")}, {"force_xyz": "f"})
     with pytest.raises(ScanError, match="no channels"):
         Recording("r1", {})
+
+
+def test_scans_pickle_and_are_validated_again_on_arrival():
+    import pickle
+
+    scan = make_scan(raw=True)
+    copy = pickle.loads(pickle.dumps(scan))
+    assert copy == scan and copy is not scan
+    assert pickle.loads(pickle.dumps(Recording("r", {"x": Trace([1.0], 10, "V")}, {"vibration": "x"}))).roles == {
+        "vibration": "x"}

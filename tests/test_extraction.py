@@ -1,0 +1,113 @@
+"""features.extract and extract_many (SPEC 7, 8): 193 names in order, NaN exactly where data is missing,
+parallel extraction in input order, per-scan failures, and the feature cache."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+import features
+from features import NAMES, ScanSource, extract, extract_many
+from features.extraction import code_version, source_of
+from scanner.scan import Scan
+from scanner.simulate import synthetic_scan
+
+SIZE = (384, 384)
+
+
+@functools.cache
+def foam() -> Scan:
+    return synthetic_scan("polyurethane-foam", seed=11, image_size=SIZE)
+
+
+@functools.cache
+def foam_values() -> dict[str, float]:
+    return extract(foam())
+
+
+def test_193_names_in_spec_order():
+    assert len(NAMES) == 193 == len(set(NAMES))
+    assert NAMES[:15] == features.tactum.NAMES
+    assert NAMES[15] == "image.disp.color" and NAMES[15 + 31] == "image.macro.color"
+    assert NAMES[15 + 93] == "audio.finger.zcr" and NAMES[15 + 93 + 35] == "audio.tool.zcr"
+    assert NAMES[-15:] == features.other.NAMES
+
+
+def test_complete_synthetic_scan_gives_193_finite_values():
+    values = foam_values()
+    assert tuple(values) == NAMES
+    assert [name for name, value in values.items() if not math.isfinite(value)] == []
+
+
+def test_extraction_is_bit_identical_on_rerun():
+    again = extract(synthetic_scan("polyurethane-foam", seed=11, image_size=SIZE))
+    assert np.array_equal(np.array(list(again.values())), np.array(list(foam_values().values())), equal_nan=True)
+
+
+@pytest.mark.parametrize(
+    ("drop", "expected"),
+    [
+        ({"a_fs"}, {n for n in NAMES if n.startswith("audio.finger.")}),
+        ({"t_cool"}, {"tactum.tco", "tactum.tpr", "other.cooling_rate"}),
+        ({"dB"}, {"other.magnet_mean", "other.magnet_peak"}),
+        ({"I_macro"}, {n for n in NAMES if n.startswith("image.macro.")}),
+    ],
+)
+def test_a_missing_channel_makes_exactly_its_features_nan(drop, expected):
+    scan = foam()
+    partial = Scan(scan.meta, {k: v for k, v in scan.traces.items() if k not in drop},
+                   {k: v for k, v in scan.images.items() if k not in drop})
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        values = extract(partial)
+    assert {name for name, value in values.items() if math.isnan(value)} == expected
+    assert any(next(iter(drop)) in str(w.message) for w in caught)
+
+
+def _broken() -> Scan:
+    raise OSError("disk on fire")
+
+
+class CountingCache:
+    def __init__(self) -> None:
+        self.store: dict[tuple[str, str], dict[str, float]] = {}
+        self.writes = 0
+
+    def cached_features(self, content_hash, version):
+        return self.store.get((content_hash, version))
+
+    def store_features(self, content_hash, version, values):
+        self.writes += 1
+        self.store[(content_hash, version)] = dict(values)
+
+
+def _source(scan: Scan, key: str | None = None) -> ScanSource:
+    return dataclasses.replace(source_of(scan), cache_key=key)
+
+
+def test_extract_many_keeps_order_reports_failures_and_uses_the_cache():
+    scans = [foam(), synthetic_scan("float-glass", seed=3, image_size=SIZE, sample_id="glass-01")]
+    broken = ScanSource("broken-001", "C1S1M1P1X1", "broken", _broken, "k-broken")
+    cache = CountingCache()
+    sources = [_source(scans[1], "k-glass"), broken, _source(scans[0], "k-foam")]
+    space = extract_many(sources, workers=2, cache=cache, progress=False)
+    assert space.scan_ids == (scans[1].scan_id, scans[0].scan_id)
+    assert space.failed == (("broken-001", "OSError: disk on fire"),)
+    np.testing.assert_array_equal(space.X[1], np.array(list(foam_values().values())))
+    assert cache.writes == 2 and all(version == code_version() for _, version in cache.store)
+    # Second run: nothing is loaded (the loaders would fail), every row comes from the cache.
+    unloadable = [dataclasses.replace(s, load=_broken) for s in sources]
+    again = extract_many(unloadable, workers=1, cache=cache, progress=False)
+    np.testing.assert_array_equal(again.X, space.X)
+    assert cache.writes == 2 and [scan_id for scan_id, _ in again.failed] == ["broken-001"]
+
+
+def test_extract_many_accepts_plain_scans_in_process():
+    space = extract_many([foam()], workers=1, progress=False)
+    assert space.columns == NAMES and space.label_text == (foam().meta.label,)
+    assert space.groups == (foam().meta.sample_id,)
