@@ -6,14 +6,14 @@ every definition. ``compute`` crops the photo, builds the gray image once and re
 ``NAMES``; the caller prefixes them with ``image.disp.``, ``image.macro.`` or ``image.illu.``.
 
 A 12-megapixel photo has ~11 million pixels, so the per-pixel work (grayscale, quantisation, the GLCM
-counts, LBP codes, Tamura's window differences) runs over bands of rows: each band's temporaries stay in
-cache instead of costing hundreds of megabytes per step. Band results are integer counts or the same
-float64 arithmetic as the whole-image formula, so banding changes no value.
+counts, LBP codes, Tamura's window differences) runs over bands of rows into preallocated buffers: a
+band's temporaries stay in cache instead of costing a hundred megabytes per step. Band results are
+integer counts or the same float64 operations as the whole-image formula, so banding changes no value.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 import cv2
 import numpy as np
@@ -48,16 +48,34 @@ HUE_MIN_VALUE = 51
 
 CANNY_THRESHOLDS = (100, 200)
 DFT_FRACTIONS = (0.80, 0.85)
+TAMURA_KMAX = 5
 
-_BAND_ELEMENTS = 1 << 17
-"""Pixels per band of rows: 1 MiB of float64, so a handful of temporaries fit in a 2 MiB L2 cache."""
+_BAND_ELEMENTS = 1 << 15
+"""Pixels per band of rows (256 KiB of float64): a band's few temporaries fit in a 2 MiB L2 cache."""
+
+_TAMURA_TILE = (128, 256)
+"""Output rows and columns per Tamura tile; a tile also reads 2^kmax - 1 more rows and columns either side."""
+
+_LBP_TILE = (64, 512)
+"""Interior rows and columns per LBP tile (plus one pixel of context all round)."""
 
 
-def _bands(n_rows: int, width: int, min_rows: int = 1) -> Iterator[tuple[int, int]]:
-    """Consecutive ``[start, stop)`` row ranges covering ``n_rows`` rows of ``width`` pixels."""
-    step = max(min_rows, _BAND_ELEMENTS // max(width, 1))
-    for start in range(0, n_rows, step):
-        yield start, min(start + step, n_rows)
+def _bands(n_rows: int, rows_per_band: int) -> Iterator[tuple[int, int]]:
+    """Consecutive ``[start, stop)`` row ranges covering ``n_rows`` rows."""
+    for start in range(0, n_rows, rows_per_band):
+        yield start, min(start + rows_per_band, n_rows)
+
+
+def _rows_per_band(width: int) -> int:
+    return max(1, _BAND_ELEMENTS // max(width, 1))
+
+
+def _banded(function: Callable[[np.ndarray], np.ndarray], image: np.ndarray, dtype: type) -> np.ndarray:
+    """``function`` applied band by band; only for element-wise functions, whose result is then identical."""
+    out = np.empty(image.shape[:2], dtype)
+    for start, stop in _bands(image.shape[0], _rows_per_band(image.shape[1])):
+        out[start:stop] = function(image[start:stop])
+    return out
 
 
 def _check_rgb(rgb: np.ndarray) -> np.ndarray:
@@ -68,6 +86,12 @@ def _check_rgb(rgb: np.ndarray) -> np.ndarray:
     return rgb
 
 
+def _check_side(shape: tuple[int, ...], min_side: int, purpose: str) -> None:
+    if min(shape[:2]) < min_side:
+        raise ValueError(f"gray image of {shape[0]}x{shape[1]} px is smaller than the "
+                         f"{min_side}x{min_side} px {purpose} needs")
+
+
 def _check_gray(gray: np.ndarray, min_side: int = 1, purpose: str = "this feature") -> np.ndarray:
     """A 2-D float64 view or copy of ``gray``; ValueError if it is not 2-D, too small or not finite."""
     image = np.asarray(gray)
@@ -75,21 +99,11 @@ def _check_gray(gray: np.ndarray, min_side: int = 1, purpose: str = "this featur
         raise ValueError(f"expected a 2-D gray image, got shape {image.shape}")
     if image.dtype.kind not in "biuf":
         raise ValueError(f"expected a numeric gray image, got dtype {image.dtype}")
-    if min(image.shape) < min_side:
-        raise ValueError(f"gray image of {image.shape[0]}x{image.shape[1]} px is smaller than the "
-                         f"{min_side}x{min_side} px {purpose} needs")
+    _check_side(image.shape, min_side, purpose)
     image = image.astype(np.float64, copy=False)
     if not np.isfinite(image.sum()):
         raise ValueError("gray image contains NaN or infinite values")
     return image
-
-
-def _banded(function, image: np.ndarray, dtype: type) -> np.ndarray:
-    """``function`` applied band by band; only for element-wise functions, whose result is then identical."""
-    out = np.empty(image.shape[:2], dtype)
-    for start, stop in _bands(image.shape[0], image.shape[1]):
-        out[start:stop] = function(image[start:stop])
-    return out
 
 
 def compute(rgb: np.ndarray) -> dict[str, float]:
@@ -98,8 +112,8 @@ def compute(rgb: np.ndarray) -> dict[str, float]:
     Parameters
     ----------
     rgb : (h, w, 3) uint8 array
-        The full photo; 100 px are cropped from every border first (SPEC 6), so h and w must exceed 264
-        (the cropped image must hold Tamura's 64 x 64 px windows).
+        The full photo; 100 px are cropped from every border first (SPEC 6), so h and w must be at least
+        264 (the cropped image must hold Tamura's 64 x 64 px windows).
 
     Returns
     -------
@@ -113,10 +127,12 @@ def compute(rgb: np.ndarray) -> dict[str, float]:
     125.0
     """
     photo = crop_image(_check_rgb(rgb))
+    _check_side(photo.shape, 2 * 2**TAMURA_KMAX, f"Tamura coarseness with kmax={TAMURA_KMAX}")
+    # The gray image of a uint8 photo is finite, so the cores run without the public functions' checks.
     gray = _banded(grayscale, photo, np.float64)
-    values = [color(photo), brightness(gray), edginess(_banded(gray_uint8, gray, np.uint8)),
-              *dft_peak_means(gray), *haralick(gray), tamura_coarseness(gray), tamura_contrast(gray),
-              *lbp_histogram(gray)]
+    values = [color(photo), _brightness(gray), edginess(_banded(gray_uint8, gray, np.uint8)),
+              *_dft_peak_means(gray, DFT_FRACTIONS), *_haralick(gray), _tamura_coarseness(gray, TAMURA_KMAX),
+              tamura_contrast(gray), *_lbp_histogram(gray)]
     return dict(zip(NAMES, (float(v) for v in values), strict=True))
 
 
@@ -140,9 +156,9 @@ def color(rgb: np.ndarray) -> float:
     rgb = _check_rgb(rgb)
     counts = np.zeros(180, np.int64)
     lower, upper = (0, HUE_MIN_SATURATION, HUE_MIN_VALUE), (255, 255, 255)
-    # Bands also keep every per-call histogram bin below 2**24, where calcHist's float32 counts stay exact.
-    for start, stop in _bands(rgb.shape[0], rgb.shape[1]):
-        hsv = cv2.cvtColor(np.ascontiguousarray(rgb[start:stop]), cv2.COLOR_RGB2HSV)
+    # Bands also keep every histogram bin below 2**24, where calcHist's float32 counts are exact.
+    for start, stop in _bands(rgb.shape[0], _rows_per_band(rgb.shape[1])):
+        hsv = cv2.cvtColor(rgb[start:stop], cv2.COLOR_RGB2HSV)
         mask = cv2.inRange(hsv, lower, upper)
         counts += cv2.calcHist([hsv], [0], mask, [180], [0, 180]).ravel().astype(np.int64)
     per_bin = counts.reshape(36, 5).sum(axis=1)  # hue h covers degrees 2h, so bin b holds h = 5b .. 5b + 4
@@ -153,7 +169,11 @@ def color(rgb: np.ndarray) -> float:
 
 def brightness(gray: np.ndarray) -> float:
     """Mean gray value / 255 (paper: I_br; SPEC 7.2), in [0, 1] for a gray image in 0..255."""
-    return float(np.mean(_check_gray(gray))) / 255.0
+    return _brightness(_check_gray(gray))
+
+
+def _brightness(image: np.ndarray) -> float:
+    return float(np.mean(image)) / 255.0
 
 
 def edginess(gray_u8: np.ndarray) -> float:
@@ -167,7 +187,7 @@ def edginess(gray_u8: np.ndarray) -> float:
     image = np.asarray(gray_u8)
     if image.dtype != np.uint8 or image.ndim != 2 or image.size == 0:
         raise ValueError(f"expected a 2-D uint8 gray image, got {image.dtype} of shape {image.shape}")
-    edges = cv2.Canny(np.ascontiguousarray(image), *CANNY_THRESHOLDS)
+    edges = cv2.Canny(image, *CANNY_THRESHOLDS)
     return np.count_nonzero(edges) / edges.size
 
 
@@ -197,7 +217,7 @@ def dft_peak_means(gray: np.ndarray, fractions: Sequence[float] = DFT_FRACTIONS)
     """Mean of the strongest real DFT coefficients (paper: I_dft1, I_dft2; SPEC 7.2 ``dft_80``, ``dft_85``).
 
     With ``X = Re(fft2(I - mean(I))) / sqrt(M N)``, for each fraction f the mean of the values
-    ``X >= f * max(X)``. Only the half spectrum is computed (``cv2.dft``, which is 2-3 times faster than
+    ``X >= f * max(X)``. Only the half spectrum is computed (``cv2.dft``, 2-3 times faster than
     ``numpy.fft`` on the prime-factor sizes of cropped photos); the other half's real parts are the same
     values, so they are counted twice instead. The result equals the full-spectrum mean to rounding.
 
@@ -213,7 +233,10 @@ def dft_peak_means(gray: np.ndarray, fractions: Sequence[float] = DFT_FRACTIONS)
     >>> [round(v, 6) for v in dft_peak_means(grating)]  # 10 * sqrt(32 * 64) / 2
     [226.27417, 226.27417]
     """
-    image = _check_gray(gray, min_side=2, purpose="the DFT peak mean")
+    return _dft_peak_means(_check_gray(gray, min_side=2, purpose="the DFT peak mean"), fractions)
+
+
+def _dft_peak_means(image: np.ndarray, fractions: Sequence[float]) -> tuple[float, ...]:
     parts, weights = _real_spectrum(image - image.mean())
     peak = max(float(part.max()) for part in parts if part.size)
     scale = np.sqrt(image.size)
@@ -234,14 +257,17 @@ def quantize(gray: np.ndarray, levels: int = GLCM_LEVELS) -> np.ndarray:
 
     0-based (0 .. levels-1); Haralick's formulas use ``q + 1``. Values below 0 map to 0.
     """
-    image = _check_gray(gray, purpose="quantisation")
     if not 1 <= levels <= 256:
         raise ValueError(f"levels must be in 1..256, got {levels}")
-    scale = levels / 256
+    return _quantize(_check_gray(gray, purpose="quantisation"), levels)
+
+
+def _quantize(image: np.ndarray, levels: int) -> np.ndarray:
     out = np.empty(image.shape, np.uint8)
-    for start, stop in _bands(*image.shape):
-        scaled = np.multiply(image[start:stop], scale)
-        # Truncation of the clipped non-negative value is the floor of the formula.
+    scratch = np.empty((_rows_per_band(image.shape[1]), image.shape[1]))
+    for start, stop in _bands(image.shape[0], scratch.shape[0]):
+        scaled = np.multiply(image[start:stop], levels / 256, out=scratch[:stop - start])
+        # Truncating the clipped, non-negative value is the floor of the formula.
         out[start:stop] = np.clip(scaled, 0, levels - 1, out=scaled)
     return out
 
@@ -262,6 +288,9 @@ def glcm(q: np.ndarray, offset: tuple[int, int] = (0, 1), levels: int = GLCM_LEV
 
     ``P[i, j]`` is the share of pixel pairs (reference, neighbour at ``offset`` = (rows, columns)) with
     levels (i, j) or (j, i): the pairs are counted in both orders and the counts divided by their sum.
+    The pairs are counted per band of rows by ``cv2.calcHist`` over the (level, level) pairs, which gives
+    the counts of ``np.bincount`` on pair codes at a third of its cost; they are exact integers (a band
+    holds far fewer than 2^24 pairs, below which calcHist's float32 bins are exact).
 
     Parameters
     ----------
@@ -279,19 +308,23 @@ def glcm(q: np.ndarray, offset: tuple[int, int] = (0, 1), levels: int = GLCM_LEV
     q = np.asarray(q)
     if q.ndim != 2 or q.dtype.kind not in "iu":
         raise ValueError(f"expected a 2-D integer array of gray levels, got {q.dtype} of shape {q.shape}")
+    if not 1 <= levels <= 256:
+        raise ValueError(f"levels must be in 1..256, got {levels}")
     if q.size and (q.min() < 0 or q.max() >= levels):
         raise ValueError(f"gray levels must lie in 0..{levels - 1}, got {q.min()}..{q.max()}")
+    return _glcm(q.astype(np.uint8, copy=False), offset, levels)
+
+
+def _glcm(q: np.ndarray, offset: tuple[int, int], levels: int) -> np.ndarray:
     reference, neighbour = _pair_views(q, offset)
     if reference.size == 0:
         raise ValueError(f"a {q.shape[0]}x{q.shape[1]} image has no pixel pairs at offset {offset}")
-    counts = np.zeros(levels * levels, np.int64)
-    for start, stop in _bands(*reference.shape):
-        pair = reference[start:stop].astype(np.intp) * levels
-        pair += neighbour[start:stop]
-        counts += np.bincount(pair.ravel(), minlength=levels * levels)
-    matrix = counts.reshape(levels, levels)
-    matrix = matrix + matrix.T
-    return matrix / matrix.sum()
+    counts = np.zeros((levels, levels), np.int64)
+    for start, stop in _bands(reference.shape[0], _rows_per_band(reference.shape[1])):
+        pairs = [reference[start:stop], neighbour[start:stop]]
+        counts += cv2.calcHist(pairs, [0, 1], None, [levels, levels], [0, levels, 0, levels]).astype(np.int64)
+    counts += counts.T
+    return counts / counts.sum()
 
 
 def _entropy(p: np.ndarray) -> float:
@@ -394,27 +427,16 @@ def haralick(gray: np.ndarray) -> np.ndarray:
     (14,) float array
         ``haralick_01`` .. ``haralick_14``.
     """
-    q = quantize(_check_gray(gray, min_side=2, purpose="the GLCM"))
-    return np.mean([haralick_from_glcm(glcm(q, offset)) for offset in GLCM_OFFSETS], axis=0)
+    return _haralick(_check_gray(gray, min_side=2, purpose="the GLCM"))
 
 
-def _box_sum_pyramid(band: np.ndarray, kmax: int) -> list[np.ndarray]:
-    """``B_k[i, j]`` = sum of ``band[i : i + 2^k, j : j + 2^k]`` for k = 1..kmax.
-
-    Each level adds four shifted copies of the one below, so every sum is a short exact-order float64
-    sum (no running sums whose rounding grows with the image).
-    """
-    sums = []
-    level = band
-    for k in range(1, kmax + 1):
-        half = 2 ** (k - 1)
-        rows = level[:-half] + level[half:]
-        level = rows[:, :-half] + rows[:, half:]
-        sums.append(level)
-    return sums
+def _haralick(image: np.ndarray) -> np.ndarray:
+    q = _quantize(image, GLCM_LEVELS)
+    per_direction = [haralick_from_glcm(_glcm(q, offset, GLCM_LEVELS)) for offset in GLCM_OFFSETS]
+    return np.mean(per_direction, axis=0)
 
 
-def tamura_coarseness(gray: np.ndarray, kmax: int = 5) -> float:
+def tamura_coarseness(gray: np.ndarray, kmax: int = TAMURA_KMAX) -> float:
     """Tamura coarseness F_crs (Tamura et al. 1978, eqs. 1-4; SPEC 7.2), mean best window size in px.
 
     For k = 1..kmax, with ``A_k`` the mean over a 2^k x 2^k window: at pixel (r, c) the horizontal
@@ -425,62 +447,93 @@ def tamura_coarseness(gray: np.ndarray, kmax: int = 5) -> float:
     ``E_k`` reaches ``max_k E_k - tol``). The feature is the mean of ``S_best`` over the pixels whose row
     and column lie in [2^kmax, size - 2^kmax], where every window fits.
 
+    The window means are built as a pyramid: ``A_k`` is the mean of four ``A_(k-1)`` windows, each step
+    two exact pairwise means, so every mean is a short fixed-order float64 sum (no running or integral-
+    image sums, whose rounding grows with the image and would break exact ties).
+
     Examples
     --------
     >>> stripes = np.tile(np.repeat([0.0, 255.0], 8), (80, 6))[:, :95]  # vertical stripes 8 px wide
     >>> tamura_coarseness(stripes)  # columns 32..63 hold four whole stripes
     3.5
     """
-    margin = 2**kmax
-    image = _check_gray(gray, min_side=2 * margin, purpose=f"Tamura coarseness with kmax={kmax}")
     if kmax < 1:
         raise ValueError(f"kmax must be at least 1, got {kmax}")
+    image = _check_gray(gray, min_side=2 * 2**kmax, purpose=f"Tamura coarseness with kmax={kmax}")
+    return _tamura_coarseness(image, kmax)
+
+
+def _pair_mean(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """``(a + b) / 2``, exactly (the halving is exact, with or without a fused multiply-add)."""
+    return cv2.addWeighted(a, 0.5, b, 0.5, 0.0, dst=out)
+
+
+def _tamura_coarseness(image: np.ndarray, kmax: int) -> float:
+    margin = 2**kmax
     h, w = image.shape
     tolerance = 1e-9 * float(image.max())
     out_rows, out_cols = h - 2 * margin + 1, w - 2 * margin + 1
+    tile_rows, tile_cols = min(_TAMURA_TILE[0], out_rows), min(_TAMURA_TILE[1], out_cols)
+    in_shape = (tile_rows + 2 * margin - 1, tile_cols + 2 * margin - 1)
+    pair_buffer, *level_buffers = (np.empty(in_shape) for _ in range(3))
+    horizontal_buffer, vertical_buffer = np.empty((2, tile_rows, tile_cols))
+    prefix_buffers = np.empty((kmax, tile_rows, tile_cols))
+    hit_buffer = np.empty((tile_rows, tile_cols), bool)
     total = 0
-    for start, stop in _bands(out_rows, w, min_rows=margin):
-        n = stop - start
-        band = image[start:stop + 2 * margin - 1]
-        strongest = None
-        contrasts = []
-        for k, sums in enumerate(_box_sum_pyramid(band, kmax), start=1):
-            size, half = 2**k, 2 ** (k - 1)
-            row_block = sums[margin - half:margin - half + n]
-            horizontal = np.abs(row_block[:, margin:margin + out_cols]
-                                - row_block[:, margin - size:margin - size + out_cols])
-            column_block = sums[:, margin - half:margin - half + out_cols]
-            vertical = np.abs(column_block[margin:margin + n] - column_block[margin - size:margin - size + n])
-            contrast = np.maximum(horizontal, vertical, out=horizontal)
-            contrast *= 1.0 / size**2
-            contrasts.append(contrast)
-            strongest = contrast.copy() if strongest is None else np.maximum(strongest, contrast, out=strongest)
-        strongest -= tolerance
-        reached = np.zeros(strongest.shape, bool)
-        previous = 0
-        for k, contrast in enumerate(contrasts[:-1], start=1):
-            reached |= contrast >= strongest
-            count = int(np.count_nonzero(reached))
-            total += 2**k * (count - previous)
-            previous = count
-        total += 2**kmax * (reached.size - previous)
+    for row, row_stop in _bands(out_rows, tile_rows):
+        for col, col_stop in _bands(out_cols, tile_cols):
+            n, m = row_stop - row, col_stop - col
+            # Tile-local (i, j) is image pixel (row + i, col + j); output pixels are i in margin .. margin+n-1,
+            # j in margin .. margin+m-1. Level k holds A_k with its window's top-left corner at (i, j).
+            level = image[row:row_stop + 2 * margin - 1, col:col_stop + 2 * margin - 1]
+            prefixes: list[np.ndarray] = []
+            for k in range(1, kmax + 1):
+                size, half = 2**k, 2 ** (k - 1)
+                rows, cols = level.shape
+                pairs = _pair_mean(level[:-half], level[half:], pair_buffer[:rows - half, :cols])
+                level = _pair_mean(pairs[:, :-half], pairs[:, half:],
+                                   level_buffers[k % 2][:rows - half, :cols - half])
+                beside = level[margin - half:margin - half + n]
+                horizontal = cv2.absdiff(beside[:, margin:margin + m], beside[:, margin - size:margin - size + m],
+                                         dst=horizontal_buffer[:n, :m])
+                stacked = level[:, margin - half:margin - half + m]
+                vertical = cv2.absdiff(stacked[margin:margin + n], stacked[margin - size:margin - size + n],
+                                       dst=vertical_buffer[:n, :m])
+                # prefix = max(E_1 .. E_k): the first k whose prefix reaches max_k E_k - tol is S_best's k.
+                out = prefix_buffers[k - 1, :n, :m]
+                if prefixes:
+                    horizontal = cv2.max(prefixes[-1], horizontal, dst=out)
+                prefixes.append(cv2.max(horizontal, vertical, dst=out))
+            threshold = np.subtract(prefixes[-1], tolerance, out=prefixes[-1])
+            hit = hit_buffer[:n, :m]
+            previous = 0
+            for k, prefix in enumerate(prefixes[:-1], start=1):
+                count = int(np.count_nonzero(np.greater_equal(prefix, threshold, out=hit)))
+                total += 2**k * (count - previous)
+                previous = count
+            total += 2**kmax * (n * m - previous)
     return total / (out_rows * out_cols)
 
 
 def tamura_contrast(gray: np.ndarray) -> float:
     """Tamura contrast ``sigma / kurt^(1/4)`` with ``kurt = mu4 / sigma^4`` (Tamura et al. 1978, eq. 5).
 
-    Population moments over all pixels; 0 for a constant image (SPEC 7.2).
+    Population moments over all pixels; 0 for a constant image (SPEC 7.2), tested as min == max because
+    ``x - mean(x)`` of a constant need not be exactly 0.
     """
     values = np.asarray(gray, dtype=np.float64)
-    values = values.reshape(1, -1) if values.ndim != 2 else values
-    if values.size == 0 or values.min() == values.max():
+    values = values if values.ndim == 2 else values.reshape(1, -1)
+    if values.size == 0:
+        return 0.0
+    low, high = cv2.minMaxLoc(values)[:2]
+    if low == high:
         return 0.0
     mean = values.mean()
     second = fourth = 0.0
-    for start, stop in _bands(*values.shape):
-        centred = values[start:stop] - mean
-        squared = np.multiply(centred, centred, out=centred)
+    scratch = np.empty((_rows_per_band(values.shape[1]), values.shape[1]))
+    for start, stop in _bands(values.shape[0], scratch.shape[0]):
+        squared = np.subtract(values[start:stop], mean, out=scratch[:stop - start])
+        squared *= squared
         second += float(squared.sum())
         fourth += float(np.dot(squared.ravel(), squared.ravel()))
     variance = second / values.size
@@ -510,10 +563,36 @@ def _uniform_labels() -> np.ndarray:
     return np.where(changes <= 2, bits.sum(axis=1), _LBP_POINTS + 1)
 
 
-def _interpolation_weights(n: int, offset: float) -> np.ndarray:
-    """``x - floor(x)`` for ``x = index + offset``, index = 0..n-1, in scikit-image's float64 order."""
+def _interpolation_weights(n: int, offset: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(1 - f, f)`` with ``f = x - floor(x)``, ``x = index + offset``, index = 0..n-1, as skimage rounds them."""
     position = np.arange(n, dtype=np.float64) + offset
-    return position - np.floor(position)
+    fraction = position - np.floor(position)
+    return 1 - fraction, fraction
+
+
+def _lerp(x: np.ndarray, y: np.ndarray, weights: tuple[np.ndarray, np.ndarray], out: np.ndarray,
+          scratch: np.ndarray) -> np.ndarray:
+    """``(1 - f) * x + f * y`` in scikit-image's bilinear order: two products, then their sum."""
+    np.multiply(weights[0], x, out=out)
+    np.multiply(weights[1], y, out=scratch)
+    return np.add(out, scratch, out=out)
+
+
+def _lbp_neighbours(rows: np.ndarray, tr: np.ndarray, tl: np.ndarray, up: tuple[np.ndarray, np.ndarray],
+                    down: tuple[np.ndarray, np.ndarray], out: np.ndarray, scratch: np.ndarray) -> Iterator[np.ndarray]:
+    """The 8 neighbours of a band's interior pixels for p = 7 .. 0 (skimage's p runs counter-clockwise from
+    the right, rows growing down), so that shifting the code left before each new bit puts neighbour p at
+    bit p. ``tr``/``tl`` are the rows interpolated towards the right/left neighbour column; each diagonal
+    neighbour is written into ``out``, valid until the next one is produced.
+    """
+    yield _lerp(tr[1:-1], tr[2:], down, out, scratch)
+    yield rows[2:, 1:-1]
+    yield _lerp(tl[1:-1], tl[2:], down, out, scratch)
+    yield rows[1:-1, :-2]
+    yield _lerp(tl[:-2], tl[1:-1], up, out, scratch)
+    yield rows[:-2, 1:-1]
+    yield _lerp(tr[:-2], tr[1:-1], up, out, scratch)
+    yield rows[1:-1, 2:]
 
 
 def lbp_histogram(gray: np.ndarray) -> np.ndarray:
@@ -530,40 +609,42 @@ def lbp_histogram(gray: np.ndarray) -> np.ndarray:
     (10,) float array
         Shares of labels 0..9.
     """
-    image = _check_gray(gray, min_side=3, purpose="LBP")
+    return _lbp_histogram(_check_gray(gray, min_side=3, purpose="LBP"))
+
+
+def _lbp_histogram(image: np.ndarray) -> np.ndarray:
     h, w = image.shape
-    row_offsets, col_offsets = _lbp_offsets()
-    diagonal = float(abs(row_offsets[1]))
-    # Interior pixels (1..h-2, 1..w-2): per-row weights for the neighbours above and below, per-column ones
-    # for those to the right and left; skimage computes them from the absolute coordinates.
-    above = _interpolation_weights(h, -diagonal)[1:-1, None]
-    below = _interpolation_weights(h, diagonal)[1:-1, None]
-    right = _interpolation_weights(w, diagonal)[1:-1]
-    left = _interpolation_weights(w, -diagonal)[1:-1]
-    labels = _uniform_labels()
-    codes_count = np.zeros(256, np.int64)
-    for start, stop in _bands(h - 2, w):
-        rows = image[start:stop + 2]  # interior rows start+1 .. stop plus one row either side
-        # Horizontal interpolation first, as skimage does: "top" and "bottom" rows, then between them.
-        towards_right = (1 - right) * rows[:, 1:-1] + right * rows[:, 2:]
-        towards_left = (1 - left) * rows[:, :-2] + left * rows[:, 1:-1]
-        up, down = above[start:stop], below[start:stop]
-        neighbours = (
-            rows[1:-1, 2:],
-            (1 - up) * towards_right[:-2] + up * towards_right[1:-1],
-            rows[:-2, 1:-1],
-            (1 - up) * towards_left[:-2] + up * towards_left[1:-1],
-            rows[1:-1, :-2],
-            (1 - down) * towards_left[1:-1] + down * towards_left[2:],
-            rows[2:, 1:-1],
-            (1 - down) * towards_right[1:-1] + down * towards_right[2:],
-        )
-        centre = rows[1:-1, 1:-1]
-        code = np.zeros(centre.shape, np.uint8)
-        bit = np.empty(centre.shape, bool)
-        for p, neighbour in enumerate(neighbours):
-            np.greater_equal(neighbour, centre, out=bit)
-            code |= bit.view(np.uint8) << p
-        codes_count += np.bincount(code.ravel(), minlength=256)
-    histogram = np.bincount(labels, weights=codes_count, minlength=LBP_BINS)
+    diagonal = float(abs(_lbp_offsets()[0][1]))
+    # skimage interpolates at absolute coordinates, so the weights differ (in the last bits) per row and
+    # column: rows for the neighbours above and below, columns for those right and left, interior only.
+    above, below = (tuple(f[1:-1, None] for f in _interpolation_weights(h, sign * diagonal)) for sign in (-1, 1))
+    right, left = (tuple(f[1:-1] for f in _interpolation_weights(w, sign * diagonal)) for sign in (1, -1))
+    tile_rows, tile_cols = min(_LBP_TILE[0], h - 2), min(_LBP_TILE[1], w - 2)
+    towards_right, towards_left, scratch = np.empty((3, tile_rows + 2, tile_cols))
+    neighbour = np.empty((tile_rows, tile_cols))
+    bit = np.empty((tile_rows, tile_cols), bool)
+    code = np.empty((tile_rows, tile_cols), np.uint8)
+    code_counts = np.zeros(256, np.int64)
+    for row, row_stop in _bands(h - 2, tile_rows):
+        up = tuple(f[row:row_stop] for f in above)
+        down = tuple(f[row:row_stop] for f in below)
+        for col, col_stop in _bands(w - 2, tile_cols):
+            n, m = row_stop - row, col_stop - col
+            # Interior pixels row+1 .. row_stop, col+1 .. col_stop, with one pixel of context all round.
+            pixels = image[row:row_stop + 2, col:col_stop + 2]
+            # As in skimage: interpolate along the rows first ("top" and "bottom"), then between them.
+            tr = _lerp(pixels[:, 1:-1], pixels[:, 2:], tuple(f[col:col_stop] for f in right),
+                       towards_right[:n + 2, :m], scratch[:n + 2, :m])
+            tl = _lerp(pixels[:, :-2], pixels[:, 1:-1], tuple(f[col:col_stop] for f in left),
+                       towards_left[:n + 2, :m], scratch[:n + 2, :m])
+            centre = pixels[1:-1, 1:-1]
+            codes, bits = code[:n, :m], bit[:n, :m]
+            codes.fill(0)
+            for value in _lbp_neighbours(pixels, tr, tl, up, down, neighbour[:n, :m], scratch[:n, :m]):
+                np.greater_equal(value, centre, out=bits)
+                np.left_shift(codes, 1, out=codes)
+                np.bitwise_or(codes, bits.view(np.uint8), out=codes)
+            # Exact counts: a tile holds far fewer than 2^24 pixels.
+            code_counts += cv2.calcHist([codes], [0], None, [256], [0, 256]).ravel().astype(np.int64)
+    histogram = np.bincount(_uniform_labels(), weights=code_counts, minlength=LBP_BINS)
     return histogram / histogram.sum()
