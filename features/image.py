@@ -8,7 +8,8 @@ every definition. ``compute`` crops the photo, builds the gray image once and re
 A 12-megapixel photo has ~11 million pixels, so the per-pixel work (grayscale, quantisation, the GLCM
 counts, LBP codes, Tamura's window differences) runs over bands of rows into preallocated buffers: a
 band's temporaries stay in cache instead of costing a hundred megabytes per step. Band results are
-integer counts or the same float64 operations as the whole-image formula, so banding changes no value.
+integer counts or the same float64 operations as the whole-image formula, so banding changes no value
+(Tamura contrast's moment sums only regroup, to rounding).
 """
 
 from __future__ import annotations
@@ -55,9 +56,6 @@ _BAND_ELEMENTS = 1 << 15
 
 _TAMURA_TILE = (128, 256)
 """Output rows and columns per Tamura tile; a tile also reads 2^kmax - 1 more rows and columns either side."""
-
-_LBP_TILE = (64, 512)
-"""Interior rows and columns per LBP tile (plus one pixel of context all round)."""
 
 
 def _bands(n_rows: int, rows_per_band: int) -> Iterator[tuple[int, int]]:
@@ -128,11 +126,15 @@ def compute(rgb: np.ndarray) -> dict[str, float]:
     """
     photo = crop_image(_check_rgb(rgb))
     _check_side(photo.shape, 2 * 2**TAMURA_KMAX, f"Tamura coarseness with kmax={TAMURA_KMAX}")
-    # The gray image of a uint8 photo is finite, so the cores run without the public functions' checks.
+    # The gray image of a uint8 photo is finite, so the cores run without the public functions' checks,
+    # and the whole-image statistics several features need are computed once.
     gray = _banded(grayscale, photo, np.float64)
-    values = [color(photo), _brightness(gray), edginess(_banded(gray_uint8, gray, np.uint8)),
-              *_dft_peak_means(gray, DFT_FRACTIONS), *_haralick(gray), _tamura_coarseness(gray, TAMURA_KMAX),
-              tamura_contrast(gray), *_lbp_histogram(gray)]
+    mean = float(np.mean(gray))
+    low, high = cv2.minMaxLoc(gray)[:2]
+    values = [color(photo), mean / 255.0, edginess(_banded(gray_uint8, gray, np.uint8)),
+              *_dft_peak_means(gray, DFT_FRACTIONS, mean), *_haralick(gray),
+              _tamura_coarseness(gray, TAMURA_KMAX, high), _tamura_contrast(gray, mean, low == high),
+              *_lbp_histogram(gray)]
     return dict(zip(NAMES, (float(v) for v in values), strict=True))
 
 
@@ -169,11 +171,7 @@ def color(rgb: np.ndarray) -> float:
 
 def brightness(gray: np.ndarray) -> float:
     """Mean gray value / 255 (paper: I_br; SPEC 7.2), in [0, 1] for a gray image in 0..255."""
-    return _brightness(_check_gray(gray))
-
-
-def _brightness(image: np.ndarray) -> float:
-    return float(np.mean(image)) / 255.0
+    return float(np.mean(_check_gray(gray))) / 255.0
 
 
 def edginess(gray_u8: np.ndarray) -> float:
@@ -192,7 +190,7 @@ def edginess(gray_u8: np.ndarray) -> float:
 
 
 def _real_spectrum(image: np.ndarray) -> tuple[list[np.ndarray], list[int]]:
-    """Every value of ``Re(fft2(image))`` as views of one real DFT, with multiplicities.
+    """Every value of ``Re(fft2(image))`` as views of one real DFT, with multiplicities; overwrites ``image``.
 
     ``cv2.dft`` of a real M x N image returns the CCS-packed half spectrum. Column l of the spectrum
     (l = 1 .. (N-1)//2) sits at packed column 2l-1 and stands for column N-l too (the real part is
@@ -200,7 +198,7 @@ def _real_spectrum(image: np.ndarray) -> tuple[list[np.ndarray], list[int]]:
     Re Y(0) first, then Re Y(j) (twice, for rows j and M-j) at rows 2j-1, then Re Y(M/2) last for even M.
     """
     m, n = image.shape
-    packed = cv2.dft(image)
+    packed = cv2.dft(image, dst=image)  # in place: saves a second image-sized buffer
     parts = [packed[:, 1:2 * ((n - 1) // 2):2]]
     weights = [2]
     edge_columns = [0] + ([n - 1] if n % 2 == 0 else [])
@@ -233,19 +231,22 @@ def dft_peak_means(gray: np.ndarray, fractions: Sequence[float] = DFT_FRACTIONS)
     >>> [round(v, 6) for v in dft_peak_means(grating)]  # 10 * sqrt(32 * 64) / 2
     [226.27417, 226.27417]
     """
-    return _dft_peak_means(_check_gray(gray, min_side=2, purpose="the DFT peak mean"), fractions)
+    image = _check_gray(gray, min_side=2, purpose="the DFT peak mean")
+    return _dft_peak_means(image, fractions, float(np.mean(image)))
 
 
-def _dft_peak_means(image: np.ndarray, fractions: Sequence[float]) -> tuple[float, ...]:
-    parts, weights = _real_spectrum(image - image.mean())
+def _dft_peak_means(image: np.ndarray, fractions: Sequence[float], mean: float) -> tuple[float, ...]:
+    parts, weights = _real_spectrum(image - mean)
     peak = max(float(part.max()) for part in parts if part.size)
+    lowest = min(fractions) * peak
+    candidates = [(part[part >= lowest], weight) for part, weight in zip(parts, weights, strict=True)]
     scale = np.sqrt(image.size)
     means = []
     for fraction in fractions:
         threshold = fraction * peak
         total = count = 0.0
-        for part, weight in zip(parts, weights, strict=True):
-            kept = part[part >= threshold]
+        for values, weight in candidates:
+            kept = values[values >= threshold]
             total += weight * float(kept.sum())
             count += weight * kept.size
         means.append(float(total / count / scale))
@@ -460,7 +461,7 @@ def tamura_coarseness(gray: np.ndarray, kmax: int = TAMURA_KMAX) -> float:
     if kmax < 1:
         raise ValueError(f"kmax must be at least 1, got {kmax}")
     image = _check_gray(gray, min_side=2 * 2**kmax, purpose=f"Tamura coarseness with kmax={kmax}")
-    return _tamura_coarseness(image, kmax)
+    return _tamura_coarseness(image, kmax, float(image.max()))
 
 
 def _pair_mean(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> np.ndarray:
@@ -468,10 +469,10 @@ def _pair_mean(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> np.ndarray:
     return cv2.addWeighted(a, 0.5, b, 0.5, 0.0, dst=out)
 
 
-def _tamura_coarseness(image: np.ndarray, kmax: int) -> float:
+def _tamura_coarseness(image: np.ndarray, kmax: int, max_gray: float) -> float:
     margin = 2**kmax
     h, w = image.shape
-    tolerance = 1e-9 * float(image.max())
+    tolerance = 1e-9 * max_gray
     out_rows, out_cols = h - 2 * margin + 1, w - 2 * margin + 1
     tile_rows, tile_cols = min(_TAMURA_TILE[0], out_rows), min(_TAMURA_TILE[1], out_cols)
     in_shape = (tile_rows + 2 * margin - 1, tile_cols + 2 * margin - 1)
@@ -526,9 +527,12 @@ def tamura_contrast(gray: np.ndarray) -> float:
     if values.size == 0:
         return 0.0
     low, high = cv2.minMaxLoc(values)[:2]
-    if low == high:
+    return _tamura_contrast(values, float(values.mean()), low == high)
+
+
+def _tamura_contrast(values: np.ndarray, mean: float, constant: bool) -> float:
+    if constant:
         return 0.0
-    mean = values.mean()
     second = fourth = 0.0
     scratch = np.empty((_rows_per_band(values.shape[1]), values.shape[1]))
     for start, stop in _bands(values.shape[0], scratch.shape[0]):
@@ -619,32 +623,28 @@ def _lbp_histogram(image: np.ndarray) -> np.ndarray:
     # column: rows for the neighbours above and below, columns for those right and left, interior only.
     above, below = (tuple(f[1:-1, None] for f in _interpolation_weights(h, sign * diagonal)) for sign in (-1, 1))
     right, left = (tuple(f[1:-1] for f in _interpolation_weights(w, sign * diagonal)) for sign in (1, -1))
-    tile_rows, tile_cols = min(_LBP_TILE[0], h - 2), min(_LBP_TILE[1], w - 2)
-    towards_right, towards_left, scratch = np.empty((3, tile_rows + 2, tile_cols))
-    neighbour = np.empty((tile_rows, tile_cols))
-    bit = np.empty((tile_rows, tile_cols), bool)
-    code = np.empty((tile_rows, tile_cols), np.uint8)
+    band_rows = min(_rows_per_band(w), h - 2)
+    towards_right, towards_left, scratch = np.empty((3, band_rows + 2, w - 2))
+    neighbour = np.empty((band_rows, w - 2))
+    bit = np.empty((band_rows, w - 2), bool)
+    code = np.empty((band_rows, w - 2), np.uint8)
     code_counts = np.zeros(256, np.int64)
-    for row, row_stop in _bands(h - 2, tile_rows):
-        up = tuple(f[row:row_stop] for f in above)
-        down = tuple(f[row:row_stop] for f in below)
-        for col, col_stop in _bands(w - 2, tile_cols):
-            n, m = row_stop - row, col_stop - col
-            # Interior pixels row+1 .. row_stop, col+1 .. col_stop, with one pixel of context all round.
-            pixels = image[row:row_stop + 2, col:col_stop + 2]
-            # As in skimage: interpolate along the rows first ("top" and "bottom"), then between them.
-            tr = _lerp(pixels[:, 1:-1], pixels[:, 2:], tuple(f[col:col_stop] for f in right),
-                       towards_right[:n + 2, :m], scratch[:n + 2, :m])
-            tl = _lerp(pixels[:, :-2], pixels[:, 1:-1], tuple(f[col:col_stop] for f in left),
-                       towards_left[:n + 2, :m], scratch[:n + 2, :m])
-            centre = pixels[1:-1, 1:-1]
-            codes, bits = code[:n, :m], bit[:n, :m]
-            codes.fill(0)
-            for value in _lbp_neighbours(pixels, tr, tl, up, down, neighbour[:n, :m], scratch[:n, :m]):
-                np.greater_equal(value, centre, out=bits)
-                np.left_shift(codes, 1, out=codes)
-                np.bitwise_or(codes, bits.view(np.uint8), out=codes)
-            # Exact counts: a tile holds far fewer than 2^24 pixels.
-            code_counts += cv2.calcHist([codes], [0], None, [256], [0, 256]).ravel().astype(np.int64)
+    for start, stop in _bands(h - 2, band_rows):
+        n = stop - start
+        rows = image[start:stop + 2]  # interior rows start+1 .. stop, with one row either side
+        # As in skimage: interpolate along the rows first ("top" and "bottom"), then between them.
+        tr = _lerp(rows[:, 1:-1], rows[:, 2:], right, towards_right[:n + 2], scratch[:n + 2])
+        tl = _lerp(rows[:, :-2], rows[:, 1:-1], left, towards_left[:n + 2], scratch[:n + 2])
+        up = tuple(f[start:stop] for f in above)
+        down = tuple(f[start:stop] for f in below)
+        centre = rows[1:-1, 1:-1]
+        codes, bits = code[:n], bit[:n]
+        codes.fill(0)
+        for value in _lbp_neighbours(rows, tr, tl, up, down, neighbour[:n], scratch[:n]):
+            np.greater_equal(value, centre, out=bits)
+            np.left_shift(codes, 1, out=codes)
+            np.bitwise_or(codes, bits.view(np.uint8), out=codes)
+        # Exact counts: a band holds far fewer than 2^24 pixels.
+        code_counts += cv2.calcHist([codes], [0], None, [256], [0, 256]).ravel().astype(np.int64)
     histogram = np.bincount(_uniform_labels(), weights=code_counts, minlength=LBP_BINS)
     return histogram / histogram.sum()

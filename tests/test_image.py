@@ -53,6 +53,18 @@ def test_compute_gives_31_finite_values_equal_to_the_single_features():
     assert sum(values[f"lbp_{i}"] for i in range(10)) == pytest.approx(1.0, abs=1e-12)
 
 
+def test_bands_and_tiles_change_no_value(monkeypatch):
+    # Default sizes process this small photo in one band and one tile; tiny ones split every step.
+    photo = textured_photo(seed=1)
+    expected = image.compute(photo)
+    monkeypatch.setattr(image, "_BAND_ELEMENTS", 50)
+    monkeypatch.setattr(image, "_TAMURA_TILE", (3, 7))
+    banded = image.compute(photo)
+    # Only Tamura contrast sums per band, which regroups its moment sums.
+    assert banded.pop("tamura_contrast") == pytest.approx(expected.pop("tamura_contrast"), rel=1e-14)
+    assert banded == expected
+
+
 def test_compute_crops_100_px_before_anything():
     photo = np.zeros((300, 320, 3), np.uint8)
     photo[100:200, 100:220] = (0, 255, 0)  # the cropped centre is pure green, the border black
@@ -135,7 +147,9 @@ def test_dft_peak_means_of_cosine_gratings_are_their_half_amplitudes():
             + 30 * np.sin(2 * np.pi * 7 * cols / n))  # a sine has no real part, however strong
     # A cosine of amplitude A puts A * M * N / 2 at (k, l) and (-k, -l); normalised by sqrt(M N).
     half = np.sqrt(m * n) / 2
+    original = gray.copy()
     dft_80, dft_85 = image.dft_peak_means(gray)
+    np.testing.assert_array_equal(gray, original)
     assert dft_80 == pytest.approx((a1 + a2) / 2 * half, rel=1e-9)
     assert dft_85 == pytest.approx(a1 * half, rel=1e-9)
 
@@ -331,8 +345,11 @@ def tamura_coarseness_by_definition(gray: np.ndarray, kmax: int = 5) -> float:
     return float(np.mean(best))
 
 
+@pytest.mark.parametrize("tile", [None, (5, 9)])
 @pytest.mark.parametrize("kind", ["noise", "levels", "blocks"])
-def test_tamura_coarseness_follows_the_definition_pixel_by_pixel(kind):
+def test_tamura_coarseness_follows_the_definition_pixel_by_pixel(kind, tile, monkeypatch):
+    if tile:
+        monkeypatch.setattr(image, "_TAMURA_TILE", tile)
     rng = np.random.default_rng(5)
     shape = (75, 90)
     if kind == "noise":
