@@ -1,0 +1,501 @@
+"""Classifiers, cross-validation and metrics of the material classification (SPEC 8; paper section V-B/C).
+
+Every classifier is a scikit-learn ``Pipeline``: min-max scaling to [0, 1] -> ``FQSelector`` (the n best
+features by FQ with |Spearman rho| < 0.5) -> classifier. Two protocols:
+
+- ``nested`` (default): the whole pipeline is fitted on the training folds only, so no test row influences
+  the scaling, the feature selection or the classifier.
+- ``paper``: as published, scaling and selection are fitted once on all rows, then the classifier alone is
+  cross-validated on the selected features (the test rows did take part in the selection).
+
+Metrics per fold: accuracy and macro F1 (F1 averaged over the classes that occur in the fold's true or
+predicted labels; a class never predicted scores 0). ``r_C`` (eq. 32) is the share of misclassifications
+whose predicted major class C differs from the true one.
+"""
+
+from __future__ import annotations
+
+import re
+import warnings
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from joblib import Parallel, delayed
+from sklearn.base import BaseEstimator, clone
+from sklearn.discriminant_analysis import LinearDiscriminantAnalysis
+from sklearn.ensemble import RandomForestClassifier
+from sklearn.metrics import confusion_matrix, f1_score
+from sklearn.model_selection import StratifiedGroupKFold, StratifiedKFold
+from sklearn.naive_bayes import GaussianNB
+from sklearn.neighbors import KNeighborsClassifier
+from sklearn.neural_network import MLPClassifier
+from sklearn.pipeline import Pipeline
+from sklearn.preprocessing import MinMaxScaler
+from sklearn.svm import SVC
+from threadpoolctl import threadpool_limits
+
+from features.selection import FQSelector
+from taxonomy.labels import LEVELS, check_level
+
+if TYPE_CHECKING:
+    from features.space import FeatureSpace
+
+PROTOCOLS = ("nested", "paper")
+
+SEED = 0
+"""Default seed of every random choice: fold assignment, forest bootstraps, SVM Platt scaling, MLP weights."""
+
+FeatureSet = str | Sequence[str] | None
+"""Columns to evaluate: None or ``"all"`` (every column), a modality name, or an explicit list of names."""
+
+DEFAULT_FEATURE_SETS: dict[str, FeatureSet] = {
+    "tactum": "tactum", "image": "image", "audio": "audio", "other": "other", "all": None,
+}
+"""The paper's Figs. 16-18 columns: one modality at a time, then all 193 (X3 of "all" is the best-3)."""
+
+
+class EvaluationError(ValueError):
+    """An evaluation that cannot run as asked; the message says why."""
+
+
+def classifier_estimators(seed: int) -> dict[str, BaseEstimator]:
+    """The paper's six classifiers (section V-B), each with its random state fixed to ``seed``.
+
+    Interpretations where the paper used MATLAB defaults or gave no value: SVM with an RBF kernel and
+    Platt-scaled probabilities (``predict_top`` needs them); kNN with k = 3 and distance weights (five
+    scans per material leave four in a training fold); the paper's net of 500 neurons trained by scaled
+    conjugate gradient, a full-batch method, becomes one hidden layer of 100 ReLU units trained by
+    L-BFGS, scikit-learn's full-batch quasi-Newton solver, for at most 200 iterations; "bagged trees" is a
+    random forest of 100 trees (MATLAB's Classification Learner bags 30), each split drawing sqrt(f)
+    candidate features.
+    """
+    return {
+        "svm": SVC(kernel="rbf", probability=True, random_state=seed),
+        "lda": LinearDiscriminantAnalysis(),
+        "knn": KNeighborsClassifier(n_neighbors=3, weights="distance"),
+        "mlp": MLPClassifier(hidden_layer_sizes=(100,), solver="lbfgs", max_iter=200, random_state=seed),
+        "rf": RandomForestClassifier(n_estimators=100, random_state=seed, n_jobs=1),
+        "nb": GaussianNB(),
+    }
+
+
+def _pipeline(classifier: BaseEstimator, n_features: int) -> Pipeline:
+    return Pipeline([
+        ("scale", MinMaxScaler()),
+        ("select", FQSelector(n_features=n_features)),
+        ("classify", classifier),
+    ])
+
+
+CLASSIFIERS: dict[str, Pipeline] = {
+    name: _pipeline(estimator, 10) for name, estimator in classifier_estimators(SEED).items()
+}
+"""The six classifier pipelines (scale -> select 10 -> classify), unfitted; use :func:`make_pipeline`."""
+
+
+def make_pipeline(classifier: str | BaseEstimator = "rf", n_features: int = 10, seed: int = SEED) -> Pipeline:
+    """A fresh, unfitted ``MinMaxScaler -> FQSelector(n_features) -> classifier`` pipeline.
+
+    ``classifier`` is a key of :data:`CLASSIFIERS` or any unfitted scikit-learn classifier (it is cloned;
+    its random state is set to ``seed`` when it has one).
+    """
+    if isinstance(classifier, str):
+        if classifier not in CLASSIFIERS:
+            raise EvaluationError(f"unknown classifier {classifier!r} (known: {', '.join(CLASSIFIERS)})")
+        estimator = classifier_estimators(seed)[classifier]
+    elif isinstance(classifier, BaseEstimator):
+        estimator = clone(classifier)
+        if "random_state" in estimator.get_params():
+            estimator.set_params(random_state=seed)
+    else:
+        raise EvaluationError(f"classifier must be a name or a scikit-learn estimator, got {classifier!r}")
+    return _pipeline(estimator, n_features)
+
+
+def classifier_name(classifier: str | BaseEstimator) -> str:
+    return classifier if isinstance(classifier, str) else type(classifier).__name__
+
+
+# -- metrics -----------------------------------------------------------------------------------------
+
+_MAJOR = re.compile(r"C[1-9][0-9]*")
+
+
+def major_class(code: str) -> str:
+    """The major class C of a class code at any level: ``"C6S1M1P2X1"`` and ``"C6S1"`` give ``"C6"``."""
+    match = _MAJOR.match(code)
+    if match is None:
+        raise EvaluationError(f"class {code!r} does not start with a major class code C<c>")
+    return match.group()
+
+
+def r_c(confusion: np.ndarray, classes: Sequence[str]) -> float:
+    """Share of misclassifications whose predicted major class differs from the true one (paper eq. 32).
+
+    ``r_C = sum over misclassified n of (1 - delta(yhat_C,n, y_C,n)) / N_miss``, read from a confusion
+    matrix (rows true, columns predicted, in the order of ``classes``). NaN when nothing is misclassified.
+    At the coarse level every misclassification changes C, so r_C is 1.
+    """
+    confusion = np.asarray(confusion)
+    if confusion.shape != (len(classes), len(classes)):
+        raise EvaluationError(f"confusion matrix of shape {confusion.shape} for {len(classes)} classes")
+    majors = np.array([major_class(c) for c in classes])
+    wrong = ~np.eye(len(classes), dtype=bool)
+    errors = confusion[wrong].sum()
+    if errors == 0:
+        return float("nan")
+    other_major = majors[:, None] != majors[None, :]
+    return float(confusion[other_major].sum() / errors)
+
+
+@dataclass(frozen=True, eq=False)
+class Report:
+    """The cross-validated result of one classifier on one feature set at one level.
+
+    ``accuracy`` and ``f1`` hold one value per fold; ``y_true``, ``y_pred`` and ``fold`` one value per row of
+    the feature space (out-of-fold predictions); ``confusion`` sums all folds (rows true, columns
+    predicted, in the order of ``classes``); ``selected`` lists the feature names each fold's selector kept,
+    best FQ first; ``dropped`` the columns left out because they hold NaN; ``warnings`` what scikit-learn or
+    the split reported while fitting (e.g. an MLP that did not converge).
+    """
+
+    classifier: str
+    level: str
+    n_features: int
+    protocol: str
+    feature_set: str
+    folds: int
+    seed: int
+    grouped: bool
+    classes: tuple[str, ...]
+    accuracy: np.ndarray
+    f1: np.ndarray
+    confusion: np.ndarray
+    selected: tuple[tuple[str, ...], ...]
+    y_true: np.ndarray
+    y_pred: np.ndarray
+    fold: np.ndarray
+    columns: tuple[str, ...]
+    dropped: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = field(default=())
+
+    @property
+    def accuracy_mean(self) -> float:
+        return float(np.mean(self.accuracy))
+
+    @property
+    def accuracy_std(self) -> float:
+        """Sample standard deviation over folds (ddof = 1, MATLAB's ``std``, as the paper's +- values)."""
+        return _fold_std(self.accuracy)
+
+    @property
+    def f1_mean(self) -> float:
+        return float(np.mean(self.f1))
+
+    @property
+    def f1_std(self) -> float:
+        return _fold_std(self.f1)
+
+    @property
+    def r_c(self) -> float:
+        """Paper eq. (32) over all folds' misclassifications; NaN if there are none."""
+        return r_c(self.confusion, self.classes)
+
+    def summary(self) -> str:
+        """One line: ``rf fine X10 all (nested): accuracy 90.2 % +- 1.2 %, F1 0.90 +- 0.01, r_C 0.05 ...``."""
+        split = "grouped" if self.grouped else "ungrouped"
+        return (f"{self.classifier} {self.level} X{self.n_features} {self.feature_set} ({self.protocol}): "
+                f"accuracy {100 * self.accuracy_mean:.1f} % +- {100 * self.accuracy_std:.1f} %, "
+                f"F1 {self.f1_mean:.2f} +- {self.f1_std:.2f}, r_C {self.r_c:.2f} "
+                f"({self.folds} {split} folds, {len(self.classes)} classes, seed {self.seed})")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready values (lists, numbers, strings; NaN r_C becomes None)."""
+        r = self.r_c
+        return {
+            "classifier": self.classifier, "level": self.level, "n_features": self.n_features,
+            "protocol": self.protocol, "feature_set": self.feature_set, "folds": self.folds,
+            "seed": self.seed, "grouped": self.grouped,
+            "accuracy": self.accuracy.tolist(), "f1": self.f1.tolist(),
+            "accuracy_mean": self.accuracy_mean, "accuracy_std": self.accuracy_std,
+            "f1_mean": self.f1_mean, "f1_std": self.f1_std, "r_c": None if np.isnan(r) else r,
+            "classes": list(self.classes), "confusion": self.confusion.tolist(),
+            "selected": [list(s) for s in self.selected], "columns": list(self.columns),
+            "dropped": list(self.dropped), "warnings": list(self.warnings),
+        }
+
+
+def _fold_std(values: np.ndarray) -> float:
+    return float(np.std(values, ddof=1)) if len(values) > 1 else 0.0
+
+
+# -- splits ------------------------------------------------------------------------------------------
+
+
+def cv_splits(y: Sequence[str], groups: Sequence[str], folds: int = 5,
+              seed: int = SEED) -> tuple[list[tuple[np.ndarray, np.ndarray]], bool]:
+    """Stratified folds, grouped by sample where a sample was scanned several times.
+
+    Returns the (train, test) row indices of every fold and whether the folds are grouped.
+
+    - Every group a single row: ``StratifiedKFold(folds, shuffle=True, random_state=seed)``.
+    - Groups with several rows, every class with at least two groups, and at least ``folds`` groups:
+      ``StratifiedGroupKFold`` with the same arguments; all scans of a sample stay in one fold. A class with
+      fewer groups than folds then appears in the test rows of fewer folds, and always in training.
+    - Otherwise some class has a single sample: grouping would put all its rows in one test fold and
+      none in training, so it could never be predicted. The split then falls back to the ungrouped
+      ``StratifiedKFold`` of the paper (scans of one sample in both training and test) with a warning
+      naming how many classes have one sample.
+    """
+    y = np.asarray(y)
+    groups = np.asarray(groups)
+    if isinstance(folds, bool) or not isinstance(folds, int | np.integer) or folds < 2:
+        raise EvaluationError(f"folds must be an integer >= 2, got {folds!r}")
+    classes, counts = np.unique(y, return_counts=True)
+    if len(y) < folds or counts.max() < folds:
+        raise EvaluationError(f"{folds} folds need a class with at least {folds} rows "
+                              f"(largest class has {counts.max() if counts.size else 0})")
+    unique_groups = np.unique(groups)
+    grouped = unique_groups.size < groups.size
+    if grouped:
+        groups_per_class = np.array([np.unique(groups[y == c]).size for c in classes])
+        single = int((groups_per_class < 2).sum())
+        if single or unique_groups.size < folds:
+            warnings.warn(f"{single} of {classes.size} classes have a single sample (group); folds are not "
+                          "grouped, so scans of one sample are in both training and test folds", stacklevel=2)
+            grouped = False
+    if grouped:
+        splitter = StratifiedGroupKFold(n_splits=folds, shuffle=True, random_state=seed)
+        return [(train, test) for train, test in splitter.split(np.zeros(len(y)), y, groups)], True
+    splitter = StratifiedKFold(n_splits=folds, shuffle=True, random_state=seed)
+    return [(train, test) for train, test in splitter.split(np.zeros(len(y)), y)], False
+
+
+# -- evaluation --------------------------------------------------------------------------------------
+
+
+def resolve_feature_set(space: FeatureSpace, feature_set: FeatureSet) -> tuple[FeatureSpace, str]:
+    """The columns of ``feature_set`` and its display name ("all", the modality, or "<n> columns")."""
+    if feature_set is None or feature_set == "all":
+        return space, "all"
+    if isinstance(feature_set, str):
+        return space.modality(feature_set), feature_set
+    columns = list(feature_set)
+    return space.subset(columns), f"{len(columns)} columns"
+
+
+def drop_nan_columns(space: FeatureSpace) -> tuple[FeatureSpace, tuple[str, ...]]:
+    """Columns with NaN get FQ 0 and no classifier takes NaN, so they are left out before splitting."""
+    has_nan = np.isnan(space.X).any(axis=0)
+    dropped = tuple(c for c, bad in zip(space.columns, has_nan, strict=True) if bad)
+    if not dropped:
+        return space, ()
+    kept = [c for c, bad in zip(space.columns, has_nan, strict=True) if not bad]
+    if not kept:
+        raise EvaluationError(f"every one of the {len(dropped)} feature columns holds NaN")
+    return space.subset(kept), dropped
+
+
+def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level: str = "fine",
+             n_features: int = 10, folds: int = 5, seed: int = SEED, protocol: str = "nested",
+             feature_set: FeatureSet = None) -> Report:
+    """Cross-validate one classifier pipeline on ``space`` at classification ``level`` (paper section V-C).
+
+    Parameters
+    ----------
+    space : features.space.FeatureSpace
+        Rows = scans; ``space.groups`` (sample ids) keep the scans of a sample in one fold, see
+        :func:`cv_splits` for what happens when a class has a single sample.
+    classifier : str or estimator
+        ``"svm"``, ``"lda"``, ``"knn"``, ``"mlp"``, ``"rf"``, ``"nb"`` or an unfitted scikit-learn classifier.
+    level : str
+        ``"coarse"`` (C), ``"medium"`` (C+S) or ``"fine"`` (the full label).
+    n_features : int
+        Features kept by the selector (the paper's X3 and X10).
+    folds, seed : int
+        Number of folds and the seed of the fold assignment and of the classifier.
+    protocol : str
+        ``"nested"`` (everything fitted inside the folds) or ``"paper"`` (scaling and selection on all rows).
+    feature_set : None, str or list of str
+        None / ``"all"``, a modality (``"tactum"``, ``"image"``, ``"audio"``, ``"other"``) or column names.
+        Columns that hold NaN in any row are left out (listed in ``Report.dropped``).
+
+    Returns
+    -------
+    Report
+        Identical on every rerun with the same arguments. Warnings raised while fitting (an MLP that did
+        not converge, the fallback to ungrouped folds) are collected in ``Report.warnings``.
+    """
+    cell = _Cell(level, _set_name(feature_set), feature_set, n_features)
+    return _run(space, [classifier], [cell], folds, seed, protocol, workers=1, progress=False)[0]
+
+
+def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator] = tuple(CLASSIFIERS),
+                  levels: Iterable[str] = LEVELS, set_sizes: Iterable[int] = (3, 10),
+                  feature_sets: Mapping[str, FeatureSet] | None = None, folds: int = 5, seed: int = SEED,
+                  protocol: str = "nested", workers: int | None = None,
+                  progress: bool = False) -> list[Report]:
+    """Every classifier x feature set x level x set size (the paper's Figs. 16-18), folds in parallel.
+
+    ``feature_sets`` maps a display name to a feature set (see :func:`evaluate`); the default is
+    :data:`DEFAULT_FEATURE_SETS` restricted to the modalities present in ``space``. Each fold of each
+    (level, feature set, size) is one job in one of ``workers`` processes (default: all cores), the fine
+    level first because it takes longest; ``progress`` shows a bar. Reports come back ordered by
+    classifier, feature set, level and size, and equal those of :func:`evaluate` with the same arguments.
+    """
+    classifiers = list(classifiers)
+    sets = dict(feature_sets) if feature_sets is not None else _present_feature_sets(space)
+    cells = [_Cell(check_level(level), name, feature_set, size)
+             for name, feature_set in sets.items() for level in levels for size in set_sizes]
+    reports = _run(space, classifiers, cells, folds, seed, protocol, workers, progress)
+    per_cell = len(classifiers)
+    return [reports[c * per_cell + k] for k in range(per_cell) for c in range(len(cells))]
+
+
+def _present_feature_sets(space: FeatureSpace) -> dict[str, FeatureSet]:
+    prefixes = {c.split(".", 1)[0] for c in space.columns}
+    return {name: fs for name, fs in DEFAULT_FEATURE_SETS.items() if fs is None or fs in prefixes}
+
+
+def _set_name(feature_set: FeatureSet) -> str:
+    if feature_set is None or isinstance(feature_set, str):
+        return feature_set or "all"
+    return f"{len(list(feature_set))} columns"
+
+
+@dataclass(frozen=True)
+class _Cell:
+    """One entry of the results table, for every classifier: level, feature set and set size."""
+
+    level: str
+    set_name: str
+    feature_set: FeatureSet
+    n_features: int
+
+
+@dataclass(frozen=True)
+class _Prepared:
+    """A cell's data, folds and unfitted pipelines, as every fold job of the cell needs them."""
+
+    cell: _Cell
+    X: np.ndarray
+    y: np.ndarray
+    columns: tuple[str, ...]
+    dropped: tuple[str, ...]
+    splits: list[tuple[np.ndarray, np.ndarray]]
+    grouped: bool
+    pipelines: list[Pipeline]
+    shared: Pipeline | None
+    notes: tuple[str, ...]
+
+
+def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells: Sequence[_Cell], folds: int,
+         seed: int, protocol: str, workers: int | None, progress: bool) -> list[Report]:
+    """Reports of every classifier in every cell, in that order (cells outer, classifiers inner)."""
+    if protocol not in PROTOCOLS:
+        raise EvaluationError(f"unknown protocol {protocol!r} (expected one of {', '.join(PROTOCOLS)})")
+    prepared = [_prepare(space, cell, classifiers, folds, seed, protocol) for cell in cells]
+    jobs = sorted(((c, f) for c, p in enumerate(prepared) for f in range(len(p.splits))),
+                  key=lambda job: -LEVELS.index(cells[job[0]].level))
+    runner = Parallel(n_jobs=workers if workers is not None else -1, return_as="generator")
+    results = runner(delayed(_fold)(prepared[c], f, protocol) for c, f in jobs)
+    if progress:
+        from tqdm import tqdm
+
+        results = tqdm(results, total=len(jobs), desc="evaluating", unit="fold")
+    outcome: dict[tuple[int, int], tuple[list[np.ndarray], np.ndarray, tuple[str, ...]]] = {}
+    for job, result in zip(jobs, results, strict=True):
+        outcome[job] = result
+    reports = []
+    for c, p in enumerate(prepared):
+        per_fold = [outcome[(c, f)] for f in range(len(p.splits))]
+        reports.extend(_reports(p, classifiers, per_fold, seed, protocol))
+    return reports
+
+
+def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseEstimator], folds: int,
+             seed: int, protocol: str) -> _Prepared:
+    check_level(cell.level)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        subset, _ = resolve_feature_set(space, cell.feature_set)
+        subset, dropped = drop_nan_columns(subset)
+        y = subset.y(cell.level)
+        splits, grouped = cv_splits(y, subset.groups, folds, seed)
+        pipelines = [_without_probabilities(make_pipeline(c, cell.n_features, seed)) for c in classifiers]
+        shared = None
+        if protocol == "paper":
+            with threadpool_limits(limits=1):
+                shared = clone(pipelines[0][:-1]).fit(subset.X, y)
+    return _Prepared(cell, subset.X, y, subset.columns, dropped, splits, grouped, pipelines, shared,
+                     _messages(caught))
+
+
+def _without_probabilities(pipeline: Pipeline) -> Pipeline:
+    """Turn off an SVM's Platt scaling: ``predict`` does not use it, so predictions are the same.
+
+    libsvm fits the decision function on all training rows either way; the probability model is an
+    extra internal 5-fold fit that would take ~8x the time of the SVM itself and is not needed here.
+    """
+    classifier = pipeline[-1]
+    params = classifier.get_params(deep=False)
+    if "probability" in params:
+        # Rebuilt without the argument: scikit-learn 1.9 deprecates it, and its default is "off".
+        del params["probability"]
+        pipeline.steps[-1] = (pipeline.steps[-1][0], type(classifier)(**params))
+    return pipeline
+
+
+def _fold(prepared: _Prepared, fold: int,
+          protocol: str) -> tuple[list[np.ndarray], np.ndarray, tuple[str, ...]]:
+    """One fold: fit the shared scale -> select part (nested protocol) and every classifier on its output.
+
+    A pipeline's fit is its transformers' ``fit_transform`` followed by the classifier's ``fit``, so fitting
+    the shared part once gives exactly the predictions of fitting each full pipeline. Returns the
+    predictions of the test rows per classifier, the selected column indices and the warnings raised.
+    """
+    train, test = prepared.splits[fold]
+    X, y = prepared.X, prepared.y
+    with warnings.catch_warnings(record=True) as caught, threadpool_limits(limits=1):
+        # Small dense matrices: BLAS threads cost more than they gain, and folds run side by side.
+        warnings.simplefilter("always")
+        shared = prepared.shared
+        if protocol == "nested":
+            shared = clone(prepared.pipelines[0][:-1]).fit(X[train], y[train])
+        X_train, X_test = shared.transform(X[train]), shared.transform(X[test])
+        predictions = [clone(p[-1]).fit(X_train, y[train]).predict(X_test) for p in prepared.pipelines]
+    return predictions, shared.named_steps["select"].selected_, _messages(caught)
+
+
+def _messages(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:
+    return tuple(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught))
+
+
+def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],
+             per_fold: list[tuple[list[np.ndarray], np.ndarray, tuple[str, ...]]], seed: int,
+             protocol: str) -> list[Report]:
+    y, splits, cell = prepared.y, prepared.splits, prepared.cell
+    fold_of_row = np.empty(len(y), dtype=np.int64)
+    for index, (_, test) in enumerate(splits):
+        fold_of_row[test] = index
+    selected = tuple(tuple(prepared.columns[i] for i in indices) for _, indices, _ in per_fold)
+    notes = tuple(dict.fromkeys(prepared.notes + sum((n for _, _, n in per_fold), ())))
+    classes = np.unique(y)
+    reports = []
+    for k, classifier in enumerate(classifiers):
+        y_pred = np.empty_like(y)
+        for (_, test), (predictions, _, _) in zip(splits, per_fold, strict=True):
+            y_pred[test] = predictions[k]
+        accuracy = np.array([np.mean(y_pred[test] == y[test]) for _, test in splits])
+        f1 = np.array([f1_score(y[test], y_pred[test], average="macro", zero_division=0.0)
+                       for _, test in splits])
+        reports.append(Report(
+            classifier=classifier_name(classifier), level=cell.level, n_features=cell.n_features,
+            protocol=protocol, feature_set=cell.set_name, folds=len(splits), seed=seed,
+            grouped=prepared.grouped, classes=tuple(classes.tolist()), accuracy=accuracy, f1=f1,
+            confusion=confusion_matrix(y, y_pred, labels=classes), selected=selected, y_true=y, y_pred=y_pred,
+            fold=fold_of_row, columns=prepared.columns, dropped=prepared.dropped, warnings=notes,
+        ))
+    return reports

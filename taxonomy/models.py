@@ -1,0 +1,299 @@
+"""Trained classification models: train on a whole feature space, store safely, predict a scan (SPEC 8).
+
+A model file is a skops archive (``skops.io``), a format that rebuilds objects from a declared schema and
+never executes code on load. It holds one dict::
+
+    format "texplorer-model", format_version 1, pipeline (MinMaxScaler -> FQSelector -> classifier),
+    feature_names (input columns in order), level, classifier, n_features, selected (kept feature names,
+    best FQ first), classes, seed, software_version, sklearn_version, dropped, n_rows
+
+Loading first lists the file's types that skops does not trust by default and refuses the file unless
+they are all in :data:`TRUSTED_TYPES`; then it checks that the dict has exactly this shape and that the
+pipeline is made of the classes in :data:`MODEL_TYPES`. Anything else -- a foreign or tampered file, a
+truncated archive, a file that is not skops at all, metadata that does not match the pipeline -- is
+refused with a one-line :class:`ModelError` naming the file and the reason.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+import zipfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import sklearn
+import skops.io
+from sklearn.pipeline import Pipeline
+from sklearn.preprocessing import MinMaxScaler
+
+from features.selection import FQSelector
+from taxonomy.evaluation import (
+    CLASSIFIERS,
+    SEED,
+    FeatureSet,
+    classifier_estimators,
+    drop_nan_columns,
+    make_pipeline,
+    resolve_feature_set,
+)
+from taxonomy.labels import LEVELS, check_level
+
+if TYPE_CHECKING:
+    from features.space import FeatureSpace
+    from taxonomy.table import Taxonomy
+
+MODEL_FORMAT = "texplorer-model"
+MODEL_FORMAT_VERSION = 1
+
+TRUSTED_TYPES = (
+    "features.selection.FQSelector",
+    "sklearn.metrics._dist_metrics.EuclideanDistance64",
+    "sklearn.neighbors._kd_tree.KDTree",
+    "sklearn.neural_network._stochastic_optimizers.AdamOptimizer",
+    "sklearn.tree._tree.Tree",
+)
+"""The types of our fitted pipelines that skops does not trust by default (it trusts builtins, numpy
+arrays and scikit-learn estimators); a file with any other such type is refused before it is loaded."""
+
+MODEL_TYPES = (MinMaxScaler, FQSelector, *(type(est) for est in classifier_estimators(SEED).values()))
+"""The estimator classes a model's pipeline may consist of, step by step: scale, select, classify."""
+
+_STEPS = ("scale", "select", "classify")
+_META_TYPES: dict[str, type | tuple[type, ...]] = {
+    "format": str, "format_version": int, "feature_names": list, "level": str, "classifier": str,
+    "n_features": int, "selected": list, "classes": list, "seed": int, "software_version": str,
+    "sklearn_version": str, "dropped": list, "n_rows": int,
+}
+
+
+class ModelError(ValueError):
+    """A model file that cannot be used, or feature values a model cannot classify; one line saying why."""
+
+
+@dataclass(frozen=True, eq=False)
+class TrainedModel:
+    """A fitted pipeline with what is needed to use it on new scans.
+
+    ``feature_names`` are the pipeline's input columns in order; ``selected`` the features its
+    ``FQSelector`` kept (best FQ first); ``classes`` the labels it predicts at ``level``.
+    """
+
+    pipeline: Pipeline
+    feature_names: tuple[str, ...]
+    level: str
+    classifier: str
+    n_features: int
+    selected: tuple[str, ...]
+    classes: tuple[str, ...]
+    seed: int
+    software_version: str
+    sklearn_version: str
+    dropped: tuple[str, ...] = ()
+    n_rows: int = 0
+
+    def describe(self) -> str:
+        """One line for people: classifier, level, classes, rows and the selected features."""
+        return (f"{self.classifier} at level {self.level}, {len(self.classes)} classes, "
+                f"trained on {self.n_rows} scans, texplorer {self.software_version}; "
+                f"features: {', '.join(self.selected)}")
+
+
+def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, classifier: str = "rf",
+                seed: int = SEED, feature_set: FeatureSet = None) -> TrainedModel:
+    """Fit ``scale -> select n_features -> classifier`` on every row of ``space`` at ``level``.
+
+    Columns that hold NaN in any row are left out, as in ``taxonomy.evaluate`` (listed in ``dropped``).
+    Cross-validated scores of the same settings come from ``taxonomy.evaluate``.
+    """
+    from scanner import __version__
+
+    check_level(level)
+    if classifier not in CLASSIFIERS:
+        raise ModelError(f"unknown classifier {classifier!r} (known: {', '.join(CLASSIFIERS)})")
+    subset, _ = resolve_feature_set(space, feature_set)
+    subset, dropped = drop_nan_columns(subset)
+    y = subset.y(level)
+    pipeline = make_pipeline(classifier, n_features, seed).fit(subset.X, y)
+    selector = pipeline.named_steps["select"]
+    return TrainedModel(
+        pipeline=pipeline, feature_names=subset.columns, level=level, classifier=classifier,
+        n_features=n_features, selected=tuple(subset.columns[i] for i in selector.selected_),
+        classes=tuple(str(c) for c in pipeline.classes_), seed=seed, software_version=__version__,
+        sklearn_version=sklearn.__version__, dropped=dropped, n_rows=len(y),
+    )
+
+
+# -- files -------------------------------------------------------------------------------------------
+
+
+def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
+    """Write ``model`` to ``path`` as a skops archive, atomically (temp file + fsync + rename).
+
+    Refuses (ModelError) a model that :func:`load_model` would refuse, so no unreadable file is written.
+    """
+    from scanner.files import atomic_write_bytes
+
+    path = Path(path)
+    payload = {
+        "format": MODEL_FORMAT, "format_version": MODEL_FORMAT_VERSION, "pipeline": model.pipeline,
+        "feature_names": list(model.feature_names), "level": model.level, "classifier": model.classifier,
+        "n_features": int(model.n_features), "selected": list(model.selected), "classes": list(model.classes),
+        "seed": int(model.seed), "software_version": model.software_version,
+        "sklearn_version": model.sklearn_version, "dropped": list(model.dropped), "n_rows": int(model.n_rows),
+    }
+    data = skops.io.dumps(payload)
+    _check_types(path, data)
+    _model_from(path, skops.io.loads(data, trusted=list(TRUSTED_TYPES)))
+    atomic_write_bytes(path, data)
+    return path
+
+
+def load_model(path: str | os.PathLike[str]) -> TrainedModel:
+    """Read a model written by :func:`save_model`; anything else raises a one-line ModelError."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise ModelError(f"{path}: cannot read the model file ({exc.strerror or exc})") from None
+    _check_types(path, data)
+    try:
+        payload = skops.io.loads(data, trusted=list(TRUSTED_TYPES))
+    except Exception as exc:  # skops raises many types for damaged archives
+        raise ModelError(f"{path}: damaged model file ({type(exc).__name__}: {_first_line(exc)})") from None
+    model = _model_from(path, payload)
+    if model.sklearn_version != sklearn.__version__:
+        warnings.warn(f"{path}: trained with scikit-learn {model.sklearn_version}, running "
+                      f"{sklearn.__version__}; retrain if predictions look wrong", stacklevel=2)
+    return model
+
+
+def _check_types(path: Path, data: bytes) -> None:
+    try:
+        untrusted = skops.io.get_untrusted_types(data=data)
+    except zipfile.BadZipFile:
+        raise ModelError(f"{path}: not a model file (not a skops archive, or truncated)") from None
+    except Exception as exc:  # a zip that is not a skops archive fails in several ways
+        raise ModelError(f"{path}: not a model file ({type(exc).__name__}: {_first_line(exc)})") from None
+    foreign = [t for t in untrusted if t not in TRUSTED_TYPES]
+    if foreign:
+        raise ModelError(f"{path}: refused, it holds types a texplorer model never contains: "
+                         f"{', '.join(foreign[:5])}")
+
+
+def _first_line(exc: BaseException) -> str:
+    return str(exc).strip().splitlines()[0][:200] if str(exc).strip() else "no detail"
+
+
+def _model_from(path: Path, payload: Any) -> TrainedModel:
+    """The model in a loaded payload, after checking that every part has the shape save_model writes."""
+    if not isinstance(payload, dict) or payload.get("format") != MODEL_FORMAT:
+        raise ModelError(f"{path}: not a texplorer model (no format tag {MODEL_FORMAT!r})")
+    if payload.get("format_version") != MODEL_FORMAT_VERSION:
+        raise ModelError(f"{path}: model format version {payload.get('format_version')!r} is not supported "
+                         f"(this program reads version {MODEL_FORMAT_VERSION})")
+    expected = {*_META_TYPES, "pipeline"}
+    if set(payload) != expected:
+        odd = sorted(set(payload) ^ expected)
+        raise ModelError(f"{path}: wrong model metadata fields: {', '.join(odd)}")
+    for key, kind in _META_TYPES.items():
+        if not isinstance(payload[key], kind) or isinstance(payload[key], bool):
+            raise ModelError(f"{path}: metadata field {key!r} must be {kind.__name__}")
+    for key in ("feature_names", "selected", "classes", "dropped"):
+        if not all(isinstance(v, str) for v in payload[key]):
+            raise ModelError(f"{path}: metadata field {key!r} must list text")
+    if payload["level"] not in LEVELS:
+        raise ModelError(f"{path}: unknown level {payload['level']!r}")
+    pipeline = payload["pipeline"]
+    _check_pipeline(path, pipeline)
+    _check_consistent(path, payload, pipeline)
+    return TrainedModel(
+        pipeline=pipeline, feature_names=tuple(payload["feature_names"]), level=payload["level"],
+        classifier=payload["classifier"], n_features=payload["n_features"],
+        selected=tuple(payload["selected"]), classes=tuple(payload["classes"]), seed=payload["seed"],
+        software_version=payload["software_version"], sklearn_version=payload["sklearn_version"],
+        dropped=tuple(payload["dropped"]), n_rows=payload["n_rows"],
+    )
+
+
+def _check_pipeline(path: Path, pipeline: Any) -> None:
+    if not isinstance(pipeline, Pipeline) or [name for name, _ in pipeline.steps] != list(_STEPS):
+        raise ModelError(f"{path}: the model is not a {' -> '.join(_STEPS)} pipeline")
+    scale, select, classify = (step for _, step in pipeline.steps)
+    kinds = (type(scale), type(select), type(classify))
+    if kinds[:2] != (MinMaxScaler, FQSelector) or kinds[2] not in MODEL_TYPES[2:]:
+        raise ModelError(f"{path}: unexpected pipeline steps {' -> '.join(k.__name__ for k in kinds)}")
+    if not all(hasattr(step, "n_features_in_") for step in (scale, select, classify)):
+        raise ModelError(f"{path}: the pipeline in the file is not fitted")
+
+
+def _check_consistent(path: Path, payload: dict[str, Any], pipeline: Pipeline) -> None:
+    names = payload["feature_names"]
+    if len(set(names)) != len(names) or pipeline.n_features_in_ != len(names):
+        raise ModelError(f"{path}: {len(names)} distinct feature names for a pipeline of "
+                         f"{pipeline.n_features_in_} inputs")
+    selector = pipeline.named_steps["select"]
+    selected = [names[i] for i in np.asarray(selector.selected_, dtype=np.int64)
+                if 0 <= i < len(names)]
+    if selected != payload["selected"]:
+        raise ModelError(f"{path}: the selected feature names do not match the pipeline's selector")
+    if [str(c) for c in pipeline.classes_] != payload["classes"]:
+        raise ModelError(f"{path}: the class list does not match the pipeline's classes")
+
+
+# -- prediction --------------------------------------------------------------------------------------
+
+
+def predict_top(model: TrainedModel, feature_values: Mapping[str, float],
+                k: int = 3) -> list[tuple[str, float]]:
+    """The ``k`` most probable classes of one scan as ``[(label, probability), ...]``, most probable first.
+
+    ``feature_values`` maps feature names to values (``features.extract(scan)``); extra names are ignored.
+    Only the selected features reach the classifier, so only they must be present and finite: a missing
+    or NaN selected feature raises ModelError naming them (a guess would look like a real prediction).
+    Other model inputs may be missing or NaN; they are passed on as NaN and dropped by the selector.
+    Equal probabilities keep the model's class order.
+    """
+    if isinstance(k, bool) or not isinstance(k, int) or k < 1:
+        raise ModelError(f"k must be a positive integer, got {k!r}")
+    missing = [n for n in model.selected if n not in feature_values]
+    if missing:
+        raise ModelError(f"missing feature value(s) the model needs: {', '.join(missing)}")
+    undefined = [n for n in model.selected if not _finite(feature_values[n])]
+    if undefined:
+        raise ModelError(f"undefined (NaN or non-numeric) feature value(s) the model needs: "
+                         f"{', '.join(undefined)}")
+    row = np.array([[_as_float(feature_values.get(n, math.nan)) for n in model.feature_names]])
+    probability = model.pipeline.predict_proba(row)[0]
+    order = np.argsort(-probability, kind="stable")[:k]
+    return [(str(model.pipeline.classes_[i]), float(probability[i])) for i in order]
+
+
+def _as_float(value: Any) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _finite(value: Any) -> bool:
+    return math.isfinite(_as_float(value))
+
+
+def format_predictions(predictions: Sequence[tuple[str, float]], taxonomy: Taxonomy | None = None) -> str:
+    """Lines like ``1. C6S1M1P2X1   82.0 %  granite (igneous stone, stone), polished, plain``."""
+    width = max((len(label) for label, _ in predictions), default=0)
+    lines = []
+    for rank, (label, probability) in enumerate(predictions, start=1):
+        line = f"{rank}. {label:<{width}}  {100 * probability:5.1f} %"
+        if taxonomy is not None:
+            try:
+                line += f"  {taxonomy.name(label)}"
+            except ValueError:
+                line += "  (not in the taxonomy table)"
+        lines.append(line)
+    return "\n".join(lines)
