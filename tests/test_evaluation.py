@@ -1,0 +1,266 @@
+"""Cross-validation, metrics and reports of ``taxonomy.evaluation`` on small synthetic feature spaces."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.metrics import confusion_matrix, f1_score
+from sklearn.model_selection import StratifiedKFold, cross_val_predict
+from sklearn.pipeline import Pipeline
+from sklearn.preprocessing import MinMaxScaler
+
+from features.selection import FQSelector
+from features.space import FeatureSpace, FeatureSpaceError
+from taxonomy import evaluation
+from taxonomy.evaluation import (
+    CLASSIFIERS,
+    EvaluationError,
+    cv_splits,
+    evaluate,
+    evaluate_grid,
+    major_class,
+    make_pipeline,
+    r_c,
+)
+
+MODALITIES = ("tactum", "image", "audio", "other")
+
+
+def labelled_space(materials: int = 8, samples: int = 2, scans: int = 3, features: int = 12,
+                   seed: int = 0) -> FeatureSpace:
+    """Materials C1..C4 x S1..S2; half the columns shift per material, the rest are noise.
+
+    Column 0 holds the row index, so a spy can tell which rows it was given.
+    """
+    rng = np.random.default_rng(seed)
+    material = np.repeat(np.arange(materials), samples * scans)
+    sample = np.tile(np.repeat(np.arange(samples), scans), materials)
+    centres = rng.standard_normal((materials, features)) * 3 * (np.arange(features) % 2 == 0)
+    X = centres[material] + rng.standard_normal((material.size, features))
+    X[:, 0] = np.arange(material.size)
+    columns = tuple(f"{MODALITIES[j % 4]}.f{j:02d}" for j in range(features))
+    labels = tuple(f"C{m % 4 + 1}S{m // 4 % 2 + 1}M{m // 8 + 1}P1X1" for m in material)
+    groups = tuple(f"m{m}-sample{s}" for m, s in zip(material, sample, strict=True))
+    return FeatureSpace(X, columns, tuple(f"scan{i}" for i in range(material.size)), labels, groups)
+
+
+# -- r_C ---------------------------------------------------------------------------------------------
+
+
+def test_r_c_counts_misclassifications_across_major_classes():
+    classes = ["C1S1M1P1X1", "C1S1M2P1X1", "C2S1M1P1X1"]
+    confusion = np.array([[5, 2, 1],
+                          [0, 4, 3],
+                          [1, 0, 6]])
+    # errors: 2 + 1 + 3 + 1 = 7; of them C1 -> C2: 1 + 3, C2 -> C1: 1
+    assert r_c(confusion, classes) == pytest.approx(5 / 7)
+
+
+def test_r_c_is_nan_without_errors_and_one_at_the_coarse_level():
+    assert np.isnan(r_c(np.diag([3, 4]), ["C1", "C2"]))
+    assert r_c(np.array([[3, 1], [2, 4]]), ["C1", "C2"]) == 1.0
+    assert r_c(np.array([[3, 1], [2, 4]]), ["C1S1", "C1S2"]) == 0.0
+
+
+def test_r_c_refuses_a_mismatched_confusion_and_codes_without_a_major_class():
+    with pytest.raises(EvaluationError, match="shape"):
+        r_c(np.zeros((2, 3)), ["C1", "C2"])
+    with pytest.raises(EvaluationError, match="major class"):
+        major_class("S1M1")
+    assert major_class("C12S3M1P2X1") == "C12"
+
+
+# -- splits ------------------------------------------------------------------------------------------
+
+
+def test_grouped_splits_keep_every_sample_in_one_fold_and_test_every_row_once():
+    space = labelled_space(samples=3, scans=2)
+    y = space.y("fine")
+    splits, grouped = cv_splits(y, space.groups, folds=3, seed=1)
+    assert grouped
+    tested = np.concatenate([test for _, test in splits])
+    assert sorted(tested) == list(range(len(y)))
+    groups = np.asarray(space.groups)
+    for train, test in splits:
+        assert not set(groups[train]) & set(groups[test])
+
+
+def test_singleton_groups_are_plain_stratified_folds():
+    y = np.repeat(["C1S1M1P1X1", "C2S1M1P1X1"], 5)
+    splits, grouped = cv_splits(y, [f"s{i}" for i in range(10)], folds=5, seed=3)
+    expected = StratifiedKFold(5, shuffle=True, random_state=3).split(np.zeros(10), y)
+    assert not grouped
+    for (train, test), (train_ref, test_ref) in zip(splits, expected, strict=True):
+        np.testing.assert_array_equal(test, test_ref)
+        np.testing.assert_array_equal(train, train_ref)
+
+
+def test_a_class_with_a_single_sample_falls_back_to_ungrouped_folds_with_a_warning():
+    space = labelled_space(samples=1, scans=5)
+    with pytest.warns(UserWarning, match="8 of 8 classes have a single sample"):
+        splits, grouped = cv_splits(space.y("fine"), space.groups, folds=5)
+    assert not grouped and len(splits) == 5
+
+
+@pytest.mark.parametrize("folds", [1, 2.0, True])
+def test_bad_fold_counts_are_refused(folds):
+    with pytest.raises(EvaluationError, match="folds"):
+        cv_splits(["a", "b"] * 3, ["g"] * 6, folds=folds)
+
+
+# -- evaluate ----------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("classifier", list(CLASSIFIERS))
+def test_report_numbers_equal_a_direct_cross_val_predict(classifier):
+    space = labelled_space()
+    y = space.y("fine")
+    report = evaluate(space, classifier, level="fine", n_features=3, folds=4, seed=2)
+    splits, grouped = cv_splits(y, space.groups, folds=4, seed=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        predicted = cross_val_predict(make_pipeline(classifier, 3, seed=2), space.X, y, cv=splits)
+    np.testing.assert_array_equal(report.y_pred, predicted)
+    accuracy = [np.mean(predicted[test] == y[test]) for _, test in splits]
+    f1 = [f1_score(y[test], predicted[test], average="macro", zero_division=0) for _, test in splits]
+    np.testing.assert_allclose(report.accuracy, accuracy)
+    np.testing.assert_allclose(report.f1, f1)
+    assert report.accuracy_mean == pytest.approx(np.mean(accuracy))
+    assert report.accuracy_std == pytest.approx(np.std(accuracy, ddof=1))
+    classes = sorted(set(y))
+    assert list(report.classes) == classes
+    np.testing.assert_array_equal(report.confusion, confusion_matrix(y, predicted, labels=classes))
+    assert report.grouped == grouped and report.folds == 4 and report.seed == 2
+
+
+class RowSpy(TransformerMixin, BaseEstimator):
+    """Passes X through and records the row ids (column 0) it is fitted on and asked to transform."""
+
+    log: list[tuple[str, list[int]]] = []
+
+    def fit(self, X, y=None):
+        RowSpy.log.append(("fit", X[:, 0].astype(int).tolist()))
+        return self
+
+    def transform(self, X):
+        RowSpy.log.append(("transform", X[:, 0].astype(int).tolist()))
+        return X
+
+
+@pytest.fixture
+def spied(monkeypatch):
+    original = evaluation.make_pipeline
+
+    def with_spy(classifier, n_features, seed):
+        return Pipeline([("spy", RowSpy()), *original(classifier, n_features, seed).steps])
+
+    monkeypatch.setattr(evaluation, "make_pipeline", with_spy)
+    RowSpy.log = []
+    return RowSpy.log
+
+
+def test_nested_protocol_fits_scaler_and_selector_on_training_rows_only(spied):
+    space = labelled_space()
+    report = evaluate(space, "lda", level="medium", n_features=3, folds=4, seed=0, protocol="nested")
+    starts = [i for i, (kind, _) in enumerate(spied) if kind == "fit"]
+    assert len(starts) == 4
+    for fold, (start, end) in enumerate(zip(starts, [*starts[1:], len(spied)], strict=True)):
+        fitted = spied[start][1]
+        test_rows = np.flatnonzero(report.fold == fold).tolist()
+        assert sorted(fitted) == np.flatnonzero(report.fold != fold).tolist()
+        predicted = [rows for _, rows in spied[start + 1:end] if rows != fitted]
+        assert [sorted(rows) for rows in predicted] == [test_rows]
+        assert set(fitted).isdisjoint(test_rows)
+
+
+def test_paper_protocol_selects_once_on_all_rows(spied):
+    space = labelled_space()
+    report = evaluate(space, "lda", level="medium", n_features=3, folds=4, protocol="paper")
+    fits = [rows for kind, rows in spied if kind == "fit"]
+    assert fits == [list(range(len(space)))]
+    scaled = MinMaxScaler().fit_transform(space.X)
+    selector = FQSelector(n_features=3).fit(scaled, space.y("medium"))
+    expected = tuple(space.columns[i] for i in selector.selected_)
+    assert report.selected == (expected,) * 4
+
+
+def test_selected_features_are_named_per_fold_in_acceptance_order():
+    space = labelled_space()
+    report = evaluate(space, "nb", level="fine", n_features=2, folds=3)
+    assert len(report.selected) == 3
+    for fold, names in enumerate(report.selected):
+        train = report.fold != fold
+        scaled = MinMaxScaler().fit_transform(space.X[train])
+        selector = FQSelector(n_features=2).fit(scaled, space.y("fine")[train])
+        assert names == tuple(space.columns[i] for i in selector.selected_)
+
+
+def test_reruns_are_identical():
+    space = labelled_space()
+    first = evaluate(space, "rf", level="fine", n_features=3, folds=3, seed=5)
+    second = evaluate(space, "rf", level="fine", n_features=3, folds=3, seed=5)
+    np.testing.assert_array_equal(first.y_pred, second.y_pred)
+    assert first.to_dict() == second.to_dict()
+
+
+def test_nan_columns_are_dropped_and_listed():
+    space = labelled_space()
+    X = space.X.copy()
+    X[3, 5] = np.nan
+    holed = FeatureSpace(X, space.columns, space.scan_ids, space.label_text, space.groups)
+    report = evaluate(holed, "nb", level="coarse", n_features=3, folds=3)
+    assert report.dropped == (space.columns[5],)
+    assert space.columns[5] not in report.columns and len(report.columns) == len(space.columns) - 1
+
+
+def test_feature_sets_pick_columns():
+    space = labelled_space()
+    by_modality = evaluate(space, "nb", level="coarse", n_features=2, folds=3, feature_set="image")
+    assert by_modality.feature_set == "image"
+    assert all(c.startswith("image.") for c in by_modality.columns)
+    listed = evaluate(space, "nb", level="coarse", n_features=2, folds=3,
+                      feature_set=["other.f03", "tactum.f04"])
+    assert listed.columns == ("other.f03", "tactum.f04") and listed.feature_set == "2 columns"
+
+
+def test_fallback_to_ungrouped_folds_is_reported():
+    report = evaluate(labelled_space(samples=1, scans=5), "nb", level="fine", n_features=3)
+    assert not report.grouped
+    assert any("single sample" in note for note in report.warnings)
+
+
+@pytest.mark.parametrize(("kwargs", "error", "message"), [
+    ({"protocol": "leaky"}, EvaluationError, "protocol"),
+    ({"classifier": "tree"}, EvaluationError, "unknown classifier"),
+    ({"level": "finest"}, ValueError, "level"),
+    ({"feature_set": "smell"}, FeatureSpaceError, "modality"),
+])
+def test_bad_arguments_are_named(kwargs, error, message):
+    with pytest.raises(error, match=message):
+        evaluate(labelled_space(), **kwargs)
+
+
+def test_report_serialises_and_summarises():
+    report = evaluate(labelled_space(), "knn", level="coarse", n_features=3, folds=3)
+    data = json.loads(json.dumps(report.to_dict()))
+    assert data["accuracy"] == report.accuracy.tolist() and data["classifier"] == "knn"
+    line = report.summary()
+    assert line.startswith("knn coarse X3 all (nested): accuracy ") and "r_C" in line
+
+
+def test_grid_in_worker_processes_equals_single_evaluations():
+    space = labelled_space()
+    sets = {"tactum": "tactum", "all": None}
+    reports = evaluate_grid(space, classifiers=("lda", "nb"), levels=("coarse", "fine"), set_sizes=(2,),
+                            feature_sets=sets, folds=3, seed=4, workers=2)
+    keys = [(r.classifier, r.feature_set, r.level) for r in reports]
+    assert keys == [(c, s, level) for c in ("lda", "nb") for s in sets for level in ("coarse", "fine")]
+    for report in reports:
+        single = evaluate(space, report.classifier, report.level, 2, folds=3, seed=4,
+                          feature_set=sets[report.feature_set])
+        np.testing.assert_array_equal(report.y_pred, single.y_pred)
+        assert report.selected == single.selected
