@@ -175,8 +175,9 @@ def load_model(path: str | os.PathLike[str]) -> TrainedModel:
 def _check_types(path: Path, data: bytes) -> None:
     try:
         untrusted = skops.io.get_untrusted_types(data=data)
-    except zipfile.BadZipFile:
-        raise ModelError(f"{path}: not a model file (not a skops archive, or truncated)") from None
+    except zipfile.BadZipFile as exc:
+        raise ModelError(f"{path}: not a readable model file, damaged, truncated or not a skops archive "
+                         f"({_first_line(exc)})") from None
     except Exception as exc:  # a zip that is not a skops archive fails in several ways
         raise ModelError(f"{path}: not a model file ({type(exc).__name__}: {_first_line(exc)})") from None
     foreign = [t for t in untrusted if t not in TRUSTED_TYPES]

@@ -1,0 +1,201 @@
+"""Trained models: skops round trip, refusal of foreign or damaged files, top-k prediction of one scan."""
+
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import skops.io
+from sklearn.linear_model import LogisticRegression
+from sklearn.pipeline import Pipeline
+from sklearn.preprocessing import FunctionTransformer, MinMaxScaler
+
+from features.selection import FQSelector
+from features.space import FeatureSpace
+from taxonomy import load_taxonomy
+from taxonomy.evaluation import CLASSIFIERS
+from taxonomy.models import (
+    MODEL_FORMAT,
+    ModelError,
+    TrainedModel,
+    format_predictions,
+    load_model,
+    predict_top,
+    save_model,
+    train_model,
+)
+
+MATERIALS = ("C6S1M1P2X1", "C7S1M1P1X1", "C1S1M1P1X1", "C3S4M2P1X1")
+
+
+def separated_space(scans: int = 6, seed: int = 0) -> FeatureSpace:
+    """Four shipped materials; other.density and other.metal separate them, the rest is noise."""
+    rng = np.random.default_rng(seed)
+    material = np.repeat(np.arange(len(MATERIALS)), scans)
+    X = rng.standard_normal((material.size, 6))
+    X[:, 0] += material * 5.0
+    X[:, 1] += (material % 2) * 4.0
+    columns = ("other.density", "other.metal", "tactum.matx", "image.disp.color", "audio.tool.zcr",
+               "other.vib_std")
+    return FeatureSpace(X, columns, tuple(f"scan{i}" for i in range(material.size)),
+                        tuple(MATERIALS[m] for m in material),
+                        tuple(f"sample{m}-{i % 2}" for i, m in enumerate(material)))
+
+
+@pytest.fixture(scope="module")
+def space() -> FeatureSpace:
+    return separated_space()
+
+
+@pytest.fixture(scope="module")
+def model(space) -> TrainedModel:
+    return train_model(space, level="fine", n_features=2, classifier="rf")
+
+
+def payload_of(model: TrainedModel) -> dict:
+    """What save_model writes, to build tampered files from."""
+    return {
+        "format": MODEL_FORMAT, "format_version": 1, "pipeline": model.pipeline,
+        "feature_names": list(model.feature_names), "level": model.level, "classifier": model.classifier,
+        "n_features": model.n_features, "selected": list(model.selected), "classes": list(model.classes),
+        "seed": model.seed, "software_version": model.software_version,
+        "sklearn_version": model.sklearn_version, "dropped": list(model.dropped), "n_rows": model.n_rows,
+    }
+
+
+def test_training_keeps_the_metadata(space, model):
+    assert model.feature_names == space.columns
+    assert model.level == "fine" and model.classifier == "rf" and model.n_rows == len(space)
+    assert model.selected == ("other.density", "other.metal")
+    assert model.classes == tuple(sorted(MATERIALS))
+    assert "rf at level fine, 4 classes" in model.describe()
+
+
+@pytest.mark.parametrize("classifier", list(CLASSIFIERS))
+def test_save_and_load_give_identical_predictions(space, tmp_path, classifier):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        trained = train_model(space, level="medium", n_features=3, classifier=classifier)
+    path = save_model(trained, tmp_path / "model.skops")
+    loaded = load_model(path)
+    expected = trained.pipeline.predict_proba(space.X)
+    np.testing.assert_array_equal(loaded.pipeline.predict_proba(space.X), expected)
+    for name in ("feature_names", "level", "classifier", "n_features", "selected", "classes", "seed",
+                 "software_version", "sklearn_version", "dropped", "n_rows"):
+        assert getattr(loaded, name) == getattr(trained, name)
+    assert [p.name for p in tmp_path.iterdir()] == ["model.skops"]
+
+
+def test_saving_over_an_existing_model_replaces_it(space, model, tmp_path):
+    path = tmp_path / "model.skops"
+    path.write_bytes(b"old")
+    save_model(model, path)
+    assert load_model(path).selected == model.selected
+
+
+def write_payload(path: Path, payload: dict) -> Path:
+    path.write_bytes(skops.io.dumps(payload))
+    return path
+
+
+def test_a_file_with_foreign_code_is_refused_before_loading(model, tmp_path):
+    hostile = Pipeline([("scale", MinMaxScaler()), ("select", FQSelector()),
+                        ("classify", FunctionTransformer(func=os.system))])
+    path = write_payload(tmp_path / "evil.skops", {**payload_of(model), "pipeline": hostile})
+    with pytest.raises(ModelError, match=r"evil\.skops: refused, .*system"):
+        load_model(path)
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    ({"format": "other-tool"}, "not a texplorer model"),
+    ({"format_version": 7}, "format version 7"),
+    ({"level": "finest"}, "unknown level"),
+    ({"selected": ["other.metal", "other.density"]}, "selected feature names do not match"),
+    ({"classes": ["C1S1M1P1X1"]}, "class list does not match"),
+    ({"feature_names": ["a", "b"]}, "2 distinct feature names for a pipeline of 6 inputs"),
+    ({"n_rows": "many"}, "'n_rows' must be int"),
+    ({"extra": 1}, "wrong model metadata fields: extra"),
+])
+def test_wrong_metadata_is_refused(model, tmp_path, change, message):
+    path = write_payload(tmp_path / "meta.skops", {**payload_of(model), **change})
+    with pytest.raises(ModelError, match=message):
+        load_model(path)
+
+
+def test_a_foreign_estimator_is_refused(model, space, tmp_path):
+    foreign = Pipeline([("classify", LogisticRegression().fit(space.X, space.y("fine")))])
+    path = write_payload(tmp_path / "lr.skops", {**payload_of(model), "pipeline": foreign})
+    with pytest.raises(ModelError, match="not a scale -> select -> classify pipeline"):
+        load_model(path)
+    swapped = Pipeline([("scale", MinMaxScaler()), ("select", FQSelector()),
+                        ("classify", LogisticRegression())])
+    path = write_payload(tmp_path / "lr2.skops", {**payload_of(model), "pipeline": swapped})
+    with pytest.raises(ModelError, match="MinMaxScaler -> FQSelector -> LogisticRegression"):
+        load_model(path)
+
+
+def test_damaged_and_foreign_files_are_refused_with_one_line(model, tmp_path):
+    good = save_model(model, tmp_path / "good.skops").read_bytes()
+    cases = {
+        "text.skops": b"this is not a model\n",
+        "half.skops": good[: len(good) // 2],
+        "flipped.skops": good[:200] + bytes([good[200] ^ 0xFF]) + good[201:],
+    }
+    for name, data in cases.items():
+        path = tmp_path / name
+        path.write_bytes(data)
+        with pytest.raises(ModelError) as caught:
+            load_model(path)
+        assert str(caught.value).startswith(f"{path}: ") and "\n" not in str(caught.value)
+    with pytest.raises(ModelError, match="cannot read"):
+        load_model(tmp_path / "missing.skops")
+
+
+def test_a_model_the_loader_would_refuse_is_not_written(model, space, tmp_path):
+    regression = LogisticRegression().fit(space.X, space.y("fine"))
+    foreign = replace(model, pipeline=Pipeline([("classify", regression)]))
+    with pytest.raises(ModelError):
+        save_model(foreign, tmp_path / "no.skops")
+    assert not any(tmp_path.iterdir())
+
+
+# -- prediction --------------------------------------------------------------------------------------
+
+
+def test_predict_top_ranks_the_classes_by_probability(space, model):
+    values = dict(zip(space.columns, space.X[0], strict=True))
+    top = predict_top(model, values, k=3)
+    probability = model.pipeline.predict_proba(space.X[:1])[0]
+    expected = sorted(zip(model.pipeline.classes_, probability, strict=True), key=lambda pair: -pair[1])[:3]
+    assert [label for label, _ in top] == [label for label, _ in expected]
+    assert [p for _, p in top] == pytest.approx([p for _, p in expected])
+    assert top[0][0] == space.label_text[0]
+    assert len(predict_top(model, values, k=10)) == 4
+
+
+def test_nan_or_missing_selected_features_are_refused_by_name(space, model):
+    values = dict(zip(space.columns, space.X[0], strict=True))
+    with pytest.raises(ModelError, match="undefined .*: other.metal"):
+        predict_top(model, {**values, "other.metal": float("nan")})
+    with pytest.raises(ModelError, match="missing feature value.*: other.density"):
+        predict_top(model, {k: v for k, v in values.items() if k != "other.density"})
+    with pytest.raises(ModelError, match="k must be"):
+        predict_top(model, values, k=0)
+
+
+def test_unselected_features_may_be_undefined(space, model):
+    values = dict(zip(space.columns, space.X[5], strict=True))
+    holes = {**values, "tactum.matx": float("nan")}
+    del holes["audio.tool.zcr"]
+    assert predict_top(model, holes) == predict_top(model, values)
+
+
+def test_predictions_are_printed_with_taxonomy_names():
+    text = format_predictions([("C6S1M1P2X1", 0.75), ("C9S9M9P9X9", 0.25)], load_taxonomy())
+    first, second = text.splitlines()
+    assert first.startswith("1. C6S1M1P2X1   75.0 %  granite")
+    assert second.endswith("25.0 %  (not in the taxonomy table)")
