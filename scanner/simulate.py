@@ -453,6 +453,7 @@ class OperatorDraw:
     tool_slide_start_s: float
     friction_start_s: float
     friction_normal_n: float
+    friction_factor: float
     press_force_n: float
     press_start_s: float
     fold_force_n: float
@@ -464,6 +465,8 @@ class OperatorDraw:
     atk_offset: float
     cyd_offset: float
     light_gain: float
+    white_balance: tuple[float, float, float]
+    camera_zoom: float
     photo_rotation_deg: float
 
 
@@ -476,7 +479,9 @@ def draw_operator(rng: Rng, *, t_amb: float | None = None,
     """Draw one scan's operator variability.
 
     The judged tack and yielding are off by +-0.25 in about one scan in six; a rigid sample's fold step is
-    skipped with ``fold_skip_probability``. ``t_amb`` (degC) is the session's MLX90614 ambient reading,
+    skipped with ``fold_skip_probability``. ``friction_factor`` scales both friction coefficients for the
+    operator's finger that day (skin moisture, contact angle: about +-12 %); the camera draws exposure,
+    white balance, distance (zoom +-8 %) and rotation. ``t_amb`` (degC) is the session's MLX90614 ambient reading,
     drawn around 21.5 degC when not given and quantised to the sensor's 0.02 degC steps.
     """
     if not 0.0 <= fold_skip_probability <= 1.0:
@@ -492,6 +497,7 @@ def draw_operator(rng: Rng, *, t_amb: float | None = None,
         finger_slide_start_s=float(starts[0]), tool_slide_start_s=float(starts[1]),
         friction_start_s=float(starts[2]),
         friction_normal_n=float(rng.uniform(3.0, 7.0)),
+        friction_factor=float(rng.lognormal(0.0, 0.12)),
         press_force_n=float(rng.uniform(6.0, 15.0)),
         press_start_s=float(rng.uniform(0.3, 0.8)),
         fold_force_n=float(rng.uniform(1.0, 3.0)),
@@ -502,8 +508,10 @@ def draw_operator(rng: Rng, *, t_amb: float | None = None,
         skips_rigid_fold=bool(rng.random() < fold_skip_probability),
         atk_offset=float(disagree[0] * rng.choice([-0.25, 0.25])),
         cyd_offset=float(disagree[1] * rng.choice([-0.25, 0.25])),
-        light_gain=float(rng.normal(1.0, 0.06)),
-        photo_rotation_deg=float(rng.normal(0.0, 4.0)),
+        light_gain=float(np.clip(rng.normal(1.0, 0.1), 0.7, 1.3)),
+        white_balance=tuple(float(g) for g in np.clip(rng.normal(1.0, 0.04, 3), 0.9, 1.1)),
+        camera_zoom=float(rng.uniform(0.92, 1.08)),
+        photo_rotation_deg=float(rng.normal(0.0, 10.0)),
     )
 
 
@@ -900,7 +908,7 @@ def _audio(rng: Rng, tip_g: np.ndarray, path: _Path, tip: Tip) -> np.ndarray:
     microphone = signal.butter(2, [10.0, 7500.0], btype="bandpass", fs=FS_AUDIO, output="sos")
     radiated = signal.sosfilt(radiation, tip_g) * tip.audio_gain
     rolling = 0.001 * (path.v / 130.0) * _band_noise(rng, n, FS_AUDIO, 200.0, 6000.0)
-    room = rng.uniform(0.0005, 0.002) * _pink(rng, n)
+    room = rng.uniform(0.0002, 0.001) * _pink(rng, n)
     audio = signal.sosfilt(microphone, radiated + rolling + room)
     return _quantise(np.clip(audio, -1.0, 1.0 - 2.0**-15), 2.0**-15)
 
@@ -917,8 +925,9 @@ def _pink(rng: Rng, n: int) -> np.ndarray:
 def _ir(material: Material, rng: Rng, x: np.ndarray, macro: np.ndarray) -> np.ndarray:
     """IR reflectance volts along the path: albedo texture and the depth of the macro profile.
 
-    ``V = 0.1 + 4.6 level (1 + variation n(x)) / (1 + depth / 1.5 mm)``, both seen through the sensor's
-    spot; the unit rests first, so the first ~0.5 s read the static reflectance.
+    ``V = V_amb + 4.6 g level (1 + variation n(x)) / (1 + depth / 1.5 mm)``, both seen through the sensor's
+    spot, with the ambient light ``V_amb`` (0.05-0.2 V) and the emitter's gain ``g`` (+-4 %, temperature)
+    varying from scan to scan; the unit rests first, so the first ~0.5 s read the static reflectance.
     """
     reflect = material.reflectance
     spot = IR_SPOT_MM / MACRO_DX_MM
@@ -927,7 +936,8 @@ def _ir(material: Material, rng: Rng, x: np.ndarray, macro: np.ndarray) -> np.nd
     albedo = ndimage.gaussian_filter1d(albedo / max(float(albedo.std()), 1e-12), spot, mode="nearest")
     depth = ndimage.gaussian_filter1d(np.maximum(-macro, 0.0), spot, mode="nearest")
     level = reflect.level * np.clip(1 + reflect.variation * albedo, 0.05, None) / (1 + depth / IR_DEPTH_MM)
-    volts = 0.1 + 4.6 * _lookup(level, x / MACRO_DX_MM) + rng.normal(0.0, 0.002, x.size)
+    ambient, gain = rng.uniform(0.05, 0.2), rng.normal(1.0, 0.04)
+    volts = ambient + 4.6 * gain * _lookup(level, x / MACRO_DX_MM) + rng.normal(0.0, 0.002, x.size)
     return _quantise(np.clip(volts, 0.0, 5.0), DAQ_LSB_V)
 
 
@@ -1012,7 +1022,7 @@ def friction_slide(material: Material, rng: Rng, operator: OperatorDraw) -> Arra
     stick-slip, until both forces are released well before the end. The operator's finger adds a constant
     offset on the tangential FSR (removed by SPEC 6's friction offset).
     """
-    fric, t = material.friction, _times(STEP_S, FS_DAQ)
+    fric, t = _finger_friction(material.friction, operator), _times(STEP_S, FS_DAQ)
     on, off, press_time = operator.friction_start_s, rng.uniform(3.6, 4.3), rng.uniform(0.25, 0.5)
     normal = operator.friction_normal_n * _envelope(t, on, press_time, off, rng.uniform(0.15, 0.3))
     normal *= 1 + 0.03 * _band_noise(rng, t.size, FS_DAQ, 0.5, 6.0)
@@ -1030,6 +1040,10 @@ def friction_slide(material: Material, rng: Rng, operator: OperatorDraw) -> Arra
     tangential = np.where(slipping, kinetic + (fric.static - fric.kinetic) * normal * drop, push)
     offset = rng.uniform(0.05, 0.3)
     return {"f_frn": _fsr(normal, rng), "f_frt": _fsr(np.maximum(tangential, 0.0) + offset, rng)}
+
+
+def _finger_friction(friction: Friction, operator: OperatorDraw) -> Friction:
+    return Friction(friction.static * operator.friction_factor, friction.kinetic * operator.friction_factor)
 
 
 def _sliding_fluctuation(material: Material, rng: Rng, operator: OperatorDraw,
@@ -1131,14 +1145,13 @@ def _noise(rng: Rng, shape: tuple[int, int], scale_px: float, stretch: float = 1
 
 
 def _ramp(colors: tuple[tuple[float, float, float], ...], field: np.ndarray) -> np.ndarray:
-    """Map a field in [0, 1] through the colour list (0 = dominant colour) to RGB in [0, 1]."""
+    """Map a field in [0, 1] through the colour list (0 = dominant colour) to RGB in [0, 1], piecewise linear."""
     palette = np.asarray(colors, dtype=np.float32) / 255.0
-    if len(palette) == 1:
-        return np.broadcast_to(palette[0], (*field.shape, 3)).astype(np.float32)
-    position = np.clip(field, 0.0, 1.0) * (len(palette) - 1)
-    low = np.minimum(position.astype(np.int32), len(palette) - 2)
-    frac = (position - low)[..., None]
-    return (palette[low] * (1 - frac) + palette[low + 1] * frac).astype(np.float32)
+    position = np.clip(field, 0.0, 1.0).astype(np.float32) * (len(palette) - 1)
+    rgb = np.broadcast_to(palette[0], (*field.shape, 3)).copy()
+    for index, step in enumerate(np.diff(palette, axis=0)):
+        rgb += np.clip(position - index, 0.0, 1.0)[..., None] * step
+    return rgb
 
 
 def _grid(size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -1276,10 +1289,11 @@ def _place(image: np.ndarray, angle_deg: float, shift: np.ndarray, out: tuple[in
 
 def _photo(material: Material, rng: Rng, operator: OperatorDraw, kind: str,
            size: tuple[int, int]) -> np.ndarray:
-    """One RGB uint8 photo: texture, rotation and position, relief shading, lighting, vignetting, noise."""
+    """One RGB uint8 photo: texture, rotation, zoom and position, relief shading, lighting, white balance,
+    vignetting, focus, exposure control, tone curve, sensor noise."""
     look = material.appearance
     h, w = size
-    ppm = w / PHOTO_FOV_MM[kind]
+    ppm = w / PHOTO_FOV_MM[kind] * operator.camera_zoom
     canvas = int(np.ceil(np.hypot(h, w))) + 8
     field, height = TEXTURE_FUNCTIONS[look.texture](look, rng, canvas, ppm)
     layers = np.dstack([field, height]).astype(np.float32)
@@ -1295,13 +1309,28 @@ def _photo(material: Material, rng: Rng, operator: OperatorDraw, kind: str,
     light = operator.light_gain * rng.normal(1.0, 0.02) * vignetting
     side = rng.uniform(0, 2 * np.pi)
     light = light * (1 + 0.06 * (cols * np.cos(side) + rows * np.sin(side)))
-    rgb = rgb * light[..., None] * rng.normal(1.0, 0.015, 3).astype(np.float32)
+    rgb = rgb * light[..., None] * np.asarray(operator.white_balance, np.float32)
     if flash:
         rgb = rgb * 1.3 + _highlight(look.gloss, rng, cols, rows)[..., None]
-    if kind == "I_macro":
-        rgb = cv2.GaussianBlur(rgb, (0, 0), 0.8 * w / 512)
-    counts = rgb * 255 + rng.normal(0.0, 1.5, rgb.shape).astype(np.float32)
+    focus = rng.uniform(0.6, 1.4) if kind == "I_macro" else rng.uniform(0.0, 0.8)
+    if focus * w / 512 > 0.1:
+        rgb = cv2.GaussianBlur(rgb, (0, 0), focus * w / 512)
+    counts = _tone(_auto_exposure(rgb)) * 255 + rng.normal(0.0, 2.0, rgb.shape).astype(np.float32)
     return np.clip(np.round(counts), 0, 255).astype(np.uint8)
+
+
+def _auto_exposure(rgb: np.ndarray, target: float = 0.72) -> np.ndarray:
+    """The phone's exposure control: a frame brighter than ``target`` on average is darkened halfway (in
+    log terms) toward it, so white surfaces and flash shots stay below white but remain brighter."""
+    mean = float(rgb.mean())
+    return rgb * np.float32(np.sqrt(target / mean)) if mean > target else rgb
+
+
+def _tone(rgb: np.ndarray, knee: float = 0.8) -> np.ndarray:
+    """The phone's tone curve: linear up to ``knee``, then a soft shoulder that never quite reaches white,
+    so a bright or flash-lit surface keeps some texture instead of clipping flat."""
+    shoulder = knee + (1 - knee) * np.tanh((rgb - knee) / (1 - knee))
+    return np.where(rgb < knee, rgb, shoulder)
 
 
 def _shading(height: np.ndarray, relief: float, light_angle: float) -> np.ndarray:
@@ -1332,14 +1361,14 @@ def photos(material: Material, rng: Rng, operator: OperatorDraw,
 # --------------------------------------------------------------------------------------------------
 
 def tu4(material: Material, rng: Rng, operator: OperatorDraw) -> dict[str, float]:
-    """TU4: mass (scale: 0.1 g steps) and volume (displacement: read within +-1.5 %, 0.5 cm^3 steps), and
+    """TU4: mass (scale: 0.1 g steps) and volume (displacement: read within +-3 %, 0.5 cm^3 steps), and
     the operator's judged adhesive tack and yielding (the material's typical value, off by the operator's
     occasional +-0.25, kept on the five-step scale)."""
     volume = material.sample_volume_cm3
     mass = material.density_g_cm3 * volume
     return {
         "mass_g": max(0.1, _quantise(mass + rng.normal(0.0, 0.05), 0.1)),
-        "volume_cm3": max(0.5, _quantise(volume * rng.uniform(0.985, 1.015), 0.5)),
+        "volume_cm3": max(0.5, _quantise(volume * rng.uniform(0.97, 1.03), 0.5)),
         "atk": float(np.clip(material.adhesive_tack + operator.atk_offset, 0.0, 1.0)),
         "cyd": float(np.clip(material.yielding + operator.cyd_offset, 0.0, 1.0)),
     }

@@ -424,16 +424,17 @@ def test_press_reads_stiffness_times_4_mm_or_the_operator(foam_and_steel, librar
 
 def test_friction_slide_has_stiction_kinetic_ratio_and_release(library):
     oak = library["oak-planed"]
-    out = sim.friction_slide(oak, np.random.default_rng(3), operator(3, friction_normal_n=5.0))
+    draw = operator(3, friction_normal_n=5.0, friction_factor=1.1)
+    out = sim.friction_slide(oak, np.random.default_rng(3), draw)
     normal, tangential = out["f_frn"], out["f_frt"] - out["f_frt"][:300].mean()
     end = int(np.nonzero(normal > 0.05 * normal.max())[0][-1])
     assert end < normal.size - 600  # released at least 0.2 s before the end (SPEC 7.1.7 finds an end)
     assert normal[-300:].max() < 0.15  # the FSR floor of eq. (1), 0.098 N, plus noise
     sliding = slice(int(2.0 * 3000), int(3.5 * 3000))
     ratio = tangential[sliding].mean() / normal[sliding].mean()
-    assert ratio == pytest.approx(oak.friction.kinetic, rel=0.08)
+    assert ratio == pytest.approx(oak.friction.kinetic * 1.1, rel=0.08)
     peak = int(np.argmax(tangential))
-    assert tangential[peak] / normal[peak] == pytest.approx(oak.friction.static, rel=0.1)
+    assert tangential[peak] / normal[peak] == pytest.approx(oak.friction.static * 1.1, rel=0.1)
 
 
 def test_fsr_floor_is_eq_1_at_zero_volts(library):
@@ -462,12 +463,12 @@ def test_magnetometer_sign_follows_the_magnetic_type_and_electrodes_find_metal(s
 @pytest.mark.parametrize("slug", ["polyurethane-foam", "mild-steel-brushed", "oak-planed", "printer-paper"])
 def test_density_from_mass_and_volume(slug, library):
     scan = sim.synthetic_scan(slug, seed=0, image_size=SMALL)
-    assert scan.meta.mass_g / scan.meta.volume_cm3 == pytest.approx(library[slug].density_g_cm3, rel=0.05)
+    assert scan.meta.mass_g / scan.meta.volume_cm3 == pytest.approx(library[slug].density_g_cm3, rel=0.06)
     sample = sim.sample_of(library[slug], f"{slug}-01")
     for seed in range(1, 6):
         measured = sim.tu4(sample, np.random.default_rng(seed), operator(seed))
         density = measured["mass_g"] / measured["volume_cm3"]
-        assert density == pytest.approx(library[slug].density_g_cm3, rel=0.05)
+        assert density == pytest.approx(library[slug].density_g_cm3, rel=0.06)
 
 
 def test_judged_values_stay_on_the_scale(library):
