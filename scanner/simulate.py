@@ -34,6 +34,7 @@ steps, the MAG3110's 0.1 uT steps and 16-bit audio.
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 import zlib
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -47,6 +48,8 @@ import cv2
 import numpy as np
 from scipy import ndimage, signal
 
+import scanner
+from scanner.database import Database
 from scanner.scan import CHANNELS, JUDGED_SCALE, Scan, ScanMeta, Trace
 
 DEFAULT_LIBRARY = Path(__file__).with_name("data") / "materials.toml"
@@ -198,12 +201,8 @@ class _Where:
 
 def _take(table: Mapping[str, Any], key: str, where: _Where) -> Any:
     if key not in table:
-        return _raise(where.fail(key, "is missing"))
+        raise where.fail(key, "is missing")
     return table[key]
-
-
-def _raise(error: Exception) -> Any:
-    raise error
 
 
 def _number(table: Mapping[str, Any], key: str, where: _Where, lo: float, hi: float) -> float:
@@ -376,8 +375,6 @@ def _material(slug: str, table: Any, path: Path) -> Material:
 
 
 def _is_label(text: str) -> bool:
-    import re
-
     return re.fullmatch(r"C[1-9]\d*S[1-9]\d*M[1-9]\d*P[1-9]\d*X[1-9]\d*", text) is not None
 
 
@@ -1431,19 +1428,13 @@ def synthetic_scan(material: Material | str, *, seed: int, scan_index: int = 1, 
         device={"simulator": SIMULATOR, "material": material.slug, "seed": str(seed),
                 "daq": "NI USB-6002 (simulated)", "sensor_board": "TEXPLORER-SB (simulated)",
                 "camera": "procedural"},
-        software_version=_software_version(), notes=_notes(draw), **results["tu4"])
+        software_version=scanner.__version__, notes=_notes(draw), **results["tu4"])
     return Scan(meta, traces, results["photos"])
 
 
 def _default_start(scan_index: int) -> str:
     """A fixed, plausible start time (scans 15 min apart), so equal arguments give equal scans."""
     return (_EPOCH + timedelta(minutes=15 * (scan_index - 1))).isoformat()
-
-
-def _software_version() -> str:
-    import scanner
-
-    return scanner.__version__
 
 
 def _notes(draw: OperatorDraw) -> str:
@@ -1483,11 +1474,9 @@ def synthetic_scans(materials: Iterable[str] | None = None, scans_per_material: 
 
 def synthetic_database(root: str | Path, materials: Iterable[str] | None = None, scans_per_material: int = 5,
                        seed: int = 0, image_size: tuple[int, int] = (512, 512), progress: bool = True,
-                       fold_skip_probability: float = 0.5) -> Any:
+                       fold_skip_probability: float = 0.5) -> Database:
     """Simulate scans (see :func:`synthetic_scans`) into ``scanner.database.Database(root)``; returns it."""
     from tqdm import tqdm
-
-    from scanner.database import Database
 
     slugs = list(_default_library()) if materials is None else _known(materials)
     database = Database(root)
