@@ -1,4 +1,4 @@
-"""Simulated-scanner benchmark: whole scans per second at 512x512 photos, and the time of every procedure step.
+"""Simulated-scanner benchmark: whole scans per second at 512x512 photos and the time of every procedure step.
 
 Reference, in the same process: drawing as many standard normal samples as one scan holds numbers
 (``np.random.default_rng().standard_normal``), the floor any noise-based synthesis pays. Ratios, not absolute
@@ -37,12 +37,14 @@ def main() -> None:
     sample = sim.synthetic_scan(MATERIALS[0], seed=0, image_size=IMAGE_SIZE)
     count = numbers_in(sample)
     reference = median_time(lambda: np.random.default_rng(0).standard_normal(count), repeat=7)
-    print(f"one scan holds {count:,} numbers; drawing as many standard normals takes {reference * 1e3:.1f} ms")
+    print(f"one scan holds {count:,} numbers; drawing as many standard normals takes "
+          f"{reference * 1e3:.1f} ms (the reference of every ratio below)")
 
     print(f"whole scans at {IMAGE_SIZE[0]}x{IMAGE_SIZE[1]} photos, median of 3:")
     for slug in MATERIALS:
         seconds = median_time(lambda s=slug: sim.synthetic_scan(s, seed=1, image_size=IMAGE_SIZE), repeat=3)
-        print(f"  {slug:24s} {seconds * 1e3:7.0f} ms  {1 / seconds:5.2f} scans/s   ratio {seconds / reference:6.1f}x")
+        print(f"  {slug:24s} {seconds * 1e3:7.0f} ms  {1 / seconds:5.2f} scans/s"
+              f"   ratio {seconds / reference:6.1f}x")
 
     draw = sim.draw_operator(np.random.default_rng(0))
     print("per step (oak), median of 5:")

@@ -47,6 +47,7 @@ from typing import Any
 import cv2
 import numpy as np
 from scipy import ndimage, signal
+from tqdm import tqdm
 
 import scanner
 from scanner.database import Database
@@ -478,8 +479,8 @@ def draw_operator(rng: Rng, *, t_amb: float | None = None,
     The judged tack and yielding are off by +-0.25 in about one scan in six; a rigid sample's fold step is
     skipped with ``fold_skip_probability``. ``friction_factor`` scales both friction coefficients for the
     operator's finger that day (skin moisture, contact angle: about +-12 %); the camera draws exposure,
-    white balance, distance (zoom +-8 %) and rotation. ``t_amb`` (degC) is the session's MLX90614 ambient reading,
-    drawn around 21.5 degC when not given and quantised to the sensor's 0.02 degC steps.
+    white balance, distance (zoom +-8 %) and rotation. ``t_amb`` (degC) is the session's MLX90614 ambient
+    reading, drawn around 21.5 degC when not given and quantised to the sensor's 0.02 degC steps.
     """
     if not 0.0 <= fold_skip_probability <= 1.0:
         raise ValueError(f"fold_skip_probability must be in [0, 1], got {fold_skip_probability!r}")
@@ -873,25 +874,37 @@ def _slide(material: Material, rng: Rng, operator: OperatorDraw, tip: Tip,
     macro = _macro_profile(material.roughness, rng, int(length / MACRO_DX_MM) + 8, MACRO_DX_MM)
     normal = _surface(material, rng, tip, length, fast.x.size, macro).acceleration(fast)
     lateral = _surface(material, rng, tip, length, fast.x.size, macro).acceleration(fast)
+    unit = (_contact_vibration(material, rng, tip, fast, normal, lateral) + _hand_motion(rng, slow)
+            + _onset_jolt(rng, _times(STEP_S, FS_DAQ), start_s))
+    accel = unit @ _tilt(*operator.tilt_deg).T + _gravity(unit.shape[0], operator.tilt_deg)
+    return _adxl335(accel, rng), _audio(rng, normal, fast, tip), _ir(material, rng, slow.x, macro)
 
+
+def _contact_vibration(material: Material, rng: Rng, tip: Tip, path: _Path, normal: np.ndarray,
+                       lateral: np.ndarray) -> np.ndarray:
+    """(n, 3) g at 3000 Hz: tip accelerations and the bearings' rolling through the contact resonance.
+
+    The normal track drives z, the lateral track (scaled by the kinetic friction, plus stick-slip) drives x;
+    y sees a little of both. Computed at 44100 Hz, then resampled to the DAQ rate (anti-aliased).
+    """
+    n = path.x.size
     contact = _resonance_sos(contact_frequency_hz(material, tip), _damping_ratio(material, tip), FS_AUDIO)
-    rolling = ROLLING_G * (fast.v / 130.0) * _band_noise(rng, fast.x.size, FS_AUDIO, 50.0, 3000.0)
-    stick_slip = STICK_SLIP_G * np.sqrt(fast.v / 130.0) * _band_noise(rng, fast.x.size, FS_AUDIO, 50.0, 3e3)
+    rolling = ROLLING_G * (path.v / 130.0) * _band_noise(rng, n, FS_AUDIO, 50.0, 3000.0)
+    stick_slip = STICK_SLIP_G * np.sqrt(path.v / 130.0) * _band_noise(rng, n, FS_AUDIO, 50.0, 3000.0)
     seen_z = signal.sosfilt(contact, normal + rolling) * tip.gain
     seen_x = signal.sosfilt(contact, material.friction.kinetic * (lateral + stick_slip) + rolling) * tip.gain
     unit = np.column_stack([seen_x, 0.3 * seen_z + 0.2 * seen_x, seen_z])
-    unit = signal.resample_poly(unit, 10, 147, axis=0)
+    return signal.resample_poly(unit, 10, 147, axis=0)
 
-    t = _times(STEP_S, FS_DAQ)
-    hand = np.zeros_like(unit)
-    hand[:, 0] = slow.dv / G_MM_S2
-    hand[:, :2] += 0.02 * (slow.v / 130.0)[:, None] * np.column_stack(
-        [_band_noise(rng, t.size, FS_DAQ, 0.3, 5.0) for _ in range(2)])
-    accel = (unit + hand + _onset_jolt(rng, t, start_s)) @ _tilt(*operator.tilt_deg).T
-    vibration = _adxl335(accel + _gravity(t.size, operator.tilt_deg), rng)
 
-    audio = _audio(rng, normal, fast, tip)
-    return vibration, audio, _ir(material, rng, slow.x, macro)
+def _hand_motion(rng: Rng, path: _Path) -> np.ndarray:
+    """(n, 3) g: the unit's own acceleration along the path and the hand's slow sway (below 5 Hz)."""
+    n = path.x.size
+    hand = np.zeros((n, 3))
+    hand[:, 0] = path.dv / G_MM_S2
+    sway = np.column_stack([_band_noise(rng, n, FS_DAQ, 0.3, 5.0) for _ in range(2)])
+    hand[:, :2] += 0.02 * (path.v / 130.0)[:, None] * sway
+    return hand
 
 
 def _audio(rng: Rng, tip_g: np.ndarray, path: _Path, tip: Tip) -> np.ndarray:
@@ -1142,7 +1155,7 @@ def _noise(rng: Rng, shape: tuple[int, int], scale_px: float, stretch: float = 1
 
 
 def _ramp(colors: tuple[tuple[float, float, float], ...], field: np.ndarray) -> np.ndarray:
-    """Map a field in [0, 1] through the colour list (0 = dominant colour) to RGB in [0, 1], piecewise linear."""
+    """Map a field in [0, 1] piecewise linearly through the colours (0 = dominant colour) to RGB in [0, 1]."""
     palette = np.asarray(colors, dtype=np.float32) / 255.0
     position = np.clip(field, 0.0, 1.0).astype(np.float32) * (len(palette) - 1)
     rgb = np.broadcast_to(palette[0], (*field.shape, 3)).copy()
@@ -1476,8 +1489,6 @@ def synthetic_database(root: str | Path, materials: Iterable[str] | None = None,
                        seed: int = 0, image_size: tuple[int, int] = (512, 512), progress: bool = True,
                        fold_skip_probability: float = 0.5) -> Database:
     """Simulate scans (see :func:`synthetic_scans`) into ``scanner.database.Database(root)``; returns it."""
-    from tqdm import tqdm
-
     slugs = list(_default_library()) if materials is None else _known(materials)
     database = Database(root)
     scans = synthetic_scans(slugs, scans_per_material, seed, image_size, fold_skip_probability)
