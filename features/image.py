@@ -14,6 +14,7 @@ integer counts or the same float64 operations as the whole-image formula, so ban
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator, Sequence
 
 import cv2
@@ -54,6 +55,10 @@ TAMURA_KMAX = 5
 _BAND_ELEMENTS = 1 << 15
 """Pixels per band of rows (256 KiB of float64): a band's few temporaries fit in a 2 MiB L2 cache."""
 
+_BYTE_BAND_ELEMENTS = 1 << 19
+"""Pixels per band for 8-bit work streamed through OpenCV (colour, GLCM counts): no float temporaries,
+so larger bands just save calls; still far below 2^24, where calcHist's float32 counts stop being exact."""
+
 _TAMURA_TILE = (128, 256)
 """Output rows and columns per Tamura tile; a tile also reads 2^kmax - 1 more rows and columns either side."""
 
@@ -64,8 +69,8 @@ def _bands(n_rows: int, rows_per_band: int) -> Iterator[tuple[int, int]]:
         yield start, min(start + rows_per_band, n_rows)
 
 
-def _rows_per_band(width: int) -> int:
-    return max(1, _BAND_ELEMENTS // max(width, 1))
+def _rows_per_band(width: int, elements: int | None = None) -> int:
+    return max(1, (elements or _BAND_ELEMENTS) // max(width, 1))
 
 
 def _banded(function: Callable[[np.ndarray], np.ndarray], image: np.ndarray, dtype: type) -> np.ndarray:
@@ -131,10 +136,10 @@ def compute(rgb: np.ndarray) -> dict[str, float]:
     gray = _banded(grayscale, photo, np.float64)
     mean = float(np.mean(gray))
     low, high = cv2.minMaxLoc(gray)[:2]
+    coarseness = _tamura_coarseness(_banded(_thousandths, gray, np.int32), TAMURA_KMAX, 1e-9 * high * 1000)
     values = [color(photo), mean / 255.0, edginess(_banded(gray_uint8, gray, np.uint8)),
-              *_dft_peak_means(gray, DFT_FRACTIONS, mean), *_haralick(gray),
-              _tamura_coarseness(gray, TAMURA_KMAX, high), _tamura_contrast(gray, mean, low == high),
-              *_lbp_histogram(gray)]
+              *_dft_peak_means(gray, DFT_FRACTIONS, mean), *_haralick(gray), coarseness,
+              _tamura_contrast(gray, mean, low == high), *_lbp_histogram(gray)]
     return dict(zip(NAMES, (float(v) for v in values), strict=True))
 
 
@@ -158,8 +163,7 @@ def color(rgb: np.ndarray) -> float:
     rgb = _check_rgb(rgb)
     counts = np.zeros(180, np.int64)
     lower, upper = (0, HUE_MIN_SATURATION, HUE_MIN_VALUE), (255, 255, 255)
-    # Bands also keep every histogram bin below 2**24, where calcHist's float32 counts are exact.
-    for start, stop in _bands(rgb.shape[0], _rows_per_band(rgb.shape[1])):
+    for start, stop in _bands(rgb.shape[0], _rows_per_band(rgb.shape[1], _BYTE_BAND_ELEMENTS)):
         hsv = cv2.cvtColor(rgb[start:stop], cv2.COLOR_RGB2HSV)
         mask = cv2.inRange(hsv, lower, upper)
         counts += cv2.calcHist([hsv], [0], mask, [180], [0, 180]).ravel().astype(np.int64)
@@ -321,7 +325,7 @@ def _glcm(q: np.ndarray, offset: tuple[int, int], levels: int) -> np.ndarray:
     if reference.size == 0:
         raise ValueError(f"a {q.shape[0]}x{q.shape[1]} image has no pixel pairs at offset {offset}")
     counts = np.zeros((levels, levels), np.int64)
-    for start, stop in _bands(reference.shape[0], _rows_per_band(reference.shape[1])):
+    for start, stop in _bands(reference.shape[0], _rows_per_band(reference.shape[1], _BYTE_BAND_ELEMENTS)):
         pairs = [reference[start:stop], neighbour[start:stop]]
         counts += cv2.calcHist(pairs, [0, 1], None, [levels, levels], [0, levels, 0, levels]).astype(np.int64)
     counts += counts.T
@@ -448,9 +452,9 @@ def tamura_coarseness(gray: np.ndarray, kmax: int = TAMURA_KMAX) -> float:
     ``E_k`` reaches ``max_k E_k - tol``). The feature is the mean of ``S_best`` over the pixels whose row
     and column lie in [2^kmax, size - 2^kmax], where every window fits.
 
-    The window means are built as a pyramid: ``A_k`` is the mean of four ``A_(k-1)`` windows, each step
-    two exact pairwise means, so every mean is a short fixed-order float64 sum (no running or integral-
-    image sums, whose rounding grows with the image and would break exact ties).
+    The window sums are built as a pyramid: each level adds four windows of the level below, so every
+    sum is a short fixed-order float64 sum (no running or integral-image sums, whose rounding grows with
+    the image and would break exact ties).
 
     Examples
     --------
@@ -461,50 +465,62 @@ def tamura_coarseness(gray: np.ndarray, kmax: int = TAMURA_KMAX) -> float:
     if kmax < 1:
         raise ValueError(f"kmax must be at least 1, got {kmax}")
     image = _check_gray(gray, min_side=2 * 2**kmax, purpose=f"Tamura coarseness with kmax={kmax}")
-    return _tamura_coarseness(image, kmax, float(image.max()))
+    return _tamura_coarseness(image, kmax, 1e-9 * float(image.max()))
 
 
-def _pair_mean(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """``(a + b) / 2``, exactly (the halving is exact, with or without a fused multiply-add)."""
-    return cv2.addWeighted(a, 0.5, b, 0.5, 0.0, dst=out)
+def _thousandths(gray: np.ndarray) -> np.ndarray:
+    """``1000 * gray`` rounded: exactly ``299 R + 587 G + 114 B`` for a gray image of SPEC 6."""
+    return np.rint(gray * 1000.0)
 
 
-def _tamura_coarseness(image: np.ndarray, kmax: int, max_gray: float) -> float:
+def _tamura_coarseness(image: np.ndarray, kmax: int, tolerance: float) -> float:
+    """Tamura coarseness of float64 gray values, or of int32 gray values (``_thousandths``).
+
+    ``tolerance`` is in the units of ``image``. ``compute`` passes the integers 1000 * gray: then every
+    window sum and difference is exact in int32 (at most 1024 * 255000 < 2^31) and half the bytes of
+    float64. The decisions equal the float64 ones: distinct ``E_k`` differ by at least
+    1 / (1000 * 4^kmax) ~ 1e-6 gray levels, far more than the tie tolerance (at most 2.6e-7 for gray
+    values up to 255) and float64 rounding, while equal ones stay equal (within rounding) in float64.
+    """
     margin = 2**kmax
     h, w = image.shape
-    tolerance = 1e-9 * max_gray
+    # Sums over 4^k pixels scaled by 4^(kmax-k) put every E_k in units of 1 / 4^kmax of ``image``'s unit.
+    tolerance *= 4**kmax
+    if image.dtype.kind == "i":
+        tolerance = math.floor(tolerance)  # for integers, E >= M - tol is E >= M - floor(tol)
     out_rows, out_cols = h - 2 * margin + 1, w - 2 * margin + 1
     tile_rows, tile_cols = min(_TAMURA_TILE[0], out_rows), min(_TAMURA_TILE[1], out_cols)
     in_shape = (tile_rows + 2 * margin - 1, tile_cols + 2 * margin - 1)
-    pair_buffer, *level_buffers = (np.empty(in_shape) for _ in range(3))
-    horizontal_buffer, vertical_buffer = np.empty((2, tile_rows, tile_cols))
-    prefix_buffers = np.empty((kmax, tile_rows, tile_cols))
+    pair_buffer, *level_buffers = (np.empty(in_shape, image.dtype) for _ in range(3))
+    horizontal_buffer, vertical_buffer = np.empty((2, tile_rows, tile_cols), image.dtype)
+    prefix_buffers = np.empty((kmax, tile_rows, tile_cols), image.dtype)
     hit_buffer = np.empty((tile_rows, tile_cols), bool)
     total = 0
     for row, row_stop in _bands(out_rows, tile_rows):
         for col, col_stop in _bands(out_cols, tile_cols):
             n, m = row_stop - row, col_stop - col
             # Tile-local (i, j) is image pixel (row + i, col + j); output pixels are i in margin .. margin+n-1,
-            # j in margin .. margin+m-1. Level k holds A_k with its window's top-left corner at (i, j).
+            # j in margin .. margin+m-1. Level k holds the window sum with its top-left corner at (i, j).
             level = image[row:row_stop + 2 * margin - 1, col:col_stop + 2 * margin - 1]
             prefixes: list[np.ndarray] = []
             for k in range(1, kmax + 1):
                 size, half = 2**k, 2 ** (k - 1)
                 rows, cols = level.shape
-                pairs = _pair_mean(level[:-half], level[half:], pair_buffer[:rows - half, :cols])
-                level = _pair_mean(pairs[:, :-half], pairs[:, half:],
-                                   level_buffers[k % 2][:rows - half, :cols - half])
+                pairs = cv2.add(level[:-half], level[half:], dst=pair_buffer[:rows - half, :cols])
+                level = cv2.add(pairs[:, :-half], pairs[:, half:], dst=level_buffers[k % 2][:rows - half, :cols - half])
                 beside = level[margin - half:margin - half + n]
                 horizontal = cv2.absdiff(beside[:, margin:margin + m], beside[:, margin - size:margin - size + m],
                                          dst=horizontal_buffer[:n, :m])
                 stacked = level[:, margin - half:margin - half + m]
                 vertical = cv2.absdiff(stacked[margin:margin + n], stacked[margin - size:margin - size + n],
                                        dst=vertical_buffer[:n, :m])
-                # prefix = max(E_1 .. E_k): the first k whose prefix reaches max_k E_k - tol is S_best's k.
-                out = prefix_buffers[k - 1, :n, :m]
-                if prefixes:
-                    horizontal = cv2.max(prefixes[-1], horizontal, dst=out)
-                prefixes.append(cv2.max(horizontal, vertical, dst=out))
+                contrast = cv2.max(horizontal, vertical, dst=prefix_buffers[0, :n, :m] if k == 1 else horizontal)
+                if k < kmax:
+                    np.multiply(contrast, 4 ** (kmax - k), out=contrast)
+                # prefix_k = max(E_1 .. E_k): the first k whose prefix reaches max_k E_k - tol is S_best's k.
+                if k > 1:
+                    contrast = cv2.max(prefixes[-1], contrast, dst=prefix_buffers[k - 1, :n, :m])
+                prefixes.append(contrast)
             threshold = np.subtract(prefixes[-1], tolerance, out=prefixes[-1])
             hit = hit_buffer[:n, :m]
             previous = 0
@@ -642,7 +658,7 @@ def _lbp_histogram(image: np.ndarray) -> np.ndarray:
         codes.fill(0)
         for value in _lbp_neighbours(rows, tr, tl, up, down, neighbour[:n], scratch[:n]):
             np.greater_equal(value, centre, out=bits)
-            np.left_shift(codes, 1, out=codes)
+            np.add(codes, codes, out=codes)  # a left shift, but vectorised where numpy's uint8 shift is not
             np.bitwise_or(codes, bits.view(np.uint8), out=codes)
         # Exact counts: a band holds far fewer than 2^24 pixels.
         code_counts += cv2.calcHist([codes], [0], None, [256], [0, 256]).ravel().astype(np.int64)

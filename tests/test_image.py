@@ -58,6 +58,7 @@ def test_bands_and_tiles_change_no_value(monkeypatch):
     photo = textured_photo(seed=1)
     expected = image.compute(photo)
     monkeypatch.setattr(image, "_BAND_ELEMENTS", 50)
+    monkeypatch.setattr(image, "_BYTE_BAND_ELEMENTS", 70)
     monkeypatch.setattr(image, "_TAMURA_TILE", (3, 7))
     banded = image.compute(photo)
     # Only Tamura contrast sums per band, which regroups its moment sums.
@@ -322,6 +323,15 @@ def test_tamura_coarseness_of_narrow_stripes_prefers_the_smaller_window_on_ties(
     assert image.tamura_coarseness(gray) == pytest.approx(28 / 8, rel=1e-15)
 
 
+def test_tamura_coarseness_counts_differences_below_1e9_of_the_maximum_as_ties():
+    gray = stripes(8, 70, 4 * 8 + 63)
+    noise = np.random.default_rng(11).uniform(-1, 1, gray.shape)
+    # 1e-12 * 255 is far below the tolerance 1e-9 * 255: the ties between E_4 and E_8 survive.
+    assert image.tamura_coarseness(gray + 1e-12 * noise) == pytest.approx(28 / 8, rel=1e-15)
+    # 1e-4 breaks them at random, half of them in favour of the larger window.
+    assert image.tamura_coarseness(gray + 1e-4 * noise) > 28 / 8 + 0.5
+
+
 def test_tamura_coarseness_of_a_constant_image_is_the_smallest_window():
     assert image.tamura_coarseness(np.full((64, 64), 93.3)) == 2.0
     assert image.tamura_coarseness(np.zeros((70, 80))) == 2.0
@@ -359,6 +369,28 @@ def test_tamura_coarseness_follows_the_definition_pixel_by_pixel(kind, tile, mon
     else:
         gray = np.kron(rng.integers(0, 2, (19, 23)), np.ones((4, 4)))[:75, :90] * 255.0
     assert image.tamura_coarseness(gray) == tamura_coarseness_by_definition(gray)
+
+
+def test_thousandths_of_every_gray_value_are_exact_integers():
+    # compute() runs Tamura coarseness on 1000 * gray in int32; that is exact for every 8-bit colour.
+    g, b = (channel.ravel() for channel in np.meshgrid(np.arange(256), np.arange(256), indexing="ij"))
+    for r in range(256):
+        rgb = np.stack([np.full_like(g, r), g, b], axis=-1).astype(np.uint8)[None]
+        expected = 299 * r + 587 * g + 114 * b
+        np.testing.assert_array_equal(image._thousandths(grayscale(rgb))[0], expected)
+
+
+@pytest.mark.parametrize("kind", ["texture", "flat_blocks", "one_level_steps"])
+def test_compute_gives_the_float64_tamura_coarseness(kind):
+    rng = np.random.default_rng(7)
+    if kind == "texture":
+        photo = textured_photo(seed=7)
+    elif kind == "flat_blocks":  # exact ties everywhere inside the blocks
+        photo = np.kron(rng.integers(0, 256, (8, 9, 3)), np.ones((40, 40, 1)))[:300, :330].astype(np.uint8)
+    else:  # neighbouring windows differ by the smallest steps an 8-bit photo allows
+        photo = (100 + np.cumsum(rng.integers(0, 2, (300, 330, 3)), axis=1) // 40).astype(np.uint8)
+    gray = grayscale(crop_image(photo))
+    assert image.compute(photo)["tamura_coarseness"] == image.tamura_coarseness(gray)
 
 
 def test_tamura_coarseness_needs_room_for_the_largest_window():
