@@ -7,14 +7,21 @@ works headless and does not touch global backend state.
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+import scipy.stats
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from scanner.scan import Scan
+
+if TYPE_CHECKING:
+    from taxonomy.evaluation import Report
 
 _AXES = ("x", "y", "z")
 _MISSING = "not recorded"
@@ -161,3 +168,214 @@ def plot_scan(scan: Scan, path: str | os.PathLike[str], title: str | None = None
     grid[3, 3].set_axis_off()
     figure.suptitle(title or f"{scan.meta.label}  {scan.scan_id}", fontsize=16)
     figure.savefig(os.fspath(path), dpi=80)
+
+
+# -- evaluation plots (paper Figs. 14-18) -------------------------------------------------------------
+
+
+def _canvas(width: float, height: float) -> Figure:
+    figure = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(figure)
+    return figure
+
+
+def _save(figure: Figure, path: str | os.PathLike[str], dpi: int = 100) -> Path:
+    figure.savefig(os.fspath(path), dpi=dpi)
+    return Path(path)
+
+
+def _major_class(code: str) -> str:
+    """``"C6"`` of ``"C6S1M1P2X1"``; a code without a major class stays as it is."""
+    match = re.match(r"C[0-9]+", code)
+    return match.group() if match else code
+
+
+def _label_size(count: int) -> float:
+    """Tick label font size that keeps ``count`` labels legible side by side."""
+    return float(np.clip(300 / max(count, 1), 5, 10))
+
+
+def plot_scores(reports: Sequence[Report], level: str, n_features: int,
+                path: str | os.PathLike[str]) -> Path:
+    """Accuracy (top) and macro F1 (bottom) per feature set and classifier, like the paper's Figs. 16-18.
+
+    Bars are fold means with +- one standard deviation over folds; the dotted line marks the best mean
+    accuracy and its F1, as in Fig. 17. Only the reports at ``level`` with ``n_features`` are drawn.
+    """
+    chosen = [r for r in reports if r.level == level and r.n_features == n_features]
+    if not chosen:
+        raise ValueError(f"no report at level {level} with {n_features} features to plot")
+    sets = list(dict.fromkeys(r.feature_set for r in chosen))
+    classifiers = list(dict.fromkeys(r.classifier for r in chosen))
+    cell = {(r.classifier, r.feature_set): r for r in chosen}
+    figure = _canvas(max(8.0, 1.3 * len(sets) + 4), 7.5)
+    top, bottom = figure.subplots(2, 1, sharex=True)
+    width = 0.8 / len(classifiers)
+    x = np.arange(len(sets))
+    for k, name in enumerate(classifiers):
+        rows = [cell.get((name, s)) for s in sets]
+        offset = x - 0.4 + (k + 0.5) * width
+        for ax, mean, std, scale in ((top, "accuracy_mean", "accuracy_std", 100.0),
+                                     (bottom, "f1_mean", "f1_std", 1.0)):
+            heights = [scale * getattr(r, mean) if r else np.nan for r in rows]
+            errors = [scale * getattr(r, std) if r else 0.0 for r in rows]
+            ax.bar(offset, heights, width, yerr=errors, capsize=2, label=name, color=f"C{k}",
+                   error_kw={"elinewidth": 0.8})
+    best = max(chosen, key=lambda r: r.accuracy_mean)
+    top.axhline(100 * best.accuracy_mean, color="0.3", ls=":", lw=1,
+                label=f"best {100 * best.accuracy_mean:.1f} % ({best.classifier}, {best.feature_set})")
+    bottom.axhline(best.f1_mean, color="0.3", ls=":", lw=1)
+    top.set_ylabel("accuracy (%)")
+    top.set_ylim(0, 105)
+    bottom.set_ylabel("macro F1")
+    bottom.set_ylim(0, 1.05)
+    bottom.set_xticks(x, sets)
+    bottom.set_xlabel("feature set")
+    figure.legend(*top.get_legend_handles_labels(), loc="outside right upper", fontsize="small")
+    first = chosen[0]
+    top.set_title(f"{level} classification with X{n_features} ({first.protocol} protocol, "
+                  f"{first.folds} folds, {len(first.classes)} classes)")
+    return _save(figure, path)
+
+
+def plot_fq_ranking(ranking: Sequence[tuple[str, float]], selected: Sequence[str],
+                    path: str | os.PathLike[str], top: int = 30) -> Path:
+    """The ``top`` features by feature quality FQ (eq. 31) as horizontal bars, best at the top.
+
+    Features the selector accepted are coloured and numbered in acceptance order; the others were
+    rejected for correlation with a better one or came after the n-th acceptance.
+    """
+    shown = list(ranking[:top])
+    order = {name: i + 1 for i, name in enumerate(selected)}
+    figure = _canvas(8.0, max(3.0, 0.22 * len(shown) + 1.2))
+    ax = figure.subplots()
+    y = np.arange(len(shown))
+    colours = ["C1" if name in order else "0.7" for name, _ in shown]
+    ax.barh(y, [fq for _, fq in shown], color=colours)
+    ax.set_yticks(y, [f"{name}  [{order[name]}]" if name in order else name for name, _ in shown],
+                  fontsize=_label_size(len(shown)) - 1)
+    ax.invert_yaxis()
+    ax.set_xlim(0, 100)
+    ax.set_xlabel("feature quality FQ (%)")
+    ax.set_title(f"top {len(shown)} of {len(ranking)} features by FQ; selected in orange [acceptance order]")
+    return _save(figure, path)
+
+
+def plot_spearman(X: np.ndarray, names: Sequence[str], path: str | os.PathLike[str]) -> Path:
+    """Spearman rank correlation between the columns of ``X`` (e.g. the selected features) as a heat map."""
+    X = np.asarray(X, dtype=np.float64)
+    rho = np.atleast_2d(scipy.stats.spearmanr(X).statistic) if X.shape[1] > 1 else np.ones((1, 1))
+    if rho.shape == (1, 1) and X.shape[1] == 2:
+        rho = np.array([[1.0, rho[0, 0]], [rho[0, 0], 1.0]])
+    n = len(names)
+    figure = _canvas(max(4.5, 0.6 * n + 3), max(4.0, 0.6 * n + 2))
+    ax = figure.subplots()
+    image = ax.imshow(rho, cmap="RdBu_r", vmin=-1, vmax=1)
+    size = _label_size(n)
+    ax.set_xticks(range(n), names, rotation=60, ha="right", fontsize=size)
+    ax.set_yticks(range(n), names, fontsize=size)
+    if n <= 15:
+        for i in range(n):
+            for j in range(n):
+                ax.text(j, i, f"{rho[i, j]:.2f}", ha="center", va="center", fontsize=size - 1,
+                        color="white" if abs(rho[i, j]) > 0.6 else "black")
+    figure.colorbar(image, ax=ax, label="Spearman rho", shrink=0.8)
+    ax.set_title("Spearman correlation of the selected features")
+    return _save(figure, path)
+
+
+def plot_pca_variance(X: np.ndarray, path: str | os.PathLike[str], marks: Sequence[int] = (3, 10)) -> Path:
+    """Explained variance over the principal components of the min-max scaled features (paper Fig. 15).
+
+    Columns with NaN and constant columns are left out; the cumulative share at ``marks`` components is
+    written on the curve (the paper: 3 components explain ~30 %, 10 ~62 %).
+    """
+    X = np.asarray(X, dtype=np.float64)
+    X = X[:, np.isfinite(X).all(axis=0)]
+    X = X[:, np.ptp(X, axis=0) > 0] if X.size else X
+    if X.shape[0] < 2 or X.shape[1] < 1:
+        raise ValueError("PCA needs at least two rows and one finite, non-constant column")
+    scaled = (X - X.min(axis=0)) / np.ptp(X, axis=0)
+    singular = np.linalg.svd(scaled - scaled.mean(axis=0), compute_uv=False)
+    share = 100 * singular**2 / np.sum(singular**2)
+    cumulative = np.cumsum(share)
+    components = np.arange(1, share.size + 1)
+    figure = _canvas(8.0, 4.5)
+    ax = figure.subplots()
+    ax.bar(components, share, color="C0", label="per component")
+    ax.plot(components, cumulative, color="C1", marker=".", ms=3, label="cumulative")
+    for mark in marks:
+        if mark <= share.size:
+            ax.annotate(f"{mark} PCs: {cumulative[mark - 1]:.0f} %", (mark, cumulative[mark - 1]),
+                        xytext=(-10, 18), textcoords="offset points", fontsize=9, ha="right",
+                        arrowprops={"arrowstyle": "-", "color": "0.4"})
+    ax.set_xlim(0.3, min(share.size, 60) + 0.7)
+    ax.set_ylim(0, 102)
+    ax.set_xlabel("principal component")
+    ax.set_ylabel("explained variance (%)")
+    ax.set_title(f"PCA of {X.shape[1]} scaled features over {X.shape[0]} scans")
+    ax.legend(loc="lower right")
+    return _save(figure, path)
+
+
+def plot_feature_boxes(values: np.ndarray, classes: Sequence[str], feature: str,
+                       path: str | os.PathLike[str], max_classes: int = 40, title: str | None = None) -> Path:
+    """Box plot of one feature per class (paper Fig. 14); at most ``max_classes`` classes, in label order.
+
+    NaN values are left out of their class's box.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    classes = np.asarray(classes)
+    names = sorted(set(classes.tolist()))
+    shown = names[:max_classes]
+    data = [values[(classes == c) & np.isfinite(values)] for c in shown]
+    figure = _canvas(max(6.0, 0.28 * len(shown) + 2.5), 5.0)
+    ax = figure.subplots()
+    ax.boxplot(data, tick_labels=shown, widths=0.6, flierprops={"markersize": 3})
+    ax.tick_params(axis="x", labelrotation=90, labelsize=_label_size(len(shown)))
+    ax.set_ylabel(feature)
+    note = f" (first {len(shown)} of {len(names)} classes)" if len(shown) < len(names) else ""
+    ax.set_title((title or f"{feature} per class") + note)
+    return _save(figure, path)
+
+
+def plot_confusion(confusion: np.ndarray, classes: Sequence[str], path: str | os.PathLike[str],
+                   title: str = "confusion matrix", max_labels: int = 40) -> Path:
+    """Confusion matrix normalised per true class (rows true, columns predicted).
+
+    Up to ``max_labels`` classes every class is labelled (with counts up to 12 classes); beyond that the
+    axes are labelled by major class C, whose blocks are outlined, so misclassifications that leave the
+    major class (eq. 32) stand out.
+    """
+    confusion = np.asarray(confusion, dtype=np.float64)
+    n = len(classes)
+    totals = confusion.sum(axis=1, keepdims=True)
+    share = np.divide(confusion, totals, out=np.zeros_like(confusion), where=totals > 0)
+    side = float(np.clip(0.18 * n + 3, 5, 14))
+    figure = _canvas(side + 1.5, side)
+    ax = figure.subplots()
+    image = ax.imshow(share, cmap="Blues", vmin=0, vmax=1, interpolation="nearest")
+    if n <= max_labels:
+        size = _label_size(n)
+        ax.set_xticks(range(n), classes, rotation=90, fontsize=size)
+        ax.set_yticks(range(n), classes, fontsize=size)
+        if n <= 12:
+            for i, j in zip(*np.nonzero(confusion), strict=True):
+                ax.text(j, i, f"{confusion[i, j]:.0f}", ha="center", va="center", fontsize=8,
+                        color="white" if share[i, j] > 0.5 else "black")
+    else:
+        majors = [_major_class(c) for c in classes]
+        starts = [i for i in range(n) if i == 0 or majors[i] != majors[i - 1]]
+        ends = [*starts[1:], n]
+        centres = [(a + b - 1) / 2 for a, b in zip(starts, ends, strict=True)]
+        labels = [majors[a] for a in starts]
+        ax.set_xticks(centres, labels, fontsize=9)
+        ax.set_yticks(centres, labels, fontsize=9)
+        for edge in starts[1:]:
+            ax.axhline(edge - 0.5, color="0.6", lw=0.5)
+            ax.axvline(edge - 0.5, color="0.6", lw=0.5)
+    ax.set_xlabel("predicted class")
+    ax.set_ylabel("true class")
+    ax.set_title(title)
+    figure.colorbar(image, ax=ax, label="share of the true class", shrink=0.7)
+    return _save(figure, path, dpi=90)
