@@ -503,3 +503,18 @@ def test_perforated_photo_shows_the_hole_pitch(library):
     profile = image.astype(float).mean(axis=(0, 2))
     spectrum = np.abs(np.fft.rfft(profile - profile.mean()))
     assert np.argmax(spectrum) in (7, 8)  # 60 / 8 = 7.5 cycles across the image
+
+
+# -- the scan plot -----------------------------------------------------------------------------------------
+
+def test_plot_scan_writes_one_page_png_also_without_fold_channels(tmp_path, foam_and_steel):
+    from taxonomy.plots import plot_scan
+
+    skipped = sim.synthetic_scan("float-glass", seed=2, image_size=SMALL, fold_skip_probability=1.0)
+    for name, scan in (("foam", foam_and_steel[0]), ("glass", skipped)):
+        path = tmp_path / f"{name}.png"
+        plot_scan(scan, path, title=name)
+        header = path.read_bytes()[:24]
+        assert header[:8] == b"\x89PNG\r\n\x1a\n"
+        width, height = int.from_bytes(header[16:20], "big"), int.from_bytes(header[20:24], "big")
+        assert (width, height) == (22 * 80, 17 * 80)  # 22 x 17 inches at 80 dpi
