@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import html
 import json
 import warnings
 
@@ -26,6 +27,7 @@ from taxonomy.evaluation import (
     make_pipeline,
     r_c,
 )
+from taxonomy.report import cell_text, format_table, write_report
 
 MODALITIES = ("tactum", "image", "audio", "other")
 
@@ -264,3 +266,33 @@ def test_grid_in_worker_processes_equals_single_evaluations():
                           feature_set=sets[report.feature_set])
         np.testing.assert_array_equal(report.y_pred, single.y_pred)
         assert report.selected == single.selected
+
+
+# -- reports -----------------------------------------------------------------------------------------
+
+
+def test_text_table_shows_the_report_numbers():
+    space = labelled_space()
+    reports = evaluate_grid(space, classifiers=("nb",), levels=("coarse", "fine"), set_sizes=(2,),
+                            feature_sets={"all": None}, folds=3, workers=1)
+    text = format_table(reports)
+    header, row = text.splitlines()[3:5]
+    assert header.split()[3:] == ["coarse", "fine"]
+    coarse, fine = reports
+    assert row.split()[:2] == ["nb", "all"]
+    assert f"{100 * coarse.accuracy_mean:.1f} +- {100 * coarse.accuracy_std:.1f}" in " ".join(row.split())
+    assert cell_text(fine).split()[-1] == ("-" if np.isnan(fine.r_c) else f"{fine.r_c:.2f}")
+
+
+def test_html_report_is_one_offline_folder(tmp_path):
+    space = labelled_space()
+    reports = evaluate_grid(space, classifiers=("nb", "lda"), levels=("medium",), set_sizes=(3,),
+                            feature_sets={"image": "image", "all": None}, folds=3, workers=1)
+    page = write_report(tmp_path / "report", space, reports, level="medium", n_features=3)
+    names = sorted(p.name for p in page.parent.iterdir())
+    assert names == ["boxes.png", "confusion_medium.png", "fq_ranking.png", "index.html", "pca.png",
+                     "scores_medium_X3.png", "spearman.png"]
+    text = page.read_text(encoding="utf-8")
+    assert text.count('src="data:image/png;base64,') == 6
+    assert "http" not in text and "<link" not in text and "<script" not in text
+    assert html.escape(cell_text(reports[0])) in text

@@ -1,0 +1,205 @@
+"""Evaluation reports (SPEC 8): a text table for the terminal and a self-contained HTML page with plots.
+
+``format_table(reports)`` prints one block per set size and protocol: a row per classifier and feature
+set, a column per level, each cell ``accuracy % (mean +- std over folds)  macro F1  r_C``.
+
+``write_report(folder, space, reports)`` writes ``index.html`` and its PNG figures into ``folder``. The page
+embeds the figures as base64 data, so ``index.html`` alone opens offline; the PNGs beside it are for papers
+and slides. Figures: accuracy and F1 per classifier and feature set for every level and set size (paper
+Figs. 16-18), the FQ ranking and the Spearman heat map of the features selected on all rows (Table IV's
+view), the PCA explained variance (Fig. 15), per-class box plots of the best feature (Fig. 14) and the
+confusion matrix of the best classifier at every level.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from features.selection import Selection, select_features
+from taxonomy.evaluation import Report, major_class
+from taxonomy.labels import LEVELS
+from taxonomy.plots import (
+    plot_confusion,
+    plot_feature_boxes,
+    plot_fq_ranking,
+    plot_pca_variance,
+    plot_scores,
+    plot_spearman,
+)
+
+if TYPE_CHECKING:
+    from features.space import FeatureSpace
+
+CELL_LEGEND = "accuracy % (mean +- std over folds), macro F1, r_C"
+
+
+def cell_text(report: Report) -> str:
+    """``"90.2 +- 1.2  0.90  0.05"``: accuracy in percent, macro F1 and r_C (``-`` when no errors)."""
+    r = report.r_c
+    return (f"{100 * report.accuracy_mean:5.1f} +- {100 * report.accuracy_std:4.1f}  {report.f1_mean:4.2f}  "
+            + ("   -" if np.isnan(r) else f"{r:4.2f}"))
+
+
+def _blocks(reports: Sequence[Report]) -> list[tuple[str, list[str], list[tuple[str, str, list[str]]]]]:
+    """Per (set size, protocol): a title, the levels present, and rows (classifier, feature set, cells)."""
+    blocks = []
+    for size, protocol in dict.fromkeys((r.n_features, r.protocol) for r in reports):
+        chosen = [r for r in reports if r.n_features == size and r.protocol == protocol]
+        levels = [level for level in LEVELS if any(r.level == level for r in chosen)]
+        cell = {(r.classifier, r.feature_set, r.level): r for r in chosen}
+        rows = []
+        for classifier, feature_set in dict.fromkeys((r.classifier, r.feature_set) for r in chosen):
+            found = [cell.get((classifier, feature_set, level)) for level in levels]
+            rows.append((classifier, feature_set, [cell_text(r) if r else "" for r in found]))
+        first = chosen[0]
+        title = f"X{size}, {protocol} protocol, {first.folds} folds, seed {first.seed}"
+        blocks.append((title, levels, rows))
+    return blocks
+
+
+def format_table(reports: Sequence[Report]) -> str:
+    """The classifier x feature set x level table as text, one block per set size and protocol."""
+    if not reports:
+        return "no results"
+    lines = [f"cells: {CELL_LEGEND}"]
+    for title, levels, rows in _blocks(reports):
+        width_c = max(len("classifier"), *(len(r[0]) for r in rows))
+        width_s = max(len("feature set"), *(len(r[1]) for r in rows))
+        width = max(len(cell) for row in rows for cell in row[2])
+        lines += ["", title,
+                  (f"{'classifier':<{width_c}}  {'feature set':<{width_s}}  "
+                   + "  ".join(f"{level:<{width}}" for level in levels)).rstrip()]
+        for classifier, feature_set, cells in rows:
+            lines.append((f"{classifier:<{width_c}}  {feature_set:<{width_s}}  "
+                          + "  ".join(f"{cell:<{width}}" for cell in cells)).rstrip())
+    return "\n".join(lines)
+
+
+# -- HTML page ---------------------------------------------------------------------------------------
+
+
+def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: Sequence[Report],
+                 level: str = "fine", n_features: int = 10, feature: str | None = None, top: int = 30,
+                 max_classes: int = 40) -> Path:
+    """Write ``index.html`` and its PNG figures into ``folder``; returns the path of ``index.html``.
+
+    Parameters
+    ----------
+    space : features.space.FeatureSpace
+        The feature space the reports were computed on (for FQ, Spearman, PCA and box plots).
+    reports : list of Report
+        From ``taxonomy.evaluate`` / ``evaluate_grid``; may be empty.
+    level, n_features : str, int
+        Level and set size of the FQ ranking and Spearman heat map (selection on all rows).
+    feature : str, optional
+        Feature of the box plots; default the one with the highest FQ.
+    top, max_classes : int
+        Bars in the FQ chart; classes in the box plot (beyond it only the major class with the most
+        classes is shown, as in the paper's Fig. 14) and labelled classes in a confusion matrix.
+    """
+    from scanner.files import atomic_write_bytes
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    figures: list[tuple[str, Path]] = []
+    for lvl, size in sorted(dict.fromkeys((r.level, r.n_features) for r in reports),
+                            key=lambda key: (key[1], LEVELS.index(key[0]))):
+        figures.append((f"{lvl} classification with X{size}: accuracy and macro F1 per feature set",
+                        plot_scores(reports, lvl, size, folder / f"scores_{lvl}_X{size}.png")))
+    selection = select_features(space, level, n_features)
+    figures += _selection_figures(folder, space, selection, top)
+    figures.append(("explained variance over the principal components (Fig. 15)",
+                    plot_pca_variance(space.X, folder / "pca.png")))
+    feature = feature or selection.ranking[0][0]
+    figures.append(_boxes(folder, space, feature, level, max_classes))
+    for lvl in LEVELS:
+        at_level = [r for r in reports if r.level == lvl]
+        if at_level:
+            best = max(at_level, key=lambda r: r.accuracy_mean)
+            title = (f"{lvl}: {best.classifier}, {best.feature_set}, X{best.n_features}; accuracy "
+                     f"{100 * best.accuracy_mean:.1f} %, r_C {best.r_c:.2f}")
+            figures.append((f"confusion matrix of the best classifier at the {lvl} level ({title})",
+                            plot_confusion(best.confusion, best.classes, folder / f"confusion_{lvl}.png",
+                                           title=title, max_labels=max_classes)))
+    page = folder / "index.html"
+    atomic_write_bytes(page, _html(space, reports, selection, figures).encode("utf-8"))
+    return page
+
+
+def _selection_figures(folder: Path, space: FeatureSpace, selection: Selection,
+                       top: int) -> list[tuple[str, Path]]:
+    figures = [(f"feature quality FQ at the {selection.level} level; orange: the {len(selection.selected)} "
+                f"features FQSelector keeps on all rows (|Spearman rho| < {selection.max_corr:g})",
+                plot_fq_ranking(selection.ranking, selection.selected, folder / "fq_ranking.png", top))]
+    if len(selection.selected) >= 2:
+        figures.append(("Spearman correlation of the selected features",
+                        plot_spearman(space.subset(selection.selected).X, selection.selected,
+                                      folder / "spearman.png")))
+    return figures
+
+
+def _boxes(folder: Path, space: FeatureSpace, feature: str, level: str,
+           max_classes: int) -> tuple[str, Path]:
+    """Box plots of ``feature`` per class; too many classes: those of the major class with the most."""
+    classes = space.y(level)
+    values = space.subset([feature]).X[:, 0]
+    scope = ""
+    if np.unique(classes).size > max_classes:
+        majors = np.array([major_class(c) for c in classes])
+        names = np.unique(majors)
+        counts = [np.unique(classes[majors == m]).size for m in names]
+        chosen = names[int(np.argmax(counts))]
+        keep = majors == chosen
+        classes, values, scope = classes[keep], values[keep], f" within {chosen}"
+    path = plot_feature_boxes(values, classes, feature, folder / "boxes.png", max_classes=max_classes,
+                              title=f"{feature} per {level} class{scope}")
+    return f"{feature} per class at the {level} level{scope} (Fig. 14)", path
+
+
+def _html(space: FeatureSpace, reports: Sequence[Report], selection: Selection,
+          figures: list[tuple[str, Path]]) -> str:
+    e = html.escape
+    counts = ", ".join(f"{np.unique(space.y(level)).size} {level}" for level in LEVELS)
+    parts = [
+        "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+        "<title>texplorer evaluation report</title>",
+        "<style>body{font-family:sans-serif;margin:2em;max-width:1200px}table{border-collapse:collapse;"
+        "margin-bottom:1.5em}td,th{border:1px solid #ccc;padding:2px 8px;font-family:monospace;"
+        "white-space:pre;text-align:left}figure{margin:1.5em 0}img{max-width:100%}"
+        "figcaption{color:#444}</style></head><body>",
+        "<h1>texplorer evaluation report</h1>",
+        f"<p>{len(space)} scans, {len(set(space.groups))} samples, {len(space.columns)} features; "
+        f"classes: {e(counts)}.</p>",
+        f"<p>Selected on all rows at the {e(selection.level)} level: {e(', '.join(selection.selected))}.</p>",
+    ]
+    if reports:
+        parts.append(f"<h2>Cross-validated results</h2><p>Cells: {e(CELL_LEGEND)}.</p>")
+        for title, levels, rows in _blocks(reports):
+            parts.append(f"<h3>{e(title)}</h3><table><tr><th>classifier</th><th>feature set</th>"
+                         + "".join(f"<th>{e(level)}</th>" for level in levels) + "</tr>")
+            for classifier, feature_set, cells in rows:
+                parts.append(f"<tr><td>{e(classifier)}</td><td>{e(feature_set)}</td>"
+                             + "".join(f"<td>{e(cell)}</td>" for cell in cells) + "</tr>")
+            parts.append("</table>")
+        splits = {"grouped by sample" if r.grouped else "not grouped" for r in reports}
+        parts.append(f"<p>Folds: {e(', '.join(sorted(splits)))}.</p>")
+        notes = list(dict.fromkeys(note for r in reports for note in r.warnings))
+        dropped = sorted({c for r in reports for c in r.dropped})
+        if dropped:
+            parts.append(f"<p>Left out for NaN values: {e(', '.join(dropped))}.</p>")
+        if notes:
+            parts.append("<h3>Warnings</h3><ul>" + "".join(f"<li>{e(n)}</li>" for n in notes) + "</ul>")
+    parts.append("<h2>Figures</h2>")
+    for caption, path in figures:
+        data = base64.b64encode(path.read_bytes()).decode("ascii")
+        parts.append(f'<figure><img src="data:image/png;base64,{data}" alt="{e(path.name)}">'
+                     f"<figcaption>{e(caption)} ({e(path.name)})</figcaption></figure>")
+    parts.append("</body></html>")
+    return "\n".join(parts)
