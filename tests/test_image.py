@@ -447,6 +447,20 @@ def test_lbp_matches_scikit_image_exactly(shape, kind):
     np.testing.assert_array_equal(image.lbp_histogram(gray), expected)
 
 
+@pytest.mark.parametrize("band_elements", [None, 3000])
+def test_lbp_matches_scikit_image_across_bands_and_powers_of_two(band_elements, monkeypatch):
+    # Rows and columns 512 and 513 are where skimage's interpolation weights change binade.
+    if band_elements:
+        monkeypatch.setattr(image, "_BAND_ELEMENTS", band_elements)
+    gray = np.random.default_rng(13).uniform(0, 255, (530, 520))
+    gray[100:140] = 77.7  # a flat stretch: exact ties
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        codes = local_binary_pattern(gray, 8, 1, method="uniform")[1:-1, 1:-1]
+    expected = np.bincount(codes.astype(int).ravel(), minlength=10) / codes.size
+    np.testing.assert_array_equal(image.lbp_histogram(gray), expected)
+
+
 # --- gray input checks --------------------------------------------------------------------------------
 
 
