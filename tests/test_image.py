@@ -186,6 +186,13 @@ def test_glcm_counts_pairs_both_ways_per_direction():
         np.testing.assert_array_equal(image.glcm(q, offset, levels=3), counts / counts.sum())
 
 
+@pytest.mark.parametrize("shape", [(2, 2), (2, 5), (7, 3), (40, 53)])
+def test_haralick_counts_every_direction_as_glcm_does(shape):
+    q = np.random.default_rng(shape[0]).integers(0, 32, shape).astype(np.uint8)
+    for offset, counts in zip(image.GLCM_OFFSETS, image._direction_counts(q, 32), strict=True):
+        np.testing.assert_array_equal(image._symmetric_normalised(counts), image.glcm(q, offset))
+
+
 def test_glcm_rejects_levels_out_of_range():
     with pytest.raises(ValueError, match="0..2"):
         image.glcm(np.array([[0, 3]]), (0, 1), levels=3)
