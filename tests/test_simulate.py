@@ -78,7 +78,7 @@ def test_close_pairs_differ_only_where_intended(library):
 
 def test_library_values_are_physically_ordered(library):
     foam, steel = library["polyurethane-foam"], library["mild-steel-brushed"]
-    assert foam.thermal.heat_rise_k > 50 * steel.thermal.heat_rise_k
+    assert foam.thermal.heat_rise_k > 25 * steel.thermal.heat_rise_k
     assert steel.thermal.cooling_rate_per_s > 10 * foam.thermal.cooling_rate_per_s
     assert all(m.friction.kinetic <= m.friction.static for m in library.values())
     assert {m.magnetic for m in library.values()} == {"ferro", "para", "none", "dia"}
@@ -376,7 +376,7 @@ def test_foam_heats_up_and_steel_barely(foam_and_steel):
     foam, steel = foam_and_steel
     foam_rise = foam["t_cool"].data.max() - foam.meta.t_amb
     steel_rise = steel["t_cool"].data.max() - steel.meta.t_amb
-    assert foam_rise > 8.0 and steel_rise < 0.3
+    assert foam_rise > 8.0 and steel_rise < 0.8
     t = foam["t_cool"].data
     assert t[-1] - foam.meta.t_amb < 0.7 * foam_rise  # it cools toward t_amb
     assert np.argmax(t) > 0  # the sensor arrives over the heated spot during the first samples
