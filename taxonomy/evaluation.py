@@ -8,6 +8,10 @@ features by FQ with |Spearman rho| < 0.5) -> classifier. Two protocols:
 - ``paper``: as published, scaling and selection are fitted once on all rows, then the classifier alone is
   cross-validated on the selected features (the test rows did take part in the selection).
 
+Interpretation: the selector ranks features by FQ over the classes of the level being classified (the y
+the pipeline is fitted with, as any scikit-learn selector); the paper computed FQ over its 184 material
+classes, which is the same thing at the fine level.
+
 Metrics per fold: accuracy and macro F1 (F1 averaged over the classes that occur in the fold's true or
 predicted labels; a class never predicted scores 0). ``r_C`` (eq. 32) is the share of misclassifications
 whose predicted major class C differs from the true one.
@@ -346,8 +350,10 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
     classifier, feature set, level and size, and equal those of :func:`evaluate` with the same arguments.
     """
     classifiers = list(classifiers)
+    levels = [check_level(level) for level in levels]
+    set_sizes = list(set_sizes)
     sets = dict(feature_sets) if feature_sets is not None else _present_feature_sets(space)
-    cells = [_Cell(check_level(level), name, feature_set, size)
+    cells = [_Cell(level, name, feature_set, size)
              for name, feature_set in sets.items() for level in levels for size in set_sizes]
     reports = _run(space, classifiers, cells, folds, seed, protocol, workers, progress)
     per_cell = len(classifiers)
