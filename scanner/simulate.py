@@ -33,8 +33,11 @@ steps, the MAG3110's 0.1 uT steps and 16-bit audio.
 
 from __future__ import annotations
 
+import concurrent.futures
 import math
+import os
 import re
+import sys
 import tomllib
 import zlib
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -46,7 +49,7 @@ from typing import Any
 
 import cv2
 import numpy as np
-from scipy import ndimage, signal
+from scipy import ndimage, signal, special
 from tqdm import tqdm
 
 import scanner
@@ -1193,7 +1196,7 @@ def _texture_speckle(look: Appearance, rng: Rng, size: int, ppm: float) -> Layer
     dark = _noise(rng, (size, size), 0.7 * grain)
     second = _noise(rng, (size, size), grain)
     cut_dark, cut_second = np.quantile(dark, 1 - 0.4 * look.duty), np.quantile(second, 1 - look.duty)
-    field = 0.5 / (1 + np.exp(-(second - cut_second) / 0.08)) + 1.0 / (1 + np.exp(-(dark - cut_dark) / 0.08))
+    field = 0.5 * special.expit((second - cut_second) / 0.08) + special.expit((dark - cut_dark) / 0.08)
     field = np.clip(field, 0, 1) + 0.12 * _noise(rng, (size, size), 0.15 * grain)
     return look.contrast * field, _noise(rng, (size, size), 0.5 * grain)
 
@@ -1485,14 +1488,42 @@ def synthetic_scans(materials: Iterable[str] | None = None, scans_per_material: 
                                  fold_skip_probability=fold_skip_probability)
 
 
+def _simulate_one(job: tuple[str, int, int, tuple[int, int], float]) -> Scan:
+    slug, seed, index, image_size, fold_skip_probability = job
+    return synthetic_scan(_default_library()[slug], seed=scan_seed(seed, slug, index), scan_index=index,
+                          sample_id=f"{slug}-01", image_size=image_size, fold_skip_probability=fold_skip_probability)
+
+
 def synthetic_database(root: str | Path, materials: Iterable[str] | None = None, scans_per_material: int = 5,
                        seed: int = 0, image_size: tuple[int, int] = (512, 512), progress: bool = True,
-                       fold_skip_probability: float = 0.5) -> Database:
-    """Simulate scans (see :func:`synthetic_scans`) into ``scanner.database.Database(root)``; returns it."""
+                       fold_skip_probability: float = 0.5, workers: int | None = None) -> Database:
+    """Simulate scans (see :func:`synthetic_scans`) into ``scanner.database.Database(root)``; returns it.
+
+    Scans are simulated in ``workers`` processes (default: the number of cores) and added by this process
+    in a fixed order. Scans whose id is already in the database are kept, not simulated again, so an
+    interrupted demo resumes where it stopped (delete the folder to start over with another seed).
+    """
     slugs = list(_default_library()) if materials is None else _known(materials)
+    if scans_per_material < 1:
+        raise ValueError(f"scans_per_material must be >= 1, got {scans_per_material!r}")
+    _check_image_size(image_size)
     database = Database(root)
-    scans = synthetic_scans(slugs, scans_per_material, seed, image_size, fold_skip_probability)
-    for scan in tqdm(scans, total=len(slugs) * scans_per_material, desc="simulating scans", unit="scan",
-                     disable=not progress):
-        database.add(scan)
+    stored = {record.scan_id for record in database.records()}
+    jobs = [(slug, seed, index, image_size, fold_skip_probability)
+            for slug in slugs for index in range(1, scans_per_material + 1)
+            if f"{slug}-01-{index:03d}" not in stored]
+    bar = tqdm(total=len(jobs), desc="simulating scans", unit="scan", file=sys.stderr,
+               disable=None if progress else True, leave=False)
+    workers = max(1, min(workers or os.cpu_count() or 1, len(jobs) or 1))
+    if workers == 1:
+        scans: Iterable[Scan] = map(_simulate_one, jobs)
+        for scan in scans:
+            database.add(scan)
+            bar.update(1)
+    else:
+        with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+            for scan in pool.map(_simulate_one, jobs):
+                database.add(scan)
+                bar.update(1)
+    bar.close()
     return database
