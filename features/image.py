@@ -135,12 +135,13 @@ def compute(rgb: np.ndarray) -> dict[str, float]:
     # and the whole-image statistics several features need are computed once.
     gray = _banded(grayscale, photo, np.float64)
     mean = float(np.mean(gray))
-    low, high = cv2.minMaxLoc(gray)[:2]
+    low, high = float(gray.min()), float(gray.max())
+    first = [color(photo), mean / 255.0, edginess(_banded(gray_uint8, gray, np.uint8))]
     coarseness = _tamura_coarseness(_banded(_thousandths, gray, np.int32), TAMURA_KMAX, 1e-9 * high * 1000)
-    values = [color(photo), mean / 255.0, edginess(_banded(gray_uint8, gray, np.uint8)),
-              *_dft_peak_means(gray, DFT_FRACTIONS, mean), *_haralick(gray), coarseness,
-              _tamura_contrast(gray, mean, low == high), *_lbp_histogram(gray)]
-    return dict(zip(NAMES, (float(v) for v in values), strict=True))
+    rest = [*_haralick(gray), coarseness, _tamura_contrast(gray, mean, low == high), *_lbp_histogram(gray)]
+    # The DFT comes last: its spectrum is computed in place of the gray image.
+    dft = _dft_peak_means(np.subtract(gray, mean, out=gray), DFT_FRACTIONS)
+    return dict(zip(NAMES, map(float, [*first, *dft, *rest]), strict=True))
 
 
 def color(rgb: np.ndarray) -> float:
@@ -236,15 +237,17 @@ def dft_peak_means(gray: np.ndarray, fractions: Sequence[float] = DFT_FRACTIONS)
     [226.27417, 226.27417]
     """
     image = _check_gray(gray, min_side=2, purpose="the DFT peak mean")
-    return _dft_peak_means(image, fractions, float(np.mean(image)))
+    return _dft_peak_means(image - np.mean(image), fractions)
 
 
-def _dft_peak_means(image: np.ndarray, fractions: Sequence[float], mean: float) -> tuple[float, ...]:
-    parts, weights = _real_spectrum(image - mean)
+def _dft_peak_means(centred: np.ndarray, fractions: Sequence[float]) -> tuple[float, ...]:
+    """``dft_peak_means`` of ``I - mean(I)``, overwriting it with its spectrum."""
+    size = centred.size
+    parts, weights = _real_spectrum(centred)
     peak = max(float(part.max()) for part in parts if part.size)
     lowest = min(fractions) * peak
     candidates = [(part[part >= lowest], weight) for part, weight in zip(parts, weights, strict=True)]
-    scale = np.sqrt(image.size)
+    scale = np.sqrt(size)
     means = []
     for fraction in fractions:
         threshold = fraction * peak
@@ -568,7 +571,7 @@ def tamura_contrast(gray: np.ndarray) -> float:
     values = values if values.ndim == 2 else values.reshape(1, -1)
     if values.size == 0:
         return 0.0
-    low, high = cv2.minMaxLoc(values)[:2]
+    low, high = values.min(), values.max()
     return _tamura_contrast(values, float(values.mean()), low == high)
 
 
