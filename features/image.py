@@ -335,7 +335,8 @@ def _histogram(images: list[np.ndarray], levels: int) -> np.ndarray:
     rows, cols = images[0].shape
     for start, stop in _bands(rows, _rows_per_band(cols, _BYTE_BAND_ELEMENTS)):
         band = [image[start:stop] for image in images]
-        counts += cv2.calcHist(band, list(range(dims)), None, [levels] * dims, [0, levels] * dims).astype(np.int64)
+        bins = cv2.calcHist(band, list(range(dims)), None, [levels] * dims, [0, levels] * dims)
+        counts += bins.astype(np.int64)
     return counts
 
 
@@ -466,7 +467,8 @@ def haralick(gray: np.ndarray) -> np.ndarray:
 
 def _haralick(image: np.ndarray) -> np.ndarray:
     q = _quantize(image, GLCM_LEVELS)
-    per_direction = [haralick_from_glcm(_symmetric_normalised(counts)) for counts in _direction_counts(q, GLCM_LEVELS)]
+    directions = _direction_counts(q, GLCM_LEVELS)
+    per_direction = [haralick_from_glcm(_symmetric_normalised(counts)) for counts in directions]
     return np.mean(per_direction, axis=0)
 
 
@@ -528,22 +530,25 @@ def _tamura_coarseness(image: np.ndarray, kmax: int, tolerance: float) -> float:
     for row, row_stop in _bands(out_rows, tile_rows):
         for col, col_stop in _bands(out_cols, tile_cols):
             n, m = row_stop - row, col_stop - col
-            # Tile-local (i, j) is image pixel (row + i, col + j); output pixels are i in margin .. margin+n-1,
-            # j in margin .. margin+m-1. Level k holds the window sum with its top-left corner at (i, j).
+            # Tile-local (i, j) is image pixel (row + i, col + j); output pixels are i = margin .. margin+n-1,
+            # j = margin .. margin+m-1. Level k holds the window sum with its top-left corner at (i, j).
             level = image[row:row_stop + 2 * margin - 1, col:col_stop + 2 * margin - 1]
             prefixes: list[np.ndarray] = []
             for k in range(1, kmax + 1):
                 size, half = 2**k, 2 ** (k - 1)
                 rows, cols = level.shape
                 pairs = cv2.add(level[:-half], level[half:], dst=pair_buffer[:rows - half, :cols])
-                level = cv2.add(pairs[:, :-half], pairs[:, half:], dst=level_buffers[k % 2][:rows - half, :cols - half])
-                beside = level[margin - half:margin - half + n]
-                horizontal = cv2.absdiff(beside[:, margin:margin + m], beside[:, margin - size:margin - size + m],
+                level = cv2.add(pairs[:, :-half], pairs[:, half:],
+                                dst=level_buffers[k % 2][:rows - half, :cols - half])
+                beside = level[margin - half:margin - half + n]  # windows side by side: rows r-half ..
+                left = margin - size
+                horizontal = cv2.absdiff(beside[:, margin:margin + m], beside[:, left:left + m],
                                          dst=horizontal_buffer[:n, :m])
-                stacked = level[:, margin - half:margin - half + m]
-                vertical = cv2.absdiff(stacked[margin:margin + n], stacked[margin - size:margin - size + n],
+                stacked = level[:, margin - half:margin - half + m]  # windows one above the other
+                vertical = cv2.absdiff(stacked[margin:margin + n], stacked[left:left + n],
                                        dst=vertical_buffer[:n, :m])
-                contrast = cv2.max(horizontal, vertical, dst=prefix_buffers[0, :n, :m] if k == 1 else horizontal)
+                first = prefix_buffers[0, :n, :m]
+                contrast = cv2.max(horizontal, vertical, dst=first if k == 1 else horizontal)
                 if k < kmax:
                     np.multiply(contrast, 4 ** (kmax - k), out=contrast)
                 # prefix_k = max(E_1 .. E_k): the first k whose prefix reaches max_k E_k - tol is S_best's k.
@@ -613,7 +618,7 @@ def _uniform_labels() -> np.ndarray:
 
 
 def _interpolation_weights(n: int, offset: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(1 - f, f)`` with ``f = x - floor(x)``, ``x = index + offset``, index = 0..n-1, as skimage rounds them."""
+    """``(1 - f, f)``, ``f = x - floor(x)`` for ``x = index + offset``, index 0..n-1, rounded as skimage."""
     position = np.arange(n, dtype=np.float64) + offset
     fraction = position - np.floor(position)
     return 1 - fraction, fraction
@@ -628,7 +633,8 @@ def _lerp(x: np.ndarray, y: np.ndarray, weights: tuple[np.ndarray, np.ndarray], 
 
 
 def _lbp_neighbours(rows: np.ndarray, tr: np.ndarray, tl: np.ndarray, up: tuple[np.ndarray, np.ndarray],
-                    down: tuple[np.ndarray, np.ndarray], out: np.ndarray, scratch: np.ndarray) -> Iterator[np.ndarray]:
+                    down: tuple[np.ndarray, np.ndarray], out: np.ndarray,
+                    scratch: np.ndarray) -> Iterator[np.ndarray]:
     """The 8 neighbours of a band's interior pixels for p = 7 .. 0 (skimage's p runs counter-clockwise from
     the right, rows growing down), so that shifting the code left before each new bit puts neighbour p at
     bit p. ``tr``/``tl`` are the rows interpolated towards the right/left neighbour column; each diagonal
@@ -666,7 +672,8 @@ def _lbp_histogram(image: np.ndarray) -> np.ndarray:
     diagonal = float(abs(_lbp_offsets()[0][1]))
     # skimage interpolates at absolute coordinates, so the weights differ (in the last bits) per row and
     # column: rows for the neighbours above and below, columns for those right and left, interior only.
-    above, below = (tuple(f[1:-1, None] for f in _interpolation_weights(h, sign * diagonal)) for sign in (-1, 1))
+    above, below = (tuple(f[1:-1, None] for f in _interpolation_weights(h, sign * diagonal))
+                    for sign in (-1, 1))
     right, left = (tuple(f[1:-1] for f in _interpolation_weights(w, sign * diagonal)) for sign in (1, -1))
     band_rows = min(_rows_per_band(w), h - 2)
     towards_right, towards_left, scratch = np.empty((3, band_rows + 2, w - 2))

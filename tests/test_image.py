@@ -144,7 +144,8 @@ def test_dft_peak_means_of_cosine_gratings_are_their_half_amplitudes():
     m, n = 32, 64
     rows, cols = np.mgrid[0:m, 0:n]
     a1, a2 = 10.0, 8.2  # a2 / a1 = 0.82: above the 0.80 threshold, below 0.85
-    gray = (100 + a1 * np.cos(2 * np.pi * 3 * cols / n) + a2 * np.cos(2 * np.pi * (2 * rows / m + 5 * cols / n))
+    gray = (100 + a1 * np.cos(2 * np.pi * 3 * cols / n)
+            + a2 * np.cos(2 * np.pi * (2 * rows / m + 5 * cols / n))
             + 30 * np.sin(2 * np.pi * 7 * cols / n))  # a sine has no real part, however strong
     # A cosine of amplitude A puts A * M * N / 2 at (k, l) and (-k, -l); normalised by sqrt(M N).
     half = np.sqrt(m * n) / 2
@@ -155,7 +156,8 @@ def test_dft_peak_means_of_cosine_gratings_are_their_half_amplitudes():
     assert dft_85 == pytest.approx(a1 * half, rel=1e-9)
 
 
-@pytest.mark.parametrize("shape", [(2, 2), (2, 3), (3, 2), (5, 5), (6, 5), (5, 6), (6, 6), (31, 40), (40, 31)])
+@pytest.mark.parametrize("shape", [(2, 2), (2, 3), (3, 2), (5, 5), (6, 5), (5, 6), (6, 6), (31, 40),
+                                   (40, 31)])
 def test_dft_peak_means_follow_the_full_spectrum_definition(shape):
     gray = np.random.default_rng(sum(shape)).uniform(0, 255, shape)
     spectrum = np.fft.fft2(gray - gray.mean()).real / np.sqrt(gray.size)
@@ -283,7 +285,8 @@ def test_haralick_agrees_with_mahotas_after_its_documented_differences():
     rng = np.random.default_rng(3)
     gray = np.cumsum(rng.uniform(0, 1, (60, 70)), axis=1)
     gray = gray / gray.max() * 255
-    theirs = mahotas.features.haralick(image.quantize(gray), use_x_minus_y_variance=True)  # (4 directions, 13)
+    # (4 directions, 13 features)
+    theirs = mahotas.features.haralick(image.quantize(gray), use_x_minus_y_variance=True)
     theirs[:, 5] += 2  # 0-based levels in the sum average
     theirs[:, [7, 8, 10]] *= LN2  # log2 entropies
     info = -np.log(1 - theirs[:, 12] ** 2) / 2 * LN2  # HXY2 - HXY back in nats
@@ -315,9 +318,10 @@ def stripes(width: int, h: int, w: int) -> np.ndarray:
 
 
 def test_tamura_coarseness_of_wide_stripes():
-    # Stripes 64 px wide: a window pair straddles at most one edge. At distance t from it, E_k = 255 (1 - |t|/2^k)
-    # for |t| < 2^k, else 0; so t = 0 ties at every k (S = 2), 1 <= |t| <= 31 picks k = 5 (S = 32), and pixels
-    # farther away see no difference at all (S = 2). Per 64-column stripe: 62 pixels of 32, 2 of 2.
+    # Stripes 64 px wide: a window pair straddles at most one edge. At distance t from it,
+    # E_k = 255 (1 - |t|/2^k) for |t| < 2^k, else 0; so t = 0 ties at every k (S = 2), 1 <= |t| <= 31 picks
+    # k = 5 (S = 32), and pixels farther away see no difference at all (S = 2). Per 64-column stripe:
+    # 62 pixels of 32, 2 of 2.
     gray = stripes(64, 80, 2 * 64 + 63)
     assert image.tamura_coarseness(gray) == pytest.approx((62 * 32 + 2 * 2) / 64, rel=1e-15)
     assert image.tamura_coarseness(gray.T) == pytest.approx((62 * 32 + 2 * 2) / 64, rel=1e-15)
