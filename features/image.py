@@ -540,11 +540,11 @@ def _tamura_coarseness(image: np.ndarray, kmax: int, tolerance: float) -> float:
                 pairs = cv2.add(level[:-half], level[half:], dst=pair_buffer[:rows - half, :cols])
                 level = cv2.add(pairs[:, :-half], pairs[:, half:],
                                 dst=level_buffers[k % 2][:rows - half, :cols - half])
-                beside = level[margin - half:margin - half + n]  # windows side by side: rows r-half ..
+                beside = level[margin - half:margin - half + n]  # top rows of the side-by-side windows
                 left = margin - size
                 horizontal = cv2.absdiff(beside[:, margin:margin + m], beside[:, left:left + m],
                                          dst=horizontal_buffer[:n, :m])
-                stacked = level[:, margin - half:margin - half + m]  # windows one above the other
+                stacked = level[:, margin - half:margin - half + m]  # left columns of the stacked windows
                 vertical = cv2.absdiff(stacked[margin:margin + n], stacked[left:left + n],
                                        dst=vertical_buffer[:n, :m])
                 first = prefix_buffers[0, :n, :m]
