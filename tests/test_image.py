@@ -75,6 +75,17 @@ def test_compute_crops_100_px_before_anything():
     assert values["edginess"] == 0.0
 
 
+@pytest.mark.parametrize("value", [0, 97, 255])
+def test_compute_on_a_constant_photo(value):
+    values = image.compute(np.full((270, 281, 3), value, np.uint8))
+    undefined = {"haralick_03", "haralick_12"}  # correlation and IMC1 are 0/0
+    assert all(math.isnan(values[name]) for name in undefined)
+    assert all(math.isfinite(v) for name, v in values.items() if name not in undefined)
+    assert values["color"] == -1.0 and values["edginess"] == 0.0 and values["tamura_contrast"] == 0.0
+    assert values["tamura_coarseness"] == 2.0 and values["lbp_8"] == 1.0
+    assert values["dft_80"] == pytest.approx(0.0, abs=1e-9)
+
+
 @pytest.mark.parametrize(("photo", "message"), [
     (np.zeros((300, 300, 3), np.float64), "uint8"),
     (np.zeros((300, 300), np.uint8), r"shape \(h, w, 3\)"),
