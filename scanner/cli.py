@@ -138,6 +138,85 @@ def cmd_features(args: argparse.Namespace) -> int:
     return EXIT_ERROR if space.failed else 0
 
 
+# -- selection, evaluation, models -------------------------------------------------------------------
+
+ALL = "all"
+
+
+def _space_for(args: argparse.Namespace):
+    """The feature space of ``--features CSV`` if given, else of the database (from its feature cache)."""
+    from features import FeatureSpace
+
+    if args.features:
+        return FeatureSpace.from_csv(args.features)
+    space = feature_space(_open_db(args), args.workers)
+    for scan_id, reason in space.failed:
+        print(f"texplorer: warning: {scan_id} left out: {reason}", file=sys.stderr)
+    return space
+
+
+def _choices(values: list[str], every: Sequence[str]) -> list[str]:
+    return list(every) if ALL in values else values
+
+
+def cmd_select(args: argparse.Namespace) -> int:
+    from features.selection import select_features
+
+    space = _space_for(args)
+    print(select_features(space, args.level, args.n, args.max_corr).format(args.top))
+    return 0
+
+
+def run_evaluation(space, args: argparse.Namespace) -> list:
+    """Evaluate the grid asked for on the command line; print the table; write the HTML report if asked."""
+    from taxonomy.evaluation import CLASSIFIERS, DEFAULT_FEATURE_SETS, evaluate_grid
+    from taxonomy.labels import LEVELS
+    from taxonomy.report import format_table, write_report
+
+    classifiers = _choices(args.classifier, list(CLASSIFIERS))
+    levels = _choices(args.level, LEVELS)
+    sets = None if ALL in args.feature_set else {name: DEFAULT_FEATURE_SETS[name] for name in args.feature_set}
+    started = time.perf_counter()
+    reports = evaluate_grid(space, classifiers, levels, args.n, sets, folds=args.folds, seed=args.seed,
+                            protocol=args.protocol, workers=args.workers, progress=True)
+    print(format_table(reports))
+    print(f"{len(reports)} evaluations ({args.protocol} protocol, {args.folds} folds) "
+          f"in {time.perf_counter() - started:.1f} s")
+    for warning in sorted({w.strip().splitlines()[0] for report in reports for w in report.warnings if w.strip()}):
+        print(f"texplorer: warning: {warning}", file=sys.stderr)
+    if args.report:
+        print(f"report: {write_report(args.report, space, reports)}")
+    return reports
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    run_evaluation(_space_for(args), args)
+    return 0
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from taxonomy.models import save_model, train_model
+
+    model = train_model(_space_for(args), args.level, args.n, args.classifier, args.seed)
+    save_model(model, args.out)
+    print(model.describe())
+    print(f"wrote {args.out}")
+    return 0
+
+
+def cmd_classify(args: argparse.Namespace) -> int:
+    from features import extract
+    from scanner.matfile import load_scan
+    from taxonomy.models import format_predictions, load_model, predict_top
+    from taxonomy.table import load_taxonomy
+
+    model = load_model(args.model)
+    scan = load_scan(args.scan)
+    print(f"{scan.scan_id} ({scan.meta.label} recorded) with {model.describe()}")
+    print(format_predictions(predict_top(model, extract(scan), args.k), load_taxonomy()))
+    return 0
+
+
 # -- demo --------------------------------------------------------------------------------------------
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -157,6 +236,15 @@ def cmd_demo(args: argparse.Namespace) -> int:
     space = feature_space(db, args.workers)
     _report_space(space, time.perf_counter() - started)
     print(f"wrote {space.to_csv(db.root / 'features.csv')}")
+    if args.no_evaluation:
+        return 0
+    args.report = args.report or db.root / "report"
+    run_evaluation(space, args)
+    from taxonomy.models import save_model, train_model
+
+    model = train_model(space, "fine", 10, "rf", args.seed)
+    path = save_model(model, db.root / "models" / "rf-fine-X10.skops")
+    print(f"model: {path} ({model.describe()})")
     return 0
 
 
@@ -169,6 +257,34 @@ def _add_db_option(parser: argparse.ArgumentParser) -> None:
                         help="show tracebacks on errors")
 
 
+LEVELS = ("coarse", "medium", "fine")
+CLASSIFIER_NAMES = ("svm", "lda", "knn", "mlp", "rf", "nb")
+FEATURE_SETS = ("tactum", "image", "audio", "other")
+
+
+def _add_space_options(parser: argparse.ArgumentParser) -> None:
+    _add_db_option(parser)
+    parser.add_argument("--features", type=Path, help="feature table CSV (default: extract from the database, "
+                        "using its feature cache)")
+    parser.add_argument("--workers", type=int, help="processes (default: number of cores)")
+
+
+def _add_evaluation_options(parser: argparse.ArgumentParser, report_default: str | None, seed: bool = True) -> None:
+    parser.add_argument("--classifier", nargs="+", choices=(*CLASSIFIER_NAMES, ALL), default=[ALL],
+                        help="classifiers (default all)")
+    parser.add_argument("--level", nargs="+", choices=(*LEVELS, ALL), default=[ALL], help="levels (default all)")
+    parser.add_argument("--n", nargs="+", type=int, default=[3, 10], help="selected set sizes (default 3 10)")
+    parser.add_argument("--feature-set", nargs="+", choices=(*FEATURE_SETS, ALL), default=[ALL],
+                        help="feature sets: one modality each, or all = every modality and all 193 (default)")
+    parser.add_argument("--protocol", choices=("nested", "paper"), default="nested",
+                        help="nested (default): scaling and selection inside the folds; paper: on all data first")
+    parser.add_argument("--folds", type=int, default=5, help="cross-validation folds (default 5)")
+    if seed:
+        parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    default = f" (default {report_default})" if report_default else ""
+    parser.add_argument("--report", type=Path, default=None, help=f"write the HTML report into this folder{default}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="texplorer", description="Multimodal material scanner: acquisition, "
                                      "database, features and classification.")
@@ -177,13 +293,17 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     demo = commands.add_parser("demo", help="build a synthetic database from the simulated scanner and summarise it",
-                               description="Simulated scanner -> database (later: features -> evaluation).")
+                               description="Simulated scanner -> database -> 193 features -> "
+                               "cross-validated evaluation (table + HTML report) -> a trained random forest.")
     _add_db_option(demo)
     demo.add_argument("--materials", nargs="+", metavar="SLUG", help="material slugs (default: whole library)")
     demo.add_argument("--scans", type=int, default=5, help="scans per material (default 5)")
     demo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     demo.add_argument("--image-size", type=int, default=512, help="photo size in pixels (default 512)")
-    demo.add_argument("--workers", type=int, help="feature extraction processes (default: number of cores)")
+    demo.add_argument("--workers", type=int, help="processes for simulation, features and evaluation "
+                      "(default: number of cores)")
+    demo.add_argument("--no-evaluation", action="store_true", help="stop after the feature table")
+    _add_evaluation_options(demo, report_default="<db>/report", seed=False)
     demo.set_defaults(handler=cmd_demo)
 
     features = commands.add_parser("features", help="extract the 193 features of every scan into a feature table",
@@ -195,6 +315,43 @@ def build_parser() -> argparse.ArgumentParser:
     features.add_argument("--mat", type=Path, help="also write the feature space as a .mat file")
     features.add_argument("--label", help="only scans with this label or class prefix")
     features.set_defaults(handler=cmd_features)
+
+    select = commands.add_parser("select", help="print the FQ ranking and the selected feature set",
+                                 description="Feature quality (Kruskal-Wallis + Tukey-Kramer) ranking and the "
+                                 "FQ + Spearman selection on all scans.")
+    _add_space_options(select)
+    select.add_argument("--level", choices=LEVELS, default="fine", help="classification level (default fine)")
+    select.add_argument("--n", type=int, default=10, help="features to select (default 10)")
+    select.add_argument("--max-corr", type=float, default=0.5, help="Spearman limit (default 0.5)")
+    select.add_argument("--top", type=int, default=20, help="rows of the FQ ranking to print (default 20)")
+    select.set_defaults(handler=cmd_select)
+
+    evaluate = commands.add_parser("evaluate", help="cross-validate classifiers x feature sets x levels; "
+                                   "table and HTML report", description="Cross-validated accuracy, macro F1 and "
+                                   "r_C of classifiers x feature sets x levels x set sizes.")
+    _add_space_options(evaluate)
+    _add_evaluation_options(evaluate, report_default=None)
+    evaluate.set_defaults(handler=cmd_evaluate)
+
+    train = commands.add_parser("train", help="train a classifier on all scans and save it (skops)",
+                                description="Fit scaler -> FQ selector -> classifier on every scan and save "
+                                "the model in a format that cannot execute code when loaded.")
+    _add_space_options(train)
+    train.add_argument("--out", type=Path, required=True, help="model file (.skops)")
+    train.add_argument("--level", choices=LEVELS, default="fine", help="classification level (default fine)")
+    train.add_argument("--n", type=int, default=10, help="selected features (default 10)")
+    train.add_argument("--classifier", choices=CLASSIFIER_NAMES, default="rf", help="classifier (default rf)")
+    train.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    train.set_defaults(handler=cmd_train)
+
+    classify = commands.add_parser("classify", help="predict the material of a stored scan (.mat)",
+                                   description="Extract the features of SCAN.mat and print the most probable "
+                                   "labels with a trained model.")
+    classify.add_argument("scan", type=Path, help="scan file (.mat)")
+    classify.add_argument("--model", type=Path, required=True, help="model file written by 'texplorer train'")
+    classify.add_argument("--k", type=int, default=3, help="how many labels to print (default 3)")
+    classify.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
+    classify.set_defaults(handler=cmd_classify)
 
     db = commands.add_parser("db", help="inspect and repair the database", description="Inspect and repair the "
                              "scan database (catalog.sqlite + .mat files).")
