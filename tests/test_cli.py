@@ -77,3 +77,49 @@ def test_help_everywhere(argv, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(argv)
     assert exit_info.value.code == 0 and "usage: texplorer" in capsys.readouterr().out
+
+
+@pytest.fixture(scope="module")
+def demo_db(tmp_path_factory):
+    """A small synthetic database with features, evaluation and a model, built by 'texplorer demo'."""
+    root = tmp_path_factory.mktemp("demo") / "db"
+    code = main(["demo", "--db", str(root), "--scans", "3", "--image-size", "320", "--materials",
+                 "polyurethane-foam", "mild-steel-brushed", "float-glass", "--classifier", "rf", "nb",
+                 "--level", "coarse", "fine", "--feature-set", "tactum", "--folds", "3", "--workers", "2"])
+    assert code == 0
+    return root
+
+
+def test_demo_runs_the_whole_chain(demo_db):
+    assert len(Database(demo_db, create=False)) == 9
+    assert (demo_db / "features.csv").is_file()
+    assert (demo_db / "report" / "index.html").is_file() and (demo_db / "report" / "fq_ranking.png").is_file()
+    assert (demo_db / "models" / "rf-fine-X10.skops").is_file()
+
+
+def test_select_evaluate_train_classify(demo_db, tmp_path, capsys):
+    capsys.readouterr()
+    assert main(["select", "--db", str(demo_db), "--n", "3", "--top", "5"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("feature quality at level fine (193 features, top 5):")
+    assert "selected (|Spearman rho| < 0.5, n = 3): " in out
+    assert main(["evaluate", "--db", str(demo_db), "--features", str(demo_db / "features.csv"),
+                 "--classifier", "lda", "--level", "coarse", "--n", "3", "--feature-set", "other",
+                 "--folds", "3", "--report", str(tmp_path / "r")]) == 0
+    out = capsys.readouterr().out
+    assert "lda" in out and "other" in out and (tmp_path / "r" / "index.html").is_file()
+    model = tmp_path / "m.skops"
+    assert main(["train", "--db", str(demo_db), "--out", str(model), "--level", "coarse", "--n", "3"]) == 0
+    scan = next(demo_db.glob("scans/C3*/*/*-001.mat"))
+    capsys.readouterr()
+    assert main(["classify", str(scan), "--model", str(model), "--k", "2"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[1].split()[:2] == ["1.", "C3"]
+
+
+def test_classify_refuses_a_foreign_model(demo_db, tmp_path, capsys):
+    (tmp_path / "evil.skops").write_bytes(b"PK\x03\x04 not really a model")
+    scan = next(demo_db.glob("scans/C3*/*/*-001.mat"))
+    assert main(["classify", str(scan), "--model", str(tmp_path / "evil.skops")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("texplorer: error: ") and "evil.skops" in err and len(err.strip().splitlines()) == 1
