@@ -46,6 +46,7 @@ def test_compute_gives_31_finite_values_equal_to_the_single_features():
     gray = grayscale(cropped)
     assert values["color"] == image.color(cropped)
     assert values["brightness"] == image.brightness(gray)
+    assert (values["dft_80"], values["dft_85"]) == image.dft_peak_means(gray)
     assert values["tamura_contrast"] == image.tamura_contrast(gray)
     assert values["tamura_coarseness"] == image.tamura_coarseness(gray)
     assert [values[f"haralick_{i:02d}"] for i in range(1, 15)] == image.haralick(gray).tolist()
