@@ -36,6 +36,9 @@ NAMES: tuple[str, ...] = (
 )
 """The 193 feature names in SPEC order."""
 
+MIN_PHOTO_SIDE = 2 * IMAGE_BORDER_PX + 2 * 2**image.TAMURA_KMAX
+"""Smallest photo side with image features: the crop plus Tamura's largest pair of windows (264 px)."""
+
 _CODE_FILES = ("features/tactum.py", "features/image.py", "features/audio.py", "features/other.py",
                "features/extraction.py", "scanner/preprocess.py")
 
@@ -63,9 +66,9 @@ def image_features(scan: Scan) -> dict[str, float]:
         if photo is None:
             warnings.warn(f"scan {scan.scan_id}: no photo {variable}; its image features are NaN", stacklevel=2)
             values.update(_nan(names))
-        elif min(photo.shape[:2]) <= 2 * IMAGE_BORDER_PX:
-            warnings.warn(f"scan {scan.scan_id}: photo {variable} of {photo.shape[1]}x{photo.shape[0]} px is too "
-                          f"small to crop {IMAGE_BORDER_PX} px borders; its image features are NaN", stacklevel=2)
+        elif min(photo.shape[:2]) < MIN_PHOTO_SIDE:
+            warnings.warn(f"scan {scan.scan_id}: photo {variable} of {photo.shape[1]}x{photo.shape[0]} px is smaller "
+                          f"than {MIN_PHOTO_SIDE} px; its image features are NaN", stacklevel=2)
             values.update(_nan(names))
         else:
             computed = image.compute(photo)

@@ -111,3 +111,12 @@ def test_extract_many_accepts_plain_scans_in_process():
     space = extract_many([foam()], workers=1, progress=False)
     assert space.columns == NAMES and space.label_text == (foam().meta.label,)
     assert space.groups == (foam().meta.sample_id,)
+
+
+def test_a_photo_too_small_for_image_features_gives_nan_not_an_error():
+    scan = synthetic_scan("float-glass", seed=2, image_size=(263, 400))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        values = extract(scan)
+    assert all(math.isnan(values[n]) for n in NAMES if n.startswith("image."))
+    assert any("smaller than 264 px" in str(w.message) for w in caught)
