@@ -6,6 +6,8 @@ Layout::
                                                    files (SHA-256 of every stored file), feature cache
     <root>/scans/<label>/<sample>/<scan_id>.mat    one scan, MATLAB v5
     <root>/scans/<label>/<sample>/<scan_id>_disp.png  ... its photos
+    <root>/taxonomy.csv                            optional taxonomy extension: material codes this database
+                                                   uses beyond the shipped table (e.g. added by an import)
 
 The files are the truth; the catalog is an index that :meth:`Database.rebuild` recreates from them.
 
@@ -14,7 +16,8 @@ the same scan's files), every file is written atomically (temp file + fsync + re
 the catalog rows inserted and committed in one transaction. A process killed at any moment leaves either
 no trace, a leftover temp file, or complete files without a catalog row (reported as "unknown" by
 :meth:`check` and overwritten by the next add of that scan); never a row pointing to a missing or partial
-file, and never a change to earlier scans.
+file, and never a change to earlier scans. :meth:`Database.add_written` (import) moves complete files
+into place under the same lock and catalogs a whole batch in one transaction, with the same guarantees.
 """
 
 from __future__ import annotations
@@ -26,17 +29,22 @@ import math
 import os
 import sqlite3
 import threading
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from scanner.files import is_temp_file, sha256_file
-from scanner.matfile import ScanFormatError, load_scan, save_scan, scan_files
-from scanner.scan import IMAGES, Scan, check_sample_id
+from scanner.files import fsync_dir, is_temp_file, sha256_file
+from scanner.matfile import ScanFormatError, load_scan, photo_file_name, save_scan, scan_files
+from scanner.scan import IMAGES, Scan, ScanMeta, check_sample_id
+
+if TYPE_CHECKING:
+    from taxonomy.table import Taxonomy
 
 CATALOG = "catalog.sqlite"
 SCANS = "scans"
+TAXONOMY = "taxonomy.csv"
 CATALOG_SCHEMA = 1
 
 _SCHEMA = """
@@ -145,7 +153,8 @@ def content_hash(entries: Iterable[FileEntry]) -> str:
     return digest.hexdigest()
 
 
-def _roles(mat_path: Path, scan: Scan) -> list[tuple[Path, str]]:
+def file_roles(mat_path: Path, scan: Scan) -> list[tuple[Path, str]]:
+    """``(path, role)`` of each file of ``scan`` stored at ``mat_path``: role ``"mat"`` or a photo variable."""
     photos = {mat_path.with_name(f"{mat_path.stem}_{short}.png"): var for var, short in IMAGES.items()}
     return [(path, photos.get(path, "mat")) for path in scan_files(mat_path, scan)]
 
@@ -243,35 +252,83 @@ class Database:
         """
         mat_path = self.scan_path(scan)
         with self._transaction() as conn:
-            if conn.execute("SELECT 1 FROM scans WHERE scan_id = ?", (scan.scan_id,)).fetchone():
-                raise DatabaseError(f"scan {scan.scan_id} is already in the database; "
-                                    "a new scan of this sample needs a new scan index")
-            row = conn.execute("SELECT label FROM samples WHERE sample_id = ?", (scan.meta.sample_id,)).fetchone()
-            if row and row[0] != scan.meta.label:
-                raise DatabaseError(f"sample {scan.meta.sample_id} is {row[0]} in the database, "
-                                    f"not {scan.meta.label}")
+            _refuse_clash(conn, scan.meta)
             save_scan(scan, mat_path)
-            entries = [FileEntry(self._relative(path), role, sha256_file(path), path.stat().st_size)
-                       for path, role in _roles(mat_path, scan)]
-            self._insert(conn, scan, entries)
+            self._insert(conn, scan, self._entries(file_roles(mat_path, scan)))
         return scan.scan_id
 
+    def add_written(self, staged: Sequence[tuple[ScanMeta, Mapping[str, Path]]]) -> list[str]:
+        """Catalog scans whose files are already complete on this file system, all in one transaction.
+
+        For import, which keeps another lab's bytes exactly. ``staged`` pairs each scan's meta with its files
+        by role (``"mat"`` and photo variables such as ``"I_disp"``), written and fsync'ed, named as
+        :func:`save_scan` names them. Under the write lock every scan is first checked as in :meth:`add`,
+        also against the others of the batch (nothing is moved if one fails); then each scan's files are
+        moved into place with ``os.replace`` (photos first, the ``.mat`` last) and all rows are committed
+        together. A crash leaves the catalog as it was and, at worst, complete uncatalogued files that
+        :meth:`check` reports as unknown and the next add of their scan overwrites. Returns the scan ids.
+        """
+        with self._transaction() as conn:
+            samples: dict[str, str] = {}
+            ids: set[str] = set()
+            for meta, files in staged:
+                if meta.scan_id in ids:
+                    raise DatabaseError(f"scan {meta.scan_id} is staged twice")
+                _refuse_clash(conn, meta, samples)
+                _check_staged_names(meta, files)
+                samples[meta.sample_id] = meta.label
+                ids.add(meta.scan_id)
+            moved = [(meta, self._move_into_place(meta, files)) for meta, files in staged]
+            for meta, placed in moved:
+                self._insert_meta(conn, meta, self._entries(placed))
+        return [meta.scan_id for meta, _ in staged]
+
+    def _move_into_place(self, meta: ScanMeta, files: Mapping[str, Path]) -> list[tuple[Path, str]]:
+        folder = self.root / SCANS / meta.label / check_sample_id(meta.sample_id)
+        folder.mkdir(parents=True, exist_ok=True)
+        placed = []
+        for role in sorted(files, key=lambda r: r == "mat"):
+            target = folder / files[role].name
+            os.replace(files[role], target)
+            placed.append((target, role))
+        fsync_dir(folder)
+        return placed
+
+    def _entries(self, files: Iterable[tuple[Path, str]]) -> list[FileEntry]:
+        return [FileEntry(self._relative(path), role, sha256_file(path), path.stat().st_size)
+                for path, role in files]
+
     def _insert(self, conn: sqlite3.Connection, scan: Scan, entries: list[FileEntry]) -> None:
-        meta = scan.meta
+        self._insert_meta(conn, scan.meta, entries)
+
+    def _insert_meta(self, conn: sqlite3.Connection, meta: ScanMeta, entries: list[FileEntry]) -> None:
         mat = next(e for e in entries if e.role == "mat")
         conn.execute("INSERT OR IGNORE INTO materials VALUES (?)", (meta.label,))
         conn.execute("INSERT OR IGNORE INTO samples VALUES (?, ?)", (meta.sample_id, meta.label))
         conn.execute("INSERT OR IGNORE INTO sessions VALUES (?, ?, ?)",
                      (meta.session_id, meta.operator, meta.started))
         conn.execute("INSERT INTO scans VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                     (scan.scan_id, meta.label, meta.sample_id, meta.session_id, meta.operator,
+                     (meta.scan_id, meta.label, meta.sample_id, meta.session_id, meta.operator,
                       meta.scan_index, meta.started, int(meta.rigid), mat.path, content_hash(entries),
                       datetime.now(UTC).isoformat(timespec="seconds")))
         conn.executemany("INSERT INTO files VALUES (?, ?, ?, ?, ?)",
-                         [(e.path, scan.scan_id, e.role, e.sha256, e.size) for e in entries])
+                         [(e.path, meta.scan_id, e.role, e.sha256, e.size) for e in entries])
 
     def _relative(self, path: Path) -> str:
         return path.relative_to(self.root).as_posix()
+
+    # -- taxonomy ----------------------------------------------------------------------------------
+
+    @property
+    def taxonomy_path(self) -> Path:
+        """``<root>/taxonomy.csv``: this database's taxonomy extension (absent until a lab code is needed)."""
+        return self.root / TAXONOMY
+
+    def taxonomy(self) -> Taxonomy:
+        """The shipped taxonomy merged with ``$TEXPLORER_TAXONOMY`` and this database's extension, if any."""
+        from taxonomy.table import load_taxonomy
+
+        return load_taxonomy(self.taxonomy_path if self.taxonomy_path.is_file() else None)
 
     # -- reading -----------------------------------------------------------------------------------
 
@@ -377,7 +434,7 @@ class Database:
                 continue
             seen[scan.scan_id] = relative
             entries = [FileEntry(self._relative(p), role, sha256_file(p), p.stat().st_size)
-                       for p, role in _roles(mat_path, scan)]
+                       for p, role in file_roles(mat_path, scan)]
             found.append((scan, entries))
         with self._transaction() as conn:
             for table in ("files", "scans", "sessions", "samples", "materials"):
@@ -405,6 +462,28 @@ class Database:
             if broken.exists():
                 os.replace(broken, self.root / f"{CATALOG}{suffix}.broken-{stamp}")
         self._create_schema()
+
+
+def _refuse_clash(conn: sqlite3.Connection, meta: ScanMeta, batch: Mapping[str, str] | None = None) -> None:
+    """Refuse a stored scan id and a sample id that belongs to another material (here or in ``batch``)."""
+    batch = batch or {}
+    if conn.execute("SELECT 1 FROM scans WHERE scan_id = ?", (meta.scan_id,)).fetchone():
+        raise DatabaseError(f"scan {meta.scan_id} is already in the database; "
+                            "a new scan of this sample needs a new scan index")
+    row = conn.execute("SELECT label FROM samples WHERE sample_id = ?", (meta.sample_id,)).fetchone()
+    known = row[0] if row else batch.get(meta.sample_id)
+    if known is not None and known != meta.label:
+        raise DatabaseError(f"sample {meta.sample_id} is {known} in the database, not {meta.label}")
+
+
+def _check_staged_names(meta: ScanMeta, files: Mapping[str, Path]) -> None:
+    mat_path = Path(f"{meta.scan_id}.mat")
+    expected = {"mat": mat_path.name, **{var: photo_file_name(mat_path, var) for var in IMAGES}}
+    for role, path in files.items():
+        if expected.get(role) != path.name:
+            raise DatabaseError(f"scan {meta.scan_id}: staged file {path.name} cannot have role {role!r}")
+    if "mat" not in files:
+        raise DatabaseError(f"scan {meta.scan_id}: no staged .mat file")
 
 
 _NEXT_PART = {"C": "S", "S": "M", "M": "P", "P": "X"}
