@@ -1,0 +1,781 @@
+"""Export bundles for other labs, and their import into a database (SPEC section 11).
+
+A bundle is a folder, or a ``.zip`` file holding the same tree at its root::
+
+    README.md                  how to load scans and features in MATLAB/Octave or Python, without texplorer
+    load_texplorer.m           MATLAB/Octave loader (plain ``load``)
+    load_texplorer.py          Python loader (numpy + scipy only)
+    manifest.json              format and schema versions, software version, creation time, filters, counts,
+                               calibrations used, the scans, and the SHA-256 and size of every other file
+    manifest.json.sha256       SHA-256 of manifest.json (``sha256sum`` format), so the manifest is checked too
+    features.csv, features.mat the feature space of the exported scans (SPEC 8, ``features.space``)
+    taxonomy.csv               the exporting database's taxonomy: shipped table plus its extensions
+    scans/<label>/<sample>/<scan_id>.mat, <scan_id>_disp.png, ...   the files exactly as in the database
+
+Export writes the whole bundle under a temporary name beside the target (``.<name>.tmp-<hex>``, a folder
+or a zip file) and renames it when complete, so a bundle that exists is whole; scan files are copied with
+their SHA-256 checked against the catalog on the way.
+
+Import works in two phases. **Verify** touches nothing the database uses: every file of the bundle is
+copied into a staging folder ``<db>/.import.tmp-<hex>`` (on the database's file system, so the files can
+later be moved, not copied) while its size and SHA-256 are checked against the manifest; the manifest is
+checked against ``manifest.json.sha256`` and its schema; every scan is loaded and validated and must match
+its manifest entry and path; the taxonomy must parse. Any problem refuses the whole bundle with the list of
+problems. Member names that are absolute, contain ``..``, backslashes or drive letters, and symbolic
+links, are refused before anything is extracted. **Merge** then skips scans already stored with the same
+content, reports a scan id stored with other content, a sample stored under another label and a taxonomy
+code named differently here as conflicts (nothing is overwritten), appends the codes of new materials to
+the database's taxonomy extension ``<db>/taxonomy.csv`` and catalogs all new scans in one transaction
+(:meth:`scanner.database.Database.add_written`). A process killed during import leaves the catalog as it
+was; at worst a staging folder and complete but uncatalogued files remain (``texplorer db check`` lists
+those as unknown; importing again replaces them).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import hashlib
+import io
+import json
+import math
+import os
+import re
+import shutil
+import stat
+import tempfile
+import time
+import zipfile
+import zlib
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import IO, Any
+
+import scipy.io
+
+import scanner
+from scanner.database import Database, FileEntry, ScanRecord, content_hash
+from scanner.files import atomic_write_bytes, fsync_dir, temp_path_for
+from scanner.matfile import ScanFormatError, load_scan, photo_file_name
+from scanner.scan import IMAGES, SCHEMA_VERSION, ScanMeta
+
+BUNDLE_FORMAT = "texplorer-bundle"
+BUNDLE_SCHEMA = 1
+MANIFEST = "manifest.json"
+MANIFEST_SUM = "manifest.json.sha256"
+README = "README.md"
+LOADERS = ("load_texplorer.m", "load_texplorer.py")
+FEATURES_CSV = "features.csv"
+FEATURES_MAT = "features.mat"
+TAXONOMY_CSV = "taxonomy.csv"
+REQUIRED_FILES = (README, *LOADERS, FEATURES_CSV, FEATURES_MAT, TAXONOMY_CSV)
+"""Files every bundle lists in its manifest besides the scans."""
+
+MAX_MANIFEST_BYTES = 64 << 20
+"""A manifest larger than this is refused unread (about 300,000 scans' worth)."""
+
+_DATA = Path(__file__).with_name("data")
+_STORED = (".mat", ".png", ".jpg", ".jpeg", ".zip")
+"""Already compressed: kept as they are inside a zip bundle, everything else is deflated."""
+_CHUNK = 1 << 20
+_LINK = "a symbolic link (refused: it could point outside the bundle)"
+_HEX64 = re.compile(r"[0-9a-f]{64}")
+_DRIVE = re.compile(r"^[A-Za-z]:")
+_SCAN_FIELDS: dict[str, type] = {"scan_id": str, "label": str, "sample_id": str, "session_id": str,
+                                 "operator": str, "scan_index": int, "started": str, "rigid": bool,
+                                 "content_hash": str, "files": dict}
+
+Progress = Callable[[Iterable], Iterable]
+
+
+class BundleError(ValueError):
+    """A bundle cannot be written or is refused; ``problems`` lists every reason found, one line each."""
+
+    def __init__(self, message: str, problems: Sequence[str] = ()) -> None:
+        super().__init__(message)
+        self.problems = list(problems)
+
+
+@dataclass(frozen=True)
+class ExportReport:
+    """What :func:`export_bundle` wrote."""
+
+    path: Path
+    scans: int
+    files: int
+    bytes: int
+    seconds: float
+    feature_failures: tuple[tuple[str, str], ...] = ()
+
+
+@dataclass
+class ImportReport:
+    """What :func:`import_bundle` did; ``conflicts`` are ``"<scan_id>: <reason>"`` lines."""
+
+    bundle: Path
+    added: list[str] = field(default_factory=list)
+    identical: list[str] = field(default_factory=list)
+    conflicts: list[str] = field(default_factory=list)
+    taxonomy_added: list[str] = field(default_factory=list)
+    unknown_labels: list[str] = field(default_factory=list)
+    """Labels of added scans that neither this database's nor the bundle's taxonomy names."""
+    bytes: int = 0
+    seconds: float = 0.0
+
+
+# -- export ------------------------------------------------------------------------------------------
+
+def export_bundle(db: Database, out: str | os.PathLike[str], *, label: str | None = None,
+                  session: str | None = None, workers: int | None = None,
+                  progress: Progress = iter) -> ExportReport:
+    """Write the scans of ``db`` (optionally only a label or class prefix, or one session) as a bundle.
+
+    ``out`` ending in ``.zip`` gives a zip file, anything else a folder; it must not exist yet. Features
+    come from the database's feature cache where possible (``workers`` processes extract the rest).
+
+    Raises
+    ------
+    BundleError
+        ``out`` exists, no scan matches the filters, or a database file no longer matches its catalog
+        SHA-256 (run ``texplorer db check``). Nothing is left at ``out`` then.
+    """
+    started = time.perf_counter()
+    out = Path(out)
+    if out.exists():
+        raise BundleError(f"{out} already exists; export to a new name")
+    records = sorted(db.records(label=label, session=session), key=lambda r: (r.started, r.scan_id))
+    if not records:
+        raise BundleError(f"{db.root}: no scans{_filter_text(label, session)} to export")
+    space = _feature_space(db, records, workers)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    created = datetime.now(UTC).replace(microsecond=0)
+    writer = _ZipWriter(out, created) if out.suffix.lower() == ".zip" else _FolderWriter(out)
+    try:
+        files, scans = {}, []
+        for record in progress(records):
+            entries = db.files(record.scan_id)
+            for entry in entries:
+                files[entry.path] = _copy_checked(db, entry, writer)
+            scans.append(_scan_entry(record, entries))
+        for name, data in _generated_files(db, space).items():
+            files[name] = writer.add(name, io.BytesIO(data))
+        manifest = _manifest(db, records, scans, files, space, created, label, session)
+        manifest_bytes = json.dumps(manifest, indent=1, allow_nan=False).encode("utf-8") + b"\n"
+        writer.add(MANIFEST, io.BytesIO(manifest_bytes))
+        writer.add(MANIFEST_SUM, io.BytesIO(_manifest_sum(manifest_bytes)))
+        writer.commit()
+    except BaseException:
+        writer.discard()
+        raise
+    size = sum(f["size"] for f in files.values()) + len(manifest_bytes) + len(_manifest_sum(manifest_bytes))
+    return ExportReport(out, len(records), len(files) + 2, size, time.perf_counter() - started, space.failed)
+
+
+def _filter_text(label: str | None, session: str | None) -> str:
+    parts = [text for text in (label and f"label {label}", session and f"session {session}") if text]
+    return f" with {' and '.join(parts)}" if parts else ""
+
+
+def _feature_space(db: Database, records: Sequence[ScanRecord], workers: int | None):
+    """The feature space of ``records``, from the feature cache where possible (as ``texplorer features``)."""
+    import functools
+
+    from features import ScanSource, extract_many
+
+    sources = [ScanSource(r.scan_id, r.label, r.sample_id, functools.partial(load_scan, db.root / r.path),
+                          cache_key=r.content_hash) for r in records]
+    return extract_many(sources, workers=workers, cache=db)
+
+
+def _copy_checked(db: Database, entry: FileEntry, writer: _FolderWriter | _ZipWriter) -> dict[str, Any]:
+    with open(db.root / entry.path, "rb") as source:
+        written = writer.add(entry.path, source, entry.size)
+    if written["sha256"] != entry.sha256:
+        raise BundleError(f"{db.root / entry.path}: differs from the catalog's SHA-256 (changed since it was "
+                          "stored); run 'texplorer db check'")
+    return written
+
+
+def _scan_entry(record: ScanRecord, entries: Sequence[FileEntry]) -> dict[str, Any]:
+    return {"scan_id": record.scan_id, "label": record.label, "sample_id": record.sample_id,
+            "session_id": record.session_id, "operator": record.operator, "scan_index": record.scan_index,
+            "started": record.started, "rigid": record.rigid, "content_hash": record.content_hash,
+            "files": {entry.role: entry.path for entry in entries}}
+
+
+def _generated_files(db: Database, space) -> dict[str, bytes]:
+    """Feature tables, taxonomy, README and loaders as bytes (the writers do the atomic part)."""
+    with tempfile.TemporaryDirectory(prefix="texplorer-export-") as scratch:
+        folder = Path(scratch)
+        space.to_csv(folder / FEATURES_CSV)
+        space.to_mat(folder / FEATURES_MAT)
+        db.taxonomy().to_csv(folder / TAXONOMY_CSV)
+        generated = {name: (folder / name).read_bytes()
+                     for name in (FEATURES_CSV, FEATURES_MAT, TAXONOMY_CSV)}
+    generated[README] = (_DATA / "bundle_readme.md").read_bytes()
+    generated.update({name: (_DATA / name).read_bytes() for name in LOADERS})
+    return generated
+
+
+def _calibrations(db: Database, records: Sequence[ScanRecord]) -> list[dict[str, Any]]:
+    """Distinct ``meta.calibration`` structs of the scans, each with the scans that used it.
+
+    Read from the ``meta`` variable alone (scipy skips the compressed traces), so export stays fast.
+    """
+    groups: dict[str, dict[str, Any]] = {}
+    for record in records:
+        meta = scipy.io.loadmat(db.root / record.path, variable_names=["meta"], simplify_cells=True)["meta"]
+        calibration = meta.get("calibration")
+        values = {k: _json_number(v) for k, v in calibration.items()} if isinstance(calibration, dict) else {}
+        key = json.dumps(values, sort_keys=True)
+        groups.setdefault(key, {"values": values, "scans": []})["scans"].append(record.scan_id)
+    return list(groups.values())
+
+
+def _json_number(value: Any) -> float | None:
+    number = float(value)
+    return None if math.isnan(number) else number
+
+
+def _manifest(db: Database, records: Sequence[ScanRecord], scans: list[dict[str, Any]],
+              files: Mapping[str, dict[str, Any]], space, created: datetime, label: str | None,
+              session: str | None) -> dict[str, Any]:
+    from features import code_version
+
+    return {
+        "format": BUNDLE_FORMAT,
+        "bundle_schema": BUNDLE_SCHEMA,
+        "scan_schema": SCHEMA_VERSION,
+        "software_version": scanner.__version__,
+        "feature_code_version": code_version(),
+        "created": created.isoformat(),
+        "filters": {"label": label, "session": session},
+        "counts": {"scans": len(records), "materials": len({r.label for r in records}),
+                   "samples": len({r.sample_id for r in records}),
+                   "sessions": len({r.session_id for r in records}),
+                   "operators": len({r.operator for r in records}), "files": len(files),
+                   "bytes": sum(f["size"] for f in files.values()), "feature_rows": len(space),
+                   "feature_columns": len(space.columns)},
+        "calibrations": _calibrations(db, records),
+        "feature_failures": [{"scan_id": scan_id, "reason": reason} for scan_id, reason in space.failed],
+        "scans": scans,
+        "files": dict(sorted(files.items())),
+    }
+
+
+def _manifest_sum(manifest: bytes) -> bytes:
+    return f"{hashlib.sha256(manifest).hexdigest()}  {MANIFEST}\n".encode("ascii")
+
+
+def _copy(source: IO[bytes], target: IO[bytes]) -> dict[str, Any]:
+    digest, size = hashlib.sha256(), 0
+    while block := source.read(_CHUNK):
+        digest.update(block)
+        target.write(block)
+        size += len(block)
+    return {"sha256": digest.hexdigest(), "size": size}
+
+
+class _FolderWriter:
+    """Builds a folder bundle in ``.<name>.tmp-<hex>`` beside the target; :meth:`commit` renames it."""
+
+    def __init__(self, target: Path) -> None:
+        self.target = target
+        self.temp = temp_path_for(target)
+        self.temp.mkdir()
+
+    def add(self, name: str, source: IO[bytes], size: int = 0) -> dict[str, Any]:
+        path = self.temp.joinpath(*name.split("/"))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "xb") as target:
+            written = _copy(source, target)
+            target.flush()
+            os.fsync(target.fileno())
+        return written
+
+    def commit(self) -> None:
+        for folder, _, _ in os.walk(self.temp):
+            fsync_dir(Path(folder))
+        os.rename(self.temp, self.target)
+        fsync_dir(self.target.parent)
+
+    def discard(self) -> None:
+        shutil.rmtree(self.temp, ignore_errors=True)
+
+
+class _ZipWriter:
+    """Builds a zip bundle in ``.<name>.tmp-<hex>`` beside the target; :meth:`commit` renames it."""
+
+    def __init__(self, target: Path, created: datetime) -> None:
+        self.target = target
+        self.temp = temp_path_for(target)
+        self.date_time = created.timetuple()[:6]
+        self.archive = zipfile.ZipFile(self.temp, "x", allowZip64=True)
+
+    def add(self, name: str, source: IO[bytes], size: int = 0) -> dict[str, Any]:
+        info = zipfile.ZipInfo(name, self.date_time)
+        info.compress_type = zipfile.ZIP_STORED if name.lower().endswith(_STORED) else zipfile.ZIP_DEFLATED
+        info.external_attr = 0o644 << 16
+        info.file_size = size
+        with self.archive.open(info, "w", force_zip64=size >= zipfile.ZIP64_LIMIT) as target:
+            return _copy(source, target)
+
+    def commit(self) -> None:
+        self.archive.close()
+        with open(self.temp, "rb+") as handle:
+            os.fsync(handle.fileno())
+        os.replace(self.temp, self.target)
+        fsync_dir(self.target.parent)
+
+    def discard(self) -> None:
+        with contextlib.suppress(Exception):
+            self.archive.close()
+        self.temp.unlink(missing_ok=True)
+
+
+# -- reading bundles ---------------------------------------------------------------------------------
+
+def unsafe_name(name: str) -> str | None:
+    """Why ``name`` may not be a bundle member (it could escape the folder it is extracted to), or None.
+
+    A member name is a relative POSIX path: no leading ``/``, drive letter, backslash, ``:``, NUL, empty,
+    ``.`` or ``..`` component.
+    """
+    if not name:
+        return "empty name"
+    if name.startswith("/") or _DRIVE.match(name):
+        return "absolute path"
+    if "\\" in name or ":" in name or "\x00" in name:
+        return "backslash, colon or NUL in the name"
+    if any(part in ("", ".", "..") for part in name.split("/")):
+        return "empty, '.' or '..' path component"
+    return None
+
+
+class _FolderReader:
+    def __init__(self, root: Path) -> None:
+        self.root = root
+
+    def members(self) -> tuple[list[str], list[str]]:
+        names, problems = [], []
+        for folder, dirs, files in os.walk(self.root):
+            for entry in sorted(dirs + files):
+                path = Path(folder) / entry
+                relative = path.relative_to(self.root).as_posix()
+                mode = path.lstat().st_mode
+                if stat.S_ISLNK(mode):
+                    problems.append(f"{relative}: {_LINK}")
+                    dirs[:] = [d for d in dirs if d != entry]
+                elif stat.S_ISREG(mode):
+                    names.append(relative)
+                elif not stat.S_ISDIR(mode):
+                    problems.append(f"{relative}: not a regular file")
+        return names, problems
+
+    def open(self, name: str) -> IO[bytes]:
+        return open(self.root.joinpath(*name.split("/")), "rb")
+
+    def close(self) -> None:
+        pass
+
+
+class _ZipReader:
+    def __init__(self, path: Path) -> None:
+        self.archive = zipfile.ZipFile(path)
+
+    def members(self) -> tuple[list[str], list[str]]:
+        names, problems, seen = [], [], set()
+        for info in self.archive.infolist():
+            reason = unsafe_name(info.filename.rstrip("/") if info.is_dir() else info.filename)
+            if reason:
+                problems.append(f"{info.filename!r}: {reason} (refused: it could write outside the bundle)")
+            elif stat.S_ISLNK(info.external_attr >> 16):
+                problems.append(f"{info.filename}: {_LINK}")
+            elif info.filename in seen:
+                problems.append(f"{info.filename}: stored twice in the zip file")
+            elif not info.is_dir():
+                names.append(info.filename)
+            seen.add(info.filename)
+        return names, problems
+
+    def open(self, name: str) -> IO[bytes]:
+        return self.archive.open(name)
+
+    def close(self) -> None:
+        self.archive.close()
+
+
+def _open_bundle(path: Path) -> _FolderReader | _ZipReader:
+    if path.is_dir():
+        return _FolderReader(path)
+    if not path.is_file():
+        raise BundleError(f"{path}: no such bundle (a folder or .zip file)")
+    try:
+        return _ZipReader(path)
+    except (zipfile.BadZipFile, OSError) as exc:
+        raise BundleError(f"{path}: not a readable zip file ({exc})",
+                          [f"{path.name}: not a readable zip file"]) from None
+
+
+# -- verification ------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class _StagedScan:
+    meta: ScanMeta
+    files: dict[str, str]
+    content_hash: str
+
+
+@dataclass
+class _Verified:
+    manifest: dict[str, Any]
+    scans: list[_StagedScan]
+    taxonomy: dict[str, Any]
+    bytes: int
+
+
+def _refuse(bundle: Path, problems: Sequence[str]) -> BundleError:
+    count = f"{len(problems)} problem{'s' if len(problems) != 1 else ''}"
+    return BundleError(f"{bundle}: refused ({count}, first: {problems[0]}); the database was not changed",
+                       problems)
+
+
+def verify_bundle(bundle: str | os.PathLike[str], staging: str | os.PathLike[str],
+                  progress: Progress = iter) -> _Verified:
+    """Copy every file of ``bundle`` into ``staging`` (an empty folder) and check it completely.
+
+    Raises :class:`BundleError` listing every problem found: unsafe member names or links (nothing is
+    extracted then), a missing or damaged manifest or checksum file, an unknown format or schema, files
+    missing, unlisted, of the wrong size or SHA-256, scans that do not load or do not match their entry, a
+    broken taxonomy.
+    """
+    bundle, staging = Path(bundle), Path(staging)
+    reader = _open_bundle(bundle)
+    try:
+        names, problems = reader.members()
+        if problems:
+            raise _refuse(bundle, problems)
+        present = set(names)
+        if MANIFEST not in present:
+            raise _refuse(bundle, [f"{MANIFEST}: missing (not a texplorer bundle, or an incomplete one)"])
+        manifest_bytes, unreadable = _read_small(reader, MANIFEST)
+        if unreadable:
+            raise _refuse(bundle, [unreadable])
+        problems += _check_manifest_sum(reader, present, manifest_bytes)
+        manifest, manifest_problems = parse_manifest(manifest_bytes)
+        problems += manifest_problems
+        if manifest is None:
+            raise _refuse(bundle, problems)
+        listed: dict[str, dict[str, Any]] = manifest["files"]
+        problems += [f"{name}: not listed in the manifest" for name in sorted(present - set(listed))
+                     if name not in (MANIFEST, MANIFEST_SUM)]
+        problems += [f"{name}: missing" for name in sorted(set(listed) - present)]
+        staged_ok = set()
+        by_scan = [[p for p in scan["files"].values() if p in listed] for scan in manifest["scans"]]
+        others = sorted(set(listed) - {p for paths in by_scan for p in paths})
+        for paths in [others, *progress(by_scan)]:
+            for name in paths:
+                if name not in present:
+                    continue
+                problem = _stage(reader, name, listed[name], staging)
+                if problem:
+                    problems.append(problem)
+                else:
+                    staged_ok.add(name)
+    finally:
+        reader.close()
+    scans, scan_problems = _check_scans(manifest, staging, staged_ok)
+    taxonomy, taxonomy_problems = _check_taxonomy(staging, staged_ok)
+    problems += scan_problems + taxonomy_problems
+    if problems:
+        raise _refuse(bundle, problems)
+    return _Verified(manifest, scans, taxonomy, sum(f["size"] for f in listed.values()))
+
+
+def _read_small(reader: _FolderReader | _ZipReader, name: str) -> tuple[bytes, str | None]:
+    """Up to one byte more than :data:`MAX_MANIFEST_BYTES` of a member, or the reason it cannot be read."""
+    try:
+        with reader.open(name) as handle:
+            return handle.read(MAX_MANIFEST_BYTES + 1), None
+    except (zipfile.BadZipFile, zlib.error, OSError, EOFError) as exc:
+        return b"", f"{name}: cannot be read ({exc})"
+
+
+def _check_manifest_sum(reader: _FolderReader | _ZipReader, present: set[str], manifest: bytes) -> list[str]:
+    if MANIFEST_SUM not in present:
+        return [f"{MANIFEST_SUM}: missing, so the manifest cannot be checked"]
+    data, unreadable = _read_small(reader, MANIFEST_SUM)
+    if unreadable:
+        return [unreadable]
+    if data != _manifest_sum(manifest):
+        return [f"{MANIFEST}: does not match {MANIFEST_SUM} (changed or damaged)"]
+    return []
+
+
+def parse_manifest(data: bytes) -> tuple[dict[str, Any] | None, list[str]]:
+    """The manifest if its format and schema are known and its structure is sound, and every problem found.
+
+    Returns None for the manifest when nothing further can be checked with it.
+    """
+    if len(data) > MAX_MANIFEST_BYTES:
+        return None, [f"{MANIFEST}: larger than {MAX_MANIFEST_BYTES} bytes"]
+    try:
+        manifest = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:
+        return None, [f"{MANIFEST}: not valid JSON ({exc})"]
+    if not isinstance(manifest, dict):
+        return None, [f"{MANIFEST}: not a JSON object"]
+    if manifest.get("format") != BUNDLE_FORMAT:
+        return None, [f"{MANIFEST}: format {manifest.get('format')!r} is not {BUNDLE_FORMAT!r}"]
+    problems = []
+    if manifest.get("bundle_schema") != BUNDLE_SCHEMA:
+        problems.append(f"{MANIFEST}: unknown bundle schema {manifest.get('bundle_schema')!r} "
+                        f"(this software reads {BUNDLE_SCHEMA})")
+    if manifest.get("scan_schema") != SCHEMA_VERSION:
+        problems.append(f"{MANIFEST}: unknown scan schema {manifest.get('scan_schema')!r} "
+                        f"(this software reads {SCHEMA_VERSION})")
+    files = manifest.get("files")
+    if not isinstance(files, dict):
+        problems.append(f"{MANIFEST}: 'files' must be an object of path -> sha256 and size")
+    else:
+        problems += [p for name, entry in files.items() for p in _file_entry_problems(name, entry)]
+        problems += [f"{MANIFEST}: does not list {name}" for name in REQUIRED_FILES if name not in files]
+    scans = manifest.get("scans")
+    if not isinstance(scans, list):
+        problems.append(f"{MANIFEST}: 'scans' must be a list")
+    else:
+        listed = files if isinstance(files, dict) else {}
+        problems += [p for scan in scans for p in _scan_entry_problems(scan, listed)]
+        ids = [str(scan.get("scan_id")) for scan in scans if isinstance(scan, dict)]
+        twice = sorted({i for i in ids if ids.count(i) > 1})
+        problems += [f"{MANIFEST}: scan {i} is listed twice" for i in twice]
+    counts = manifest.get("counts")
+    if not isinstance(counts, dict):
+        problems.append(f"{MANIFEST}: 'counts' must be an object")
+    elif isinstance(scans, list) and counts.get("scans") != len(scans):
+        problems.append(f"{MANIFEST}: counts.scans is {counts.get('scans')!r}, but {len(scans)} are listed")
+    return (None if problems else manifest), problems
+
+
+def _file_entry_problems(name: Any, entry: Any) -> list[str]:
+    reason = unsafe_name(name)
+    if reason:
+        return [f"{MANIFEST}: file {name!r}: {reason}"]
+    if name in (MANIFEST, MANIFEST_SUM):
+        return [f"{MANIFEST}: lists itself or its checksum file"]
+    sound = (isinstance(entry, dict) and isinstance(entry.get("sha256"), str)
+             and _HEX64.fullmatch(entry["sha256"]) and type(entry.get("size")) is int and entry["size"] >= 0)
+    if not sound:
+        return [f"{MANIFEST}: file {name}: needs a lower-case hex sha256 and a size in bytes"]
+    return []
+
+
+def _scan_entry_problems(scan: Any, files: Mapping[str, Any]) -> list[str]:
+    if not isinstance(scan, dict):
+        return [f"{MANIFEST}: every entry of 'scans' must be an object"]
+    where = f"{MANIFEST}: scan {scan.get('scan_id')!r}"
+    wrong = [name for name, kind in _SCAN_FIELDS.items() if type(scan.get(name)) is not kind]
+    if wrong:
+        return [f"{where}: missing or mistyped {', '.join(wrong)}"]
+    problems = []
+    if set(scan["files"]) - {"mat", *IMAGES} or "mat" not in scan["files"]:
+        problems.append(f"{where}: files must be 'mat' and photo variables ({', '.join(IMAGES)})")
+    problems += [f"{where}: file {path!r} is not listed in 'files'" for path in scan["files"].values()
+                 if path not in files]
+    return problems
+
+
+def _stage(reader: _FolderReader | _ZipReader, name: str, expected: Mapping[str, Any],
+           staging: Path) -> str | None:
+    """Copy one member into ``staging`` checking size and SHA-256 on the way; the problem, or None."""
+    target = staging.joinpath(*name.split("/"))
+    target.parent.mkdir(parents=True, exist_ok=True)
+    digest, size, limit = hashlib.sha256(), 0, expected["size"]
+    try:
+        with reader.open(name) as source, open(target, "xb") as out:
+            while block := source.read(_CHUNK):
+                size += len(block)
+                if size > limit:
+                    return f"{name}: larger than the {limit} bytes the manifest says"
+                digest.update(block)
+                out.write(block)
+            out.flush()
+            os.fsync(out.fileno())
+    except (zipfile.BadZipFile, zlib.error, EOFError, OSError) as exc:
+        return f"{name}: cannot be read ({exc})"
+    if size != limit:
+        return f"{name}: {size} bytes, the manifest says {limit}"
+    if digest.hexdigest() != expected["sha256"]:
+        return f"{name}: SHA-256 differs from the manifest (changed or damaged)"
+    return None
+
+
+def _check_scans(manifest: dict[str, Any], staging: Path,
+                 staged_ok: set[str]) -> tuple[list[_StagedScan], list[str]]:
+    scans, problems = [], []
+    owned = {path for scan in manifest["scans"] for path in scan["files"].values()}
+    problems += [f"{name}: belongs to no scan of the manifest" for name in sorted(manifest["files"])
+                 if name.startswith("scans/") and name not in owned]
+    for entry in manifest["scans"]:
+        if not set(entry["files"].values()) <= staged_ok:
+            continue  # its file problems are already listed
+        checked = _validated_scan(entry, manifest["files"], staging)
+        if isinstance(checked, str):
+            problems.append(checked)
+        else:
+            scans.append(checked)
+    return scans, problems
+
+
+def _validated_scan(entry: dict[str, Any], files: Mapping[str, Any], staging: Path) -> _StagedScan | str:
+    """The validated scan of a manifest entry, or the problem with it."""
+    mat_name = entry["files"]["mat"]
+    mat = staging.joinpath(*mat_name.split("/"))
+    try:
+        scan = load_scan(mat)
+    except ScanFormatError as exc:
+        return f"{mat_name}: {str(exc).removeprefix(f'{mat}: ')}"
+    meta = scan.meta
+    folder = f"scans/{meta.label}/{meta.sample_id}"
+    expected_files = {"mat": f"{folder}/{meta.scan_id}.mat",
+                      **{var: f"{folder}/{photo_file_name(Path(mat_name), var)}" for var in scan.images}}
+    if entry["files"] != expected_files:
+        return f"{mat_name}: its files should be {', '.join(sorted(expected_files.values()))}"
+    names = scipy.io.loadmat(mat, variable_names=list(IMAGES), simplify_cells=True)
+    if any(names.get(var) != photo_file_name(mat, var) for var in scan.images):
+        return f"{mat_name}: photo variables must name <scan id>_<disp|macro|illu>.png"
+    stored = {"scan_id": meta.scan_id, "label": meta.label, "sample_id": meta.sample_id,
+              "session_id": meta.session_id, "operator": meta.operator, "scan_index": meta.scan_index,
+              "started": meta.started, "rigid": meta.rigid}
+    differing = [key for key, value in stored.items() if entry[key] != value]
+    if differing:
+        return f"{mat_name}: manifest entry differs from the scan in {', '.join(differing)}"
+    digest = _content_hash(entry["files"], files)
+    if digest != entry["content_hash"]:
+        return f"{mat_name}: content_hash in the manifest does not match its files"
+    return _StagedScan(meta, dict(entry["files"]), digest)
+
+
+def _content_hash(roles: Mapping[str, str], files: Mapping[str, Any]) -> str:
+    return content_hash(FileEntry(path, role, files[path]["sha256"], files[path]["size"])
+                        for role, path in roles.items())
+
+
+def _check_taxonomy(staging: Path, staged_ok: set[str]) -> tuple[dict[str, Any], list[str]]:
+    from taxonomy.table import Taxonomy, TaxonomyError, read_table
+
+    if TAXONOMY_CSV not in staged_ok:
+        return {}, []
+    try:
+        entries = read_table(staging / TAXONOMY_CSV)
+        Taxonomy(entries)
+    except TaxonomyError as exc:
+        return {}, [f"{TAXONOMY_CSV}: {str(exc).replace(str(staging / TAXONOMY_CSV), TAXONOMY_CSV)}"]
+    return {entry.code: entry for entry in entries}, []
+
+
+# -- import ------------------------------------------------------------------------------------------
+
+def import_bundle(db: Database, bundle: str | os.PathLike[str], progress: Progress = iter) -> ImportReport:
+    """Verify ``bundle`` completely, then merge its scans into ``db`` (module docstring).
+
+    Raises
+    ------
+    BundleError
+        The bundle is damaged, incomplete, unsafe or of an unknown format or schema; ``problems`` lists
+        every reason and the database is unchanged.
+    """
+    started = time.perf_counter()
+    bundle = Path(bundle)
+    staging = temp_path_for(db.root / "import")
+    staging.mkdir()
+    try:
+        verified = verify_bundle(bundle, staging, progress)
+        report = ImportReport(bundle, bytes=verified.bytes)
+        new, codes = _taxonomy_codes(db, verified, _plan(db, verified, report), report)
+        if codes:
+            _extend_taxonomy(db, codes)
+            report.taxonomy_added = [entry.code for entry in codes]
+        db.add_written([(scan.meta, _staged_paths(staging, scan)) for scan in new])
+        report.added = [scan.meta.scan_id for scan in new]
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    report.seconds = time.perf_counter() - started
+    return report
+
+
+def _staged_paths(staging: Path, scan: _StagedScan) -> dict[str, Path]:
+    return {role: staging.joinpath(*name.split("/")) for role, name in scan.files.items()}
+
+
+def _plan(db: Database, verified: _Verified, report: ImportReport) -> list[_StagedScan]:
+    """New scans to add; identical ones and conflicts go to ``report``."""
+    local = {record.scan_id: record for record in db.records()}
+    samples = {record.sample_id: record.label for record in local.values()}
+    new = []
+    for scan in verified.scans:
+        meta = scan.meta
+        if meta.scan_id in local:
+            if local[meta.scan_id].content_hash == scan.content_hash:
+                report.identical.append(meta.scan_id)
+            else:
+                report.conflicts.append(f"{meta.scan_id}: stored here with other content; not overwritten")
+        elif samples.get(meta.sample_id, meta.label) != meta.label:
+            report.conflicts.append(f"{meta.scan_id}: sample {meta.sample_id} is {samples[meta.sample_id]} "
+                                    f"here, {meta.label} in the bundle; not imported")
+        else:
+            samples[meta.sample_id] = meta.label
+            new.append(scan)
+    return new
+
+
+def _same_name(a: str, b: str) -> bool:
+    return " ".join(a.split()).casefold() == " ".join(b.split()).casefold()
+
+
+def _taxonomy_codes(db: Database, verified: _Verified, new: list[_StagedScan],
+                    report: ImportReport) -> tuple[list[_StagedScan], list]:
+    """The scans to add and the taxonomy rows their labels need that this database lacks.
+
+    A scan whose label uses a code this database names differently from the bundle is a conflict (the
+    same code would mean two materials) and is left out. Labels neither taxonomy knows are imported and
+    listed in ``report.unknown_labels``.
+    """
+    from taxonomy.labels import Label
+
+    local = {entry.code: entry for entry in db.taxonomy().entries()}
+    kept, needed = [], {}
+    for scan in new:
+        label = scan.meta.label
+        codes = Label.parse(label).codes()
+        renamed = [code for code in codes if code in local and code in verified.taxonomy
+                   and not _same_name(local[code].name, verified.taxonomy[code].name)]
+        if renamed:
+            code = renamed[0]
+            report.conflicts.append(f"{scan.meta.scan_id}: label {label}: {code} is {local[code].name!r} "
+                                    f"here but {verified.taxonomy[code].name!r} in the bundle; not imported")
+            continue
+        kept.append(scan)
+        missing = [code for code in codes if code not in local]
+        if any(code not in verified.taxonomy for code in missing):
+            if label not in report.unknown_labels:
+                report.unknown_labels.append(label)
+        else:
+            needed.update({code: verified.taxonomy[code] for code in missing})
+    return kept, list(needed.values())
+
+
+def _extend_taxonomy(db: Database, entries: list) -> None:
+    """Append rows to ``<db>/taxonomy.csv`` (atomically), after checking the merged table is consistent."""
+    from taxonomy.table import HEADER, Taxonomy, read_table
+
+    path = db.taxonomy_path
+    existing = list(read_table(path)) if path.is_file() else []
+    Taxonomy([*db.taxonomy().entries(), *entries])  # raises TaxonomyError before anything is written
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(HEADER)
+    writer.writerows((e.kind, e.code, e.name, e.description) for e in [*existing, *entries])
+    atomic_write_bytes(path, buffer.getvalue().encode("utf-8"))
