@@ -238,11 +238,15 @@ def _fold_std(values: np.ndarray) -> float:
 # -- splits ------------------------------------------------------------------------------------------
 
 
-def cv_splits(y: Sequence[str], groups: Sequence[str], folds: int = 5,
-              seed: int = SEED) -> tuple[list[tuple[np.ndarray, np.ndarray]], bool]:
+def cv_splits(y: Sequence[str], groups: Sequence[str], folds: int = 5, seed: int = SEED,
+              grouping_labels: Sequence[str] | None = None) -> tuple[list[tuple[np.ndarray, np.ndarray]], bool]:
     """Stratified folds, grouped by sample where a sample was scanned several times.
 
     Returns the (train, test) row indices of every fold and whether the folds are grouped.
+    ``grouping_labels`` (default ``y``) are the classes that decide whether grouping is possible;
+    :func:`evaluate` passes the full (fine) labels, so the coarse, medium and fine results of one feature
+    space are split the same way and stay comparable (otherwise coarse folds would be grouped, testing on
+    unseen materials, while fine folds, with one sample per material, could not be).
 
     - Every group a single row: ``StratifiedKFold(folds, shuffle=True, random_state=seed)``.
     - Groups with several rows, every class with at least two groups, and at least ``folds`` groups:
@@ -264,11 +268,13 @@ def cv_splits(y: Sequence[str], groups: Sequence[str], folds: int = 5,
     unique_groups = np.unique(groups)
     grouped = unique_groups.size < groups.size
     if grouped:
-        groups_per_class = np.array([np.unique(groups[y == c]).size for c in classes])
+        deciding = y if grouping_labels is None else np.asarray(grouping_labels)
+        deciding_classes = np.unique(deciding)
+        groups_per_class = np.array([np.unique(groups[deciding == c]).size for c in deciding_classes])
         single = int((groups_per_class < 2).sum())
         if single or unique_groups.size < folds:
-            warnings.warn(f"{single} of {classes.size} classes have a single sample (group); folds are not "
-                          "grouped, so scans of one sample are in both training and test folds", stacklevel=2)
+            warnings.warn(f"{single} of {deciding_classes.size} classes have a single sample (group); folds are "
+                          "not grouped, so scans of one sample are in both training and test folds", stacklevel=2)
             grouped = False
     if grouped:
         splitter = StratifiedGroupKFold(n_splits=folds, shuffle=True, random_state=seed)
@@ -429,7 +435,7 @@ def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseE
         subset, _ = resolve_feature_set(space, cell.feature_set)
         subset, dropped = drop_nan_columns(subset)
         y = subset.y(cell.level)
-        splits, grouped = cv_splits(y, subset.groups, folds, seed)
+        splits, grouped = cv_splits(y, subset.groups, folds, seed, grouping_labels=subset.label_text)
         pipelines = [_without_probabilities(make_pipeline(c, cell.n_features, seed)) for c in classifiers]
         shared = None
         if protocol == "paper":

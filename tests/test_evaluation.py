@@ -296,3 +296,16 @@ def test_html_report_is_one_offline_folder(tmp_path):
     assert text.count('src="data:image/png;base64,') == 6
     assert "http" not in text and "<link" not in text and "<script" not in text
     assert html.escape(cell_text(reports[0])) in text
+
+
+def test_levels_of_one_space_share_the_split_policy():
+    from taxonomy.evaluation import cv_splits
+
+    fine = np.repeat(["C1S1M1P1X1", "C1S1M2P1X1", "C2S1M1P1X1", "C2S1M2P1X1"], 5)
+    coarse = np.array([label[:2] for label in fine])
+    groups = np.repeat(["s1", "s2", "s3", "s4"], 5)  # one sample per material, scanned five times
+    with pytest.warns(UserWarning, match="single sample"):
+        _, grouped = cv_splits(coarse, groups, folds=2, seed=0, grouping_labels=fine)
+    assert not grouped
+    _, grouped_alone = cv_splits(coarse, groups, folds=2, seed=0)
+    assert grouped_alone  # each major class has two samples: on its own the coarse level could be grouped
