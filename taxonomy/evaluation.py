@@ -414,9 +414,13 @@ def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells:
     runner = Parallel(n_jobs=workers if workers is not None else -1, return_as="generator")
     results = runner(delayed(_fold)(prepared[c], f, protocol) for c, f in jobs)
     if progress:
+        import sys
+
         from tqdm import tqdm
 
-        results = tqdm(results, total=len(jobs), desc="evaluating", unit="fold")
+        # disable=None hides the bar when stderr is not a terminal (logs, CI).
+        results = tqdm(results, total=len(jobs), desc="evaluating", unit="fold", file=sys.stderr, disable=None,
+                       leave=False)
     outcome: dict[tuple[int, int], tuple[list[np.ndarray], np.ndarray, tuple[str, ...]]] = {}
     for job, result in zip(jobs, results, strict=True):
         outcome[job] = result
