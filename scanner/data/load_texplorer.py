@@ -95,6 +95,8 @@ def main(argv):
     for problem in problems:
         print(f"problem  {problem}")
     print(f"verified {len(manifest['files'])} files: {len(problems)} problem(s)")
+    if problems:
+        return 1
     counts = manifest["counts"]
     print(f"bundle of {counts['scans']} scans, {counts['materials']} materials, created {manifest['created']} "
           f"by texplorer {manifest['software_version']}")
@@ -104,7 +106,7 @@ def main(argv):
           f"at {scan['meta']['fs']['v_ts']:g} Hz, photos {', '.join(sorted(scan['photos']))}")
     X, columns, rows = load_features(bundle)
     print(f"features: {X.shape[0]} scans x {X.shape[1]} columns, {int(np.isnan(X).any(axis=0).sum())} with NaN")
-    return 1 if problems else 0
+    return 0
 
 
 if __name__ == "__main__":
