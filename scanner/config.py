@@ -261,6 +261,13 @@ class Config:
         _check(config)
         return config
 
+    def with_board_port(self, port: str) -> Config:
+        """A copy that uses the real sensor board on serial port ``port`` (``COM3``, ``/dev/ttyACM0``)."""
+        config = replace(self, board=replace(self.board, port=port),
+                         devices=MappingProxyType({**self.devices, "board": "serial"}))
+        _check(config)
+        return config
+
     def with_daq_server(self, server: str) -> Config:
         """A copy that reads the real DAQ through a remote NI gRPC Device Server (``grpc://host:port``)."""
         config = replace(self, daq=replace(self.daq, server=server),

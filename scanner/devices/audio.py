@@ -146,7 +146,7 @@ class PlaybackMicrophone:
         self._delivered = 0
 
     def describe(self) -> dict[str, str]:
-        return {"microphone": f"lavalier ({self.source.describe()})"}
+        return {"microphone": f"lavalier ({self.source.kind})"}
 
     def start(self, step: str) -> float:
         self._audio = self.source.audio(step, "microphone")

@@ -590,7 +590,7 @@ class PlaybackBoard:
         self._ms0 = 0
 
     def describe(self) -> dict[str, str]:
-        return {"sensor_board": f"{BOARD_ID} ({self.source.describe()})"}
+        return {"sensor_board": f"{BOARD_ID} ({self.source.kind})"}
 
     def ambient(self) -> float:
         return float(self.model.values("T", 0)[1])

@@ -83,7 +83,7 @@ class PlaybackCamera:
         self._taken: set[str] = set()
 
     def describe(self) -> dict[str, str]:
-        return {"camera": f"TU3 ({self.source.describe()})"}
+        return {"camera": f"TU3 camera ({self.source.kind})"}
 
     def capture(self, photo: str) -> np.ndarray:
         if photo not in IMAGES:

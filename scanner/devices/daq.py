@@ -226,7 +226,7 @@ class PlaybackDaq:
         self._position = 0
 
     def describe(self) -> dict[str, str]:
-        return {"daq": f"NI USB-6002 ({self.source.describe()})"}
+        return {"daq": f"NI USB-6002 ({self.source.kind})", "source": self.source.describe()}
 
     def start(self, step: str) -> float:
         self._volts = self.source.daq_volts(step, self.calibration, self.name)

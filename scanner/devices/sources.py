@@ -44,6 +44,8 @@ class SignalSource(Protocol):
     """The physical signals the playback devices and the emulators report."""
 
     t_amb: float
+    kind: str
+    """"simulated" or "replay"."""
 
     def describe(self) -> str: ...
 
@@ -121,6 +123,7 @@ class SimulatedSample:
         self.operator = draw_operator(np.random.default_rng(np.random.SeedSequence(self.seed)), t_amb=t_amb,
                                       fold_skip_probability=0.0)
         self.t_amb = self.operator.t_amb
+        self.kind = "simulated"
         self._lock = threading.Lock()
         self._counts: dict[tuple[str, str], int] = {}
         self._cache: dict[tuple[str, int], dict[str, Any]] = {}
@@ -188,6 +191,7 @@ class StoredScan:
         self.scan = scan
         self.name = name or scan.scan_id
         self.t_amb = scan.meta.t_amb if math.isfinite(scan.meta.t_amb) else ROOM_T_AMB
+        self.kind = "replay"
 
     @classmethod
     def load(cls, path: str | Path) -> StoredScan:
