@@ -55,8 +55,8 @@ def line(what: str, megabytes: float, seconds: float, reference: str, ref_second
 def bench_export_import(tmp: Path) -> Database:
     slugs = list(_default_library())[:MATERIALS]
     seconds, db = timed(lambda: synthetic_database(tmp / "db", materials=slugs,
-                                                   scans_per_material=SCANS_PER_MATERIAL, image_size=IMAGE_SIZE,
-                                                   progress=False))
+                                                   scans_per_material=SCANS_PER_MATERIAL,
+                                                   image_size=IMAGE_SIZE, progress=False))
     scans_mb = folder_bytes(tmp / "db" / "scans") / 1e6
     print(f"database: {len(db)} scans, {scans_mb:.1f} MB of .mat and photos, simulated in {seconds:.1f} s")
 
