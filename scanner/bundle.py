@@ -422,16 +422,20 @@ def _open_bundle(path: Path) -> _FolderReader | _ZipReader:
 # -- verification ------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
-class _StagedScan:
+class StagedScan:
+    """A verified scan of a bundle: its meta, its files by role (bundle paths) and its content hash."""
+
     meta: ScanMeta
     files: dict[str, str]
     content_hash: str
 
 
 @dataclass
-class _Verified:
+class VerifiedBundle:
+    """What :func:`verify_bundle` found sound: the manifest, the scans, the taxonomy rows by code, bytes."""
+
     manifest: dict[str, Any]
-    scans: list[_StagedScan]
+    scans: list[StagedScan]
     taxonomy: dict[str, Any]
     bytes: int
 
@@ -443,7 +447,7 @@ def _refuse(bundle: Path, problems: Sequence[str]) -> BundleError:
 
 
 def verify_bundle(bundle: str | os.PathLike[str], staging: str | os.PathLike[str],
-                  progress: Progress = iter) -> _Verified:
+                  progress: Progress = iter) -> VerifiedBundle:
     """Copy every file of ``bundle`` into ``staging`` (an empty folder) and check it completely.
 
     Raises :class:`BundleError` listing every problem found: unsafe member names or links (nothing is
@@ -491,7 +495,7 @@ def verify_bundle(bundle: str | os.PathLike[str], staging: str | os.PathLike[str
     problems += scan_problems + taxonomy_problems
     if problems:
         raise _refuse(bundle, problems)
-    return _Verified(manifest, scans, taxonomy, sum(f["size"] for f in listed.values()))
+    return VerifiedBundle(manifest, scans, taxonomy, sum(f["size"] for f in listed.values()))
 
 
 def _read_small(reader: _FolderReader | _ZipReader, name: str) -> tuple[bytes, str | None]:
@@ -613,7 +617,7 @@ def _stage(reader: _FolderReader | _ZipReader, name: str, expected: Mapping[str,
 
 
 def _check_scans(manifest: dict[str, Any], staging: Path,
-                 staged_ok: set[str]) -> tuple[list[_StagedScan], list[str]]:
+                 staged_ok: set[str]) -> tuple[list[StagedScan], list[str]]:
     scans, problems = [], []
     owned = {path for scan in manifest["scans"] for path in scan["files"].values()}
     problems += [f"{name}: belongs to no scan of the manifest" for name in sorted(manifest["files"])
@@ -629,7 +633,7 @@ def _check_scans(manifest: dict[str, Any], staging: Path,
     return scans, problems
 
 
-def _validated_scan(entry: dict[str, Any], files: Mapping[str, Any], staging: Path) -> _StagedScan | str:
+def _validated_scan(entry: dict[str, Any], files: Mapping[str, Any], staging: Path) -> StagedScan | str:
     """The validated scan of a manifest entry, or the problem with it."""
     mat_name = entry["files"]["mat"]
     mat = staging.joinpath(*mat_name.split("/"))
@@ -655,7 +659,7 @@ def _validated_scan(entry: dict[str, Any], files: Mapping[str, Any], staging: Pa
     digest = _content_hash(entry["files"], files)
     if digest != entry["content_hash"]:
         return f"{mat_name}: content_hash in the manifest does not match its files"
-    return _StagedScan(meta, dict(entry["files"]), digest)
+    return StagedScan(meta, dict(entry["files"]), digest)
 
 
 def _content_hash(roles: Mapping[str, str], files: Mapping[str, Any]) -> str:
@@ -706,11 +710,11 @@ def import_bundle(db: Database, bundle: str | os.PathLike[str], progress: Progre
     return report
 
 
-def _staged_paths(staging: Path, scan: _StagedScan) -> dict[str, Path]:
+def _staged_paths(staging: Path, scan: StagedScan) -> dict[str, Path]:
     return {role: staging.joinpath(*name.split("/")) for role, name in scan.files.items()}
 
 
-def _plan(db: Database, verified: _Verified, report: ImportReport) -> list[_StagedScan]:
+def _plan(db: Database, verified: VerifiedBundle, report: ImportReport) -> list[StagedScan]:
     """New scans to add; identical ones and conflicts go to ``report``."""
     local = {record.scan_id: record for record in db.records()}
     samples = {record.sample_id: record.label for record in local.values()}
@@ -735,8 +739,8 @@ def _same_name(a: str, b: str) -> bool:
     return " ".join(a.split()).casefold() == " ".join(b.split()).casefold()
 
 
-def _taxonomy_codes(db: Database, verified: _Verified, new: list[_StagedScan],
-                    report: ImportReport) -> tuple[list[_StagedScan], list]:
+def _taxonomy_codes(db: Database, verified: VerifiedBundle, new: list[StagedScan],
+                    report: ImportReport) -> tuple[list[StagedScan], list]:
     """The scans to add and the taxonomy rows their labels need that this database lacks.
 
     A scan whose label uses a code this database names differently from the bundle is a conflict (the
