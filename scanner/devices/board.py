@@ -71,7 +71,7 @@ def checksum(body: str) -> str:
     """Two upper-case hex digits: the XOR of the character codes of ``body`` (SPEC 5).
 
     >>> checksum("T,1000,25.00,21.50")
-    '0C'
+    '78'
     """
     value = 0
     for char in body:
@@ -270,7 +270,7 @@ class SerialBoard:
         try:
             self._handshake()
         except BaseException:
-            self.close()
+            self.close(confirm=False)
             raise
 
     # -- connection ------------------------------------------------------------------------------
@@ -494,12 +494,15 @@ class SerialBoard:
         if self._failed:
             raise ConnectionLost(self._failed)
 
-    def close(self) -> None:
-        """Stop streams, switch the Peltier off (best effort) and release the port."""
+    def close(self, confirm: bool = True) -> None:
+        """Stop streams, switch the Peltier off (waiting for ``OK HEAT`` if ``confirm``), release the port."""
         try:
             if self._serial is not None and not self._failed and self._thread.is_alive():
                 self._write("STOP")
-                self.command("HEAT 0", expect="OK HEAT")
+                if confirm:
+                    self.command("HEAT 0", expect="OK HEAT")
+                else:
+                    self._write("HEAT 0")
         except DeviceError:
             pass
         finally:

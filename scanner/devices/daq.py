@@ -129,8 +129,12 @@ class NidaqmxDaq:
                 task.ai_channels.add_ai_voltage_chan(
                     names, terminal_config=constants.TerminalConfiguration[self.config.terminal],
                     min_val=-self.config.range_v, max_val=self.config.range_v)
+                buffer = int(self.config.buffer_s * self.rate)
                 task.timing.cfg_samp_clk_timing(self.rate, sample_mode=constants.AcquisitionType.CONTINUOUS,
-                                                samps_per_chan=int(self.config.buffer_s * self.rate))
+                                                samps_per_chan=buffer)
+                # Exactly this buffer, not DAQmx's larger automatic one: how long a stall may last is a
+                # configured promise.
+                task.in_stream.input_buf_size = buffer
             except BaseException:
                 task.close()
                 raise

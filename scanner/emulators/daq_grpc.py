@@ -50,6 +50,7 @@ DRIVER_VERSION = {0x1272: 23, 0x1923: 8, 0x2F22: 0}
 ATTR_TASK_NAME, ATTR_TASK_CHANNELS, ATTR_TASK_NUM_CHANS = 0x1276, 0x1273, 0x2181
 ATTR_READ_NUM_CHANS, ATTR_WRITE_NUM_CHANS = 0x217B, 0x217E
 ATTR_PRODUCT_TYPE, ATTR_SERIAL = 0x0631, 0x0632
+ATTR_INPUT_BUFFER = 0x186C
 CONTINUOUS, GROUP_BY_CHANNEL = 10123, 0
 ERROR_TEXT = {
     -200279: "The application is not able to keep up with the hardware acquisition.",
@@ -244,10 +245,21 @@ class DaqServicer(pb_grpc.NiDAQmxServicer):
         if task.started is not None:
             raise _Failure(-200479)
         task.rate = float(request.rate)
-        task.buffer = max(int(request.samps_per_chan), int(task.rate))
-        if request.sample_mode_raw != CONTINUOUS:
-            task.buffer = int(request.samps_per_chan)
+        task.buffer = int(request.samps_per_chan)
+        if request.sample_mode_raw == CONTINUOUS:
+            task.buffer = max(task.buffer, _default_buffer(task.rate))
         return pb.CfgSampClkTimingResponse()
+
+    def SetBufferAttributeUInt32(self, request, context):  # noqa: N802
+        self._record("SetBufferAttributeUInt32")
+
+        def set_size() -> Any:
+            task = self._task(request.task)
+            if request.attribute_raw == ATTR_INPUT_BUFFER:
+                task.buffer = int(request.value)
+            return pb.SetBufferAttributeUInt32Response()
+
+        return self._guard(context, set_size)
 
     def StartTask(self, request, context):  # noqa: N802
         self._record("StartTask")
@@ -346,6 +358,15 @@ class DaqServicer(pb_grpc.NiDAQmxServicer):
             return action()
         except _Failure as failure:
             return _fail(context, failure.code)
+
+
+def _default_buffer(rate: float) -> int:
+    """NI-DAQmx's smallest automatic buffer of a continuous acquisition at ``rate`` S/s."""
+    if rate <= 100:
+        return 1_000
+    if rate <= 10_000:
+        return 10_000
+    return 100_000 if rate <= 1_000_000 else 1_000_000
 
 
 def _fail(context: Any, code: int, read: int | None = None) -> Any:

@@ -1,0 +1,363 @@
+"""The serial sensor board: protocol parsing by hand, exact byte exchanges through pyserial on a
+pseudo-terminal (PyMeasure style), and the driver against the emulator with every injected fault."""
+
+from __future__ import annotations
+
+import contextlib
+import doctest
+import os
+import select
+import sys
+import threading
+import time
+import tty
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals are POSIX only")
+
+serial = pytest.importorskip("serial")
+
+from scanner.config import BoardConfig  # noqa: E402
+from scanner.devices import board as board_module  # noqa: E402
+from scanner.devices.board import (  # noqa: E402
+    BoardModel,
+    LineError,
+    SerialBoard,
+    StreamCollector,
+    checksum,
+    collect,
+    field_change,
+    format_data_line,
+    parse_data_line,
+    resync,
+)
+from scanner.devices.protocols import (  # noqa: E402
+    BoardSample,
+    BoardTimeout,
+    ConnectionLost,
+    DeviceError,
+    DeviceUnavailable,
+)
+from scanner.devices.sources import SimulatedSample  # noqa: E402
+from scanner.emulators.board import BoardEmulator, FaultPlan  # noqa: E402
+
+
+def test_docstring_examples():
+    assert doctest.testmod(board_module).failed == 0
+
+
+# -- the protocol by hand ----------------------------------------------------------------------------
+
+def test_checksum_is_the_xor_of_the_characters():
+    assert checksum("M") == "4D"                  # 0x4D
+    assert checksum("AB") == "03"                 # 0x41 ^ 0x42
+    assert checksum("T,1") == "49"                # 0x54 ^ 0x2C ^ 0x31
+    assert checksum("") == "00"
+    assert format_data_line("T", 1000, (25.0, 21.5)) == "T,1000,25.00,21.50*78"
+
+
+def test_parse_data_lines():
+    assert parse_data_line("T,1000,25.00,21.50*78") == BoardSample("T", 1000, (25.0, 21.5))
+    assert parse_data_line("T,1000,25.00,21.50*78".lower().upper()) == BoardSample("T", 1000, (25.0, 21.5))
+    assert parse_data_line("M,2000,0.10,-0.05,1.00*79") == BoardSample("M", 2000, (0.1, -0.05, 1.0))
+    with pytest.raises(LineError, match="bad checksum 79") as bad:
+        parse_data_line("T,1000,25.00,21.50*79")
+    assert not bad.value.garbage
+    for garbage in ("T,1000,25.00*78", "X,1,2*00", "T,1000,25.00,21.50", "hello"):
+        with pytest.raises(LineError) as error:
+            parse_data_line(garbage)
+        assert error.value.garbage
+
+
+def test_resync_keeps_the_frame_after_noise():
+    assert resync(b"\x00\xff#~T,1000,25.00,21.50*78") == ("T,1000,25.00,21.50*78", 4)
+    assert resync(b"OK HEAT") == ("OK HEAT", 0)
+    assert resync(b"xxERR relay") == ("ERR relay", 2)
+    assert resync(b"\x00\x01\x02") == (None, 3)
+    # a damaged frame after noise is still a frame (dropped later for its checksum, not as garbage)
+    assert resync(b"zzT,1000,25.00,21.50*00") == ("T,1000,25.00,21.50*00", 2)
+
+
+def test_field_change_is_the_signed_magnitude():
+    b = np.array([[3.0, 4.0, 0.0], [0.0, 0.0, -2.0], [1.0, -2.0, 2.0], [0.0, 0.0, 0.0]])
+    assert list(field_change(b)) == [5.0, -2.0, 3.0, 0.0]
+
+
+def test_stream_collector_places_samples_by_the_counter():
+    collector = StreamCollector(hz=20, count=5, fields=2)
+    for ms, value in ((1000, 20.0), (1050, 21.0), (1150, 23.0), (1150, 99.0), (1200, 24.0)):
+        collector.add(BoardSample("T", ms, (value, 21.5)))
+    record = collector.record()
+    # 1100 ms never arrived: interpolated between 21 and 23; the repeated 1150 ms line is a duplicate
+    assert record.missing == 1 and record.duplicates == 1
+    assert list(record.values[:, 0]) == [20.0, 21.0, 22.0, 23.0, 24.0]
+    assert collector.done
+
+
+def test_board_model_plays_cooling_after_heat_and_field_after_calibration():
+    sample = SimulatedSample("granite-polished", seed=3)
+    model = BoardModel(sample, device="test")
+    model.begin("T", 20)
+    assert model.values("T", 0)[0] == pytest.approx(sample.t_amb + 0.1, abs=0.1)
+    model.heat()
+    model.begin("T", 20)
+    cooling = SimulatedSample("granite-polished", seed=3).cooling("test")
+    assert [model.values("T", i)[0] for i in range(5)] == list(cooling[:5])
+    model.begin("M", 80)
+    assert np.linalg.norm(model.values("M", 0)) == pytest.approx(np.linalg.norm([18.0, -4.0, 41.0]))
+    model.calibrate()
+    model.begin("M", 80)
+    field = SimulatedSample("granite-polished", seed=3).field_change("test")
+    measured = field_change(np.array([model.values("M", i) for i in range(len(field))]))
+    assert measured == pytest.approx(field, abs=1e-12)
+
+
+# -- exact byte exchanges through pyserial on a pty (PyMeasure-style expected protocol) ----------------
+
+@contextlib.contextmanager
+def expected_protocol(exchanges: list[tuple[bytes, bytes]]):
+    """A scripted board on a pseudo-terminal: each host message must arrive exactly, then its reply is sent.
+
+    Yields the port path; on exit asserts that every exchange happened, in order, with the exact bytes.
+    """
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    received: list[bytes] = []
+    done = threading.Event()
+
+    def device() -> None:
+        buffer = b""
+        for host, reply in exchanges:
+            deadline = time.monotonic() + 5.0
+            while len(buffer) < len(host) and time.monotonic() < deadline:
+                if select.select([master], [], [], 0.05)[0]:
+                    buffer += os.read(master, 1024)
+            received.append(buffer[:len(host)])
+            buffer = buffer[len(host):]
+            if received[-1] != host:
+                break
+            os.write(master, reply)
+        done.set()
+
+    thread = threading.Thread(target=device, daemon=True)
+    thread.start()
+    try:
+        yield os.ttyname(slave)
+        assert done.wait(5.0), "the host did not send every expected message"
+        assert received == [host for host, _ in exchanges]
+    finally:
+        thread.join(5.0)
+        os.close(master)
+        os.close(slave)
+
+
+OPEN = [(b"ID?\n", b"ID TEXPLORER-SB 1.2\n"), (b"HEAT 0\n", b"OK HEAT\n")]
+CLOSE = [(b"STOP\n", b""), (b"HEAT 0\n", b"OK HEAT\n")]
+
+
+def test_open_identifies_the_board_and_switches_the_peltier_off():
+    with expected_protocol(OPEN + CLOSE) as port:
+        board = SerialBoard(BoardConfig(port=port))
+        assert board.identity == "1.2"
+        assert board.describe() == {"sensor_board": f"TEXPLORER-SB 1.2 ({port})"}
+        board.close()
+
+
+def test_commands_and_a_temperature_stream_byte_by_byte():
+    lines = b"T,1000,25.00,21.50*78\nT,1050,24.98,21.50*7D\nT,1100,24.96,21.52*75\n"
+    with expected_protocol(OPEN + [(b"CAL M\n", b"OK CAL\n"), (b"HEAT 3000\n", b"OK HEAT\n"),
+                                   (b"START T 20\n", lines), (b"STOP\n", b""),
+                                   (b"HEAT 4000\n", b"ERR relay fault\n")] + CLOSE) as port:
+        board = SerialBoard(BoardConfig(port=port))
+        board.calibrate_magnetometer()
+        board.heat(3000)
+        board.start("T", 20)
+        samples: list[BoardSample] = []
+        while len(samples) < 3:
+            samples += board.read(1.0)
+        board.stop()
+        assert samples == [BoardSample("T", 1000, (25.0, 21.5)), BoardSample("T", 1050, (24.98, 21.5)),
+                           BoardSample("T", 1100, (24.96, 21.52))]
+        with pytest.raises(DeviceError, match="'HEAT 4000' refused: ERR relay fault"):
+            board.heat(4000)
+        board.close()
+
+
+def test_the_host_never_asks_for_more_than_5_s_of_heating():
+    with expected_protocol(OPEN + CLOSE) as port:
+        board = SerialBoard(BoardConfig(port=port))
+        for ms in (5001, 0, -5):
+            with pytest.raises(ValueError, match="outside 1..5000 ms"):
+                board.heat(ms)
+        board.close()
+
+
+def test_a_device_that_is_not_the_board_is_refused():
+    with expected_protocol([(b"ID?\n", b"ID ARDUINO-UNO 3\n")]) as port:
+        with pytest.raises(DeviceUnavailable, match="'ID ARDUINO-UNO 3' is not a TEXPLORER-SB"):
+            SerialBoard(BoardConfig(port=port))
+
+
+def test_a_silent_device_times_out_after_one_second():
+    with expected_protocol([(b"ID?\n", b""), (b"STOP\n", b""), (b"HEAT 0\n", b"")]) as port:
+        started = time.monotonic()
+        with pytest.raises(BoardTimeout, match="no reply to 'ID\\?' within 1 s"):
+            SerialBoard(BoardConfig(port=port))
+        assert 0.9 <= time.monotonic() - started < 2.0
+
+
+def test_a_missing_port_is_one_line():
+    with pytest.raises(DeviceUnavailable, match="serial board: cannot open /nonexistent/ttyACM9") as error:
+        SerialBoard(BoardConfig(port="/nonexistent/ttyACM9"))
+    assert "\n" not in str(error.value)
+
+
+# -- the emulator: exact answers, then the driver against every fault ---------------------------------
+
+@pytest.fixture
+def sample():
+    return SimulatedSample("granite-polished", seed=5)
+
+
+def _exchange(port: serial.Serial, command: bytes) -> bytes:
+    port.write(command)
+    return port.readline()
+
+
+def test_emulator_answers_the_protocol_exactly(sample):
+    with BoardEmulator(sample) as emulator, serial.Serial(str(emulator.path), 115200, timeout=1.0) as port:
+        assert _exchange(port, b"ID?\n") == b"ID TEXPLORER-SB 1.2\n"
+        assert _exchange(port, b"CAL M\n") == b"OK CAL\n"
+        assert _exchange(port, b"HEAT 6000\n") == b"ERR HEAT 6000 ms exceeds 5000 ms\n"
+        assert _exchange(port, b"HEAT abc\n") == b"ERR HEAT needs milliseconds, got abc\n"
+        assert _exchange(port, b"START T 500\n") == b"ERR START T rate must be 1..200 Hz\n"
+        assert _exchange(port, b"FOO\n") == b"ERR unknown command FOO\n"
+        port.write(b"START M 80\n")
+        lines = [port.readline() for _ in range(4)]
+        port.write(b"STOP\n")
+        for line in lines:
+            body, _, given = line.decode().strip().partition("*")
+            fields = body.split(",")
+            assert fields[0] == "M" and len(fields) == 5
+            xor = 0
+            for char in body:
+                xor ^= ord(char)
+            assert given == f"{xor:02X}"
+        counters = [int(line.split(b",")[1]) for line in lines]
+        assert set(np.diff(counters)) <= {12, 13}  # 80 Hz: 12.5 ms on a millisecond counter
+        assert emulator.heat_log == []
+
+
+def test_emulator_switches_the_peltier_off_by_itself(sample):
+    with BoardEmulator(sample) as emulator, serial.Serial(str(emulator.path), 115200, timeout=1.0) as port:
+        assert _exchange(port, b"HEAT 200\n") == b"OK HEAT\n"
+        time.sleep(0.4)
+        [(on, off, why)] = emulator.heat_intervals()
+        assert why == "board timer" and 0.19 <= off - on <= 0.25
+
+
+@pytest.fixture
+def board_pair(sample):
+    """A board emulator and the driver connected to it (reconnects within 2 s)."""
+    def make(faults: FaultPlan | None = None):
+        emulator = BoardEmulator(sample, faults=faults)
+        board = SerialBoard(BoardConfig(port=str(emulator.path), reconnect_s=2.0))
+        opened.append((board, emulator))
+        return board, emulator
+
+    opened: list = []
+    yield make
+    for board, emulator in opened:
+        board.close()
+        emulator.close()
+
+
+def test_clean_stream_has_no_losses(board_pair):
+    board, _ = board_pair()
+    record = collect(board, "T", 20, 1.0)
+    assert record.values.shape == (20, 2) and record.missing == 0
+    assert board.stats.bad_checksums == 0 and board.stats.garbage_bytes == 0
+
+
+def test_bad_checksums_are_dropped_counted_and_show_as_gaps(board_pair):
+    board, _ = board_pair(FaultPlan(bad_checksum_every=4))
+    record = collect(board, "T", 20, 1.0)
+    # lines 4, 8, 12, 16 and 20 of the stream are dropped; the counter shows the 5 holes
+    assert record.missing == 5 and board.stats.missing_samples == 5
+    assert board.stats.bad_checksums in (5, 6)
+    assert np.isfinite(record.values).all()
+
+
+def test_garbage_is_skipped_and_the_frames_after_it_kept(board_pair):
+    board, emulator = board_pair(FaultPlan(garbage_every=3))
+    record = collect(board, "T", 20, 1.0)
+    assert record.missing == 0
+    # 5 bytes of noise in front of lines 3, 6, ..., 18 (and maybe 21)
+    assert board.stats.garbage_bytes in (30, 35)
+    emulator.faults = FaultPlan()
+    emulator.inject_garbage(b"noise\n")
+    record = collect(board, "T", 20, 0.5)
+    assert record.missing == 0 and board.stats.garbage_bytes in (35, 40)
+
+
+def test_counter_gap_is_detected(board_pair):
+    board, emulator = board_pair()
+    board.start("T", 20)
+    collector = StreamCollector(20, 20, 2)
+    while collector.last < 4:
+        for sample_line in board.read(1.0):
+            collector.add(sample_line)
+    emulator.skip_lines(3)
+    while not collector.done:
+        for sample_line in board.read(1.0):
+            collector.add(sample_line)
+    board.stop()
+    assert collector.missing == 3
+
+
+def test_silence_times_out_after_one_second_then_the_board_recovers(board_pair):
+    board, emulator = board_pair()
+    board.start("T", 20)
+    assert board.read(1.0)
+    emulator.silence(1.5)
+    started = time.monotonic()
+    with pytest.raises(BoardTimeout, match="no data for 1.0 s"):
+        while True:
+            board.read(1.0)
+    assert 0.9 <= time.monotonic() - started <= 1.6
+    record = collect(board, "T", 20, 0.5)
+    assert record.missing == 0 and board.stats.reconnects == 1
+    assert emulator.received.count("ID?") == 2
+
+
+def test_disconnect_fails_the_recording_then_the_board_reconnects(board_pair):
+    board, emulator = board_pair()
+    board.start("T", 20)
+    assert board.read(1.0)
+    emulator.disconnect(0.3)
+    with pytest.raises(ConnectionLost, match="disconnected"):
+        while True:
+            board.read(1.0)
+    time.sleep(0.6)
+    record = collect(board, "T", 20, 0.5)
+    assert record.missing == 0 and board.stats.reconnects == 1
+    # the first thing the host sends on the new connection makes the board safe
+    after = emulator.received[emulator.received.index("START T 20") + 1:]
+    assert after[:2] == ["HEAT 0", "STOP"]
+
+
+def test_a_board_that_does_not_come_back_fails_every_call(sample):
+    emulator = BoardEmulator(sample)
+    board = SerialBoard(BoardConfig(port=str(emulator.path), reconnect_s=0.3))
+    try:
+        emulator.disconnect(60.0)
+        time.sleep(0.8)
+        with pytest.raises(ConnectionLost, match="not back within 0.3 s"):
+            board.start("T", 20)
+        with pytest.raises(ConnectionLost, match="not back within 0.3 s"):
+            board.heat_off()
+    finally:
+        board.close()
+        emulator.close()

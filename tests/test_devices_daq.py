@@ -1,0 +1,229 @@
+"""The DAQ through the real nidaqmx client over gRPC against the in-process servicer: channel set-up,
+continuous reads, overruns (injected and real), the Peltier line; the playback DAQ; one-line errors."""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+pytest.importorskip("grpc")
+nidaqmx = pytest.importorskip("nidaqmx")
+
+from scanner.config import DAQ_ROLES, Calibration, Config, DaqConfig  # noqa: E402
+from scanner.devices.daq import NidaqmxDaq, PlaybackDaq  # noqa: E402
+from scanner.devices.protocols import AcquisitionError, DeviceUnavailable  # noqa: E402
+from scanner.devices.sources import Pacer, SimulatedSample, rest_volts  # noqa: E402
+from scanner.emulators.daq_grpc import DaqEmulator, DaqServicer, expand_channels  # noqa: E402
+
+
+class RampSource:
+    """Known volts: role j carries j + k / 10000 V at sample k (k = 0..5999) whatever the step."""
+
+    kind = "simulated"
+    t_amb = 21.0
+
+    def describe(self) -> str:
+        return "ramp"
+
+    def daq_volts(self, step, calibration, device="daq"):
+        k = np.arange(6000)[:, None]
+        return np.arange(len(DAQ_ROLES))[None, :] + k / 10000.0
+
+
+def daq_config(emulator: DaqEmulator, **changes) -> DaqConfig:
+    """The DAQ section of a config that reads the emulator over gRPC."""
+    return replace(Config().with_daq_server(f"grpc://{emulator.address}").daq, **changes)
+
+
+@pytest.fixture
+def ramp():
+    with DaqEmulator(DaqServicer(RampSource())) as emulator:
+        yield emulator
+
+
+def read_blocks(daq, blocks: int) -> np.ndarray:
+    """``blocks`` reads into one preallocated (blocks, channels, block) array, as the recorder does."""
+    buffer = np.empty((blocks, len(daq.channels), daq.block))
+    for k in range(blocks):
+        daq.read_into(buffer[k])
+    return buffer.transpose(0, 2, 1).reshape(-1, len(daq.channels))
+
+
+def test_expand_daqmx_channel_lists():
+    assert expand_channels("Dev1/ai0:2, Dev1/ai7") == [("Dev1", "ai0"), ("Dev1", "ai1"), ("Dev1", "ai2"),
+                                                       ("Dev1", "ai7")]
+    assert expand_channels("Dev1/ai3:1") == [("Dev1", "ai3"), ("Dev1", "ai2"), ("Dev1", "ai1")]
+    assert expand_channels("Dev1/port0/line0") == [("Dev1", "port0/line0")]
+
+
+def test_channel_setup_over_grpc(ramp):
+    daq = NidaqmxDaq(daq_config(ramp))
+    try:
+        daq.start("finger_tap")
+        [task] = [task for name, task in ramp.servicer.tasks.items() if name != "texplorer-peltier"]
+        assert task.name == "texplorer-finger_tap"
+        assert task.inputs == [f"ai{i}" for i in range(8)]
+        assert task.rate == 3000.0 and task.buffer == 6000   # 2 s buffer
+        assert ramp.servicer.calls.count("CreateAIVoltageChan") == 1
+        daq.stop()
+        assert list(ramp.servicer.tasks) == ["texplorer-peltier"]   # the step's task was cleared
+    finally:
+        daq.close()
+    assert ramp.servicer.tasks == {}
+
+
+def test_describe_reads_the_device_over_grpc(ramp):
+    daq = NidaqmxDaq(daq_config(ramp))
+    try:
+        assert daq.describe() == {"daq": f"NI USB-6002 serial 1F2A3B4 (Dev1 on {ramp.address})"}
+    finally:
+        daq.close()
+
+
+def test_continuous_reads_deliver_every_sample_in_order(ramp):
+    daq = NidaqmxDaq(daq_config(ramp, reads_per_second=20.0))
+    try:
+        started = time.perf_counter()
+        daq.start("tool_slide")
+        volts = read_blocks(daq, 10)                          # 10 reads of 150 samples at 3 kHz = 0.5 s
+        elapsed = time.perf_counter() - started
+    finally:
+        daq.close()
+    k = np.arange(1500)[:, None]
+    assert volts.shape == (1500, 8)
+    assert np.array_equal(volts, np.arange(8)[None, :] + k / 10000.0)
+    assert 0.45 <= elapsed < 1.5                              # the emulated clock runs in real time
+
+
+def test_channel_map_decides_which_input_carries_which_sensor():
+    servicer = DaqServicer(RampSource(), channel_map={**dict(zip(DAQ_ROLES, [f"ai{i}" for i in range(8)])),
+                                                     "ir": "ai7", "metal": "ai3"})
+    with DaqEmulator(servicer) as emulator:
+        daq = NidaqmxDaq(daq_config(emulator, channels={**DaqConfig().channels, "ir": "ai7", "metal": "ai3"}))
+        try:
+            daq.start("static")
+            volts = read_blocks(daq, 1)
+        finally:
+            daq.close()
+    # the host asks for the inputs in role order, so the columns come back as roles again
+    assert volts[0].tolist() == [float(j) for j in range(8)]
+
+
+def test_simulated_material_signals_arrive_bit_exact():
+    sample = SimulatedSample("oak-planed", seed=11)
+    with DaqEmulator(DaqServicer(sample)) as emulator:
+        daq = NidaqmxDaq(daq_config(emulator))
+        try:
+            daq.start("press")
+            volts = read_blocks(daq, 3)
+        finally:
+            daq.close()
+    expected = SimulatedSample("oak-planed", seed=11).daq_volts("press", Calibration(), "other")
+    assert np.array_equal(volts, expected[:600])
+
+
+def test_injected_overrun_is_an_acquisition_error(ramp):
+    daq = NidaqmxDaq(daq_config(ramp))
+    try:
+        daq.start("friction")
+        read_blocks(daq, 1)
+        ramp.servicer.inject_overrun()
+        with pytest.raises(AcquisitionError, match="buffer overrun .*DAQmx -200279.*redo the step"):
+            read_blocks(daq, 1)
+    finally:
+        daq.close()
+
+
+def test_reading_too_slowly_overruns_the_buffer(ramp):
+    daq = NidaqmxDaq(daq_config(ramp, buffer_s=0.2))
+    try:
+        daq.start("friction")
+        read_blocks(daq, 1)
+        time.sleep(0.5)                                        # the 0.2 s buffer overflows meanwhile
+        with pytest.raises(AcquisitionError, match="buffer overrun"):
+            read_blocks(daq, 1)
+    finally:
+        daq.close()
+
+
+def test_peltier_line_is_switched_and_left_off(ramp):
+    daq = NidaqmxDaq(daq_config(ramp))
+    daq.set_peltier(True)
+    assert ramp.servicer.line_state("port0/line0") is True
+    daq.set_peltier(False)
+    daq.set_peltier(True)
+    daq.close()                                                # closing switches it off
+    assert [value for _, line, value in ramp.servicer.line_log] == [False, True, False, True, False]
+    assert ramp.servicer.line_state() is False
+
+
+def test_local_daq_without_the_driver_is_one_line():
+    try:
+        with nidaqmx.Task("probe"):
+            pytest.skip("an NI-DAQmx driver is installed here")
+    except nidaqmx.errors.DaqNotFoundError:
+        pass
+    with pytest.raises(DeviceUnavailable, match="NI-DAQmx driver not found") as error:
+        NidaqmxDaq(DaqConfig())
+    assert "\n" not in str(error.value)
+
+
+def test_unreachable_server_is_one_line():
+    with DaqEmulator() as emulator:
+        address = emulator.address
+    with pytest.raises(DeviceUnavailable, match=f"DAQ Dev1 on {address}") as error:
+        NidaqmxDaq(DaqConfig(server=f"grpc://{address}"))
+    assert "\n" not in str(error.value)
+
+
+def test_playback_daq_plays_the_source_then_holds_the_last_sample():
+    daq = PlaybackDaq(RampSource(), Calibration(), block=2500, pacer=Pacer(0.0))
+    daq.start("press")
+    volts = read_blocks(daq, 3)                                 # 7500 samples from a 6000-sample take
+    assert np.array_equal(volts[:6000, 2], 2 + np.arange(6000) / 10000.0)
+    assert np.all(volts[6000:] == volts[5999])
+    daq.set_peltier(True)
+    daq.close()
+    assert [on for _, on in daq.peltier_log] == [True, False]
+
+
+def test_playback_daq_paces_in_real_time():
+    pacer = Pacer(1.0)
+    daq = PlaybackDaq(RampSource(), Calibration(), block=300, pacer=pacer)
+    started = time.perf_counter()
+    daq.start("tap")
+    read_blocks(daq, 3)                                        # 900 samples = 0.3 s
+    assert 0.28 <= time.perf_counter() - started < 0.6
+
+
+def test_rest_volts_by_hand():
+    volts = rest_volts(2, Calibration())
+    # 0 g on x and y, 1 g on z (1.65 + 0.33 V), ambient IR, unloaded FSRs (eq. 1 floor = 0 V), open electrodes
+    assert volts[0].tolist() == pytest.approx([1.65, 1.65, 1.98, 0.1, 0.0, 0.0, 0.0, 4.8])
+
+
+def test_servicer_reads_from_another_thread_while_the_line_switches(ramp):
+    daq = NidaqmxDaq(daq_config(ramp))
+    errors: list[BaseException] = []
+
+    def toggle() -> None:
+        try:
+            for _ in range(5):
+                daq.set_peltier(True)
+                daq.set_peltier(False)
+        except BaseException as exc:  # noqa: BLE001 - reported by the assertion below
+            errors.append(exc)
+
+    try:
+        daq.start("press")
+        thread = threading.Thread(target=toggle)
+        thread.start()
+        read_blocks(daq, 3)
+        thread.join()
+    finally:
+        daq.close()
+    assert errors == [] and ramp.servicer.line_state() is False
