@@ -476,23 +476,26 @@ def verify_bundle(bundle: str | os.PathLike[str], staging: str | os.PathLike[str
         problems += [f"{name}: not listed in the manifest" for name in sorted(present - set(listed))
                      if name not in (MANIFEST, MANIFEST_SUM)]
         problems += [f"{name}: missing" for name in sorted(set(listed) - present)]
-        staged_ok = set()
-        by_scan = [[p for p in scan["files"].values() if p in listed] for scan in manifest["scans"]]
-        others = sorted(set(listed) - {p for paths in by_scan for p in paths})
-        for paths in [others, *progress(by_scan)]:
-            for name in paths:
-                if name not in present:
-                    continue
-                problem = _stage(reader, name, listed[name], staging)
-                if problem:
-                    problems.append(problem)
-                else:
-                    staged_ok.add(name)
+        owned = {path for scan in manifest["scans"] for path in scan["files"].values()}
+        problems += [f"{name}: belongs to no scan of the manifest" for name in sorted(listed)
+                     if name.startswith("scans/") and name not in owned]
+        staged_ok = {name for name in sorted((set(listed) - owned) & present)
+                     if not _stage_noting(reader, name, listed[name], staging, problems)}
+        scans = []
+        for entry in progress(manifest["scans"]):
+            paths = [path for path in entry["files"].values() if path in present]
+            failed = [path for path in paths if _stage_noting(reader, path, listed[path], staging, problems)]
+            if failed or len(paths) < len(entry["files"]):
+                continue  # its problems are listed already
+            checked = _validated_scan(entry, listed, staging)
+            if isinstance(checked, str):
+                problems.append(checked)
+            else:
+                scans.append(checked)
     finally:
         reader.close()
-    scans, scan_problems = _check_scans(manifest, staging, staged_ok)
     taxonomy, taxonomy_problems = _check_taxonomy(staging, staged_ok)
-    problems += scan_problems + taxonomy_problems
+    problems += taxonomy_problems
     if problems:
         raise _refuse(bundle, problems)
     return VerifiedBundle(manifest, scans, taxonomy, sum(f["size"] for f in listed.values()))
@@ -616,21 +619,13 @@ def _stage(reader: _FolderReader | _ZipReader, name: str, expected: Mapping[str,
     return None
 
 
-def _check_scans(manifest: dict[str, Any], staging: Path,
-                 staged_ok: set[str]) -> tuple[list[StagedScan], list[str]]:
-    scans, problems = [], []
-    owned = {path for scan in manifest["scans"] for path in scan["files"].values()}
-    problems += [f"{name}: belongs to no scan of the manifest" for name in sorted(manifest["files"])
-                 if name.startswith("scans/") and name not in owned]
-    for entry in manifest["scans"]:
-        if not set(entry["files"].values()) <= staged_ok:
-            continue  # its file problems are already listed
-        checked = _validated_scan(entry, manifest["files"], staging)
-        if isinstance(checked, str):
-            problems.append(checked)
-        else:
-            scans.append(checked)
-    return scans, problems
+def _stage_noting(reader: _FolderReader | _ZipReader, name: str, expected: Mapping[str, Any], staging: Path,
+                  problems: list[str]) -> bool:
+    """Stage one member; True (and the problem appended to ``problems``) if it failed its checks."""
+    problem = _stage(reader, name, expected, staging)
+    if problem:
+        problems.append(problem)
+    return problem is not None
 
 
 def _validated_scan(entry: dict[str, Any], files: Mapping[str, Any], staging: Path) -> StagedScan | str:
