@@ -149,6 +149,10 @@ def test_cli_replay_writes_and_checks_expected_values(tmp_path, capsys):
     # A looser tolerance accepts the change.
     assert main(["replay", str(one), "--expect", str(table), "--rtol", "2e-6", "--workers", "1"]) == 0
     capsys.readouterr()
+    assert main(["replay", str(one), "--pace", "1000", "--workers", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "playing oak-planed-01-001 at 1000x" in out and "\n  tool_slide    rms v_ts " in out
+    assert out.index("finger_tap") < out.index("thermal") < out.index("photos") < out.index("1 scan(s) replayed")
 
 
 def test_cli_replay_reports_broken_files_and_missing_expectations(tmp_path, capsys):
