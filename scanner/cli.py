@@ -456,6 +456,21 @@ def _serve_until_interrupted() -> None:
         pass
 
 
+# -- serve -------------------------------------------------------------------------------------------
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    from gui.app import Settings, serve
+    from scanner.config import load_config
+
+    config = load_config(args.config)
+    if not args.upload_limit_mb > 0:
+        raise ValueError(f"--upload-limit-mb must be positive, got {args.upload_limit_mb:g}")
+    limit = int(args.upload_limit_mb * 1024 * 1024)
+    settings = Settings(db=args.db, model=args.model, device_config=config, upload_limit=limit)
+    serve(settings, args.host, args.port)
+    return 0
+
+
 # -- selection, evaluation, models -------------------------------------------------------------------
 
 ALL = "all"
@@ -783,6 +798,23 @@ def build_parser() -> argparse.ArgumentParser:
         emulator.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
         emulator.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                               help="show tracebacks")
+
+    serving = commands.add_parser(
+        "serve", help="the operator's web application: guided scans, operator form, database browser",
+        description="Serve the web application (SPEC 10) for the database: start a scan, the guided steps "
+        "with live levels, the operator form with photo uploads, the summary with the prediction, and the "
+        "database browser with export. Listens on 127.0.0.1 only, unless --host says otherwise.")
+    _add_db_option(serving)
+    serving.add_argument("--host", default="127.0.0.1", help="interface to listen on (default 127.0.0.1; "
+                         "anything else makes the scanner reachable from the network, with a warning)")
+    serving.add_argument("--port", type=int, default=8080, help="port (default 8080; 0 = any free port)")
+    serving.add_argument("--config", type=Path, help="device configuration TOML (default: the simulated "
+                         "scanner; see docs/texplorer.example.toml)")
+    serving.add_argument("--model", type=Path, help="model for the prediction on the summary page (default: "
+                         "<db>/models/rf-fine-X10.skops if 'texplorer demo' made one)")
+    serving.add_argument("--upload-limit-mb", type=float, default=20.0, help="largest photo upload in MB "
+                         "(default 20)")
+    serving.set_defaults(handler=cmd_serve)
     return parser
 
 

@@ -1,0 +1,224 @@
+"""Server-side validation of the operator's input (SPEC 4 and 10): the start form and the TU4 form.
+
+Every field is checked and every problem is reported at once, as ``{field: reason}``, so the page can show
+each reason next to its field. The rules are those of the data model where it has them (label: the
+taxonomy; sample id, operator: :class:`scanner.scan.ScanMeta`; judged values: ``JUDGED_SCALE``); the form
+adds only what a text field needs on top (numbers with an optional unit, required fields, lengths).
+
+The judged values use the paper's wording (Strese et al. 2020, eq. 18 adhesive tack ATK and eq. 24
+yielding CYD): five labelled choices on the scale {0, 0.25, 0.5, 0.75, 1}.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+from scanner.scan import JUDGED_SCALE, ScanError, ScanMeta, check_sample_id
+from scanner.session import T_AMB_RANGE, VOLUME_METHODS
+from taxonomy.labels import LabelError
+from taxonomy.table import Taxonomy, UnknownLabelError
+
+TACK_CHOICES: tuple[tuple[float, str], ...] = tuple(zip(JUDGED_SCALE, (
+    "not adhesive", "slightly adhesive", "uncertain", "adhesive", "strongly adhesive"), strict=True))
+"""Adhesive tack ATK (paper eq. 18): value on the five-step scale and the paper's words for it."""
+
+YIELDING_CHOICES: tuple[tuple[float, str], ...] = tuple(zip(JUDGED_SCALE, (
+    "material recovers shape", "material likely recovers shape", "uncertain",
+    "material unlikely recovers shape", "material stays deformed"), strict=True))
+"""Yielding CYD (paper eq. 24): value on the five-step scale and the paper's words for it."""
+
+VOLUME_METHOD_WORDS: Mapping[str, str] = {
+    "water": "water displacement",
+    "micro-pearls": "micro-pearl displacement",
+    "known": "known volume (dimensions or supplier)",
+}
+"""Words shown for the volume methods the session accepts (``scanner.session.VOLUME_METHODS``)."""
+
+NOTES_MAX_CHARS = 2000
+
+_NUMBER = r"[+-]?(?:\d+(?:[.,]\d*)?|[.,]\d+)(?:[eE][+-]?\d+)?"
+_CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
+_VALID_META = {"label": "C1S1M1P1X1", "operator": "operator", "sample_id": "sample", "scan_index": 1,
+               "session_id": "session", "started": "2000-01-01T00:00:00+00:00"}
+"""A meta that passes every check; one field at a time is replaced to ask the data model about it."""
+
+
+@dataclass(frozen=True)
+class StartValues:
+    """The validated start form: who scans which sample of which material."""
+
+    operator: str
+    label: str
+    sample_id: str
+
+
+@dataclass(frozen=True)
+class OperatorValues:
+    """The validated TU4 form: judged tack and yielding, mass, volume and how it was measured, notes."""
+
+    atk: float
+    cyd: float
+    mass_g: float
+    volume_cm3: float
+    volume_method: str
+    notes: str
+
+
+class FormErrors(ValueError):
+    """The form has invalid fields; ``errors`` maps each field name to the reason shown beside it."""
+
+    def __init__(self, errors: Mapping[str, str]) -> None:
+        self.errors = dict(errors)
+        super().__init__("; ".join(f"{name}: {reason}" for name, reason in self.errors.items()))
+
+
+def meta_field_error(field: str, value: object) -> str | None:
+    """The data model's reason for refusing ``value`` as ``ScanMeta.<field>``, or None if it is accepted."""
+    try:
+        ScanMeta(**{**_VALID_META, field: value})
+    except ScanError as exc:
+        return exc.reason
+    return None
+
+
+def parse_quantity(text: str, units: tuple[str, ...], *, what: str) -> float:
+    """A positive finite number typed into a form, with an optional unit from ``units``.
+
+    Accepts a decimal comma (``"12,5 g"``) since lab operators type either; refuses other units, signs,
+    NaN and infinity with a one-line reason naming ``what`` and the expected unit.
+    """
+    unit_pattern = "|".join(re.escape(u) for u in units)
+    match = re.fullmatch(rf"\s*({_NUMBER})\s*({unit_pattern})?\s*", text or "", flags=re.IGNORECASE)
+    if not text or not text.strip():
+        raise ValueError(f"enter the {what} in {units[0]}")
+    if match is None:
+        raise ValueError(f"{text.strip()[:40]!r} is not a number in {units[0]}")
+    value = float(match.group(1).replace(",", "."))
+    if not math.isfinite(value) or value <= 0:
+        raise ValueError(f"the {what} must be a positive number of {units[0]}, got {match.group(1)}")
+    return value
+
+
+def parse_judged(text: str, choices: tuple[tuple[float, str], ...], *, what: str) -> float:
+    """One of the five judged values; anything else (missing, off the scale, not a number) is refused."""
+    words = ", ".join(f'"{word}"' for _, word in choices)
+    if not text:
+        raise ValueError(f"choose the {what}: one of {words}")
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError(f"{text[:20]!r} is not one of the five {what} choices") from None
+    if value not in {v for v, _ in choices}:
+        raise ValueError(f"{text[:20]} is not on the five-step scale 0, 0.25, 0.5, 0.75, 1 ({words})")
+    return value
+
+
+def parse_ambient(text: str) -> float:
+    """The ambient temperature in degC, within the MLX90614's range (``scanner.session.T_AMB_RANGE``)."""
+    match = re.fullmatch(rf"\s*({_NUMBER})\s*(?:°?C|degC)?\s*", text or "", flags=re.IGNORECASE)
+    if not text or not text.strip():
+        raise ValueError("enter the ambient temperature in degC")
+    if match is None:
+        raise ValueError(f"{text.strip()[:40]!r} is not a temperature in degC")
+    value = float(match.group(1).replace(",", "."))
+    low, high = T_AMB_RANGE
+    if not low <= value <= high:
+        raise ValueError(f"{value:g} degC is outside the sensor's range {low:g} to {high:g} degC")
+    return value
+
+
+def _label(taxonomy: Taxonomy, text: str) -> str:
+    if not text or not text.strip():
+        raise ValueError("enter a material label such as C6S1M1P2X1, or pick one with the search")
+    try:
+        return taxonomy.check(text).format()
+    except (LabelError, UnknownLabelError) as exc:
+        raise ValueError(str(exc)) from None
+
+
+def _operator(text: str) -> str:
+    text = (text or "").strip()
+    if not text:
+        raise ValueError("enter the operator's name or initials")
+    reason = meta_field_error("operator", text)
+    if reason:
+        raise ValueError("1-64 printable characters without quotes, slashes or angle brackets")
+    return text
+
+
+def _sample_id(text: str, owner: Callable[[str], str | None], label: str | None) -> str:
+    text = (text or "").strip()
+    if not text:
+        raise ValueError("enter the sample id, e.g. granite-01")
+    try:
+        check_sample_id(text)
+    except ScanError as exc:
+        raise ValueError(exc.reason) from None
+    stored = owner(text)
+    if stored is not None and label is not None and stored != label:
+        raise ValueError(f"sample {text} is {stored} in the database, not {label}")
+    return text
+
+
+def _notes(text: str) -> str:
+    text = (text or "").replace("\r\n", "\n").strip()
+    if len(text) > NOTES_MAX_CHARS:
+        raise ValueError(f"notes are {len(text)} characters long; at most {NOTES_MAX_CHARS} are kept")
+    if _CONTROL.search(text):
+        raise ValueError("notes contain control characters; type plain text")
+    return text
+
+
+def _volume_method(text: str) -> str:
+    if text not in VOLUME_METHODS:
+        words = ", ".join(VOLUME_METHOD_WORDS.get(method, method) for method in VOLUME_METHODS)
+        raise ValueError(f"choose how the volume was measured: {words}")
+    return text
+
+
+def _collect(checks: Mapping[str, Callable[[dict[str, object]], object]]) -> dict[str, object]:
+    """Run every field check in order (a check sees the values accepted before it); raise FormErrors with
+    all reasons if any fails."""
+    values: dict[str, object] = {}
+    errors = {}
+    for name, check in checks.items():
+        try:
+            values[name] = check(values)
+        except ValueError as exc:
+            errors[name] = str(exc)
+    if errors:
+        raise FormErrors(errors)
+    return values
+
+
+def validate_start(form: Mapping[str, str], taxonomy: Taxonomy,
+                   sample_owner: Callable[[str], str | None]) -> StartValues:
+    """The start form (operator, label, sample id) or FormErrors naming every bad field.
+
+    ``sample_owner(sample_id)`` returns the label the database already stores for that sample, or None;
+    a sample cannot change its material.
+    """
+    values = _collect({
+        "operator": lambda _: _operator(form.get("operator", "")),
+        "label": lambda _: _label(taxonomy, form.get("label", "")),
+        "sample_id": lambda accepted: _sample_id(form.get("sample_id", ""), sample_owner,
+                                                 accepted.get("label")),
+    })
+    return StartValues(**values)
+
+
+def validate_operator(form: Mapping[str, str]) -> OperatorValues:
+    """The TU4 form (tack, yielding, mass, volume, method, notes) or FormErrors naming every bad field."""
+    values = _collect({
+        "atk": lambda _: parse_judged(form.get("atk", ""), TACK_CHOICES, what="adhesive tack"),
+        "cyd": lambda _: parse_judged(form.get("cyd", ""), YIELDING_CHOICES, what="yielding"),
+        "mass_g": lambda _: parse_quantity(form.get("mass_g", ""), ("g",), what="mass"),
+        "volume_cm3": lambda _: parse_quantity(form.get("volume_cm3", ""), ("cm^3", "cm3", "ml"),
+                                               what="volume"),
+        "volume_method": lambda _: _volume_method(form.get("volume_method", "")),
+        "notes": lambda _: _notes(form.get("notes", "")),
+    })
+    return OperatorValues(**values)

@@ -1,0 +1,504 @@
+"""The operator's pages (SPEC 4 and 10): start a scan, the guided steps, the operator form, the summary.
+
+Every page is a view of the running :class:`scanner.session.Session` (through :mod:`gui.operation`); every
+action is one session call: ``Session.open``, ``start_step``, ``cancel_step``, ``redo``, ``skip``,
+``set_photo``, ``capture_photo``, ``set_values``, ``t_amb``, ``save`` and ``abort``. Input is validated by
+:mod:`gui.forms` first so that each reason appears beside its field; the session checks again and its
+refusals are shown too. The database is written once, by ``Session.save``; an abort or an error before it
+leaves the database as it was.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from dataclasses import dataclass
+from typing import Any
+
+from flask import Blueprint, abort, flash, jsonify, redirect, render_template, request, send_file, url_for
+from werkzeug.wrappers import Response
+
+from gui.app import context
+from gui.forms import (
+    TACK_CHOICES,
+    VOLUME_METHOD_WORDS,
+    YIELDING_CHOICES,
+    FormErrors,
+    parse_ambient,
+    validate_operator,
+    validate_start,
+)
+from gui.operation import Operation, SessionBusy
+from gui.photos import UploadError, check_size, check_upload
+from scanner.config import ConfigError
+from scanner.database import DatabaseError
+from scanner.devices.protocols import DeviceError
+from scanner.scan import IMAGES
+from scanner.session import VOLUME_METHODS, Session, SessionError, StepInfo, StepState
+
+blueprint = Blueprint("operate", __name__)
+
+PICKER_LIMIT = 40
+"""Materials listed for one picker query; the operator narrows the search rather than scrolls."""
+
+PHOTO_TITLES = {"I_disp": "Display photo", "I_macro": "Macro photo (4x lens)",
+                "I_illu": "Illuminated photo (flash)"}
+FORM_FIELDS = ("atk", "cyd", "mass_g", "volume_cm3", "volume_method", "notes")
+TACTUM_TITLES = {
+    "tactum.matx": "macrotexture MaTX", "tactum.maco": "macrotexture coarseness MaCO",
+    "tactum.marg": "macrotexture regularity MaRG", "tactum.miro": "microtexture roughness MiRO",
+    "tactum.mico": "microtexture coarseness MiCO (Hz)", "tactum.fst": "tactile stiction FST",
+    "tactum.frs": "sliding resistance FRS", "tactum.atk": "adhesive tack ATK",
+    "tactum.ccp": "tactile compliance CCP (N/mm)", "tactum.cdf": "local deformation CDF (deg)",
+    "tactum.cdp": "damping CDP", "tactum.crx": "relaxation CRX (N)", "tactum.cyd": "yielding CYD",
+    "tactum.tco": "thermal cooling TCO (K)", "tactum.tpr": "thermal persistence TPR (K)",
+}
+"""The 15 TacTUM features with the paper's names (Strese et al. 2020, section IV-A)."""
+
+
+# -- helpers -------------------------------------------------------------------------------------------
+
+
+def operation() -> Operation:
+    """The running operation, or a redirect to the start page when there is none."""
+    active = context().operations.active
+    if active is None:
+        abort(redirect(url_for("operate.start")))
+    return active
+
+
+def sample_owner(sample_id: str) -> str | None:
+    """The label the database stores for ``sample_id``, or None for a new sample."""
+    records = context().db.records(sample=sample_id)
+    return records[0].label if records else None
+
+
+def step_url(step: StepInfo) -> str:
+    if step.kind == "record":
+        return url_for("operate.step", step_id=step.id)
+    return url_for("operate.operator_form")
+
+
+def next_url(session: Session) -> str:
+    """The first step still to do, in procedure order; the summary when everything is done."""
+    for step in session.steps:
+        if session.status(step.id).state not in (StepState.RECORDED, StepState.SKIPPED):
+            return step_url(step)
+    return url_for("operate.summary")
+
+
+def step_chips(session: Session, current: str | None) -> list[dict[str, Any]]:
+    """The progress strip: every step with its state and link."""
+    return [{"title": f"{step.number}. {step.title}", "state": session.status(step.id).state.value,
+             "current": step.id == current, "url": step_url(step)} for step in session.steps]
+
+
+def render_page(template: str, http_status: int = 200, **values: Any) -> tuple[str, int]:
+    op = context().operations.active
+    chips = step_chips(op.session, values.get("current")) if op is not None else []
+    return render_template(template, operation=op, chips=chips, **values), http_status
+
+
+def session_error(exc: Exception) -> str:
+    """A session or device refusal as one line for the page."""
+    return str(exc).strip().splitlines()[0]
+
+
+# -- start ---------------------------------------------------------------------------------------------
+
+
+def render_start(form: dict[str, str], errors: dict[str, str], status: int = 200) -> tuple[str, int]:
+    ctx = context()
+    taxonomy = ctx.db.taxonomy()
+    description = None
+    if form.get("label") and "label" not in errors:
+        try:
+            description = taxonomy.describe(form["label"])
+        except ValueError:
+            description = None
+    config = ctx.device_config
+    return render_page("start.html", status, form=form, errors=errors, description=description,
+                       processing=taxonomy.entries("P"), extras=taxonomy.entries("X"),
+                       config_source=config.source, devices=dict(config.devices))
+
+
+@blueprint.get("/")
+def start() -> tuple[str, int]:
+    return render_start({"operator": "", "label": "", "sample_id": ""}, {})
+
+
+@blueprint.post("/")
+def begin() -> tuple[str, int] | Response:
+    ctx = context()
+    form = {key: request.form.get(key, "")[:200] for key in ("operator", "label", "sample_id")}
+    try:
+        values = validate_start(form, ctx.db.taxonomy(), sample_owner)
+    except FormErrors as exc:
+        return render_start(form, exc.errors, 422)
+
+    def open_session() -> Session:
+        return Session.open(ctx.device_config, label=values.label, sample_id=values.sample_id,
+                            operator=values.operator, db=ctx.db)
+
+    try:
+        ctx.operations.begin(open_session)
+    except SessionBusy as exc:
+        return render_start(form, {"form": str(exc)}, 409)
+    except ConfigError as exc:
+        # The simulated scanner only knows its library's materials.
+        return render_start(form, {"label": session_error(exc)}, 422)
+    except (SessionError, DeviceError) as exc:
+        return render_start(form, {"form": f"the scanner could not start: {session_error(exc)}"}, 422)
+    return redirect(url_for("operate.overview"))
+
+
+@blueprint.get("/api/taxonomy")
+def api_taxonomy() -> Response:
+    """Materials matching ``q`` (name or code prefix) for the picker: code, name, sub-class, major class."""
+    query = request.args.get("q", "")[:40]
+    found = context().db.taxonomy().search(query)
+    materials = [{"code": m.code, "name": m.name, "subclass": m.subclass, "major": m.major}
+                 for m in found[:PICKER_LIMIT]]
+    return jsonify(total=len(found), materials=materials)
+
+
+@blueprint.get("/api/label")
+def api_label() -> Response:
+    """Whether ``label`` is a known label, with its description or the reason it is not."""
+    label = request.args.get("label", "")[:40]
+    taxonomy = context().db.taxonomy()
+    try:
+        return jsonify(ok=True, label=taxonomy.check(label).format(), description=taxonomy.describe(label))
+    except ValueError as exc:
+        return jsonify(ok=False, error=str(exc))
+
+
+# -- the session's overview and ambient temperature ------------------------------------------------------
+
+
+def render_overview(ambient: str, errors: dict[str, str], status: int = 200) -> tuple[str, int]:
+    op = operation()
+    description = context().db.taxonomy().describe(op.session.label)
+    return render_page("session.html", status, session=op.session, ambient=ambient, errors=errors,
+                       description=description, next=next_url(op.session))
+
+
+def _ambient_text(value: float) -> str:
+    return "" if math.isnan(value) else f"{value:.1f}"
+
+
+@blueprint.get("/session")
+def overview() -> tuple[str, int]:
+    return render_overview(_ambient_text(operation().session.t_amb), {})
+
+
+@blueprint.post("/session/ambient")
+def set_ambient() -> tuple[str, int] | Response:
+    op = operation()
+    text = request.form.get("t_amb", "")[:40]
+    try:
+        op.session.t_amb = parse_ambient(text)
+    except (ValueError, SessionError) as exc:
+        return render_overview(text, {"t_amb": session_error(exc)}, 422)
+    op.changed()
+    flash(f"Ambient temperature set to {op.session.t_amb:g} °C.", "good")
+    return redirect(url_for("operate.overview"))
+
+
+@blueprint.post("/session/abort")
+def abort_session() -> Response:
+    ctx = context()
+    op = ctx.operations.active
+    if op is not None:
+        ctx.operations.end(op)
+    flash("The scan was aborted. Nothing was saved.", "good")
+    return redirect(url_for("operate.start"))
+
+
+# -- recorded steps ----------------------------------------------------------------------------------------
+
+
+def _record_step(session: Session, step_id: str) -> StepInfo:
+    try:
+        step = session.step(step_id)
+    except SessionError:
+        abort(404, description=f"there is no step {step_id!r}")
+    if step.kind != "record":
+        abort(redirect(url_for("operate.operator_form")))
+    return step
+
+
+@blueprint.get("/session/step/<step_id>")
+def step(step_id: str) -> tuple[str, int]:
+    op = operation()
+    info = _record_step(op.session, step_id)
+    op.touch()
+    status = op.session.status(step_id)
+    return render_page("step.html", step=info, status=status, current=step_id, next=next_url(op.session),
+                       watchdog=op.cancelled_by_watchdog if status.state is StepState.FAILED else "")
+
+
+def _step_action(step_id: str, action: str) -> Response:
+    op = operation()
+    info = _record_step(op.session, step_id)
+    session = op.session
+    try:
+        if action == "record":
+            op.cancelled_by_watchdog = ""
+            op.touch()
+            session.start_step(step_id)
+        elif action == "stop":
+            session.cancel_step()
+        elif action == "redo":
+            session.redo(step_id)
+        elif action == "skip":
+            session.skip(step_id)
+            op.changed()
+            return redirect(next_url(session))
+    except SessionError as exc:
+        flash(session_error(exc), "bad")
+    op.changed()
+    return redirect(url_for("operate.step", step_id=info.id))
+
+
+@blueprint.post("/session/step/<step_id>/<action>")
+def step_action(step_id: str, action: str) -> Response:
+    if action not in ("record", "stop", "redo", "skip"):
+        abort(404, description=f"there is no step action {action!r}")
+    return _step_action(step_id, action)
+
+
+@blueprint.get("/session/status")
+def status() -> Response:
+    """The live state of the recording step for the page's poll (also the browser's heartbeat)."""
+    op = context().operations.active
+    if op is None:
+        return jsonify(recording=False, next=url_for("operate.start"))
+    op.touch()
+    session = op.session
+    level = session.level
+    recording = session.running
+    answer: dict[str, Any] = {"recording": recording, "next": None}
+    if not recording:
+        return jsonify(answer)
+    if level is None:
+        answer.update(phase="starting", level=0.0, level_text="", progress_text="", heating=False)
+    else:
+        answer.update(phase=level.phase, level=max(0.0, min(1.0, level.fraction)),
+                      heating=level.phase == "heating",
+                      level_text=f"{level.signal} {level.value:.3g} {level.unit}",
+                      progress_text=f"{level.elapsed_s:.1f} s of {level.duration_s:.1f} s")
+    return jsonify(answer)
+
+
+# -- photos and the TU4 form -------------------------------------------------------------------------------
+
+
+def render_form(errors: dict[str, str], status: int = 200) -> tuple[str, int]:
+    op = operation()
+    values = op.session.values
+    form = {name: op.draft.get(name, _value_text(values.get(name))) for name in FORM_FIELDS}
+    settings = context().settings
+    return render_page("form.html", status, form=form, errors=errors, current="photos",
+                       tack=TACK_CHOICES, yielding=YIELDING_CHOICES,
+                       methods=[(m, VOLUME_METHOD_WORDS.get(m, m)) for m in VOLUME_METHODS],
+                       photos=[(name, PHOTO_TITLES[name], op.photos.get(name), op.photo_sources.get(name))
+                               for name in IMAGES],
+                       upload_limit_mb=settings.upload_limit / (1024 * 1024))
+
+
+def _value_text(value: Any) -> str:
+    if isinstance(value, float):
+        return "" if math.isnan(value) else f"{value:g}"
+    return value or ""
+
+
+@blueprint.get("/session/form")
+def operator_form() -> tuple[str, int]:
+    return render_form({})
+
+
+def _keep_photo(op: Operation, name: str, source: str) -> None:
+    """Stage the photo the session now holds as ``name`` for the preview."""
+    store = context().photos
+    old = op.photos.get(name)
+    op.photos[name] = store.put(op.session.photos[name])
+    op.photo_sources[name] = source
+    if old:
+        store.discard([old])
+    op.changed()
+
+
+def _upload_photos(op: Operation) -> dict[str, str]:
+    """Give every uploaded file to the session; the reasons for the refused ones by field."""
+    settings = context().settings
+    errors = {}
+    for name in IMAGES:
+        upload = request.files.get(name)
+        if upload is None or not upload.filename:
+            continue
+        try:
+            check_size(upload.stream.seek(0, os.SEEK_END), settings.upload_limit)
+            upload.stream.seek(0)
+            data = upload.stream.read()
+            check_upload(data, max_bytes=settings.upload_limit, max_pixels=settings.max_photo_pixels)
+            op.session.set_photo(name, data)
+        except (UploadError, SessionError) as exc:
+            errors[name] = session_error(exc).removeprefix(f"{name}: ")
+            continue
+        _keep_photo(op, name, "upload")
+    return errors
+
+
+@blueprint.post("/session/form")
+def submit_form() -> tuple[str, int] | Response:
+    op = operation()
+    op.draft = {name: request.form.get(name, "")[:4000] for name in FORM_FIELDS}
+    errors = _upload_photos(op)
+    capture = request.form.get("capture", "")
+    if capture:
+        if capture not in IMAGES:
+            abort(400, description=f"{capture[:20]!r} is not a photo")
+        try:
+            op.session.capture_photo(capture)
+            _keep_photo(op, capture, "camera")
+        except (SessionError, DeviceError) as exc:
+            errors[capture] = session_error(exc)
+        return render_form(errors, 422 if errors else 200)
+    try:
+        values = validate_operator(op.draft)
+    except FormErrors as exc:
+        errors.update(exc.errors)
+    missing = [name for name in IMAGES if name not in op.session.photos and name not in errors]
+    errors.update(dict.fromkeys(missing, "upload a PNG or JPEG photo or take it with the scanner's camera"))
+    if errors:
+        return render_form(errors, 422)
+    try:
+        op.session.set_values(**vars(values))
+    except SessionError as exc:
+        field, _, reason = session_error(exc).partition(": ")
+        return render_form({field if field in FORM_FIELDS else "form": reason or field}, 422)
+    op.changed()
+    return redirect(next_url(op.session))
+
+
+@blueprint.get("/session/photo/<variable>")
+def staged_photo(variable: str) -> Response:
+    op = operation()
+    name = op.photos.get(variable)
+    if name is None:
+        abort(404, description=f"no {variable!r} photo yet")
+    return send_file(context().photos.path(name), mimetype="image/png", max_age=0)
+
+
+# -- summary and save -------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Summary:
+    """What the summary page shows of the scan about to be saved."""
+
+    tactum: list[tuple[str, str]]
+    predictions: list[tuple[str, float, str]] | None
+    prediction_note: str
+    notes: list[str]
+
+
+def _format(value: float) -> str:
+    return "NaN" if math.isnan(value) else f"{value:.4g}"
+
+
+def summarise(op: Operation) -> Summary:
+    """TacTUM values and the model's top three of the scan as it would be saved (cached per change)."""
+    from features import extract
+
+    cached = op.summary_cache.get("summary")
+    if cached is not None:
+        return cached
+    ctx = context()
+    scan = op.session.scan(ctx.db.next_scan_index(op.session.sample_id))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        values = extract(scan)
+    notes = sorted({str(w.message) for w in caught})
+    tactum = [(TACTUM_TITLES[name], _format(values[name])) for name in TACTUM_TITLES]
+    predictions, note = _predict(values)
+    summary = Summary(tactum, predictions, note, notes)
+    op.summary_cache["summary"] = summary
+    op.summary_cache["scan"] = scan
+    return summary
+
+
+def _predict(values: dict[str, float]) -> tuple[list[tuple[str, float, str]] | None, str]:
+    from taxonomy.models import ModelError, predict_top
+
+    ctx = context()
+    try:
+        model = ctx.model
+    except ModelError as exc:
+        return None, f"the model cannot be used: {session_error(exc)}"
+    if model is None:
+        return None, "no trained model: run 'texplorer train' (or 'texplorer demo') to see predictions here"
+    try:
+        top = predict_top(model, values, 3)
+    except ModelError as exc:
+        return None, f"no prediction: {session_error(exc)}"
+    taxonomy = ctx.db.taxonomy()
+    named = []
+    for label, probability in top:
+        try:
+            words = taxonomy.name(label)
+        except ValueError:
+            words = "(not in the taxonomy table)"
+        named.append((label, probability, words))
+    return named, f"{model.classifier} at level {model.level}, trained on {model.n_rows} scans"
+
+
+@blueprint.get("/session/summary")
+def summary() -> tuple[str, int] | Response:
+    op = operation()
+    missing = op.session.missing()
+    if missing:
+        return render_page("summary.html", 409, current=None, missing=missing, next=next_url(op.session))
+    result = summarise(op)
+    session = op.session
+    return render_page("summary.html", current=None, missing=[], result=result, session=session,
+                       values=session.values, rigid=session.rigid,
+                       description=context().db.taxonomy().describe(session.label))
+
+
+@blueprint.get("/session/summary/traces.png")
+def summary_traces() -> Response:
+    from taxonomy.plots import plot_scan
+
+    op = operation()
+    if op.session.missing():
+        abort(409, description="the scan is not complete yet")
+    summarise(op)
+    path = op.summary_cache.get("plot")
+    if path is None or not path.is_file():
+        plot_dir = context().plot_dir
+        plot_dir.mkdir(parents=True, exist_ok=True)
+        path = plot_dir / f"session-{op.session.session_id}-{op.version}.png"
+        scan = op.summary_cache["scan"]
+        plot_scan(scan, path, title=f"{scan.meta.label}  {scan.scan_id} (not saved yet)")
+        op.summary_cache["plot"] = path
+    return send_file(path, mimetype="image/png", max_age=0)
+
+
+@blueprint.post("/session/save")
+def save() -> tuple[str, int] | Response:
+    ctx = context()
+    op = operation()
+    try:
+        scan_id = op.session.save(ctx.db)
+    except (SessionError, DatabaseError, ValueError) as exc:
+        flash(f"The scan was not saved: {session_error(exc)}", "bad")
+        return redirect(url_for("operate.summary"))
+    plot = op.summary_cache.get("plot")
+    ctx.operations.end(op)
+    if plot is not None:
+        plot.unlink(missing_ok=True)
+    flash(f"Scan {scan_id} was saved.", "good")
+    return redirect(url_for("database.scan", scan_id=scan_id))

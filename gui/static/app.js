@@ -1,0 +1,160 @@
+// texplorer operator pages: progressive enhancement only. Every form also works without this script;
+// it adds the taxonomy picker, photo previews and the live level display while a step records.
+"use strict";
+
+const csrfToken = () => document.body.dataset.csrf;
+
+function debounce(fn, ms) {
+  let timer = null;
+  return (...args) => {
+    clearTimeout(timer);
+    timer = setTimeout(() => fn(...args), ms);
+  };
+}
+
+// -- taxonomy picker ---------------------------------------------------------------------------------
+
+function setupLabel() {
+  const input = document.getElementById("label");
+  const out = document.getElementById("label-description");
+  if (!input || !out) return null;
+  const describe = debounce(async () => {
+    const value = input.value.trim();
+    if (!value) { out.textContent = ""; return; }
+    const response = await fetch(`${input.dataset.describe}?label=${encodeURIComponent(value)}`);
+    const answer = await response.json();
+    out.textContent = answer.ok ? answer.description : answer.error;
+    out.classList.toggle("bad", !answer.ok);
+  }, 250);
+  input.addEventListener("input", describe);
+  return describe;
+}
+
+function setupPicker(describe) {
+  const picker = document.getElementById("picker");
+  if (!picker) return;
+  const search = document.getElementById("picker-search");
+  const results = document.getElementById("picker-results");
+  const label = document.getElementById("label");
+  const shape = document.getElementById("picker-p");
+  const extra = document.getElementById("picker-x");
+  let material = null;
+
+  const compose = () => {
+    if (!material) return;
+    label.value = material + shape.value + extra.value;
+    if (describe) describe();
+  };
+  shape.addEventListener("change", compose);
+  extra.addEventListener("change", compose);
+
+  const show = (answer) => {
+    results.replaceChildren();
+    for (const m of answer.materials) {
+      const item = document.createElement("li");
+      const button = document.createElement("button");
+      button.type = "button";
+      const code = document.createElement("code");
+      code.textContent = m.code;
+      const name = document.createElement("span");
+      name.textContent = m.name;
+      const sub = document.createElement("span");
+      sub.className = "sub";
+      sub.textContent = ` (${m.subclass}, ${m.major})`;
+      button.append(code, name, sub);
+      button.addEventListener("click", () => {
+        material = m.code;
+        compose();
+        for (const other of results.querySelectorAll("button")) other.removeAttribute("aria-pressed");
+        button.setAttribute("aria-pressed", "true");
+        shape.focus();
+      });
+      item.append(button);
+      results.append(item);
+    }
+    if (answer.total > answer.materials.length) {
+      const more = document.createElement("li");
+      more.className = "hint";
+      more.textContent = `${answer.total - answer.materials.length} more: type more of the name or code.`;
+      results.append(more);
+    }
+    if (!answer.total) {
+      const none = document.createElement("li");
+      none.className = "hint";
+      none.textContent = "No material matches.";
+      results.append(none);
+    }
+  };
+  const query = debounce(async () => {
+    const text = search.value.trim();
+    if (!text) { results.replaceChildren(); return; }
+    const response = await fetch(`${picker.dataset.search}?q=${encodeURIComponent(text)}`);
+    show(await response.json());
+  }, 200);
+  search.addEventListener("input", query);
+  // Enter in the search box must not submit the start form.
+  search.addEventListener("keydown", (event) => {
+    if (event.key === "Enter") {
+      event.preventDefault();
+      const first = results.querySelector("button");
+      if (first) first.focus();
+    }
+  });
+}
+
+// -- photo previews ------------------------------------------------------------------------------------
+
+function setupPreviews() {
+  for (const input of document.querySelectorAll("input[type=file][data-preview]")) {
+    const img = document.getElementById(input.dataset.preview);
+    input.addEventListener("change", () => {
+      const file = input.files && input.files[0];
+      if (!file || !img) return;
+      img.src = URL.createObjectURL(file);
+      img.hidden = false;
+      img.alt = `Preview of the chosen file ${file.name}`;
+    });
+  }
+}
+
+// -- live level while a step records ---------------------------------------------------------------------
+
+function setupRecording() {
+  const panel = document.getElementById("recording");
+  if (!panel) return;
+  const fill = panel.querySelector(".level-fill");
+  const levelText = document.getElementById("level-value");
+  const elapsed = document.getElementById("elapsed");
+  const phase = document.getElementById("phase");
+  const bar = panel.querySelector(".level-bar");
+  const poll = async () => {
+    let answer;
+    try {
+      const response = await fetch(panel.dataset.status, { cache: "no-store" });
+      answer = await response.json();
+    } catch (error) {
+      phase.textContent = "Lost contact with the scanner program; retrying…";
+      setTimeout(poll, 1000);
+      return;
+    }
+    if (!answer.recording) {
+      window.location.replace(answer.next || window.location.href);
+      return;
+    }
+    const percent = Math.max(0, Math.min(100, 100 * answer.level));
+    fill.style.width = `${percent}%`;
+    bar.setAttribute("aria-valuenow", percent.toFixed(0));
+    levelText.textContent = answer.level_text;
+    elapsed.textContent = answer.progress_text;
+    phase.textContent = answer.phase;
+    phase.classList.toggle("heating", Boolean(answer.heating));
+    setTimeout(poll, 200);
+  };
+  poll();
+}
+
+document.addEventListener("DOMContentLoaded", () => {
+  setupPicker(setupLabel());
+  setupPreviews();
+  setupRecording();
+});
