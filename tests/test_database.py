@@ -154,12 +154,19 @@ def test_readers_work_while_a_writer_adds(tmp_path):
         thread.start()
     for i in range(1, 15):
         db.add(make_scan(i, sample_id=f"s-{i:02d}", images=False))
+        # Each reader reads at least once between two adds, so reads and writes really interleave,
+        # however loaded the machine is.
+        before = [len(seen) for seen in counts]
+        deadline = time.monotonic() + 30
+        while any(len(seen) <= n for seen, n in zip(counts, before, strict=True)) and not errors:
+            assert time.monotonic() < deadline, "a reader made no progress while the writer was adding"
+            time.sleep(0.001)
     stop.set()
     for thread in threads:
         thread.join()
     assert not errors, errors
     for seen in counts:  # each reader saw the catalog grow, never shrink or break
-        assert len(seen) > 3 and seen == sorted(seen) and seen[0] >= 1
+        assert len(seen) >= 14 and seen == sorted(seen) and seen[0] >= 1 and seen[-1] == 15
     assert len(db) == 15
 
 
