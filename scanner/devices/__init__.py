@@ -135,9 +135,10 @@ def _microphone(config: Config, sources: dict[str, SignalSource], pacers: dict[s
     kind = config.implementation("microphone")
     if kind == "sounddevice":
         return SoundDeviceMicrophone(config.microphone)
-    # The DAQ's clock: at speed 0 the microphone then records exactly as long as the DAQ was read.
+    # On the DAQ's clock, the microphone records exactly as long as the DAQ was read, even at speed 0; next
+    # to another kind of DAQ (a real one) only a real-time clock keeps them together.
     daq_kind = config.implementation("daq")
-    pacer = pacers[kind] if daq_kind == kind else Pacer(pacers[kind].speed)
+    pacer = pacers[kind] if daq_kind == kind else Pacer(1.0)
     return PlaybackMicrophone(sources[kind], rate=config.microphone.rate_hz, pacer=pacer)
 
 
