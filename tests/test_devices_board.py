@@ -361,3 +361,22 @@ def test_a_board_that_does_not_come_back_fails_every_call(sample):
     finally:
         board.close()
         emulator.close()
+
+
+def test_texplorer_emulate_board_prints_its_port(tmp_path):
+    import signal
+    import subprocess
+
+    link = tmp_path / "ttyBOARD"
+    process = subprocess.Popen([sys.executable, "-m", "scanner.cli", "emulate", "board", "--link", str(link),
+                                "--material", "cork-board"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
+    try:
+        assert process.stdout.readline().strip() == str(link)
+        with serial.Serial(str(link), 115200, timeout=2.0) as port:
+            assert _exchange(port, b"ID?\n") == b"ID TEXPLORER-SB 1.2\n"
+    finally:
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=10)
+    assert process.returncode == 0 and "cork-board" in err
+    assert not link.exists()

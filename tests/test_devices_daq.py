@@ -227,3 +227,26 @@ def test_servicer_reads_from_another_thread_while_the_line_switches(ramp):
     finally:
         daq.close()
     assert errors == [] and ramp.servicer.line_state() is False
+
+
+def test_texplorer_emulate_daq_prints_its_address():
+    import signal
+    import subprocess
+    import sys
+
+    process = subprocess.Popen([sys.executable, "-m", "scanner.cli", "emulate", "daq"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        address = process.stdout.readline().strip()
+        assert address.startswith("grpc://127.0.0.1:")
+        daq = NidaqmxDaq(DaqConfig(server=address))
+        try:
+            assert daq.describe()["daq"].startswith("NI USB-6002 serial 1F2A3B4")
+        finally:
+            daq.close()
+    finally:
+        if sys.platform != "win32":
+            process.send_signal(signal.SIGINT)
+        else:
+            process.terminate()
+        process.communicate(timeout=10)
