@@ -725,8 +725,9 @@ SCAN_ROLES = {"vibration": "v_ts", "audio": "a_ts", "temperature": "t_cool"}
 def scan_recording(scan: Scan) -> Recording:
     """A scan as a generic :class:`Recording`: every channel under its name, roles per :data:`SCAN_ROLES`.
 
-    The label is the scan's taxonomy label and the group its sample id (``{"object": sample_id}``).
+    The label is the scan's taxonomy label; the groups are the sample (``object``) and the scan index
+    (``trial``), so the scans of one sample count as repeated trials on one object.
     """
     roles = {role: channel for role, channel in SCAN_ROLES.items() if channel in scan.traces}
-    return Recording(scan.scan_id, dict(scan.traces), roles, scan.meta.label, {"object": scan.meta.sample_id},
-                     {"scan_index": scan.meta.scan_index})
+    group = {"object": scan.meta.sample_id, "trial": f"{scan.meta.scan_index:03d}"}
+    return Recording(scan.scan_id, dict(scan.traces), roles, scan.meta.label, group)
