@@ -488,17 +488,21 @@ def usable_rows(extracted: Extracted, rows: Sequence[int]) -> tuple[np.ndarray, 
 # -- fishel ------------------------------------------------------------------------------------------
 
 def run_fishel(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int) -> list[MethodResult]:
-    """``fishel3`` with the project's six classifiers, 5-fold CV grouped by sample, every taxonomy level."""
+    """``fishel3`` with the project's six classifiers, 5-fold CV grouped by sample (fewer folds when a class
+    has fewer scans), every taxonomy level."""
     extracted = cache.get("fishel3")
     rows, columns, notes = usable_rows(extracted, range(len(dataset)))
     X = extracted.X[np.ix_(rows, columns)]
     groups = [object_of(dataset.recordings[i]) for i in rows]
+    # The fine labels decide the grouping, so every level is split alike (as taxonomy.evaluate does).
+    fine = dataset.y(dataset.label_level, rows)
+    folds = max(2, min(5, int(np.unique(fine, return_counts=True)[1].min())))
     results = []
     for level in dataset.levels():
         y = dataset.y(level, rows)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            splits, grouped = cv_splits(y, groups, 5, seed)
+            splits, grouped = cv_splits(y, groups, folds, seed, grouping_labels=fine)
         protocol = f"{len(splits)}-fold CV{' by sample' if grouped else ''}"
         for name in classifier_estimators(seed):
             def make(_: int, __: np.ndarray, name: str = name) -> Pipeline:
@@ -808,10 +812,25 @@ MEAN_DIMENSIONS = 8
 """Seed 004 reduces the 23 channel means to 8 principal components (~98 % of their variance)."""
 
 
+class ValidationSplit:
+    """One stratified validation split of 20 % of the training rows, at least one row per class
+    (a scikit-learn CV splitter for grid searches on small training sets)."""
+
+    def __init__(self, seed: int = SEED) -> None:
+        self.seed = seed
+
+    def get_n_splits(self, X: object = None, y: object = None, groups: object = None) -> int:
+        return 1
+
+    def split(self, X: np.ndarray, y: np.ndarray, groups: object = None) -> Iterator[Split]:
+        classes = np.unique(y).size
+        size = max(classes, int(round(0.2 * len(y))))
+        yield from StratifiedShuffleSplit(n_splits=1, test_size=size, random_state=self.seed).split(X, y)
+
+
 def _validated(svm: SVC, grid: Mapping[str, Sequence[float]], seed: int) -> GridSearchCV:
-    """Grid search on one stratified validation split of 20 % of the training rows."""
-    validation = StratifiedShuffleSplit(n_splits=1, test_size=0.2, random_state=seed)
-    return GridSearchCV(svm, dict(grid), cv=validation)
+    """Grid search on one validation split of the training rows (:class:`ValidationSplit`)."""
+    return GridSearchCV(svm, dict(grid), cv=ValidationSplit(seed))
 
 
 class ShrunkGaussian(ClassifierMixin, BaseEstimator):

@@ -353,4 +353,4 @@ def test_scan_recording_roles():
     scan = _fishel_scan()
     r = related.scan_recording(scan)
     assert dict(r.roles) == {"vibration": "v_ts"} and r.label == scan.meta.label
-    assert r.group["object"] == scan.meta.sample_id and r.channels["f_frn"] == scan["f_frn"]
+    assert dict(r.group) == {"object": "granite-01", "trial": "001"} and r.channels["f_frn"] == scan["f_frn"]
