@@ -1,0 +1,195 @@
+"""Import of other labs' recordings: every format quirk on small fixture files, bad files, storage."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from scanner import ingest
+from scanner.ingest import IngestError
+from scanner.scan import Recording, Trace
+from scanner.simulate_recordings import biotac_recordings, biotac_rows
+
+FIXTURES = Path(__file__).parent / "fixtures" / "ingest"
+
+
+def run(lab: str) -> ingest.IngestReport:
+    return ingest.ingest(FIXTURES / f"lab-{lab}", ingest.load_mapping(FIXTURES / f"lab-{lab}.toml"))
+
+
+@pytest.fixture(scope="module")
+def lab_a():
+    return run("a")
+
+
+def test_csv_and_tsv_stems_labels_and_groups(lab_a):
+    by = {r.name: r for r in lab_a.recordings}
+    assert sorted(by) == ["metal-1_t01_static", "sponge-1_t01_static"]
+    sponge = by["sponge-1_t01_static"]
+    assert sponge.label == "sponge" and sponge.meta["label_level"] == "material"
+    assert dict(sponge.group) == {"object": "sponge-1", "trial": "01", "motion": "static"}
+    assert dict(sponge.roles) == {"vibration": "pac", "pressure_dc": "pdc", "electrodes": "electrodes",
+                                  "temperature": "tdc"}
+    assert sponge.meta["source"] == ["sponge/sponge-1_t01_static_pac.csv",
+                                     "sponge/sponge-1_t01_static_slow.tsv"]
+
+
+def test_spread_columns_become_one_fast_channel(lab_a):
+    pac = {r.name: r for r in lab_a.recordings}["metal-1_t01_static"].channels["pac"]
+    # Rows 10 ms apart (a millisecond time column) with 22 samples each: 2200 Hz. Sample k holds 1000 + k;
+    # the nan and -nan tokens at samples 25 and 32 are filled by linear interpolation, so they too.
+    assert pac.fs == pytest.approx(2200.0) and pac.unit == "bit"
+    assert np.array_equal(pac.data, 1000.0 + np.arange(88))
+    assert "metal-1_t01_static_pac.csv: channel pac: 2 missing sample(s) interpolated" in lab_a.notes
+
+
+def test_tsv_at_a_given_rate_with_comment_and_column_index(lab_a):
+    sponge = {r.name: r for r in lab_a.recordings}["sponge-1_t01_static"]
+    assert sponge.channels["pdc"].fs == 50.0 and sponge.channels["pdc"].data.tolist() == [100.0, 101.0, 102.0]
+    assert sponge.channels["electrodes"].data.tolist() == [[3000, 3100, 3200], [3001, 3101, 3201],
+                                                          [3002, 3102, 3202]]
+    assert sponge.channels["tdc"].data == pytest.approx([25.0, 24.99, 24.98])  # column 4, scale 0.01
+    assert sponge.channels["tdc"].unit == "degC"
+
+
+def test_bad_files_are_named_and_skipped(lab_a):
+    assert lab_a.files == 8
+    skipped = [line.replace(str(FIXTURES), "F") for line in lab_a.skipped]
+    assert skipped == [
+        "F/lab-a/metal/metal-1_t02_static_pac.csv: line 4, column pac_05: 'abc' is not a number",
+        "metal/metal-1_t02_static: recording skipped, metal-1_t02_static_pac.csv is unusable",
+        "F/lab-a/metal/metal-1_t03_static_pac.csv: line 4: 22 fields, expected 23",
+        "metal/metal-1_t03_static: recording skipped, metal-1_t03_static_pac.csv is unusable",
+        "F/lab-a/sponge/notes_pac.csv: name does not match groups.pattern",
+    ]
+
+
+def test_wav_npz_and_a_label_table():
+    report = run("b")
+    by = {r.name: r for r in report.recordings}
+    assert sorted(by) == ["cup_01", "plate_01"]
+    cup = by["cup_01"]
+    assert cup.label == "cup" and cup.meta["levels"] == {"material": "ceramic"}
+    assert cup.meta["label_level"] == "object"
+    # 16-bit PCM to full scale: 16384 is 0.5, 32767 is 32767 / 32768.
+    assert cup.channels["audio"].fs == 8000.0 and cup.channels["audio"].data[:4].tolist() == [0, 0.5, -0.5,
+                                                                                               32767 / 32768]
+    # The rate comes from the archive's "fs" variable.
+    assert cup.channels["xyz"].fs == 1000.0 and cup.channels["xyz"].data.shape == (10, 3)
+    assert np.array_equal(by["plate_01"].channels["xyz"].data, 2 * np.arange(30.0).reshape(10, 3))
+    skipped = [line.replace(str(FIXTURES), "F") for line in report.skipped]
+    assert skipped[0].startswith("F/lab-b/broken_01.npz: not a readable NPZ file (BadZipFile")
+    assert skipped[1:] == ["broken_01: recording skipped, broken_01.npz is unusable",
+                           "mug_01: recording skipped: no label for 'mug_01' in labels.csv"]
+
+
+def test_npy_mat_headerless_csv_and_labels_from_the_name():
+    report = run("c")
+    by = {r.name: r for r in report.recordings}
+    assert sorted(by) == ["foam_a", "wood_b"]
+    wood = by["wood_b"]
+    assert wood.label == "wood" and dict(wood.group) == {"object": "b"}
+    assert wood.meta["sensor"] == "lab C array"
+    assert wood.channels["taxels"].data.shape == (5, 4, 4) and wood.role("taxels") is wood.channels["taxels"]
+    assert np.array_equal(wood.channels["electrodes"].data, np.arange(10.0).reshape(5, 2) + 2)
+    assert wood.channels["temp"].data.shape == (5,) and wood.channels["temp"].data[0] == 32.0  # n x 1 -> 1-D
+    # Headerless, trailing commas: column 1 at the given 200 Hz.
+    assert wood.channels["pdc"].fs == 200.0
+    assert wood.channels["pdc"].data.tolist() == [2.0, 2.5, 3.0, 3.5, 4.0]
+    assert report.skipped[0].endswith("wood_c.mat: MATLAB v7.3 (HDF5) files are not read; save with -v7")
+
+
+def test_read_table_quirks(tmp_path):
+    path = tmp_path / "t.csv"
+    path.write_text("a,b,c,\n1,nan,3,\n4,-NaN,,\n")
+    names, values = ingest.read_table(path, ",", header=True)
+    assert names == ["a", "b", "c"]
+    assert np.array_equal(values, [[1, np.nan, 3], [4, np.nan, np.nan]], equal_nan=True)
+    path.write_text("a;b\n1;2\n3\n")
+    with pytest.raises(IngestError, match=r"t.csv: line 3: 1 fields, expected 2$"):
+        ingest.read_table(path, ";", header=True)
+    path.write_text("a\n")
+    with pytest.raises(IngestError, match="a header but no data rows"):
+        ingest.read_table(path, ",", header=True)
+
+
+def test_rate_from_a_time_column(tmp_path):
+    path = tmp_path / "x.csv"
+    times = np.array([0.0, 0.01, 0.02, 0.03])
+    assert ingest.rate_from_times(times, "s", path) == (pytest.approx(100.0), None)
+    rate, note = ingest.rate_from_times(np.array([0, 1000, 2000, 3200, 4000]), "us", path)
+    assert rate == pytest.approx(1000.0) and note == "x.csv: time steps vary by up to 20 %"
+    with pytest.raises(IngestError, match="the time column does not increase at data row 3"):
+        ingest.rate_from_times(np.array([0.0, 1.0, 1.0]), "s", path)
+
+
+def test_missing_samples_can_be_refused(tmp_path):
+    mapping = ingest.parse_mapping('missing = "error"\n[[files]]\nglob = "**/*.csv"\nrate = 10.0\n'
+                                   '[[files.channels]]\nname = "v"\nrole = "vibration"\ncolumns = "v"\n', "m")
+    (tmp_path / "lab" / "foam").mkdir(parents=True)
+    (tmp_path / "lab" / "foam" / "r1.csv").write_text("v\n1\nnan\n3\n")
+    report = ingest.ingest(tmp_path / "lab", mapping)
+    assert report.recordings == [] and report.skipped[0].endswith("r1.csv: channel v: 1 missing sample(s)")
+
+
+@pytest.mark.parametrize("text, message", [
+    ('[[files]]\nglob = "*.csv"\n', "files[0]: needs at least one [[files.channels]] table"),
+    ('[[files]]\nglob = "*.csv"\n[[files.channels]]\nname = "v"\nrole = "vibe"\n',
+     "files[0].channels[0]: unknown role 'vibe'"),
+    ('[[files]]\nglob = "*.csv"\nformat = "xlsx"\n[[files.channels]]\nname = "v"\n', "unknown format 'xlsx'"),
+    ('[[files]]\nglob = "*.csv"\ndelim = ","\n[[files.channels]]\nname = "v"\n', "unknown key(s) delim"),
+    ('[groups]\npattern = "(?P<x"\n[[files]]\nglob = "*"\n[[files.channels]]\nname = "v"\n',
+     "groups: pattern is not a regular expression"),
+    ('[labels]\nfrom = "pattern"\n[[files]]\nglob = "*"\n[[files.channels]]\nname = "v"\n',
+     "labels: from = 'pattern' needs a (?P<label>...) group"),
+    ('[[files]]\nglob = "*"\nrate = -1\n[[files.channels]]\nname = "v"\n', "rate must be positive, got -1"),
+    ('[[files]]\nglob = "*"\n[[files.channels]]\nname = "2v"\n',
+     "name '2v' must be a MATLAB-style identifier"),
+    ("name = 'a b'\n", "name 'a b' must be 1-64 letters"),
+    ("files = [\n", "not valid TOML"),
+])
+def test_mapping_errors_name_the_key(text, message):
+    with pytest.raises(IngestError) as info:
+        ingest.parse_mapping(text, "m", "MAP.toml")
+    text = str(info.value)
+    assert text.startswith("MAP.toml") and message in text and "\n" not in text
+
+
+def test_simulated_biotac_rows_round_trip_through_csv(tmp_path):
+    recording = biotac_recordings(classes=["paper"], objects=1, trials=1, motions=["slide_left"])[0]
+    columns, rows = biotac_rows(recording)
+    folder = tmp_path / "data" / "paper"
+    folder.mkdir(parents=True)
+    lines = [",".join(columns)] + [",".join(repr(float(v)) for v in row) for row in rows]
+    (folder / "paper-1_t01_slideleft.csv").write_text("\n".join(lines) + "\n")
+    mapping = ingest.parse_mapping(
+        '[[files]]\nglob = "**/*.csv"\ntime_column = "time"\n'
+        '[[files.channels]]\nname = "pac"\nrole = "vibration"\ncolumns = "pac_01:pac_22"\nspread = true\n'
+        '[[files.channels]]\nname = "electrodes"\nrole = "electrodes"\ncolumns = "e01:e19"\n', "sim")
+    back = ingest.ingest(tmp_path / "data", mapping).recordings[0]
+    assert back.label == "paper" and back.channels["pac"].fs == pytest.approx(2200.0)
+    assert np.array_equal(back.channels["pac"].data, recording.channels["pac"].data)
+    assert np.array_equal(back.channels["electrodes"].data, recording.channels["electrodes"].data)
+
+
+def test_store_and_load_a_set(tmp_path, lab_a):
+    folder = ingest.store_recordings(tmp_path, "lab-a", lab_a.recordings)
+    assert folder == tmp_path / "recordings" / "lab-a" and ingest.recording_sets(tmp_path) == ["lab-a"]
+    back = ingest.load_recordings(folder)
+    for original, loaded in zip(lab_a.recordings, back, strict=True):
+        assert loaded.name == original.name and dict(loaded.channels) == dict(original.channels)
+        assert (dict(loaded.roles), loaded.label, dict(loaded.group), dict(loaded.meta)) == \
+            (dict(original.roles), original.label, dict(original.group), dict(original.meta))
+    with pytest.raises(IngestError, match="the set 'lab-a' exists"):
+        ingest.store_recordings(tmp_path, "lab-a", lab_a.recordings)
+    one = [Recording("only", {"v": Trace(np.arange(4.0), 10.0, "-")}, label="x")]
+    ingest.store_recordings(tmp_path, "lab-a", one, replace=True)
+    assert [r.name for r in ingest.load_recordings(folder)] == ["only"]
+    assert [p.name for p in (tmp_path / "recordings").iterdir()] == ["lab-a"]  # no temporary folders left
+    with pytest.raises(IngestError, match="set name '../x' must be"):
+        ingest.store_recordings(tmp_path, "../x", one)
+    (tmp_path / "junk.mat").write_bytes(b"not a mat file")
+    with pytest.raises(IngestError, match="junk.mat: not a readable recording file"):
+        ingest.read_recording(tmp_path / "junk.mat")
