@@ -8,7 +8,7 @@ diagnostics. How each step is recorded:
 step               devices
 =================  ==========================================================================================
 taps               DAQ (accelerometer)
-slides             microphone started first, then the DAQ; the microphone's measured start offset is removed
+slides             DAQ task set up, microphone started, then the DAQ; the measured start offset is removed
                    so the audio and the vibration start at the same instant (SPEC 5), then both are cut to
                    the step's duration
 static             ``CAL M`` with the unit in the air, then the DAQ (metal electrode) and the board's ``M``
@@ -185,6 +185,7 @@ class Recorder:
         blocks = -(-n // daq.block)
         buffer = np.empty((blocks, len(daq.channels), daq.block))
         capture = None
+        daq.arm(step)
         if audio:
             microphone.start(step)
         try:

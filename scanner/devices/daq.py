@@ -69,6 +69,7 @@ class NidaqmxDaq:
         self._channel = _grpc_channel(address) if address else None
         self._where = f"{config.device} on {address}" if address else config.device
         self._task: Any = None
+        self._armed = ""
         self._reader: Any = None
         self._peltier: Any = None
         self._peltier_writer: Any = None
@@ -116,8 +117,12 @@ class NidaqmxDaq:
             name = "NI-DAQmx device"
         return {"daq": f"{name} ({self._where})"}
 
-    def start(self, step: str) -> float:
-        """Create, configure and start the task ``texplorer-<step>`` reading every mapped analog input."""
+    def arm(self, step: str) -> None:
+        """Create and configure the task ``texplorer-<step>`` reading every mapped analog input, unstarted.
+
+        The slow part of a start (several DAQmx calls, each a round trip to a remote server), so that
+        :meth:`start` right after the microphone's start is one call.
+        """
         nidaqmx = self._nidaqmx
         constants = nidaqmx.constants
         self.stop()
@@ -141,8 +146,14 @@ class NidaqmxDaq:
             return task
 
         self._task = self._call("configuring the analog inputs", configure)
+        self._armed = step
         self._reader = nidaqmx.stream_readers.AnalogMultiChannelReader(self._task.in_stream)
         self._reader.verify_array_shape = False
+
+    def start(self, step: str) -> float:
+        """Start the armed task (arming it first if :meth:`arm` was not called for ``step``)."""
+        if self._task is None or self._armed != step:
+            self.arm(step)
         before = time.perf_counter()
         self._call("starting", self._task.start)
         return (before + time.perf_counter()) / 2
@@ -227,13 +238,19 @@ class PlaybackDaq:
         self.peltier_on = False
         self.peltier_log: list[tuple[float, bool]] = []
         self._volts: np.ndarray | None = None
+        self._armed = ""
         self._position = 0
 
     def describe(self) -> dict[str, str]:
         return {"daq": f"NI USB-6002 ({self.source.kind})", "source": self.source.describe()}
 
-    def start(self, step: str) -> float:
+    def arm(self, step: str) -> None:
         self._volts = self.source.daq_volts(step, self.calibration, self.name)
+        self._armed = step
+
+    def start(self, step: str) -> float:
+        if self._volts is None or self._armed != step:
+            self.arm(step)
         self._position = 0
         return self.pacer.start()
 

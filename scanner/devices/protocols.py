@@ -55,8 +55,12 @@ class Daq(Protocol):
 
     def describe(self) -> dict[str, str]: ...
 
+    def arm(self, step: str) -> None:
+        """Prepare the acquisition of ``step`` so that :meth:`start` is quick."""
+        ...
+
     def start(self, step: str) -> float:
-        """Start acquiring; returns the ``time.perf_counter()`` of the first sample (estimated)."""
+        """Start acquiring (arming first if needed); returns the ``perf_counter()`` of the first sample."""
         ...
 
     def read_into(self, out: np.ndarray) -> None: ...
