@@ -98,7 +98,7 @@ def parse_quantity(text: str, units: tuple[str, ...], *, what: str) -> float:
         raise ValueError(f"{text.strip()[:40]!r} is not a number in {units[0]}")
     value = float(match.group(1).replace(",", "."))
     if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"the {what} must be a positive number of {units[0]}, got {match.group(1)}")
+        raise ValueError(f"the {what} must be positive (in {units[0]}), got {match.group(1)}")
     return value
 
 

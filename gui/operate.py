@@ -30,7 +30,7 @@ from gui.forms import (
     validate_start,
 )
 from gui.operation import Operation, SessionBusy
-from gui.photos import UploadError, check_size, check_upload
+from gui.photos import UploadError, check_size, check_upload, file_size
 from scanner.config import ConfigError
 from scanner.database import DatabaseError
 from scanner.devices.protocols import DeviceError
@@ -55,6 +55,14 @@ TACTUM_TITLES = {
     "tactum.tco": "thermal cooling TCO (K)", "tactum.tpr": "thermal persistence TPR (K)",
 }
 """The 15 TacTUM features with the paper's names (Strese et al. 2020, section IV-A)."""
+
+PHASE_TEXT = {
+    "starting": "Starting the devices…",
+    "recording": "Recording: carry on with the step",
+    "heating": "Peltier heating: keep TU2 pressed on the surface",
+    "cooling": "Cooling: hold the temperature sensor over the heated spot",
+}
+"""What the operator should be doing in each phase of a recording (``scanner.recorder.Level.phase``)."""
 
 
 # -- helpers -------------------------------------------------------------------------------------------
@@ -287,8 +295,9 @@ def status() -> Response:
     else:
         answer.update(phase=level.phase, level=max(0.0, min(1.0, level.fraction)),
                       heating=level.phase == "heating",
-                      level_text=f"{level.signal} {level.value:.3g} {level.unit}",
+                      level_text=f"{level.signal}: {level.value:.3g} {level.unit}",
                       progress_text=f"{level.elapsed_s:.1f} s of {level.duration_s:.1f} s")
+    answer["phase_text"] = PHASE_TEXT.get(answer["phase"], answer["phase"])
     return jsonify(answer)
 
 
@@ -305,7 +314,7 @@ def render_form(errors: dict[str, str], status: int = 200) -> tuple[str, int]:
                        methods=[(m, VOLUME_METHOD_WORDS.get(m, m)) for m in VOLUME_METHODS],
                        photos=[(name, PHOTO_TITLES[name], op.photos.get(name), op.photo_sources.get(name))
                                for name in IMAGES],
-                       upload_limit_mb=settings.upload_limit / (1024 * 1024))
+                       upload_limit=file_size(settings.upload_limit))
 
 
 def _value_text(value: Any) -> str:

@@ -45,9 +45,10 @@ def test_quantity_accepts_numbers_with_the_unit(text, value):
 
 
 @pytest.mark.parametrize(("text", "reason"), [
-    ("", "enter the mass in g"), ("   ", "enter the mass in g"), ("-3", "must be a positive number"),
-    ("0", "must be a positive number"), ("0,0 g", "must be a positive number"), ("nan", "is not a number"),
-    ("inf", "is not a number"), ("1e400", "must be a positive number"), ("5 kg", "is not a number in g"),
+    ("", "enter the mass in g"), ("   ", "enter the mass in g"),
+    ("-3", r"the mass must be positive \(in g\), got -3"),
+    ("0", "must be positive"), ("0,0 g", "must be positive"), ("nan", "is not a number"),
+    ("inf", "is not a number"), ("1e400", "must be positive"), ("5 kg", "is not a number in g"),
     ("5 g g", "is not a number in g"), ("1.2.3", "is not a number in g"),
 ])
 def test_quantity_refuses_with_a_reason(text, reason):
@@ -440,6 +441,43 @@ def scanner_channels():
     return CHANNELS
 
 
+def density_model(path):
+    """A random forest on density alone: granite (2.6-2.8 g/cm^3) against oak (0.6-0.8 g/cm^3)."""
+    from features.space import FeatureSpace
+    from taxonomy.models import save_model, train_model
+
+    density = np.concatenate([np.linspace(2.6, 2.8, 6), np.linspace(0.6, 0.8, 6)])
+    labels = ["C6S1M1P2X1"] * 6 + ["C1S1M1P4X1"] * 6
+    space = FeatureSpace(X=density[:, None], columns=("other.density",),
+                         scan_ids=[f"s-{i}" for i in range(12)], label_text=labels,
+                         groups=[f"g-{i}" for i in range(12)])
+    return save_model(train_model(space, "fine", 1, "rf"), path)
+
+
+def test_summary_shows_the_models_top_predictions(tmp_path):
+    density_model(tmp_path / "db" / "models" / "rf-fine-X10.skops")  # where 'texplorer demo' puts it
+    app = make_app(tmp_path / "db")
+    client = app.test_client()
+    try:
+        start_session(client)
+        record_all(client, app)
+        for name in ("I_disp", "I_macro", "I_illu"):
+            post(client, "/session/form", {"capture": name})
+        # density 512.5 g / 190 cm^3 = 2.697 g/cm^3: inside the granite range
+        post(client, "/session/form", {"atk": "0", "cyd": "0", "mass_g": "512.5", "volume_cm3": "190",
+                                       "volume_method": "water"})
+        page = get(client, "/session/summary").text
+        ranking = page.split('<ol class="predictions">', 1)[1].split("</ol>", 1)[0]
+        assert ranking.index("C6S1M1P2X1") < ranking.index("C1S1M1P4X1")
+        # every tree splits between 0.8 and 2.6, so all of them vote granite
+        assert ranking.index("100.0 %") < ranking.index("0.0 %")
+        assert "granite (igneous stone, stone), polished, plain" in ranking
+        assert "oak (hardwood, wood), planed, plain" in ranking
+        assert "rf at level fine, trained on 12 scans" in page
+    finally:
+        app.extensions["texplorer"].shutdown()
+
+
 def test_operator_form_errors_save_nothing(client, app):
     start_session(client)
     record_all(client, app, skip_fold=True)
@@ -460,8 +498,8 @@ def test_operator_form_errors_save_nothing(client, app):
     assert field_error(text, "I_illu") == "not a PNG or JPEG file"
     assert "not on the five-step scale" in field_error(text, "atk")
     assert field_error(text, "cyd").startswith('choose the yielding: one of "material recovers shape"')
-    assert field_error(text, "mass_g") == "the mass must be a positive number of g, got -12"
-    assert field_error(text, "volume_cm3") == "the volume must be a positive number of cm^3, got 0"
+    assert field_error(text, "mass_g") == "the mass must be positive (in g), got -12"
+    assert field_error(text, "volume_cm3") == "the volume must be positive (in cm^3), got 0"
     assert field_error(text, "volume_method").startswith("choose how the volume was measured")
     assert field_error(text, "notes") == "notes are 2001 characters long; at most 2000 are kept"
     session = active(app).session

@@ -2,8 +2,6 @@
 // it adds the taxonomy picker, photo previews and the live level display while a step records.
 "use strict";
 
-const csrfToken = () => document.body.dataset.csrf;
-
 function debounce(fn, ms) {
   let timer = null;
   return (...args) => {
@@ -21,8 +19,13 @@ function setupLabel() {
   const describe = debounce(async () => {
     const value = input.value.trim();
     if (!value) { out.textContent = ""; return; }
-    const response = await fetch(`${input.dataset.describe}?label=${encodeURIComponent(value)}`);
-    const answer = await response.json();
+    let answer;
+    try {
+      const response = await fetch(`${input.dataset.describe}?label=${encodeURIComponent(value)}`);
+      answer = await response.json();
+    } catch (error) {
+      return;  // the page is going away, or the server is: the server checks the label on submit anyway
+    }
     out.textContent = answer.ok ? answer.description : answer.error;
     out.classList.toggle("bad", !answer.ok);
   }, 250);
@@ -88,8 +91,12 @@ function setupPicker(describe) {
   const query = debounce(async () => {
     const text = search.value.trim();
     if (!text) { results.replaceChildren(); return; }
-    const response = await fetch(`${picker.dataset.search}?q=${encodeURIComponent(text)}`);
-    show(await response.json());
+    try {
+      const response = await fetch(`${picker.dataset.search}?q=${encodeURIComponent(text)}`);
+      show(await response.json());
+    } catch (error) {
+      results.replaceChildren();
+    }
   }, 200);
   search.addEventListener("input", query);
   // Enter in the search box must not submit the start form.
@@ -112,6 +119,8 @@ function setupPreviews() {
       if (!file || !img) return;
       img.src = URL.createObjectURL(file);
       img.hidden = false;
+      const placeholder = document.getElementById(input.dataset.placeholder);
+      if (placeholder) placeholder.hidden = true;
       img.alt = `Preview of the chosen file ${file.name}`;
     });
   }
@@ -122,7 +131,7 @@ function setupPreviews() {
 function setupRecording() {
   const panel = document.getElementById("recording");
   if (!panel) return;
-  const fill = panel.querySelector(".level-fill");
+  const rest = panel.querySelector(".level-rest");
   const levelText = document.getElementById("level-value");
   const elapsed = document.getElementById("elapsed");
   const phase = document.getElementById("phase");
@@ -142,11 +151,11 @@ function setupRecording() {
       return;
     }
     const percent = Math.max(0, Math.min(100, 100 * answer.level));
-    fill.style.width = `${percent}%`;
+    rest.style.width = `${100 - percent}%`;
     bar.setAttribute("aria-valuenow", percent.toFixed(0));
     levelText.textContent = answer.level_text;
     elapsed.textContent = answer.progress_text;
-    phase.textContent = answer.phase;
+    phase.textContent = answer.phase_text;
     phase.classList.toggle("heating", Boolean(answer.heating));
     setTimeout(poll, 200);
   };
