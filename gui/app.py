@@ -154,10 +154,9 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None
     print(f"texplorer: serving {settings.db} at http://{shown}:{server.server_port}/ (Ctrl-C stops)",
           file=sys.stderr)
     try:
-        server.serve_forever()
-    except KeyboardInterrupt:
-        print("texplorer: stopped", file=sys.stderr)
+        server.serve_forever()  # returns on Ctrl-C (Werkzeug handles the KeyboardInterrupt)
     finally:
         server.server_close()
         app.extensions["texplorer"].shutdown()
+    print("texplorer: stopped", file=sys.stderr)
 

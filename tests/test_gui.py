@@ -672,3 +672,60 @@ def test_export_bundle(stocked):
 def test_empty_database_pages(client):
     assert "The database is empty" in get(client, "/db/").text
     assert get(client, "/db/export/features.csv").status_code == 404
+
+
+# -- texplorer serve ----------------------------------------------------------------------------------
+
+
+def serve_process(tmp_path, *options):
+    import subprocess
+    import sys
+
+    return subprocess.Popen([sys.executable, "-m", "scanner.cli", "serve", "--db", str(tmp_path / "db"), "--port",
+                             "0", *options], stderr=subprocess.PIPE, text=True)
+
+
+def served_url(process) -> tuple[str, list[str]]:
+    """The URL the server prints, and the lines it printed before."""
+    lines = []
+    for line in process.stderr:
+        lines.append(line.strip())
+        if " at http://" in line:
+            return line.split(" at ", 1)[1].split("/ ", 1)[0], lines
+    raise AssertionError(f"the server printed no address: {lines}")
+
+
+def test_texplorer_serve_binds_loopback_and_stops_on_ctrl_c(tmp_path):
+    import signal
+    import urllib.request
+
+    process = serve_process(tmp_path)
+    try:
+        url, lines = served_url(process)
+        assert url.startswith("http://127.0.0.1:") and not any("warning" in line for line in lines)
+        with urllib.request.urlopen(url + "/") as answer:
+            assert answer.status == 200 and b"Start a scan" in answer.read()
+        process.send_signal(signal.SIGINT)
+        assert process.wait(10) == 0
+        assert "texplorer: stopped" in process.stderr.read()
+    finally:
+        process.kill()
+
+
+def test_texplorer_serve_warns_when_listening_on_the_network(tmp_path):
+    process = serve_process(tmp_path, "--host", "0.0.0.0")
+    try:
+        _, lines = served_url(process)
+        assert any(line.startswith("texplorer: warning: listening on 0.0.0.0:") for line in lines)
+    finally:
+        process.kill()
+
+
+def test_texplorer_serve_refuses_bad_options(tmp_path, capsys):
+    from scanner.cli import main
+
+    assert main(["serve", "--db", str(tmp_path / "db"), "--upload-limit-mb", "0"]) == 1
+    assert capsys.readouterr().err.strip() == "texplorer: error: --upload-limit-mb must be positive, got 0"
+    (tmp_path / "bad.toml").write_text("[devices]\ndaq = 'teleport'\n")
+    assert main(["serve", "--db", str(tmp_path / "db"), "--config", str(tmp_path / "bad.toml")]) == 1
+    assert "devices.daq: 'teleport' is not one of" in capsys.readouterr().err
