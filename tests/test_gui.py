@@ -681,8 +681,8 @@ def serve_process(tmp_path, *options):
     import subprocess
     import sys
 
-    return subprocess.Popen([sys.executable, "-m", "scanner.cli", "serve", "--db", str(tmp_path / "db"), "--port",
-                             "0", *options], stderr=subprocess.PIPE, text=True)
+    command = [sys.executable, "-m", "scanner.cli", "serve", "--db", str(tmp_path / "db"), "--port", "0", *options]
+    return subprocess.Popen(command, stderr=subprocess.PIPE, text=True)
 
 
 def served_url(process) -> tuple[str, list[str]]:
