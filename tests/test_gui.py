@@ -681,7 +681,8 @@ def serve_process(tmp_path, *options):
     import subprocess
     import sys
 
-    command = [sys.executable, "-m", "scanner.cli", "serve", "--db", str(tmp_path / "db"), "--port", "0", *options]
+    command = [sys.executable, "-m", "scanner.cli", "serve", "--db", str(tmp_path / "db"), "--port", "0",
+               *options]
     return subprocess.Popen(command, stderr=subprocess.PIPE, text=True)
 
 
