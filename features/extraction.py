@@ -57,8 +57,20 @@ def _nan(names: Iterable[str]) -> dict[str, float]:
     return dict.fromkeys(names, math.nan)
 
 
-def image_features(scan: Scan) -> dict[str, float]:
-    """31 features for each photo (SPEC 7.2); NaN with a warning for a missing or too small photo."""
+def prepared_disp(scan: Scan) -> image.PreparedPhoto | None:
+    """``I_disp`` prepared once for TacTUM (MaCo, MaRG) and its image features, which share its gray image,
+    Tamura contrast and spectrum; None if the photo is missing or too small for image features."""
+    photo = scan.images.get("I_disp")
+    if photo is None or min(photo.shape[:2]) < MIN_PHOTO_SIDE:
+        return None
+    return image.PreparedPhoto(photo)
+
+
+def image_features(scan: Scan, disp: image.PreparedPhoto | None = None) -> dict[str, float]:
+    """31 features for each photo (SPEC 7.2); NaN with a warning for a missing or too small photo.
+
+    ``disp`` is ``I_disp`` already prepared (:func:`prepared_disp`); the other photos are prepared here.
+    """
     values: dict[str, float] = {}
     for variable, short in IMAGES.items():
         names = [f"image.{short}.{name}" for name in image.NAMES]
@@ -71,7 +83,7 @@ def image_features(scan: Scan) -> dict[str, float]:
                           f"than {MIN_PHOTO_SIDE} px; its image features are NaN", stacklevel=2)
             values.update(_nan(names))
         else:
-            computed = image.compute(photo)
+            computed = image.compute(photo, prepared=disp if variable == "I_disp" else None)
             values.update({f"image.{short}.{name}": computed[name] for name in image.NAMES})
     return values
 
@@ -102,7 +114,9 @@ def audio_features(scan: Scan) -> dict[str, float]:
 
 def extract(scan: Scan) -> dict[str, float]:
     """The 193 named features of a scan in SPEC order (section 7); NaN where a value is undefined."""
-    values = {**tactum.compute(scan), **image_features(scan), **audio_features(scan), **other.compute(scan)}
+    disp = prepared_disp(scan)
+    values = {**tactum.compute(scan, disp=disp), **image_features(scan, disp), **audio_features(scan),
+              **other.compute(scan)}
     if tuple(values) != NAMES:
         raise RuntimeError("feature modules returned names out of SPEC order")  # a programming error
     return values

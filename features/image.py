@@ -14,6 +14,7 @@ integer counts or the same float64 operations as the whole-image formula, so ban
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Iterator, Sequence
 
@@ -109,7 +110,61 @@ def _check_gray(gray: np.ndarray, min_side: int = 1, purpose: str = "this featur
     return image
 
 
-def compute(rgb: np.ndarray) -> dict[str, float]:
+class PreparedPhoto:
+    """One photo, cropped, with the images and statistics several features share, each made on first use.
+
+    ``features.extraction.extract`` prepares ``I_disp`` once and hands it to both ``tactum.compute`` (MaCo
+    and MaRG need its gray image, Tamura contrast and spectrum) and :func:`compute`, so a scan computes
+    them once. Every attribute equals what the public single-feature functions compute from the photo.
+
+    Parameters
+    ----------
+    rgb : (h, w, 3) uint8 array
+        The full photo, kept as ``source``; ``photo`` is its crop (SPEC 6), a view.
+
+    Raises
+    ------
+    ValueError
+        If ``rgb`` is not an RGB uint8 photo or too small to crop.
+    """
+
+    def __init__(self, rgb: np.ndarray) -> None:
+        self.source = rgb
+        self.photo = crop_image(_check_rgb(rgb))
+
+    @functools.cached_property
+    def gray(self) -> np.ndarray:
+        """``scanner.preprocess.grayscale`` of the cropped photo (float64, 0..255)."""
+        return _banded(grayscale, self.photo, np.float64)
+
+    @functools.cached_property
+    def gray_u8(self) -> np.ndarray:
+        """``scanner.preprocess.gray_uint8`` of :attr:`gray`."""
+        return _banded(gray_uint8, self.gray, np.uint8)
+
+    @functools.cached_property
+    def mean(self) -> float:
+        """Mean gray value."""
+        return float(np.mean(self.gray))
+
+    @functools.cached_property
+    def extremes(self) -> tuple[float, float]:
+        """Smallest and largest gray value."""
+        return float(self.gray.min()), float(self.gray.max())
+
+    @functools.cached_property
+    def contrast(self) -> float:
+        """Tamura contrast of :attr:`gray` (:func:`tamura_contrast`)."""
+        low, high = self.extremes
+        return _tamura_contrast(self.gray, self.mean, low == high)
+
+    @functools.cached_property
+    def spectrum(self) -> RealSpectrum:
+        """``Re(fft2(gray - mean(gray)))``, unscaled (:class:`RealSpectrum`)."""
+        return RealSpectrum(np.subtract(self.gray, self.mean), overwrite=True)
+
+
+def compute(rgb: np.ndarray, *, prepared: PreparedPhoto | None = None) -> dict[str, float]:
     """The 31 image features of one photo (SPEC 7.2) under the names of ``NAMES``.
 
     Parameters
@@ -117,6 +172,8 @@ def compute(rgb: np.ndarray) -> dict[str, float]:
     rgb : (h, w, 3) uint8 array
         The full photo; 100 px are cropped from every border first (SPEC 6), so h and w must be at least
         264 (the cropped image must hold Tamura's 64 x 64 px windows).
+    prepared : PreparedPhoto, optional
+        ``PreparedPhoto(rgb)`` when the caller shares it with other features; the values are the same.
 
     Returns
     -------
@@ -129,18 +186,17 @@ def compute(rgb: np.ndarray) -> dict[str, float]:
     >>> compute(photo)["color"]
     125.0
     """
-    photo = crop_image(_check_rgb(rgb))
-    _check_side(photo.shape, 2 * 2**TAMURA_KMAX, f"Tamura coarseness with kmax={TAMURA_KMAX}")
-    # The gray image of a uint8 photo is finite, so the cores run without the public functions' checks,
-    # and the whole-image statistics several features need are computed once.
-    gray = _banded(grayscale, photo, np.float64)
-    mean = float(np.mean(gray))
-    low, high = float(gray.min()), float(gray.max())
-    first = [color(photo), mean / 255.0, edginess(_banded(gray_uint8, gray, np.uint8))]
+    if prepared is not None and prepared.source is not rgb:
+        raise ValueError("the prepared photo was made from a different array than rgb")
+    photo = PreparedPhoto(rgb) if prepared is None else prepared
+    _check_side(photo.photo.shape, 2 * 2**TAMURA_KMAX, f"Tamura coarseness with kmax={TAMURA_KMAX}")
+    # The gray image of a uint8 photo is finite, so the cores run without the public functions' checks.
+    gray, mean = photo.gray, photo.mean
+    high = photo.extremes[1]
+    first = [color(photo.photo), mean / 255.0, edginess(photo.gray_u8)]
     coarseness = _tamura_coarseness(_banded(_thousandths, gray, np.int32), TAMURA_KMAX, 1e-9 * high * 1000)
-    rest = [*_haralick(gray), coarseness, _tamura_contrast(gray, mean, low == high), *_lbp_histogram(gray)]
-    # The DFT comes last: its spectrum is computed in place of the gray image.
-    dft = _dft_peak_means(np.subtract(gray, mean, out=gray), DFT_FRACTIONS)
+    rest = [*_haralick(gray), coarseness, photo.contrast, *_lbp_histogram(gray)]
+    dft = _dft_peak_means(photo.spectrum, DFT_FRACTIONS)
     return dict(zip(NAMES, map(float, [*first, *dft, *rest]), strict=True))
 
 
@@ -194,35 +250,92 @@ def edginess(gray_u8: np.ndarray) -> float:
     return np.count_nonzero(edges) / edges.size
 
 
-def _real_spectrum(image: np.ndarray) -> tuple[list[np.ndarray], list[int]]:
-    """Every value of ``Re(fft2(image))`` as views of one real DFT, with multiplicities; overwrites ``image``.
+class RealSpectrum:
+    """The real part of the 2-D DFT of a real M x N image, ``Re(fft2(image))``, from one ``cv2.dft``.
 
-    ``cv2.dft`` of a real M x N image returns the CCS-packed half spectrum. Column l of the spectrum
-    (l = 1 .. (N-1)//2) sits at packed column 2l-1 and stands for column N-l too (the real part is
-    point-symmetric), so it counts twice. Columns 0 and N/2 (N even) are packed along their rows:
-    Re Y(0) first, then Re Y(j) (twice, for rows j and M-j) at rows 2j-1, then Re Y(M/2) last for even M.
+    ``cv2.dft`` returns the CCS-packed half spectrum, 2-3 times faster than ``numpy.fft`` or ``scipy.fft``
+    on the prime-factor sizes of cropped photos (2824 x 3832 = 8 * 353 x 8 * 479). The real part of the
+    spectrum of a real image is point-symmetric, ``Re Y(k, l) = Re Y(-k, -l)``, so the half holds every
+    value. Column l = 1 .. (N-1)//2 of the spectrum sits at packed column 2l-1 and stands for column N-l
+    too, so it counts twice. Columns 0 and N/2 (N even) are packed along their rows: Re Y(0) first, then
+    Re Y(j) (twice, for rows j and M-j) at rows 2j-1, then Re Y(M/2) last for even M.
+
+    Parameters
+    ----------
+    image : (M, N) float64 array
+    overwrite : bool
+        Compute the spectrum in the memory of ``image`` (saves an image-sized buffer).
     """
-    m, n = image.shape
-    packed = cv2.dft(image, dst=image)  # in place: saves a second image-sized buffer
-    parts = [packed[:, 1:2 * ((n - 1) // 2):2]]
-    weights = [2]
-    edge_columns = [0] + ([n - 1] if n % 2 == 0 else [])
-    for column in edge_columns:
-        parts += [packed[:1, column], packed[1:2 * ((m - 1) // 2):2, column]]
-        weights += [1, 2]
-        if m % 2 == 0:
-            parts.append(packed[m - 1:, column])
-            weights.append(1)
-    return parts, weights
+
+    def __init__(self, image: np.ndarray, *, overwrite: bool = False) -> None:
+        if image.ndim != 2 or image.size == 0 or image.dtype != np.float64:
+            raise ValueError(f"expected a non-empty 2-D float64 image, got {image.dtype} of shape "
+                             f"{image.shape}")
+        self.shape: tuple[int, int] = image.shape
+        self.packed = cv2.dft(image, dst=image if overwrite else None)
+        self._selection: tuple[float, list[tuple[np.ndarray, int]]] | None = None
+
+    @functools.cached_property
+    def parts(self) -> list[tuple[np.ndarray, int]]:
+        """Every value of the spectrum once, as (view of the packed array, multiplicity) pairs."""
+        m, n = self.shape
+        packed = self.packed
+        parts = [(packed[:, 1:2 * ((n - 1) // 2):2], 2)]
+        for column in [0] + ([n - 1] if n % 2 == 0 else []):
+            parts += [(packed[:1, column], 1), (packed[1:2 * ((m - 1) // 2):2, column], 2)]
+            if m % 2 == 0:
+                parts.append((packed[m - 1:, column], 1))
+        return parts
+
+    @functools.cached_property
+    def peak(self) -> float:
+        """The largest value, ``max(Re(fft2(image)))``."""
+        return max(float(part.max()) for part, _ in self.parts if part.size)
+
+    def peaks(self, fraction: float) -> list[tuple[np.ndarray, int]]:
+        """The values ``>= fraction * peak``, per part with its multiplicity, in the order of :attr:`parts`.
+
+        A selection at a lower fraction holds every higher one, so it is kept and narrowed down: MaRG
+        (0.75) and the DFT peak means (0.80, 0.85) scan the whole spectrum once.
+        """
+        threshold = fraction * self.peak
+        if self._selection is None or threshold < self._selection[0]:
+            self._selection = threshold, [(part[part >= threshold], weight) for part, weight in self.parts]
+        return [(values[values >= threshold], weight) for values, weight in self._selection[1]]
+
+    def peak_sum(self, fraction: float) -> tuple[float, float]:
+        """Sum and number of the values ``>= fraction * peak``, each counted with its multiplicity."""
+        total = count = 0.0
+        for kept, weight in self.peaks(fraction):
+            total += weight * float(kept.sum())
+            count += weight * kept.size
+        return total, count
+
+    def at(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """``Re Y(k, l)`` on the grid of frequencies ``rows`` x ``cols`` (integers, taken modulo M and N)."""
+        m, n = self.shape
+        rows = np.mod(np.asarray(rows, dtype=np.intp), m)[:, None]
+        cols = np.mod(np.asarray(cols, dtype=np.intp), n)[None, :]
+        # Columns right of N/2 are read at (-k, -l).
+        mirrored = cols > n // 2
+        col = np.where(mirrored, n - cols, cols)
+        row = np.where(mirrored, np.mod(-rows, m), rows)
+        interior = (col >= 1) & (col <= (n - 1) // 2)
+        # Columns 0 and N/2 are packed down the rows; their real part is symmetric in k too.
+        fold = np.minimum(row, m - row)
+        edge_row = np.where(fold == 0, 0, np.where(2 * fold == m, m - 1, 2 * fold - 1))
+        edge_col = np.where(col == 0, 0, n - 1)
+        inside = self.packed[row, np.maximum(2 * col - 1, 0)]
+        return np.where(interior, inside, self.packed[edge_row, edge_col])
 
 
 def dft_peak_means(gray: np.ndarray, fractions: Sequence[float] = DFT_FRACTIONS) -> tuple[float, ...]:
     """Mean of the strongest real DFT coefficients (paper: I_dft1, I_dft2; SPEC 7.2 ``dft_80``, ``dft_85``).
 
     With ``X = Re(fft2(I - mean(I))) / sqrt(M N)``, for each fraction f the mean of the values
-    ``X >= f * max(X)``. Only the half spectrum is computed (``cv2.dft``, 2-3 times faster than
-    ``numpy.fft`` on the prime-factor sizes of cropped photos); the other half's real parts are the same
-    values, so they are counted twice instead. The result equals the full-spectrum mean to rounding.
+    ``X >= f * max(X)``. Only the half spectrum is computed (:class:`RealSpectrum`); the other half's real
+    parts are the same values, so they are counted twice instead. The result equals the full-spectrum
+    mean to rounding.
 
     Returns
     -------
@@ -237,25 +350,15 @@ def dft_peak_means(gray: np.ndarray, fractions: Sequence[float] = DFT_FRACTIONS)
     [226.27417, 226.27417]
     """
     image = _check_gray(gray, min_side=2, purpose="the DFT peak mean")
-    return _dft_peak_means(image - np.mean(image), fractions)
+    return _dft_peak_means(RealSpectrum(image - np.mean(image), overwrite=True), fractions)
 
 
-def _dft_peak_means(centred: np.ndarray, fractions: Sequence[float]) -> tuple[float, ...]:
-    """``dft_peak_means`` of ``I - mean(I)``, overwriting it with its spectrum."""
-    size = centred.size
-    parts, weights = _real_spectrum(centred)
-    peak = max(float(part.max()) for part in parts if part.size)
-    lowest = min(fractions) * peak
-    candidates = [(part[part >= lowest], weight) for part, weight in zip(parts, weights, strict=True)]
-    scale = np.sqrt(size)
+def _dft_peak_means(spectrum: RealSpectrum, fractions: Sequence[float]) -> tuple[float, ...]:
+    """``dft_peak_means`` of the image whose centred spectrum is ``spectrum``."""
+    scale = np.sqrt(spectrum.packed.size)
     means = []
     for fraction in fractions:
-        threshold = fraction * peak
-        total = count = 0.0
-        for values, weight in candidates:
-            kept = values[values >= threshold]
-            total += weight * float(kept.sum())
-            count += weight * kept.size
+        total, count = spectrum.peak_sum(fraction)
         means.append(float(total / count / scale))
     return tuple(means)
 

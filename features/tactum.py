@@ -19,13 +19,10 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 import pywt
-import scipy.fft
 
-from features.image import tamura_contrast
+from features.image import PreparedPhoto, RealSpectrum, tamura_contrast
 from scanner.preprocess import (
     QualityError,
-    crop_image,
-    grayscale,
     remove_friction_offset,
     slide_signal,
     slide_window,
@@ -269,14 +266,6 @@ def maco(v: np.ndarray, gray: np.ndarray, *, contrast: float | None = None) -> f
 
 # --- 3. MaRG -------------------------------------------------------------------------------------------
 
-def _full_spectrum_window(half: np.ndarray, rows: np.ndarray, cols: np.ndarray, n_cols: int) -> np.ndarray:
-    """Values of the full real spectrum at frequencies (rows x cols), read from its rfft2 half."""
-    mirrored = cols > n_cols // 2
-    in_half = half[np.ix_(rows, np.where(mirrored, 0, cols))]
-    mirror = half[np.ix_(np.mod(-rows, half.shape[0]), np.where(mirrored, n_cols - cols, 0))]
-    return np.where(mirrored[None, :], mirror, in_half)
-
-
 def kept_peak_mean(gray: np.ndarray) -> float:
     """Mean of the filtered spectrum over its kept peaks, paper eq. 9-11 (SPEC 7.1, item 3).
 
@@ -286,30 +275,27 @@ def kept_peak_mean(gray: np.ndarray) -> float:
     Interpretations (SPEC): the mean is removed, else the DC term is the only peak; the average runs over
     the kept peaks, else the zeros of the removed elements drown them.
 
-    The real part of the spectrum of a real image is point-symmetric, so one ``rfft2`` half holds every
-    value: columns 1..ceil(N/2)-1 stand for two elements each, the rest for one.
+    The spectrum is the half spectrum of :class:`features.image.RealSpectrum`, shared with the image
+    features' ``dft_80`` and ``dft_85``.
     """
     image = np.asarray(gray, dtype=np.float64)
     if image.ndim != 2 or image.size == 0:
         raise ValueError(f"gray must be a non-empty 2-D image, got shape {image.shape}")
-    m, n = image.shape
-    half = scipy.fft.rfft2(image - image.mean(), workers=1).real / math.sqrt(m * n)
-    threshold = PEAK_FRACTION * half.max()
-    multiplicity = np.full(half.shape[1], 2.0)
-    multiplicity[0] = 1.0
-    if n % 2 == 0:
-        multiplicity[-1] = 1.0
-    kept = np.flatnonzero(half >= threshold)
-    weight = multiplicity[kept % half.shape[1]]
-    count = weight.sum()
-    total = half.ravel()[kept] @ weight
+    return _kept_peak_mean(RealSpectrum(image - image.mean(), overwrite=True))
+
+
+def _kept_peak_mean(spectrum: RealSpectrum) -> float:
+    """:func:`kept_peak_mean` from the unscaled spectrum of the centred image; ``X`` is it over sqrt(M N)."""
+    m, n = spectrum.shape
+    threshold = PEAK_FRACTION * spectrum.peak
+    total, count = spectrum.peak_sum(PEAK_FRACTION)
     dy = np.arange(max(-GAUSS_HALF, -(m // 2)), min(GAUSS_HALF, m - m // 2))
     dx = np.arange(max(-GAUSS_HALF, -(n // 2)), min(GAUSS_HALF, n - n // 2))
-    window = _full_spectrum_window(half, np.mod(dy, m), np.mod(dx, n), n)
+    window = spectrum.at(dy, dx)
     gauss = np.exp(-(dy[:, None] ** 2 + dx[None, :] ** 2) / (2.0 * GAUSS_SIGMA**2))
     # X * G' = X - X * G, and G' = 1 outside the window.
     total -= np.sum(np.where(window >= threshold, window * gauss, 0.0))
-    return float(total / count)
+    return float(total / count / math.sqrt(m * n))
 
 
 def marg(v: np.ndarray, gray: np.ndarray, *, contrast: float | None = None) -> float:
@@ -319,7 +305,11 @@ def marg(v: np.ndarray, gray: np.ndarray, *, contrast: float | None = None) -> f
     """
     if contrast is None:
         contrast = tamura_contrast(gray)
-    return float(np.mean(np.abs(_samples(v, "v")))) * (kept_peak_mean(gray) - contrast)
+    return _marg(v, kept_peak_mean(gray), contrast)
+
+
+def _marg(v: np.ndarray, peak_mean: float, contrast: float) -> float:
+    return float(np.mean(np.abs(_samples(v, "v")))) * (peak_mean - contrast)
 
 
 # --- 4, 5. MiRO, MiCO ------------------------------------------------------------------------------------
@@ -556,25 +546,22 @@ def _slide_inputs(scan: Scan, inputs: _Inputs) -> None:
         inputs.put("r_w", r_ts.data[window.ir])
 
 
-def _photo_inputs(scan: Scan, inputs: _Inputs) -> None:
-    """The cropped gray ``I_disp`` and its Tamura contrast, shared by MaCo and MaRG."""
+def _photo_inputs(scan: Scan, inputs: _Inputs, disp: PreparedPhoto | None) -> None:
+    """The prepared ``I_disp``: its cropped gray image, Tamura contrast and spectrum serve MaCo and MaRG."""
     image = scan.images.get("I_disp")
     if image is None:
-        inputs.put("gray", None, "I_disp is missing")
+        inputs.put("photo", None, "I_disp is missing")
         return
     try:
-        gray = grayscale(crop_image(image))
+        inputs.put("photo", PreparedPhoto(image) if disp is None else disp)
     except ValueError as problem:
-        inputs.put("gray", None, f"I_disp: {problem}")
-        return
-    inputs.put("gray", gray)
-    inputs.put("contrast", tamura_contrast(gray))
+        inputs.put("photo", None, f"I_disp: {problem}")
 
 
-def _gather(scan: Scan) -> _Inputs:
+def _gather(scan: Scan, disp: PreparedPhoto | None) -> _Inputs:
     inputs = _Inputs()
     _slide_inputs(scan, inputs)
-    _photo_inputs(scan, inputs)
+    _photo_inputs(scan, inputs, disp)
     for name in ("f_frn", "f_press", "f_fold", "alpha_f", "t_cool"):
         trace = scan.get(name)
         inputs.put(name, None if trace is None else trace.data, f"{name} is missing")
@@ -604,12 +591,12 @@ def _compliance(inputs: _Inputs, skipped: bool) -> dict[str, tuple[Callable[...,
 
 def _recipes(inputs: _Inputs, scan: Scan) -> dict[str, tuple[Callable[..., float], tuple[str, ...]]]:
     """Every feature as (function, input keys), in :data:`NAMES` order."""
-    contrast = inputs.get("contrast")
     atk_value, cyd_value = atk(scan.meta.atk), cyd(scan.meta.cyd)
     recipes = {
         "tactum.matx": (matx, ("v", "f_frt", "r_w")),
-        "tactum.maco": (lambda v, gray: maco(v, gray, contrast=contrast), ("v", "gray")),
-        "tactum.marg": (lambda v, gray: marg(v, gray, contrast=contrast), ("v", "gray")),
+        "tactum.maco": (lambda v, photo: maco(v, photo.gray, contrast=photo.contrast), ("v", "photo")),
+        "tactum.marg": (lambda v, photo: _marg(v, _kept_peak_mean(photo.spectrum), photo.contrast),
+                        ("v", "photo")),
         "tactum.miro": (miro, ("v",)),
         "tactum.mico": (mico, ("v",)),
         "tactum.fst": (fst, ("f_frn", "f_frt")),
@@ -623,7 +610,7 @@ def _recipes(inputs: _Inputs, scan: Scan) -> dict[str, tuple[Callable[..., float
     return {name: recipes[name] for name in NAMES}
 
 
-def compute(scan: Scan) -> dict[str, float]:
+def compute(scan: Scan, *, disp: PreparedPhoto | None = None) -> dict[str, float]:
     """The 15 TacTUM features of a scan, in :data:`NAMES` order (SPEC 7.1).
 
     Inputs are preprocessed as in SPEC 6: ``v`` from ``v_ts`` (band limit, slide window, DFT321), the IR
@@ -631,12 +618,22 @@ def compute(scan: Scan) -> dict[str, float]:
     ``I_disp``. A feature whose input is absent is NaN, and one :class:`MissingDataWarning` per absent
     channel (or failed slide check) names it and the features it made NaN.
 
+    Parameters
+    ----------
+    scan : Scan
+    disp : PreparedPhoto, optional
+        ``PreparedPhoto(scan.images["I_disp"])`` when the caller shares it with the image features; the
+        values are the same.
+
     Raises
     ------
     ValueError
-        If ``meta.atk`` or ``meta.cyd`` is neither NaN nor on the five-step scale.
+        If ``meta.atk`` or ``meta.cyd`` is neither NaN nor on the five-step scale, or ``disp`` was not
+        prepared from this scan's ``I_disp``.
     """
-    inputs = _gather(scan)
+    if disp is not None and disp.source is not scan.images.get("I_disp"):
+        raise ValueError("disp was not prepared from this scan's I_disp photo")
+    inputs = _gather(scan, disp)
     values: dict[str, float] = {}
     blocked: dict[str, list[str]] = {}
     for name, (function, keys) in _recipes(inputs, scan).items():

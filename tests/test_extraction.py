@@ -49,6 +49,17 @@ def test_extraction_is_bit_identical_on_rerun():
     assert np.array_equal(np.array(list(again.values())), np.array(list(foam_values().values())), equal_nan=True)
 
 
+def test_sharing_the_display_photo_changes_no_value():
+    # extract prepares I_disp once for TacTUM and the image features; alone, each prepares its own.
+    scan = foam()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        disp = features.image.compute(scan.images["I_disp"])
+        alone = {**features.tactum.compute(scan), **{f"image.disp.{k}": value for k, value in disp.items()}}
+    values = foam_values()
+    assert {name: values[name] for name in alone} == alone
+
+
 @pytest.mark.parametrize(
     ("drop", "expected"),
     [

@@ -10,7 +10,7 @@ import pytest
 from skimage.feature import local_binary_pattern
 
 from features import image
-from scanner.preprocess import crop_image, grayscale
+from scanner.preprocess import crop_image, gray_uint8, grayscale
 
 LN2 = math.log(2.0)
 
@@ -176,6 +176,81 @@ def test_dft_peak_means_follow_the_full_spectrum_definition(shape):
     fractions = (0.8, 0.85, 0.0, -10.0)  # the last one keeps every value: the mean of the whole spectrum
     expected = [spectrum[spectrum >= f * spectrum.max()].mean() for f in fractions]
     assert image.dft_peak_means(gray, fractions) == pytest.approx(expected, rel=1e-10)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 7), (1, 8), (7, 1), (8, 1), (2, 2), (5, 6), (6, 5), (6, 6),
+                                   (7, 7), (31, 40)])
+def test_real_spectrum_of_an_impulse_is_a_cosine_at_every_frequency(shape):
+    # A unit impulse at (p, q) has the spectrum exp(-2 pi i (k p / M + l q / N)): real part a cosine.
+    m, n = shape
+    p, q = (m - 1) // 2, n // 3
+    impulse = np.zeros(shape)
+    impulse[p, q] = 1.0
+    spectrum = image.RealSpectrum(impulse)
+    rows, cols = np.arange(-m, m), np.arange(-n, n)  # every frequency, negative ones too
+    expected = np.cos(2 * np.pi * (rows[:, None] * p / m + cols[None, :] * q / n))
+    np.testing.assert_allclose(spectrum.at(rows, cols), expected, rtol=0, atol=1e-12)
+    # The parts hold every one of the M N values once, counting each by its multiplicity.
+    values = np.concatenate([np.repeat(part.ravel(), weight) for part, weight in spectrum.parts])
+    np.testing.assert_allclose(np.sort(values), np.sort(expected[m:, n:].ravel()), rtol=0, atol=1e-12)
+    assert spectrum.peak == pytest.approx(1.0, abs=1e-12)
+
+
+def test_real_spectrum_peak_sums_of_two_gratings_and_narrowed_selections():
+    # Cosines of amplitude 10 and 8 put 10 M N / 2 and 8 M N / 2 at (0, +-3) and (+-2, +-5).
+    m, n = 32, 64
+    rows, cols = np.mgrid[0:m, 0:n]
+    gray = 10 * np.cos(2 * np.pi * 3 * cols / n) + 8 * np.cos(2 * np.pi * (2 * rows / m + 5 * cols / n))
+    half = m * n / 2
+    spectrum = image.RealSpectrum(gray)
+    assert spectrum.peak_sum(0.75) == pytest.approx((2 * 18 * half, 4), rel=1e-12)
+    assert spectrum.peak_sum(0.85) == pytest.approx((2 * 10 * half, 2), rel=1e-12)
+    assert spectrum.peak_sum(0.5) == pytest.approx((2 * 18 * half, 4), rel=1e-12)
+    # Every value: the spectrum sums to M N gray[0, 0] (the inverse DFT at the origin), here M N 18.
+    assert spectrum.peak_sum(-1e9) == pytest.approx((18 * m * n, m * n), rel=1e-12)
+    # A selection narrowed from a lower fraction is the fresh one, bit for bit.
+    fresh = image.RealSpectrum(gray)
+    assert [spectrum.peak_sum(f) for f in (0.8, 0.85)] == [fresh.peak_sum(f) for f in (0.8, 0.85)]
+
+
+def test_real_spectrum_in_place_and_rejects_bad_images():
+    gray = np.random.default_rng(3).uniform(size=(9, 12))
+    kept = image.RealSpectrum(gray.copy())
+    scratch = gray.copy()
+    assert image.RealSpectrum(scratch, overwrite=True).packed is scratch
+    np.testing.assert_array_equal(scratch, kept.packed)
+    for bad in (np.zeros((0, 3)), np.zeros(5), np.zeros((4, 4), np.float32)):
+        with pytest.raises(ValueError, match="2-D float64"):
+            image.RealSpectrum(bad)
+
+
+# --- the prepared photo shared between features -------------------------------------------------------
+
+
+def test_prepared_photo_holds_what_the_public_functions_compute():
+    rgb = textured_photo(seed=4)
+    prepared = image.PreparedPhoto(rgb)
+    gray = grayscale(crop_image(rgb))
+    assert prepared.source is rgb
+    np.testing.assert_array_equal(prepared.photo, crop_image(rgb))
+    np.testing.assert_array_equal(prepared.gray, gray)
+    np.testing.assert_array_equal(prepared.gray_u8, gray_uint8(gray))
+    assert prepared.mean == np.mean(gray) and prepared.extremes == (gray.min(), gray.max())
+    assert prepared.contrast == image.tamura_contrast(gray)
+    assert image._dft_peak_means(prepared.spectrum, image.DFT_FRACTIONS) == image.dft_peak_means(gray)
+
+
+def test_compute_with_a_prepared_photo_gives_the_same_values():
+    rgb = textured_photo(seed=5)
+    alone = image.compute(rgb)
+    prepared = image.PreparedPhoto(rgb)
+    prepared.spectrum.peak_sum(0.75)  # as TacTUM's MaRG leaves it: a wider selection made first
+    assert image.compute(rgb, prepared=prepared) == alone
+    assert image.compute(rgb, prepared=prepared) == alone
+    with pytest.raises(ValueError, match="different array"):
+        image.compute(rgb.copy(), prepared=prepared)
+    with pytest.raises(ValueError, match="too small to crop"):
+        image.PreparedPhoto(np.zeros((200, 300, 3), np.uint8))
 
 
 # --- Haralick -----------------------------------------------------------------------------------------

@@ -11,8 +11,8 @@ import pywt
 from scipy.ndimage import gaussian_filter
 
 from features import tactum
-from features.image import tamura_contrast
-from scanner.preprocess import grayscale, slide_signal
+from features.image import PreparedPhoto, tamura_contrast
+from scanner.preprocess import crop_image, grayscale, slide_signal
 from scanner.scan import Scan, ScanError, ScanMeta, Trace
 
 FS = 3000.0
@@ -227,13 +227,26 @@ def spec_kept_peak_mean(gray: np.ndarray) -> float:
     return float(np.mean((x * g_prime)[kept]))
 
 
-@pytest.mark.parametrize("shape", [(64, 64), (63, 65), (230, 301), (256, 255)])
+@pytest.mark.parametrize("shape", [(64, 64), (63, 65), (230, 301), (256, 255), (1, 301), (300, 1), (2, 3)])
 def test_kept_peak_mean_from_the_half_spectrum_equals_the_full_spectrum(shape):
     rng = np.random.default_rng(shape[0])
     rows, cols = np.mgrid[:shape[0], :shape[1]]
     gray = (5 * rng.uniform(size=shape) + 50 * np.cos(2 * np.pi * (7 * rows / shape[0] + 11 * cols / shape[1]))
             + 30 * np.cos(2 * np.pi * (-100 * rows / shape[0] + 3 * cols / shape[1])))
     assert tactum.kept_peak_mean(gray) == pytest.approx(spec_kept_peak_mean(gray), rel=1e-12)
+
+
+def test_compute_with_the_prepared_photo_of_the_image_features_gives_the_same_values():
+    scan = full_scan()
+    disp = PreparedPhoto(scan.images["I_disp"])
+    alone = tactum.compute(scan)
+    assert tactum.compute(scan, disp=disp) == alone
+    gray = grayscale(crop_image(scan.images["I_disp"]))
+    v = slide_signal(scan["v_ts"])
+    assert alone["tactum.marg"] == tactum.marg(v, gray)
+    assert alone["tactum.maco"] == tactum.maco(v, gray)
+    with pytest.raises(ValueError, match="I_disp"):
+        tactum.compute(scan, disp=PreparedPhoto(photo(seed=1)))
 
 
 # --- 4. MiRO ----------------------------------------------------------------------------------------------
