@@ -300,3 +300,16 @@ def test_texplorer_scan_through_the_emulators(tmp_path, monkeypatch, capsys):
     assert np.isfinite(np.array(list(extract(scan).values()))).all()
     [(on, off, _)] = heat_intervals
     assert off - on <= 0.3                                # 0.1 s asked, switched off by HEAT 0 or the board
+
+
+def test_real_device_libraries_load_only_when_used():
+    import subprocess
+
+    code = ("import sys\nfrom scanner.cli import build_parser\nfrom scanner.config import parse_config\n"
+            "from scanner.session import Session\n"
+            "s = Session.open(parse_config({'simulated': {'realtime': False}}), label='C6S1M1P2X1', "
+            "sample_id='g-01', operator='ab')\ns.record('press')\ns.abort()\n"
+            "print(sorted(m for m in ('nidaqmx', 'sounddevice', 'serial', 'grpc') if m in sys.modules))")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "[]"
