@@ -12,6 +12,7 @@ The app holds no business logic. Pages call ``scanner`` (database, guided sessio
 
 from __future__ import annotations
 
+import math
 import secrets
 import sys
 from dataclasses import dataclass, field, replace
@@ -102,6 +103,13 @@ def context() -> Context:
     return current_app.extensions["texplorer"]
 
 
+def quantity(value: float, spec: str = "%g", unit: str = "") -> str:
+    """Template filter: a number with its unit, or "not measured" for NaN (the data model's "unknown")."""
+    if math.isnan(value):
+        return "not measured"
+    return f"{spec % value} {unit}".rstrip()
+
+
 def _error_page(error: HTTPException) -> tuple[str, int] | Response:
     if request_ctx.url_adapter is None:  # refused before routing (untrusted Host header): no page links
         text = f"{error.code} {error.name}: {error.description}\n"
@@ -125,6 +133,7 @@ def create_app(settings: Settings) -> Flask:
         TRUSTED_HOSTS=list(settings.trusted_hosts) if settings.trusted_hosts else None,
     )
     app.extensions["texplorer"] = Context(settings)
+    app.jinja_env.filters["quantity"] = quantity
     security.install(app)
     app.register_error_handler(RequestEntityTooLarge, _too_large)
     app.register_error_handler(HTTPException, _error_page)

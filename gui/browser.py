@@ -70,18 +70,11 @@ def _record(scan_id: str) -> ScanRecord:
         abort(404, description=f"there is no scan {scan_id!r} in the database")
 
 
-def bundle_available() -> bool:
-    """True once ``scanner.bundle`` (the export bundle of SPEC 11) is installed."""
-    import importlib.util
-
-    return importlib.util.find_spec("scanner.bundle") is not None
-
-
 @blueprint.get("/")
 def overview() -> str:
     db = context().db
     return render_template("db_overview.html", summary=db.summary(),
-                           materials=material_rows(db.records(), db.taxonomy()), bundle=bundle_available())
+                           materials=material_rows(db.records(), db.taxonomy()))
 
 
 @blueprint.get("/material/<label>")

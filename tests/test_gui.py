@@ -730,3 +730,16 @@ def test_texplorer_serve_refuses_bad_options(tmp_path, capsys):
     (tmp_path / "bad.toml").write_text("[devices]\ndaq = 'teleport'\n")
     assert main(["serve", "--db", str(tmp_path / "db"), "--config", str(tmp_path / "bad.toml")]) == 1
     assert "devices.daq: 'teleport' is not one of" in capsys.readouterr().err
+
+
+def test_unmeasured_values_read_not_measured(tmp_path):
+    from conftest import make_scan
+
+    from scanner.database import Database
+
+    Database(tmp_path / "db").add(make_scan(0, mass_g=math.nan, t_amb=math.nan, atk=math.nan))
+    app = make_app(tmp_path / "db")
+    page = get(app.test_client(), "/db/scan/granite-01-001").text
+    for name in ("Ambient temperature", "Mass", "Adhesive tack"):
+        assert f"<dt>{name}</dt><dd>not measured</dd>" in page
+    assert "<dt>Volume</dt><dd>190 cm³</dd>" in page and "<dd>nan" not in page
