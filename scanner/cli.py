@@ -429,10 +429,13 @@ def cmd_emulate_board(args: argparse.Namespace) -> int:
 
     faults = FaultPlan(args.bad_checksum_every, args.garbage_every, args.gap_every)
     sample = SimulatedSample(args.material, seed=args.seed)
-    with BoardEmulator(sample, link=args.link, faults=faults) as emulator:
-        print(emulator.path, flush=True)
-        print(f"serial sensor board emulator: {sample.describe()}; Ctrl-C stops it", file=sys.stderr)
-        _serve_until_interrupted()
+    try:
+        with BoardEmulator(sample, link=args.link, faults=faults) as emulator:
+            print(emulator.path, flush=True)
+            print(f"serial sensor board emulator: {sample.describe()}; Ctrl-C stops it", file=sys.stderr)
+            _serve_forever()
+    except KeyboardInterrupt:
+        pass
     return 0
 
 
@@ -441,19 +444,20 @@ def cmd_emulate_daq(args: argparse.Namespace) -> int:
     from scanner.emulators.daq_grpc import DaqEmulator, DaqServicer
 
     sample = SimulatedSample(args.material, seed=args.seed)
-    with DaqEmulator(DaqServicer(sample), host=args.host, port=args.port) as emulator:
-        print(f"grpc://{emulator.address}", flush=True)
-        print(f"NI-DAQmx gRPC emulator: {sample.describe()}; Ctrl-C stops it", file=sys.stderr)
-        _serve_until_interrupted()
+    try:
+        with DaqEmulator(DaqServicer(sample), host=args.host, port=args.port) as emulator:
+            print(f"grpc://{emulator.address}", flush=True)
+            print(f"NI-DAQmx gRPC emulator: {sample.describe()}; Ctrl-C stops it", file=sys.stderr)
+            _serve_forever()
+    except KeyboardInterrupt:
+        pass
     return 0
 
 
-def _serve_until_interrupted() -> None:
-    try:
-        while True:
-            time.sleep(3600)
-    except KeyboardInterrupt:
-        pass
+def _serve_forever() -> None:
+    """The emulators work in their own threads; this one waits for Ctrl-C."""
+    while True:
+        time.sleep(3600)
 
 
 # -- serve -------------------------------------------------------------------------------------------
@@ -468,6 +472,84 @@ def cmd_serve(args: argparse.Namespace) -> int:
     limit = int(args.upload_limit_mb * 1024 * 1024)
     settings = Settings(db=args.db, model=args.model, device_config=config, upload_limit=limit)
     serve(settings, args.host, args.port)
+    return 0
+
+
+# -- ingest, compare ---------------------------------------------------------------------------------
+
+def cmd_ingest(args: argparse.Namespace) -> int:
+    from scanner.ingest import IngestError, ingest, load_mapping, store_recordings
+
+    mapping = load_mapping(args.mapping)
+    report = ingest(args.path, mapping, progress=progress("reading"))
+    for line in report.skipped:
+        print(f"skipped  {line}")
+    for note in report.notes:
+        print(f"note     {note}")
+    if not report.recordings:
+        raise IngestError(f"{args.path}: no recording could be imported from {report.files} matching file(s)")
+    folder = store_recordings(args.db, args.name or mapping.name, report.recordings, replace=args.replace)
+    roles = sorted({role for r in report.recordings for role in r.roles})
+    print(f"{len(report.recordings)} recording(s) from {report.files} file(s) -> {folder}; roles "
+          f"{', '.join(roles) or 'none'}; {len(report.skipped)} problem line(s)")
+    return EXIT_PROBLEMS if report.skipped else 0
+
+
+COMPARE_METHODS = ("fishel", "xie", "huang", "chathuranga", "hoelscher")
+"""``taxonomy.methods.METHODS``, named here so the parser does not import scikit-learn."""
+COMPARE_REPEATS = 10
+
+DATASET_HELP = ("sim:biotac, sim:array or sim:soft3axis (simulated sensors), set:NAME (recordings imported "
+                "into --db with 'texplorer ingest'), scans (the scans of --db), or a folder: a database or "
+                "a recording set")
+
+
+def comparison_dataset(spec: str, db: Path, seed: int):
+    """The dataset a ``compare`` argument names (see :data:`DATASET_HELP`)."""
+    from scanner.ingest import load_recordings, set_folder
+    from scanner.simulate_recordings import simulate_recordings
+    from taxonomy.methods import Dataset
+
+    if spec.startswith("sim:"):
+        return Dataset.from_recordings(spec, simulate_recordings(spec[4:], seed))
+    if spec.startswith("set:"):
+        return Dataset.from_recordings(spec, load_recordings(set_folder(db, spec[4:])))
+    folder = db if spec == "scans" else Path(spec)
+    if spec == "scans" or (folder / "catalog.sqlite").is_file():
+        database = Database(folder, create=False)
+        scans = list(progress("loading")(database.scans(images=False)))
+        if not scans:
+            raise DatabaseError(f"{folder}: the database holds no scans")
+        return Dataset.from_scans(str(folder), scans)
+    if folder.is_dir():
+        return Dataset.from_recordings(str(folder), load_recordings(folder))
+    raise ValueError(f"dataset {spec!r} is none of: {DATASET_HELP}")
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    import warnings
+
+    from taxonomy.methods import MethodError, MethodSkipped, compare, format_comparison
+    from taxonomy.report import write_comparison
+
+    started = time.perf_counter()
+    dataset = comparison_dataset(args.dataset, args.db, args.seed)
+    print(dataset.summary())
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", MethodSkipped)
+        results = compare(dataset, args.methods, seed=args.seed, repeats=args.repeats,
+                          progress=progress("comparing"))
+    skipped = [str(w.message) for w in caught if issubclass(w.category, MethodSkipped)]
+    for line in skipped:
+        print(f"texplorer: warning: {line}", file=sys.stderr)
+    if not results:
+        raise MethodError(f"no method could run on {args.dataset} "
+                          + ("(see the warnings above)" if skipped else "(none applies)"))
+    print(format_comparison(results))
+    slug = "".join(ch if ch.isalnum() or ch in "-_" else "-" for ch in args.dataset).strip("-") or "dataset"
+    folder = args.report or (args.db / "reports" if args.db.is_dir() else Path(".")) / f"compare-{slug}"
+    print(f"{len(results)} result(s) in {time.perf_counter() - started:.1f} s; report: "
+          f"{write_comparison(folder, results, dataset.summary())}")
     return 0
 
 
@@ -815,6 +897,35 @@ def build_parser() -> argparse.ArgumentParser:
     serving.add_argument("--upload-limit-mb", type=float, default=20.0, help="largest photo upload in MB "
                          "(default 20)")
     serving.set_defaults(handler=cmd_serve)
+
+    ingesting = commands.add_parser(
+        "ingest", help="import another sensor's recordings (CSV/TSV, WAV, NPY/NPZ, .mat) as a recording set",
+        description="Read the files under PATH as the TOML mapping file describes them (docs/ingest.md) "
+        "and store the recordings in <db>/recordings/<set>/. Bad files are reported by name and skipped; "
+        "the exit status is 3 if there were any.")
+    _add_db_option(ingesting)
+    ingesting.add_argument("path", type=Path, help="folder with the files")
+    ingesting.add_argument("--mapping", type=Path, required=True, help="TOML mapping file (docs/ingest.md)")
+    ingesting.add_argument("--name", help="set name (default: the mapping's name, else its file name)")
+    ingesting.add_argument("--replace", action="store_true", help="replace an existing set of that name")
+    ingesting.set_defaults(handler=cmd_ingest)
+
+    comparing = commands.add_parser(
+        "compare", help="run the related methods (seed papers) on one dataset: table and HTML report",
+        description="Run every related method that applies to DATASET with its published features, "
+        "classifiers and protocol; print accuracy, macro F1 and time per classification, and write the HTML "
+        "report.")
+    _add_db_option(comparing)
+    comparing.add_argument("dataset", metavar="DATASET", help=DATASET_HELP)
+    comparing.add_argument("--methods", nargs="+", choices=COMPARE_METHODS,
+                           help="methods to run (default: every one that applies)")
+    comparing.add_argument("--repeats", type=int, default=COMPARE_REPEATS, help="repetitions of the repeated "
+                           f"protocols (default {COMPARE_REPEATS}; seed 004 used 100)")
+    comparing.add_argument("--seed", type=int, default=0, help="random seed of simulation, splits and "
+                           "classifiers (default 0)")
+    comparing.add_argument("--report", type=Path, help="HTML report folder (default <db>/reports/compare-"
+                           "<dataset>, or ./compare-<dataset> without a database folder)")
+    comparing.set_defaults(handler=cmd_compare)
     return parser
 
 

@@ -28,7 +28,7 @@ import re
 import secrets
 import shutil
 import tomllib
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -622,12 +622,14 @@ def _recording(key: Path, files: list[tuple[Path, FileMap]], root: Path, mapping
         return None
 
 
-def ingest(path: str | os.PathLike[str], mapping: IngestMapping) -> IngestReport:
+def ingest(path: str | os.PathLike[str], mapping: IngestMapping,
+           progress: Callable[[Iterable[Any]], Iterable[Any]] = iter) -> IngestReport:
     """Recordings from the files under ``path`` as ``mapping`` describes them.
 
     Files with the same stem in the same folder form one recording. A file that cannot be read as mapped
     (wrong format, missing column, bad token, no rate, ...) is reported in ``skipped`` with its name and
     reason, and its recording is skipped; the import goes on with the others. Names are made unique.
+    ``progress`` wraps the iteration over the recordings (e.g. a tqdm bar).
 
     Raises
     ------
@@ -640,7 +642,7 @@ def ingest(path: str | os.PathLike[str], mapping: IngestMapping) -> IngestReport
     table = _label_table(root, mapping)
     report = IngestReport()
     seen: set[str] = set()
-    for key, files in _matched(root, mapping).items():
+    for key, files in progress(list(_matched(root, mapping).items())):
         report.files += len(files)
         recording = _recording(key, files, root, mapping, table, report)
         if recording is None:

@@ -85,6 +85,10 @@ class MethodError(ValueError):
     """A dataset or method that cannot be compared as asked; the message says why."""
 
 
+class MethodSkipped(UserWarning):
+    """An applicable method that could not run on the dataset (e.g. too few trials); the message says why."""
+
+
 # -- datasets ----------------------------------------------------------------------------------------
 
 def _levels_of(recording: Recording) -> Mapping[str, str]:
@@ -466,12 +470,21 @@ def _result(run: _Run, scores: Scores, n_samples: int, extraction_seconds: float
 
 def usable_rows(extracted: Extracted, rows: Sequence[int]) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """The rows whose extraction worked and the columns without NaN among them, with notes on what was left
-    out. A set whose every column has a NaN keeps its columns and loses the rows with NaN instead."""
-    rows = np.array([i for i in rows if i not in extracted.failed], dtype=np.int64)
-    notes = [f"{extracted.name}: {len(extracted.failed)} recording(s) left out, e.g. "
-             f"{next(iter(extracted.failed.values()))}"] if extracted.failed else []
+    out. A set whose every column has a NaN keeps its columns and loses the rows with NaN instead.
+
+    Raises
+    ------
+    MethodError
+        If no row is left, naming the first extraction failure.
+    """
+    wanted = list(rows)
+    rows = np.array([i for i in wanted if i not in extracted.failed], dtype=np.int64)
+    failures = [extracted.failed[i] for i in wanted if i in extracted.failed]
+    notes = [f"{extracted.name}: {len(failures)} recording(s) left out, e.g. {failures[0]}"
+             for _ in failures[:1]]
     if rows.size == 0:
-        return rows, np.arange(0), notes
+        raise MethodError(f"{extracted.name} works on none of {len(wanted)} recording(s)"
+                          + (f", e.g. {failures[0]}" if failures else ""))
     finite = np.isfinite(extracted.X[rows])
     columns = np.flatnonzero(finite.all(axis=0))
     if columns.size == 0:
@@ -966,18 +979,21 @@ def _motion_rows(dataset: Dataset, motion: str) -> list[int]:
 
 
 def _single_motion(dataset: Dataset, cache: FeatureCache, set_name: str, classifier: str, seed: int,
-                   repeats: int) -> MethodResult | None:
-    """One feature set and classifier on every motion separately; the accuracies of all motions together."""
+                   repeats: int) -> MethodResult:
+    """One feature set and classifier on every motion separately; the accuracies of all motions together.
+    Motions it cannot run on are noted; if that is every motion, a :class:`MethodError` says why."""
     extracted = cache.get(set_name)
     level = dataset.label_level
     per_motion, scores, notes, sizes, seconds = {}, [], [], [], []
     for motion in dataset.motions():
-        rows, columns, dropped = usable_rows(extracted, _motion_rows(dataset, motion))
-        if rows.size == 0:
+        try:
+            rows, columns, dropped = usable_rows(extracted, _motion_rows(dataset, motion))
+            objects = [object_of(dataset.recordings[i]) for i in rows]
+            splits = one_per_object_splits(objects, repeats, seed)
+        except MethodError as exc:
+            notes.append(f"{set_name}, motion {motion}: {exc}")
             continue
         y = dataset.y(level, rows)
-        objects = [object_of(dataset.recordings[i]) for i in rows]
-        splits = one_per_object_splits(objects, repeats, seed)
         def make(_: int, __: np.ndarray) -> Pipeline:
             return Pipeline([("features", hoelscher_features(set_name)),
                              ("classify", hoelscher_classifier(classifier, seed))])
@@ -988,7 +1004,7 @@ def _single_motion(dataset: Dataset, cache: FeatureCache, set_name: str, classif
         sizes.append(rows.size)
         seconds.append(float(np.nanmedian(extracted.seconds[rows])))
     if not scores:
-        return None
+        raise MethodError("; ".join(dict.fromkeys(notes)))
     merged = Scores(np.concatenate([s.accuracy for s in scores]), np.concatenate([s.f1 for s in scores]),
                     scores[0].classes, sum(s.confusion for s in scores if s.classes == scores[0].classes),
                     float(np.median([s.feature_seconds for s in scores])),
@@ -1040,12 +1056,15 @@ def run_hoelscher(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int
     """Seed 004: every applicable feature set x classifier per motion, then motion combinations, the
     material-class level and held-out objects with the mean features."""
     sets = [s for s in HOELSCHER_SETS if _every(dataset, s)]
-    results = []
+    results, problems = [], []
     for set_name in sets:
         for classifier in HOELSCHER_CLASSIFIERS:
-            result = _single_motion(dataset, cache, set_name, classifier, seed, repeats)
-            if result is not None:
-                results.append(result)
+            try:
+                results.append(_single_motion(dataset, cache, set_name, classifier, seed, repeats))
+            except MethodError as exc:
+                problems.append(str(exc))
+    if not results:
+        raise MethodError(problems[0] if problems else "no seed-004 feature set applies")
     if "mean23" not in sets:
         return results
     label = dataset.label_level
@@ -1058,7 +1077,12 @@ def run_hoelscher(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int
         runs += [("concatenation", "linear-svm", level, "one per object"),
                  ("concatenation", "linear-svm", level, "held-out objects")]
     for mode, classifier, level, protocol in runs:
-        result = _combined(dataset, cache, mode, classifier, level, protocol, seed, repeats)
+        try:
+            result = _combined(dataset, cache, mode, classifier, level, protocol, seed, repeats)
+        except MethodError as exc:
+            warnings.warn(f"method hoelscher: {mode} of the motions ({classifier}, {level}, {protocol}) "
+                          f"skipped: {exc}", MethodSkipped, stacklevel=2)
+            continue
         if result is not None:
             results.append(result)
     return results
@@ -1111,7 +1135,9 @@ def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Se
     ----------
     dataset : Dataset, or a sequence of recordings or scans
     methods : names from :data:`METHODS`, optional
-        Default: every method that applies (:func:`applicable`). Naming one that does not apply is an error.
+        Default: every method that applies (:func:`applicable`); one that then cannot run on the data (too
+        few rows per class, recordings too short, ...) is skipped with a :class:`MethodSkipped` warning.
+        A named method that does not apply or cannot run is an error.
     seed : int
         Seed of every split and classifier.
     repeats : int
@@ -1138,7 +1164,14 @@ def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Se
     cache = FeatureCache(data)
     results: list[MethodResult] = []
     for name in progress(names):
-        results += METHODS[name].run(data, cache, seed, repeats)
+        try:
+            results += METHODS[name].run(data, cache, seed, repeats)
+        except ValueError as exc:
+            # A method the caller asked for must run; one merely applicable may find the data too small.
+            reason = str(exc) if isinstance(exc, MethodError) else f"{type(exc).__name__}: {exc}"
+            if methods is not None:
+                raise MethodError(f"method {name}: {reason}") from None
+            warnings.warn(f"method {name} skipped: {reason}", MethodSkipped, stacklevel=2)
     return results
 
 

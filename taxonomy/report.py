@@ -36,8 +36,14 @@ from taxonomy.plots import (
 
 if TYPE_CHECKING:
     from features.space import FeatureSpace
+    from taxonomy.methods import MethodResult
 
 CELL_LEGEND = "accuracy % (mean +- std over folds), macro F1, r_C"
+PAGE_STYLE = ("body{font-family:sans-serif;margin:2em;max-width:1200px}table{border-collapse:collapse;"
+              "margin-bottom:1.5em}td,th{border:1px solid #ccc;padding:2px 8px;font-family:monospace;"
+              "white-space:pre;text-align:left}figure{margin:1.5em 0}img{max-width:100%}"
+              "figcaption{color:#444}")
+"""The CSS of every texplorer report page."""
 
 
 def cell_text(report: Report) -> str:
@@ -170,10 +176,7 @@ def _html(space: FeatureSpace, reports: Sequence[Report], selection: Selection,
     parts = [
         "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
         "<title>texplorer evaluation report</title>",
-        "<style>body{font-family:sans-serif;margin:2em;max-width:1200px}table{border-collapse:collapse;"
-        "margin-bottom:1.5em}td,th{border:1px solid #ccc;padding:2px 8px;font-family:monospace;"
-        "white-space:pre;text-align:left}figure{margin:1.5em 0}img{max-width:100%}"
-        "figcaption{color:#444}</style></head><body>",
+        f"<style>{PAGE_STYLE}</style></head><body>",
         "<h1>texplorer evaluation report</h1>",
         f"<p>{len(space)} scans, {len(set(space.groups))} samples, {len(space.columns)} features; "
         f"classes: {e(counts)}.</p>",
@@ -197,9 +200,83 @@ def _html(space: FeatureSpace, reports: Sequence[Report], selection: Selection,
         if notes:
             parts.append("<h3>Warnings</h3><ul>" + "".join(f"<li>{e(n)}</li>" for n in notes) + "</ul>")
     parts.append("<h2>Figures</h2>")
-    for caption, path in figures:
-        data = base64.b64encode(path.read_bytes()).decode("ascii")
-        parts.append(f'<figure><img src="data:image/png;base64,{data}" alt="{e(path.name)}">'
-                     f"<figcaption>{e(caption)} ({e(path.name)})</figcaption></figure>")
+    parts.extend(_figure_html(caption, path) for caption, path in figures)
     parts.append("</body></html>")
     return "\n".join(parts)
+
+
+def _figure_html(caption: str, path: Path) -> str:
+    """A figure embedded as base64 PNG data, so the page opens without the files beside it."""
+    e = html.escape
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    return (f'<figure><img src="data:image/png;base64,{data}" alt="{e(path.name)}">'
+            f"<figcaption>{e(caption)} ({e(path.name)})</figcaption></figure>")
+
+
+# -- comparison of the related methods (SPEC 7.5) ---------------------------------------------------------
+
+
+def write_comparison(folder: str | os.PathLike[str], results: Sequence[MethodResult], title: str) -> Path:
+    """Write the related-methods comparison as ``index.html`` (same page format as :func:`write_report`).
+
+    The page holds the comparison table (:data:`taxonomy.methods.COLUMNS`, times per classification), the
+    notes, an accuracy chart of every result and the confusion matrix of each method's best result; the
+    PNGs are written beside it and embedded in it. Returns the path of ``index.html``.
+    """
+    from scanner.files import atomic_write_bytes
+    from taxonomy.methods import COLUMNS, best_per_method
+
+    e = html.escape
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    figures = []
+    if results:
+        chart = _plot_comparison(results, folder / "comparison.png")
+        figures.append(("accuracy of every method, feature set, classifier and motion set (mean +- std over "
+                        "splits); grey ticks: the most frequent class", chart))
+    for best in best_per_method(results):
+        caption = (f"{best.method}: {best.features}, {best.classifier}, {best.motions}, {best.level}; "
+                   f"accuracy {100 * best.accuracy_mean:.1f} %")
+        figures.append((f"confusion matrix of the best {best.method} result ({caption})",
+                        plot_confusion(best.confusion, best.classes, folder / f"confusion_{best.method}.png",
+                                       title=caption)))
+    parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+             "<title>texplorer comparison of related methods</title>",
+             f"<style>{PAGE_STYLE}</style></head><body>", "<h1>Related methods on the same footing</h1>",
+             f"<p>{e(title)}</p>", "<table><tr>" + "".join(f"<th>{e(c)}</th>" for c in COLUMNS) + "</tr>"]
+    parts += ["<tr>" + "".join(f"<td>{e(cell)}</td>" for cell in r.cells()) + "</tr>" for r in results]
+    parts.append("</table><p>Times per classification: feature extraction in ms, classifier in us (one row "
+                 "at a time). Paper: the figure its paper reports for that configuration.</p>")
+    notes = list(dict.fromkeys(note for r in results for note in r.notes))
+    details = [f"{r.method} {r.features} {r.classifier}: {r.detail}" for r in results if r.detail]
+    for heading, items in (("Notes", notes), ("Details", details)):
+        if items:
+            parts.append(f"<h3>{heading}</h3><ul>" + "".join(f"<li>{e(i)}</li>" for i in items) + "</ul>")
+    parts.append("<h2>Figures</h2>")
+    parts.extend(_figure_html(caption, path) for caption, path in figures)
+    parts.append("</body></html>")
+    page = folder / "index.html"
+    atomic_write_bytes(page, "\n".join(parts).encode("utf-8"))
+    return page
+
+
+def _plot_comparison(results: Sequence[MethodResult], path: Path) -> Path:
+    """Horizontal accuracy bars, one per result, coloured by method, with the majority-class rate."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(10, 1.5 + 0.22 * len(results)), layout="constrained")
+    FigureCanvasAgg(figure)
+    ax = figure.subplots()
+    methods = list(dict.fromkeys(r.method for r in results))
+    y = np.arange(len(results))[::-1]
+    colours = [f"C{methods.index(r.method)}" for r in results]
+    ax.barh(y, [100 * r.accuracy_mean for r in results], xerr=[100 * r.accuracy_std for r in results],
+            color=colours, error_kw={"elinewidth": 0.8})
+    ax.scatter([100 * r.chance for r in results], y, marker="|", color="0.4", s=80, zorder=3)
+    labels = [f"{r.method} {r.features} {r.classifier} {r.motions} {r.level}" for r in results]
+    ax.set_yticks(y, labels, fontsize=float(np.clip(300 / max(len(results), 1), 5, 9)))
+    ax.set_xlim(0, 105)
+    ax.set_xlabel("accuracy (%)")
+    figure.savefig(os.fspath(path), dpi=90)
+    return path

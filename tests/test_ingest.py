@@ -193,3 +193,22 @@ def test_store_and_load_a_set(tmp_path, lab_a):
     (tmp_path / "junk.mat").write_bytes(b"not a mat file")
     with pytest.raises(IngestError, match="junk.mat: not a readable recording file"):
         ingest.read_recording(tmp_path / "junk.mat")
+
+
+def test_cli_ingest_reports_bad_files_and_stores_the_set(tmp_path, capsys):
+    from scanner.cli import main
+
+    db = tmp_path / "db"
+    lab_b = [str(FIXTURES / "lab-b"), "--mapping", str(FIXTURES / "lab-b.toml"), "--db", str(db)]
+    code = main(["ingest", *lab_b])
+    out = capsys.readouterr().out.splitlines()
+    assert code == 3  # some files were bad
+    assert [line.split()[0] for line in out] == ["skipped"] * 3 + ["2"]
+    folder = db / "recordings" / "lab-b-audio-force"
+    assert out[-1] == f"2 recording(s) from 8 file(s) -> {folder}; roles audio, force_xyz; 3 problem line(s)"
+    assert ingest.recording_sets(db) == ["lab-b-audio-force"]
+    assert main(["ingest", *lab_b]) == 1
+    assert "the set 'lab-b-audio-force' exists" in capsys.readouterr().err
+    lab_c = [str(FIXTURES / "lab-c"), "--mapping", str(FIXTURES / "lab-c.toml"), "--db", str(db)]
+    assert main(["ingest", *lab_c, "--name", "c"]) == 3
+    assert ingest.recording_sets(db) == ["c", "lab-b-audio-force"]

@@ -233,3 +233,31 @@ def test_fishel_on_scans():
     assert {r.classifier for r in results} == {"svm", "lda", "knn", "mlp", "rf", "nb"}
     assert max(r.accuracy_mean for r in results if r.level == "fine") > 0.6  # chance 1/3
     assert methods.applicable(methods.Dataset.from_scans("db", scans)) == ["fishel", "huang", "hoelscher"]
+
+
+def test_compare_skips_a_method_the_data_cannot_feed():
+    short = [Recording(f"r{i}", {"e": Trace(np.ones((20, 4)), 100.0, "-")}, {"electrodes": "e"},
+                       label=f"c{i % 2}") for i in range(6)]
+    # 20 rows at 100 Hz: Xie needs 1 s, so it cannot run; seed 004's electrode features can.
+    with pytest.warns(methods.MethodSkipped, match="method xie skipped: xie_sequences works on none of 6"):
+        results = compare(short, repeats=1)
+    assert {r.method for r in results} == {"hoelscher"} and {r.features for r in results} == {"chitta"}
+    with pytest.raises(MethodError, match=r"method xie: xie_sequences works on none.*1 s of electrodes"):
+        compare(short, ["xie"])
+
+
+def test_cli_compare_prints_the_table_and_writes_the_report(tmp_path, capsys):
+    from scanner.cli import COMPARE_METHODS, main
+
+    assert COMPARE_METHODS == tuple(methods.METHODS)
+    report = tmp_path / "report"
+    assert main(["compare", "sim:soft3axis", "--db", str(tmp_path / "none"), "--repeats", "2",
+                 "--report", str(report)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("sim:soft3axis: 720 recordings of 8 objects; levels material (8)")
+    assert out[1].split()[:3] == ["method", "features", "classifier"] and out[3].startswith("chathuranga")
+    page = (report / "index.html").read_text()
+    assert "<th>classify us</th>" in page and "pairwise-svm" in page
+    assert page.count("data:image/png;base64,") == 2  # the accuracy chart and one confusion matrix
+    assert main(["compare", "sim:gelsight", "--db", str(tmp_path)]) == 1
+    assert "unknown simulated sensor 'gelsight'" in capsys.readouterr().err
