@@ -377,7 +377,12 @@ def _guide(session, args: argparse.Namespace) -> str | None:
             _tu4(session)
     if _ask("\nsave the scan? [Y/n] ").lower() in ("n", "no"):
         return None
-    return session.save(_open_db(args, create=True))
+    while True:
+        try:
+            return session.save(_open_db(args, create=True))
+        except (DatabaseError, OSError) as exc:
+            # The recording is still in the session: let the operator fix the disk or path and retry.
+            _ask(f"  not saved: {exc}\n  [Enter] retry, a abort: ")
 
 
 def cmd_scan(args: argparse.Namespace) -> int:
@@ -385,6 +390,11 @@ def cmd_scan(args: argparse.Namespace) -> int:
     from scanner.session import Session
 
     config = load_config(args.config)
+    model = None
+    if args.model:
+        from taxonomy.models import load_model
+
+        model = load_model(args.model)
     if args.daq:
         config = config.with_daq_server(args.daq)
     if args.board:
@@ -409,12 +419,11 @@ def cmd_scan(args: argparse.Namespace) -> int:
         print("not saved")
         return EXIT_ERROR
     print(f"saved {scan_id} in {args.db}")
-    if args.model:
+    if model is not None:
         from features import extract
-        from taxonomy.models import format_predictions, load_model, predict_top
+        from taxonomy.models import format_predictions, predict_top
         from taxonomy.table import load_taxonomy
 
-        model = load_model(args.model)
         scan = _open_db(args).get(scan_id)
         print(format_predictions(predict_top(model, extract(scan), 3), load_taxonomy()))
     return 0
@@ -431,8 +440,8 @@ def cmd_emulate_board(args: argparse.Namespace) -> int:
     sample = SimulatedSample(args.material, seed=args.seed)
     try:
         with BoardEmulator(sample, link=args.link, faults=faults) as emulator:
-            print(emulator.path, flush=True)
             print(f"serial sensor board emulator: {sample.describe()}; Ctrl-C stops it", file=sys.stderr)
+            print(emulator.path, flush=True)
             _serve_forever()
     except KeyboardInterrupt:
         pass
@@ -446,8 +455,8 @@ def cmd_emulate_daq(args: argparse.Namespace) -> int:
     sample = SimulatedSample(args.material, seed=args.seed)
     try:
         with DaqEmulator(DaqServicer(sample), host=args.host, port=args.port) as emulator:
-            print(f"grpc://{emulator.address}", flush=True)
             print(f"NI-DAQmx gRPC emulator: {sample.describe()}; Ctrl-C stops it", file=sys.stderr)
+            print(f"grpc://{emulator.address}", flush=True)
             _serve_forever()
     except KeyboardInterrupt:
         pass

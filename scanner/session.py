@@ -56,6 +56,7 @@ from scanner.devices.sources import SimulatedSample, material_for
 from scanner.recorder import Level, Recorder, StepResult, build_scan
 from scanner.scan import CHANNELS, IMAGES, JUDGED_SCALE, ScanError, ScanMeta, check_sample_id
 from scanner.simulate import scan_seed
+from taxonomy.labels import Label, LabelError
 
 VOLUME_METHODS = ("water", "micro-pearls")
 """How the TU4 volume was measured: water or micro-pearl displacement (SPEC 4)."""
@@ -213,8 +214,15 @@ class Session:
         """
         try:
             check_sample_id(sample_id)
-        except ScanError as exc:
+            canonical = Label.parse(label).format()
+        except (ScanError, LabelError) as exc:
             raise SessionError(str(exc)) from None
+        if db is not None:
+            # A sample is one piece of one material: refuse now rather than after a whole scan.
+            stored = {record.label for record in db.records(sample=sample_id)}
+            if stored and canonical not in stored:
+                raise SessionError(f"sample {sample_id} is {', '.join(sorted(stored))} in the database, "
+                                   f"not {canonical}")
         simulated = None
         if "simulated" in config.devices.values():
             material = material_for(label, config.simulated.material)

@@ -156,6 +156,16 @@ def test_a_complete_scan_is_saved_with_finite_features(session, tmp_path):
         session.record("press")
 
 
+def test_a_sample_of_another_material_is_refused_before_scanning(session, tmp_path):
+    db = Database(tmp_path / "db")
+    complete(session)
+    session.save(db)
+    with pytest.raises(SessionError, match="sample granite-01 is C6S1M1P2X1 in the database, not C1S1M1P4X1"):
+        Session.open(parse_config(FAST), label="C1S1M1P4X1", sample_id="granite-01", operator="ab", db=db)
+    with pytest.raises(SessionError, match="C6S1M1"):
+        Session.open(parse_config(FAST), label="C6S1M1", sample_id="granite-01", operator="ab", db=db)
+
+
 def test_skipping_the_fold_saves_a_rigid_scan(session, tmp_path):
     db = Database(tmp_path / "db")
     complete(session, skip_fold=True)
@@ -258,6 +268,15 @@ def test_texplorer_scan_aborted_saves_nothing(tmp_path, monkeypatch, capsys):
     assert not (tmp_path / "db").exists()
     code, out = run_cli(monkeypatch, capsys, argv, "\n\n")
     assert code == 1 and "scan aborted (input ended)" in out
+
+
+def test_texplorer_scan_with_a_missing_model_fails_before_scanning(tmp_path, monkeypatch, capsys):
+    argv = ["scan", "--db", str(tmp_path / "db"), "--label", "C6S1M1P2X1", "--sample", "granite-01",
+            "--operator", "ab", "--model", str(tmp_path / "none.skops")]
+    monkeypatch.setattr(sys, "stdin", io.StringIO(""))
+    assert main(argv) == 1
+    captured = capsys.readouterr()
+    assert "none.skops" in captured.err and "step 1/11" not in captured.out
 
 
 def test_texplorer_scan_reprompts_bad_values(tmp_path, monkeypatch, capsys):
