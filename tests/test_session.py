@@ -173,6 +173,25 @@ def test_skipping_the_fold_saves_a_rigid_scan(session, tmp_path):
     assert scan.meta.rigid and "f_fold" not in scan.traces and scan.missing_channels() == []
 
 
+def test_replay_devices_play_a_stored_scan_back(session, tmp_path):
+    db = Database(tmp_path / "db")
+    complete(session)
+    stored = db.get(session.save(db))
+    path = db.root / db.record(stored.scan_id).path
+    replayed = {name: "replay" for name in ("daq", "board", "microphone", "camera")}
+    config = parse_config({**FAST, "devices": replayed, "replay": {"scan": str(path), "speed": 0}})
+    with Session.open(config, label="C6S1M1P2X1", sample_id="granite-01", operator="cd", db=db) as replay:
+        assert replay.devices.describe()["daq"] == "NI USB-6002 (replay)"
+        complete(replay)
+        again = replay.scan(2)
+    # the DAQ plays the stored raw volts, which convert to the stored values again, bit for bit
+    for name in ("v_ft", "v_fs", "v_tt", "v_ts", "r_fs", "r_ts", "f_frn", "f_frt", "f_press", "f_fold",
+                 "alpha_f", "m", "a_fs", "a_ts", "t_cool"):
+        assert again[name] == stored[name], name
+    assert again["dB"].data == pytest.approx(stored["dB"].data, abs=1e-12)
+    assert all(np.array_equal(again.images[name], stored.images[name]) for name in stored.images)
+
+
 def test_abort_leaves_the_database_untouched(session, tmp_path):
     db = Database(tmp_path / "db")
     complete(session)
