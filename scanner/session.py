@@ -225,7 +225,7 @@ class Session:
                                    f"not {canonical}")
         simulated = None
         if "simulated" in config.devices.values():
-            material = material_for(label, config.simulated.material)
+            material = material_for(canonical, config.simulated.material)
             index = db.next_scan_index(sample_id) if db is not None else 1
             simulated = SimulatedSample(material, sample_id=sample_id, image_size=config.simulated.image_size,
                                         seed=scan_seed(config.simulated.seed, material.slug, index))
