@@ -689,12 +689,8 @@ class RelatedSet:
         return all(role in recording.roles for role in self.roles)
 
 
-def _xie11_raw(recording: Recording) -> dict[str, float]:
-    return xie11(recording)
-
-
 FEATURE_SETS: Mapping[str, RelatedSet] = MappingProxyType({s.name: s for s in (
-    RelatedSet("xie11", ("taxels",), "Xie et al. 2019 (seed 000)", _xie11_raw),
+    RelatedSet("xie11", ("taxels",), "Xie et al. 2019 (seed 000)", xie11),
     RelatedSet("huang7", ("vibration",), "Huang and Wu 2021 (seed 001)", huang7),
     RelatedSet("chathuranga4", ("force_xyz",), "Chathuranga et al. 2015 (seed 002)", chathuranga4),
     RelatedSet("chathuranga_period", ("force_xyz",), "Chathuranga et al. 2015, spatial-period baseline",

@@ -199,7 +199,8 @@ def test_xie_end_to_end():
     best = {level: max(r.accuracy_mean for r in results if r.level == level)
             for level in ("material", "property")}
     assert best["material"] > 0.5 and best["property"] > 0.7  # chance 0.125 and 0.25
-    assert all(r.detail.startswith("PCA dimensions per fold [") for r in results)
+    assert all(r.detail.startswith("per sample: images -> sequences ") for r in results)
+    assert all("PCA dimensions per fold [" in r.detail for r in results)
 
 
 def test_huang_and_hoelscher_end_to_end():
