@@ -130,7 +130,7 @@ def _object(material: BiotacMaterial, rng: np.random.Generator) -> tuple[BiotacM
                                 _jitter(rng, material.friction, 0.15),
                                 _jitter(rng, material.effusivity, 0.12),
                                 material.anisotropy)
-    return properties, 0.3 * rng.standard_normal(ELECTRODES)
+    return properties, 0.15 * rng.standard_normal(ELECTRODES)
 
 
 def _contact(t: np.ndarray, ramp: float) -> np.ndarray:
@@ -179,7 +179,7 @@ def _electrodes(obj: BiotacMaterial, shape: np.ndarray, finger: _Finger, motion:
     """Electrode impedances fall where the skin is compressed; a rigid object concentrates the pattern,
     a soft one spreads it, the object's shape and the trial's contact spot reshape it; sliding adds a
     shear pattern proportional to friction."""
-    spot = 0.3 * rng.standard_normal(shape.size)
+    spot = 0.15 * rng.standard_normal(shape.size)
     pattern = finger.press_pattern ** (1.0 + 2.0 * obj.stiffness) * np.exp(shape + spot)
     deformation = np.outer(force, 300.0 * pattern)
     if motion != "static":
