@@ -121,6 +121,10 @@ class PreparedPhoto:
     ----------
     rgb : (h, w, 3) uint8 array
         The full photo, kept as ``source``; ``photo`` is its crop (SPEC 6), a view.
+    keep_gray : bool
+        False lets :attr:`spectrum` take over the memory of :attr:`gray` (for a photo whose gray image is
+        not needed after its spectrum): fresh memory is slow to fault in, and a 12-megapixel gray image
+        is 86 MB. A later :attr:`gray` is then computed again.
 
     Raises
     ------
@@ -128,9 +132,10 @@ class PreparedPhoto:
         If ``rgb`` is not an RGB uint8 photo or too small to crop.
     """
 
-    def __init__(self, rgb: np.ndarray) -> None:
+    def __init__(self, rgb: np.ndarray, *, keep_gray: bool = True) -> None:
         self.source = rgb
         self.photo = crop_image(_check_rgb(rgb))
+        self.keep_gray = keep_gray
 
     @functools.cached_property
     def gray(self) -> np.ndarray:
@@ -161,7 +166,11 @@ class PreparedPhoto:
     @functools.cached_property
     def spectrum(self) -> RealSpectrum:
         """``Re(fft2(gray - mean(gray)))``, unscaled (:class:`RealSpectrum`)."""
-        return RealSpectrum(np.subtract(self.gray, self.mean), overwrite=True)
+        gray, mean = self.gray, self.mean
+        if self.keep_gray:
+            return RealSpectrum(np.subtract(gray, mean), overwrite=True)
+        del self.gray
+        return RealSpectrum(np.subtract(gray, mean, out=gray), overwrite=True)
 
 
 def compute(rgb: np.ndarray, *, prepared: PreparedPhoto | None = None) -> dict[str, float]:
@@ -188,14 +197,15 @@ def compute(rgb: np.ndarray, *, prepared: PreparedPhoto | None = None) -> dict[s
     """
     if prepared is not None and prepared.source is not rgb:
         raise ValueError("the prepared photo was made from a different array than rgb")
-    photo = PreparedPhoto(rgb) if prepared is None else prepared
+    photo = PreparedPhoto(rgb, keep_gray=False) if prepared is None else prepared
     _check_side(photo.photo.shape, 2 * 2**TAMURA_KMAX, f"Tamura coarseness with kmax={TAMURA_KMAX}")
     # The gray image of a uint8 photo is finite, so the cores run without the public functions' checks.
     gray, mean = photo.gray, photo.mean
     high = photo.extremes[1]
     first = [color(photo.photo), mean / 255.0, edginess(photo.gray_u8)]
-    coarseness = _tamura_coarseness(_banded(_thousandths, gray, np.int32), TAMURA_KMAX, 1e-9 * high * 1000)
+    coarseness = _tamura_coarseness(gray, TAMURA_KMAX, 1e-9 * high * 1000, thousandths=True)
     rest = [*_haralick(gray), coarseness, photo.contrast, *_lbp_histogram(gray)]
+    # Last: the spectrum of a photo prepared here is computed in the memory of its gray image.
     dft = _dft_peak_means(photo.spectrum, DFT_FRACTIONS)
     return dict(zip(NAMES, map(float, [*first, *dft, *rest]), strict=True))
 
@@ -602,15 +612,19 @@ def tamura_coarseness(gray: np.ndarray, kmax: int = TAMURA_KMAX) -> float:
     return _tamura_coarseness(image, kmax, 1e-9 * float(image.max()))
 
 
-def _thousandths(gray: np.ndarray) -> np.ndarray:
-    """``1000 * gray`` rounded: exactly ``299 R + 587 G + 114 B`` for a gray image of SPEC 6."""
-    return np.rint(gray * 1000.0)
+def _thousandths(gray: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """``1000 * gray`` rounded to int32: exactly ``299 R + 587 G + 114 B`` for a gray image of SPEC 6.
+
+    ``cv2.multiply`` rounds to the nearest integer as ``np.rint`` does, in one pass.
+    """
+    return cv2.multiply(gray, 1000.0, dst=out, dtype=cv2.CV_32S)
 
 
-def _tamura_coarseness(image: np.ndarray, kmax: int, tolerance: float) -> float:
-    """Tamura coarseness of float64 gray values, or of int32 gray values (``_thousandths``).
+def _tamura_coarseness(image: np.ndarray, kmax: int, tolerance: float, *, thousandths: bool = False) -> float:
+    """Tamura coarseness of float64 gray values, or with ``thousandths`` of their int32 ``_thousandths``.
 
-    ``tolerance`` is in the units of ``image``. ``compute`` passes the integers 1000 * gray: then every
+    ``tolerance`` is in the units of the values compared: gray levels, or thousandths of them. ``compute``
+    asks for the integers 1000 * gray, converted tile by tile (no image-sized int32 copy): then every
     window sum and difference is exact in int32 (at most 1024 * 255000 < 2^31) and half the bytes of
     float64. The decisions equal the float64 ones: distinct ``E_k`` differ by at least
     1 / (1000 * 4^kmax) ~ 1e-6 gray levels, far more than the tie tolerance (at most 2.6e-7 for gray
@@ -618,16 +632,17 @@ def _tamura_coarseness(image: np.ndarray, kmax: int, tolerance: float) -> float:
     """
     margin = 2**kmax
     h, w = image.shape
+    dtype = np.dtype(np.int32) if thousandths else image.dtype
     # Sums over 4^k pixels scaled by 4^(kmax-k) put every E_k in units of 1 / 4^kmax of ``image``'s unit.
     tolerance *= 4**kmax
-    if image.dtype.kind == "i":
+    if dtype.kind == "i":
         tolerance = math.floor(tolerance)  # for integers, E >= M - tol is E >= M - floor(tol)
     out_rows, out_cols = h - 2 * margin + 1, w - 2 * margin + 1
     tile_rows, tile_cols = min(_TAMURA_TILE[0], out_rows), min(_TAMURA_TILE[1], out_cols)
     in_shape = (tile_rows + 2 * margin - 1, tile_cols + 2 * margin - 1)
-    pair_buffer, *level_buffers = (np.empty(in_shape, image.dtype) for _ in range(3))
-    horizontal_buffer, vertical_buffer = np.empty((2, tile_rows, tile_cols), image.dtype)
-    prefix_buffers = np.empty((kmax, tile_rows, tile_cols), image.dtype)
+    pair_buffer, *level_buffers = (np.empty(in_shape, dtype) for _ in range(3))
+    horizontal_buffer, vertical_buffer = np.empty((2, tile_rows, tile_cols), dtype)
+    prefix_buffers = np.empty((kmax, tile_rows, tile_cols), dtype)
     hit_buffer = np.empty((tile_rows, tile_cols), bool)
     total = 0
     for row, row_stop in _bands(out_rows, tile_rows):
@@ -636,6 +651,8 @@ def _tamura_coarseness(image: np.ndarray, kmax: int, tolerance: float) -> float:
             # Tile-local (i, j) is image pixel (row + i, col + j); output pixels are i = margin .. margin+n-1,
             # j = margin .. margin+m-1. Level k holds the window sum with its top-left corner at (i, j).
             level = image[row:row_stop + 2 * margin - 1, col:col_stop + 2 * margin - 1]
+            if thousandths:  # into the buffer of level 2: level 1 reads it, level 2 overwrites it
+                level = _thousandths(level, out=level_buffers[0][:level.shape[0], :level.shape[1]])
             prefixes: list[np.ndarray] = []
             for k in range(1, kmax + 1):
                 size, half = 2**k, 2 ** (k - 1)
