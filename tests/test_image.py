@@ -240,6 +240,17 @@ def test_prepared_photo_holds_what_the_public_functions_compute():
     assert image._dft_peak_means(prepared.spectrum, image.DFT_FRACTIONS) == image.dft_peak_means(gray)
 
 
+def test_a_photo_that_does_not_keep_its_gray_image_computes_the_spectrum_in_its_memory():
+    rgb = textured_photo(seed=6)
+    gray = grayscale(crop_image(rgb))
+    private = image.PreparedPhoto(rgb, keep_gray=False)
+    buffer = private.gray
+    assert private.spectrum.packed is buffer
+    assert image._dft_peak_means(private.spectrum, image.DFT_FRACTIONS) == image.dft_peak_means(gray)
+    np.testing.assert_array_equal(private.gray, gray)  # asked again: computed again
+    assert private.contrast == image.tamura_contrast(gray)
+
+
 def test_compute_with_a_prepared_photo_gives_the_same_values():
     rgb = textured_photo(seed=5)
     alone = image.compute(rgb)
