@@ -74,9 +74,14 @@ def _rows_per_band(width: int, elements: int | None = None) -> int:
     return max(1, (elements or _BAND_ELEMENTS) // max(width, 1))
 
 
-def _banded(function: Callable[[np.ndarray], np.ndarray], image: np.ndarray, dtype: type) -> np.ndarray:
-    """``function`` applied band by band; only for element-wise functions, whose result is then identical."""
-    out = np.empty(image.shape[:2], dtype)
+def _banded(function: Callable[[np.ndarray], np.ndarray], image: np.ndarray, dtype: type,
+            out: np.ndarray | None = None) -> np.ndarray:
+    """``function`` applied band by band; only for element-wise functions, whose result is then identical.
+
+    ``out``, if given, must be a C-contiguous array of ``dtype`` and the image's (h, w).
+    """
+    if out is None:
+        out = np.empty(image.shape[:2], dtype)
     for start, stop in _bands(image.shape[0], _rows_per_band(image.shape[1])):
         out[start:stop] = function(image[start:stop])
     return out
@@ -125,6 +130,9 @@ class PreparedPhoto:
         False lets :attr:`spectrum` take over the memory of :attr:`gray` (for a photo whose gray image is
         not needed after its spectrum): fresh memory is slow to fault in, and a 12-megapixel gray image
         is 86 MB. A later :attr:`gray` is then computed again.
+    buffer : ndarray, optional
+        Memory for :attr:`gray`, from :meth:`release` of a photo of the same size; ignored if it does not
+        fit (C-contiguous float64 of the cropped photo's height and width). Its values are overwritten.
 
     Raises
     ------
@@ -132,15 +140,28 @@ class PreparedPhoto:
         If ``rgb`` is not an RGB uint8 photo or too small to crop.
     """
 
-    def __init__(self, rgb: np.ndarray, *, keep_gray: bool = True) -> None:
+    def __init__(self, rgb: np.ndarray, *, keep_gray: bool = True, buffer: np.ndarray | None = None) -> None:
         self.source = rgb
         self.photo = crop_image(_check_rgb(rgb))
         self.keep_gray = keep_gray
+        fits = (buffer is not None and buffer.dtype == np.float64 and buffer.shape == self.photo.shape[:2]
+                and buffer.flags.c_contiguous)
+        self._buffer = buffer if fits else None
 
     @functools.cached_property
     def gray(self) -> np.ndarray:
         """``scanner.preprocess.grayscale`` of the cropped photo (float64, 0..255)."""
-        return _banded(grayscale, self.photo, np.float64)
+        buffer, self._buffer = self._buffer, None
+        return _banded(grayscale, self.photo, np.float64, out=buffer)
+
+    def release(self) -> np.ndarray | None:
+        """Give up the memory of the spectrum (else of the gray image) for the ``buffer`` of the next photo.
+
+        Both are forgotten, so they are computed again if asked for. None if neither was computed.
+        """
+        spectrum = self.__dict__.pop("spectrum", None)
+        gray = self.__dict__.pop("gray", None)
+        return gray if spectrum is None else spectrum.packed
 
     @functools.cached_property
     def gray_u8(self) -> np.ndarray:

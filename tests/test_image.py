@@ -251,6 +251,22 @@ def test_a_photo_that_does_not_keep_its_gray_image_computes_the_spectrum_in_its_
     assert private.contrast == image.tamura_contrast(gray)
 
 
+def test_a_released_buffer_holds_the_next_photos_gray_image():
+    first, second = textured_photo(seed=7), textured_photo(seed=8)
+    photo = image.PreparedPhoto(first)
+    assert photo.release() is None  # nothing computed yet
+    spectrum = photo.spectrum.packed
+    buffer = photo.release()
+    assert buffer is spectrum
+    following = image.PreparedPhoto(second, buffer=buffer)
+    assert following.gray is buffer
+    np.testing.assert_array_equal(following.gray, grayscale(crop_image(second)))
+    np.testing.assert_array_equal(photo.gray, grayscale(crop_image(first)))  # released: computed again
+    assert image.compute(second, prepared=following) == image.compute(second)
+    for unfit in (np.empty((3, 4)), np.empty(buffer.shape, np.float32), np.empty(buffer.shape[::-1]).T):
+        assert image.PreparedPhoto(second, buffer=unfit).gray is not unfit
+
+
 def test_compute_with_a_prepared_photo_gives_the_same_values():
     rgb = textured_photo(seed=5)
     alone = image.compute(rgb)
