@@ -37,7 +37,7 @@ from sklearn.preprocessing import StandardScaler
 from sklearn.utils.validation import check_is_fitted
 
 from features.tactum import frs, mico
-from scanner.preprocess import QualityError, dft321, remove_friction_offset, slide_signal
+from scanner.preprocess import QualityError, band_limit, dft321, remove_friction_offset, slide_signal
 from scanner.scan import Recording, Scan, Trace
 
 
@@ -714,16 +714,33 @@ def compute(name: str, recording: Recording) -> dict[str, float]:
     return FEATURE_SETS[name].function(recording)
 
 
-SCAN_ROLES = {"vibration": "v_ts", "audio": "a_ts", "temperature": "t_cool"}
-"""Roles of a scan's channels as a generic recording: tool-slide vibration and audio, object temperature."""
+SCAN_ROLES = {"vibration": "v", "audio": "a_ts", "temperature": "t_cool"}
+"""Roles of a scan as a generic recording: the tool-slide signal ``v``, the tool-slide audio and the
+object temperature."""
+
+
+def slide_vibration(v_ts: Trace) -> Trace:
+    """The tool-slide signal ``v`` of SPEC 6 (``v_ts`` band-limited 10-1000 Hz, 1 s window, DFT321).
+
+    When the slide check fails, the band-limited DFT321 of the whole recording, so the scan still has a
+    vibration (the other roles' methods would otherwise lose the whole database over one bad slide).
+    """
+    try:
+        return Trace(slide_signal(v_ts), v_ts.fs, v_ts.unit)
+    except QualityError:
+        return Trace(dft321(band_limit(v_ts.data, v_ts.fs)), v_ts.fs, v_ts.unit)
 
 
 def scan_recording(scan: Scan) -> Recording:
-    """A scan as a generic :class:`Recording`: every channel under its name, roles per :data:`SCAN_ROLES`.
+    """A scan as a generic :class:`Recording`: every channel under its name plus ``v``
+    (:func:`slide_vibration`), roles per :data:`SCAN_ROLES`.
 
     The label is the scan's taxonomy label; the groups are the sample (``object``) and the scan index
     (``trial``), so the scans of one sample count as repeated trials on one object.
     """
-    roles = {role: channel for role, channel in SCAN_ROLES.items() if channel in scan.traces}
+    channels = dict(scan.traces)
+    if "v_ts" in channels:
+        channels["v"] = slide_vibration(channels["v_ts"])
+    roles = {role: channel for role, channel in SCAN_ROLES.items() if channel in channels}
     group = {"object": scan.meta.sample_id, "trial": f"{scan.meta.scan_index:03d}"}
-    return Recording(scan.scan_id, dict(scan.traces), roles, scan.meta.label, group)
+    return Recording(scan.scan_id, channels, roles, scan.meta.label, group)

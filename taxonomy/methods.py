@@ -519,12 +519,23 @@ def run_fishel(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int) -
         protocol = f"{len(splits)}-fold CV{' by sample' if grouped else ''}"
         for name in classifier_estimators(seed):
             def make(_: int, __: np.ndarray, name: str = name) -> Pipeline:
-                return Pipeline([("scale", MinMaxScaler()), ("classify", classifier_estimators(seed)[name])])
+                return Pipeline([("scale", MinMaxScaler()),
+                                 ("classify", _without_probability(classifier_estimators(seed)[name]))])
             run = _Run("fishel", "fishel3", name, "tool slide + friction", level, protocol)
             seconds = float(np.nanmedian(extracted.seconds[rows]))
             results.append(_result(run, score(make, X, y, splits), len(rows), seconds,
                                    [*notes, *_messages(caught)]))
     return results
+
+
+def _without_probability(classifier: BaseEstimator) -> BaseEstimator:
+    """The classifier without Platt scaling (the SVM's ``probability``): predictions do not use it, it
+    costs an internal 5-fold fit, and scikit-learn 1.9 deprecates the argument."""
+    params = classifier.get_params(deep=False)
+    if "probability" not in params:
+        return classifier
+    del params["probability"]
+    return type(classifier)(**params)
 
 
 # -- xie ---------------------------------------------------------------------------------------------

@@ -352,5 +352,8 @@ def test_temperature_features():
 def test_scan_recording_roles():
     scan = _fishel_scan()
     r = related.scan_recording(scan)
-    assert dict(r.roles) == {"vibration": "v_ts"} and r.label == scan.meta.label
+    assert dict(r.roles) == {"vibration": "v"} and r.label == scan.meta.label
+    assert np.array_equal(r.channels["v"].data, slide_signal(scan["v_ts"])) and r.channels["v"].fs == 3000.0
+    resting = related.scan_recording(_fishel_scan(0.0))
+    assert resting.channels["v"].n == 9000  # no slide: the whole band-limited recording
     assert dict(r.group) == {"object": "granite-01", "trial": "001"} and r.channels["f_frn"] == scan["f_frn"]
