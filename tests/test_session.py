@@ -204,9 +204,17 @@ def test_abort_leaves_the_database_untouched(session, tmp_path):
 
 
 def test_worker_thread_recording_with_live_level(session):
-    session.start_step("press")
+    recording, release = threading.Event(), threading.Event()
+
+    def level(reading) -> None:
+        recording.set()
+        release.wait(10.0)
+
+    session.start_step("press", level=level)
+    assert recording.wait(10.0) and session.running and session.level is not None
     with pytest.raises(SessionError, match="another step is recording"):
         session.record("friction")
+    release.set()
     assert session.wait(10.0)
     assert session.status("press").state is StepState.RECORDED and session.worker_error is None
 

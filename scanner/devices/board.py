@@ -280,7 +280,7 @@ class SerialBoard:
         try:
             self._serial = serial.Serial(self.port, self.config.baudrate, bytesize=8, parity="N", stopbits=1,
                                          timeout=0.05, write_timeout=1.0)
-        except (serial.SerialException, OSError, ValueError) as exc:
+        except Exception as exc:  # noqa: BLE001 - pyserial lets termios.error through on POSIX
             raise DeviceUnavailable(f"serial board: cannot open {self.port}: {_reason(exc)}") from None
 
     def _handshake(self) -> None:
@@ -366,7 +366,8 @@ class SerialBoard:
             try:
                 self._serial.write(f"{text}\n".encode("ascii"))
                 self._serial.flush()
-            except (self._serial_module.SerialException, OSError) as exc:
+            except (self._serial_module.SerialException, OSError, TypeError, AttributeError) as exc:
+                # TypeError/AttributeError: the reader thread closed the port under us while reconnecting.
                 raise ConnectionLost(f"serial board on {self.port}: cannot send {text!r}: "
                                      f"{_reason(exc)}") from None
 
@@ -376,7 +377,7 @@ class SerialBoard:
             raise ConnectionLost(self._failed)
         if self._lost:
             lost, self._lost = self._lost, None
-            raise ConnectionLost(f"{lost}; reconnected, redo the step")
+            raise ConnectionLost(f"{lost}: redo the step")
 
     def _recover(self) -> None:
         """After a silence timeout: reopen the port (which resets an Arduino) and identify the board again."""

@@ -114,9 +114,13 @@ class BoardEmulator:
             self._silent_until = time.monotonic() + seconds
 
     def disconnect(self, downtime: float = 0.5) -> None:
-        """Drop the connection (the host's port fails) and come back at the same path after ``downtime``."""
+        """Drop the connection (the host's port fails) and come back at the same path after ``downtime``.
+
+        Meanwhile the path is gone, as a USB serial device's node is while it is unplugged.
+        """
         with self._lock:
             self._offline_until = time.monotonic() + downtime
+            self.path.unlink(missing_ok=True)
             self._close_pty()
 
     @property
@@ -141,8 +145,7 @@ class BoardEmulator:
         self._thread.join(timeout=2.0)
         with self._lock:
             self._close_pty()
-        if self.path.is_symlink():
-            self.path.unlink()
+            self.path.unlink(missing_ok=True)
 
     def __enter__(self) -> BoardEmulator:
         return self
