@@ -185,6 +185,16 @@ def test_commands_and_a_temperature_stream_byte_by_byte():
         board.close()
 
 
+def test_an_err_line_while_streaming_fails_the_recording():
+    lines = b"T,1000,25.00,21.50*78\nERR MLX90614 not answering\n"
+    with expected_protocol(OPEN + [(b"START T 20\n", lines), (b"STOP\n", b"")] + CLOSE) as port:
+        board = SerialBoard(BoardConfig(port=port))
+        with pytest.raises(DeviceError, match="serial board on .*: ERR MLX90614 not answering"):
+            collect(board, "T", 20, 1.0)
+        assert board.errors == ["ERR MLX90614 not answering"]
+        board.close()
+
+
 def test_the_host_never_asks_for_more_than_5_s_of_heating():
     with expected_protocol(OPEN + CLOSE) as port:
         board = SerialBoard(BoardConfig(port=port))

@@ -454,11 +454,21 @@ class SerialBoard:
         while not self._samples.empty():
             samples.append(self._samples.get_nowait())
         self.check()
+        if self._streaming:
+            self._raise_board_error()
         silent = time.monotonic() - self._last_data
         if self._streaming and not samples and silent >= self.config.timeout_s:
             self._stale = True
             raise BoardTimeout(f"serial board on {self.port}: no data for {silent:.1f} s")
         return samples
+
+    def _raise_board_error(self) -> None:
+        """An ``ERR`` line nobody asked for (a sensor failed while streaming) fails the recording."""
+        while not self._replies.empty():
+            line = self._replies.get_nowait()
+            if line.startswith("ERR"):
+                self.errors.append(line)
+                raise DeviceError(f"serial board on {self.port}: {line}")
 
     def stop(self) -> None:
         self._streaming = False
