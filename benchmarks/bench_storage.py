@@ -100,7 +100,8 @@ def bench_catalog(folder: Path, n: int = 10_000) -> None:
         count = 200 if "label" in name or "operator" in name else 5000
         t_ours = best_of(lambda ours=ours, count=count: [ours(i) for i in range(count)], 3) / count
         t_ref = best_of(lambda reference=reference, count=count: [reference(i) for i in range(count)], 3) / count
-        print(f"  {name:<24} {1 / t_ours:9.0f} queries/s   raw sqlite3 {1 / t_ref:9.0f}/s   ratio {t_ours / t_ref:4.1f}x")
+        print(f"  {name:<24} {1 / t_ours:9.0f} queries/s   raw sqlite3 {1 / t_ref:9.0f}/s   "
+              f"ratio {t_ours / t_ref:4.1f}x")
     db.close()
 
 

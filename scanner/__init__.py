@@ -13,6 +13,7 @@ from scanner.scan import (
     JUDGED_SCALE,
     ROLES,
     SCHEMA_VERSION,
+    VOLUME_METHODS,
     Recording,
     Scan,
     ScanError,
@@ -23,7 +24,7 @@ from scanner.scan import (
 __version__ = "0.1.0"
 
 __all__ = [
-    "CHANNELS", "IMAGES", "JUDGED_SCALE", "ROLES", "SCHEMA_VERSION",
+    "CHANNELS", "IMAGES", "JUDGED_SCALE", "ROLES", "SCHEMA_VERSION", "VOLUME_METHODS",
     "Database", "DatabaseError", "Recording", "Scan", "ScanError", "ScanFormatError", "ScanMeta", "Trace",
     "__version__", "load_scan", "save_scan",
 ]

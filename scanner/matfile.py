@@ -6,9 +6,10 @@ Layout of ``<scan>.mat`` (``scipy.io.savemat``, ``long_field_names=True``, ``do_
   column vectors (n x 1), accelerations n x 3; raw DAQ volts as ``<channel>_raw``;
 - ``I_disp``, ``I_macro``, ``I_illu``: file names of the photos, PNG files in the same folder;
 - ``meta``: a struct with ``label``, ``operator``, ``sample_id``, ``scan_index``, ``session_id``,
-  ``started``, ``t_amb``, ``mass_g``, ``volume_cm3``, ``atk``, ``cyd``, ``rigid``, ``fs`` (struct: channel
-  -> Hz), ``units`` (struct: channel -> unit), ``raw_volts`` (0/1), ``device`` (struct of strings),
-  ``calibration`` (struct of numbers), ``software_version``, ``schema_version``, ``notes``.
+  ``started``, ``t_amb``, ``mass_g``, ``volume_cm3``, ``volume_method`` (water, micro-pearls, known or
+  empty), ``atk``, ``cyd``, ``rigid``, ``fs`` (struct: channel -> Hz), ``units`` (struct: channel -> unit),
+  ``raw_volts`` (0/1), ``device`` (struct of strings), ``calibration`` (struct of numbers),
+  ``software_version``, ``schema_version``, ``notes``.
   Unknown numbers (not weighed, not judged) are NaN.
 
 In MATLAB or Octave: ``s = load('granite-01-001.mat'); plot(s.v_ts); s.meta.fs.v_ts``.
@@ -84,6 +85,7 @@ def _meta_struct(scan: Scan) -> dict[str, Any]:
         "t_amb": meta.t_amb,
         "mass_g": meta.mass_g,
         "volume_cm3": meta.volume_cm3,
+        "volume_method": meta.volume_method,
         "atk": meta.atk,
         "cyd": meta.cyd,
         "rigid": float(meta.rigid),
@@ -225,6 +227,7 @@ def _parse_meta(path: Path, variables: dict[str, Any]) -> tuple[dict[str, Any], 
             software_version=_meta_text(path, meta, "software_version", ""),
             schema_version=int(schema),
             notes=_meta_text(path, meta, "notes", ""),
+            volume_method=_meta_text(path, meta, "volume_method", ""),
             **{name: _meta_number(path, meta, name) for name in _OPTIONAL_NUMBERS},
         )
     except ScanError as exc:

@@ -21,6 +21,8 @@ from taxonomy.labels import Label, LabelError
 SCHEMA_VERSION = 1
 JUDGED_SCALE = (0.0, 0.25, 0.5, 0.75, 1.0)
 """The five-step scale of the operator's judged adhesive tack and yielding (paper section IV-A)."""
+VOLUME_METHODS = ("water", "micro-pearls", "known")
+"""How the TU4 volume was measured: water or micro-pearl displacement, or known (dimensions, supplier)."""
 
 
 class ScanError(ValueError):
@@ -195,6 +197,7 @@ class ScanMeta(_Picklable):
     t_amb: float = math.nan
     mass_g: float = math.nan
     volume_cm3: float = math.nan
+    volume_method: str = ""
     atk: float = math.nan
     cyd: float = math.nan
     rigid: bool = False
@@ -224,6 +227,9 @@ class ScanMeta(_Picklable):
         object.__setattr__(self, "mass_g", _check_optional_number("mass_g", self.mass_g, positive=True))
         object.__setattr__(self, "volume_cm3",
                            _check_optional_number("volume_cm3", self.volume_cm3, positive=True))
+        if self.volume_method not in ("", *VOLUME_METHODS):
+            raise ScanError(f"{self.volume_method!r} is not one of {', '.join(VOLUME_METHODS)} (or empty)",
+                            "meta.volume_method")
         object.__setattr__(self, "atk", _check_judged("atk", self.atk))
         object.__setattr__(self, "cyd", _check_judged("cyd", self.cyd))
         object.__setattr__(self, "rigid", bool(self.rigid))

@@ -54,12 +54,10 @@ from scanner.devices.camera import PhotoError, decode_photo
 from scanner.devices.protocols import DeviceError
 from scanner.devices.sources import SimulatedSample, material_for
 from scanner.recorder import Level, Recorder, StepResult, build_scan
-from scanner.scan import CHANNELS, IMAGES, JUDGED_SCALE, ScanError, ScanMeta, check_sample_id
+from scanner.scan import CHANNELS, IMAGES, JUDGED_SCALE, VOLUME_METHODS, ScanError, ScanMeta, check_sample_id
 from scanner.simulate import scan_seed
 from taxonomy.labels import Label, LabelError
 
-VOLUME_METHODS = ("water", "micro-pearls")
-"""How the TU4 volume was measured: water or micro-pearl displacement (SPEC 4)."""
 T_AMB_RANGE = (-40.0, 85.0)
 """The MLX90614's ambient range, degC."""
 
@@ -429,7 +427,7 @@ class Session:
 
     def set_values(self, **values: Any) -> None:
         """Set any of ``atk``, ``cyd`` (five-step scale), ``mass_g``, ``volume_cm3`` (positive),
-        ``volume_method`` ("water" or "micro-pearls") and ``notes``; each is checked on its own."""
+        ``volume_method`` (one of ``scanner.scan.VOLUME_METHODS``) and ``notes``; each is checked on its own."""
         self._check_open()
         checked = {}
         for name, value in values.items():
@@ -491,15 +489,13 @@ class Session:
         results = {step: entry.result for step, entry in self._steps.items() if entry.result is not None}
         device, calibration = self.recorder.device_meta(results)
         values = self._values
-        notes = f"volume by {values.volume_method} displacement"
-        if values.notes:
-            notes += f"; {values.notes}"
         try:
             meta = ScanMeta(label=self.label, operator=self.operator, sample_id=self.sample_id,
                             scan_index=scan_index, session_id=self.session_id, started=self.started,
                             t_amb=self.t_amb, mass_g=values.mass_g, volume_cm3=values.volume_cm3,
-                            atk=values.atk, cyd=values.cyd, rigid=self.rigid, device=device,
-                            calibration=calibration, software_version=scanner.__version__, notes=notes)
+                            volume_method=values.volume_method, atk=values.atk, cyd=values.cyd, rigid=self.rigid,
+                            device=device, calibration=calibration, software_version=scanner.__version__,
+                            notes=values.notes)
             return build_scan(meta, results, self._photos)
         except ScanError as exc:
             raise SessionError(f"the scan is not valid: {exc}") from None

@@ -10,8 +10,9 @@ from scanner.scan import CHANNELS, Scan, ScanMeta, Trace
 
 def make_meta(**overrides) -> ScanMeta:
     values = dict(label="C6S1M1P2X1", operator="ab", sample_id="granite-01", scan_index=1, session_id="s-1",
-                  started="2026-11-21T08:00:00+00:00", t_amb=21.5, mass_g=512.0, volume_cm3=190.0, atk=0.0,
-                  cyd=0.25, device={"daq": "USB-6002 1F2A3B4", "board": "TEXPLORER-SB 1.2"},
+                  started="2026-11-21T08:00:00+00:00", t_amb=21.5, mass_g=512.0, volume_cm3=190.0,
+                  volume_method="water", atk=0.0, cyd=0.25,
+                  device={"daq": "USB-6002 1F2A3B4", "board": "TEXPLORER-SB 1.2"},
                   calibration={"accel_zero_V": 1.65, "accel_V_per_g": 0.33}, software_version="0.1.0")
     values.update(overrides)
     return ScanMeta(**values)

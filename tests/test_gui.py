@@ -427,7 +427,7 @@ def test_full_session_through_the_server(client, app):
     assert (meta.label, meta.operator, meta.sample_id, meta.scan_index) \
         == ("C6S1M1P2X1", "Ann", "granite-07", 1)
     assert (meta.t_amb, meta.atk, meta.cyd, meta.mass_g, meta.volume_cm3) == (22.5, 0.25, 0.0, 512.5, 190.0)
-    assert "left corner chipped" in meta.notes and "micro-pearls" in meta.notes and not meta.rigid
+    assert "left corner chipped" in meta.notes and meta.volume_method == "micro-pearls" and not meta.rigid
     assert np.array_equal(scan.images["I_disp"], photo)  # the uploaded pixels, losslessly
     assert set(scan.traces) == set(scanner_channels())
     assert not any((app.extensions["texplorer"].photos.folder).iterdir())  # staged previews removed

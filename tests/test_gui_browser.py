@@ -211,7 +211,7 @@ def test_full_scan_through_the_browser(page, server, tmp_path):
     assert (meta.label, meta.operator, meta.sample_id, meta.t_amb) \
         == ("C6S1M1P2X1", "Ann", "granite-12", 23.4)
     assert (meta.mass_g, meta.volume_cm3, meta.atk, meta.cyd, meta.rigid) == (512.5, 190.0, 0.25, 0.0, False)
-    assert "edge chipped" in meta.notes and "water" in meta.notes
+    assert "edge chipped" in meta.notes and meta.volume_method == "water"
     assert np.array_equal(scan.images["I_disp"], pixels)
     assert {"v_ts", "a_ts", "t_cool", "f_fold", "alpha_f", "dB"} <= set(scan.traces)
     assert scan["t_cool"].duration == pytest.approx(0.8, abs=0.1)

@@ -13,8 +13,8 @@ from scanner.matfile import ScanFormatError, load_scan, save_scan
 from scanner.scan import CHANNELS
 
 META_FIELDS = {"label", "operator", "sample_id", "scan_index", "session_id", "started", "t_amb", "mass_g",
-               "volume_cm3", "atk", "cyd", "rigid", "fs", "units", "raw_volts", "device", "software_version",
-               "schema_version"}
+               "volume_cm3", "volume_method", "atk", "cyd", "rigid", "fs", "units", "raw_volts", "device",
+               "software_version", "schema_version"}
 
 
 def test_round_trip_is_lossless(tmp_path):

@@ -145,7 +145,7 @@ def test_a_complete_scan_is_saved_with_finite_features(session, tmp_path):
     assert scan_id == "granite-01-001" and session.state is SessionState.SAVED and session.devices is None
     scan = db.get(scan_id)
     assert scan.meta.label == "C6S1M1P2X1" and scan.meta.operator == "ab" and not scan.meta.rigid
-    assert scan.meta.notes == "volume by water displacement; edge chipped"
+    assert scan.meta.notes == "edge chipped" and scan.meta.volume_method == "water"
     assert scan.meta.calibration["accel_V_per_g_x"] == 0.33
     assert scan.meta.calibration["audio_offset_fs_s"] == 0.0
     assert scan.missing_channels() == [] and set(scan.raw) >= {"v_ts", "f_frn", "m"}
