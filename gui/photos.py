@@ -12,24 +12,19 @@ from __future__ import annotations
 
 import re
 import secrets
-import struct
 from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
 
+from scanner.devices.camera import MAX_PHOTO_PIXELS as DEFAULT_MAX_PIXELS
+from scanner.devices.camera import PhotoError, check_pixels
 from scanner.files import atomic_write_bytes
 from scanner.matfile import decode_image, encode_png
 
-PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-JPEG_SIGNATURE = b"\xff\xd8\xff"
 DEFAULT_MAX_BYTES = 20 * 1024 * 1024
-DEFAULT_MAX_PIXELS = 50_000_000
-"""Four times a 12-megapixel phone photo (3024 x 4032, the paper's camera)."""
 
 _STAGED_NAME = re.compile(r"^[0-9a-f]{32}\.png$")
-_JPEG_FRAME_MARKERS = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
-"""Start-of-frame markers SOF0-SOF15; C4 (Huffman tables), C8 (reserved) and CC (arithmetic) are not."""
 
 
 class UploadError(ValueError):
@@ -39,51 +34,6 @@ class UploadError(ValueError):
 def file_size(n: int) -> str:
     """Bytes for people: ``"264 KB"``, ``"20.0 MB"``."""
     return f"{n / 1024:.0f} KB" if n < 1024 * 1024 else f"{n / (1024 * 1024):.1f} MB"
-
-
-def _png_size(data: bytes) -> tuple[int, int]:
-    if len(data) < 24 or data[12:16] != b"IHDR":
-        raise UploadError("the PNG file is damaged (no image header)")
-    width, height = struct.unpack(">II", data[16:24])
-    return width, height
-
-
-def _jpeg_size(data: bytes) -> tuple[int, int]:
-    """Width and height from the first start-of-frame segment, walking the marker segments after SOI."""
-    position = 2
-    while position + 4 <= len(data):
-        if data[position] != 0xFF:
-            raise UploadError("the JPEG file is damaged (bad marker)")
-        marker = data[position + 1]
-        if marker == 0xFF:  # fill byte before a marker
-            position += 1
-            continue
-        if marker in (0x01, *range(0xD0, 0xD8)):  # markers without a length field
-            position += 2
-            continue
-        (length,) = struct.unpack(">H", data[position + 2:position + 4])
-        if marker in _JPEG_FRAME_MARKERS:
-            if position + 9 > len(data):
-                break
-            height, width = struct.unpack(">HH", data[position + 5:position + 9])
-            return width, height
-        position += 2 + length
-    raise UploadError("the JPEG file is damaged (no frame header)")
-
-
-def image_size(data: bytes) -> tuple[str, int, int] | None:
-    """``(kind, width, height)`` of PNG or JPEG bytes from the header alone, or None for other content.
-
-    Raises
-    ------
-    UploadError
-        A PNG or JPEG signature with a damaged header.
-    """
-    if data.startswith(PNG_SIGNATURE):
-        return ("PNG", *_png_size(data))
-    if data.startswith(JPEG_SIGNATURE):
-        return ("JPEG", *_jpeg_size(data))
-    return None
 
 
 def check_size(size: int, max_bytes: int = DEFAULT_MAX_BYTES) -> None:
@@ -101,15 +51,10 @@ def check_upload(data: bytes, *, max_bytes: int = DEFAULT_MAX_BYTES,
     Content that is not PNG or JPEG passes here; decoding refuses it with its own reason.
     """
     check_size(len(data), max_bytes)
-    size = image_size(data)
-    if size is None:
-        return
-    kind, width, height = size
-    if width < 1 or height < 1:
-        raise UploadError(f"the {kind} header gives an empty image ({width} x {height} px)")
-    if width * height > max_pixels:
-        raise UploadError(f"the image has {width * height / 1e6:.1f} megapixels ({width} x {height} px); "
-                          f"at most {max_pixels / 1e6:g} are accepted")
+    try:
+        check_pixels(data, max_pixels)
+    except PhotoError as exc:
+        raise UploadError(str(exc)) from None
 
 
 class PhotoStore:

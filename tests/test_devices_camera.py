@@ -89,7 +89,7 @@ def test_uploaded_png_and_jpeg_decode_to_rgb():
 @pytest.mark.parametrize(("data", "message"), [
     (b"\x00\x00\x00\x18ftypheic" + b"\x00" * 64, "HEIC photos are not read directly; convert it to PNG"),
     (b"GIF89a" + b"\x00" * 64, "not a PNG or JPEG file"),
-    (b"\x89PNG\r\n\x1a\n" + b"\x00" * 64, "the file is damaged"),
+    (b"\x89PNG\r\n\x1a\n" + b"\x00" * 64, "the PNG file is damaged"),
 ])
 def test_bad_uploads_are_refused_with_the_reason(data, message):
     with pytest.raises(PhotoError, match=message):

@@ -22,7 +22,8 @@ from gui.forms import (
     validate_operator,
     validate_start,
 )
-from gui.photos import PhotoStore, UploadError, check_upload, image_size
+from gui.photos import PhotoStore, UploadError, check_upload
+from scanner.devices.camera import PhotoError, decode_photo, image_size
 from scanner.matfile import encode_png
 from taxonomy.table import load_taxonomy
 
@@ -183,6 +184,11 @@ def test_image_size_from_headers():
     assert image_size(_jpeg(_rgb(5, 7))) == ("JPEG", 7, 5)
     assert image_size(_png_header(100_000, 30_000)) == ("PNG", 100_000, 30_000)
     assert image_size(b"GIF89a" + bytes(20)) is None
+
+
+def test_decoding_outside_the_web_app_refuses_a_decompression_bomb():
+    with pytest.raises(PhotoError, match=r"upload: the image has 3000.0 megapixels"):
+        decode_photo(_png_header(100_000, 30_000) + bytes(100))
 
 
 @pytest.mark.parametrize(("data", "reason"), [
