@@ -147,6 +147,7 @@ class PreparedPhoto:
         fits = (buffer is not None and buffer.dtype == np.float64 and buffer.shape == self.photo.shape[:2]
                 and buffer.flags.c_contiguous)
         self._buffer = buffer if fits else None
+        self._spectrum_memory: np.ndarray | None = None
 
     @functools.cached_property
     def gray(self) -> np.ndarray:
@@ -162,6 +163,20 @@ class PreparedPhoto:
         spectrum = self.__dict__.pop("spectrum", None)
         gray = self.__dict__.pop("gray", None)
         return gray if spectrum is None else spectrum.packed
+
+    @functools.cached_property
+    def gray32(self) -> np.ndarray:
+        """:attr:`gray` as float32, as Harris corners want it.
+
+        A photo that keeps its gray image holds this one in the first half of the memory its spectrum will
+        take, one fresh allocation fewer; the spectrum then overwrites it (it is made again if asked for).
+        """
+        if not self.keep_gray:
+            return self.gray.astype(np.float32)
+        self._spectrum_memory = np.empty(self.gray.shape)
+        gray32 = self._spectrum_memory.reshape(-1).view(np.float32)[:self.gray.size].reshape(self.gray.shape)
+        np.copyto(gray32, self.gray, casting="same_kind")
+        return gray32
 
     @functools.cached_property
     def gray_u8(self) -> np.ndarray:
@@ -189,7 +204,9 @@ class PreparedPhoto:
         """``Re(fft2(gray - mean(gray)))``, unscaled (:class:`RealSpectrum`)."""
         gray, mean = self.gray, self.mean
         if self.keep_gray:
-            return RealSpectrum(np.subtract(gray, mean), overwrite=True)
+            memory, self._spectrum_memory = self._spectrum_memory, None
+            self.__dict__.pop("gray32", None)
+            return RealSpectrum(np.subtract(gray, mean, out=memory), overwrite=True)
         del self.gray
         return RealSpectrum(np.subtract(gray, mean, out=gray), overwrite=True)
 
@@ -664,7 +681,7 @@ def _tamura_coarseness(image: np.ndarray, kmax: int, tolerance: float, *, thousa
     pair_buffer, *level_buffers = (np.empty(in_shape, dtype) for _ in range(3))
     horizontal_buffer, vertical_buffer = np.empty((2, tile_rows, tile_cols), dtype)
     prefix_buffers = np.empty((kmax, tile_rows, tile_cols), dtype)
-    hit_buffer = np.empty((tile_rows, tile_cols), bool)
+    hit_buffer = np.empty((tile_rows, tile_cols), np.uint8)
     total = 0
     for row, row_stop in _bands(out_rows, tile_rows):
         for col, col_stop in _bands(out_cols, tile_cols):
@@ -700,7 +717,7 @@ def _tamura_coarseness(image: np.ndarray, kmax: int, tolerance: float, *, thousa
             hit = hit_buffer[:n, :m]
             previous = 0
             for k, prefix in enumerate(prefixes[:-1], start=1):
-                count = int(np.count_nonzero(np.greater_equal(prefix, threshold, out=hit)))
+                count = cv2.countNonZero(cv2.compare(prefix, threshold, cv2.CMP_GE, dst=hit))
                 total += 2**k * (count - previous)
                 previous = count
             total += 2**kmax * (n * m - previous)

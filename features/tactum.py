@@ -160,8 +160,11 @@ def harris_corners(gray: np.ndarray) -> np.ndarray:
     ``cv2.goodFeaturesToTrack(gray.astype(float32), maxCorners=100, qualityLevel=0.01, minDistance=10,
     blockSize=3, useHarrisDetector=True, k=0.04)``, rounded to the nearest pixel (SPEC 7.1).
     """
-    image = np.asarray(gray, dtype=np.float32)
-    points = cv2.goodFeaturesToTrack(image, maxCorners=100, qualityLevel=0.01, minDistance=10,
+    return _harris_corners(np.asarray(gray, dtype=np.float32))
+
+
+def _harris_corners(gray32: np.ndarray) -> np.ndarray:
+    points = cv2.goodFeaturesToTrack(gray32, maxCorners=100, qualityLevel=0.01, minDistance=10,
                                      blockSize=3, useHarrisDetector=True, k=0.04)
     if points is None:
         return np.empty((0, 2), dtype=np.intp)
@@ -246,6 +249,11 @@ def corner_scales(gray: np.ndarray, corners: np.ndarray) -> np.ndarray:
     return DOH_SCALES[np.argmax(np.abs(responses), axis=1)]
 
 
+def _photo_scales(photo: PreparedPhoto) -> np.ndarray:
+    """``corner_scales(gray, harris_corners(gray))`` of a prepared photo, Harris on its float32 gray image."""
+    return corner_scales(photo.gray, _harris_corners(photo.gray32))
+
+
 def top_scales_mean(scales: np.ndarray, n: int = TOP_SCALES) -> float:
     """Mean of the ``n`` largest scales (of all if fewer); NaN if there are none (paper eq. 8)."""
     values = np.sort(np.asarray(scales, dtype=np.float64))[::-1]
@@ -260,7 +268,10 @@ def maco(v: np.ndarray, gray: np.ndarray, *, contrast: float | None = None) -> f
     """
     if contrast is None:
         contrast = tamura_contrast(gray)
-    scales = corner_scales(gray, harris_corners(gray))
+    return _maco(v, contrast, corner_scales(gray, harris_corners(gray)))
+
+
+def _maco(v: np.ndarray, contrast: float, scales: np.ndarray) -> float:
     return float(np.mean(np.abs(_samples(v, "v")))) * contrast * top_scales_mean(scales)
 
 
@@ -594,7 +605,7 @@ def _recipes(inputs: _Inputs, scan: Scan) -> dict[str, tuple[Callable[..., float
     atk_value, cyd_value = atk(scan.meta.atk), cyd(scan.meta.cyd)
     recipes = {
         "tactum.matx": (matx, ("v", "f_frt", "r_w")),
-        "tactum.maco": (lambda v, photo: maco(v, photo.gray, contrast=photo.contrast), ("v", "photo")),
+        "tactum.maco": (lambda v, photo: _maco(v, photo.contrast, _photo_scales(photo)), ("v", "photo")),
         "tactum.marg": (lambda v, photo: _marg(v, _kept_peak_mean(photo.spectrum), photo.contrast),
                         ("v", "photo")),
         "tactum.miro": (miro, ("v",)),

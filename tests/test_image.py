@@ -240,6 +240,17 @@ def test_prepared_photo_holds_what_the_public_functions_compute():
     assert image._dft_peak_means(prepared.spectrum, image.DFT_FRACTIONS) == image.dft_peak_means(gray)
 
 
+@pytest.mark.parametrize("keep_gray", [True, False])
+def test_the_float32_gray_image_is_the_gray_image_rounded_and_survives_the_spectrum(keep_gray):
+    rgb = textured_photo(seed=9)
+    gray = grayscale(crop_image(rgb))
+    prepared = image.PreparedPhoto(rgb, keep_gray=keep_gray)
+    np.testing.assert_array_equal(prepared.gray32, gray.astype(np.float32))
+    assert prepared.gray32.dtype == np.float32 and prepared.gray32.flags.c_contiguous
+    assert image._dft_peak_means(prepared.spectrum, image.DFT_FRACTIONS) == image.dft_peak_means(gray)
+    np.testing.assert_array_equal(prepared.gray32, gray.astype(np.float32))  # made again if overwritten
+
+
 def test_a_photo_that_does_not_keep_its_gray_image_computes_the_spectrum_in_its_memory():
     rgb = textured_photo(seed=6)
     gray = grayscale(crop_image(rgb))
