@@ -839,12 +839,14 @@ def _lbp_histogram(image: np.ndarray) -> np.ndarray:
     bit = np.empty((band_rows, w - 2), bool)
     code = np.empty((band_rows, w - 2), np.uint8)
     code_counts = np.zeros(256, np.int64)
+    done = 0  # rows of the band already interpolated: the previous band's last two
     for start, stop in _bands(h - 2, band_rows):
         n = stop - start
         rows = image[start:stop + 2]  # interior rows start+1 .. stop, with one row either side
         # As in skimage: interpolate along the rows first ("top" and "bottom"), then between them.
-        tr = _lerp(rows[:, 1:-1], rows[:, 2:], right, towards_right[:n + 2], scratch[:n + 2])
-        tl = _lerp(rows[:, :-2], rows[:, 1:-1], left, towards_left[:n + 2], scratch[:n + 2])
+        _lerp(rows[done:, 1:-1], rows[done:, 2:], right, towards_right[done:n + 2], scratch[done:n + 2])
+        _lerp(rows[done:, :-2], rows[done:, 1:-1], left, towards_left[done:n + 2], scratch[done:n + 2])
+        tr, tl = towards_right[:n + 2], towards_left[:n + 2]
         up = tuple(f[start:stop] for f in above)
         down = tuple(f[start:stop] for f in below)
         centre = rows[1:-1, 1:-1]
@@ -856,5 +858,7 @@ def _lbp_histogram(image: np.ndarray) -> np.ndarray:
             np.bitwise_or(codes, bits.view(np.uint8), out=codes)
         # Exact counts: a band holds far fewer than 2^24 pixels.
         code_counts += cv2.calcHist([codes], [0], None, [256], [0, 256]).ravel().astype(np.int64)
+        towards_right[:2], towards_left[:2] = towards_right[n:n + 2], towards_left[n:n + 2]
+        done = 2
     histogram = np.bincount(_uniform_labels(), weights=code_counts, minlength=LBP_BINS)
     return histogram / histogram.sum()
