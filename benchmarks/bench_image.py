@@ -66,10 +66,11 @@ def families(photo: np.ndarray) -> dict[str, Callable[[], object]]:
         "color": lambda: image.color(photo),
         "brightness (mean), min, max": lambda: (np.mean(gray), gray.min(), gray.max()),
         "edginess": lambda: image.edginess(gray_u8),
-        "dft_80, dft_85": lambda: image._dft_peak_means(gray - mean, image.DFT_FRACTIONS),
+        "dft_80, dft_85": lambda: image._dft_peak_means(image.RealSpectrum(gray - mean, overwrite=True),
+                                                        image.DFT_FRACTIONS),
         "haralick_01..14": lambda: image._haralick(gray),
-        "tamura_coarseness": lambda: image._tamura_coarseness(
-            image._banded(image._thousandths, gray, np.int32), image.TAMURA_KMAX, 1e-9 * high * 1000),
+        "tamura_coarseness": lambda: image._tamura_coarseness(gray, image.TAMURA_KMAX, 1e-9 * high * 1000,
+                                                              thousandths=True),
         "tamura_contrast": lambda: image._tamura_contrast(gray, mean, False),
         "lbp_0..9": lambda: image._lbp_histogram(gray),
     }
