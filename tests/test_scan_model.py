@@ -144,6 +144,6 @@ def test_scans_pickle_and_are_validated_again_on_arrival():
 
 def test_volume_method_is_one_of_the_known_methods():
     assert make_meta(volume_method="known").volume_method == "known"
-    assert make_meta().volume_method == ""
+    assert make_meta(volume_method="").volume_method == ""
     with pytest.raises(ScanError, match="meta.volume_method: 'guess' is not one of water, micro-pearls, known"):
         make_meta(volume_method="guess")

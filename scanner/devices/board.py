@@ -34,6 +34,11 @@ from typing import Any
 
 import numpy as np
 
+try:
+    from termios import error as _TermiosError  # POSIX: pyserial's flush (tcdrain) raises it on a dead link
+except ImportError:  # Windows
+    _TermiosError = OSError
+
 from scanner.config import MAX_HEAT_S, BoardConfig
 from scanner.devices.protocols import (
     AcquisitionError,
@@ -253,6 +258,8 @@ class SerialBoard:
         self.identity = ""
         self.errors: list[str] = []
         self._serial_module = _import_serial()
+        # TypeError/AttributeError: the reader thread closed the port under a writer while reconnecting.
+        self._link_errors = (self._serial_module.SerialException, OSError, _TermiosError, TypeError, AttributeError)
         self._serial: Any = None
         self._write_lock = threading.Lock()
         self._samples: queue.Queue[BoardSample] = queue.Queue()
@@ -300,7 +307,7 @@ class SerialBoard:
                 continue
             try:
                 chunk = self._serial.read(max(1, self._serial.in_waiting))
-            except (self._serial_module.SerialException, OSError, TypeError, AttributeError) as exc:
+            except self._link_errors as exc:
                 if self._stop.is_set():
                     return
                 buffer = b""
@@ -366,8 +373,7 @@ class SerialBoard:
             try:
                 self._serial.write(f"{text}\n".encode("ascii"))
                 self._serial.flush()
-            except (self._serial_module.SerialException, OSError, TypeError, AttributeError) as exc:
-                # TypeError/AttributeError: the reader thread closed the port under us while reconnecting.
+            except self._link_errors as exc:
                 raise ConnectionLost(f"serial board on {self.port}: cannot send {text!r}: "
                                      f"{_reason(exc)}") from None
 
