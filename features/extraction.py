@@ -70,7 +70,8 @@ def image_features(scan: Scan, disp: image.PreparedPhoto | None = None) -> dict[
     """31 features for each photo (SPEC 7.2); NaN with a warning for a missing or too small photo.
 
     ``disp`` is ``I_disp`` already prepared (:func:`prepared_disp`); the other photos are prepared here.
-    Each photo's gray image is computed in the memory the previous one released: fresh memory is slow.
+    Each photo releases its memory once its features are computed (``disp`` too) and the next photo's
+    gray image is computed in it: fresh memory is slow to fault in.
     """
     values: dict[str, float] = {}
     spare = None

@@ -2,8 +2,10 @@
 
 The paper (Strese et al. 2020, section IV-C) lists colour, brightness, edginess, two DFT peak means,
 14 Haralick features, Tamura coarseness and contrast, and 10 rotation-invariant LBP bins; SPEC 7.2 fixes
-every definition. ``compute`` crops the photo, builds the gray image once and returns the 31 values under
-``NAMES``; the caller prefixes them with ``image.disp.``, ``image.macro.`` or ``image.illu.``.
+every definition. ``compute`` returns the 31 values under ``NAMES``; the caller prefixes them with
+``image.disp.``, ``image.macro.`` or ``image.illu.``. It works on a :class:`PreparedPhoto`: the crop, its
+gray image, statistics and spectrum, each made once, which ``features.extract`` shares with TacTUM for
+``I_disp``.
 
 A 12-megapixel photo has ~11 million pixels, so the per-pixel work (grayscale, quantisation, the GLCM
 counts, LBP codes, Tamura's window differences) runs over bands of rows into preallocated buffers: a
@@ -158,8 +160,11 @@ class PreparedPhoto:
     def release(self) -> np.ndarray | None:
         """Give up the memory of the spectrum (else of the gray image) for the ``buffer`` of the next photo.
 
-        Both are forgotten, so they are computed again if asked for. None if neither was computed.
+        Both are forgotten, with the float32 gray image, so they are computed again if asked for. None if
+        neither the spectrum nor the gray image was computed.
         """
+        self.__dict__.pop("gray32", None)
+        self._spectrum_memory = None
         spectrum = self.__dict__.pop("spectrum", None)
         gray = self.__dict__.pop("gray", None)
         return gray if spectrum is None else spectrum.packed
@@ -782,16 +787,28 @@ def _interpolation_weights(n: int, offset: float) -> tuple[np.ndarray, np.ndarra
     return 1 - fraction, fraction
 
 
-def _lerp(x: np.ndarray, y: np.ndarray, weights: tuple[np.ndarray, np.ndarray], out: np.ndarray,
-          scratch: np.ndarray) -> np.ndarray:
+def _band_weights(weights: tuple[np.ndarray, np.ndarray], start: int,
+                  stop: int) -> tuple[np.ndarray, np.ndarray] | tuple[float, float]:
+    """Rows ``start:stop`` of per-row weights, as two scalars when every row has the same ones.
+
+    They do except where ``index + offset`` crosses a power of two, and numpy multiplies by a scalar about
+    three times as fast as by a column (the same products).
+    """
+    first, second = (f[start:stop] for f in weights)
+    if (first == first[0]).all() and (second == second[0]).all():
+        return float(first[0, 0]), float(second[0, 0])
+    return first, second
+
+
+def _lerp(x: np.ndarray, y: np.ndarray, weights: tuple[np.ndarray, np.ndarray] | tuple[float, float],
+          out: np.ndarray, scratch: np.ndarray) -> np.ndarray:
     """``(1 - f) * x + f * y`` in scikit-image's bilinear order: two products, then their sum."""
     np.multiply(weights[0], x, out=out)
     np.multiply(weights[1], y, out=scratch)
     return np.add(out, scratch, out=out)
 
 
-def _lbp_neighbours(rows: np.ndarray, tr: np.ndarray, tl: np.ndarray, up: tuple[np.ndarray, np.ndarray],
-                    down: tuple[np.ndarray, np.ndarray], out: np.ndarray,
+def _lbp_neighbours(rows: np.ndarray, tr: np.ndarray, tl: np.ndarray, up: tuple, down: tuple, out: np.ndarray,
                     scratch: np.ndarray) -> Iterator[np.ndarray]:
     """The 8 neighbours of a band's interior pixels for p = 7 .. 0 (skimage's p runs counter-clockwise from
     the right, rows growing down), so that shifting the code left before each new bit puts neighbour p at
@@ -847,8 +864,7 @@ def _lbp_histogram(image: np.ndarray) -> np.ndarray:
         _lerp(rows[done:, 1:-1], rows[done:, 2:], right, towards_right[done:n + 2], scratch[done:n + 2])
         _lerp(rows[done:, :-2], rows[done:, 1:-1], left, towards_left[done:n + 2], scratch[done:n + 2])
         tr, tl = towards_right[:n + 2], towards_left[:n + 2]
-        up = tuple(f[start:stop] for f in above)
-        down = tuple(f[start:stop] for f in below)
+        up, down = _band_weights(above, start, stop), _band_weights(below, start, stop)
         centre = rows[1:-1, 1:-1]
         codes, bits = code[:n], bit[:n]
         codes.fill(0)
