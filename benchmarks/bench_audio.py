@@ -8,25 +8,15 @@ not identical, features). Ratios, not absolute times, compare across machines.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 
 import numpy as np
+from timing import median_time
 
 from features import audio
 
 FS = 44100.0
 TARGET_MS = 50.0
-
-
-def median_time(fn: Callable[[], object], repeat: int = 15) -> float:
-    fn()
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return float(np.median(times))
 
 
 def numpy_reference(signal: np.ndarray) -> np.ndarray:

@@ -13,10 +13,10 @@ Ratios, not absolute times, compare across machines.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 
 import numpy as np
 import scipy.stats
+from timing import median_time
 
 from features.selection import feature_quality
 from features.space import FeatureSpace
@@ -42,15 +42,6 @@ def synthetic_space(seed: int = 0) -> FeatureSpace:
     X[:, ::7] = np.round(X[:, ::7])  # some tied columns, as judged and counted features have
     return FeatureSpace(X, columns, tuple(f"scan-{i}" for i in range(material.size)),
                         tuple(labels[m] for m in material), tuple(f"sample-{m}" for m in material))
-
-
-def median_time(fn: Callable[[], object], repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return float(np.median(times))
 
 
 def bench_feature_quality(space: FeatureSpace) -> None:

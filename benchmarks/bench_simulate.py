@@ -7,25 +7,13 @@ times, compare across machines.
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
-
 import numpy as np
+from timing import median_time
 
 from scanner import simulate as sim
 
 IMAGE_SIZE = (512, 512)
 MATERIALS = ("oak-planed", "polyurethane-foam", "perforated-steel-plate", "granite-polished")
-
-
-def median_time(fn: Callable[[], object], repeat: int) -> float:
-    fn()
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return float(np.median(times))
 
 
 def numbers_in(scan) -> int:

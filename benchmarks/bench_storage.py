@@ -14,18 +14,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from conftest import make_scan  # noqa: E402
+from timing import best_time  # noqa: E402
 
 from scanner.database import Database, FileEntry  # noqa: E402
 from scanner.matfile import load_scan, save_scan  # noqa: E402
-
-
-def best_of(fn, repeat: int = 5) -> float:
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def bench_mat(folder: Path) -> None:
@@ -42,15 +34,15 @@ def bench_mat(folder: Path) -> None:
             for name in data.files:
                 data[name]
 
-    t_save = best_of(lambda: save_scan(scan, folder / "s.mat"))
-    t_load = best_of(lambda: load_scan(folder / "s.mat", images=False))
-    t_np_save, t_np_load = best_of(np_save), best_of(np_load)
+    t_save = best_time(lambda: save_scan(scan, folder / "s.mat"))
+    t_load = best_time(lambda: load_scan(folder / "s.mat", images=False))
+    t_np_save, t_np_load = best_time(np_save), best_time(np_load)
 
     def np_save_compressed() -> None:
         with open(folder / "ref.npz", "wb") as handle:
             np.savez_compressed(handle, **arrays)
 
-    t_np_compressed = best_of(np_save_compressed)
+    t_np_compressed = best_time(np_save_compressed)
     size = (folder / "s.mat").stat().st_size / 1e6
     print(f".mat scan with {len(arrays)} channels, {megabytes:.1f} MB of samples, {size:.1f} MB on disk (compressed)")
     print(f"  save  {t_save * 1e3:7.1f} ms  {megabytes / t_save:6.1f} MB/s   numpy.savez {t_np_save * 1e3:6.1f} ms"
@@ -98,8 +90,8 @@ def bench_catalog(folder: Path, n: int = 10_000) -> None:
     }
     for name, (ours, reference) in queries.items():
         count = 200 if "label" in name or "operator" in name else 5000
-        t_ours = best_of(lambda ours=ours, count=count: [ours(i) for i in range(count)], 3) / count
-        t_ref = best_of(lambda reference=reference, count=count: [reference(i) for i in range(count)], 3) / count
+        t_ours = best_time(lambda ours=ours, count=count: [ours(i) for i in range(count)], 3) / count
+        t_ref = best_time(lambda reference=reference, count=count: [reference(i) for i in range(count)], 3) / count
         print(f"  {name:<24} {1 / t_ours:9.0f} queries/s   raw sqlite3 {1 / t_ref:9.0f}/s   "
               f"ratio {t_ours / t_ref:4.1f}x")
     db.close()
