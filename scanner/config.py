@@ -32,7 +32,15 @@ from typing import Any
 
 import numpy as np
 
-from scanner.preprocess import accel_g, flex_degrees, fsr_newtons, metal_sign
+from scanner.preprocess import (
+    ACCEL_V_PER_G,
+    ACCEL_ZERO_V,
+    accel_g,
+    flex_degrees,
+    fsr_newtons,
+    fsr_volts,
+    metal_sign,
+)
 
 DAQ_ROLES = ("accel_x", "accel_y", "accel_z", "ir", "fsr_normal", "fsr_tangential", "flex", "metal")
 """What is wired to the DAQ's analog inputs (SPEC 5)."""
@@ -62,8 +70,6 @@ IMPLEMENTATIONS: Mapping[str, tuple[str, ...]] = MappingProxyType({
 })
 """Per device, the implementations a config may choose; the first is the default."""
 
-FSR_REFERENCE_N = 9.81 * 0.01
-FSR_PER_V = 1.33
 METAL_SHORTED_V = 0.2
 METAL_OPEN_V = 4.8
 """Electrode volts a simulated or replayed sample gives when conductive (shorted) and not (pull-up)."""
@@ -81,8 +87,8 @@ class Calibration:
     """Sensor calibration (SPEC 5): ADXL335 zero and sensitivity per axis, flex two-point line, metal
     threshold. FSR volts follow the fixed paper eq. (1)."""
 
-    accel_zero_v: tuple[float, float, float] = (1.65, 1.65, 1.65)
-    accel_v_per_g: tuple[float, float, float] = (0.330, 0.330, 0.330)
+    accel_zero_v: tuple[float, float, float] = (ACCEL_ZERO_V,) * 3
+    accel_v_per_g: tuple[float, float, float] = (ACCEL_V_PER_G,) * 3
     flex_v0: float = 0.0
     flex_deg0: float = 0.0
     flex_v1: float = 1.0
@@ -117,7 +123,7 @@ class Calibration:
         if role == "ir":
             return values.copy()
         if role.startswith("fsr_"):
-            return np.log(np.maximum(values, FSR_REFERENCE_N) / FSR_REFERENCE_N) / FSR_PER_V
+            return fsr_volts(values)
         if role == "flex":
             slope = (self.flex_v1 - self.flex_v0) / (self.flex_deg1 - self.flex_deg0)
             return self.flex_v0 + slope * (values - self.flex_deg0)

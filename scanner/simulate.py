@@ -54,6 +54,7 @@ from tqdm import tqdm
 
 import scanner
 from scanner.database import Database
+from scanner.preprocess import ACCEL_V_PER_G, ACCEL_ZERO_V, accel_g, fsr_newtons, fsr_volts
 from scanner.scan import CHANNELS, JUDGED_SCALE, Scan, ScanMeta, Trace
 
 DEFAULT_LIBRARY = Path(__file__).with_name("data") / "materials.toml"
@@ -547,10 +548,10 @@ def sample_of(material: Material, sample_id: str) -> Material:
 
 DAQ_LSB_V = 20.0 / 65536
 """NI USB-6002: 16 bits over +-10 V."""
-ADXL_ZERO_V, ADXL_V_PER_G, ADXL_RANGE_G = 1.65, 0.330, 3.6
+ADXL_RANGE_G = 3.6
 ADXL_NOISE_G = np.array([0.003, 0.003, 0.005])
 """ADXL335 noise over the 1.5 kHz band (x/y 150, z 300 ug/sqrt(Hz) datasheet densities, band-limited)."""
-FSR_F0_N, FSR_K_PER_V, FSR_MAX_V = 9.81 * 0.01, 1.33, 4.9
+FSR_MAX_V = 4.9
 FLEX_V_PER_DEG = 0.01
 
 
@@ -558,11 +559,11 @@ def _quantise(x: Any, step: float) -> Any:
     return np.round(np.asarray(x, dtype=np.float64) / step) * step if np.ndim(x) else round(x / step) * step
 
 
-def _adxl335(accel_g: np.ndarray, rng: Rng) -> np.ndarray:
+def _adxl335(acceleration: np.ndarray, rng: Rng) -> np.ndarray:
     """Acceleration (n, 3) in g as the DAQ reads it: sensor noise, +-3.6 g rails, DAQ quantisation."""
-    noisy = accel_g + rng.standard_normal(accel_g.shape) * ADXL_NOISE_G
-    volts = ADXL_ZERO_V + ADXL_V_PER_G * np.clip(noisy, -ADXL_RANGE_G, ADXL_RANGE_G)
-    return (_quantise(volts, DAQ_LSB_V) - ADXL_ZERO_V) / ADXL_V_PER_G
+    noisy = acceleration + rng.standard_normal(acceleration.shape) * ADXL_NOISE_G
+    volts = ACCEL_ZERO_V + ACCEL_V_PER_G * np.clip(noisy, -ADXL_RANGE_G, ADXL_RANGE_G)
+    return accel_g(_quantise(volts, DAQ_LSB_V))
 
 
 def _fsr(force_n: np.ndarray, rng: Rng) -> np.ndarray:
@@ -570,9 +571,9 @@ def _fsr(force_n: np.ndarray, rng: Rng) -> np.ndarray:
 
     Eq. (1) maps 0 V to 0.098 N, so forces below that read as 0.098 N: the FSR's turn-on floor.
     """
-    volts = np.log(np.maximum(force_n, FSR_F0_N) / FSR_F0_N) / FSR_K_PER_V
+    volts = fsr_volts(force_n)
     volts = np.clip(volts + rng.normal(0.0, 0.002, volts.shape), 0.0, FSR_MAX_V)
-    return FSR_F0_N * np.exp(FSR_K_PER_V * _quantise(volts, DAQ_LSB_V))
+    return fsr_newtons(_quantise(volts, DAQ_LSB_V))
 
 
 def _mlx90614(temperature: np.ndarray, rng: Rng) -> np.ndarray:

@@ -250,3 +250,11 @@ def test_check_contact():
     problems = check_contact(fsr_newtons(np.zeros(10)))
     assert len(problems) == 1 and problems[0].startswith("no contact force: peak 0.098 N")
     assert check_contact(np.array([]))[0].startswith("no contact force")
+
+
+def test_fsr_volts_inverts_eq_1_above_its_floor():
+    from scanner.preprocess import FSR_REFERENCE_N, fsr_newtons, fsr_volts
+
+    volts = np.array([0.0, 0.5, 1.0, 3.7])
+    np.testing.assert_allclose(fsr_volts(fsr_newtons(volts)), volts, rtol=1e-12, atol=1e-15)
+    assert fsr_volts(np.array([0.0, FSR_REFERENCE_N / 2])).tolist() == [0.0, 0.0]  # below 0 V's 0.0981 N
