@@ -5,6 +5,7 @@ Ratios are against references run in the same process, so they compare across ma
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import tempfile
 import time
@@ -13,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from conftest import make_scan  # noqa: E402
+from conftest import make_meta, make_scan  # noqa: E402
 from timing import best_time  # noqa: E402
 
 from scanner.database import Database, FileEntry  # noqa: E402
@@ -53,19 +54,16 @@ def bench_mat(folder: Path) -> None:
 
 
 def fill_catalog(db: Database, n: int) -> None:
-    template = make_scan(images=False, seconds=0.01)
+    template = make_meta()
     labels = [f"C{c}S{s}M1P{p}X1" for c in range(1, 9) for s in range(1, 4) for p in range(1, 3)]
     conn = db._conn  # rows only: the benchmark is about queries, not about writing 10,000 files
     conn.execute("BEGIN IMMEDIATE")
     for i in range(n):
         label = labels[i % len(labels)]
-        meta = template.meta.__class__(**{**{f: getattr(template.meta, f) for f in template.meta.__dataclass_fields__},
-                                          "label": label, "sample_id": f"sample-{i // 5:05d}",
-                                          "scan_index": i % 5 + 1, "session_id": f"session-{i // 50:04d}",
-                                          "operator": f"op{i % 7}"})
-        scan = template.__class__(meta, template.traces)
-        path = f"scans/{label}/{meta.sample_id}/{scan.scan_id}.mat"
-        db._insert(conn, scan, [FileEntry(path, "mat", "0" * 64, 1)])
+        meta = dataclasses.replace(template, label=label, sample_id=f"sample-{i // 5:05d}", scan_index=i % 5 + 1,
+                                   session_id=f"session-{i // 50:04d}", operator=f"op{i % 7}")
+        path = f"scans/{label}/{meta.sample_id}/{meta.scan_id}.mat"
+        db._insert(conn, meta, [FileEntry(path, "mat", "0" * 64, 1)])
     conn.execute("COMMIT")
 
 

@@ -254,7 +254,7 @@ class Database:
         with self._transaction() as conn:
             _refuse_clash(conn, scan.meta)
             save_scan(scan, mat_path)
-            self._insert(conn, scan, self._entries(file_roles(mat_path, scan)))
+            self._insert(conn, scan.meta, self._entries(file_roles(mat_path, scan)))
         return scan.scan_id
 
     def add_written(self, staged: Sequence[tuple[ScanMeta, Mapping[str, Path]]]) -> list[str]:
@@ -280,7 +280,7 @@ class Database:
                 ids.add(meta.scan_id)
             moved = [(meta, self._move_into_place(meta, files)) for meta, files in staged]
             for meta, placed in moved:
-                self._insert_meta(conn, meta, self._entries(placed))
+                self._insert(conn, meta, self._entries(placed))
         return [meta.scan_id for meta, _ in staged]
 
     def _move_into_place(self, meta: ScanMeta, files: Mapping[str, Path]) -> list[tuple[Path, str]]:
@@ -298,10 +298,7 @@ class Database:
         return [FileEntry(self._relative(path), role, sha256_file(path), path.stat().st_size)
                 for path, role in files]
 
-    def _insert(self, conn: sqlite3.Connection, scan: Scan, entries: list[FileEntry]) -> None:
-        self._insert_meta(conn, scan.meta, entries)
-
-    def _insert_meta(self, conn: sqlite3.Connection, meta: ScanMeta, entries: list[FileEntry]) -> None:
+    def _insert(self, conn: sqlite3.Connection, meta: ScanMeta, entries: list[FileEntry]) -> None:
         mat = next(e for e in entries if e.role == "mat")
         conn.execute("INSERT OR IGNORE INTO materials VALUES (?)", (meta.label,))
         conn.execute("INSERT OR IGNORE INTO samples VALUES (?, ?)", (meta.sample_id, meta.label))
@@ -444,7 +441,7 @@ class Database:
                 if row and row[0] != scan.meta.label:
                     report.skipped.append(f"{entries[-1].path}: sample {scan.meta.sample_id} is already {row[0]}")
                     continue
-                self._insert(conn, scan, entries)
+                self._insert(conn, scan.meta, entries)
                 report.scans += 1
         return report
 

@@ -471,7 +471,7 @@ IMPORTER = textwrap.dedent("""
 
     mode, kill_at = sys.argv[3], int(sys.argv[4])
     calls = {"replace": 0, "insert": 0}
-    real_replace, real_insert = os.replace, database.Database._insert_meta
+    real_replace, real_insert = os.replace, database.Database._insert
 
     def counted(kind):
         calls[kind] += 1
@@ -487,7 +487,7 @@ IMPORTER = textwrap.dedent("""
         counted("insert")
 
     os.replace = replace
-    database.Database._insert_meta = insert
+    database.Database._insert = insert
     print("ready", flush=True)
     started = time.perf_counter()
     import_bundle(database.Database(sys.argv[1]), sys.argv[2])
