@@ -4,8 +4,8 @@
 :class:`FeatureSpace` in parallel. Submodules: ``tactum``, ``image``, ``audio``, ``other``, ``space``.
 """
 
-from features.extraction import NAMES, FeatureCache, ScanSource, code_version, extract, extract_many
+from features.extraction import NAMES, SOLVER_RTOL, FeatureCache, ScanSource, code_version, extract, extract_many
 from features.space import MODALITIES, FeatureSpace, FeatureSpaceError
 
-__all__ = ["MODALITIES", "NAMES", "FeatureCache", "FeatureSpace", "FeatureSpaceError", "ScanSource",
+__all__ = ["MODALITIES", "NAMES", "SOLVER_RTOL", "FeatureCache", "FeatureSpace", "FeatureSpaceError", "ScanSource",
            "code_version", "extract", "extract_many"]

@@ -36,6 +36,9 @@ NAMES: tuple[str, ...] = (
 )
 """The 193 feature names in SPEC order."""
 
+SOLVER_RTOL: dict[str, float] = {**other.SOLVER_RTOL}
+"""Relative tolerance of each feature computed by an iterative fit (the others are closed-form)."""
+
 MIN_PHOTO_SIDE = 2 * IMAGE_BORDER_PX + 2 * 2**image.TAMURA_KMAX
 """Smallest photo side with image features: the crop plus Tamura's largest pair of windows (264 px)."""
 

@@ -45,6 +45,23 @@ TAP_MIN_SAMPLES = 30
 
 TAP_TAU0 = 0.01
 """Starting guess of the tap decay time constant, s (SPEC 7.4)."""
+TAP_FIT_TOL = 1.49012e-08
+"""``xtol`` and ``ftol`` of the tap-decay fit: ``curve_fit``'s (MINPACK ``lmdif``) defaults, sqrt(eps)."""
+COOLING_FIT_TOL = 1e-14
+"""``xtol``, ``ftol`` and ``gtol`` of the cooling-rate fit."""
+
+SOLVER_RTOL = {"other.tap_decay": math.sqrt(TAP_FIT_TOL), "other.cooling_rate": math.sqrt(COOLING_FIT_TOL)}
+"""Relative tolerance of the features that come out of an iterative fit, for comparing runs on different
+machines or library versions (``texplorer replay``, the regression suite); every other feature is
+closed-form (sums, FFTs, filters) and keeps the replay default, 1e-9.
+
+Levenberg-Marquardt stops as soon as one step reduces the sum of squared residuals S by a relative amount
+below ``ftol`` (or moves the parameters by less than ``xtol``). Near the optimum S grows with the square of
+the parameter error, so the ``ftol`` test leaves a relative error of the order of sqrt(ftol) -- slow
+(large-residual) fits such as a noisy tap envelope do stop that far out -- and a different BLAS/LAPACK
+build or CPU, taking slightly different steps, may stop at another iterate of the same approach:
+tap_decay sqrt(1.49e-8) = 1.2e-4, cooling_rate sqrt(1e-14) = 1e-7.
+"""
 
 
 def _samples(x: np.ndarray, name: str) -> np.ndarray:
@@ -167,7 +184,8 @@ def cooling_rate(t_cool: np.ndarray, t_amb: float, fs: float = T_COOL_FS) -> flo
 
     with np.errstate(over="ignore", invalid="ignore"):
         fit = optimize.least_squares(residuals, [_log_linear_rate(tail - t_amb, excess, t)], jac=jacobian,
-                                     method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14)
+                                     method="lm", xtol=COOLING_FIT_TOL, ftol=COOLING_FIT_TOL,
+                                     gtol=COOLING_FIT_TOL)
     rate = float(fit.x[0])
     if not (fit.success and math.isfinite(rate) and np.all(np.isfinite(fit.fun))):
         return math.nan
@@ -257,7 +275,8 @@ def _decay(t: np.ndarray, amplitude: float, tau: float) -> np.ndarray:
 def tap_decay(y: np.ndarray, fs: float = VIBRATION_FS) -> float:
     """Decay time constant tau (s) of the tap response: ``A exp(-t / tau)`` fitted to ``|hilbert(y)|``.
 
-    ``scipy.optimize.curve_fit`` with p0 = (max envelope, 0.01 s), t = 0 at the first sample of y
+    ``scipy.optimize.curve_fit`` (Levenberg-Marquardt with its default tolerances, :data:`TAP_FIT_TOL`;
+    reproducible to :data:`SOLVER_RTOL`) with p0 = (max envelope, 0.01 s), t = 0 at the first sample of y
     (SPEC 7.4). NaN if the envelope is all zero, if the fit raises, or if tau is non-finite or not
     positive.
     """
@@ -269,7 +288,8 @@ def tap_decay(y: np.ndarray, fs: float = VIBRATION_FS) -> float:
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             # An undetermined covariance says nothing about tau itself; SPEC 7.4 rejects only bad taus.
             warnings.simplefilter("ignore", optimize.OptimizeWarning)
-            (_, tau), _ = optimize.curve_fit(_decay, t, envelope, p0=(float(envelope.max()), TAP_TAU0))
+            (_, tau), _ = optimize.curve_fit(_decay, t, envelope, p0=(float(envelope.max()), TAP_TAU0),
+                                              xtol=TAP_FIT_TOL, ftol=TAP_FIT_TOL)
     except (RuntimeError, ValueError):
         return math.nan
     tau = float(tau)

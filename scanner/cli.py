@@ -215,7 +215,7 @@ def _play(paths: Sequence[Path], speed: float) -> None:
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
-    from features import FeatureSpace
+    from features import SOLVER_RTOL, FeatureSpace
     from scanner.replay import (
         ReplayError,
         check_unique,
@@ -250,7 +250,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
         check_unique(space)
         print(f"wrote {space.to_csv(args.write_expected)}")
     if expected is not None:
-        comparison = compare(space, expected, args.rtol, args.atol)
+        comparison = compare(space, expected, args.rtol, args.atol, SOLVER_RTOL, scans=space.scan_ids)
         print(format_comparison(comparison, args.max_rows))
         status = status if comparison.ok else EXIT_MISMATCH
     return status

@@ -19,7 +19,7 @@ import functools
 import math
 import time
 from collections import Counter
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -35,7 +35,9 @@ if TYPE_CHECKING:
     from taxonomy.models import TrainedModel
 
 DEFAULT_RTOL = 1e-9
-"""Relative tolerance of :func:`compare`: features are machine-independent to ~1e-9 (SPEC 2)."""
+"""Relative tolerance of :func:`compare` for closed-form features (sums, FFTs, filters), whose values differ
+between machines and library versions only by rounding (~1e-12 relative and below); the features of
+iterative fits get the tolerance of their solver (``features.SOLVER_RTOL``)."""
 DEFAULT_ATOL = 1e-12
 """Absolute tolerance of :func:`compare`, for expected values at or near zero."""
 
@@ -149,7 +151,7 @@ class Comparison:
                     or self.unexpected_features)
 
 
-def within(actual: np.ndarray, expected: np.ndarray, rtol: float = DEFAULT_RTOL,
+def within(actual: np.ndarray, expected: np.ndarray, rtol: float | np.ndarray = DEFAULT_RTOL,
            atol: float = DEFAULT_ATOL) -> np.ndarray:
     """Element-wise ``|actual - expected| <= atol + rtol * |expected|``; NaN matches NaN only.
 
@@ -163,27 +165,39 @@ def within(actual: np.ndarray, expected: np.ndarray, rtol: float = DEFAULT_RTOL,
 
 
 def compare(space: FeatureSpace, expected: FeatureSpace, rtol: float = DEFAULT_RTOL,
-            atol: float = DEFAULT_ATOL) -> Comparison:
-    """Compare replayed features with expected ones, matching rows by scan id and columns by name."""
-    for name, value in (("rtol", rtol), ("atol", atol)):
+            atol: float = DEFAULT_ATOL, feature_rtol: Mapping[str, float] | None = None,
+            scans: Collection[str] | None = None) -> Comparison:
+    """Compare replayed features with expected ones, matching rows by scan id and columns by name.
+
+    With ``scans`` (the ids of the scans that were replayed), expected rows of other scans are left out:
+    replaying part of a database checks that part, and reports no "missing" scans it was not given.
+
+    ``feature_rtol`` raises the relative tolerance of single features to what their computation
+    guarantees (``features.SOLVER_RTOL``: the features of iterative fits); ``rtol`` applies to the others
+    and is the floor for all.
+    """
+    for name, value in (("rtol", rtol), ("atol", atol), *(feature_rtol or {}).items()):
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
             raise ReplayError(f"{name} must be a finite number >= 0, got {value!r}")
     check_unique(space)
     check_unique(expected)
+    given = None if scans is None else set(scans)
+    rows = [(row, scan_id) for row, scan_id in enumerate(expected.scan_ids) if given is None or scan_id in given]
     result = Comparison(
-        missing_scans=[s for s in expected.scan_ids if s not in space.scan_ids],
+        missing_scans=[s for _, s in rows if s not in space.scan_ids],
         unexpected_scans=[s for s in space.scan_ids if s not in expected.scan_ids],
         missing_features=[c for c in expected.columns if c not in space.columns],
         unexpected_features=[c for c in space.columns if c not in expected.columns])
     columns = [c for c in expected.columns if c in space.columns]
     actual_col = [space.columns.index(c) for c in columns]
     expected_col = [expected.columns.index(c) for c in columns]
-    for row, scan_id in enumerate(expected.scan_ids):
+    column_rtol = np.array([max(rtol, (feature_rtol or {}).get(c, 0.0)) for c in columns])
+    for row, scan_id in rows:
         if scan_id not in space.scan_ids:
             continue
         got = space.X[space.scan_ids.index(scan_id), actual_col]
         want = expected.X[row, expected_col]
-        ok = within(got, want, rtol, atol)
+        ok = within(got, want, column_rtol, atol)
         result.compared += len(columns)
         result.differences.extend(Difference(scan_id, columns[i], float(want[i]), float(got[i]))
                                   for i in np.flatnonzero(~ok))
@@ -191,24 +205,32 @@ def compare(space: FeatureSpace, expected: FeatureSpace, rtol: float = DEFAULT_R
 
 
 def format_comparison(comparison: Comparison, limit: int = 50) -> str:
-    """Table of the differences (``limit`` rows at most, largest relative difference first) and a summary."""
-    lines = []
-    if comparison.differences:
-        lines.append(f"{'scan':<28} {'feature':<28} {'expected':>24} {'actual':>24} "
-                     f"{'abs diff':>10} {'rel diff':>10}")
-        ordered = sorted(comparison.differences, key=lambda d: (-_sortable(d.relative), d.scan_id, d.feature))
-        for d in ordered[:limit]:
-            lines.append(f"{d.scan_id:<28} {d.feature:<28} {d.expected!r:>24} {d.actual!r:>24} "
-                         f"{d.absolute:>10.3g} {d.relative:>10.3g}")
-        if len(ordered) > limit:
-            lines.append(f"... and {len(ordered) - limit} more")
+    """The differences (largest relative difference first), then missing and unexpected scans and features,
+    ``limit`` lines of them at most (a last line says how many more there are), and a summary."""
+    ordered = sorted(comparison.differences, key=lambda d: (-_sortable(d.relative), d.scan_id, d.feature))
+    width = max([28, *(len(d.scan_id) + 1 for d in ordered)])
+    items = [f"{d.scan_id:<{width}} {d.feature:<28} {d.expected!r:>24} {d.actual!r:>24} "
+             f"{d.absolute:>10.3g} {d.relative:>10.3g}" for d in ordered]
     for what, names in (("missing scan", comparison.missing_scans),
                         ("unexpected scan", comparison.unexpected_scans),
                         ("missing feature", comparison.missing_features),
                         ("unexpected feature", comparison.unexpected_features)):
-        lines.extend(f"{what:<18} {name}" for name in names)
+        items.extend(f"{what:<18} {name}" for name in names)
+    lines = []
+    if ordered and limit > 0:
+        lines.append(f"{'scan':<{width}} {'feature':<28} {'expected':>24} {'actual':>24} "
+                     f"{'abs diff':>10} {'rel diff':>10}")
+    lines.extend(items[:max(limit, 0)])
+    if len(items) > limit:
+        lines.append(f"... {len(items) - max(limit, 0)} more line(s) not shown (--max-rows {limit})")
     verdict = "all within tolerance" if comparison.ok else "MISMATCH"
-    lines.append(f"{comparison.compared} values compared, {len(comparison.differences)} differ: {verdict}")
+    extra = [f"{len(names)} {what}" for what, names in (("missing scan(s)", comparison.missing_scans),
+                                                        ("unexpected scan(s)", comparison.unexpected_scans),
+                                                        ("missing feature(s)", comparison.missing_features),
+                                                        ("unexpected feature(s)", comparison.unexpected_features))
+             if names]
+    lines.append(f"{comparison.compared} values compared, {len(comparison.differences)} differ"
+                 f"{'; ' + ', '.join(extra) if extra else ''}: {verdict}")
     return "\n".join(lines)
 
 

@@ -470,3 +470,27 @@ def test_simulated_ferromagnetic_steel_moves_the_field_far_more_than_aluminium(s
 def test_simulated_balsa_is_much_lighter_than_pine(simulated, seed):
     balsa, pine = simulated("balsa-planed", seed), simulated("pine-planed", seed)
     assert balsa["other.density"] < 0.5 * pine["other.density"]
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_fitted_features_are_within_their_solver_tolerance_of_the_converged_fit(seed):
+    # features.SOLVER_RTOL claims each fit's stopping rule leaves its result within that relative distance
+    # of the least-squares optimum: compare with the same fits run to xtol = ftol = 1e-15, on noisy taps
+    # (a large-residual fit, where the default stopping rule stops farthest out) and noisy cooling curves.
+    from scipy import optimize, signal
+
+    rng = np.random.default_rng(seed)
+    y = decaying(rng.uniform(200.0, 800.0), rng.uniform(0.003, 0.03), 150) + rng.normal(0.0, 0.05, 150)
+    envelope = np.abs(signal.hilbert(y))
+    t = np.arange(150) / FS
+    (_, tau), _ = optimize.curve_fit(lambda t, a, tau: a * np.exp(-t / tau), t, envelope,
+                                     p0=(float(envelope.max()), other.TAP_TAU0), xtol=1e-15, ftol=1e-15)
+    assert other.tap_decay(y, FS) == pytest.approx(tau, rel=other.SOLVER_RTOL["other.tap_decay"])
+
+    t = np.arange(600) / 20.0
+    t_cool = 22.0 + rng.uniform(3.0, 12.0) * np.exp(-rng.uniform(0.01, 0.3) * t) + rng.normal(0.0, 0.05, 600)
+    tail = t_cool[int(np.argmax(t_cool)):]
+    excess, t = tail[0] - 22.0, t[:tail.size]
+    fit = optimize.least_squares(lambda r: 22.0 + excess * np.exp(-r[0] * t) - tail, [0.1], method="lm",
+                                 xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    assert other.cooling_rate(t_cool, 22.0) == pytest.approx(fit.x[0], rel=other.SOLVER_RTOL["other.cooling_rate"])
