@@ -55,7 +55,7 @@ def bench_xie() -> None:
     taxels = [r.role("taxels").data[:100] for r in data.recordings[:SAMPLES]]
     vectors = np.array([related.xie_sequence_vector(r) for r in data.recordings])
     y = data.y("property")
-    print(f"Xie et al. (seed 000): {len(data)} simulated 44 x 44 slides, property level")
+    print(f"Xie et al. 2019: {len(data)} simulated 44 x 44 slides, property level")
     line("images -> sequences S_a, S_v, S_s", per_sample(related.xie_sequences, taxels), "11.5 ms")
     steps = methods.xie_pipeline(methods.xie_classifier("knn", 5, 0), 8).fit(vectors, y)
     line("standardise + 11 features", per_sample(lambda v: steps[:1].transform(v[None]), vectors[:SAMPLES]),
@@ -81,7 +81,7 @@ def bench_chathuranga() -> None:
     for recording in data.recordings:
         by_trial.setdefault(methods.trial_of(recording), []).append(recording)
     trials = list(by_trial.values())[:SAMPLES]
-    print(f"Chathuranga et al. (seed 002): {len(y)} simulated trials of 3 palpations, 8 materials")
+    print(f"Chathuranga et al. 2015: {len(y)} simulated trials of 3 palpations, 8 materials")
 
     def classify(trial: list) -> object:
         row = np.concatenate([list(related.chathuranga4(r).values()) for r in trial])
@@ -101,7 +101,7 @@ def bench_huang() -> None:
     slides = biotac_recordings(trials=4, motions=["slide_left", "slide_right"])
     data = Dataset.from_recordings("biotac", slides)
     signals = [r.role("vibration") for r in data.recordings[:SAMPLES]]
-    print(f"Huang and Wu (seed 001): {len(data)} simulated BioTac slides of "
+    print(f"Huang and Wu 2021: {len(data)} simulated BioTac slides of "
           f"{signals[0].n} PAC samples")
     line("huang7 features of one recording", per_sample(related.huang7, data.recordings[:SAMPLES]),
          "0.47 s per set (MATLAB)")
@@ -117,7 +117,7 @@ def bench_huang() -> None:
 
 def bench_hoelscher() -> None:
     data = Dataset.from_recordings("biotac", biotac_recordings(trials=4))
-    print(f"Hoelscher et al. (seed 004): {len(data)} simulated BioTac recordings, 5 motions")
+    print(f"Hoelscher et al. 2015: {len(data)} simulated BioTac recordings, 5 motions")
     line("mean23 of one recording", per_sample(related.mean23, data.recordings[:SAMPLES]), "-")
     line("chu of one recording", per_sample(related.chu, data.recordings[:SAMPLES]), "-")
     X, first = methods.combined_table(data, methods.extract(data, "mean23"), data.motions())

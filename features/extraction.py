@@ -127,7 +127,8 @@ def extract(scan: Scan) -> dict[str, float]:
     values = {**tactum.compute(scan, disp=disp), **image_features(scan, disp), **audio_features(scan),
               **other.compute(scan)}
     if tuple(values) != NAMES:
-        raise RuntimeError("feature modules returned names out of SPEC order")  # a programming error
+        # A programming error, not bad input.
+        raise RuntimeError("feature modules returned names out of the fixed order of features.NAMES")
     return values
 
 

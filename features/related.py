@@ -690,19 +690,19 @@ class RelatedSet:
 
 
 FEATURE_SETS: Mapping[str, RelatedSet] = MappingProxyType({s.name: s for s in (
-    RelatedSet("xie11", ("taxels",), "Xie et al. 2019 (seed 000)", xie11),
-    RelatedSet("huang7", ("vibration",), "Huang and Wu 2021 (seed 001)", huang7),
-    RelatedSet("chathuranga4", ("force_xyz",), "Chathuranga et al. 2015 (seed 002)", chathuranga4),
+    RelatedSet("xie11", ("taxels",), "Xie et al. 2019", xie11),
+    RelatedSet("huang7", ("vibration",), "Huang and Wu 2021", huang7),
+    RelatedSet("chathuranga4", ("force_xyz",), "Chathuranga et al. 2015", chathuranga4),
     RelatedSet("chathuranga_period", ("force_xyz",), "Chathuranga et al. 2015, spatial-period baseline",
                chathuranga_period),
     RelatedSet("chathuranga_net", ("force_xyz",), "Chathuranga et al. 2015, neural-net baseline",
                chathuranga_net),
-    RelatedSet("xu3", ("electrodes", "vibration", "heat_flow"), "seed 004 after Xu et al.", xu3),
-    RelatedSet("chu", CHU_ROLES, "seed 004 after Chu et al.", chu),
-    RelatedSet("mean23", MEAN_ROLES, "seed 004", mean23),
-    RelatedSet("dallaire", ("vibration",), "seed 004 after Dallaire et al.", dallaire),
-    RelatedSet("chitta", ("electrodes",), "seed 004 after Chitta et al.", chitta),
-    RelatedSet("temperature", ("heat_flow", "temperature"), "seed 004", temperature),
+    RelatedSet("xu3", ("electrodes", "vibration", "heat_flow"), "Hoelscher et al. 2015 after Xu et al.", xu3),
+    RelatedSet("chu", CHU_ROLES, "Hoelscher et al. 2015 after Chu et al.", chu),
+    RelatedSet("mean23", MEAN_ROLES, "Hoelscher et al. 2015", mean23),
+    RelatedSet("dallaire", ("vibration",), "Hoelscher et al. 2015 after Dallaire et al.", dallaire),
+    RelatedSet("chitta", ("electrodes",), "Hoelscher et al. 2015 after Chitta et al.", chitta),
+    RelatedSet("temperature", ("heat_flow", "temperature"), "Hoelscher et al. 2015", temperature),
 )})
 """Feature sets on recordings by name; ``fishel3`` works on scans (:func:`fishel3`)."""
 

@@ -17,7 +17,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 import scanner
-from scanner.database import Database, DatabaseError
+from scanner.database import Database, DatabaseError, is_database
 from scanner.devices.protocols import DeviceError
 from scanner.matfile import ScanFormatError
 from scanner.scan import ScanError
@@ -49,11 +49,18 @@ def _open_db(args: argparse.Namespace, *, create: bool = False) -> Database:
 def cmd_db_list(args: argparse.Namespace) -> int:
     db = _open_db(args)
     records = db.records(label=args.label, sample=args.sample, session=args.session, operator=args.operator)
-    print(f"{'scan':<28} {'label':<14} {'sample':<24} {'session':<16} {'operator':<10} started")
-    for r in records:
-        print(f"{r.scan_id:<28} {r.label:<14} {r.sample_id:<24} {r.session_id:<16} {r.operator:<10} {r.started}")
+    rows = [(r.scan_id, r.label, r.sample_id, r.session_id, r.operator, r.started) for r in records]
+    for line in table_lines(("scan", "label", "sample", "session", "operator", "started"), rows):
+        print(line)
     print(f"{len(records)} scan(s)")
     return 0
+
+
+def table_lines(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
+    """Left-aligned columns as wide as their longest entry (the last column is not padded)."""
+    widths = [max(len(str(cell)) for cell in column) for column in zip(header, *rows, strict=True)]
+    return [" ".join(f"{cell!s:<{width}}" for cell, width in zip(row, widths, strict=True)).rstrip()
+            for row in (header, *rows)]
 
 
 def cmd_db_show(args: argparse.Namespace) -> int:
@@ -400,7 +407,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
     if args.board:
         config = config.with_board_port(args.board)
     # An aborted scan leaves no trace: an existing database is only read, a new one is made when saving.
-    db = _open_db(args) if args.db.is_dir() else None
+    db = _open_db(args) if is_database(args.db) else None
     session = Session.open(config, label=args.label, sample_id=args.sample, operator=args.operator, db=db)
     try:
         print(f"scan of {session.label}, sample {session.sample_id}, operator {session.operator} "
@@ -643,12 +650,16 @@ def cmd_classify(args: argparse.Namespace) -> int:
 
 # -- demo --------------------------------------------------------------------------------------------
 
+DEMO_SAMPLES = 2
+DEMO_SCANS = 3
+
 def cmd_demo(args: argparse.Namespace) -> int:
     from scanner.simulate import synthetic_database
 
     started = time.perf_counter()
     db = synthetic_database(args.db, materials=args.materials, scans_per_material=args.scans, seed=args.seed,
-                            image_size=(args.image_size, args.image_size), progress=True)
+                            image_size=(args.image_size, args.image_size), progress=True,
+                            samples_per_material=args.samples)
     summary = db.summary()
     print(f"database {args.db}: {summary['scans']} scans of {summary['materials']} materials "
           f"({summary['samples']} samples, {summary['files']} files) in {time.perf_counter() - started:.1f} s")
@@ -721,7 +732,9 @@ def build_parser() -> argparse.ArgumentParser:
                                "cross-validated evaluation (table + HTML report) -> a trained random forest.")
     _add_db_option(demo)
     demo.add_argument("--materials", nargs="+", metavar="SLUG", help="material slugs (default: whole library)")
-    demo.add_argument("--scans", type=int, default=5, help="scans per material (default 5)")
+    demo.add_argument("--samples", type=int, default=DEMO_SAMPLES, help="samples (pieces) per material "
+                      f"(default {DEMO_SAMPLES}: two or more let cross-validation keep each piece in one fold)")
+    demo.add_argument("--scans", type=int, default=DEMO_SCANS, help=f"scans per sample (default {DEMO_SCANS})")
     demo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     demo.add_argument("--image-size", type=int, default=512, help="photo size in pixels (default 512)")
     demo.add_argument("--workers", type=int, help="processes for simulation, features and evaluation "
@@ -845,8 +858,8 @@ def build_parser() -> argparse.ArgumentParser:
     replaying.set_defaults(handler=cmd_replay)
     scanning = commands.add_parser(
         "scan", help="guided scanning session in the terminal (simulated devices unless configured)",
-        description="Guide the operator through the steps of a scan (SPEC 4) with live levels, quality "
-        "checks and redo, then save it. Devices come from --config (default: the simulated scanner).")
+        description="Guide the operator through the steps of a scan (Strese et al. 2020, section III) with live "
+        "levels, quality checks and redo, then save it. Devices come from --config (default: the simulated scanner).")
     _add_db_option(scanning)
     scanning.add_argument("--label", required=True, help="material label, e.g. C6S1M1P2X1")
     scanning.add_argument("--sample", required=True, help="sample id, e.g. granite-01")
@@ -865,7 +878,8 @@ def build_parser() -> argparse.ArgumentParser:
     emulators = emulate.add_subparsers(dest="emulator", metavar="DEVICE", required=True)
     emulate_board = emulators.add_parser(
         "board", help="serial sensor board on a pseudo-terminal; prints its device path",
-        description="The serial sensor board (SPEC 5 protocol) on a pseudo-terminal, until Ctrl-C. Use the "
+        description="The serial sensor board (its line protocol is described in scanner/devices/board.py) "
+        "on a pseudo-terminal, until Ctrl-C. Use the "
         "printed path as board.port or with 'texplorer scan --board PATH'. POSIX only.")
     emulate_board.add_argument("--link", type=Path, help="path of the port's symbolic link "
                                "(default: in a new temporary folder)")
@@ -892,7 +906,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     serving = commands.add_parser(
         "serve", help="the operator's web application: guided scans, operator form, database browser",
-        description="Serve the web application (SPEC 10) for the database: start a scan, the guided steps "
+        description="Serve the operator's web application for the database: start a scan, the guided steps "
         "with live levels, the operator form with photo uploads, the summary with the prediction, and the "
         "database browser with export. Listens on 127.0.0.1 only, unless --host says otherwise.")
     _add_db_option(serving)
@@ -920,7 +934,7 @@ def build_parser() -> argparse.ArgumentParser:
     ingesting.set_defaults(handler=cmd_ingest)
 
     comparing = commands.add_parser(
-        "compare", help="run the related methods (seed papers) on one dataset: table and HTML report",
+        "compare", help="run the related papers' methods on one dataset: table and HTML report",
         description="Run every related method that applies to DATASET with its published features, "
         "classifiers and protocol; print accuracy, macro F1 and time per classification, and write the HTML "
         "report.")
@@ -929,7 +943,7 @@ def build_parser() -> argparse.ArgumentParser:
     comparing.add_argument("--methods", nargs="+", choices=COMPARE_METHODS,
                            help="methods to run (default: every one that applies)")
     comparing.add_argument("--repeats", type=int, default=COMPARE_REPEATS, help="repetitions of the repeated "
-                           f"protocols (default {COMPARE_REPEATS}; seed 004 used 100)")
+                           f"protocols (default {COMPARE_REPEATS}; Hoelscher et al. 2015 used 100)")
     comparing.add_argument("--seed", type=int, default=0, help="random seed of simulation, splits and "
                            "classifiers (default 0)")
     comparing.add_argument("--report", type=Path, help="HTML report folder (default <db>/reports/compare-"
@@ -943,7 +957,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     args.debug = getattr(args, "debug", False)
     try:
-        return args.handler(args)
+        status = args.handler(args)
+        sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's flush at exit
+        return status
+    except BrokenPipeError:
+        return _reader_gone()
     except KeyboardInterrupt:
         print("texplorer: interrupted", file=sys.stderr)
         return 130
@@ -958,6 +976,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"texplorer: error: {type(exc).__name__}: {exc} (run with --debug for the traceback)",
               file=sys.stderr)
         return EXIT_ERROR
+
+
+EXIT_PIPE = 128 + 13
+"""The reader of the output went away (``texplorer db list | head``): the status of a process ended by
+SIGPIPE, as ``cat`` gives."""
+
+
+def _reader_gone() -> int:
+    """End quietly when standard output is a closed pipe: no error line, no traceback at exit."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())  # the interpreter's last flush of stdout must not fail again
+    os.close(devnull)
+    return EXIT_PIPE
 
 
 if __name__ == "__main__":

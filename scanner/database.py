@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING
 from scanner.files import fsync_dir, is_temp_file, sha256_file
 from scanner.matfile import ScanFormatError, load_scan, photo_file_name, save_scan, scan_files
 from scanner.scan import IMAGES, Scan, ScanMeta, check_sample_id
+from taxonomy.labels import parse_prefix
 
 if TYPE_CHECKING:
     from taxonomy.table import Taxonomy
@@ -159,6 +160,11 @@ def file_roles(mat_path: Path, scan: Scan) -> list[tuple[Path, str]]:
     return [(path, photos.get(path, "mat")) for path in scan_files(mat_path, scan)]
 
 
+def is_database(root: Path) -> bool:
+    """Whether ``root`` is a database folder: it holds the catalog or the scans folder."""
+    return (root / CATALOG).is_file() or (root / SCANS).is_dir()
+
+
 class Database:
     """A scan database at ``root`` (created if missing). Safe for concurrent readers and writers.
 
@@ -166,11 +172,17 @@ class Database:
     """
 
     def __init__(self, root: str | os.PathLike[str], *, create: bool = True) -> None:
+        """Open the database at ``root``; with ``create``, make it (folder, ``scans/``, catalog) if missing.
+
+        Without ``create`` (the commands that only read or repair), ``root`` must already be a database: a
+        folder holding ``catalog.sqlite`` or ``scans/`` (a database whose catalog was lost is rebuilt from
+        ``scans/``). Nothing is written into any other folder.
+        """
         self.root = Path(root)
-        if not self.root.is_dir():
-            if not create:
-                raise DatabaseError(f"{self.root}: no database here (use --db or create one with 'texplorer demo')")
-            self.root.mkdir(parents=True)
+        if not create and not is_database(self.root):
+            raise DatabaseError(f"{self.root}: no texplorer database here (no {CATALOG} or {SCANS}/); pass --db "
+                                "PATH, or create one with 'texplorer demo', 'texplorer import' or 'texplorer scan'")
+        self.root.mkdir(parents=True, exist_ok=True)
         (self.root / SCANS).mkdir(exist_ok=True)
         self.catalog_path = self.root / CATALOG
         self._local = threading.local()
@@ -331,11 +343,14 @@ class Database:
 
     def records(self, *, label: str | None = None, sample: str | None = None, session: str | None = None,
                 operator: str | None = None) -> list[ScanRecord]:
-        """Catalog rows, optionally filtered; ``label`` may be a class prefix ("C6" = every stone, not C60)."""
+        """Catalog rows, optionally filtered; ``label`` may be a class prefix ("C6" = every stone, not C60).
+
+        A malformed ``label`` raises ``LabelError`` naming the valid forms; lower-case letters are accepted.
+        """
         clauses, params = [], []
         if label:
             clauses.append("label >= ? AND label < ?")
-            params.extend(_label_range(label))
+            params.extend(_label_range(parse_prefix(label)))
         for column, value in (("sample_id", sample), ("session_id", session), ("operator", operator)):
             if value:
                 clauses.append(f"{column} = ?")

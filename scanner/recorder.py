@@ -140,10 +140,10 @@ class Recorder:
     def __init__(self, devices: Devices, config: Config) -> None:
         if devices.daq.rate != CHANNELS["v_ts"].fs:
             raise ConfigError(f"{config.source}: daq.rate_hz: scans are sampled at "
-                              f"{CHANNELS['v_ts'].fs:g} Hz (SPEC 3), not {devices.daq.rate:g} Hz")
+                              f"{CHANNELS['v_ts'].fs:g} Hz (the scan format), not {devices.daq.rate:g} Hz")
         if devices.microphone.rate != CHANNELS["a_ts"].fs:
             raise ConfigError(f"{config.source}: microphone.rate_hz: scans record audio at "
-                              f"{CHANNELS['a_ts'].fs:g} Hz (SPEC 3), not {devices.microphone.rate:g} Hz")
+                              f"{CHANNELS['a_ts'].fs:g} Hz (the scan format), not {devices.microphone.rate:g} Hz")
         self.devices = devices
         self.config = config
 

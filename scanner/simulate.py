@@ -1459,60 +1459,85 @@ def _notes(draw: OperatorDraw) -> str:
             f"{draw.tool_speed_mm_s:.0f} mm/s, friction slide {draw.friction_speed_mm_s:.0f} mm/s")
 
 
-def scan_seed(seed: int, slug: str, scan_index: int) -> int:
-    """The seed of scan ``scan_index`` of ``slug`` in a simulated database built with ``seed``.
+def scan_seed(seed: int, slug: str, scan_index: int, sample: int = 1) -> int:
+    """The seed of scan ``scan_index`` of sample number ``sample`` of ``slug`` in a simulated database built
+    with ``seed``.
 
-    Derived with ``np.random.SeedSequence`` from (seed, slug, scan index), so a single scan can be
-    regenerated without the others and does not depend on which other materials were simulated.
+    Derived with ``np.random.SeedSequence`` from (seed, slug, scan index[, sample number]), so a single scan
+    can be regenerated without the others and does not depend on which other materials were simulated. The
+    first sample's key has no sample number: databases simulated before samples were numbered stay valid.
     """
-    sequence = np.random.SeedSequence(seed, spawn_key=(zlib.crc32(slug.encode()), scan_index))
+    key = (zlib.crc32(slug.encode()), scan_index) + ((sample,) if sample != 1 else ())
+    sequence = np.random.SeedSequence(seed, spawn_key=key)
     return int(sequence.generate_state(1, np.uint64)[0])
 
 
-def synthetic_scans(materials: Iterable[str] | None = None, scans_per_material: int = 5, seed: int = 0,
-                    image_size: tuple[int, int] = (512, 512),
-                    fold_skip_probability: float = 0.5) -> Iterator[Scan]:
-    """Scans 1..n of one sample per material (sample id ``<slug>-01``), material by material.
+def sample_id_of(slug: str, sample: int) -> str:
+    """Sample id of sample number ``sample`` of a simulated material: ``<slug>-01``, ``<slug>-02``, ..."""
+    return f"{slug}-{sample:02d}"
 
-    ``materials``: slugs of the default library, or None for all of it. Scan k of material m is
-    ``synthetic_scan(m, seed=scan_seed(seed, m, k), scan_index=k, ...)``.
-    """
-    library = _default_library()
-    slugs = list(library) if materials is None else _known(materials)
-    if scans_per_material < 1:
-        raise ValueError(f"scans_per_material must be >= 1, got {scans_per_material!r}")
+
+@dataclass(frozen=True)
+class _Job:
+    """One simulated scan of a database: material, sample number, scan index and the settings."""
+
+    slug: str
+    sample: int
+    index: int
+    seed: int
+    image_size: tuple[int, int]
+    fold_skip_probability: float
+
+    @property
+    def scan_id(self) -> str:
+        return f"{sample_id_of(self.slug, self.sample)}-{self.index:03d}"
+
+
+def _jobs(materials: Iterable[str] | None, samples_per_material: int, scans_per_sample: int, seed: int,
+          image_size: tuple[int, int], fold_skip_probability: float) -> list[_Job]:
+    slugs = list(_default_library()) if materials is None else _known(materials)
+    for name, value in (("samples_per_material", samples_per_material), ("scans_per_material", scans_per_sample)):
+        if not (isinstance(value, int) and value >= 1):
+            raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
     _check_image_size(image_size)
-    for slug in slugs:
-        for index in range(1, scans_per_material + 1):
-            yield synthetic_scan(library[slug], seed=scan_seed(seed, slug, index), scan_index=index,
-                                 sample_id=f"{slug}-01", image_size=image_size,
-                                 fold_skip_probability=fold_skip_probability)
+    return [_Job(slug, sample, index, seed, image_size, fold_skip_probability) for slug in slugs
+            for sample in range(1, samples_per_material + 1) for index in range(1, scans_per_sample + 1)]
 
 
-def _simulate_one(job: tuple[str, int, int, tuple[int, int], float]) -> Scan:
-    slug, seed, index, image_size, fold_skip_probability = job
-    return synthetic_scan(_default_library()[slug], seed=scan_seed(seed, slug, index), scan_index=index,
-                          sample_id=f"{slug}-01", image_size=image_size, fold_skip_probability=fold_skip_probability)
+def _simulate_one(job: _Job) -> Scan:
+    return synthetic_scan(_default_library()[job.slug], seed=scan_seed(job.seed, job.slug, job.index, job.sample),
+                          scan_index=job.index, sample_id=sample_id_of(job.slug, job.sample),
+                          image_size=job.image_size, fold_skip_probability=job.fold_skip_probability)
+
+
+def synthetic_scans(materials: Iterable[str] | None = None, scans_per_material: int = 5, seed: int = 0,
+                    image_size: tuple[int, int] = (512, 512), fold_skip_probability: float = 0.5,
+                    samples_per_material: int = 1) -> Iterator[Scan]:
+    """Scans 1..n of each of ``samples_per_material`` samples (pieces) per material (sample ids
+    ``<slug>-01``, ``<slug>-02``, ...), material by material; ``scans_per_material`` is n, the scans of
+    each sample.
+
+    ``materials``: slugs of the default library, or None for all of it. Scan k of sample j of material m
+    is ``synthetic_scan(m, seed=scan_seed(seed, m, k, j), scan_index=k, sample_id=sample_id_of(m, j), ...)``.
+    """
+    return map(_simulate_one, _jobs(materials, samples_per_material, scans_per_material, seed, image_size,
+                                    fold_skip_probability))
 
 
 def synthetic_database(root: str | Path, materials: Iterable[str] | None = None, scans_per_material: int = 5,
                        seed: int = 0, image_size: tuple[int, int] = (512, 512), progress: bool = True,
-                       fold_skip_probability: float = 0.5, workers: int | None = None) -> Database:
+                       fold_skip_probability: float = 0.5, workers: int | None = None,
+                       samples_per_material: int = 1) -> Database:
     """Simulate scans (see :func:`synthetic_scans`) into ``scanner.database.Database(root)``; returns it.
 
     Scans are simulated in ``workers`` processes (default: the number of cores) and added by this process
     in a fixed order. Scans whose id is already in the database are kept, not simulated again, so an
     interrupted demo resumes where it stopped (delete the folder to start over with another seed).
     """
-    slugs = list(_default_library()) if materials is None else _known(materials)
-    if scans_per_material < 1:
-        raise ValueError(f"scans_per_material must be >= 1, got {scans_per_material!r}")
-    _check_image_size(image_size)
+    all_jobs = _jobs(materials, samples_per_material, scans_per_material, seed, image_size, fold_skip_probability)
     database = Database(root)
     stored = {record.scan_id for record in database.records()}
-    jobs = [(slug, seed, index, image_size, fold_skip_probability)
-            for slug in slugs for index in range(1, scans_per_material + 1)
-            if f"{slug}-01-{index:03d}" not in stored]
+    jobs = [job for job in all_jobs if job.scan_id not in stored]
     bar = tqdm(total=len(jobs), desc="simulating scans", unit="scan", file=sys.stderr,
                disable=None if progress else True, leave=False)
     workers = max(1, min(workers or os.cpu_count() or 1, len(jobs) or 1))

@@ -124,6 +124,28 @@ def parse_code(text: Any, letters: str = LABEL_PARTS) -> tuple[int, ...]:
         raise LabelError(f"{_shown(text)} is not a {noun}: {reason} {expected}") from None
 
 
+def parse_prefix(text: Any) -> str:
+    """Canonical text of a label or class prefix used as a filter: ``"c6" -> "C6"``, ``" C6s1 " -> "C6S1"``.
+
+    A prefix is the first one to five parts of a label (C, CS, CSM, CSMP or CSMPX), written as
+    :func:`parse_code` reads codes (lower-case letters allowed, numbers without sign or leading zero).
+
+    Raises
+    ------
+    LabelError
+        One line naming the text, what is wrong and the valid forms.
+    """
+    stripped = text.strip() if isinstance(text, str) else text
+    parts = sum(ch.isalpha() for ch in stripped) if isinstance(stripped, str) else 0
+    letters = LABEL_PARTS[:min(max(parts, 1), len(LABEL_PARTS))]
+    try:
+        return format_code(letters, parse_code(stripped, letters))
+    except LabelError as exc:
+        reason = str(exc).split(": ", 1)[-1].rsplit(" (expected", 1)[0]
+        raise LabelError(f"{_shown(text)} is not a label or class prefix: {reason} (expected C<n>, C<n>S<n>, "
+                         f"... up to a full label, e.g. C6, C6S1 or {_example(LABEL_PARTS)})") from None
+
+
 def format_code(letters: str, numbers: tuple[int, ...]) -> str:
     """Canonical text of a code: ``format_code("CS", (6, 1)) == "C6S1"``."""
     return "".join(f"{letter}{number}" for letter, number in zip(letters, numbers, strict=True))

@@ -1123,13 +1123,13 @@ def _every(dataset: Dataset, set_name: str) -> bool:
 METHODS: Mapping[str, Method] = {m.name: m for m in (
     Method("fishel", "Strese et al. 2020 Fig. 18 (features after Fishel and Loeb 2012)",
            "scans (v_ts, f_frn, f_frt)", lambda d: bool(d.scans), run_fishel),
-    Method("xie", "Xie et al. 2019, Applied Sciences (seed 000)", "taxels or electrodes",
+    Method("xie", "Xie et al. 2019, Applied Sciences", "taxels or electrodes",
            lambda d: _every(d, "xie11"), run_xie),
-    Method("huang", "Huang and Wu 2021, Sensors (seed 001)", "vibration", lambda d: _every(d, "huang7"),
+    Method("huang", "Huang and Wu 2021, Sensors", "vibration", lambda d: _every(d, "huang7"),
            run_huang),
-    Method("chathuranga", "Chathuranga et al. 2015, IROS (seed 002)", "force_xyz",
+    Method("chathuranga", "Chathuranga et al. 2015, IROS", "force_xyz",
            lambda d: _every(d, "chathuranga4"), run_chathuranga),
-    Method("hoelscher", "Hoelscher, Peters and Hermans 2015, Humanoids (seed 004)",
+    Method("hoelscher", "Hoelscher, Peters and Hermans 2015, Humanoids",
            "one of vibration, electrodes, heat_flow + temperature",
            lambda d: any(_every(d, s) for s in HOELSCHER_SETS), run_hoelscher),
 )}

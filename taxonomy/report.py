@@ -65,7 +65,9 @@ def _blocks(reports: Sequence[Report]) -> list[tuple[str, list[str], list[tuple[
             found = [cell.get((classifier, feature_set, level)) for level in levels]
             rows.append((classifier, feature_set, [cell_text(r) if r else "" for r in found]))
         first = chosen[0]
-        title = f"X{size}, {protocol} protocol, {first.folds} folds, seed {first.seed}"
+        split = ("grouped by sample" if all(r.grouped for r in chosen)
+                 else "NOT grouped by sample: scans of one sample in training and test")
+        title = f"X{size}, {protocol} protocol, {first.folds} folds {split}, seed {first.seed}"
         blocks.append((title, levels, rows))
     return blocks
 

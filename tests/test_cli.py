@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import argparse
+import os
+import re
 import subprocess
 import sys
 
 import pytest
 from conftest import make_scan
 
-from scanner.cli import EXIT_PROBLEMS, main
+from scanner.cli import EXIT_PIPE, EXIT_PROBLEMS, build_parser, main
 from scanner.database import Database
 
 
@@ -65,10 +68,77 @@ def test_errors_are_one_line_without_traceback(tmp_path, db_path):
     assert run.stderr.strip().splitlines() == [f"texplorer: error: no scan 'nope' in {db_path}"]
     run = subprocess.run([sys.executable, "-m", "scanner.cli", "db", "list", "--db", str(tmp_path / "none")],
                          capture_output=True, text=True)
-    assert run.returncode == 1 and len(run.stderr.strip().splitlines()) == 1 and "no database here" in run.stderr
+    assert run.returncode == 1 and len(run.stderr.strip().splitlines()) == 1
+    assert "no texplorer database here" in run.stderr and not (tmp_path / "none").exists()
     run = subprocess.run([sys.executable, "-m", "scanner.cli", "db", "show", "nope", "--db", str(db_path),
                           "--debug"], capture_output=True, text=True)
     assert run.returncode == 1 and "Traceback" in run.stderr
+
+
+@pytest.mark.parametrize("command", [["db", "list"], ["db", "show", "x"], ["db", "check"], ["db", "rebuild"],
+                                     ["features"], ["select"], ["evaluate"], ["train", "--out", "m.skops"],
+                                     ["export", "out.zip"]])
+def test_commands_that_only_read_refuse_a_folder_that_is_not_a_database(command, tmp_path, capsys):
+    # `texplorer db list --db /etc` must not create /etc/catalog.sqlite and /etc/scans/.
+    folder = tmp_path / "etc"
+    folder.mkdir()
+    (folder / "passwd").write_text("root:x:0:0")
+    assert main([*command, "--db", str(folder)]) == 1
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1
+    assert "no texplorer database here" in err and "create one with 'texplorer demo'" in err
+    assert sorted(p.name for p in folder.iterdir()) == ["passwd"]
+
+
+def test_db_list_into_a_closed_pipe_ends_quietly(db_path):
+    # `texplorer db list | head`: the reader is gone before the table is written.
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        run = subprocess.run([sys.executable, "-m", "scanner.cli", "db", "list", "--db", str(db_path)],
+                             stdout=write_end, stderr=subprocess.PIPE, text=True)
+    finally:
+        os.close(write_end)
+    assert run.stderr == "" and run.returncode == EXIT_PIPE
+
+
+def test_db_list_keeps_columns_aligned_for_long_ids(tmp_path, capsys):
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0, sample_id="polyurethane-foam-open-cell-01", scan_index=1, images=False))
+    db.add(make_scan(1, sample_id="oak-01", scan_index=1, images=False, label="C5S1M1P1X1"))
+    assert main(["db", "list", "--db", str(tmp_path / "db")]) == 0
+    header, *rows, total = capsys.readouterr().out.splitlines()
+    assert len(rows) == 2 and total == "2 scan(s)"
+    for column in ("label", "sample", "session", "operator", "started"):
+        assert {row[header.index(column) - 1] for row in rows} == {" "}  # every column starts after a blank
+        assert all(row[header.index(column)] != " " for row in rows)
+
+
+def test_label_filters_are_case_normalised_and_malformed_codes_refused(db_path, capsys):
+    assert main(["db", "list", "--db", str(db_path), "--label", "c7"]) == 0
+    out = capsys.readouterr().out
+    assert "steel-01-001" in out and out.rstrip().endswith("1 scan(s)")
+    for bad in ("Z9", "C06", "C7S", "C7S1M1P8X1Y1"):
+        assert main(["db", "list", "--db", str(db_path), "--label", bad]) == 1
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and f"'{bad}' is not a label or class prefix" in err
+        assert "e.g. C6, C6S1 or C6S1M1P2X1" in err
+
+
+def _subparsers(parser):
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                yield sub
+                yield from _subparsers(sub)
+
+
+def test_help_texts_name_the_paper_not_internal_documents():
+    parsers = [build_parser(), *_subparsers(build_parser())]
+    assert len(parsers) > 20
+    for parser in parsers:
+        text = parser.format_help()
+        assert not re.search(r"SPEC|seed \d{3}|seed paper", text), parser.prog
 
 
 @pytest.mark.parametrize("argv", [["--help"], ["db", "--help"], ["db", "check", "--help"], ["demo", "--help"],
@@ -83,7 +153,7 @@ def test_help_everywhere(argv, capsys):
 def demo_db(tmp_path_factory):
     """A small synthetic database with features, evaluation and a model, built by 'texplorer demo'."""
     root = tmp_path_factory.mktemp("demo") / "db"
-    code = main(["demo", "--db", str(root), "--scans", "3", "--image-size", "320", "--materials",
+    code = main(["demo", "--db", str(root), "--samples", "2", "--scans", "2", "--image-size", "320", "--materials",
                  "polyurethane-foam", "mild-steel-brushed", "float-glass", "--classifier", "rf", "nb",
                  "--level", "coarse", "fine", "--feature-set", "tactum", "--folds", "3", "--workers", "2"])
     assert code == 0
@@ -91,7 +161,9 @@ def demo_db(tmp_path_factory):
 
 
 def test_demo_runs_the_whole_chain(demo_db):
-    assert len(Database(demo_db, create=False)) == 9
+    # Two samples per material: the evaluation keeps each sample in one fold and its table says so.
+    database = Database(demo_db, create=False)
+    assert len(database) == 12 and len({r.sample_id for r in database.records()}) == 6
     assert (demo_db / "features.csv").is_file()
     assert (demo_db / "report" / "index.html").is_file() and (demo_db / "report" / "fq_ranking.png").is_file()
     assert (demo_db / "models" / "rf-fine-X10.skops").is_file()
@@ -108,6 +180,7 @@ def test_select_evaluate_train_classify(demo_db, tmp_path, capsys):
                  "--folds", "3", "--report", str(tmp_path / "r")]) == 0
     out = capsys.readouterr().out
     assert "lda" in out and "other" in out and (tmp_path / "r" / "index.html").is_file()
+    assert "X3, nested protocol, 3 folds grouped by sample, seed 0" in out
     model = tmp_path / "m.skops"
     assert main(["train", "--db", str(demo_db), "--out", str(model), "--level", "coarse", "--n", "3"]) == 0
     scan = next(demo_db.glob("scans/C3*/*/*-001.mat"))

@@ -19,6 +19,7 @@ from conftest import make_scan
 
 from scanner.database import Database, DatabaseError
 from scanner.files import sha256_file
+from taxonomy.labels import LabelError
 
 
 def _fill(db: Database) -> None:
@@ -39,7 +40,8 @@ def test_add_get_and_list_with_filters(tmp_path):
     assert [r.scan_id for r in db.records(sample="granite-01")] == ["granite-01-001", "granite-01-002"]
     assert [r.scan_id for r in db.records(session="s-2")] == ["granite-01-002", "granite-02-001"]
     assert [r.scan_id for r in db.records(operator="ab")] == ["granite-01-001", "steel-01-001"]
-    assert db.records(label="C6_") == []  # LIKE wildcards in user input are literal
+    with pytest.raises(LabelError, match="not a label or class prefix"):  # LIKE wildcards are no codes
+        db.records(label="C6_")
     assert db.record("steel-01-001").rigid
     assert db.get("granite-01-002") == make_scan(1, sample_id="granite-01", scan_index=2, session_id="s-2",
                                                   operator="cd")
@@ -125,8 +127,16 @@ def test_feature_cache_round_trips_nan(tmp_path):
 
 
 def test_opening_a_missing_database_without_create_is_a_clear_error(tmp_path):
-    with pytest.raises(DatabaseError, match="no database here"):
+    with pytest.raises(DatabaseError, match="nothing: no texplorer database here"):
         Database(tmp_path / "nothing", create=False)
+    # A folder that is not a database is refused and left as it was; one with scans/ is a database
+    # whose catalog can be rebuilt.
+    (tmp_path / "other").mkdir()
+    with pytest.raises(DatabaseError, match="other: no texplorer database here"):
+        Database(tmp_path / "other", create=False)
+    assert list((tmp_path / "other").iterdir()) == []
+    (tmp_path / "other" / "scans").mkdir()
+    assert len(Database(tmp_path / "other", create=False)) == 0
 
 
 def test_readers_work_while_a_writer_adds(tmp_path):

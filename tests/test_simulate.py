@@ -255,10 +255,25 @@ def test_scans_of_a_database_are_reproducible_one_by_one():
 def test_bad_arguments_are_refused():
     with pytest.raises(ValueError, match="image_size must be two integers >= 16"):
         sim.synthetic_scan("float-glass", seed=0, image_size=(8, 8))
-    with pytest.raises(ValueError, match="scans_per_material must be >= 1"):
+    with pytest.raises(ValueError, match="scans_per_material must be an integer >= 1, got 0"):
         next(sim.synthetic_scans(["float-glass"], scans_per_material=0))
+    with pytest.raises(ValueError, match="samples_per_material must be an integer >= 1, got 0"):
+        sim.synthetic_database("unused", ["float-glass"], samples_per_material=0)
+    assert not Path("unused").exists()
     with pytest.raises(ValueError, match="fold_skip_probability must be in"):
         sim.draw_operator(np.random.default_rng(0), fold_skip_probability=1.5)
+
+
+def test_samples_of_a_material_are_distinct_pieces_with_their_own_scans():
+    scans = list(sim.synthetic_scans(["float-glass"], scans_per_material=2, seed=3, image_size=SMALL,
+                                     samples_per_material=2))
+    assert [s.scan_id for s in scans] == ["float-glass-01-001", "float-glass-01-002", "float-glass-02-001",
+                                          "float-glass-02-002"]
+    # The first sample is the one-sample database's; the second is another piece (mass differs).
+    first = list(sim.synthetic_scans(["float-glass"], scans_per_material=2, seed=3, image_size=SMALL))
+    assert [s.meta for s in first] == [s.meta for s in scans[:2]]
+    assert scans[2].meta.mass_g != scans[0].meta.mass_g
+    assert sim.scan_seed(3, "float-glass", 1, sample=2) != sim.scan_seed(3, "float-glass", 1)
 
 
 def test_synthetic_database_stores_every_scan(tmp_path):

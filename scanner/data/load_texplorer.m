@@ -1,7 +1,7 @@
 function out = load_texplorer(target)
 %LOAD_TEXPLORER Load a scan or the feature table of a texplorer export bundle (MATLAB or GNU Octave).
 %
-%   s = load_texplorer('scans/C6S1M1P2X1/granite-01/granite-01-001.mat')
+%   s = load_texplorer('scans/C6S1M1P2X1/granite-polished-01/granite-polished-01-001.mat')
 %       All variables of the scan (v_ft, v_fs, v_tt, v_ts, a_fs, a_ts, r_fs, r_ts, f_frn, f_frt,
 %       f_press, f_fold, alpha_f, t_cool, m, dB, meta; a scan may lack some) plus s.photos, a struct
 %       with the full path of each photo:  imshow(imread(s.photos.I_disp))

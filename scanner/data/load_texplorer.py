@@ -7,7 +7,7 @@ From a shell, in or beside the bundle folder::
 From Python::
 
     from load_texplorer import load_scan, load_features, verify
-    scan = load_scan("scans/C6S1M1P2X1/granite-01/granite-01-001.mat")
+    scan = load_scan("scans/C6S1M1P2X1/granite-polished-01/granite-polished-01-001.mat")
     scan["v_ts"]                  # (n, 3) tool-slide acceleration in g
     scan["meta"]["fs"]["v_ts"]    # its sample rate, 3000.0 Hz
     scan["photos"]["I_disp"]      # path of the photo (PNG; read it with matplotlib.pyplot.imread)
