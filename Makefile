@@ -1,19 +1,21 @@
-# texplorer: every target creates its own virtual environment on first use.
+# texplorer: every target creates its own virtual environment on first use, with the tested versions of
+# every dependency (constraints.txt); `make lock` refreshes them to the newest releases.
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
-STAMP  := $(VENV)/.installed-$(shell $(PYTHON) -c "import hashlib,sys;print(hashlib.sha256(open('pyproject.toml','rb').read()).hexdigest()[:12])")
+LOCK   := constraints.txt
+STAMP  := $(VENV)/.installed-$(shell $(PYTHON) -c "import hashlib;print(hashlib.sha256(open('pyproject.toml','rb').read()+open('$(LOCK)','rb').read()).hexdigest()[:12])")
 DB     ?= texplorer-data
 JOBS   ?= 2
 
-.PHONY: demo test bench lint clean install
+.PHONY: demo test bench lint clean install lock
 
 install: $(STAMP)
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m pip install --quiet -c $(LOCK) -e '.[dev]'
 	rm -f $(VENV)/.installed-*
 	touch $@
 
@@ -29,5 +31,18 @@ bench: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check scanner features taxonomy gui tests benchmarks
 
+# The newest releases pip resolves today, in a scratch environment, written as the new constraints; then
+# `make test` installs and tests exactly them. Commit constraints.txt when the tests pass.
+lock:
+	rm -rf .venv-lock
+	$(PYTHON) -m venv .venv-lock
+	.venv-lock/bin/python -m pip install --quiet --upgrade pip
+	.venv-lock/bin/python -m pip install --quiet -e '.[dev]'
+	{ echo "# Tested versions of every dependency (make lock; installed by make install with pip -c)."; \
+	  echo "# Python $$(.venv-lock/bin/python -c 'import platform; print(platform.python_version())'), $$(date -u +%Y-%m-%d)"; \
+	  .venv-lock/bin/python -m pip freeze --exclude-editable --all | grep -v '^pip=='; } > $(LOCK).new
+	mv $(LOCK).new $(LOCK)
+	rm -rf .venv-lock
+
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache
+	rm -rf $(VENV) .venv-lock build *.egg-info .pytest_cache .ruff_cache
