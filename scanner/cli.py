@@ -613,7 +613,7 @@ def run_evaluation(space, args: argparse.Namespace) -> list:
     print(format_table(reports))
     print(f"{len(reports)} evaluations ({args.protocol} protocol, {args.folds} folds) "
           f"in {time.perf_counter() - started:.1f} s")
-    for warning in sorted({w.strip().splitlines()[0] for report in reports for w in report.warnings if w.strip()}):
+    for warning in sorted({w for report in reports for w in report.warnings if w.strip()}):
         print(f"texplorer: warning: {warning}", file=sys.stderr)
     if args.report:
         print(f"report: {write_report(args.report, space, reports)}")

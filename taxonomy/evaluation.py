@@ -481,12 +481,26 @@ def _fold(prepared: _Prepared, fold: int,
         if protocol == "nested":
             shared = clone(prepared.pipelines[0][:-1]).fit(X[train], y[train])
         X_train, X_test = shared.transform(X[train]), shared.transform(X[test])
-        predictions = [clone(p[-1]).fit(X_train, y[train]).predict(X_test) for p in prepared.pipelines]
-    return predictions, shared.named_steps["select"].selected_, _messages(caught)
+    messages = _messages(caught)
+    predictions = []
+    for pipeline in prepared.pipelines:
+        with warnings.catch_warnings(record=True) as caught, threadpool_limits(limits=1):
+            warnings.simplefilter("always")
+            classifier = clone(pipeline[-1])
+            predictions.append(classifier.fit(X_train, y[train]).predict(X_test))
+        messages += _messages(caught, f"{type(classifier).__name__}: ")
+    return predictions, shared.named_steps["select"].selected_, tuple(dict.fromkeys(messages))
 
 
-def _messages(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:
-    return tuple(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught))
+def _messages(caught: list[warnings.WarningMessage], source: str = "") -> tuple[str, ...]:
+    """Each warning as one line: who raised it, its category and its first paragraph, whole."""
+    return tuple(dict.fromkeys(f"{source}{w.category.__name__}: {first_paragraph(str(w.message))}"
+                               for w in caught))
+
+
+def first_paragraph(message: str) -> str:
+    """The text up to the first blank line, on one line (scikit-learn's warnings add advice after one)."""
+    return " ".join(message.strip().split("\n\n", 1)[0].split())
 
 
 def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],
