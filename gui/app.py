@@ -25,6 +25,7 @@ from flask.globals import request_ctx
 from werkzeug.exceptions import HTTPException, RequestEntityTooLarge
 
 from gui import security
+from gui.exports import Exports
 from gui.operation import Operations
 from gui.photos import DEFAULT_MAX_BYTES, DEFAULT_MAX_PIXELS, PhotoStore
 from scanner.config import Config
@@ -46,7 +47,10 @@ class Settings:
     ``heartbeat_timeout_s``: a recording browser that has not polled for this long counts as
     disconnected (the Peltier is switched off). ``device_config`` is the scanner configuration
     (``scanner.config.load_config``; tests pass short step durations). ``trusted_hosts`` guards against
-    DNS rebinding when bound to the loopback interface; None accepts any Host header.
+    DNS rebinding when bound to the loopback interface; None accepts any Host header. ``export_dir`` is
+    where export bundles are built before they are streamed (default: the system's temporary folder,
+    ``$TMPDIR``); an export nobody has asked about for ``export_abandon_s`` is cancelled and its file
+    deleted. Paths are made absolute when the settings are made.
     """
 
     db: Path
@@ -58,6 +62,16 @@ class Settings:
     secret_key: bytes = field(default_factory=lambda: secrets.token_bytes(32), repr=False)
     trusted_hosts: tuple[str, ...] | None = LOOPBACK_HOSTS
     workers: int | None = None
+    export_dir: Path | None = None
+    export_abandon_s: float = 120.0
+
+    def __post_init__(self) -> None:
+        # Resolved once here: Flask's send_file reads a relative path against the package folder, not the
+        # folder 'texplorer serve' was started in, and the server must not depend on its working directory.
+        for name in ("db", "model", "export_dir"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, Path(value).expanduser().resolve())
 
     @property
     def work_dir(self) -> Path:
@@ -67,7 +81,7 @@ class Settings:
 
 class Context:
     """What every request needs: settings, database, device configuration, staged photos, the running scan,
-    the model."""
+    the export job, the model."""
 
     def __init__(self, settings: Settings) -> None:
         self.settings = settings
@@ -76,6 +90,8 @@ class Context:
         self.photos = PhotoStore(settings.work_dir / "uploads")
         self.plot_dir = settings.work_dir / "plots"
         self.operations = Operations(self.photos, settings.heartbeat_timeout_s)
+        self.exports = Exports(self.db, settings.export_dir, workers=settings.workers,
+                               abandon_after_s=settings.export_abandon_s)
 
     @property
     def model_path(self) -> Path | None:
@@ -94,8 +110,9 @@ class Context:
         return None if path is None else load_model(path)
 
     def shutdown(self) -> None:
-        """Abort a running scan (Peltier off, devices released)."""
+        """Abort a running scan (Peltier off, devices released); cancel an export and delete its file."""
         self.operations.shutdown()
+        self.exports.shutdown()
 
 
 def context() -> Context:

@@ -1,5 +1,5 @@
 """The database browser (SPEC 10): materials, samples, scans, one scan's traces, photos and feature values,
-and the export of the feature table.
+the export of the feature table, and export bundles built in the background (:mod:`gui.exports`).
 
 Pages read the catalog (``scanner.database.Database``); a scan page loads the scan's ``.mat`` file. The
 trace figure is ``taxonomy.plots.plot_scan``, drawn once per scan content and kept in the app's cache
@@ -9,18 +9,22 @@ extracted the first time it is shown (or never, after ``texplorer features``).
 
 from __future__ import annotations
 
-import functools
+import io
 import math
 import os
+import tempfile
 from collections import defaultdict
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from flask import Blueprint, abort, render_template, request, send_file
+from flask import Blueprint, abort, flash, jsonify, redirect, render_template, request, send_file, url_for
 from werkzeug.wrappers import Response
 
 from gui.app import context
+from gui.exports import ExportBusy, ExportError, ExportJob, scan_source
+from gui.forms import parse_label_filter
 from scanner.database import DatabaseError, ScanRecord
 from scanner.files import temp_path_for
 from scanner.scan import CHANNELS, IMAGES
@@ -32,6 +36,8 @@ FEATURE_GROUPS = (("tactum", "TacTUM (paper section IV-A)"), ("image.disp", "ima
                   ("image.macro", "image: macro lens"), ("image.illu", "image: flash"),
                   ("audio.finger", "audio: finger slide"), ("audio.tool", "audio: tool slide"),
                   ("other", "other"))
+SESSION_CHOICES = 200
+"""Sessions offered in the export form's list (newest first); any other can still be typed."""
 
 
 @dataclass(frozen=True)
@@ -71,10 +77,9 @@ def _record(scan_id: str) -> ScanRecord:
 
 
 @blueprint.get("/")
-def overview() -> str:
-    db = context().db
-    return render_template("db_overview.html", summary=db.summary(),
-                           materials=material_rows(db.records(), db.taxonomy()))
+def overview() -> tuple[str, int]:
+    return render_overview({"label": request.args.get("label", "")[:64],
+                            "session": request.args.get("session", "")[:64]}, {})
 
 
 @blueprint.get("/material/<label>")
@@ -98,13 +103,10 @@ def scans() -> str:
 
 def feature_values(record: ScanRecord) -> tuple[dict[str, float], str | None]:
     """The 193 features of a stored scan from the database's cache (extracted and cached if missing)."""
-    from features import ScanSource, extract_many
-    from scanner.matfile import load_scan
+    from features import extract_many
 
     db = context().db
-    source = ScanSource(record.scan_id, record.label, record.sample_id,
-                        functools.partial(load_scan, db.root / record.path), cache_key=record.content_hash)
-    space = extract_many([source], workers=1, cache=db, progress=False)
+    space = extract_many([scan_source(db, record)], workers=1, cache=db, progress=False)
     if space.failed:
         return {}, space.failed[0][1]
     return dict(zip(space.columns, space.X[0].tolist(), strict=True)), None
@@ -177,29 +179,89 @@ def export_features() -> Response:
         space = feature_space(ctx.db, ctx.settings.workers)
     except DatabaseError as exc:
         abort(404, description=str(exc))
-    export_dir = ctx.settings.work_dir / "exports"
-    export_dir.mkdir(parents=True, exist_ok=True)
-    path = space.to_csv(export_dir / "features.csv")
-    return send_file(path, mimetype="text/csv", as_attachment=True, download_name="features.csv", max_age=0)
+    with tempfile.TemporaryDirectory(prefix="texplorer-features-") as scratch:  # nothing kept on the server
+        data = space.to_csv(Path(scratch) / "features.csv").read_bytes()
+    return send_file(io.BytesIO(data), mimetype="text/csv", as_attachment=True, download_name="features.csv",
+                     max_age=0)
 
 
-@blueprint.get("/export/bundle.zip")
-def export_bundle() -> Response:
-    """The export bundle of SPEC 11 (``scanner.bundle.export_bundle``) of every scan, as one ZIP file."""
-    from datetime import UTC, datetime
+def export_form(records: Iterable[ScanRecord]) -> dict[str, Any]:
+    """What the export form offers: the sessions of the database, newest first, for the session field."""
+    sessions: dict[str, ScanRecord] = {}
+    for record in sorted(records, key=lambda r: r.started, reverse=True):
+        sessions.setdefault(record.session_id, record)
+    return {"sessions": [(sid, f"{r.label} {r.sample_id}, {r.started[:16].replace('T', ' ')}")
+                         for sid, r in list(sessions.items())[:SESSION_CHOICES]]}
 
-    from scanner.bundle import BundleError
-    from scanner.bundle import export_bundle as write_bundle
 
-    ctx = context()
-    export_dir = ctx.settings.work_dir / "exports"
-    for old in export_dir.glob("texplorer-export-*.zip"):
-        old.unlink(missing_ok=True)
-    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
+def render_overview(form: dict[str, str], errors: dict[str, str], status: int = 200) -> tuple[str, int]:
+    db = context().db
+    records = db.records()
+    return render_template("db_overview.html", summary=db.summary(),
+                           materials=material_rows(records, db.taxonomy()), form=form, errors=errors,
+                           job=context().exports.job, **export_form(records)), status
+
+
+@blueprint.post("/export")
+def start_export() -> tuple[str, int] | Response:
+    """Start a background export of the scans matching the form's label and session (``texplorer export``)."""
+    form = {key: request.form.get(key, "").strip()[:64] for key in ("label", "session")}
     try:
-        report = write_bundle(ctx.db, export_dir / f"texplorer-export-{stamp}.zip",
-                              workers=ctx.settings.workers)
-    except BundleError as exc:
+        label = parse_label_filter(form["label"])
+    except ValueError as exc:
+        return render_overview(form, {"label": str(exc)}, 422)
+    try:
+        job = context().exports.start(label=label, session=form["session"] or None)
+    except ExportBusy as exc:
+        flash(f"{exc}.", "bad")
+        return redirect(url_for("database.export_job", job_id=exc.job.id))
+    except ExportError as exc:
+        return render_overview(form, {"export": str(exc)}, 409)
+    return redirect(url_for("database.export_job", job_id=job.id))
+
+
+def _job(job_id: str) -> ExportJob:
+    job = context().exports.get(job_id[:64])
+    if job is None:
+        abort(404, description="there is no such export (it was replaced by a newer one, or the server was "
+                               "restarted); start the export again")
+    job.touch()
+    return job
+
+
+@blueprint.get("/export/<job_id>")
+def export_job(job_id: str) -> str:
+    job = _job(job_id)
+    return render_template("db_export.html", job=job, status=job.status(),
+                           config_abandon=context().settings.export_abandon_s)
+
+
+@blueprint.get("/export/<job_id>/status")
+def export_status(job_id: str) -> Response:
+    """The job's progress for the page's poll (which also keeps the job from counting as abandoned)."""
+    job = _job(job_id)
+    answer = job.status()
+    if answer["ready"]:
+        answer["download"] = url_for("database.export_download", job_id=job.id)
+    return jsonify(answer)
+
+
+@blueprint.get("/export/<job_id>/bundle.zip")
+def export_download(job_id: str) -> Response:
+    """Stream the finished bundle; it is deleted here as the download starts (it can be taken once)."""
+    job = _job(job_id)
+    try:
+        handle, name, size = context().exports.take(job)
+    except ExportError as exc:
         abort(409, description=str(exc))
-    return send_file(report.path, mimetype="application/zip", as_attachment=True,
-                     download_name=report.path.name, max_age=0)
+    response = send_file(handle, mimetype="application/zip", as_attachment=True, download_name=name, max_age=0)
+    response.content_length = size
+    return response
+
+
+@blueprint.post("/export/<job_id>/cancel")
+def export_cancel(job_id: str) -> Response:
+    job = _job(job_id)
+    context().exports.cancel(job)
+    flash(f"The export of {job.filters} was cancelled; nothing was kept.", "good")
+    return redirect(url_for("database.overview"))

@@ -664,20 +664,188 @@ def test_feature_table_export(stocked):
     assert scan_ids == ["granite-01-001", "granite-01-002", "steel-01-001"]
 
 
-def test_export_bundle(stocked):
+def export_in_browser_session(client, form, timeout=60.0):
+    """Start an export from the database page, poll it as the page does, download the bundle."""
+    import time
+
+    answer = post(client, "/db/export", form)
+    assert answer.status_code == 302, answer.text
+    job_url = answer.headers["Location"]
+    assert get(client, job_url).status_code == 200
+    deadline = time.monotonic() + timeout
+    while (status := get(client, job_url + "/status").json)["running"]:
+        assert time.monotonic() < deadline, status
+        time.sleep(0.05)
+    assert status["ready"], status
+    return get(client, status["download"])
+
+
+def bundle_manifest(data: bytes) -> dict:
     import io
+    import json
     import zipfile
 
-    answer = get(stocked, "/db/export/bundle.zip")
+    with zipfile.ZipFile(io.BytesIO(data)) as bundle:
+        assert bundle.testzip() is None
+        return json.loads(bundle.read("manifest.json"))
+
+
+def files_under(folder):
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file()) if folder.exists() else []
+
+
+@pytest.fixture
+def exporter(tmp_path):
+    """The stocked database's app with its own temporary folder for bundles, to see what is left there."""
+    from conftest import make_scan
+
+    from scanner.database import Database
+
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0, sample_id="granite-01", scan_index=1, session_id="s-1", image_shape=(300, 300)))
+    db.add(make_scan(1, sample_id="granite-01", scan_index=2, session_id="s-2", image_shape=(300, 300)))
+    db.add(make_scan(2, label="C7S1M1P8X1", sample_id="steel-01", scan_index=1, session_id="s-2", rigid=True,
+                     drop=("f_fold", "alpha_f"), images=False))
+    db.close()
+    (tmp_path / "tmp").mkdir()
+    app = make_app(tmp_path / "db", export_dir=tmp_path / "tmp")
+    yield app
+    app.extensions["texplorer"].shutdown()
+
+
+def test_export_job_streams_the_whole_database_and_keeps_nothing(exporter, tmp_path):
+    answer = export_in_browser_session(exporter.test_client(), {})
     assert answer.status_code == 200 and answer.mimetype == "application/zip"
-    names = zipfile.ZipFile(io.BytesIO(answer.data)).namelist()
-    assert "manifest.json" in names and "features.csv" in names
-    assert any(name.endswith("granite-01-002.mat") for name in names)
+    assert answer.headers["Content-Length"] == str(len(answer.data))
+    manifest = bundle_manifest(answer.data)
+    assert [scan["scan_id"] for scan in manifest["scans"]] == ["granite-01-001", "granite-01-002", "steel-01-001"]
+    assert manifest["filters"] == {"label": None, "session": None}
+    assert files_under(tmp_path / "tmp") == [] and not list((tmp_path / "tmp").iterdir())
+    assert files_under(tmp_path / "db" / ".gui") == []
+
+
+@pytest.mark.parametrize(("form", "filters", "scans"), [
+    ({"label": " c7 "}, {"label": "C7", "session": None}, ["steel-01-001"]),
+    ({"session": "s-2"}, {"label": None, "session": "s-2"}, ["granite-01-002", "steel-01-001"]),
+    ({"label": "C6S1M1P2X1", "session": "s-2"}, {"label": "C6S1M1P2X1", "session": "s-2"}, ["granite-01-002"])])
+def test_export_job_filters_like_the_cli(exporter, form, filters, scans):
+    answer = export_in_browser_session(exporter.test_client(), form)
+    manifest = bundle_manifest(answer.data)
+    assert [scan["scan_id"] for scan in manifest["scans"]] == scans and manifest["filters"] == filters
+
+
+def test_export_job_refusals(exporter, tmp_path):
+    client = exporter.test_client()
+    answer = post(client, "/db/export", {"label": "Z9"})
+    assert answer.status_code == 422
+    assert field_error(answer.text, "label").startswith("'Z9' is not a label or class prefix")
+    answer = post(client, "/db/export", {"label": "C1"})
+    assert answer.status_code == 409 and "no scans with label C1 to export" in answer.text
+    assert exporter.extensions["texplorer"].exports.job is None and not list((tmp_path / "tmp").iterdir())
+
+
+def test_export_bundle_is_taken_once_then_gone(exporter, tmp_path):
+    client = exporter.test_client()
+    first = export_in_browser_session(client, {"label": "C7"})
+    assert first.status_code == 200
+    job = exporter.extensions["texplorer"].exports.job
+    again = get(client, f"/db/export/{job.id}/bundle.zip")
+    assert again.status_code == 409 and "already" not in again.text and "downloaded" in again.text
+    assert get(client, f"/db/export/{job.id}/status").json["phase"] == "downloaded"
+    assert get(client, "/db/export/not-a-job/status").status_code == 404
+    job.thread.join(5)
+    assert not list((tmp_path / "tmp").iterdir())
+
+
+def test_second_export_while_one_runs_is_refused_and_cancel_deletes(exporter, tmp_path):
+    import threading
+
+    from gui import exports
+
+    exports_ = exporter.extensions["texplorer"].exports
+    gate = threading.Event()
+    original = exports.extract_many
+
+    def held(*args, **kwargs):  # the first chunk waits until the test has looked
+        gate.wait(10)
+        return original(*args, **kwargs)
+
+    exports.extract_many = held
+    try:
+        client = exporter.test_client()
+        first = post(client, "/db/export", {})
+        job = exports_.job
+        assert job.running and len(list((tmp_path / "tmp").iterdir())) == 1
+        second = post(client, "/db/export", {"label": "C7"})
+        assert second.status_code == 302 and second.headers["Location"].endswith(f"/db/export/{job.id}")
+        assert "an export of every scan is running" in get(client, second.headers["Location"]).text
+        assert exports_.job is job
+        gate.set()
+        assert post(client, f"/db/export/{job.id}/cancel").status_code == 302
+        assert first.status_code == 302 and job.phase in ("cancelled", "done") and not job.thread.is_alive()
+    finally:
+        exports.extract_many = original
+    assert job.phase == "cancelled" and not list((tmp_path / "tmp").iterdir())
+
+
+def test_abandoned_export_and_server_stop_delete_the_bundle(tmp_path, exporter):
+    import time
+
+    from gui.exports import Exports
+
+    db = exporter.extensions["texplorer"].db
+    exports = Exports(db, tmp_path / "tmp", abandon_after_s=0.3)
+    job = exports.start()
+    job.thread.join(60)
+    assert job.phase == "cancelled" and job.path is None  # built, then nobody came for it
+    assert not list((tmp_path / "tmp").iterdir())
+    job = exports.start(label="C7")
+    deadline = time.monotonic() + 30
+    while job.phase != "done":
+        job.touch()
+        assert time.monotonic() < deadline and job.phase != "failed", job.status()
+        time.sleep(0.02)
+    assert len(list((tmp_path / "tmp").rglob("*.zip"))) == 1
+    exports.shutdown()
+    assert job.phase == "cancelled" and not list((tmp_path / "tmp").iterdir())
+
+
+def test_export_needs_free_space(exporter, tmp_path, monkeypatch):
+    import shutil
+    from collections import namedtuple
+
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage(10 << 20, 9 << 20, 1 << 20))
+    answer = post(exporter.test_client(), "/db/export", {})
+    assert answer.status_code == 409 and "not enough free space in" in answer.text
+    assert "1 MB free" in answer.text and not list((tmp_path / "tmp").iterdir())
+
+
+def test_relative_database_path_serves_files(tmp_path, monkeypatch):
+    """'texplorer serve --db texplorer-data': photos, traces, the feature table and the bundle are found
+    although Flask reads relative paths against its package folder (they were all HTTP 500)."""
+    from conftest import make_scan
+
+    from scanner.database import Database
+
+    monkeypatch.chdir(tmp_path)
+    Database("texplorer-data").add(make_scan(0, image_shape=(300, 300)))
+    app = make_app("texplorer-data")
+    try:
+        client = app.test_client()
+        for url in ("/db/scan/granite-01-001/photo/I_disp", "/db/scan/granite-01-001/traces.png",
+                    "/db/export/features.csv"):
+            assert get(client, url).status_code == 200, url
+        assert export_in_browser_session(client, {}).status_code == 200
+        assert app.extensions["texplorer"].settings.db == tmp_path / "texplorer-data"
+    finally:
+        app.extensions["texplorer"].shutdown()
 
 
 def test_empty_database_pages(client):
     assert "The database is empty" in get(client, "/db/").text
     assert get(client, "/db/export/features.csv").status_code == 404
+    assert post(client, "/db/export", {}).status_code == 409
 
 
 # -- texplorer serve ----------------------------------------------------------------------------------

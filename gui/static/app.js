@@ -162,8 +162,53 @@ function setupRecording() {
   poll();
 }
 
+// -- export job progress -----------------------------------------------------------------------------------
+
+function setupExport() {
+  const panel = document.getElementById("export");
+  if (!panel) return;
+  const phase = document.getElementById("export-phase");
+  const bar = document.getElementById("export-progress");
+  const count = document.getElementById("export-count");
+  const error = document.getElementById("export-error");
+  const download = document.getElementById("export-download");
+  const cancel = document.getElementById("export-cancel");
+  let started = false;
+  const poll = async () => {
+    let answer;
+    try {
+      const response = await fetch(panel.dataset.status, { cache: "no-store" });
+      if (response.status === 404) {
+        phase.textContent = "This export is gone (replaced by a newer one, or the server was restarted).";
+        download.hidden = cancel.hidden = true;
+        return;
+      }
+      answer = await response.json();
+    } catch (failure) {
+      phase.textContent = "Lost contact with the server; retrying…";
+      setTimeout(poll, 1000);
+      return;
+    }
+    bar.value = answer.fraction;
+    bar.textContent = `${Math.round(100 * answer.fraction)} %`;
+    phase.textContent = answer.ready ? `${answer.phase_text} (${(answer.bytes / 1048576).toFixed(1)} MB)` : answer.phase_text;
+    count.textContent = answer.running ? `${answer.done} of ${answer.total} scans` : "";
+    error.textContent = answer.error;
+    error.hidden = !answer.error;
+    download.hidden = !answer.ready;
+    cancel.hidden = !(answer.running || answer.ready);
+    if (answer.ready && !started) {
+      started = true;  // the download deletes the bundle on the server; the link stays for a failed start
+      window.location.assign(answer.download);
+    }
+    if (answer.running || answer.ready) setTimeout(poll, answer.running ? 500 : 1000);
+  };
+  poll();
+}
+
 document.addEventListener("DOMContentLoaded", () => {
   setupPicker(setupLabel());
   setupPreviews();
   setupRecording();
+  setupExport();
 });

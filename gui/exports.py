@@ -1,0 +1,263 @@
+"""Export bundles built in the background for the database browser, streamed once, never kept.
+
+A bundle of a whole database is as large as the database (hundreds of MB), so it is not built inside a
+request: :meth:`Exports.start` starts an :class:`ExportJob` in a thread and the page polls its progress.
+The job fills the database's feature cache first (in chunks, so it can report progress and be cancelled
+between them), then calls :func:`scanner.bundle.export_bundle`, the same exporter as ``texplorer export``,
+with the same filters (label or class prefix, session), counting the scans its progress callback hands on.
+
+Where the bundle lives, and for how long:
+
+- Each job builds its bundle in a private folder made by :func:`tempfile.mkdtemp` under
+  ``Settings.export_dir`` (default the system's temporary folder, ``$TMPDIR``), never inside the database.
+- :meth:`Exports.take` opens the finished bundle and deletes it and its folder at once; the open file keeps
+  the data readable (POSIX) until the download has been sent or broken off, then the space is free. So a
+  bundle is downloaded once, and nothing is left behind whether the download completes or not.
+- A job nobody asks about for ``abandon_after_s`` (the page was closed) is cancelled, or its finished bundle
+  deleted; :meth:`Exports.shutdown` (server stop) does the same for the job running then.
+- One job at a time: a second export while one runs is refused (:class:`ExportBusy`); a finished bundle not
+  yet downloaded is deleted when a new export starts. So at most one bundle is on disk, and a job is refused
+  up front when the temporary folder has less free space than the scans' files take.
+"""
+
+from __future__ import annotations
+
+import functools
+import secrets
+import shutil
+import tempfile
+import threading
+import time
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import IO, Any
+
+from features import ScanSource, extract_many
+from scanner.bundle import BundleError, export_bundle
+from scanner.database import Database, ScanRecord
+from scanner.matfile import load_scan
+
+FEATURE_CHUNK = 16
+"""Scans whose features are extracted between two progress reports (and cancellation checks)."""
+
+SPACE_MARGIN = 16 << 20
+"""Free space kept beyond the scans' files: the bundle adds feature tables, manifest and zip headers."""
+
+RUNNING = ("features", "copying")
+PHASE_TEXT = {
+    "features": "Computing the features of scans not in the feature cache yet",
+    "copying": "Copying and checking the scans' files",
+    "done": "The bundle is ready",
+    "downloaded": "The bundle was downloaded and deleted here",
+    "failed": "The export failed",
+    "cancelled": "The export was cancelled; nothing was kept",
+}
+
+
+class ExportError(ValueError):
+    """An export that cannot start or failed; one line for the page."""
+
+
+class ExportBusy(ExportError):
+    """Another export is running (one at a time: each takes as much space as its scans)."""
+
+    def __init__(self, message: str, job: ExportJob) -> None:
+        super().__init__(message)
+        self.job = job
+
+
+class _Cancelled(Exception):
+    """Raised inside the export to stop it; ``export_bundle`` deletes its partial file on the way out."""
+
+
+def scan_source(db: Database, record: ScanRecord) -> ScanSource:
+    """A catalogued scan for :func:`features.extract_many`, keyed for the database's feature cache."""
+    return ScanSource(record.scan_id, record.label, record.sample_id,
+                      functools.partial(load_scan, db.root / record.path), cache_key=record.content_hash)
+
+
+def filter_text(label: str | None, session: str | None) -> str:
+    """``"label C6, session s-1"``, or ``"every scan"``."""
+    parts = [text for text in (label and f"label {label}", session and f"session {session}") if text]
+    return ", ".join(parts) or "every scan"
+
+
+@dataclass
+class ExportJob:
+    """One export: its filters, phase and progress, and the bundle file while it waits for its download."""
+
+    id: str
+    db: Database
+    records: list[ScanRecord]
+    label: str | None
+    session: str | None
+    folder: Path
+    workers: int | None = None
+    phase: str = "features"
+    done: int = 0
+    error: str = ""
+    path: Path | None = None
+    size: int = 0
+    started: float = field(default_factory=time.monotonic)
+    last_seen: float = field(default_factory=time.monotonic)
+    cancel: threading.Event = field(default_factory=threading.Event)
+    thread: threading.Thread | None = None
+
+    @property
+    def total(self) -> int:
+        return len(self.records)
+
+    @property
+    def running(self) -> bool:
+        return self.phase in RUNNING
+
+    @property
+    def filters(self) -> str:
+        return filter_text(self.label, self.session)
+
+    def touch(self) -> None:
+        """Someone is still waiting for this job."""
+        self.last_seen = time.monotonic()
+
+    def status(self) -> dict[str, Any]:
+        """The job as the progress page shows it (JSON)."""
+        fraction = self.done / self.total if self.total else 1.0
+        if self.phase == "features":
+            fraction *= 0.5  # two phases of one bar: features, then files
+        elif self.phase == "copying":
+            fraction = 0.5 + 0.5 * fraction
+        elif self.phase in ("done", "downloaded"):
+            fraction = 1.0
+        return {"id": self.id, "phase": self.phase, "phase_text": PHASE_TEXT[self.phase], "done": self.done,
+                "total": self.total, "fraction": round(fraction, 4), "running": self.running,
+                "ready": self.phase == "done", "error": self.error, "bytes": self.size,
+                "filters": self.filters, "seconds": round(time.monotonic() - self.started, 1)}
+
+    # -- the worker thread ---------------------------------------------------------------------------
+
+    def run(self, abandon_after_s: float) -> None:
+        """Build the bundle, then keep it until it is taken, cancelled or abandoned; always clean up."""
+        try:
+            self._warm_feature_cache(abandon_after_s)
+            self.phase, self.done = "copying", 0
+            stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
+            report = export_bundle(self.db, self.folder / f"texplorer-export-{stamp}.zip", label=self.label,
+                                   session=self.session, workers=self.workers,
+                                   progress=functools.partial(self._count, abandon_after_s=abandon_after_s))
+            self.path, self.size, self.phase = report.path, report.path.stat().st_size, "done"
+            while not self.cancel.wait(0.5) and not self._abandoned(abandon_after_s):
+                pass
+        except _Cancelled:
+            self.phase = "cancelled"
+        except (BundleError, OSError) as exc:
+            self.phase, self.error = "failed", str(exc).strip().splitlines()[0]
+        except Exception as exc:  # a job thread must never die silently: the page shows why
+            self.phase, self.error = "failed", f"{type(exc).__name__}: {exc}".splitlines()[0]
+        finally:
+            if self.phase == "done":  # not taken: cancelled or abandoned after it was built
+                self.phase = "cancelled"
+            self.path = None
+            shutil.rmtree(self.folder, ignore_errors=True)
+
+    def _abandoned(self, abandon_after_s: float) -> bool:
+        return time.monotonic() - self.last_seen > abandon_after_s
+
+    def _check(self, abandon_after_s: float) -> None:
+        if self.cancel.is_set() or self._abandoned(abandon_after_s):
+            raise _Cancelled
+
+    def _warm_feature_cache(self, abandon_after_s: float) -> None:
+        """Features of every exported scan into the cache, so ``export_bundle`` only reads them."""
+        sources = [scan_source(self.db, record) for record in self.records]
+        for start in range(0, len(sources), FEATURE_CHUNK):
+            self._check(abandon_after_s)
+            extract_many(sources[start:start + FEATURE_CHUNK], workers=self.workers, cache=self.db,
+                         progress=False)
+            self.done = min(start + FEATURE_CHUNK, len(sources))
+
+    def _count(self, records: Iterable[ScanRecord], abandon_after_s: float) -> Iterator[ScanRecord]:
+        """``export_bundle``'s progress callback: hands on every scan, counts it, stops when cancelled."""
+        for record in records:
+            self._check(abandon_after_s)
+            yield record
+            self.done += 1
+
+
+class Exports:
+    """The app's export job (at most one at a time) and the files it may keep."""
+
+    def __init__(self, db: Database, temp_root: Path | None = None, *, workers: int | None = None,
+                 abandon_after_s: float = 120.0) -> None:
+        self.db = db
+        self.temp_root = temp_root
+        self.workers = workers
+        self.abandon_after_s = abandon_after_s
+        self.job: ExportJob | None = None
+        self._lock = threading.Lock()
+
+    def start(self, label: str | None = None, session: str | None = None) -> ExportJob:
+        """Start exporting the scans matching the filters; refuses when another export is running, no scan
+        matches, or the temporary folder has too little space."""
+        with self._lock:
+            old = self.job
+            if old is not None and old.running and not old._abandoned(self.abandon_after_s):
+                raise ExportBusy(f"an export of {old.filters} is running; wait for it or cancel it", old)
+            if old is not None:
+                self.cancel(old)  # its files are gone before the new job writes any
+            records = sorted(self.db.records(label=label, session=session), key=lambda r: (r.started, r.scan_id))
+            if not records:
+                raise ExportError(f"no scans with {filter_text(label, session)} to export")
+            root = Path(self.temp_root or tempfile.gettempdir())
+            _check_space(root, sum(entry.size for r in records for entry in self.db.files(r.scan_id)))
+            folder = Path(tempfile.mkdtemp(prefix="texplorer-export-", dir=root))
+            job = ExportJob(secrets.token_urlsafe(16), self.db, records, label, session, folder, self.workers)
+            job.thread = threading.Thread(target=job.run, args=(self.abandon_after_s,), name="export",
+                                          daemon=True)
+            self.job = job
+            job.thread.start()
+            return job
+
+    def get(self, job_id: str) -> ExportJob | None:
+        """The job with this id (it is the current one), or None."""
+        job = self.job
+        return job if job is not None and secrets.compare_digest(job.id, job_id) else None
+
+    def take(self, job: ExportJob) -> tuple[IO[bytes], str, int]:
+        """The finished bundle as an open file, its name and size; the file is deleted from disk now.
+
+        Raises :class:`ExportError` when the job has no bundle (not finished, or already downloaded).
+        """
+        with self._lock:
+            if job.phase != "done" or job.path is None:
+                raise ExportError("this export has no bundle to download "
+                                  + ("yet" if job.running else f"({PHASE_TEXT[job.phase].lower()})"))
+            path = job.path
+            handle = open(path, "rb")  # noqa: SIM115 -- closed by the response once sent
+            path.unlink()
+            job.phase, job.path = "downloaded", None
+            job.cancel.set()  # the thread removes the empty folder
+            return handle, path.name, job.size
+
+    @staticmethod
+    def cancel(job: ExportJob) -> None:
+        """Stop a running job or delete its finished bundle; returns when its files are gone."""
+        job.cancel.set()
+        if job.thread is not None:
+            job.thread.join(30)
+
+    def shutdown(self) -> None:
+        """Cancel the job and delete its files (server stop)."""
+        job = self.job
+        if job is not None:
+            self.cancel(job)
+
+
+def _check_space(root: Path, needed: int) -> None:
+    free = shutil.disk_usage(root).free
+    if free < needed + SPACE_MARGIN:
+        raise ExportError(f"not enough free space in {root} for the bundle: about "
+                          f"{(needed + SPACE_MARGIN) / 2**20:.0f} MB needed, {free / 2**20:.0f} MB free "
+                          "(set TMPDIR to a larger folder before 'texplorer serve', or export fewer scans)")
+
