@@ -10,9 +10,11 @@ leaves the database as it was.
 
 from __future__ import annotations
 
+import io
 import math
 import os
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -477,6 +479,35 @@ def summary() -> tuple[str, int] | Response:
                        description=context().db.taxonomy().describe(session.label))
 
 
+def _png(draw: Callable[[io.BytesIO], None]) -> bytes:
+    buffer = io.BytesIO()
+    draw(buffer)
+    return buffer.getvalue()
+
+
+def _send_png(data: bytes) -> Response:
+    return send_file(io.BytesIO(data), mimetype="image/png", max_age=0)
+
+
+@blueprint.get("/session/step/<step_id>/traces.png")
+def step_traces(step_id: str) -> Response:
+    """The traces of a recorded step, drawn in memory by ``taxonomy.plots.plot_step`` (cached per change)."""
+    from taxonomy.plots import plot_step
+
+    op = operation()
+    info = _record_step(op.session, step_id)
+    result = op.session.result(step_id)
+    if result is None or op.session.status(step_id).state is not StepState.RECORDED:
+        abort(404, description=f"step {info.number} has no recording yet")
+    key = ("step", step_id)
+    if key not in op.summary_cache:
+        session = op.session
+        title = f"Step {info.number}: {info.title}, {session.label} {session.sample_id} (not saved yet)"
+        op.summary_cache[key] = _png(lambda out: plot_step(result.traces, step_id, out, title,
+                                                           t_amb=session.t_amb))
+    return _send_png(op.summary_cache[key])
+
+
 @blueprint.get("/session/summary/traces.png")
 def summary_traces() -> Response:
     from taxonomy.plots import plot_scan
@@ -485,15 +516,11 @@ def summary_traces() -> Response:
     if op.session.missing():
         abort(409, description="the scan is not complete yet")
     summarise(op)
-    path = op.summary_cache.get("plot")
-    if path is None or not path.is_file():
-        plot_dir = context().plot_dir
-        plot_dir.mkdir(parents=True, exist_ok=True)
-        path = plot_dir / f"session-{op.session.session_id}-{op.version}.png"
+    if "plot" not in op.summary_cache:
         scan = op.summary_cache["scan"]
-        plot_scan(scan, path, title=f"{scan.meta.label}  {scan.scan_id} (not saved yet)")
-        op.summary_cache["plot"] = path
-    return send_file(path, mimetype="image/png", max_age=0)
+        title = f"{scan.meta.label}  {scan.scan_id} (not saved yet)"
+        op.summary_cache["plot"] = _png(lambda out: plot_scan(scan, out, title=title))
+    return _send_png(op.summary_cache["plot"])
 
 
 @blueprint.post("/session/save")
@@ -505,9 +532,6 @@ def save() -> tuple[str, int] | Response:
     except (SessionError, DatabaseError, ValueError) as exc:
         flash(f"The scan was not saved: {session_error(exc)}", "bad")
         return redirect(url_for("operate.summary"))
-    plot = op.summary_cache.get("plot")
     ctx.operations.end(op)
-    if plot is not None:
-        plot.unlink(missing_ok=True)
     flash(f"Scan {scan_id} was saved.", "good")
     return redirect(url_for("database.scan", scan_id=scan_id))

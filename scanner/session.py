@@ -106,27 +106,27 @@ class StepStatus:
 
 
 _STEPS = (
-    ("finger_tap", 1, "TU1 finger tap", "Rest a finger on TU1's accelerometer pad and tap the surface with "
+    ("finger_tap", "TU1 finger tap", "Rest a finger on TU1's accelerometer pad and tap the surface with "
      "it, about twice a second, until the recording ends."),
-    ("finger_slide", 2, "TU1 finger slide", "Hold TU1 still on the surface with your finger for a moment, "
+    ("finger_slide", "TU1 finger slide", "Hold TU1 still on the surface with your finger for a moment, "
      "then slide it over the surface at a steady pace until the recording ends."),
-    ("tool_tap", 3, "TU1 tool tap", "Mount the steel tool tip, then tap the surface with it about twice a "
+    ("tool_tap", "TU1 tool tap", "Mount the steel tool tip, then tap the surface with it about twice a "
      "second until the recording ends."),
-    ("tool_slide", 4, "TU1 tool slide", "With the tool tip mounted, hold TU1 still on the surface for a "
+    ("tool_slide", "TU1 tool slide", "With the tool tip mounted, hold TU1 still on the surface for a "
      "moment, then slide the tip over the surface at a steady pace."),
-    ("static", 5, "TU2 static touch", "Hold TU2 in the air (the magnetometer is zeroed now), then place it "
+    ("static", "TU2 static touch", "Hold TU2 in the air (the magnetometer is zeroed now), then place it "
      "flat on the sample and keep it still."),
-    ("thermal", 5, "TU2 heating and cooling", "Press TU2's Peltier element onto the surface while it heats; "
+    ("thermal", "TU2 heating and cooling", "Press TU2's Peltier element onto the surface while it heats; "
      "when told, lift TU2 and hold the temperature sensor over the heated spot."),
-    ("friction", 6, "TU2 friction slide", "Press TU2's finger contact onto the surface, push until it slips, "
+    ("friction", "TU2 friction slide", "Press TU2's finger contact onto the surface, push until it slips, "
      "slide a few centimetres, then release."),
-    ("press", 7, "TU2 press", "Press TU2 into the sample until the casing stops it (4.0 mm) and hold it "
+    ("press", "TU2 press", "Press TU2 into the sample until the casing stops it (4.0 mm) and hold it "
      "there until the recording ends."),
-    ("fold", 8, "TU2 fold", "Grip the sample edge in TU2 and fold it once or twice, then release. Skip this "
+    ("fold", "TU2 fold", "Grip the sample edge in TU2 and fold it once or twice, then release. Skip this "
      "step for a rigid sample."),
-    ("photos", 9, "TU3 photos", "Take the display photo, mount the 4x lens for the macro photo, then switch "
+    ("photos", "TU3 photos", "Take the display photo, mount the 4x lens for the macro photo, then switch "
      "the flash on for the illuminated photo (or upload three PNG/JPEG files)."),
-    ("tu4", 10, "TU4 mass, volume and judgement", "Weigh the sample, measure its volume by water or "
+    ("tu4", "TU4 mass, volume and judgement", "Weigh the sample, measure its volume by water or "
      "micro-pearl displacement, and judge its adhesive tack and yielding on the five-step scale."),
 )
 
@@ -134,7 +134,9 @@ _STEPS = (
 def procedure(config: Config) -> tuple[StepInfo, ...]:
     """The steps of SPEC 4 with the configured durations."""
     steps = []
-    for step, number, title, instruction in _STEPS:
+    # Numbered by position, so every step has its own number: the static touch and the heating and cooling
+    # are one part of the procedure but two steps here, each recorded and redone on its own.
+    for number, (step, title, instruction) in enumerate(_STEPS, start=1):
         if step == "photos":
             info = StepInfo(step, number, title, instruction, 0.0, tuple(IMAGES), False, "photos")
         elif step == "tu4":

@@ -6,11 +6,12 @@ works headless and does not touch global backend state.
 
 from __future__ import annotations
 
+import functools
 import os
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, BinaryIO
 
 import numpy as np
 import scipy.stats
@@ -18,10 +19,15 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from scanner.scan import Scan
+from scanner.scan import Scan, Trace
 
 if TYPE_CHECKING:
     from taxonomy.evaluation import Report
+
+Traces = Mapping[str, Trace]
+"""Channel name -> trace: a scan's ``traces`` or one recorded step's."""
+PlotTarget = str | os.PathLike[str] | BinaryIO
+"""A PNG file name, or a binary file object (a web page's image drawn in memory)."""
 
 _AXES = ("x", "y", "z")
 _MISSING = "not recorded"
@@ -35,8 +41,8 @@ def _note(ax: Axes, text: str) -> None:
     ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, color="0.4")
 
 
-def _acceleration(ax: Axes, scan: Scan, name: str, title: str) -> None:
-    trace = scan.get(name)
+def _acceleration(ax: Axes, traces: Traces, name: str, title: str) -> None:
+    trace = traces.get(name)
     ax.set_title(f"{title} ({name})")
     if trace is None:
         _note(ax, _MISSING)
@@ -63,12 +69,12 @@ def _trace(ax: Axes, data: np.ndarray, fs: float, label: str, lw: float) -> None
     ax.fill_between(t, usable.min(axis=1), usable.max(axis=1), label=label, alpha=0.6, lw=0)
 
 
-def _lines(ax: Axes, scan: Scan, names: Sequence[str], labels: Sequence[str], title: str, ylabel: str,
+def _lines(ax: Axes, traces: Traces, names: Sequence[str], labels: Sequence[str], title: str, ylabel: str,
            lw: float = 0.7) -> None:
     ax.set_title(title)
     drawn = False
     for name, label in zip(names, labels, strict=True):
-        trace = scan.get(name)
+        trace = traces.get(name)
         if trace is None:
             continue
         _trace(ax, trace.data, trace.fs, f"{label} ({name})", lw)
@@ -81,11 +87,11 @@ def _lines(ax: Axes, scan: Scan, names: Sequence[str], labels: Sequence[str], ti
     ax.legend(loc="upper right", fontsize="small")
 
 
-def _fold(ax: Axes, scan: Scan) -> None:
+def _fold(ax: Axes, traces: Traces, rigid: bool) -> None:
     ax.set_title("fold (f_fold, alpha_f)")
-    force, angle = scan.get("f_fold"), scan.get("alpha_f")
+    force, angle = traces.get("f_fold"), traces.get("alpha_f")
     if force is None or angle is None:
-        _note(ax, "fold skipped: rigid sample" if scan.meta.rigid else _MISSING)
+        _note(ax, "fold skipped: rigid sample" if rigid else _MISSING)
         return
     ax.plot(_time(force.n, force.fs), force.data, lw=0.7, color="C3", label="force")
     ax.set_xlabel("time (s)")
@@ -95,23 +101,23 @@ def _fold(ax: Axes, scan: Scan) -> None:
     twin.set_ylabel("flex angle (deg)", color="C0")
 
 
-def _thermal(ax: Axes, scan: Scan) -> None:
+def _thermal(ax: Axes, traces: Traces, t_amb: float) -> None:
     ax.set_title("thermal cooling (t_cool)")
-    trace = scan.get("t_cool")
+    trace = traces.get("t_cool")
     if trace is None:
         _note(ax, _MISSING)
         return
     ax.plot(_time(trace.n, trace.fs), trace.data, ".-", lw=0.7, ms=2, label="MLX90614 object")
-    if np.isfinite(scan.meta.t_amb):
-        ax.axhline(scan.meta.t_amb, color="0.5", ls="--", lw=0.8, label=f"t_amb {scan.meta.t_amb:.2f} degC")
+    if np.isfinite(t_amb):
+        ax.axhline(t_amb, color="0.5", ls="--", lw=0.8, label=f"t_amb {t_amb:.2f} degC")
     ax.set_xlabel("time after heating (s)")
     ax.set_ylabel("temperature (degC)")
     ax.legend(loc="upper right", fontsize="small")
 
 
-def _metal_magnet(ax: Axes, scan: Scan) -> None:
+def _metal_magnet(ax: Axes, traces: Traces) -> None:
     ax.set_title("metal electrodes (m) and magnetometer (dB)")
-    metal, field = scan.get("m"), scan.get("dB")
+    metal, field = traces.get("m"), traces.get("dB")
     if metal is None and field is None:
         _note(ax, _MISSING)
         return
@@ -154,7 +160,7 @@ def _summary(ax: Axes, scan: Scan) -> None:
     ax.text(0.0, 1.0, text, va="top", ha="left", family="monospace", fontsize=9, transform=ax.transAxes)
 
 
-def plot_scan(scan: Scan, path: str | os.PathLike[str], title: str | None = None) -> None:
+def plot_scan(scan: Scan, path: PlotTarget, title: str | None = None) -> None:
     """Every channel of one scan on one page, like the paper's Fig. 9, saved as a PNG at ``path``.
 
     Panels: the four TU1 accelerations (3 axes each), audio, IR reflectance, friction forces, press force,
@@ -165,23 +171,81 @@ def plot_scan(scan: Scan, path: str | os.PathLike[str], title: str | None = None
     figure = Figure(figsize=(22, 17), layout="constrained")
     FigureCanvasAgg(figure)
     grid = figure.subplots(4, 4)
-    for ax, (name, label) in zip(grid[0], (("v_ft", "finger tap"), ("v_fs", "finger slide"),
-                                           ("v_tt", "tool tap"), ("v_ts", "tool slide")), strict=True):
-        _acceleration(ax, scan, name, label)
-    _lines(grid[1, 0], scan, ("a_fs", "a_ts"), ("finger", "tool"), "audio", "audio (full scale)")
-    _lines(grid[1, 1], scan, ("r_fs", "r_ts"), ("finger slide", "tool slide"), "IR reflectance", "IR (V)")
-    _lines(grid[1, 2], scan, ("f_frn", "f_frt"), ("normal", "tangential"), "friction slide", "force (N)")
-    _lines(grid[1, 3], scan, ("f_press",), ("normal",), "press, 4.0 mm indentation", "force (N)")
-    _fold(grid[2, 0], scan)
-    _thermal(grid[2, 1], scan)
-    _metal_magnet(grid[2, 2], scan)
+    traces = scan.traces
+    for ax, step in zip(grid[0], ("finger_tap", "finger_slide", "tool_tap", "tool_slide"), strict=True):
+        _acceleration(ax, traces, *_ACCELERATION[step])
+    _lines(grid[1, 0], traces, ("a_fs", "a_ts"), ("finger", "tool"), "audio", "audio (full scale)")
+    _lines(grid[1, 1], traces, ("r_fs", "r_ts"), ("finger slide", "tool slide"), "IR reflectance", "IR (V)")
+    _lines(grid[1, 2], traces, ("f_frn", "f_frt"), ("normal", "tangential"), "friction slide", "force (N)")
+    _lines(grid[1, 3], traces, ("f_press",), ("normal",), "press, 4.0 mm indentation", "force (N)")
+    _fold(grid[2, 0], traces, scan.meta.rigid)
+    _thermal(grid[2, 1], traces, scan.meta.t_amb)
+    _metal_magnet(grid[2, 2], traces)
     _summary(grid[2, 3], scan)
     for ax, (name, label) in zip(grid[3], (("I_disp", "photo"), ("I_macro", "macro lens"),
                                            ("I_illu", "flash")), strict=False):
         _photo(ax, scan, name, label)
     grid[3, 3].set_axis_off()
     figure.suptitle(title or f"{scan.meta.label}  {scan.scan_id}", fontsize=16)
-    figure.savefig(os.fspath(path), dpi=80)
+    figure.savefig(_target(path), dpi=80, format="png")
+
+
+_ACCELERATION = {"finger_tap": ("v_ft", "finger tap"), "finger_slide": ("v_fs", "finger slide"),
+                 "tool_tap": ("v_tt", "tool tap"), "tool_slide": ("v_ts", "tool slide")}
+"""The acceleration channel and its title for each TU1 step."""
+
+STEP_PLOT_WIDTH_PX = 800
+"""Width of :func:`plot_step`'s figure: a tablet's screen, so the page shows it at (about) its own size."""
+
+
+def _step_panels(step: str, traces: Traces, t_amb: float, rigid: bool) -> list[Callable[[Axes], None]]:
+    """The panels of :func:`plot_scan` that show the channels one step of the procedure records."""
+    if step in _ACCELERATION:
+        panels = [functools.partial(_acceleration, traces=traces, name=_ACCELERATION[step][0],
+                                    title=_ACCELERATION[step][1])]
+        if step.endswith("slide"):
+            who, s = ("finger", "fs") if step == "finger_slide" else ("tool", "ts")
+            panels += [functools.partial(_lines, traces=traces, names=(f"a_{s}",), labels=(who,), title="audio",
+                                         ylabel="audio (full scale)"),
+                       functools.partial(_lines, traces=traces, names=(f"r_{s}",), labels=(f"{who} slide",),
+                                         title="IR reflectance", ylabel="IR (V)")]
+        return panels
+    others: dict[str, Callable[[Axes], None]] = {
+        "static": functools.partial(_metal_magnet, traces=traces),
+        "thermal": functools.partial(_thermal, traces=traces, t_amb=t_amb),
+        "friction": functools.partial(_lines, traces=traces, names=("f_frn", "f_frt"),
+                                      labels=("normal", "tangential"), title="friction slide", ylabel="force (N)"),
+        "press": functools.partial(_lines, traces=traces, names=("f_press",), labels=("normal",),
+                                   title="press, 4.0 mm indentation", ylabel="force (N)"),
+        "fold": functools.partial(_fold, traces=traces, rigid=rigid),
+    }
+    if step not in others:
+        raise ValueError(f"{step!r} is not a recorded step (known: {', '.join([*_ACCELERATION, *others])})")
+    return [others[step]]
+
+
+def plot_step(traces: Traces, step: str, path: PlotTarget, title: str = "", *, t_amb: float = float("nan"),
+              rigid: bool = False) -> None:
+    """The channels one step records, with the panels of :func:`plot_scan`, as a PNG for a tablet screen.
+
+    ``traces`` maps channel names to traces (a recorded step's ``StepResult.traces`` or a whole scan's);
+    ``step`` is a step of the guided session (``finger_tap`` ... ``fold``). The figure is 800 px wide with
+    one panel per row, so on a tablet its text is drawn at about its own size.
+    """
+    panels = _step_panels(step, traces, t_amb, rigid)
+    dpi = 125  # 6.4 in x 125 dpi = 800 px; text in points grows with the dpi, so it stays legible
+    figure = Figure(figsize=(STEP_PLOT_WIDTH_PX / dpi, 0.5 + 2.6 * len(panels)), layout="constrained")
+    FigureCanvasAgg(figure)
+    axes = figure.subplots(len(panels), 1, squeeze=False)[:, 0]
+    for ax, panel in zip(axes, panels, strict=True):
+        panel(ax)
+    if title:
+        figure.suptitle(title, fontsize=11)
+    figure.savefig(_target(path), dpi=dpi, format="png")
+
+
+def _target(path: PlotTarget) -> str | BinaryIO:
+    return path if hasattr(path, "write") else os.fspath(path)
 
 
 # -- evaluation plots (paper Figs. 14-18) -------------------------------------------------------------

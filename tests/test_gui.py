@@ -4,6 +4,7 @@ session driven through Flask's test client with simulated devices."""
 from __future__ import annotations
 
 import math
+import re
 import struct
 import zlib
 
@@ -402,9 +403,21 @@ def test_full_session_through_the_server(client, app):
     assert field_error(post(client, "/session/ambient", {"t_amb": "90"}).text, "t_amb") \
         == "90 degC is outside the sensor's range -40 to 85 degC"
     assert post(client, "/session/ambient", {"t_amb": "22,5"}).status_code == 302
+    assert get(client, "/session/step/finger_tap/traces.png").status_code == 404  # nothing recorded yet
     record_all(client, app)
-    step_page = get(client, "/session/step/tool_slide").text
-    assert "Quality check" in step_page and "Redo this step" in step_page
+    numbers = []
+    for step in RECORDED_STEPS:
+        step_page = get(client, f"/session/step/{step}").text
+        assert "Quality check" in step_page and "Redo this step" in step_page
+        numbers.append(int(step_page.split("<h1>Step ", 1)[1].split(":", 1)[0]))
+        # the step's traces between the quality result and the keep/redo buttons
+        image = f'<img src="/session/step/{step}/traces.png?v={active(app).version}"'
+        assert step_page.index("Quality check") < step_page.index(image) < step_page.index("Redo this step")
+        png = get(client, f"/session/step/{step}/traces.png")
+        assert png.mimetype == "image/png" and png_size(png.data)[0] == 800
+    assert numbers == list(range(1, len(RECORDED_STEPS) + 1))
+    chips = re.findall(r'<a href="/session/[^"]*"[^>]*>(\d+)\. ', step_page)
+    assert chips == [str(n) for n in range(1, 12)]  # the progress strip too, photos and TU4 included
 
     photo = noise_photo(1)
     upload = {"I_disp": png_upload(photo), "atk": "0.25", "cyd": "0", "mass_g": "512,5 g",
@@ -437,8 +450,16 @@ def test_full_session_through_the_server(client, app):
     assert np.array_equal(scan.images["I_disp"], photo)  # the uploaded pixels, losslessly
     assert set(scan.traces) == set(scanner_channels())
     assert not any((app.extensions["texplorer"].photos.folder).iterdir())  # staged previews removed
+    work = app.extensions["texplorer"].settings.work_dir  # trace figures were drawn in memory, not kept
+    assert [p for p in work.rglob("*") if p.is_file()] == []
     listing = get(client, "/db/scans").text
     assert "granite-07-001" in listing
+
+
+def png_size(data: bytes) -> tuple[int, int]:
+    """Width and height from a PNG's IHDR chunk."""
+    assert data.startswith(b"\x89PNG\r\n\x1a\n")
+    return struct.unpack(">II", data[16:24])
 
 
 def scanner_channels():

@@ -533,3 +533,23 @@ def test_plot_scan_writes_one_page_png_also_without_fold_channels(tmp_path, foam
         assert header[:8] == b"\x89PNG\r\n\x1a\n"
         width, height = int.from_bytes(header[16:20], "big"), int.from_bytes(header[20:24], "big")
         assert (width, height) == (22 * 80, 17 * 80)  # 22 x 17 inches at 80 dpi
+
+
+def test_plot_step_draws_one_steps_channels_800_px_wide(foam_and_steel):
+    import io
+
+    from scanner.config import Config
+    from scanner.session import procedure
+    from taxonomy.plots import plot_step
+
+    scan = foam_and_steel[0]
+    recorded = [step.id for step in procedure(Config()) if step.kind == "record"]
+    for step in recorded:
+        out = io.BytesIO()
+        plot_step(scan.traces, step, out, title=step, t_amb=scan.meta.t_amb)
+        header = out.getvalue()[:24]
+        width, height = int.from_bytes(header[16:20], "big"), int.from_bytes(header[20:24], "big")
+        panels = 3 if step in ("finger_slide", "tool_slide") else 1  # acceleration, audio, IR of a slide
+        assert (width, height) == (800, int((0.5 + 2.6 * panels) * 125)), step  # Agg truncates
+    with pytest.raises(ValueError, match="'tu4' is not a recorded step"):
+        plot_step(scan.traces, "tu4", io.BytesIO())
