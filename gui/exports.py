@@ -50,7 +50,7 @@ PHASE_TEXT = {
     "features": "Computing the features of scans not in the feature cache yet",
     "copying": "Copying and checking the scans' files",
     "done": "The bundle is ready",
-    "downloaded": "The bundle was downloaded and deleted here",
+    "downloaded": "Downloaded, and no longer kept here",
     "failed": "The export failed",
     "cancelled": "The export was cancelled; nothing was kept",
 }
@@ -99,6 +99,7 @@ class ExportJob:
     done: int = 0
     error: str = ""
     path: Path | None = None
+    name: str = ""
     size: int = 0
     started: float = field(default_factory=time.monotonic)
     last_seen: float = field(default_factory=time.monotonic)
@@ -130,7 +131,12 @@ class ExportJob:
             fraction = 0.5 + 0.5 * fraction
         elif self.phase in ("done", "downloaded"):
             fraction = 1.0
-        return {"id": self.id, "phase": self.phase, "phase_text": PHASE_TEXT[self.phase], "done": self.done,
+        text = PHASE_TEXT[self.phase]
+        if self.phase in ("done", "downloaded"):
+            text += f": {self.name} ({self.size / 2**20:.1f} MB)"
+        count = (f"step {RUNNING.index(self.phase) + 1} of 2: {self.done} of {self.total} scans"
+                 if self.running else "")
+        return {"id": self.id, "phase": self.phase, "phase_text": text, "count_text": count, "done": self.done,
                 "total": self.total, "fraction": round(fraction, 4), "running": self.running,
                 "ready": self.phase == "done", "error": self.error, "bytes": self.size,
                 "filters": self.filters, "seconds": round(time.monotonic() - self.started, 1)}
@@ -146,7 +152,8 @@ class ExportJob:
             report = export_bundle(self.db, self.folder / f"texplorer-export-{stamp}.zip", label=self.label,
                                    session=self.session, workers=self.workers,
                                    progress=functools.partial(self._count, abandon_after_s=abandon_after_s))
-            self.path, self.size, self.phase = report.path, report.path.stat().st_size, "done"
+            self.path, self.name, self.size = report.path, report.path.name, report.path.stat().st_size
+            self.phase = "done"
             while not self.cancel.wait(0.5) and not self._abandoned(abandon_after_s):
                 pass
         except _Cancelled:

@@ -14,7 +14,8 @@ classes, which is the same thing at the fine level.
 
 Metrics per fold: accuracy and macro F1 (F1 averaged over the classes that occur in the fold's true or
 predicted labels; a class never predicted scores 0). ``r_C`` (eq. 32) is the share of misclassifications
-whose predicted major class C differs from the true one.
+whose predicted major class C differs from the true one; it is NaN (shown as "-") where undefined: without
+misclassifications, and at the coarse level, where every misclassification changes C by definition.
 """
 
 from __future__ import annotations
@@ -139,13 +140,18 @@ def r_c(confusion: np.ndarray, classes: Sequence[str]) -> float:
     """Share of misclassifications whose predicted major class differs from the true one (paper eq. 32).
 
     ``r_C = sum over misclassified n of (1 - delta(yhat_C,n, y_C,n)) / N_miss``, read from a confusion
-    matrix (rows true, columns predicted, in the order of ``classes``). NaN when nothing is misclassified.
-    At the coarse level every misclassification changes C, so r_C is 1.
+    matrix (rows true, columns predicted, in the order of ``classes``).
+
+    NaN where the metric is undefined (reports show "-"): when nothing is misclassified (no N_miss), and
+    at the coarse level, where the classes are the major classes themselves: every misclassification
+    changes C by definition, so the ratio would be 1 whatever the classifier does and says nothing.
     """
     confusion = np.asarray(confusion)
     if confusion.shape != (len(classes), len(classes)):
         raise EvaluationError(f"confusion matrix of shape {confusion.shape} for {len(classes)} classes")
     majors = np.array([major_class(c) for c in classes])
+    if all(major == code for major, code in zip(majors, classes, strict=True)):
+        return float("nan")
     wrong = ~np.eye(len(classes), dtype=bool)
     errors = confusion[wrong].sum()
     if errors == 0:
@@ -204,7 +210,8 @@ class Report:
 
     @property
     def r_c(self) -> float:
-        """Paper eq. (32) over all folds' misclassifications; NaN if there are none."""
+        """Paper eq. (32) over all folds' misclassifications; NaN where undefined (no misclassification, or
+        the coarse level), see :func:`r_c`."""
         return r_c(self.confusion, self.classes)
 
     def summary(self) -> str:
@@ -212,7 +219,7 @@ class Report:
         split = "grouped" if self.grouped else "ungrouped"
         return (f"{self.classifier} {self.level} X{self.n_features} {self.feature_set} ({self.protocol}): "
                 f"accuracy {100 * self.accuracy_mean:.1f} % +- {100 * self.accuracy_std:.1f} %, "
-                f"F1 {self.f1_mean:.2f} +- {self.f1_std:.2f}, r_C {self.r_c:.2f} "
+                f"F1 {self.f1_mean:.2f} +- {self.f1_std:.2f}, r_C {format_r_c(self.r_c)} "
                 f"({self.folds} {split} folds, {len(self.classes)} classes, seed {self.seed})")
 
     def to_dict(self) -> dict[str, Any]:
@@ -229,6 +236,11 @@ class Report:
             "selected": [list(s) for s in self.selected], "columns": list(self.columns),
             "dropped": list(self.dropped), "warnings": list(self.warnings),
         }
+
+
+def format_r_c(value: float) -> str:
+    """r_C with two decimals, or "-" where it is undefined (NaN, see :func:`r_c`)."""
+    return "-" if np.isnan(value) else f"{value:.2f}"
 
 
 def _fold_std(values: np.ndarray) -> float:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import functools
 import os
 import re
+import textwrap
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, BinaryIO
@@ -20,6 +21,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from scanner.scan import Scan, Trace
+from taxonomy.table import Taxonomy, load_taxonomy
 
 if TYPE_CHECKING:
     from taxonomy.evaluation import Report
@@ -273,6 +275,31 @@ def _label_size(count: int) -> float:
     return float(np.clip(300 / max(count, 1), 5, 10))
 
 
+NAME_WIDTH = 32
+"""Characters of a class name in a figure; longer names are shortened at a word with "…"."""
+
+
+def class_labels(classes: Sequence[str], taxonomy: Taxonomy | None = None, width: int = NAME_WIDTH) -> list[str]:
+    """Tick labels that name each class and keep its code: ``"granite, polished (C6S1M1P2X1)"``.
+
+    Names come from :meth:`taxonomy.table.Taxonomy.class_name` (``taxonomy``, default the shipped table with
+    the lab's extension), shortened to ``width`` characters; a class that is not a taxonomy code in its
+    canonical spelling (classes of other data sets) stays as it is.
+    """
+    table = taxonomy if taxonomy is not None else load_taxonomy()
+    labels = []
+    for code in classes:
+        try:
+            if code != code.strip().upper():  # "c3" of another data set is no taxonomy code
+                raise ValueError(code)
+            name = _shorten(table.class_name(code), width)
+        except ValueError:
+            labels.append(code)
+            continue
+        labels.append(f"{name} ({code})")
+    return labels
+
+
 def plot_scores(reports: Sequence[Report], level: str, n_features: int,
                 path: str | os.PathLike[str]) -> Path:
     """Accuracy (top) and macro F1 (bottom) per feature set and classifier, like the paper's Figs. 16-18.
@@ -397,46 +424,73 @@ def plot_pca_variance(X: np.ndarray, path: str | os.PathLike[str], marks: Sequen
 
 
 def plot_feature_boxes(values: np.ndarray, classes: Sequence[str], feature: str,
-                       path: str | os.PathLike[str], max_classes: int = 40, title: str | None = None) -> Path:
+                       path: str | os.PathLike[str], max_classes: int = 40, title: str | None = None,
+                       taxonomy: Taxonomy | None = None) -> Path:
     """Box plot of one feature per class (paper Fig. 14); at most ``max_classes`` classes, in label order.
 
-    NaN values are left out of their class's box.
+    The boxes lie horizontally, one row per class named as :func:`class_labels` names it, so the names read
+    left to right. NaN values are left out of their class's box.
     """
     values = np.asarray(values, dtype=np.float64)
     classes = np.asarray(classes)
     names = sorted(set(classes.tolist()))
     shown = names[:max_classes]
     data = [values[(classes == c) & np.isfinite(values)] for c in shown]
-    figure = _canvas(max(6.0, 0.28 * len(shown) + 2.5), 5.0)
+    size = min(_label_size(len(shown)), 9.0)
+    figure = _canvas(9.0, max(3.0, 0.26 * len(shown) + 1.6))
     ax = figure.subplots()
-    ax.boxplot(data, tick_labels=shown, widths=0.6, flierprops={"markersize": 3})
-    ax.tick_params(axis="x", labelrotation=90, labelsize=_label_size(len(shown)))
-    ax.set_ylabel(feature)
+    ax.boxplot(data, tick_labels=class_labels(shown, taxonomy), widths=0.6, flierprops={"markersize": 3},
+               orientation="horizontal")
+    ax.invert_yaxis()  # first class at the top, as in a table
+    ax.tick_params(axis="y", labelsize=size)
+    ax.grid(axis="x", color="0.9")
+    ax.set_xlabel(feature)
     note = f" (first {len(shown)} of {len(names)} classes)" if len(shown) < len(names) else ""
-    ax.set_title((title or f"{feature} per class") + note)
+    ax.set_title(_wrap((title or f"{feature} per class") + note, 70))
     return _save(figure, path)
 
 
+def _shorten(text: str, width: int) -> str:
+    """``text`` cut at a word to about ``width`` characters, marked with "…" where it was cut."""
+    if len(text) <= width:
+        return text
+    kept = textwrap.shorten(text, width - 2, placeholder="").rstrip(" ,;")
+    return f"{kept or text[:width - 2]} …"
+
+
+def _wrap(text: str, width: int) -> str:
+    """A title over several lines rather than wider than its figure."""
+    return "\n".join(textwrap.wrap(text, width)) or text
+
+
 def plot_confusion(confusion: np.ndarray, classes: Sequence[str], path: str | os.PathLike[str],
-                   title: str = "confusion matrix", max_labels: int = 40) -> Path:
+                   title: str = "confusion matrix", max_labels: int = 40, taxonomy: Taxonomy | None = None) -> Path:
     """Confusion matrix normalised per true class (rows true, columns predicted).
 
-    Up to ``max_labels`` classes every class is labelled (with counts up to 12 classes); beyond that the
-    axes are labelled by major class C, whose blocks are outlined, so misclassifications that leave the
-    major class (eq. 32) stand out.
+    Up to ``max_labels`` classes every class is labelled with its name and code (:func:`class_labels`) on
+    the rows, and on the columns too up to 12 classes (with counts in the cells); with more, the columns
+    show the codes alone, which stay legible side by side. Beyond ``max_labels`` the axes are labelled by
+    major class C, whose blocks are outlined, so misclassifications that leave the major class (eq. 32)
+    stand out.
     """
     confusion = np.asarray(confusion, dtype=np.float64)
     n = len(classes)
     totals = confusion.sum(axis=1, keepdims=True)
     share = np.divide(confusion, totals, out=np.zeros_like(confusion), where=totals > 0)
     side = float(np.clip(0.18 * n + 3, 5, 14))
-    figure = _canvas(side + 1.5, side)
+    figure = _canvas(side + 4.5, side + 1.5)
     ax = figure.subplots()
     image = ax.imshow(share, cmap="Blues", vmin=0, vmax=1, interpolation="nearest")
+    xlabel = "predicted class"
     if n <= max_labels:
-        size = _label_size(n)
-        ax.set_xticks(range(n), classes, rotation=90, fontsize=size)
-        ax.set_yticks(range(n), classes, fontsize=size)
+        size = min(_label_size(n), 9.0)
+        named = class_labels(classes, taxonomy)
+        if n <= 12:
+            ax.set_xticks(range(n), named, rotation=90, fontsize=size)
+        else:
+            ax.set_xticks(range(n), classes, rotation=90, fontsize=size)
+            xlabel = "predicted class (codes; names on the left)"
+        ax.set_yticks(range(n), named, fontsize=size)
         if n <= 12:
             for i, j in zip(*np.nonzero(confusion), strict=True):
                 ax.text(j, i, f"{confusion[i, j]:.0f}", ha="center", va="center", fontsize=8,
@@ -446,14 +500,14 @@ def plot_confusion(confusion: np.ndarray, classes: Sequence[str], path: str | os
         starts = [i for i in range(n) if i == 0 or majors[i] != majors[i - 1]]
         ends = [*starts[1:], n]
         centres = [(a + b - 1) / 2 for a, b in zip(starts, ends, strict=True)]
-        labels = [majors[a] for a in starts]
-        ax.set_xticks(centres, labels, fontsize=9)
+        labels = class_labels([majors[a] for a in starts], taxonomy)
+        ax.set_xticks(centres, labels, fontsize=9, rotation=90)
         ax.set_yticks(centres, labels, fontsize=9)
         for edge in starts[1:]:
             ax.axhline(edge - 0.5, color="0.6", lw=0.5)
             ax.axvline(edge - 0.5, color="0.6", lw=0.5)
-    ax.set_xlabel("predicted class")
+    ax.set_xlabel(xlabel)
     ax.set_ylabel("true class")
-    ax.set_title(title)
+    ax.set_title(_wrap(title, 80))
     figure.colorbar(image, ax=ax, label="share of the true class", shrink=0.7)
     return _save(figure, path, dpi=90)

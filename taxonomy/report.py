@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from features.selection import Selection, select_features
-from taxonomy.evaluation import Report, major_class
+from taxonomy.evaluation import Report, format_r_c, major_class
 from taxonomy.labels import LEVELS
 from taxonomy.plots import (
     plot_confusion,
@@ -38,7 +38,8 @@ if TYPE_CHECKING:
     from features.space import FeatureSpace
     from taxonomy.methods import MethodResult
 
-CELL_LEGEND = "accuracy % (mean +- std over folds), macro F1, r_C"
+CELL_LEGEND = ("accuracy % (mean +- std over folds), macro F1, r_C (paper eq. 32; - where undefined: no "
+               "misclassification, or the coarse level, where every misclassification leaves the major class)")
 PAGE_STYLE = ("body{font-family:sans-serif;margin:2em;max-width:1200px}table{border-collapse:collapse;"
               "margin-bottom:1.5em}td,th{border:1px solid #ccc;padding:2px 8px;font-family:monospace;"
               "white-space:pre;text-align:left}figure{margin:1.5em 0}img{max-width:100%}"
@@ -47,10 +48,13 @@ PAGE_STYLE = ("body{font-family:sans-serif;margin:2em;max-width:1200px}table{bor
 
 
 def cell_text(report: Report) -> str:
-    """``"90.2 +- 1.2  0.90  0.05"``: accuracy in percent, macro F1 and r_C (``-`` when no errors)."""
-    r = report.r_c
+    """``"90.2 +- 1.2  0.90  0.05"``: accuracy in percent, macro F1 and r_C.
+
+    r_C is NaN where it is undefined (``taxonomy.evaluation.r_c``: no misclassification, or the coarse
+    level) and shown as ``-`` then, never as a number.
+    """
     return (f"{100 * report.accuracy_mean:5.1f} +- {100 * report.accuracy_std:4.1f}  {report.f1_mean:4.2f}  "
-            + ("   -" if np.isnan(r) else f"{r:4.2f}"))
+            f"{format_r_c(report.r_c):>4}")
 
 
 def _blocks(reports: Sequence[Report]) -> list[tuple[str, list[str], list[tuple[str, str, list[str]]]]]:
@@ -132,7 +136,7 @@ def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: S
         if at_level:
             best = max(at_level, key=lambda r: r.accuracy_mean)
             title = (f"{lvl}: {best.classifier}, {best.feature_set}, X{best.n_features}; accuracy "
-                     f"{100 * best.accuracy_mean:.1f} %, r_C {best.r_c:.2f}")
+                     f"{100 * best.accuracy_mean:.1f} %, r_C {format_r_c(best.r_c)}")
             figures.append((f"confusion matrix of the best classifier at the {lvl} level ({title})",
                             plot_confusion(best.confusion, best.classes, folder / f"confusion_{lvl}.png",
                                            title=title, max_labels=max_classes)))

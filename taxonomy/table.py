@@ -248,6 +248,23 @@ class Taxonomy:
         names = self.names(label)
         return f"{names.m} ({names.s}, {names.c}), {names.p}, {names.x}"
 
+    def class_name(self, code: str) -> str:
+        """Short name of a class at any level, for figures: ``"stone"`` (C6), ``"igneous stone"`` (C6S1),
+        ``"granite, polished"`` (C6S1M1P2X1: material and processing shape, and the extra attribute unless
+        it is X1, which the table defines as "no extra attribute").
+
+        Raises
+        ------
+        ValueError
+            The code is malformed or not in the table.
+        """
+        key = code.strip().upper()
+        if key in self._entries:
+            return self._entries[key].name
+        names = self.names(key)
+        label = Label.parse(key)
+        return ", ".join([names.m, names.p] + ([names.x] if label.x != 1 else []))
+
     def materials(self) -> list[Material]:
         """Every material (C, S, M) in table order, with its sub-class and major class names."""
         return [self._material(entry) for entry in self._entries.values() if entry.kind == "M"]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import html
 import json
+import re
 import warnings
 
 import numpy as np
@@ -62,10 +63,12 @@ def test_r_c_counts_misclassifications_across_major_classes():
     assert r_c(confusion, classes) == pytest.approx(5 / 7)
 
 
-def test_r_c_is_nan_without_errors_and_one_at_the_coarse_level():
-    assert np.isnan(r_c(np.diag([3, 4]), ["C1", "C2"]))
-    assert r_c(np.array([[3, 1], [2, 4]]), ["C1", "C2"]) == 1.0
+def test_r_c_is_undefined_without_errors_and_at_the_coarse_level():
+    assert np.isnan(r_c(np.diag([3, 4]), ["C1S1", "C2S1"]))
+    # At the coarse level every error changes the major class by definition: 1 whatever happens, so NaN.
+    assert np.isnan(r_c(np.array([[3, 1], [2, 4]]), ["C1", "C2"]))
     assert r_c(np.array([[3, 1], [2, 4]]), ["C1S1", "C1S2"]) == 0.0
+    assert r_c(np.array([[3, 1], [2, 4]]), ["C1S1", "C2S1"]) == 1.0
 
 
 def test_r_c_refuses_a_mismatched_confusion_and_codes_without_a_major_class():
@@ -292,20 +295,35 @@ def test_text_table_shows_the_report_numbers():
     assert row.split()[:2] == ["nb", "all"]
     assert f"{100 * coarse.accuracy_mean:.1f} +- {100 * coarse.accuracy_std:.1f}" in " ".join(row.split())
     assert cell_text(fine).split()[-1] == ("-" if np.isnan(fine.r_c) else f"{fine.r_c:.2f}")
+    assert np.isnan(coarse.r_c) and row.split()[6] == "-"  # undefined at the coarse level, not "1.00"
+    assert "nan" not in text.lower()
+
+
+def test_figure_labels_name_each_class_and_keep_its_code():
+    from taxonomy.plots import class_labels
+
+    assert class_labels(["C6S1M1P2X1", "C6S1", "C6", "C99S1M1P1X1", "c3"]) \
+        == ["granite, polished (C6S1M1P2X1)", "igneous stone (C6S1)", "stone (C6)", "C99S1M1P1X1", "c3"]
+    short = class_labels(["C1S1M1P4X2"], width=14)[0]
+    assert short == "oak, planed … (C1S1M1P4X2)"
 
 
 def test_html_report_is_one_offline_folder(tmp_path):
     space = labelled_space()
-    reports = evaluate_grid(space, classifiers=("nb", "lda"), levels=("medium",), set_sizes=(3,),
+    reports = evaluate_grid(space, classifiers=("nb", "lda"), levels=("coarse", "medium"), set_sizes=(3,),
                             feature_sets={"image": "image", "all": None}, folds=3, workers=1)
     page = write_report(tmp_path / "report", space, reports, level="medium", n_features=3)
     names = sorted(p.name for p in page.parent.iterdir())
-    assert names == ["boxes.png", "confusion_medium.png", "fq_ranking.png", "index.html", "pca.png",
-                     "scores_medium_X3.png", "spearman.png"]
+    assert names == ["boxes.png", "confusion_coarse.png", "confusion_medium.png", "fq_ranking.png", "index.html",
+                     "pca.png", "scores_coarse_X3.png", "scores_medium_X3.png", "spearman.png"]
     text = page.read_text(encoding="utf-8")
-    assert text.count('src="data:image/png;base64,') == 6
+    assert text.count('src="data:image/png;base64,') == 8
     assert "http" not in text and "<link" not in text and "<script" not in text
     assert html.escape(cell_text(reports[0])) in text
+    coarse_cells = [cell_text(r) for r in reports if r.level == "coarse"]
+    assert all(cell.endswith("  -") and f"<td>{cell}</td>" in text for cell in coarse_cells)
+    words = re.sub(r'src="data:image/png;base64,[^"]*"', "", text)
+    assert "nan" not in words.lower() and "r_C -" in words  # the coarse confusion matrix's caption too
 
 
 def test_levels_of_one_space_share_the_split_policy():

@@ -771,7 +771,7 @@ def test_export_bundle_is_taken_once_then_gone(exporter, tmp_path):
     assert first.status_code == 200
     job = exporter.extensions["texplorer"].exports.job
     again = get(client, f"/db/export/{job.id}/bundle.zip")
-    assert again.status_code == 409 and "already" not in again.text and "downloaded" in again.text
+    assert again.status_code == 409 and "no bundle to download (downloaded, and no longer kept here)" in again.text
     assert get(client, f"/db/export/{job.id}/status").json["phase"] == "downloaded"
     assert get(client, "/db/export/not-a-job/status").status_code == 404
     job.thread.join(5)

@@ -5,15 +5,20 @@ picker, every step with its live level, the operator form with a photo upload, t
 database contents and the database browser. Then each validation error for bad input with nothing saved,
 CSRF rejection, keyboard use, and the layout on a laptop and a tablet screen.
 
-Screenshots of every page go to ``tests/output/screenshots/`` (ignored by git).
+Screenshots of every page go to ``$TEXPLORER_SCREENSHOTS`` (default ``texplorer-screenshots`` in the
+system's temporary folder), outside the repository.
 """
 
 from __future__ import annotations
 
+import json
 import logging
+import os
 import shutil
+import tempfile
 import threading
 import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +37,7 @@ from scanner.matfile import encode_png  # noqa: E402
 
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                  "--disable-background-networking", "--disable-component-update", "--disable-sync"]
-SCREENSHOTS = Path(__file__).parent / "output" / "screenshots"
+SCREENSHOTS = Path(os.environ.get("TEXPLORER_SCREENSHOTS") or Path(tempfile.gettempdir()) / "texplorer-screenshots")
 LAPTOP = {"width": 1366, "height": 800}
 TABLET = {"width": 768, "height": 1024}
 UPLOAD_LIMIT = 400_000
@@ -48,7 +53,6 @@ def realtime_config() -> Config:
 @pytest.fixture(scope="module")
 def browser():
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
-    (SCREENSHOTS.parent / ".gitignore").write_text("*\n")
     with playwright.sync_playwright() as driver:
         chromium = driver.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         yield chromium
@@ -61,7 +65,8 @@ def server(tmp_path):
     from werkzeug.serving import make_server
 
     logging.getLogger("werkzeug").setLevel(logging.WARNING)  # no line per request in the test output
-    app = make_app(tmp_path / "db", realtime_config(), upload_limit=UPLOAD_LIMIT)
+    (tmp_path / "exports").mkdir()
+    app = make_app(tmp_path / "db", realtime_config(), upload_limit=UPLOAD_LIMIT, export_dir=tmp_path / "exports")
     http = make_server("127.0.0.1", 0, app, threaded=True)
     thread = threading.Thread(target=http.serve_forever, daemon=True)
     thread.start()
@@ -128,12 +133,19 @@ def start_scan(page, base: str, sample: str) -> None:
 
 
 def record_step(page, number: int, name: str, screenshot: bool) -> None:
+    """Record the step on the page; then its traces must be shown between the quality result and the
+    keep/redo buttons."""
     page.click("button:has-text('Start recording')")
     page.wait_for_selector("#recording")
     if screenshot:
         wait_until(page, "document.getElementById('elapsed').textContent.length > 0")
         shot(page, f"04-step-{number:02d}-{name}-recording")
     page.wait_for_selector("#quality", timeout=30_000)
+    wait_until(page, "document.querySelector('#step-traces img').complete", timeout=30)
+    assert page.evaluate("document.querySelector('#step-traces img').naturalWidth") == 800
+    boxes = [page.locator(selector).first.bounding_box()
+             for selector in ("#quality + *", "#step-traces img", "text=Redo this step")]
+    assert boxes[0]["y"] < boxes[1]["y"] < boxes[2]["y"] and boxes[1]["height"] > 150
     if screenshot:
         shot(page, f"05-step-{number:02d}-{name}-quality")
 
@@ -165,8 +177,11 @@ def test_full_scan_through_the_browser(page, server, tmp_path):
 
     steps = ("finger_tap", "finger_slide", "tool_tap", "tool_slide", "static", "thermal", "friction", "press",
              "fold")
+    chips = page.locator("nav[aria-label='Steps of this scan'] a").all_inner_texts()
+    assert [chip.split(".", 1)[0] for chip in chips] == [str(n) for n in range(1, 12)]  # unique numbers
     for number, name in enumerate(steps, start=1):
         page.wait_for_url(f"{base}/session/step/{name}")
+        assert page.inner_text("h1").startswith(f"Step {number}: ")
         record_step(page, number, name, screenshot=name in ("tool_slide", "thermal", "fold"))
         if name == "thermal":
             assert not page.locator("#recording").count()
@@ -220,7 +235,7 @@ def test_full_scan_through_the_browser(page, server, tmp_path):
     page.click("nav >> text=Database")
     assert "1 scans of 1 materials" in page.inner_text("main")
     shot(page, "10-database")
-    page.click("text=C6S1M1P2X1")
+    page.click("main table >> text=C6S1M1P2X1")
     page.click("text=granite-12-001")
     page.wait_for_url(base + "/db/scan/granite-12-001")
     with page.expect_download() as download:
@@ -345,3 +360,72 @@ def test_pages_fit_laptop_and_tablet(browser, server, screen, viewport):
         shot(page, f"15-form-{screen}")
     finally:
         context.close()
+
+
+def test_step_traces_on_a_tablet(browser, server):
+    """After a recording the step's traces fit an 800 px tablet screen, between result and keep/redo."""
+    base, _ = server
+    context = browser.new_context(viewport={"width": 800, "height": 1280})
+    page = context.new_page()
+    try:
+        start_scan(page, base, "granite-03")
+        page.goto(base + "/session/step/finger_slide")
+        record_step(page, 2, "finger_slide", screenshot=False)
+        assert page.evaluate("document.documentElement.scrollWidth - window.innerWidth") <= 0
+        shown = page.locator("#step-traces img").bounding_box()["width"]
+        assert 680 <= shown <= 800  # at least 85 % of its own size: the figure's text stays legible
+        shot(page, "16-step-traces-tablet")
+    finally:
+        context.close()
+
+
+def test_export_job_with_progress_and_filter(page, server, tmp_path, monkeypatch):
+    from conftest import make_scan
+
+    from gui import exports
+
+    base, app = server
+    db = database(app)
+    for index in range(1, 5):
+        db.add(make_scan(index, sample_id="granite-01", scan_index=index, image_shape=(64, 64)))
+    db.add(make_scan(9, label="C7S1M1P8X1", sample_id="steel-01", rigid=True, drop=("f_fold", "alpha_f")))
+    # Hold the second chunk of feature extraction, so the page can be seen part-way through.
+    gate, held = threading.Event(), threading.Event()
+    original = exports.extract_many
+
+    def extract_held(sources, **kwargs):
+        if any(source.scan_id == "granite-01-003" for source in sources):
+            held.set()
+            gate.wait(20)
+        return original(sources, **kwargs)
+
+    monkeypatch.setattr(exports, "FEATURE_CHUNK", 2)
+    monkeypatch.setattr(exports, "extract_many", extract_held)
+    page.set_viewport_size({"width": 800, "height": 900})
+    page.goto(base + "/db/")
+    page.fill("#export-label", "c6")
+    shot(page, "17-export-form")
+    with page.expect_download(timeout=60_000) as download:
+        page.click("button:has-text('Export bundle (ZIP)')")
+        page.wait_for_url(f"{base}/db/export/*")
+        assert held.wait(20)
+        wait_until(page, "document.getElementById('export-count').textContent === 'step 1 of 2: 2 of 4 scans'")
+        assert page.evaluate("document.getElementById('export-progress').value") == pytest.approx(0.25)
+        assert "4 scan(s): label C6." in page.inner_text("main")
+        shot(page, "18-export-progress")
+        gate.set()
+    path = Path(download.value.path())
+    wait_until(page, "document.getElementById('export-phase').textContent.startsWith('Downloaded')")
+    assert page.evaluate("document.getElementById('export-progress').value") == 1
+    shot(page, "19-export-downloaded")
+    name = download.value.suggested_filename
+    assert name.startswith("texplorer-export-") and name in page.inner_text("#export-phase")
+    with zipfile.ZipFile(path) as bundle:
+        assert bundle.testzip() is None
+        manifest = json.loads(bundle.read("manifest.json"))
+        names = set(bundle.namelist())
+    assert manifest["filters"] == {"label": "C6", "session": None}
+    assert [scan["scan_id"] for scan in manifest["scans"]] == [f"granite-01-00{i}" for i in range(1, 5)]
+    assert set(manifest["files"]) | {"manifest.json", "manifest.json.sha256"} == names
+    gui_files = [p for p in (db.root / ".gui").rglob("*") if p.is_file()]
+    assert gui_files == [] and not list((tmp_path / "exports").iterdir())

@@ -548,3 +548,12 @@ def test_to_csv_leaves_the_old_file_when_the_write_fails(tmp_path: Path, shipped
         shipped.to_csv(target)
     assert target.read_text(encoding="utf-8") == "old content\n"
     assert os.listdir(tmp_path) == ["taxonomy.csv"]
+
+
+def test_class_names_for_figures(shipped: Taxonomy) -> None:
+    assert shipped.class_name("C6") == "stone"
+    assert shipped.class_name(" c6s1 ") == "igneous stone"
+    assert shipped.class_name("C6S1M1P2X1") == "granite, polished"  # X1 is "no extra attribute"
+    assert shipped.class_name("C1S1M1P4X2") == "oak, planed, varnished"
+    with pytest.raises(ValueError, match="stone has no sub-class S9"):
+        shipped.class_name("C6S9M1P1X1")

@@ -191,8 +191,8 @@ function setupExport() {
     }
     bar.value = answer.fraction;
     bar.textContent = `${Math.round(100 * answer.fraction)} %`;
-    phase.textContent = answer.ready ? `${answer.phase_text} (${(answer.bytes / 1048576).toFixed(1)} MB)` : answer.phase_text;
-    count.textContent = answer.running ? `${answer.done} of ${answer.total} scans` : "";
+    phase.textContent = answer.phase_text;
+    count.textContent = answer.count_text;
     error.textContent = answer.error;
     error.hidden = !answer.error;
     download.hidden = !answer.ready;
