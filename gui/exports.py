@@ -217,8 +217,11 @@ class Exports:
             if not records:
                 raise ExportError(f"no scans with {filter_text(label, session)} to export")
             root = Path(self.temp_root or tempfile.gettempdir())
-            _check_space(root, sum(entry.size for r in records for entry in self.db.files(r.scan_id)))
-            folder = Path(tempfile.mkdtemp(prefix="texplorer-export-", dir=root))
+            try:
+                _check_space(root, sum(entry.size for r in records for entry in self.db.files(r.scan_id)))
+                folder = Path(tempfile.mkdtemp(prefix="texplorer-export-", dir=root))
+            except OSError as exc:
+                raise ExportError(f"cannot build the bundle in {root}: {exc.strerror or exc}") from None
             job = ExportJob(secrets.token_urlsafe(16), self.db, records, label, session, folder, self.workers)
             job.thread = threading.Thread(target=job.run, args=(self.abandon_after_s,), name="export",
                                           daemon=True)
@@ -241,7 +244,10 @@ class Exports:
                 raise ExportError("this export has no bundle to download "
                                   + ("yet" if job.running else f"({PHASE_TEXT[job.phase].lower()})"))
             path = job.path
-            handle = open(path, "rb")  # noqa: SIM115 -- closed by the response once sent
+            try:
+                handle = open(path, "rb")  # noqa: SIM115 -- closed by the response once sent
+            except FileNotFoundError:  # deleted as abandoned a moment ago
+                raise ExportError("this export was abandoned and deleted; start it again") from None
             path.unlink()
             job.phase, job.path = "downloaded", None
             job.cancel.set()  # the thread removes the empty folder

@@ -411,8 +411,10 @@ def plot_pca_variance(X: np.ndarray, path: str | os.PathLike[str], marks: Sequen
     ax.plot(components, cumulative, color="C1", marker=".", ms=3, label="cumulative")
     for mark in marks:
         if mark <= share.size:
+            # Below and right of the rising curve, inside the axes: to its left the text ran into the
+            # y axis label, above it into the title.
             ax.annotate(f"{mark} PCs: {cumulative[mark - 1]:.0f} %", (mark, cumulative[mark - 1]),
-                        xytext=(-10, 18), textcoords="offset points", fontsize=9, ha="right",
+                        xytext=(14, -24), textcoords="offset points", fontsize=9, ha="left", va="top",
                         arrowprops={"arrowstyle": "-", "color": "0.4"})
     ax.set_xlim(0.3, min(share.size, 60) + 0.7)
     ax.set_ylim(0, 102)
@@ -477,9 +479,12 @@ def plot_confusion(confusion: np.ndarray, classes: Sequence[str], path: str | os
     n = len(classes)
     totals = confusion.sum(axis=1, keepdims=True)
     share = np.divide(confusion, totals, out=np.zeros_like(confusion), where=totals > 0)
-    side = float(np.clip(0.18 * n + 3, 5, 14))
-    figure = _canvas(side + 4.5, side + 1.5)
-    ax = figure.subplots()
+    # The matrix gets a fixed size per class and the saved figure grows around it to hold every label
+    # (bbox_inches="tight"): a layout engine shrinks a fixed-aspect image between long tick labels instead.
+    side = float(np.clip(0.3 * n, 4.0, 12.0))
+    figure = Figure(figsize=(side + 1.0, side))
+    FigureCanvasAgg(figure)
+    ax = figure.add_axes((0.0, 0.0, side / (side + 1.0), 1.0))
     image = ax.imshow(share, cmap="Blues", vmin=0, vmax=1, interpolation="nearest")
     xlabel = "predicted class"
     if n <= max_labels:
@@ -493,7 +498,7 @@ def plot_confusion(confusion: np.ndarray, classes: Sequence[str], path: str | os
         ax.set_yticks(range(n), named, fontsize=size)
         if n <= 12:
             for i, j in zip(*np.nonzero(confusion), strict=True):
-                ax.text(j, i, f"{confusion[i, j]:.0f}", ha="center", va="center", fontsize=8,
+                ax.text(j, i, f"{confusion[i, j]:.0f}", ha="center", va="center", fontsize=9,
                         color="white" if share[i, j] > 0.5 else "black")
     else:
         majors = [_major_class(c) for c in classes]
@@ -508,6 +513,8 @@ def plot_confusion(confusion: np.ndarray, classes: Sequence[str], path: str | os
             ax.axvline(edge - 0.5, color="0.6", lw=0.5)
     ax.set_xlabel(xlabel)
     ax.set_ylabel("true class")
-    ax.set_title(_wrap(title, 80))
-    figure.colorbar(image, ax=ax, label="share of the true class", shrink=0.7)
-    return _save(figure, path, dpi=90)
+    ax.set_title(_wrap(title, int(side * 16)))
+    bar = figure.add_axes((side / (side + 1.0) + 0.25 / (side + 1.0), 0.15, 0.2 / (side + 1.0), 0.7))
+    figure.colorbar(image, cax=bar, label="share of the true class")
+    figure.savefig(_target(path), dpi=90, bbox_inches="tight", pad_inches=0.15, format="png")
+    return Path(path)

@@ -41,10 +41,11 @@ if TYPE_CHECKING:
 CELL_LEGEND = ("accuracy % (mean +- std over folds), macro F1, r_C (paper eq. 32; - where undefined: no "
                "misclassification, or the coarse level, where every misclassification leaves the major class)")
 PAGE_STYLE = ("body{font-family:sans-serif;margin:2em;max-width:1200px}table{border-collapse:collapse;"
-              "margin-bottom:1.5em}td,th{border:1px solid #ccc;padding:2px 8px;font-family:monospace;"
+              "margin-bottom:1.5em;display:block;overflow-x:auto;max-width:100%}"
+              "td,th{border:1px solid #ccc;padding:2px 8px;font-family:monospace;"
               "white-space:pre;text-align:left}figure{margin:1.5em 0}img{max-width:100%}"
               "figcaption{color:#444}")
-"""The CSS of every texplorer report page."""
+"""The CSS of every texplorer report page; a wide table scrolls inside the page (a tablet's 800 px)."""
 
 
 def cell_text(report: Report) -> str:
@@ -136,7 +137,7 @@ def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: S
         if at_level:
             best = max(at_level, key=lambda r: r.accuracy_mean)
             title = (f"{lvl}: {best.classifier}, {best.feature_set}, X{best.n_features}; accuracy "
-                     f"{100 * best.accuracy_mean:.1f} %, r_C {format_r_c(best.r_c)}")
+                     f"{100 * best.accuracy_mean:.1f} %" + ("" if np.isnan(best.r_c) else f", r_C {best.r_c:.2f}"))
             figures.append((f"confusion matrix of the best classifier at the {lvl} level ({title})",
                             plot_confusion(best.confusion, best.classes, folder / f"confusion_{lvl}.png",
                                            title=title, max_labels=max_classes)))
@@ -212,11 +213,12 @@ def _html(space: FeatureSpace, reports: Sequence[Report], selection: Selection,
 
 
 def _figure_html(caption: str, path: Path) -> str:
-    """A figure embedded as base64 PNG data, so the page opens without the files beside it."""
+    """A figure embedded as base64 PNG data, so the page opens without the files beside it; it links to the
+    PNG beside the page, to see a large figure (a fine-level confusion matrix) at full size on a tablet."""
     e = html.escape
     data = base64.b64encode(path.read_bytes()).decode("ascii")
-    return (f'<figure><img src="data:image/png;base64,{data}" alt="{e(path.name)}">'
-            f"<figcaption>{e(caption)} ({e(path.name)})</figcaption></figure>")
+    return (f'<figure><a href="{e(path.name)}"><img src="data:image/png;base64,{data}" alt="{e(path.name)}"></a>'
+            f"<figcaption>{e(caption)} ({e(path.name)}; select the figure for full size)</figcaption></figure>")
 
 
 # -- comparison of the related methods (SPEC 7.5) ---------------------------------------------------------

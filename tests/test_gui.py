@@ -938,3 +938,18 @@ def test_unmeasured_values_read_not_measured(tmp_path):
     for name in ("Ambient temperature", "Mass", "Adhesive tack"):
         assert f"<dt>{name}</dt><dd>not measured</dd>" in page
     assert "<dt>Volume</dt><dd>190 cm³</dd>" in page and "<dd>nan" not in page
+
+
+def test_export_folder_missing_is_one_line(tmp_path):
+    from conftest import make_scan
+
+    from scanner.database import Database
+
+    Database(tmp_path / "db").add(make_scan(0))
+    app = make_app(tmp_path / "db", export_dir=tmp_path / "no-such-folder")
+    try:
+        answer = post(app.test_client(), "/db/export", {})
+        assert answer.status_code == 409
+        assert f"cannot build the bundle in {tmp_path / 'no-such-folder'}: No such file or directory" in answer.text
+    finally:
+        app.extensions["texplorer"].shutdown()
