@@ -232,7 +232,8 @@ class Exports:
     def get(self, job_id: str) -> ExportJob | None:
         """The job with this id (it is the current one), or None."""
         job = self.job
-        return job if job is not None and secrets.compare_digest(job.id, job_id) else None
+        found = job is not None and secrets.compare_digest(job.id.encode(), job_id.encode("utf-8", "replace"))
+        return job if found else None
 
     def take(self, job: ExportJob) -> tuple[IO[bytes], str, int]:
         """The finished bundle as an open file, its name and size; the file is deleted from disk now.

@@ -774,6 +774,7 @@ def test_export_bundle_is_taken_once_then_gone(exporter, tmp_path):
     assert again.status_code == 409 and "no bundle to download (downloaded, and no longer kept here)" in again.text
     assert get(client, f"/db/export/{job.id}/status").json["phase"] == "downloaded"
     assert get(client, "/db/export/not-a-job/status").status_code == 404
+    assert get(client, "/db/export/%C3%A9t%C3%A9/status").status_code == 404
     job.thread.join(5)
     assert not list((tmp_path / "tmp").iterdir())
 
