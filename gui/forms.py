@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 from scanner.scan import JUDGED_SCALE, ScanError, ScanMeta, check_sample_id
 from scanner.session import T_AMB_RANGE, VOLUME_METHODS
-from taxonomy.labels import LabelError, format_code, parse_code
+from taxonomy.labels import LabelError, parse_prefix
 from taxonomy.table import Taxonomy, UnknownLabelError
 
 TACK_CHOICES: tuple[tuple[float, str], ...] = tuple(zip(JUDGED_SCALE, (
@@ -38,9 +38,6 @@ VOLUME_METHOD_WORDS: Mapping[str, str] = {
 """Words shown for the volume methods the session accepts (``scanner.session.VOLUME_METHODS``)."""
 
 NOTES_MAX_CHARS = 2000
-
-LABEL_PREFIXES = ("CSMPX", "CSMP", "CSM", "CS", "C")
-"""The ways a label filter may be written: the full label, or the class prefix of any level."""
 
 _NUMBER = r"[+-]?(?:\d+(?:[.,]\d*)?|[.,]\d+)(?:[eE][+-]?\d+)?"
 _CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
@@ -233,16 +230,7 @@ def parse_label_filter(text: str) -> str | None:
 
     Raises
     ------
-    ValueError
-        One line naming the text and the forms a filter may take.
+    LabelError
+        One line naming the text and the forms a filter may take (``taxonomy.labels.parse_prefix``).
     """
-    stripped = text.strip()
-    if not stripped:
-        return None
-    for letters in LABEL_PREFIXES:
-        try:
-            return format_code(letters, parse_code(stripped, letters))
-        except LabelError:
-            continue
-    raise ValueError(f"{stripped[:40]!r} is not a label or class prefix: write C<c>, C<c>S<s>, C<c>S<s>M<m> "
-                     "... up to a full label, e.g. C6 or C6S1M1P2X1")
+    return parse_prefix(text) if text.strip() else None
