@@ -39,8 +39,12 @@ NAMES: tuple[str, ...] = (
 SOLVER_RTOL: dict[str, float] = {**other.SOLVER_RTOL}
 """Relative tolerance of each feature computed by an iterative fit (the others are closed-form)."""
 
-MIN_PHOTO_SIDE = 2 * IMAGE_BORDER_PX + 2 * 2**image.TAMURA_KMAX
-"""Smallest photo side with image features: the crop plus Tamura's largest pair of windows (264 px)."""
+MIN_PHOTO_SIDE = 2 * IMAGE_BORDER_PX + image.MIN_SIDE_PX
+"""Smallest photo side with image features: the crop plus 2 px (202 px); Tamura coarseness needs the crop
+plus its largest pair of windows (264 px) and is NaN below that (``image.FEATURE_MIN_SIDE_PX``)."""
+
+TACTUM_PHOTO_SIDE = 2 * IMAGE_BORDER_PX + 2 * 2**image.TAMURA_KMAX
+"""Smallest ``I_disp`` side TacTUM's MaCo and MaRG are computed on (264 px)."""
 
 _CODE_FILES = ("features/tactum.py", "features/image.py", "features/audio.py", "features/other.py",
                "features/extraction.py", "scanner/preprocess.py")
@@ -64,7 +68,7 @@ def prepared_disp(scan: Scan) -> image.PreparedPhoto | None:
     """``I_disp`` prepared once for TacTUM (MaCo, MaRG) and its image features, which share its gray image,
     Tamura contrast and spectrum; None if the photo is missing or too small for image features."""
     photo = scan.images.get("I_disp")
-    if photo is None or min(photo.shape[:2]) < MIN_PHOTO_SIDE:
+    if photo is None or min(photo.shape[:2]) < TACTUM_PHOTO_SIDE:
         return None
     return image.PreparedPhoto(photo)
 

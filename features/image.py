@@ -18,12 +18,13 @@ from __future__ import annotations
 
 import functools
 import math
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 
 import cv2
 import numpy as np
 
-from scanner.preprocess import crop_image, gray_uint8, grayscale
+from scanner.preprocess import IMAGE_BORDER_PX, crop_image, gray_uint8, grayscale
 
 HARALICK_NAMES = (
     "angular_second_moment", "contrast", "correlation", "sum_of_squares", "inverse_difference_moment",
@@ -54,6 +55,19 @@ HUE_MIN_VALUE = 51
 CANNY_THRESHOLDS = (100, 200)
 DFT_FRACTIONS = (0.80, 0.85)
 TAMURA_KMAX = 5
+
+MIN_SIDE_PX = 2
+"""Smallest side of the cropped image any feature is defined on: a GLCM needs a pair of neighbours."""
+
+FEATURE_MIN_SIDE_PX: dict[str, int] = {
+    "tamura_coarseness": 2 * 2**TAMURA_KMAX, **{f"lbp_{i}": 3 for i in range(LBP_BINS)},
+}
+"""Features that need a larger cropped image (SPEC 7.2): Tamura coarseness two of its largest windows side by
+side, LBP a pixel with all eight neighbours. Below that they are NaN (:class:`ImageSizeWarning`)."""
+
+
+class ImageSizeWarning(UserWarning):
+    """A photo too small for some features, which are NaN; the message names them and the size."""
 
 _BAND_ELEMENTS = 1 << 15
 """Pixels per band of rows (256 KiB of float64): a band's few temporaries fit in a 2 MiB L2 cache."""
@@ -135,6 +149,9 @@ class PreparedPhoto:
     buffer : ndarray, optional
         Memory for :attr:`gray`, from :meth:`release` of a photo of the same size; ignored if it does not
         fit (C-contiguous float64 of the cropped photo's height and width). Its values are overwritten.
+    border : int
+        Pixels cropped from every side: the scanner's photos keep the paper's 100 px (SPEC 6); photos and
+        patches of an imported set are usually taken whole (0).
 
     Raises
     ------
@@ -142,9 +159,11 @@ class PreparedPhoto:
         If ``rgb`` is not an RGB uint8 photo or too small to crop.
     """
 
-    def __init__(self, rgb: np.ndarray, *, keep_gray: bool = True, buffer: np.ndarray | None = None) -> None:
+    def __init__(self, rgb: np.ndarray, *, keep_gray: bool = True, buffer: np.ndarray | None = None,
+                 border: int = IMAGE_BORDER_PX) -> None:
         self.source = rgb
-        self.photo = crop_image(_check_rgb(rgb))
+        self.border = border
+        self.photo = crop_image(_check_rgb(rgb), border)
         self.keep_gray = keep_gray
         fits = (buffer is not None and buffer.dtype == np.float64 and buffer.shape == self.photo.shape[:2]
                 and buffer.flags.c_contiguous)
@@ -216,21 +235,32 @@ class PreparedPhoto:
         return RealSpectrum(np.subtract(gray, mean, out=gray), overwrite=True)
 
 
-def compute(rgb: np.ndarray, *, prepared: PreparedPhoto | None = None) -> dict[str, float]:
+def compute(rgb: np.ndarray, *, prepared: PreparedPhoto | None = None,
+            border: int = IMAGE_BORDER_PX) -> dict[str, float]:
     """The 31 image features of one photo (SPEC 7.2) under the names of ``NAMES``.
 
     Parameters
     ----------
     rgb : (h, w, 3) uint8 array
-        The full photo; 100 px are cropped from every border first (SPEC 6), so h and w must be at least
-        264 (the cropped image must hold Tamura's 64 x 64 px windows).
+        The full photo; ``border`` px are cropped from every side first (SPEC 6).
     prepared : PreparedPhoto, optional
-        ``PreparedPhoto(rgb)`` when the caller shares it with other features; the values are the same.
+        ``PreparedPhoto(rgb, border=border)`` when the caller shares it with other features; the values
+        are the same. Its own border is used.
+    border : int
+        Crop of the scanner's photos (100 px, the paper's); 0 for patches and other labs' photos.
 
     Returns
     -------
     dict
-        Feature name -> value; ``haralick_03`` and ``haralick_12`` are NaN for a constant image.
+        Feature name -> value; ``haralick_03`` and ``haralick_12`` are NaN for a constant image. Each
+        feature needs only what its definition needs: on a cropped image smaller than
+        :data:`FEATURE_MIN_SIDE_PX` (64 px for Tamura coarseness, 3 px for LBP) those features are NaN
+        with an :class:`ImageSizeWarning`; the others are defined from 2 x 2 px (:data:`MIN_SIDE_PX`).
+
+    Raises
+    ------
+    ValueError
+        If ``rgb`` is not an RGB uint8 photo, or is not larger than the crop plus 2 px on each axis.
 
     Examples
     --------
@@ -240,17 +270,32 @@ def compute(rgb: np.ndarray, *, prepared: PreparedPhoto | None = None) -> dict[s
     """
     if prepared is not None and prepared.source is not rgb:
         raise ValueError("the prepared photo was made from a different array than rgb")
-    photo = PreparedPhoto(rgb, keep_gray=False) if prepared is None else prepared
-    _check_side(photo.photo.shape, 2 * 2**TAMURA_KMAX, f"Tamura coarseness with kmax={TAMURA_KMAX}")
+    photo = PreparedPhoto(rgb, keep_gray=False, border=border) if prepared is None else prepared
+    _check_side(photo.photo.shape, MIN_SIDE_PX, "any image feature")
+    small = _too_small(photo)
     # The gray image of a uint8 photo is finite, so the cores run without the public functions' checks.
     gray, mean = photo.gray, photo.mean
     high = photo.extremes[1]
     first = [color(photo.photo), mean / 255.0, edginess(photo.gray_u8)]
-    coarseness = _tamura_coarseness(gray, TAMURA_KMAX, 1e-9 * high * 1000, thousandths=True)
-    rest = [*_haralick(gray), coarseness, photo.contrast, *_lbp_histogram(gray)]
+    coarseness = math.nan if "tamura_coarseness" in small else \
+        _tamura_coarseness(gray, TAMURA_KMAX, 1e-9 * high * 1000, thousandths=True)
+    lbp = [math.nan] * LBP_BINS if "lbp_0" in small else _lbp_histogram(gray)
+    rest = [*_haralick(gray), coarseness, photo.contrast, *lbp]
     # Last: the spectrum of a photo prepared here is computed in the memory of its gray image.
     dft = _dft_peak_means(photo.spectrum, DFT_FRACTIONS)
     return dict(zip(NAMES, map(float, [*first, *dft, *rest]), strict=True))
+
+
+def _too_small(photo: PreparedPhoto) -> list[str]:
+    """Features the cropped photo is too small for (:data:`FEATURE_MIN_SIDE_PX`), with a warning naming them."""
+    h, w = photo.photo.shape[:2]
+    small = [name for name, side in FEATURE_MIN_SIDE_PX.items() if min(h, w) < side]
+    if small:
+        needs = {("lbp_0..9" if name.startswith("lbp_") else name): FEATURE_MIN_SIDE_PX[name] for name in small}
+        warnings.warn(f"image of {h}x{w} px (after cropping {photo.border} px) is too small for "
+                      + ", ".join(f"{name} (needs {side}x{side} px)" for name, side in needs.items())
+                      + "; NaN", ImageSizeWarning, stacklevel=3)
+    return small
 
 
 def color(rgb: np.ndarray) -> float:

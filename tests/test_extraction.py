@@ -12,12 +12,13 @@ import numpy as np
 import pytest
 
 import features
-from features import NAMES, ScanSource, extract, extract_many
+from features import NAMES, ScanSource, extract, extract_many, image
 from features.extraction import code_version, source_of
-from scanner.scan import Scan
+from scanner.scan import IMAGES, Scan
 from scanner.simulate import synthetic_scan
 
 SIZE = (384, 384)
+IMAGES_BY_SHORT = {short: variable for variable, short in IMAGES.items()}
 
 
 @functools.cache
@@ -125,9 +126,24 @@ def test_extract_many_accepts_plain_scans_in_process():
 
 
 def test_a_photo_too_small_for_image_features_gives_nan_not_an_error():
-    scan = synthetic_scan("float-glass", seed=2, image_size=(263, 400))
+    scan = synthetic_scan("float-glass", seed=2, image_size=(201, 400))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         values = extract(scan)
     assert all(math.isnan(values[n]) for n in NAMES if n.startswith("image."))
-    assert any("smaller than 264 px" in str(w.message) for w in caught)
+    assert any("smaller than 202 px" in str(w.message) for w in caught)
+
+
+def test_a_photo_too_small_for_tamura_coarseness_keeps_the_other_image_features():
+    # 263 px: the 100 px crop leaves 63 px, one short of Tamura's two 32 px windows.
+    scan = synthetic_scan("float-glass", seed=2, image_size=(263, 400))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        values = extract(scan)
+    for short in ("disp", "macro", "illu"):
+        assert math.isnan(values[f"image.{short}.tamura_coarseness"])
+        with pytest.warns(image.ImageSizeWarning):
+            computed = image.compute(scan.images[IMAGES_BY_SHORT[short]])
+        assert all(values[f"image.{short}.{n}"] == computed[n] for n in image.NAMES if n != "tamura_coarseness")
+    assert any("63x200 px (after cropping 100 px) is too small for tamura_coarseness" in str(w.message)
+               for w in caught)

@@ -93,11 +93,39 @@ def test_compute_on_a_constant_photo(value):
     (np.zeros((300, 300, 4), np.uint8), r"shape \(h, w, 3\)"),
     ([[1, 2, 3]], "uint8"),
     (np.zeros((200, 300, 3), np.uint8), "too small to crop"),
-    (np.zeros((250, 300, 3), np.uint8), "smaller than the 64x64 px Tamura coarseness"),
+    (np.zeros((201, 300, 3), np.uint8), r"1x100 px is smaller than the 2x2 px any image feature needs"),
 ])
 def test_compute_rejects_bad_photos(photo, message):
     with pytest.raises(ValueError, match=message):
         image.compute(photo)
+    with pytest.raises(ValueError, match="1x300 px is smaller than the 2x2 px"):
+        image.compute(np.zeros((1, 300, 3), np.uint8), border=0)
+
+
+def test_the_crop_is_a_parameter_and_patches_keep_every_pixel():
+    rng = np.random.default_rng(5)
+    patch = rng.integers(0, 256, (256, 256, 3), dtype=np.uint8)
+    whole = image.compute(patch, border=0)
+    assert all(np.isfinite(list(whole.values())))
+    gray = grayscale(patch)
+    assert whole["brightness"] == pytest.approx(gray.mean() / 255, rel=1e-12)
+    assert whole["tamura_coarseness"] == image.tamura_coarseness(gray)
+    framed = np.pad(patch, ((10, 10), (10, 10), (0, 0)))
+    assert image.compute(framed, border=10) == whole  # cropping 10 px gives back the patch
+
+
+@pytest.mark.parametrize(("side", "nan"), [(63, {"tamura_coarseness"}), (3, {"tamura_coarseness"}),
+                                           (2, {"tamura_coarseness", *(f"lbp_{i}" for i in range(10))})])
+def test_each_feature_needs_only_the_size_its_definition_needs(side, nan):
+    patch = np.random.default_rng(side).integers(0, 256, (side, side + 5, 3), dtype=np.uint8)
+    with pytest.warns(image.ImageSizeWarning, match=rf"image of {side}x{side + 5} px \(after cropping 0 px\) "
+                      r"is too small for tamura_coarseness \(needs 64x64 px\)"):
+        values = image.compute(patch, border=0)
+    assert {name for name, value in values.items() if np.isnan(value)} == nan
+    gray = grayscale(patch)
+    assert values["haralick_01"] == pytest.approx(image.haralick(gray)[0], rel=1e-12)
+    if side >= 3:
+        assert values["lbp_0"] == image.lbp_histogram(gray)[0]
 
 
 # --- colour, brightness, edginess ---------------------------------------------------------------------
