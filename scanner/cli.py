@@ -493,21 +493,38 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
 # -- ingest, compare ---------------------------------------------------------------------------------
 
-def cmd_ingest(args: argparse.Namespace) -> int:
-    from scanner.ingest import IngestError, ingest, load_mapping, store_recordings
+def ingest_mapping(args: argparse.Namespace):
+    """The mapping file's mapping, or for a plain folder the default one (WAV as audio, images as photo,
+    labels from folders); ``--grid`` cuts every image into patches."""
+    from scanner.ingest import default_mapping, load_mapping, parse_grid, safe_name, with_grid
 
-    mapping = load_mapping(args.mapping)
+    if args.mapping is None:
+        mapping = default_mapping(args.name or safe_name(args.path.resolve().name))
+    else:
+        mapping = load_mapping(args.mapping)
+    return with_grid(mapping, parse_grid(args.grid, "--grid")) if args.grid else mapping
+
+
+def cmd_ingest(args: argparse.Namespace) -> int:
+    from scanner.ingest import IngestError, ingest, store_recordings, summarise_notes
+
+    mapping = ingest_mapping(args)
     report = ingest(args.path, mapping, progress=progress("reading"))
     for line in report.skipped:
         print(f"skipped  {line}")
-    for note in report.notes:
+    notes = [str(note) for note in report.notes] if args.verbose else summarise_notes(report.notes)
+    for note in notes:
         print(f"note     {note}")
+    if report.notes and not args.verbose:
+        print(f"note     {len(report.notes)} note(s) in all; --verbose lists every one")
     if not report.recordings:
         raise IngestError(f"{args.path}: no recording could be imported from {report.files} matching file(s)")
     folder = store_recordings(args.db, args.name or mapping.name, report.recordings, replace=args.replace)
     roles = sorted({role for r in report.recordings for role in r.roles})
+    splits = [r.meta.get("split") for r in report.recordings]
+    split = (f"; split {splits.count('train')} train / {splits.count('test')} test" if any(splits) else "")
     print(f"{len(report.recordings)} recording(s) from {report.files} file(s) -> {folder}; roles "
-          f"{', '.join(roles) or 'none'}; {len(report.skipped)} problem line(s)")
+          f"{', '.join(roles) or 'none'}{split}; {len(report.skipped)} problem line(s)")
     return EXIT_PROBLEMS if report.skipped else 0
 
 
@@ -922,14 +939,20 @@ def build_parser() -> argparse.ArgumentParser:
     serving.set_defaults(handler=cmd_serve)
 
     ingesting = commands.add_parser(
-        "ingest", help="import another sensor's recordings (CSV/TSV, WAV, NPY/NPZ, .mat) as a recording set",
+        "ingest", help="import recordings or photos (CSV/TSV, WAV, NPY/NPZ, .mat, PNG/JPG/BMP/TIFF) as a set",
         description="Read the files under PATH as the TOML mapping file describes them (docs/ingest.md) "
-        "and store the recordings in <db>/recordings/<set>/. Bad files are reported by name and skipped; "
-        "the exit status is 3 if there were any.")
+        "and store the recordings in <db>/recordings/<set>/. Without --mapping, every WAV file is an audio "
+        "recording and every image a photo, labelled by its folder. Bad files are reported by name and "
+        "skipped; the exit status is 3 if there were any.")
     _add_db_option(ingesting)
     ingesting.add_argument("path", type=Path, help="folder with the files")
-    ingesting.add_argument("--mapping", type=Path, required=True, help="TOML mapping file (docs/ingest.md)")
-    ingesting.add_argument("--name", help="set name (default: the mapping's name, else its file name)")
+    ingesting.add_argument("--mapping", type=Path, help="TOML mapping file (docs/ingest.md); default: WAV "
+                           "files as audio, images as photos, the label from the folder holding each file")
+    ingesting.add_argument("--name", help="set name (default: the mapping's name, else its file name; "
+                           "without a mapping, the folder's name)")
+    ingesting.add_argument("--grid", metavar="RxC", help="cut every image into R x C patches (one recording "
+                           "each, sharing the group 'photo', so folds keep a photo's patches together)")
+    ingesting.add_argument("--verbose", action="store_true", help="print every note, not a summary per kind")
     ingesting.add_argument("--replace", action="store_true", help="replace an existing set of that name")
     ingesting.set_defaults(handler=cmd_ingest)
 

@@ -20,6 +20,7 @@ place, so a set is either complete or absent; :func:`load_recordings` reads a se
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import json
 import math
@@ -29,21 +30,25 @@ import secrets
 import shutil
 import tomllib
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 import scipy.io
 from scipy.io import wavfile
 
+from scanner.devices.camera import PhotoError, check_pixels
 from scanner.files import atomic_write_bytes, fsync_dir
 from scanner.scan import ROLES, Recording, ScanError, Trace
 
 RECORDINGS = "recordings"
 """Folder of imported recording sets inside a database."""
 
-FORMATS = ("csv", "tsv", "wav", "npy", "npz", "mat")
+FORMATS = ("csv", "tsv", "wav", "npy", "npz", "mat", "image")
+IMAGE_EXTENSIONS = ("png", "jpg", "jpeg", "bmp", "tif", "tiff")
+"""Extensions read as ``format = "image"`` (an RGB photo, OpenCV's decoders)."""
 NAN_TOKENS = ("nan", "-nan", "+nan", "", "na", "n/a", "null", "none")
 """Tokens read as a missing sample (case-insensitive, surrounding spaces ignored)."""
 
@@ -51,6 +56,12 @@ TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 MISSING = ("interpolate", "error")
 RATE_TOLERANCE = 0.05
 """Time steps may vary by this fraction of their median before the import notes it."""
+
+GAP_STEPS = 1.5
+"""A time step longer than this many sample periods is a gap: at least one sample is missing."""
+
+SPLIT_NAMES = {"train": ("train", "training"), "test": ("test", "testing")}
+"""Folder names (or pattern values) of a dataset's own train/test split, compared case-insensitively."""
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,62}$")
 _SET = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
@@ -93,6 +104,7 @@ class FileMap:
     time_column: str | int | None = None
     time_unit: str = "s"
     rate_variable: str | None = None
+    grid: tuple[int, int] | None = None
 
 
 @dataclass(frozen=True)
@@ -111,6 +123,8 @@ class IngestMapping:
     pattern: re.Pattern[str] | None = None
     missing: str = "interpolate"
     meta: Mapping[str, Any] = field(default_factory=dict)
+    split_from: str = "auto"
+    split_names: Mapping[str, tuple[str, ...]] = field(default_factory=lambda: dict(SPLIT_NAMES))
 
 
 def _fail(where: str, reason: str) -> IngestError:
@@ -161,7 +175,29 @@ def _channel(table: Mapping[str, Any], where: str) -> ChannelMap:
 
 
 _FILE_KEYS = {"glob", "suffix", "format", "channels", "delimiter", "header", "comment", "skip_rows", "rate",
-              "time_column", "time_unit", "rate_variable"}
+              "time_column", "time_unit", "rate_variable", "grid"}
+
+DEFAULT_CHANNELS = {"wav": ChannelMap("audio", "audio", unit="FS"), "image": ChannelMap("photo", "photo")}
+"""The channel of a WAV or image file whose mapping lists none."""
+
+
+def format_of(name: str) -> str | None:
+    """The format a file name's extension implies (``.png`` -> ``image``), or None."""
+    extension = name.rsplit(".", 1)[-1].lower() if "." in name else ""
+    if extension in IMAGE_EXTENSIONS:
+        return "image"
+    return extension if extension in FORMATS else None
+
+
+def parse_grid(value: Any, where: str) -> tuple[int, int]:
+    """``[rows, columns]`` (or ``"RxC"`` text) of a patch grid, each 1..64."""
+    if isinstance(value, str):
+        parts = value.lower().split("x")
+        value = [int(p) for p in parts] if len(parts) == 2 and all(p.isdigit() for p in parts) else value
+    if not (isinstance(value, list | tuple) and len(value) == 2
+            and all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 64 for v in value)):
+        raise _fail(where, f"grid must be [rows, columns] (or 'RxC') of 1-64 each, got {value!r}")
+    return int(value[0]), int(value[1])
 
 
 def _file(table: Mapping[str, Any], where: str) -> FileMap:
@@ -176,9 +212,21 @@ def _file(table: Mapping[str, Any], where: str) -> FileMap:
     fmt = _get(table, "format", str, where)
     if fmt is not None and fmt not in FORMATS:
         raise _fail(where, f"unknown format {fmt!r} (known: {', '.join(FORMATS)})")
+    kind = fmt or format_of(glob)
     channels = table.get("channels")
-    if not isinstance(channels, list) or not channels:
+    if channels is None and kind in DEFAULT_CHANNELS:
+        maps = (DEFAULT_CHANNELS[kind],)
+    elif not isinstance(channels, list) or not channels:
         raise _fail(where, "needs at least one [[files.channels]] table")
+    else:
+        maps = tuple(_channel(c, f"{where}.channels[{k}]") for k, c in enumerate(channels))
+    if kind == "image" and (len(maps) != 1 or maps[0].role not in (None, "photo")):
+        raise _fail(where, "an image file is one channel, of role photo")
+    grid = table.get("grid")
+    if grid is not None:
+        if kind != "image":
+            raise _fail(where, "grid (patches) applies to image files only")
+        grid = parse_grid(grid, where)
     rate = _get(table, "rate", (int, float), where)
     if rate is not None and not (math.isfinite(rate) and rate > 0):
         raise _fail(where, f"rate must be positive, got {rate!r}")
@@ -188,12 +236,11 @@ def _file(table: Mapping[str, Any], where: str) -> FileMap:
     skip = _get(table, "skip_rows", int, where, 0)
     if skip < 0:
         raise _fail(where, f"skip_rows must be >= 0, got {skip}")
-    return FileMap(glob, _get(table, "suffix", str, where), fmt,
-                   tuple(_channel(c, f"{where}.channels[{k}]") for k, c in enumerate(channels)),
+    return FileMap(glob, _get(table, "suffix", str, where), fmt, maps,
                    _get(table, "delimiter", str, where), bool(_get(table, "header", bool, where, True)),
                    _get(table, "comment", str, where, "#") or None, skip,
                    None if rate is None else float(rate), _get(table, "time_column", (str, int), where),
-                   time_unit, _get(table, "rate_variable", str, where))
+                   time_unit, _get(table, "rate_variable", str, where), grid)
 
 
 def _labels(table: Any, where: str) -> dict[str, Any]:
@@ -218,13 +265,37 @@ def _labels(table: Any, where: str) -> dict[str, Any]:
             "label_column": _get(table, "column", str, where, "label"), "label_levels": tuple(levels)}
 
 
+def _split(table: Any, where: str) -> dict[str, Any]:
+    """``[split]``: where a dataset's own train/test split comes from and the names that mean each part."""
+    if table is None:
+        return {}
+    if not isinstance(table, Mapping):
+        raise _fail(where, "must be a table")
+    unknown = set(table) - {"from", "train", "test"}
+    if unknown:
+        raise _fail(where, f"unknown key(s) {', '.join(sorted(unknown))}")
+    source = _get(table, "from", str, where, "folder")
+    if source not in ("folder", "pattern", "none"):
+        raise _fail(where, f"from must be 'folder', 'pattern' or 'none', got {source!r}")
+    names = {}
+    for part in ("train", "test"):
+        value = table.get(part, list(SPLIT_NAMES[part]))
+        value = [value] if isinstance(value, str) else value
+        if not isinstance(value, list) or not value or not all(isinstance(v, str) and v for v in value):
+            raise _fail(where, f"{part} must be a name or a list of names, got {value!r}")
+        names[part] = tuple(v.lower() for v in value)
+    if set(names["train"]) & set(names["test"]):
+        raise _fail(where, f"{', '.join(sorted(set(names['train']) & set(names['test'])))} names both parts")
+    return {"split_from": source, "split_names": names}
+
+
 def parse_mapping(text: str, name: str, where: str = "mapping") -> IngestMapping:
     """A mapping from TOML text; ``name`` is the default set name. Errors name the file and the key."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise _fail(where, f"not valid TOML ({exc})") from None
-    unknown = set(data) - {"name", "label_level", "missing", "labels", "groups", "files", "meta"}
+    unknown = set(data) - {"name", "label_level", "missing", "labels", "groups", "files", "meta", "split"}
     if unknown:
         raise _fail(where, f"unknown key(s) {', '.join(sorted(unknown))}")
     set_name = _get(data, "name", str, where, name)
@@ -245,12 +316,32 @@ def parse_mapping(text: str, name: str, where: str = "mapping") -> IngestMapping
     labels = _labels(data.get("labels"), f"{where}: labels")
     if labels.get("label_from") == "pattern" and (pattern is None or "label" not in pattern.groupindex):
         raise _fail(f"{where}: labels", "from = 'pattern' needs a (?P<label>...) group in groups.pattern")
+    split = _split(data.get("split"), f"{where}: split")
+    if split.get("split_from") == "pattern" and (pattern is None or "split" not in pattern.groupindex):
+        raise _fail(f"{where}: split", "from = 'pattern' needs a (?P<split>...) group in groups.pattern")
     meta = data.get("meta", {})
     if not isinstance(meta, Mapping):
         raise _fail(where, "meta must be a table")
     return IngestMapping(set_name, tuple(_file(f, f"{where}: files[{k}]") for k, f in enumerate(files)),
                          label_level=_get(data, "label_level", str, where, "label"), pattern=pattern,
-                         missing=missing, meta=dict(meta), **labels)
+                         missing=missing, meta=dict(meta), **labels, **split)
+
+
+def default_mapping(name: str) -> IngestMapping:
+    """The mapping of a plain folder of recordings: every WAV file as ``audio``, every image as ``photo``,
+    labelled by the folder holding it; a ``train``/``test`` folder level is kept as the split."""
+    def any_case(extension: str) -> str:  # PHOTO.JPG from cameras too
+        return "**/*." + "".join(f"[{c}{c.upper()}]" for c in extension)
+
+    return IngestMapping(name, tuple(FileMap(any_case(extension), None, kind, (DEFAULT_CHANNELS[kind],))
+                                     for extension, kind in (("wav", "wav"),
+                                                             *((e, "image") for e in IMAGE_EXTENSIONS))))
+
+
+def with_grid(mapping: IngestMapping, grid: tuple[int, int]) -> IngestMapping:
+    """The mapping with every image entry cut into a ``grid`` of patches."""
+    files = tuple(replace(f, grid=grid) if (f.format or format_of(f.glob)) == "image" else f for f in mapping.files)
+    return replace(mapping, files=files)
 
 
 def load_mapping(path: str | os.PathLike[str]) -> IngestMapping:
@@ -357,15 +448,54 @@ def _select(names: Sequence[str], spec: Sequence[str | int], path: Path, channel
     return picked
 
 
-def rate_from_times(times: np.ndarray, unit: str, path: Path) -> tuple[float, str | None]:
-    """Sample rate from a timestamp column: 1 / median step, and a note if steps vary by > 5 %."""
-    t = times * TIME_UNITS[unit]
+@dataclass(frozen=True)
+class Note:
+    """Something the import did to one file's data, kept so that many alike can be summarised.
+
+    ``kind`` groups alike notes (``missing``, ``irregular``, ``gap``), ``amount`` ranks them (the worst
+    first), ``text`` is the full line.
+    """
+
+    kind: str
+    file: str
+    amount: float
+    text: str
+
+    def __str__(self) -> str:
+        return self.text
+
+
+NOTE_KINDS = {"missing": "missing samples interpolated", "irregular": "irregular time steps resampled",
+              "gap": "gaps in the timestamps bridged", "aligned": "streams cut to their common time span"}
+
+
+def summarise_notes(notes: Sequence[Note], first: int = 3) -> list[str]:
+    """One line per kind of note: how many files, the worst case and the first few names."""
+    lines = []
+    for kind in dict.fromkeys(note.kind for note in notes):
+        alike = [note for note in notes if note.kind == kind]
+        files = list(dict.fromkeys(note.file for note in alike))
+        worst = max(alike, key=lambda note: note.amount)
+        shown = ", ".join(files[:first]) + (f" and {len(files) - first} more" if len(files) > first else "")
+        lines.append(f"{NOTE_KINDS.get(kind, kind)} in {len(files)} file(s) ({shown}); worst: {worst.text}")
+    return lines
+
+
+def seconds_of(times: np.ndarray, unit: str, path: Path) -> np.ndarray:
+    """A timestamp column in seconds; IngestError unless it has two finite values and increases."""
+    t = np.asarray(times, dtype=np.float64) * TIME_UNITS[unit]
     if t.size < 2 or not np.all(np.isfinite(t)):
         raise IngestError(f"{path}: the time column needs at least two finite timestamps")
     steps = np.diff(t)
     if np.any(steps <= 0):
         row = int(np.flatnonzero(steps <= 0)[0]) + 2
         raise IngestError(f"{path}: the time column does not increase at data row {row}")
+    return t
+
+
+def rate_from_times(times: np.ndarray, unit: str, path: Path) -> tuple[float, str | None]:
+    """Sample rate from a timestamp column: 1 / median step, and a note if steps vary by > 5 %."""
+    steps = np.diff(seconds_of(times, unit, path))
     step = float(np.median(steps))
     spread = float(np.max(np.abs(steps - step)) / step)
     note = f"{path.name}: time steps vary by up to {100 * spread:.0f} %" if spread > RATE_TOLERANCE else None
@@ -392,21 +522,21 @@ def _fill(values: np.ndarray, missing: str, where: str) -> tuple[np.ndarray, int
 
 @dataclass
 class _Read:
-    """What one file contributes: channels (raw arrays and rates) and notes."""
+    """What one file contributes: channels (raw arrays, rates and, from a time column, each sample's time
+    in seconds) and images."""
 
-    arrays: dict[str, tuple[np.ndarray, float, ChannelMap]] = field(default_factory=dict)
-    notes: list[str] = field(default_factory=list)
+    arrays: dict[str, tuple[np.ndarray, float, ChannelMap, np.ndarray | None]] = field(default_factory=dict)
+    images: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def _table_file(path: Path, spec: FileMap, fmt: str) -> _Read:
     delimiter = spec.delimiter or ("\t" if fmt == "tsv" else ",")
     names, values = read_table(path, delimiter, spec.header, spec.comment, spec.skip_rows)
     read = _Read()
+    times = None
     if spec.time_column is not None:
-        time_index = _select(names, [spec.time_column], path, "time")[0]
-        rate, note = rate_from_times(values[:, time_index], spec.time_unit, path)
-        if note:
-            read.notes.append(note)
+        times = seconds_of(values[:, _select(names, [spec.time_column], path, "time")[0]], spec.time_unit, path)
+        rate = spec.rate or 1.0 / float(np.median(np.diff(times)))
     elif spec.rate is not None:
         rate = spec.rate
     else:
@@ -416,9 +546,12 @@ def _table_file(path: Path, spec: FileMap, fmt: str) -> _Read:
             raise IngestError(f"{path}: channel {channel.name} needs columns")
         data = values[:, _select(names, channel.columns, path, channel.name)]
         if channel.spread:
-            read.arrays[channel.name] = (data.reshape(-1), rate * data.shape[1], channel)
+            # The k-th of c samples in a row was taken k / (c rate) after the row's timestamp.
+            spread = None if times is None else (times[:, None] + np.arange(data.shape[1]) / (rate * data.shape[1]))
+            read.arrays[channel.name] = (data.reshape(-1), rate * data.shape[1], channel,
+                                         None if spread is None else spread.reshape(-1))
         else:
-            read.arrays[channel.name] = (data[:, 0] if data.shape[1] == 1 else data, rate, channel)
+            read.arrays[channel.name] = (data[:, 0] if data.shape[1] == 1 else data, rate, channel, times)
     return read
 
 
@@ -439,7 +572,7 @@ def _wav_file(path: Path, spec: FileMap) -> _Read:
             raise IngestError(f"{path}: channel {channel.name}: audio channels {picked} are not in "
                               f"0..{data.shape[1] - 1}")
         part = data[:, picked]
-        read.arrays[channel.name] = (part[:, 0] if part.shape[1] == 1 else part, float(rate), channel)
+        read.arrays[channel.name] = (part[:, 0] if part.shape[1] == 1 else part, float(rate), channel, None)
     return read
 
 
@@ -486,50 +619,214 @@ def _array_file(path: Path, spec: FileMap, fmt: str) -> _Read:
                                   f"the columns of an array of shape {data.shape}")
             data = data[:, list(columns)]
         if channel.spread:
-            read.arrays[channel.name] = (data.reshape(-1), rate * int(np.prod(data.shape[1:])), channel)
+            read.arrays[channel.name] = (data.reshape(-1), rate * int(np.prod(data.shape[1:])), channel, None)
         else:
-            read.arrays[channel.name] = (data, rate, channel)
+            read.arrays[channel.name] = (data, rate, channel, None)
+    return read
+
+
+def read_image(path: Path) -> np.ndarray:
+    """An image file (PNG, JPEG, BMP, TIFF) as RGB uint8 (h, w, 3).
+
+    Gray images are repeated into three channels, an alpha channel is dropped, 16-bit images are scaled to
+    8 bits (``round(v / 257)``); a PNG or JPEG header announcing more than 50 megapixels is refused before
+    decoding. A multi-page TIFF gives its first page.
+    """
+    try:
+        data = path.read_bytes()
+        check_pixels(data, name=str(path))
+    except (OSError, PhotoError) as exc:
+        raise IngestError(f"{path}: cannot read the image ({exc})") from None
+    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+    if image is None or image.size == 0:
+        raise IngestError(f"{path}: not a readable image file")
+    if image.dtype == np.uint16:
+        image = np.rint(image / 257.0).astype(np.uint8)
+    elif image.dtype != np.uint8:
+        raise IngestError(f"{path}: {image.dtype} pixels are not read; save the image with 8 or 16 bits")
+    if image.ndim == 2 or image.shape[2] == 1:
+        return np.repeat(image.reshape(image.shape[0], image.shape[1], 1), 3, axis=2)
+    return cv2.cvtColor(image, cv2.COLOR_BGRA2RGB if image.shape[2] == 4 else cv2.COLOR_BGR2RGB)
+
+
+def _image_file(path: Path, spec: FileMap) -> _Read:
+    read = _Read()
+    read.images[spec.channels[0].name] = read_image(path)
     return read
 
 
 def file_format(path: Path, spec: FileMap) -> str:
     """The file's format: the mapping's ``format``, else its extension."""
-    fmt = spec.format or path.suffix.lower().lstrip(".")
+    fmt = spec.format or format_of(path.name)
     if fmt not in FORMATS:
-        raise IngestError(f"{path}: unknown format {fmt!r}; give format = one of {', '.join(FORMATS)}")
+        raise IngestError(f"{path}: unknown format {path.suffix.lstrip('.')!r}; "
+                          f"give format = one of {', '.join(FORMATS)}")
     return fmt
 
 
-def read_file(path: Path, spec: FileMap, missing: str = "interpolate") -> tuple[dict[str, Trace], list[str]]:
-    """The channels of one file as traces (scaled, missing samples filled), and notes on what was done."""
+@dataclass(frozen=True)
+class Stream:
+    """One channel as read: samples (scaled, missing ones filled), rate, unit and, from a time column,
+    the time of every sample in seconds."""
+
+    data: np.ndarray
+    rate: float
+    unit: str
+    times: np.ndarray | None = None
+
+
+def read_streams(path: Path, spec: FileMap,
+                 missing: str = "interpolate") -> tuple[dict[str, Stream], dict[str, np.ndarray], list[Note]]:
+    """The channels and images of one file, and notes on what was done to them."""
     fmt = file_format(path, spec)
-    if fmt in ("csv", "tsv"):
-        read = _table_file(path, spec, fmt)
-    elif fmt == "wav":
-        read = _wav_file(path, spec)
-    else:
-        read = _array_file(path, spec, fmt)
-    traces = {}
-    for name, (data, rate, channel) in read.arrays.items():
+    readers: dict[str, Callable[[], _Read]] = {
+        "csv": lambda: _table_file(path, spec, fmt), "tsv": lambda: _table_file(path, spec, fmt),
+        "wav": lambda: _wav_file(path, spec), "image": lambda: _image_file(path, spec)}
+    read = readers.get(fmt, lambda: _array_file(path, spec, fmt))()
+    streams, notes = {}, []
+    for name, (data, rate, channel, times) in read.arrays.items():
         data, filled = _fill(data * channel.scale, missing, f"{path}: channel {name}")
         if filled:
-            read.notes.append(f"{path.name}: channel {name}: {filled} missing sample(s) interpolated")
+            notes.append(Note("missing", path.name, filled, f"{path.name}: channel {name}: {filled} missing "
+                              "sample(s) interpolated"))
+        streams[name] = Stream(data, rate, channel.unit, times)
+    return streams, read.images, notes
+
+
+def read_file(path: Path, spec: FileMap, missing: str = "interpolate") -> tuple[dict[str, Trace], list[str]]:
+    """The channels of one file as traces (scaled, missing samples filled, timestamps only setting the
+    rate), and notes on what was done; :func:`align` puts timestamped streams on a common time base."""
+    streams, _, notes = read_streams(path, spec, missing)
+    traces = {}
+    for name, stream in streams.items():
         try:
-            traces[name] = Trace(data, rate, channel.unit)
+            traces[name] = Trace(stream.data, stream.rate, stream.unit)
         except ScanError as exc:
             raise IngestError(f"{path}: channel {name}: {exc}") from None
-    return traces, read.notes
+    return traces, [str(note) for note in notes]
+
+
+# -- a common time base ------------------------------------------------------------------------------
+
+def _on_grid(times: np.ndarray, grid: np.ndarray, step: float) -> int | None:
+    """The index of the sample at ``grid[0]`` if the samples from there lie on the grid, else None."""
+    first = int(np.searchsorted(times, grid[0] - 1e-6 * step))
+    chosen = times[first:first + grid.size]
+    if chosen.size == grid.size and np.all(np.abs(chosen - grid) <= 1e-6 * step):
+        return first
+    return None
+
+
+def _interpolated(stream: Stream, grid: np.ndarray) -> np.ndarray:
+    """The stream's values at the grid times, linear between samples (each column on its own)."""
+    assert stream.times is not None
+    flat = stream.data.reshape(stream.data.shape[0], -1)
+    columns = [np.interp(grid, stream.times, flat[:, k]) for k in range(flat.shape[1])]
+    return np.stack(columns, axis=1).reshape((grid.size, *stream.data.shape[1:]))
+
+
+def gaps(times: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """Start times and lengths (s) of the gaps in a timestamp column: steps longer than 1.5 periods."""
+    steps = np.diff(times)
+    where = np.flatnonzero(steps > GAP_STEPS * step)
+    return times[where], steps[where]
+
+
+@dataclass(frozen=True)
+class Aligned:
+    """Streams on a common time base: traces, notes and what was done (``meta["time_base"]``)."""
+
+    traces: dict[str, Trace]
+    notes: list[Note]
+    info: dict[str, Any]
+
+
+def align(streams: Mapping[str, Stream], files: Mapping[str, str], missing: str = "interpolate") -> Aligned:
+    """Put the timestamped streams of one recording on a common time base.
+
+    A sample stands for the period from its time to the next one, so a stream covers ``[first time, last
+    time + 1 / rate)``. Every stream with timestamps is cut to the span all of them cover and sampled on
+    its own grid ``t0 + k / rate`` from the common start ``t0``: sample
+    k of every stream then means the same moment. A stream whose samples already lie on that grid (to
+    1e-6 of a period) is taken as it is; otherwise it is resampled by linear interpolation, with a note.
+    A step longer than 1.5 periods is a gap: the grid samples inside it are bridged by the interpolation
+    and reported (``missing = "interpolate"``) or the recording is refused (``missing = "error"``), never
+    filled silently. Streams without timestamps are taken as they are. ``files`` names each stream's file.
+    """
+    timed = {name: s for name, s in streams.items() if s.times is not None}
+    traces: dict[str, Trace] = {}
+    notes: list[Note] = []
+    info: dict[str, Any] = {}
+    if timed:
+        start = max(float(s.times[0]) for s in timed.values())
+        stop = min(float(s.times[-1]) + 1.0 / s.rate for s in timed.values())
+        if stop <= start:
+            spans = ", ".join(f"{n} {s.times[0]:.6g}-{s.times[-1]:.6g} s" for n, s in timed.items())
+            raise IngestError(f"the timestamped streams do not overlap in time ({spans})")
+        info = {"start_s": start, "seconds": stop - start, "channels": {}}
+    for name, stream in streams.items():
+        data = stream.data
+        if stream.times is not None:
+            data, channel_notes, channel_info = _on_common_grid(name, stream, start, stop, files[name], missing)
+            notes += channel_notes
+            info["channels"][name] = channel_info
+        try:
+            traces[name] = Trace(data, stream.rate, stream.unit)
+        except ScanError as exc:
+            raise IngestError(f"{files[name]}: channel {name}: {exc}") from None
+    if len(timed) > 1:
+        cut = [n for n, s in timed.items() if s.times[0] < start - 0.5 / s.rate or s.times[-1] > stop - 0.5 / s.rate]
+        if cut:
+            notes.append(Note("aligned", files[cut[0]], len(cut), f"{files[cut[0]]}: channel(s) {', '.join(cut)} "
+                              f"cut to the span {start:.6g}-{stop:.6g} s that {', '.join(timed)} share"))
+    return Aligned(traces, notes, info)
+
+
+def _on_common_grid(name: str, stream: Stream, start: float, stop: float, file: str,
+                    missing: str) -> tuple[np.ndarray, list[Note], dict[str, Any]]:
+    assert stream.times is not None
+    step = 1.0 / stream.rate
+    count = max(1, int(math.floor((stop - start) * stream.rate + 1e-6)))
+    grid = start + np.arange(count) * step
+    notes = []
+    gap_start, gap_length = gaps(stream.times, step)
+    inside = (gap_start >= start - step) & (gap_start < stop)
+    gap_start, gap_length = gap_start[inside], gap_length[inside]
+    bridged = int(sum(np.count_nonzero((grid > t + 0.5 * step) & (grid < t + length - 0.5 * step))
+                      for t, length in zip(gap_start, gap_length, strict=True)))
+    if gap_start.size:
+        longest = int(np.argmax(gap_length))
+        text = (f"{file}: channel {name}: {gap_start.size} gap(s) in the timestamps, {bridged} sample(s) "
+                f"missing; the longest {gap_length[longest]:.4g} s at t = {gap_start[longest]:.6g} s")
+        if missing == "error":
+            raise IngestError(text)
+        notes.append(Note("gap", file, float(gap_length[longest]), text + " (bridged linearly)"))
+    first = None if gap_start.size else _on_grid(stream.times, grid, step)
+    if first is not None:
+        data = stream.data[first:first + count]
+    else:
+        data = _interpolated(stream, grid)
+        steps = np.diff(stream.times)
+        regular = steps[steps <= GAP_STEPS * step]
+        spread = float(np.max(np.abs(regular - step)) / step) if regular.size else 0.0
+        if spread > RATE_TOLERANCE:
+            notes.append(Note("irregular", file, spread, f"{file}: channel {name}: time steps vary by up to "
+                              f"{100 * spread:.0f} %; resampled to {stream.rate:.6g} Hz"))
+    info = {"resampled": first is None, "gaps": int(gap_start.size), "bridged_samples": bridged,
+            "longest_gap_s": float(gap_length.max()) if gap_length.size else 0.0}
+    return data, notes, info
 
 
 # -- recordings --------------------------------------------------------------------------------------
 
 @dataclass
 class IngestReport:
-    """The recordings made and the problems met: ``skipped`` holds one line per bad file or recording."""
+    """The recordings made and the problems met: ``skipped`` holds one line per bad file or recording,
+    ``notes`` what was done to usable data (:func:`summarise_notes` condenses them)."""
 
     recordings: list[Recording] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
-    notes: list[str] = field(default_factory=list)
+    notes: list[Note] = field(default_factory=list)
     files: int = 0
 
 
@@ -549,6 +846,31 @@ def _matched(root: Path, mapping: IngestMapping) -> dict[Path, list[tuple[Path, 
                 continue
             groups.setdefault(path.parent / stem_of(path, spec), []).append((path, spec))
     return groups
+
+
+def recording_names(keys: Sequence[Path], root: Path) -> dict[Path, str]:
+    """A distinct, stable name for every recording key (folder + stem), derived from its path.
+
+    The stem where no other recording has it; otherwise the folders below ``root`` and the stem joined by
+    ``_`` (``train/cork/r01`` -> ``train_cork_r01``); a name still shared, or longer than 64 characters,
+    ends in 8 hex digits of the SHA-256 of the relative path.
+    """
+    stems: dict[str, int] = {}
+    for key in keys:
+        stems[safe_name(key.name)] = stems.get(safe_name(key.name), 0) + 1
+    names = {}
+    for key in keys:
+        relative = key.relative_to(root)
+        long = re.sub(r"[^A-Za-z0-9._-]", "_", "_".join(relative.parts)).lstrip("._-") or "recording"
+        names[key] = safe_name(key.name) if stems[safe_name(key.name)] == 1 else long
+    shared: dict[str, int] = {}
+    for name in names.values():
+        shared[name] = shared.get(name, 0) + 1
+    for key, name in names.items():
+        if shared[name] > 1 or len(name) > 64:
+            digest = hashlib.sha256(key.relative_to(root).as_posix().encode()).hexdigest()[:8]
+            names[key] = f"{name[:55]}-{digest}"
+    return names
 
 
 def _label_table(root: Path, mapping: IngestMapping) -> dict[str, dict[str, str]]:
@@ -584,52 +906,142 @@ def _label(key: Path, root: Path, mapping: IngestMapping, table: Mapping[str, Ma
     return relative[-mapping.label_depth], {}
 
 
+def _split_part(value: str, mapping: IngestMapping) -> str | None:
+    lowered = value.lower()
+    return next((part for part, names in mapping.split_names.items() if lowered in names), None)
+
+
+def split_of(key: Path, root: Path, mapping: IngestMapping, groups: Mapping[str, str]) -> str | None:
+    """``train`` or ``test`` from a folder of the recording's path or the pattern's ``split`` group; None
+    if the mapping has no split (or, by default, no folder names one). IngestError if the mapping asks for a
+    split the recording does not have."""
+    if mapping.split_from == "none":
+        return None
+    if mapping.split_from == "pattern":
+        value = groups.get("split", "")
+        part = _split_part(value, mapping)
+        if part is None:
+            names = mapping.split_names
+            raise IngestError(f"{key.name}: split {value!r} is neither train ({', '.join(names['train'])}) "
+                              f"nor test ({', '.join(names['test'])})")
+        return part
+    parts = [p for p in (_split_part(folder, mapping) for folder in key.relative_to(root).parts[:-1]) if p]
+    if len(set(parts)) > 1:
+        raise IngestError(f"{key.relative_to(root)}: folders name both a training and a test part")
+    if not parts and mapping.split_from == "folder":
+        raise IngestError(f"{key.relative_to(root)}: no train or test folder in the path")
+    return parts[0] if parts else None
+
+
 def safe_name(text: str) -> str:
     """A recording name usable as a file name: other characters become '_' (1-64 characters)."""
     name = re.sub(r"[^A-Za-z0-9._-]", "_", text).lstrip("._-")[:64]
     return name or "recording"
 
 
-def _recording(key: Path, files: list[tuple[Path, FileMap]], root: Path, mapping: IngestMapping,
-               table: Mapping[str, Mapping[str, str]], report: IngestReport) -> Recording | None:
-    groups: dict[str, str] = {}
-    if mapping.pattern is not None:
-        match = mapping.pattern.search(key.name)
-        if match is None:
-            report.skipped.extend(f"{path}: name does not match groups.pattern" for path, _ in files)
-            return None
-        groups = {k: v for k, v in match.groupdict().items() if v is not None}
-    channels: dict[str, Trace] = {}
+def patches(image: np.ndarray, grid: tuple[int, int]) -> list[tuple[int, int, np.ndarray]]:
+    """``(row, column, patch)`` of a rows x columns grid of equal patches, centred: the image's last
+    ``h mod rows`` rows and ``w mod columns`` columns are split between the two sides and left out."""
+    rows, columns = grid
+    h, w = image.shape[:2]
+    ph, pw = h // rows, w // columns
+    if ph < 1 or pw < 1:
+        raise IngestError(f"an image of {w}x{h} px cannot be cut into {rows}x{columns} patches")
+    top, left = (h - rows * ph) // 2, (w - columns * pw) // 2
+    return [(r, c, image[top + r * ph:top + (r + 1) * ph, left + c * pw:left + (c + 1) * pw])
+            for r in range(rows) for c in range(columns)]
+
+
+@dataclass(frozen=True)
+class _Parts:
+    """Everything read for one recording key."""
+
+    streams: dict[str, Stream]
+    images: dict[str, np.ndarray]
+    roles: dict[str, str]
+    files: dict[str, str]
+    grid: tuple[int, int] | None
+
+
+def _read_parts(key: Path, files: list[tuple[Path, FileMap]], root: Path, mapping: IngestMapping,
+                report: IngestReport) -> _Parts | None:
+    streams: dict[str, Stream] = {}
+    images: dict[str, np.ndarray] = {}
     roles: dict[str, str] = {}
+    origin: dict[str, str] = {}
+    grid = None
     for path, spec in files:
         try:
-            traces, notes = read_file(path, spec, mapping.missing)
+            read, pictures, notes = read_streams(path, spec, mapping.missing)
         except IngestError as exc:
             report.skipped.append(str(exc))
             report.skipped.append(f"{key.relative_to(root)}: recording skipped, {path.name} is unusable")
             return None
         report.notes.extend(notes)
-        channels.update(traces)
-        roles.update({c.role: c.name for c in spec.channels if c.role})
+        streams.update(read)
+        images.update(pictures)
+        origin.update(dict.fromkeys([*read, *pictures], path.name))
+        roles.update({c.role or ("photo" if c.name in pictures else ""): c.name for c in spec.channels
+                      if c.role or c.name in pictures})
+        grid = spec.grid or grid
+    return _Parts(streams, images, roles, origin, grid)
+
+
+def _recordings(key: Path, name: str, files: list[tuple[Path, FileMap]], root: Path, mapping: IngestMapping,
+                table: Mapping[str, Mapping[str, str]], report: IngestReport) -> list[Recording]:
+    """The recording of one key (one per patch when its image is cut into a grid)."""
+    groups: dict[str, str] = {}
+    if mapping.pattern is not None:
+        match = mapping.pattern.search(key.name)
+        if match is None:
+            report.skipped.extend(f"{path}: name does not match groups.pattern" for path, _ in files)
+            return []
+        groups = {k: v for k, v in match.groupdict().items() if v is not None}
+    parts = _read_parts(key, files, root, mapping, report)
+    if parts is None:
+        return []
     try:
+        aligned = align(parts.streams, parts.files, mapping.missing)
         label, levels = _label(key, root, mapping, table, groups)
+        split = split_of(key, root, mapping, groups)
         meta = {**mapping.meta, "label_level": mapping.label_level, "levels": levels,
                 "source": [str(path.relative_to(root)) for path, _ in files]}
-        return Recording(safe_name(key.name), channels, roles, label,
-                         {k: v for k, v in groups.items() if k != "label"}, meta)
+        if split is not None:
+            meta["split"] = split
+        if aligned.info:
+            meta["time_base"] = aligned.info
+        group = {k: v for k, v in groups.items() if k not in ("label", "split")}
+        if parts.grid is None:
+            recordings = [Recording(name, aligned.traces, parts.roles, label, group, meta, parts.images)]
+        else:
+            recordings = _patched(name, parts, aligned.traces, label, group, meta)
     except (IngestError, ScanError) as exc:
         report.skipped.append(f"{key.relative_to(root)}: recording skipped: {exc}")
-        return None
+        return []
+    report.notes.extend(aligned.notes)
+    return recordings
+
+
+def _patched(name: str, parts: _Parts, traces: Mapping[str, Trace], label: str, group: Mapping[str, str],
+             meta: Mapping[str, Any]) -> list[Recording]:
+    """One recording per patch of the grid, sharing the group ``photo`` (and the sampled channels)."""
+    assert parts.grid is not None
+    (image_name, image), = parts.images.items()  # an image file is one channel
+    return [Recording(f"{name}_r{r}c{c}", traces, parts.roles, label, {**group, "photo": name},
+                      {**meta, "patch": [r, c], "grid": list(parts.grid)}, {image_name: patch})
+            for r, c, patch in patches(image, parts.grid)]
 
 
 def ingest(path: str | os.PathLike[str], mapping: IngestMapping,
            progress: Callable[[Iterable[Any]], Iterable[Any]] = iter) -> IngestReport:
     """Recordings from the files under ``path`` as ``mapping`` describes them.
 
-    Files with the same stem in the same folder form one recording. A file that cannot be read as mapped
-    (wrong format, missing column, bad token, no rate, ...) is reported in ``skipped`` with its name and
-    reason, and its recording is skipped; the import goes on with the others. Names are made unique.
-    ``progress`` wraps the iteration over the recordings (e.g. a tqdm bar).
+    Files with the same stem in the same folder form one recording; its timestamped streams are put on a
+    common time base (:func:`align`). A file that cannot be read as mapped (wrong format, missing column,
+    bad token, no rate, ...) is reported in ``skipped`` with its name and reason, and its recording is
+    skipped; the import goes on with the others. Names come from the paths (:func:`recording_names`);
+    an image file with a ``grid`` gives one recording per patch. ``progress`` wraps the iteration over
+    the recordings (e.g. a tqdm bar).
 
     Raises
     ------
@@ -641,19 +1053,16 @@ def ingest(path: str | os.PathLike[str], mapping: IngestMapping,
         raise IngestError(f"{root}: not a folder")
     table = _label_table(root, mapping)
     report = IngestReport()
-    seen: set[str] = set()
-    for key, files in progress(list(_matched(root, mapping).items())):
+    matched = _matched(root, mapping)
+    names = recording_names(list(matched), root)
+    for key, files in progress(list(matched.items())):
         report.files += len(files)
-        recording = _recording(key, files, root, mapping, table, report)
-        if recording is None:
-            continue
-        name = recording.name
-        while name in seen:
-            name = f"{recording.name}-{len(seen)}"
-        seen.add(name)
-        report.recordings.append(recording if name == recording.name else
-                                 Recording(name, recording.channels, recording.roles, recording.label,
-                                           recording.group, recording.meta))
+        report.recordings += _recordings(key, names[key], files, root, mapping, table, report)
+    splits = {r.meta.get("split") for r in report.recordings}
+    if mapping.split_from == "auto" and splits != {"train", "test"}:
+        # Folders named train or test hold only some recordings, or one part: not a split of the set.
+        report.recordings = [replace(r, meta={k: v for k, v in r.meta.items() if k != "split"})
+                             for r in report.recordings]
     return report
 
 
@@ -667,7 +1076,7 @@ def recording_variables(recording: Recording) -> dict[str, Any]:
     """The MATLAB variables of a recording: one per channel and ``meta`` (name, label, label level, fs,
     units, roles, group, levels, ndim per channel, and all of ``Recording.meta`` as JSON text, which is what
     :func:`read_recording` restores it from)."""
-    bad = [name for name in recording.channels if not _NAME.match(name) or name == "meta"]
+    bad = [name for name in [*recording.channels, *recording.images] if not _NAME.match(name) or name == "meta"]
     if bad:
         raise IngestError(f"recording {recording.name}: channel name(s) {', '.join(bad)} "
                           "are not MATLAB names")
@@ -677,11 +1086,12 @@ def recording_variables(recording: Recording) -> dict[str, Any]:
         "fs": {n: t.fs for n, t in recording.channels.items()},
         "units": {n: t.unit for n, t in recording.channels.items()},
         "ndim": {n: float(t.data.ndim) for n, t in recording.channels.items()},
+        "images": {n: np.array(image.shape, dtype=np.float64) for n, image in recording.images.items()},
         "roles": dict(recording.roles), "group": _struct(recording.group),
-        "levels": _struct(recording.meta.get("levels", {})),
+        "levels": _struct(recording.meta.get("levels", {})), "split": str(recording.meta.get("split", "")),
         "meta_json": json.dumps(dict(recording.meta), default=str),
     }
-    return {**{n: t.data for n, t in recording.channels.items()}, "meta": meta}
+    return {**{n: t.data for n, t in recording.channels.items()}, **recording.images, "meta": meta}
 
 
 def encode_recording(recording: Recording) -> bytes:
@@ -708,16 +1118,18 @@ def read_recording(path: str | os.PathLike[str]) -> Recording:
         data = scipy.io.loadmat(path, squeeze_me=True, struct_as_record=False)
         meta = {k: _plain(v) for k, v in _plain(data["meta"]).items()}
         channels = {}
-        for name, fs in meta["fs"].items():
+        for name, fs in dict(meta.get("fs") or {}).items():
             array = np.asarray(data[name], dtype=np.float64)
             ndim = int(meta["ndim"][name])
             shape = array.shape if array.ndim == ndim else ((array.size,) if ndim == 1 else (array.size, 1))
             channels[name] = Trace(array.reshape(shape), float(fs), str(meta["units"][name]))
+        images = {name: np.asarray(data[name], dtype=np.uint8).reshape(np.asarray(shape, dtype=int).tolist())
+                  for name, shape in dict(meta.get("images") or {}).items()}
         group = meta.get("group") or {}
         roles = meta.get("roles") or {}
         extra = json.loads(meta.get("meta_json") or "{}")
         return Recording(str(meta["name"]), channels, dict(roles), str(meta["label"]) or None,
-                         {k: str(v) for k, v in dict(group).items()}, extra)
+                         {k: str(v) for k, v in dict(group).items()}, extra, images)
     except IngestError:
         raise
     except Exception as exc:  # scipy and the data model raise many types for foreign files

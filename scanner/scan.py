@@ -77,8 +77,12 @@ IMAGES: Mapping[str, str] = MappingProxyType({
 
 ROLES = frozenset({
     "vibration", "pressure_dc", "temperature", "heat_flow", "electrodes", "taxels", "force_xyz", "audio",
+    "photo",
 })
-"""Channel roles read by the related-work feature sets (SPEC 3, 7.5)."""
+"""Channel roles read by the feature sets (SPEC 3, 7.5); ``photo`` names an image of the recording."""
+
+IMAGE_ROLES = frozenset({"photo"})
+"""Roles played by images (RGB uint8 (h, w, 3)) instead of sampled channels."""
 
 _SAFE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
 _OPERATOR = re.compile(r"^[^\x00-\x1f\x7f/\\<>\"']{1,64}$")
@@ -372,8 +376,9 @@ def _check_image(name: str, image: np.ndarray) -> np.ndarray:
 class Recording(_Picklable):
     """A generic recording from another sensor or dataset (SPEC 3 "Generic recordings").
 
-    ``channels`` are named traces at their own rates; ``roles`` map a role of :data:`ROLES` to a channel
-    name, which is how the related-work feature sets (SPEC 7.5) find their inputs; ``label`` is the class
+    ``channels`` are named traces at their own rates; ``images`` named RGB photos (uint8, (h, w, 3)), e.g.
+    a texture photo or one patch of it; ``roles`` map a role of :data:`ROLES` to a channel name (an image
+    name for ``photo``), which is how the feature sets (SPEC 7.5) find their inputs; ``label`` is the class
     (any string; a taxonomy label where known), ``group`` the object/sample ids used for grouped splits.
     """
 
@@ -383,30 +388,52 @@ class Recording(_Picklable):
     label: str | None = None
     group: Mapping[str, str] = field(default_factory=dict)
     meta: Mapping[str, Any] = field(default_factory=dict)
+    images: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.strip():
             raise ScanError("recording name must be a non-empty string")
-        if not self.channels:
+        if not self.channels and not self.images:
             raise ScanError(f"recording {self.name!r} has no channels")
         for channel, trace in self.channels.items():
             if not isinstance(trace, Trace):
                 raise ScanError(f"recording {self.name!r}: channel {channel!r} must be a Trace")
+        images = {name: _checked_image(self.name, name, image) for name, image in self.images.items()}
         for role, channel in self.roles.items():
             if role not in ROLES:
                 raise ScanError(f"recording {self.name!r}: unknown role {role!r} (known: {', '.join(sorted(ROLES))})")
+            if role in IMAGE_ROLES:
+                if channel not in images:
+                    raise ScanError(f"recording {self.name!r}: role {role!r} names missing image {channel!r}")
+                continue
             if channel not in self.channels:
                 raise ScanError(f"recording {self.name!r}: role {role!r} names missing channel {channel!r}")
             _check_role_shape(self.name, role, self.channels[channel])
         object.__setattr__(self, "channels", MappingProxyType(dict(self.channels)))
+        object.__setattr__(self, "images", MappingProxyType(images))
         object.__setattr__(self, "roles", MappingProxyType(dict(self.roles)))
         object.__setattr__(self, "group", MappingProxyType({str(k): str(v) for k, v in self.group.items()}))
         object.__setattr__(self, "meta", MappingProxyType(dict(self.meta)))
 
     def role(self, role: str) -> Trace | None:
-        """The trace playing ``role``, or None."""
+        """The trace playing ``role``, or None (see :meth:`image` for ``photo``)."""
         channel = self.roles.get(role)
-        return None if channel is None else self.channels[channel]
+        return None if channel is None or role in IMAGE_ROLES else self.channels[channel]
+
+    def image(self, role: str = "photo") -> np.ndarray | None:
+        """The image playing ``role``, or None."""
+        name = self.roles.get(role)
+        return None if name is None or role not in IMAGE_ROLES else self.images[name]
+
+
+def _checked_image(recording: str, name: str, image: Any) -> np.ndarray:
+    """A read-only RGB uint8 (h, w, 3) copy of ``image``; ScanError naming the recording otherwise."""
+    array = np.array(image, copy=True)
+    if array.dtype != np.uint8 or array.ndim != 3 or array.shape[2] != 3 or min(array.shape[:2]) == 0:
+        raise ScanError(f"recording {recording!r}: image {name!r} must be RGB uint8 (h, w, 3), "
+                        f"got {array.dtype} of shape {array.shape}")
+    array.flags.writeable = False
+    return array
 
 
 _ROLE_NDIM = {"electrodes": 2, "taxels": 3, "force_xyz": 2}

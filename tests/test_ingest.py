@@ -42,7 +42,7 @@ def test_spread_columns_become_one_fast_channel(lab_a):
     # the nan and -nan tokens at samples 25 and 32 are filled by linear interpolation, so they too.
     assert pac.fs == pytest.approx(2200.0) and pac.unit == "bit"
     assert np.array_equal(pac.data, 1000.0 + np.arange(88))
-    assert "metal-1_t01_static_pac.csv: channel pac: 2 missing sample(s) interpolated" in lab_a.notes
+    assert "metal-1_t01_static_pac.csv: channel pac: 2 missing sample(s) interpolated" in map(str, lab_a.notes)
 
 
 def test_tsv_at_a_given_rate_with_comment_and_column_index(lab_a):
@@ -212,3 +212,118 @@ def test_cli_ingest_reports_bad_files_and_stores_the_set(tmp_path, capsys):
     lab_c = [str(FIXTURES / "lab-c"), "--mapping", str(FIXTURES / "lab-c.toml"), "--db", str(db)]
     assert main(["ingest", *lab_c, "--name", "c"]) == 3
     assert ingest.recording_sets(db) == ["c", "lab-b-audio-force"]
+
+
+# -- photos, patches, splits, names, time bases -------------------------------------------------------
+
+def write_png(path: Path, image: np.ndarray) -> None:
+    import cv2
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    assert cv2.imwrite(str(path), image[..., ::-1] if image.ndim == 3 else image)
+
+
+def test_photos_of_every_kind_become_rgb_and_a_grid_cuts_them_into_patches(tmp_path):
+    import cv2
+
+    rng = np.random.default_rng(0)
+    rgb = rng.integers(0, 256, (41, 62, 3), dtype=np.uint8)
+    write_png(tmp_path / "cork" / "a.png", rgb)
+    write_png(tmp_path / "cork" / "gray.bmp", rgb[..., 0])
+    (tmp_path / "felt").mkdir()
+    assert cv2.imwrite(str(tmp_path / "felt" / "deep.tif"), rgb[..., ::-1].astype(np.uint16) * 257)
+    (tmp_path / "felt" / "broken.jpg").write_bytes(b"\xff\xd8\xff\xe0 not really")
+    report = ingest.ingest(tmp_path, ingest.default_mapping("photos"))
+    by = {r.name: r for r in report.recordings}
+    assert sorted(by) == ["a", "deep", "gray"] and by["a"].label == "cork" and by["deep"].label == "felt"
+    assert np.array_equal(by["a"].image(), rgb) and by["a"].roles == {"photo": "photo"}
+    assert np.array_equal(by["gray"].image(), np.repeat(rgb[..., :1], 3, axis=2))
+    assert np.array_equal(by["deep"].image(), rgb)  # 16 bits: v * 257 / 257
+    assert report.skipped[0].endswith("broken.jpg: cannot read the image (the JPEG file is damaged "
+                                      "(no frame header))")
+    cut = ingest.ingest(tmp_path, ingest.with_grid(ingest.default_mapping("patches"), (2, 3)))
+    patches = [r for r in cut.recordings if r.group.get("photo") == "a"]
+    # 41 x 62 px in 2 x 3 patches of 20 x 20 px; the odd row and the 2 spare columns split around them.
+    assert [r.name for r in patches] == [f"a_r{r}c{c}" for r in range(2) for c in range(3)]
+    assert np.array_equal(patches[4].image(), rgb[20:40, 21:41]) and patches[4].meta["patch"] == [1, 1]
+    folder = ingest.store_recordings(tmp_path / "db", "patches", cut.recordings)
+    back = {r.name: r for r in ingest.load_recordings(folder)}
+    assert np.array_equal(back["a_r1c1"].image(), rgb[20:40, 21:41]) and back["a_r1c1"].group == {"photo": "a"}
+
+
+def test_a_split_by_folder_is_kept_and_equal_names_get_ids_from_their_paths(tmp_path):
+    from scipy.io import wavfile
+
+    for part in ("train", "test"):
+        for label in ("cork", "felt"):
+            path = tmp_path / "sounds" / part / label / "take1.wav"
+            path.parent.mkdir(parents=True)
+            wavfile.write(path, 8000, np.zeros(800, np.int16))
+    report = ingest.ingest(tmp_path / "sounds", ingest.default_mapping("s"))
+    names = {r.name: (r.label, r.meta.get("split")) for r in report.recordings}
+    assert names == {"test_cork_take1": ("cork", "test"), "test_felt_take1": ("felt", "test"),
+                     "train_cork_take1": ("cork", "train"), "train_felt_take1": ("felt", "train")}
+    assert ingest.recording_names([tmp_path / "x" / ("a" * 70), tmp_path / "y" / ("a" * 70)], tmp_path) == {
+        tmp_path / "x" / ("a" * 70): "x_" + "a" * 53 + "-" + __import__("hashlib").sha256(
+            ("x/" + "a" * 70).encode()).hexdigest()[:8],
+        tmp_path / "y" / ("a" * 70): "y_" + "a" * 53 + "-" + __import__("hashlib").sha256(
+            ("y/" + "a" * 70).encode()).hexdigest()[:8]}
+    only_train = ingest.ingest(tmp_path / "sounds" / "train", ingest.default_mapping("s"))
+    assert all("split" not in r.meta for r in only_train.recordings)  # one part is not a split
+    pattern = ingest.parse_mapping('[groups]\npattern = "^(?P<split>[a-z]+)_"\n[split]\nfrom = "pattern"\n'
+                                   'test = ["val"]\n[[files]]\nglob = "**/*.wav"\n', "m")
+    (tmp_path / "flat" / "cork").mkdir(parents=True)
+    for stem in ("train_1", "val_1", "other_1"):
+        wavfile.write(tmp_path / "flat" / "cork" / f"{stem}.wav", 8000, np.zeros(800, np.int16))
+    report = ingest.ingest(tmp_path / "flat", pattern)
+    assert {r.name: r.meta["split"] for r in report.recordings} == {"train_1": "train", "val_1": "test"}
+    assert report.skipped == ["cork/other_1: recording skipped: other_1: split 'other' is neither train "
+                              "(train, training) nor test (val)"]
+
+
+def two_stream_mapping(missing: str = "interpolate") -> ingest.IngestMapping:
+    return ingest.parse_mapping(
+        f'missing = "{missing}"\n'
+        '[[files]]\nglob = "**/*_tactile.csv"\nsuffix = "_tactile.csv"\ntime_column = "t"\n'
+        '[[files.channels]]\nname = "pdc"\nrole = "pressure_dc"\ncolumns = "p"\n'
+        '[[files]]\nglob = "**/*_force.csv"\nsuffix = "_force.csv"\ntime_column = "t_ms"\ntime_unit = "ms"\n'
+        'rate = 200.0\n[[files.channels]]\nname = "force"\nrole = "force_xyz"\ncolumns = ["fx", "fy", "fz"]\n',
+        "two")
+
+
+def test_timestamped_streams_are_aligned_and_gaps_reported_not_silently_filled(tmp_path):
+    folder = tmp_path / "lab" / "cork"
+    folder.mkdir(parents=True)
+    # Tactile at 100 Hz from t = 0.10 s; force at 200 Hz from t = 0.05 s with the samples of 0.30-0.34 s lost.
+    t = (0.10 + np.arange(100) / 100).tolist()
+    (folder / "r1_tactile.csv").write_text("t,p\n" + "".join(f"{a!r},{3 * a!r}\n" for a in t))
+    tf = np.round(0.05 + np.arange(240) / 200, 9)
+    kept = tf[(tf < 0.299) | (tf > 0.341)].tolist()
+    (folder / "r1_force.csv").write_text("t_ms,fx,fy,fz\n" + "".join(
+        f"{1000 * a!r},{a!r},{2 * a!r},1.0\n" for a in kept))
+    report = ingest.ingest(tmp_path / "lab", two_stream_mapping())
+    recording = report.recordings[0]
+    pdc, force = recording.channels["pdc"], recording.channels["force"]
+    # Common span: from 0.10 s (the later start) to 1.10 s (the tactile stream's end).
+    assert pdc.fs == pytest.approx(100.0, rel=1e-12) and np.array_equal(pdc.data, 3 * np.array(t))
+    assert force.fs == 200.0 and force.data.shape == (200, 3)
+    grid = 0.10 + np.arange(200) / 200
+    # fx = t is linear, so bridging the gap linearly gives back t exactly (to rounding) on the whole grid.
+    assert force.data[:, 0] == pytest.approx(grid, abs=1e-12) and np.all(force.data[:, 2] == 1.0)
+    notes = [str(n) for n in report.notes]
+    assert "r1_force.csv: channel force: 1 gap(s) in the timestamps, 9 sample(s) missing; the longest 0.05 s " \
+        "at t = 0.295 s (bridged linearly)" in notes
+    assert any(n.startswith("r1_force.csv: channel(s) force cut to the span 0.1-1.1 s") for n in notes)
+    info = recording.meta["time_base"]
+    assert info["start_s"] == pytest.approx(0.10) and info["channels"]["force"]["bridged_samples"] == 9
+    refused = ingest.ingest(tmp_path / "lab", two_stream_mapping("error"))
+    assert refused.recordings == [] and "9 sample(s) missing" in refused.skipped[0]
+
+
+def test_notes_are_summarised_per_kind_with_the_worst_first_names():
+    notes = [ingest.Note("irregular", f"f{i}.csv", i / 100, f"f{i}.csv: time steps vary by up to {i} %")
+             for i in range(1, 6)] + [ingest.Note("missing", "g.csv", 2, "g.csv: 2 missing sample(s)")]
+    assert ingest.summarise_notes(notes) == [
+        "irregular time steps resampled in 5 file(s) (f1.csv, f2.csv, f3.csv and 2 more); worst: f5.csv: "
+        "time steps vary by up to 5 %",
+        "missing samples interpolated in 1 file(s) (g.csv); worst: g.csv: 2 missing sample(s)"]
