@@ -313,6 +313,25 @@ class FQSelector(SelectorMixin, BaseEstimator):
         return tags
 
 
+class KeepAll(SelectorMixin, BaseEstimator):
+    """The selector's place in a pipeline when every feature is kept (the set size ``all``): no FQ, no
+    Spearman filter. ``selected_`` lists every column, as :class:`FQSelector`'s does its choice."""
+
+    def fit(self, X: Any, y: Any = None) -> KeepAll:
+        X = validate_data(self, X, ensure_all_finite="allow-nan", dtype=np.float64)
+        self.selected_ = np.arange(X.shape[1])
+        return self
+
+    def _get_support_mask(self) -> np.ndarray:
+        check_is_fitted(self, "selected_")
+        return np.ones(self.n_features_in_, dtype=bool)
+
+    def __sklearn_tags__(self) -> Any:
+        tags = super().__sklearn_tags__()
+        tags.input_tags.allow_nan = True
+        return tags
+
+
 # -- the selection of a whole feature space (``texplorer select``) --------------------------------------
 
 

@@ -1,11 +1,19 @@
 """The feature space X0 (SPEC section 8): rows = scans, named feature columns, label and group columns.
 
+Rows may also be the recordings of an imported set, labelled with the set's own class names
+(``label_level`` names their level, e.g. ``material``), with coarser ``levels`` where the set defines them
+and the set's own train/test ``split``.
+
 Files:
 
 - CSV: header ``scan_id,sample_id,label,C,S,M,P,X,<feature columns...>``; one row per scan; ``NaN`` for
-  undefined values; floats written with full precision (``repr``), so a round trip is exact.
+  undefined values; floats written with full precision (``repr``), so a round trip is exact. A space with
+  free labels writes ``label:<level>`` as the third column (C..X are then -1), and between ``X`` and the
+  features a ``level:<name>`` column per coarser level and a ``split`` column (``train``/``test``) if it
+  has a split.
 - ``.mat``: ``X`` (n x f double), ``columns`` (1 x f cell of names), ``labels`` (n x 5 double: C, S, M, P, X),
-  ``label`` (n x 1 cell of label text), ``scan_id`` and ``sample_id`` (n x 1 cells).
+  ``label`` (n x 1 cell of label text), ``scan_id`` and ``sample_id`` (n x 1 cells); with free labels also
+  ``label_level`` (text), ``levels`` (a struct of n x 1 cells) and ``split`` (n x 1 cell, if any).
 """
 
 from __future__ import annotations
@@ -14,20 +22,22 @@ import csv
 import io
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import scipy.io
 
-from taxonomy.labels import Label, check_level
+from taxonomy.labels import LEVELS, Label, check_level
 
 MODALITIES = ("tactum", "image", "audio", "other")
 """Column groups by the first part of the feature name."""
 
 _ID_COLUMNS = ("scan_id", "sample_id", "label")
 _LABEL_PARTS = ("C", "S", "M", "P", "X")
+SPLITS = ("train", "test")
+"""The parts of a set's own split."""
 
 
 class FeatureSpaceError(ValueError):
@@ -40,6 +50,10 @@ class FeatureSpace:
 
     ``groups`` are the sample ids: scans of one sample must stay in one cross-validation fold.
     ``failed`` lists ``(scan_id, reason)`` for scans that could not be extracted (they have no row).
+
+    ``label_level`` None means taxonomy labels (levels coarse, medium, fine); a name means free class
+    names at that level (an imported set's ``material``, ``object``, ...), with the coarser ``levels``
+    (name -> one class per row) the set defines. ``split`` is empty or ``train``/``test`` per row.
     """
 
     X: np.ndarray
@@ -48,6 +62,9 @@ class FeatureSpace:
     label_text: tuple[str, ...]
     groups: tuple[str, ...]
     failed: tuple[tuple[str, str], ...] = field(default=())
+    label_level: str | None = None
+    levels: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    split: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         X = np.array(self.X, dtype=np.float64)
@@ -65,9 +82,42 @@ class FeatureSpace:
             raise FeatureSpaceError("X contains inf; undefined features must be NaN")
         X.flags.writeable = False
         object.__setattr__(self, "X", X)
-        for name in ("columns", "scan_ids", "label_text", "groups"):
+        for name in ("columns", "scan_ids", "label_text", "groups", "split"):
             object.__setattr__(self, name, tuple(str(v) for v in getattr(self, name)))
         object.__setattr__(self, "failed", tuple((str(a), str(b)) for a, b in self.failed))
+        self._check_labels(n)
+
+    def _check_labels(self, n: int) -> None:
+        levels = {str(k): tuple(str(v) for v in values) for k, values in self.levels.items()}
+        if self.label_level is None and levels:
+            raise FeatureSpaceError("taxonomy labels have the levels coarse, medium and fine; extra levels "
+                                    "need free labels (label_level)")
+        for name, values in levels.items():
+            if len(values) != n:
+                raise FeatureSpaceError(f"{len(values)} classes of level {name!r} for {n} rows")
+            if name == self.label_level or not name.strip() or "," in name:
+                raise FeatureSpaceError(f"level name {name!r} is empty, has a comma or repeats the label's")
+        if self.split and (len(self.split) != n or not set(self.split) <= set(SPLITS)):
+            raise FeatureSpaceError(f"split must give train or test for each of the {n} rows")
+        object.__setattr__(self, "levels", levels)
+
+    @property
+    def level_names(self) -> tuple[str, ...]:
+        """The classification levels, coarse to fine: coarse, medium, fine for taxonomy labels; the set's
+        coarser levels, then the label's level, for free labels."""
+        return LEVELS if self.label_level is None else (*self.levels, self.label_level)
+
+    def check_level(self, level: str | None = None) -> str:
+        """``level`` if this space has it (None and ``fine`` mean the finest level); else an error naming
+        the levels there are."""
+        if self.label_level is None:
+            return check_level("fine" if level is None else level)
+        if level is None or level == "fine":
+            return self.label_level
+        if level not in self.level_names:
+            raise FeatureSpaceError(f"no level {level!r} in this feature space (levels: "
+                                    f"{', '.join(self.level_names)})")
+        return level
 
     def __len__(self) -> int:
         return self.X.shape[0]
@@ -75,12 +125,18 @@ class FeatureSpace:
     @property
     def labels(self) -> np.ndarray:
         """(n, 5) integer array of the label parts C, S, M, P, X."""
+        if self.label_level is not None:
+            raise FeatureSpaceError(f"the labels are free class names of level {self.label_level!r}, "
+                                    "not taxonomy codes")
         return np.array([Label.parse(text).numbers() for text in self.label_text], dtype=np.int64).reshape(-1, 5)
 
-    def y(self, level: str = "fine") -> np.ndarray:
-        """Class of every row at ``level`` ("coarse" = C, "medium" = C+S, "fine" = full label)."""
-        level = check_level(level)
-        return np.array([Label.parse(text).at(level) for text in self.label_text])
+    def y(self, level: str | None = "fine") -> np.ndarray:
+        """Class of every row at ``level`` ("coarse" = C, "medium" = C+S, "fine" = full label; for free
+        labels the label's level, ``fine`` or None, or a coarser level of the set)."""
+        level = self.check_level(level)
+        if self.label_level is None:
+            return np.array([Label.parse(text).at(level) for text in self.label_text])
+        return np.array(self.label_text if level == self.label_level else self.levels[level])
 
     def modality(self, name: str) -> FeatureSpace:
         """The columns of one modality: ``tactum``, ``image``, ``audio`` or ``other``."""
@@ -96,7 +152,25 @@ class FeatureSpace:
             raise FeatureSpaceError(f"no such feature column(s): {', '.join(missing[:5])}")
         picked = [index[c] for c in columns]
         return FeatureSpace(self.X[:, picked], tuple(columns), self.scan_ids, self.label_text, self.groups,
-                            self.failed)
+                            self.failed, self.label_level, self.levels, self.split)
+
+    def rows(self, indices: Sequence[int]) -> FeatureSpace:
+        """A feature space with only the rows ``indices`` (in that order)."""
+        picked = list(indices)
+        return FeatureSpace(self.X[picked], self.columns, [self.scan_ids[i] for i in picked],
+                            [self.label_text[i] for i in picked], [self.groups[i] for i in picked],
+                            self.failed, self.label_level,
+                            {k: [v[i] for i in picked] for k, v in self.levels.items()},
+                            [self.split[i] for i in picked] if self.split else ())
+
+    def _label_columns(self) -> tuple[list[str], list[tuple[str, ...]]]:
+        """Header and values of the columns between ``X`` and the features: coarser levels, split."""
+        names = [f"level:{name}" for name in self.levels]
+        values = list(self.levels.values())
+        if self.split:
+            names.append("split")
+            values.append(self.split)
+        return names, values
 
     # -- files -------------------------------------------------------------------------------------
 
@@ -106,11 +180,13 @@ class FeatureSpace:
 
         buffer = io.StringIO()
         writer = csv.writer(buffer, lineterminator="\n")
-        writer.writerow([*_ID_COLUMNS, *_LABEL_PARTS, *self.columns])
+        label = "label" if self.label_level is None else f"label:{self.label_level}"
+        extra, values = self._label_columns()
+        writer.writerow([*_ID_COLUMNS[:2], label, *_LABEL_PARTS, *extra, *self.columns])
         parts = _label_parts(self.label_text)
         for i in range(len(self)):
             writer.writerow([self.scan_ids[i], self.groups[i], self.label_text[i], *parts[i],
-                             *(_format_float(v) for v in self.X[i])])
+                             *(v[i] for v in values), *(_format_float(v) for v in self.X[i])])
         atomic_write_bytes(path, buffer.getvalue().encode("utf-8"))
         return Path(path)
 
@@ -127,10 +203,16 @@ class FeatureSpace:
             raise FeatureSpaceError(f"{path}: empty file")
         header = rows[0]
         first = len(_ID_COLUMNS) + len(_LABEL_PARTS)
-        if tuple(header[:first]) != (*_ID_COLUMNS, *_LABEL_PARTS):
+        label_level = header[2][len("label:"):] if len(header) > 2 and header[2].startswith("label:") else None
+        fixed = (*_ID_COLUMNS[:2], header[2] if label_level else "label", *_LABEL_PARTS)
+        if tuple(header[:first]) != fixed:
             raise FeatureSpaceError(f"{path}: line 1: header must start with {','.join((*_ID_COLUMNS, *_LABEL_PARTS))}")
+        while first < len(header) and (header[first].startswith("level:") or header[first] == "split"):
+            first += 1
+        extra = header[len(fixed):first]
         columns = header[first:]
         ids, groups, labels, values = [], [], [], []
+        kept: list[list[str]] = [[] for _ in extra]
         for line, row in enumerate(rows[1:], start=2):
             if not row:
                 continue
@@ -139,18 +221,29 @@ class FeatureSpace:
             ids.append(row[0])
             groups.append(row[1])
             labels.append(row[2])
+            for k in range(len(extra)):
+                kept[k].append(row[len(fixed) + k])
             try:
                 values.append([float(v) for v in row[first:]])
             except ValueError as exc:
                 raise FeatureSpaceError(f"{path}: line {line}: {exc}") from None
         X = np.array(values, dtype=np.float64).reshape(len(values), len(columns))
-        return cls(X, tuple(columns), tuple(ids), tuple(labels), tuple(groups))
+        levels = {name[len("level:"):]: tuple(v) for name, v in zip(extra, kept, strict=True) if name != "split"}
+        split = next((tuple(v) for name, v in zip(extra, kept, strict=True) if name == "split"), ())
+        try:
+            return cls(X, tuple(columns), tuple(ids), tuple(labels), tuple(groups), (), label_level, levels,
+                       split)
+        except FeatureSpaceError as exc:
+            raise FeatureSpaceError(f"{path}: {exc}") from None
 
     def to_mat(self, path: str | os.PathLike[str]) -> Path:
         """Write ``X``, ``columns``, ``labels``, ``label``, ``scan_id``, ``sample_id`` as MATLAB v5, atomically."""
         from scanner.files import atomic_write_bytes
 
         buffer = io.BytesIO()
+        free = {} if self.label_level is None else {
+            "label_level": self.label_level,
+            "levels": {name: _cell(values).reshape(-1, 1) for name, values in self.levels.items()}}
         scipy.io.savemat(buffer, {
             "X": self.X,
             "columns": _cell(self.columns).reshape(1, -1),
@@ -158,6 +251,7 @@ class FeatureSpace:
             "label": _cell(self.label_text).reshape(-1, 1),
             "scan_id": _cell(self.scan_ids).reshape(-1, 1),
             "sample_id": _cell(self.groups).reshape(-1, 1),
+            **free, **({"split": _cell(self.split).reshape(-1, 1)} if self.split else {}),
         }, long_field_names=True, do_compression=True)
         atomic_write_bytes(path, buffer.getvalue())
         return Path(path)
@@ -174,8 +268,10 @@ class FeatureSpace:
             raise FeatureSpaceError(f"{path}: missing variable(s) {', '.join(missing)}")
         columns = _as_strings(data["columns"])
         X = np.asarray(data["X"], dtype=np.float64).reshape(-1, len(columns))
+        levels = {str(k): _as_strings(v) for k, v in dict(data.get("levels") or {}).items()}
         return cls(X, columns, _as_strings(data["scan_id"]), _as_strings(data["label"]),
-                   _as_strings(data["sample_id"]))
+                   _as_strings(data["sample_id"]), (), data.get("label_level") or None, levels,
+                   _as_strings(data["split"]) if "split" in data else ())
 
 
 def _label_parts(label_text: Sequence[str]) -> np.ndarray:

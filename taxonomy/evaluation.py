@@ -16,6 +16,11 @@ Metrics per fold: accuracy and macro F1 (F1 averaged over the classes that occur
 predicted labels; a class never predicted scores 0). ``r_C`` (eq. 32) is the share of misclassifications
 whose predicted major class C differs from the true one; it is NaN (shown as "-") where undefined: without
 misclassifications, and at the coarse level, where every misclassification changes C by definition.
+
+A feature space of an imported set carries its own class names and levels (``FeatureSpace.label_level``;
+``r_C`` is then undefined, NaN) and may carry its own train/test split, which is then used instead of
+cross-validation: one fit on the training rows, scored on the test rows. A set size of None (``all``)
+keeps every feature, without FQ selection.
 """
 
 from __future__ import annotations
@@ -41,8 +46,7 @@ from sklearn.preprocessing import MinMaxScaler
 from sklearn.svm import SVC
 from threadpoolctl import threadpool_limits
 
-from features.selection import FQSelector
-from taxonomy.labels import LEVELS, check_level
+from features.selection import FQSelector, KeepAll
 
 if TYPE_CHECKING:
     from features.space import FeatureSpace
@@ -86,12 +90,17 @@ def classifier_estimators(seed: int) -> dict[str, BaseEstimator]:
     }
 
 
-def _pipeline(classifier: BaseEstimator, n_features: int) -> Pipeline:
+def _pipeline(classifier: BaseEstimator, n_features: int | None) -> Pipeline:
     return Pipeline([
         ("scale", MinMaxScaler()),
-        ("select", FQSelector(n_features=n_features)),
+        ("select", KeepAll() if n_features is None else FQSelector(n_features=n_features)),
         ("classify", classifier),
     ])
+
+
+def size_name(n_features: int | None) -> str:
+    """``X10`` for a selected set size, ``all`` for every feature without selection."""
+    return "all" if n_features is None else f"X{n_features}"
 
 
 CLASSIFIERS: dict[str, Pipeline] = {
@@ -100,8 +109,10 @@ CLASSIFIERS: dict[str, Pipeline] = {
 """The six classifier pipelines (scale -> select 10 -> classify), unfitted; use :func:`make_pipeline`."""
 
 
-def make_pipeline(classifier: str | BaseEstimator = "rf", n_features: int = 10, seed: int = SEED) -> Pipeline:
-    """A fresh, unfitted ``MinMaxScaler -> FQSelector(n_features) -> classifier`` pipeline.
+def make_pipeline(classifier: str | BaseEstimator = "rf", n_features: int | None = 10,
+                  seed: int = SEED) -> Pipeline:
+    """A fresh, unfitted ``MinMaxScaler -> FQSelector(n_features) -> classifier`` pipeline (``KeepAll``
+    instead of the selector for ``n_features`` None).
 
     ``classifier`` is a key of :data:`CLASSIFIERS` or any unfitted scikit-learn classifier (it is cloned;
     its random state is set to ``seed`` when it has one).
@@ -168,12 +179,14 @@ class Report:
     the feature space (out-of-fold predictions); ``confusion`` sums all folds (rows true, columns
     predicted, in the order of ``classes``); ``selected`` lists the feature names each fold's selector kept,
     best FQ first; ``dropped`` the columns left out because they hold NaN; ``warnings`` what scikit-learn or
-    the split reported while fitting (e.g. an MLP that did not converge).
+    the split reported while fitting (e.g. an MLP that did not converge). ``n_features`` None means every
+    feature; ``given_split`` that the set's own train/test split was used (one "fold"); ``taxonomy`` that
+    the classes are taxonomy codes (else ``r_c`` is NaN).
     """
 
     classifier: str
     level: str
-    n_features: int
+    n_features: int | None
     protocol: str
     feature_set: str
     folds: int
@@ -190,6 +203,8 @@ class Report:
     columns: tuple[str, ...]
     dropped: tuple[str, ...] = ()
     warnings: tuple[str, ...] = field(default=())
+    given_split: bool = False
+    taxonomy: bool = True
 
     @property
     def accuracy_mean(self) -> float:
@@ -210,17 +225,23 @@ class Report:
 
     @property
     def r_c(self) -> float:
-        """Paper eq. (32) over all folds' misclassifications; NaN where undefined (no misclassification, or
-        the coarse level), see :func:`r_c`."""
-        return r_c(self.confusion, self.classes)
+        """Paper eq. (32) over all folds' misclassifications; NaN where undefined (no misclassification, the
+        coarse level, or classes that are not taxonomy codes), see :func:`r_c`."""
+        return r_c(self.confusion, self.classes) if self.taxonomy else float("nan")
+
+    @property
+    def splitting(self) -> str:
+        """How the rows were split: ``5 grouped folds``, ``the set's train/test split``, ..."""
+        if self.given_split:
+            return "the set's train/test split"
+        return f"{self.folds} {'grouped' if self.grouped else 'ungrouped'} folds"
 
     def summary(self) -> str:
         """One line: ``rf fine X10 all (nested): accuracy 90.2 % +- 1.2 %, F1 0.90 +- 0.01, r_C 0.05 ...``."""
-        split = "grouped" if self.grouped else "ungrouped"
-        return (f"{self.classifier} {self.level} X{self.n_features} {self.feature_set} ({self.protocol}): "
-                f"accuracy {100 * self.accuracy_mean:.1f} % +- {100 * self.accuracy_std:.1f} %, "
+        return (f"{self.classifier} {self.level} {size_name(self.n_features)} {self.feature_set} "
+                f"({self.protocol}): accuracy {100 * self.accuracy_mean:.1f} % +- {100 * self.accuracy_std:.1f} %, "
                 f"F1 {self.f1_mean:.2f} +- {self.f1_std:.2f}, r_C {format_r_c(self.r_c)} "
-                f"({self.folds} {split} folds, {len(self.classes)} classes, seed {self.seed})")
+                f"({self.splitting}, {len(self.classes)} classes, seed {self.seed})")
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready values (lists, numbers, strings; NaN r_C becomes None)."""
@@ -228,7 +249,7 @@ class Report:
         return {
             "classifier": self.classifier, "level": self.level, "n_features": self.n_features,
             "protocol": self.protocol, "feature_set": self.feature_set, "folds": self.folds,
-            "seed": self.seed, "grouped": self.grouped,
+            "seed": self.seed, "grouped": self.grouped, "given_split": self.given_split,
             "accuracy": self.accuracy.tolist(), "f1": self.f1.tolist(),
             "accuracy_mean": self.accuracy_mean, "accuracy_std": self.accuracy_std,
             "f1_mean": self.f1_mean, "f1_std": self.f1_std, "r_c": None if np.isnan(r) else r,
@@ -295,6 +316,16 @@ def cv_splits(y: Sequence[str], groups: Sequence[str], folds: int = 5, seed: int
     return [(train, test) for train, test in splitter.split(np.zeros(len(y)), y)], False
 
 
+def given_split(split: Sequence[str]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The set's own split as the one (train, test) pair of row indices; an error without both parts."""
+    split = np.asarray(split)
+    train, test = np.flatnonzero(split == "train"), np.flatnonzero(split == "test")
+    if train.size == 0 or test.size == 0:
+        raise EvaluationError(f"the set's split has {train.size} training and {test.size} test rows; "
+                              "both are needed (or evaluate without the split)")
+    return [(train, test)]
+
+
 # -- evaluation --------------------------------------------------------------------------------------
 
 
@@ -321,8 +352,8 @@ def drop_nan_columns(space: FeatureSpace) -> tuple[FeatureSpace, tuple[str, ...]
 
 
 def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level: str = "fine",
-             n_features: int = 10, folds: int = 5, seed: int = SEED, protocol: str = "nested",
-             feature_set: FeatureSet = None) -> Report:
+             n_features: int | None = 10, folds: int = 5, seed: int = SEED, protocol: str = "nested",
+             feature_set: FeatureSet = None, use_split: bool = True) -> Report:
     """Cross-validate one classifier pipeline on ``space`` at classification ``level`` (paper section V-C).
 
     Parameters
@@ -333,9 +364,10 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
     classifier : str or estimator
         ``"svm"``, ``"lda"``, ``"knn"``, ``"mlp"``, ``"rf"``, ``"nb"`` or an unfitted scikit-learn classifier.
     level : str
-        ``"coarse"`` (C), ``"medium"`` (C+S) or ``"fine"`` (the full label).
-    n_features : int
-        Features kept by the selector (the paper's X3 and X10).
+        ``"coarse"`` (C), ``"medium"`` (C+S) or ``"fine"`` (the full label); for free labels one of
+        ``space.level_names`` (``"fine"`` is the label's own level).
+    n_features : int or None
+        Features kept by the selector (the paper's X3 and X10); None keeps every feature, unselected.
     folds, seed : int
         Number of folds and the seed of the fold assignment and of the classifier.
     protocol : str
@@ -343,6 +375,8 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
     feature_set : None, str or list of str
         None / ``"all"``, a modality (``"tactum"``, ``"image"``, ``"audio"``, ``"other"``) or column names.
         Columns that hold NaN in any row are left out (listed in ``Report.dropped``).
+    use_split : bool
+        Use the space's own train/test split where it has one (``space.split``) instead of ``folds``.
 
     Returns
     -------
@@ -350,16 +384,19 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
         Identical on every rerun with the same arguments. Warnings raised while fitting (an MLP that did
         not converge, the fallback to ungrouped folds) are collected in ``Report.warnings``.
     """
-    cell = _Cell(level, _set_name(feature_set), feature_set, n_features)
-    return _run(space, [classifier], [cell], folds, seed, protocol, workers=1, progress=False)[0]
+    cell = _Cell(space.check_level(level), _set_name(feature_set), feature_set, n_features)
+    return _run(space, [classifier], [cell], folds, seed, protocol, workers=1, progress=False,
+                use_split=use_split)[0]
 
 
 def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator] = tuple(CLASSIFIERS),
-                  levels: Iterable[str] = LEVELS, set_sizes: Iterable[int] = (3, 10),
+                  levels: Iterable[str] | None = None, set_sizes: Iterable[int | None] = (3, 10),
                   feature_sets: Mapping[str, FeatureSet] | None = None, folds: int = 5, seed: int = SEED,
                   protocol: str = "nested", workers: int | None = None,
-                  progress: bool = False) -> list[Report]:
+                  progress: bool = False, use_split: bool = True) -> list[Report]:
     """Every classifier x feature set x level x set size (the paper's Figs. 16-18), folds in parallel.
+
+    ``levels`` default to every level of the space (``space.level_names``); a set size None is ``all``.
 
     ``feature_sets`` maps a display name to a feature set (see :func:`evaluate`); the default is
     :data:`DEFAULT_FEATURE_SETS` restricted to the modalities present in ``space``. Each fold of each
@@ -368,12 +405,12 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
     classifier, feature set, level and size, and equal those of :func:`evaluate` with the same arguments.
     """
     classifiers = list(classifiers)
-    levels = [check_level(level) for level in levels]
+    levels = list(dict.fromkeys(space.check_level(level) for level in (levels or space.level_names)))
     set_sizes = list(set_sizes)
     sets = dict(feature_sets) if feature_sets is not None else _present_feature_sets(space)
     cells = [_Cell(level, name, feature_set, size)
              for name, feature_set in sets.items() for level in levels for size in set_sizes]
-    reports = _run(space, classifiers, cells, folds, seed, protocol, workers, progress)
+    reports = _run(space, classifiers, cells, folds, seed, protocol, workers, progress, use_split)
     per_cell = len(classifiers)
     return [reports[c * per_cell + k] for k in range(per_cell) for c in range(len(cells))]
 
@@ -396,7 +433,7 @@ class _Cell:
     level: str
     set_name: str
     feature_set: FeatureSet
-    n_features: int
+    n_features: int | None
 
 
 @dataclass(frozen=True)
@@ -410,19 +447,21 @@ class _Prepared:
     dropped: tuple[str, ...]
     splits: list[tuple[np.ndarray, np.ndarray]]
     grouped: bool
+    given_split: bool
+    taxonomy: bool
     pipelines: list[Pipeline]
     shared: Pipeline | None
     notes: tuple[str, ...]
 
 
 def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells: Sequence[_Cell], folds: int,
-         seed: int, protocol: str, workers: int | None, progress: bool) -> list[Report]:
+         seed: int, protocol: str, workers: int | None, progress: bool, use_split: bool = True) -> list[Report]:
     """Reports of every classifier in every cell, in that order (cells outer, classifiers inner)."""
     if protocol not in PROTOCOLS:
         raise EvaluationError(f"unknown protocol {protocol!r} (expected one of {', '.join(PROTOCOLS)})")
-    prepared = [_prepare(space, cell, classifiers, folds, seed, protocol) for cell in cells]
+    prepared = [_prepare(space, cell, classifiers, folds, seed, protocol, use_split) for cell in cells]
     jobs = sorted(((c, f) for c, p in enumerate(prepared) for f in range(len(p.splits))),
-                  key=lambda job: -LEVELS.index(cells[job[0]].level))
+                  key=lambda job: -space.level_names.index(cells[job[0]].level))
     runner = Parallel(n_jobs=workers if workers is not None else -1, return_as="generator")
     results = runner(delayed(_fold)(prepared[c], f, protocol) for c, f in jobs)
     if progress:
@@ -444,21 +483,25 @@ def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells:
 
 
 def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseEstimator], folds: int,
-             seed: int, protocol: str) -> _Prepared:
-    check_level(cell.level)
+             seed: int, protocol: str, use_split: bool = True) -> _Prepared:
+    space.check_level(cell.level)
+    own = use_split and bool(space.split)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         subset, _ = resolve_feature_set(space, cell.feature_set)
         subset, dropped = drop_nan_columns(subset)
         y = subset.y(cell.level)
-        splits, grouped = cv_splits(y, subset.groups, folds, seed, grouping_labels=subset.label_text)
+        if own:
+            splits, grouped = given_split(subset.split), False
+        else:
+            splits, grouped = cv_splits(y, subset.groups, folds, seed, grouping_labels=subset.label_text)
         pipelines = [_without_probabilities(make_pipeline(c, cell.n_features, seed)) for c in classifiers]
         shared = None
         if protocol == "paper":
             with threadpool_limits(limits=1):
                 shared = clone(pipelines[0][:-1]).fit(subset.X, y)
-    return _Prepared(cell, subset.X, y, subset.columns, dropped, splits, grouped, pipelines, shared,
-                     _messages(caught))
+    return _Prepared(cell, subset.X, y, subset.columns, dropped, splits, grouped, own,
+                     space.label_level is None, pipelines, shared, _messages(caught))
 
 
 def _without_probabilities(pipeline: Pipeline) -> Pipeline:
@@ -519,15 +562,16 @@ def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],
              per_fold: list[tuple[list[np.ndarray], np.ndarray, tuple[str, ...]]], seed: int,
              protocol: str) -> list[Report]:
     y, splits, cell = prepared.y, prepared.splits, prepared.cell
-    fold_of_row = np.empty(len(y), dtype=np.int64)
+    fold_of_row = np.full(len(y), -1, dtype=np.int64)  # -1: a training row of the set's own split
     for index, (_, test) in enumerate(splits):
         fold_of_row[test] = index
+    tested = fold_of_row >= 0
     selected = tuple(tuple(prepared.columns[i] for i in indices) for _, indices, _ in per_fold)
     notes = tuple(dict.fromkeys(prepared.notes + sum((n for _, _, n in per_fold), ())))
     classes = np.unique(y)
     reports = []
     for k, classifier in enumerate(classifiers):
-        y_pred = np.empty_like(y)
+        y_pred = np.full_like(y, "")
         for (_, test), (predictions, _, _) in zip(splits, per_fold, strict=True):
             y_pred[test] = predictions[k]
         accuracy = np.array([np.mean(y_pred[test] == y[test]) for _, test in splits])
@@ -537,7 +581,8 @@ def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],
             classifier=classifier_name(classifier), level=cell.level, n_features=cell.n_features,
             protocol=protocol, feature_set=cell.set_name, folds=len(splits), seed=seed,
             grouped=prepared.grouped, classes=tuple(classes.tolist()), accuracy=accuracy, f1=f1,
-            confusion=confusion_matrix(y, y_pred, labels=classes), selected=selected, y_true=y, y_pred=y_pred,
-            fold=fold_of_row, columns=prepared.columns, dropped=prepared.dropped, warnings=notes,
+            confusion=confusion_matrix(y[tested], y_pred[tested], labels=classes), selected=selected,
+            y_true=y, y_pred=y_pred, fold=fold_of_row, columns=prepared.columns, dropped=prepared.dropped,
+            warnings=notes, given_split=prepared.given_split, taxonomy=prepared.taxonomy,
         ))
     return reports

@@ -300,7 +300,7 @@ def class_labels(classes: Sequence[str], taxonomy: Taxonomy | None = None, width
     return labels
 
 
-def plot_scores(reports: Sequence[Report], level: str, n_features: int,
+def plot_scores(reports: Sequence[Report], level: str, n_features: int | None,
                 path: str | os.PathLike[str]) -> Path:
     """Accuracy (top) and macro F1 (bottom) per feature set and classifier, like the paper's Figs. 16-18.
 
@@ -338,8 +338,9 @@ def plot_scores(reports: Sequence[Report], level: str, n_features: int,
     bottom.set_xlabel("feature set")
     figure.legend(*top.get_legend_handles_labels(), loc="outside right upper", fontsize="small")
     first = chosen[0]
-    top.set_title(f"{level} classification with X{n_features} ({first.protocol} protocol, "
-                  f"{first.folds} folds, {len(first.classes)} classes)")
+    size = "all features" if n_features is None else f"X{n_features}"
+    top.set_title(f"{level} classification with {size} ({first.protocol} protocol, "
+                  f"{first.splitting}, {len(first.classes)} classes)")
     return _save(figure, path)
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import base64
 import html
+import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -23,7 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from features.selection import Selection, select_features
-from taxonomy.evaluation import Report, format_r_c, major_class
+from taxonomy.evaluation import Report, format_r_c, major_class, size_name
 from taxonomy.labels import LEVELS
 from taxonomy.plots import (
     plot_confusion,
@@ -58,21 +59,30 @@ def cell_text(report: Report) -> str:
             f"{format_r_c(report.r_c):>4}")
 
 
+def _level_order(reports: Sequence[Report]) -> list[str]:
+    """The levels of the reports, coarse to fine: the taxonomy's, then a set's own in the order evaluated."""
+    return [level for level in dict.fromkeys([*LEVELS, *(r.level for r in reports)])
+            if any(r.level == level for r in reports)]
+
+
 def _blocks(reports: Sequence[Report]) -> list[tuple[str, list[str], list[tuple[str, str, list[str]]]]]:
     """Per (set size, protocol): a title, the levels present, and rows (classifier, feature set, cells)."""
     blocks = []
     for size, protocol in dict.fromkeys((r.n_features, r.protocol) for r in reports):
         chosen = [r for r in reports if r.n_features == size and r.protocol == protocol]
-        levels = [level for level in LEVELS if any(r.level == level for r in chosen)]
+        levels = _level_order(chosen)
         cell = {(r.classifier, r.feature_set, r.level): r for r in chosen}
         rows = []
         for classifier, feature_set in dict.fromkeys((r.classifier, r.feature_set) for r in chosen):
             found = [cell.get((classifier, feature_set, level)) for level in levels]
             rows.append((classifier, feature_set, [cell_text(r) if r else "" for r in found]))
         first = chosen[0]
-        split = ("grouped by sample" if all(r.grouped for r in chosen)
-                 else "NOT grouped by sample: scans of one sample in training and test")
-        title = f"X{size}, {protocol} protocol, {first.folds} folds {split}, seed {first.seed}"
+        unit = "sample" if first.taxonomy else "the set's groups"
+        split = (f"grouped by {unit}" if all(r.grouped for r in chosen)
+                 else f"NOT grouped by {unit}: {'scans of one sample' if first.taxonomy else 'a group'} "
+                      "in training and test")
+        splits = "the set's train/test split" if first.given_split else f"{first.folds} folds {split}"
+        title = f"{size_name(size)}, {protocol} protocol, {splits}, seed {first.seed}"
         blocks.append((title, levels, rows))
     return blocks
 
@@ -122,22 +132,25 @@ def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: S
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     figures: list[tuple[str, Path]] = []
+    order = _level_order(reports)
     for lvl, size in sorted(dict.fromkeys((r.level, r.n_features) for r in reports),
-                            key=lambda key: (key[1], LEVELS.index(key[0]))):
-        figures.append((f"{lvl} classification with X{size}: accuracy and macro F1 per feature set",
-                        plot_scores(reports, lvl, size, folder / f"scores_{lvl}_X{size}.png")))
+                            key=lambda key: (math.inf if key[1] is None else key[1], order.index(key[0]))):
+        figures.append((f"{lvl} classification with {size_name(size)}: accuracy and macro F1 per feature set",
+                        plot_scores(reports, lvl, size, folder / f"scores_{lvl}_{size_name(size)}.png")))
+    level = space.check_level(level)
     selection = select_features(space, level, n_features)
     figures += _selection_figures(folder, space, selection, top)
     figures.append(("explained variance over the principal components (Fig. 15)",
                     plot_pca_variance(space.X, folder / "pca.png")))
     feature = feature or selection.ranking[0][0]
     figures.append(_boxes(folder, space, feature, level, max_classes))
-    for lvl in LEVELS:
+    for lvl in order:
         at_level = [r for r in reports if r.level == lvl]
         if at_level:
             best = max(at_level, key=lambda r: r.accuracy_mean)
-            title = (f"{lvl}: {best.classifier}, {best.feature_set}, X{best.n_features}; accuracy "
-                     f"{100 * best.accuracy_mean:.1f} %" + ("" if np.isnan(best.r_c) else f", r_C {best.r_c:.2f}"))
+            r_c = "" if math.isnan(best.r_c) else f", r_C {best.r_c:.2f}"
+            title = (f"{lvl}: {best.classifier}, {best.feature_set}, {size_name(best.n_features)}; accuracy "
+                     f"{100 * best.accuracy_mean:.1f} %{r_c}")
             figures.append((f"confusion matrix of the best classifier at the {lvl} level ({title})",
                             plot_confusion(best.confusion, best.classes, folder / f"confusion_{lvl}.png",
                                            title=title, max_labels=max_classes)))
@@ -164,7 +177,7 @@ def _boxes(folder: Path, space: FeatureSpace, feature: str, level: str,
     classes = space.y(level)
     values = space.subset([feature]).X[:, 0]
     scope = ""
-    if np.unique(classes).size > max_classes:
+    if np.unique(classes).size > max_classes and space.label_level is None:
         majors = np.array([major_class(c) for c in classes])
         names = np.unique(majors)
         counts = [np.unique(classes[majors == m]).size for m in names]
@@ -179,13 +192,16 @@ def _boxes(folder: Path, space: FeatureSpace, feature: str, level: str,
 def _html(space: FeatureSpace, reports: Sequence[Report], selection: Selection,
           figures: list[tuple[str, Path]]) -> str:
     e = html.escape
-    counts = ", ".join(f"{np.unique(space.y(level)).size} {level}" for level in LEVELS)
+    counts = ", ".join(f"{np.unique(space.y(level)).size} {level}" for level in space.level_names)
+    rows, groups = ("scans", "samples") if space.label_level is None else ("recordings", "groups")
+    split = (f" (the set's split: {space.split.count('train')} train, {space.split.count('test')} test)"
+             if space.split else "")
     parts = [
         "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
         "<title>texplorer evaluation report</title>",
         f"<style>{PAGE_STYLE}</style></head><body>",
         "<h1>texplorer evaluation report</h1>",
-        f"<p>{len(space)} scans, {len(set(space.groups))} samples, {len(space.columns)} features; "
+        f"<p>{len(space)} {rows}{e(split)}, {len(set(space.groups))} {groups}, {len(space.columns)} features; "
         f"classes: {e(counts)}.</p>",
         f"<p>Selected on all rows at the {e(selection.level)} level: {e(', '.join(selection.selected))}.</p>",
     ]
@@ -198,7 +214,8 @@ def _html(space: FeatureSpace, reports: Sequence[Report], selection: Selection,
                 parts.append(f"<tr><td>{e(classifier)}</td><td>{e(feature_set)}</td>"
                              + "".join(f"<td>{e(cell)}</td>" for cell in cells) + "</tr>")
             parts.append("</table>")
-        splits = {"grouped by sample" if r.grouped else "not grouped" for r in reports}
+        splits = {"the set's own train/test split" if r.given_split else
+                  f"grouped by {groups[:-1]}" if r.grouped else "not grouped" for r in reports}
         parts.append(f"<p>Folds: {e(', '.join(sorted(splits)))}.</p>")
         notes = list(dict.fromkeys(note for r in reports for note in r.warnings))
         dropped = sorted({c for r in reports for c in r.dropped})
