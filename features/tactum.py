@@ -386,38 +386,39 @@ def slope(f: np.ndarray, lag: int = SLOPE_LAG) -> np.ndarray:
     return values[lag:] - values[:-lag]
 
 
-def fst(f_frn: np.ndarray, f_frt: np.ndarray) -> float:
+def fst(f_frn: np.ndarray, f_frt: np.ndarray, lag: int = SLOPE_LAG) -> float:
     """Tactile stiction, paper eq. 16: ``max slope(f_frt) / max slope(f_frn)``.
 
     NaN if a trace is not longer than the 30-sample slope window or the normal slope maximum is 0.
+    ``lag`` is the 10 ms window in samples (30 at the scanner's 3 kHz).
     """
     f_frn, f_frt = _samples(f_frn, "f_frn"), _samples(f_frt, "f_frt")
-    if min(f_frn.size, f_frt.size) <= SLOPE_LAG:
+    if min(f_frn.size, f_frt.size) <= lag:
         return math.nan
-    return _ratio(float(slope(f_frt).max()), float(slope(f_frn).max()))
+    return _ratio(float(slope(f_frt, lag).max()), float(slope(f_frn, lag).max()))
 
 
-def sliding_segment(f_frn: np.ndarray, f_frt: np.ndarray) -> tuple[int, int]:
+def sliding_segment(f_frn: np.ndarray, f_frt: np.ndarray, lag: int = SLOPE_LAG) -> tuple[int, int]:
     """First and last (inclusive) sample of the sliding phase (paper section IV-A3, SPEC 7.1 item 7).
 
     Start: the first index of the largest friction slope plus 30 (the end of the stiction window).
     End: the last sample where ``f_frn`` exceeds 5 % of its maximum.
     """
-    start = int(np.argmax(slope(f_frt))) + SLOPE_LAG
+    start = int(np.argmax(slope(f_frt, lag))) + lag
     above = np.flatnonzero(f_frn > FORCE_RISE * np.max(f_frn))
     return start, int(above[-1]) if above.size else -1
 
 
-def frs(f_frn: np.ndarray, f_frt: np.ndarray) -> float:
+def frs(f_frn: np.ndarray, f_frt: np.ndarray, lag: int = SLOPE_LAG) -> float:
     """Sliding resistance, paper eq. 17: ``mean(f_frt[s..e]) / mean(f_frn[s..e])`` (e inclusive).
 
     ``f_frt`` after :func:`scanner.preprocess.remove_friction_offset`; ``s, e`` from
     :func:`sliding_segment`. NaN if the segment is empty or the normal force averages 0 over it.
     """
     f_frn, f_frt = _samples(f_frn, "f_frn"), _samples(f_frt, "f_frt")
-    if min(f_frn.size, f_frt.size) <= SLOPE_LAG:
+    if min(f_frn.size, f_frt.size) <= lag:
         return math.nan
-    start, end = sliding_segment(f_frn, f_frt)
+    start, end = sliding_segment(f_frn, f_frt, lag)
     if end < start:
         return math.nan
     segment = slice(start, end + 1)

@@ -134,6 +134,8 @@ def _report_space(space, seconds: float) -> None:
 
 
 def cmd_features(args: argparse.Namespace) -> int:
+    if args.dataset:
+        return cmd_set_features(args)
     db = _open_db(args)
     started = time.perf_counter()
     space = feature_space(db, args.workers, args.label)
@@ -615,20 +617,40 @@ def cmd_select(args: argparse.Namespace) -> int:
     return 0
 
 
+def one_line(message: str) -> str:
+    """A warning's text on one line, whole: its lines joined, runs of white space made one space."""
+    return " ".join(str(message).split())
+
+
+def set_sizes(values: Sequence[str] | None, default: Sequence[str]) -> list[int | None]:
+    """``--n`` values: positive integers, and ``all`` (every feature, no selection) as None."""
+    sizes: list[int | None] = []
+    for value in values or default:
+        if value == ALL:
+            sizes.append(None)
+        elif value.isdigit() and int(value) > 0:
+            sizes.append(int(value))
+        else:
+            raise ValueError(f"--n: {value!r} is neither a positive number of features nor 'all'")
+    return list(dict.fromkeys(sizes))
+
+
 def run_evaluation(space, args: argparse.Namespace) -> list:
     """Evaluate the grid asked for on the command line; print the table; write the HTML report if asked."""
     from taxonomy.evaluation import CLASSIFIERS, DEFAULT_FEATURE_SETS, evaluate_grid
-    from taxonomy.labels import LEVELS
     from taxonomy.report import format_table, write_report
 
     classifiers = _choices(args.classifier, list(CLASSIFIERS))
-    levels = _choices(args.level, LEVELS)
+    levels = _choices(args.level, space.level_names)
     sets = None if ALL in args.feature_set else {name: DEFAULT_FEATURE_SETS[name] for name in args.feature_set}
+    use_split = not getattr(args, "ignore_split", False)
+    sizes = set_sizes(args.n, ("3", "10", ALL) if space.label_level is not None else ("3", "10"))
     started = time.perf_counter()
-    reports = evaluate_grid(space, classifiers, levels, args.n, sets, folds=args.folds, seed=args.seed,
-                            protocol=args.protocol, workers=args.workers, progress=True)
+    reports = evaluate_grid(space, classifiers, levels, sizes, sets, folds=args.folds, seed=args.seed,
+                            protocol=args.protocol, workers=args.workers, progress=True, use_split=use_split)
     print(format_table(reports))
-    print(f"{len(reports)} evaluations ({args.protocol} protocol, {args.folds} folds) "
+    splitting = reports[0].splitting if reports else f"{args.folds} folds"
+    print(f"{len(reports)} evaluations ({args.protocol} protocol, {splitting}) "
           f"in {time.perf_counter() - started:.1f} s")
     for warning in sorted({w for report in reports for w in report.warnings if w.strip()}):
         print(f"texplorer: warning: {warning}", file=sys.stderr)
@@ -638,8 +660,79 @@ def run_evaluation(space, args: argparse.Namespace) -> list:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
+    if args.dataset:
+        return cmd_set_evaluate(args)
     run_evaluation(_space_for(args), args)
     return 0
+
+
+# -- recording sets: the project's own features and evaluation ---------------------------------------
+
+def set_recordings(spec: str, db: Path) -> tuple[str, list]:
+    """The set name and recordings a ``set:NAME`` argument names."""
+    from scanner.ingest import load_recordings, set_folder
+
+    if not spec.startswith("set:"):
+        raise ValueError(f"{spec!r} is not a recording set; name one as set:NAME (see 'texplorer ingest')")
+    return spec[4:], load_recordings(set_folder(db, spec[4:]))
+
+
+def set_space(args: argparse.Namespace):
+    """The feature space of ``set:NAME`` with the windowing, crop and grouping asked for; prints a summary
+    line and the extraction warnings (a count, all with --verbose)."""
+    from features.recordings import Windowing, describe_families, feature_space
+
+    name, recordings = set_recordings(args.dataset, args.db)
+    windowing = Windowing(args.window, args.combine)
+    started = time.perf_counter()
+    space, notes = feature_space(recordings, windowing, args.border, args.group_by, workers=args.workers,
+                                 progress=True)
+    for note in notes if args.verbose else notes[:3]:
+        print(f"texplorer: warning: {one_line(note)}", file=sys.stderr)
+    if len(notes) > 3 and not args.verbose:
+        print(f"texplorer: warning: {len(notes) - 3} more warning(s); --verbose lists them", file=sys.stderr)
+    levels = ", ".join(f"{level} ({len(set(space.y(level)))} classes)" for level in reversed(space.level_names))
+    split = (f"; split {space.split.count('train')} train / {space.split.count('test')} test"
+             if space.split else "")
+    print(f"set:{name}: {len(recordings)} recordings -> {len(space)} rows ({windowing.describe()}), "
+          f"{len(set(space.groups))} groups; levels {levels}{split}")
+    print(f"features: {describe_families(space.columns)} in {time.perf_counter() - started:.1f} s")
+    return space
+
+
+def cmd_set_features(args: argparse.Namespace) -> int:
+    from scanner.ingest import set_folder
+
+    space = set_space(args)
+    out = args.out or set_folder(args.db, args.dataset[4:]) / "features.csv"
+    print(f"wrote {space.to_csv(out)}")
+    if args.mat:
+        print(f"wrote {space.to_mat(args.mat)}")
+    return 0
+
+
+def cmd_set_evaluate(args: argparse.Namespace) -> int:
+    if args.features:
+        raise ValueError("give either a set (set:NAME) or --features CSV, not both")
+    space = set_space(args)
+    reports = run_evaluation(space, args)
+    return 0 if reports else EXIT_ERROR
+
+
+def _add_set_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("dataset", nargs="?", metavar="set:NAME", help="a recording set imported with "
+                        "'texplorer ingest' (default: the scans of the database)")
+    parser.add_argument("--window", type=float, metavar="SECONDS", help="sets: cut each recording into "
+                        "windows of this length (default: the whole recording)")
+    parser.add_argument("--combine", choices=("mean", "median", "rows"), default="mean", help="sets: combine "
+                        "the windows' features by their mean (default) or median, or make each window a row "
+                        "(in its recording's group)")
+    parser.add_argument("--border", type=int, default=0, metavar="PX", help="sets: pixels cropped from every "
+                        "side of a photo before its features (default 0; the scanner's photos use 100)")
+    parser.add_argument("--group-by", default="auto", metavar="GROUP", help="sets: the group folds keep "
+                        "together: a group of the mapping's pattern, 'none', or auto (default: object, else "
+                        "the photo a patch was cut from, else the recording)")
+    parser.add_argument("--verbose", action="store_true", help="sets: print every extraction warning")
 
 
 def cmd_train(args: argparse.Namespace) -> int:
@@ -724,8 +817,10 @@ def _add_space_options(parser: argparse.ArgumentParser) -> None:
 def _add_evaluation_options(parser: argparse.ArgumentParser, report_default: str | None, seed: bool = True) -> None:
     parser.add_argument("--classifier", nargs="+", choices=(*CLASSIFIER_NAMES, ALL), default=[ALL],
                         help="classifiers (default all)")
-    parser.add_argument("--level", nargs="+", choices=(*LEVELS, ALL), default=[ALL], help="levels (default all)")
-    parser.add_argument("--n", nargs="+", type=int, default=[3, 10], help="selected set sizes (default 3 10)")
+    parser.add_argument("--level", nargs="+", default=[ALL], help="levels: coarse, medium, fine, or a set's "
+                        "own levels (default all)")
+    parser.add_argument("--n", nargs="+", metavar="N", help="selected set sizes, and 'all' for every feature "
+                        "without selection (default 3 10; for a set 3 10 all)")
     parser.add_argument("--feature-set", nargs="+", choices=(*FEATURE_SETS, ALL), default=[ALL],
                         help="feature sets: one modality each, or all = every modality and all 193 (default)")
     parser.add_argument("--protocol", choices=("nested", "paper"), default="nested",
@@ -764,8 +859,10 @@ def build_parser() -> argparse.ArgumentParser:
                                    description="Extract the 193 features of every scan (cached in the database "
                                    "by scan content and feature-code version) and write features.csv.")
     _add_db_option(features)
+    _add_set_options(features)
     features.add_argument("--workers", type=int, help="processes (default: number of cores)")
-    features.add_argument("--out", type=Path, help="CSV file (default: <db>/features.csv)")
+    features.add_argument("--out", type=Path, help="CSV file (default: <db>/features.csv; for a set "
+                          "<db>/recordings/<set>/features.csv)")
     features.add_argument("--mat", type=Path, help="also write the feature space as a .mat file")
     features.add_argument("--label", help="only scans with this label or class prefix")
     features.set_defaults(handler=cmd_features)
@@ -782,9 +879,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     evaluate = commands.add_parser("evaluate", help="cross-validate classifiers x feature sets x levels; "
                                    "table and HTML report", description="Cross-validated accuracy, macro F1 and "
-                                   "r_C of classifiers x feature sets x levels x set sizes.")
+                                   "r_C of classifiers x feature sets x levels x set sizes. For a recording set "
+                                   "(set:NAME): its own class names and levels, folds grouped by its groups, or "
+                                   "its own train/test split when it has one.")
     _add_space_options(evaluate)
+    _add_set_options(evaluate)
     _add_evaluation_options(evaluate, report_default=None)
+    evaluate.add_argument("--ignore-split", action="store_true", help="sets: cross-validate over every "
+                          "recording even if the set has its own train/test split")
     evaluate.set_defaults(handler=cmd_evaluate)
 
     train = commands.add_parser("train", help="train a classifier on all scans and save it (skops)",

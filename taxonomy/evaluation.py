@@ -416,8 +416,10 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
 
 
 def _present_feature_sets(space: FeatureSpace) -> dict[str, FeatureSet]:
+    """The modalities present, then all of them; a single modality only once (it is all of them)."""
     prefixes = {c.split(".", 1)[0] for c in space.columns}
-    return {name: fs for name, fs in DEFAULT_FEATURE_SETS.items() if fs is None or fs in prefixes}
+    present = {name: fs for name, fs in DEFAULT_FEATURE_SETS.items() if fs in prefixes}
+    return present if len(present) == 1 else {**present, "all": None}
 
 
 def _set_name(feature_set: FeatureSet) -> str:

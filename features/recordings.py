@@ -1,0 +1,412 @@
+"""The project's own feature families on any recording, by channel role (SPEC 3 "Generic recordings").
+
+A lab's recordings (a folder of tool-slide sounds, texture photos, accelerometer or force-sensor CSVs,
+imported with ``texplorer ingest``) get the same features as the scanner's, wherever the role they need
+exists. Column names are ``<family>.<role>.<feature>``, so the family prefix is the scan's modality
+(``FeatureSpace.modality("audio")`` works) and the role says which signal it describes:
+
+=================  =====================  =================================================================
+family             role                   features
+=================  =====================  =================================================================
+``audio``          ``audio``              the 35 audio features of SPEC 7.3 (``features.audio``), on any
+                                          rate whose 50 ms frame holds at least 20 samples (>= 400 Hz)
+``audio``          ``vibration``          the same 35, where the vibration is sampled at >= 1 kHz
+                                          (:data:`VIBRATION_AUDIO_MIN_FS`)
+``image``          ``photo``              the 31 image features of SPEC 7.2 (``features.image``); the
+                                          border crop is a parameter (0 for imported photos and patches)
+``tactum``/        ``vibration``          the vibration-based features of SPEC 7.1 and 7.4 on ``v``:
+``other``                                 ``tactum.vibration.miro``, ``.mico``, ``other.vibration.vib_std``,
+                                          ``.vib_kurtosis``, ``.vib_energy``
+``tactum``         ``force_xyz``          TacTUM's friction features FST and FRS (eqs. 16, 17) with the
+                                          normal force z and the tangential force ``|(x, y)|``
+=================  =====================  =================================================================
+
+``v`` of a recording is its vibration as SPEC 6 makes the scanner's: each axis band-limited (4th-order
+Butterworth, zero phase) over the whole recording, then cut to the window, then the axes combined by
+DFT321. The band is 10-1000 Hz as in the paper where the rate allows (fs > 2222 Hz); below, its upper
+edge is lowered to 0.45 fs, so a 1 kHz accelerometer keeps 10-450 Hz.
+
+Audio on a vibration (interpretation of "where meaningful"; each window minus its mean, as an AC-coupled
+microphone gives a signal, axes combined by DFT321): the 50 ms frames resolve 20 Hz and the
+toolbox's spectral features describe the spectrum's shape at any rate, but the Pacinian band that texture
+vibration lives in reaches ~500 Hz (Bensmaia and Hollins 2003), which needs fs >= 1 kHz. Below that the
+audio features would describe only the slow part of the contact, so they are left out.
+
+Windowing (:class:`Windowing`): the whole recording (default), or windows of N seconds cut from the start
+(a shorter recording is one window); the windows' values are combined by their ``mean`` or ``median``, or
+each window becomes its own row (``rows``) named ``<recording>#w<k>`` in the recording's group, so folds
+never split one recording's windows. Photos are not windowed.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import math
+import os
+import sys
+import warnings
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from scipy import signal
+from tqdm import tqdm
+
+from features import audio, image, other, tactum
+from features.space import FeatureSpace
+from scanner.preprocess import BAND_HZ, dft321
+from scanner.scan import Recording, Trace
+
+VIBRATION_AUDIO_MIN_FS = 1000.0
+"""Lowest vibration rate the audio features are computed on (see the module docstring)."""
+
+FRICTION_WINDOW_S = 0.010
+"""TacTUM's stiction window, 10 ms (30 samples at the scanner's 3 kHz), in samples at any rate."""
+
+TARE_S = 0.1
+"""The tangential force is tared by its mean over the first 0.1 s, as the scanner's friction offset."""
+
+COMBINE = ("mean", "median", "rows")
+
+VIBRATION_NAMES = ("tactum.vibration.miro", "tactum.vibration.mico", "other.vibration.vib_std",
+                   "other.vibration.vib_kurtosis", "other.vibration.vib_energy")
+FRICTION_NAMES = ("tactum.force_xyz.fst", "tactum.force_xyz.frs")
+
+AUDIO_CHUNK_FRAMES = 256
+"""Frames computed at once on a long recording (bounded memory: ~4 MB per array at 44.1 kHz)."""
+
+
+class RecordingFeatureError(ValueError):
+    """A recording or option the feature families cannot use; the message names it."""
+
+
+@dataclass(frozen=True)
+class Windowing:
+    """How a recording is cut: the whole recording (``seconds`` None) or ``seconds``-long windows whose
+    values are combined by ``combine`` (``mean``, ``median``, or ``rows``: a row per window)."""
+
+    seconds: float | None = None
+    combine: str = "mean"
+
+    def __post_init__(self) -> None:
+        if self.seconds is not None and not (math.isfinite(self.seconds) and self.seconds > 0):
+            raise RecordingFeatureError(f"the window must be a positive number of seconds, got {self.seconds!r}")
+        if self.combine not in COMBINE:
+            raise RecordingFeatureError(f"combine must be one of {', '.join(COMBINE)}, got {self.combine!r}")
+
+    def describe(self) -> str:
+        if self.seconds is None:
+            return "whole recordings"
+        rule = "one row per window" if self.combine == "rows" else f"the {self.combine} over the windows"
+        return f"{self.seconds:g} s windows, {rule}"
+
+
+# -- one signal --------------------------------------------------------------------------------------
+
+def audio_features(x: np.ndarray, fs: float) -> dict[str, float]:
+    """The 35 audio features of a whole signal (SPEC 7.3): each the mean over all its 50 ms frames.
+
+    Equal to ``features.audio.compute(x, fs)``; the frames are computed :data:`AUDIO_CHUNK_FRAMES` at a
+    time, each chunk starting one frame early so the spectral flux sees its true previous frame, so a long
+    recording needs bounded memory. Several channels (n, channels) are averaged into one (a mono mix).
+    """
+    values = np.asarray(x, dtype=np.float64)
+    values = values.mean(axis=1) if values.ndim == 2 else values
+    window, step = audio.window_and_step(fs)
+    count = (values.size - window) // step + 1 if values.size >= window else 0
+    if count <= AUDIO_CHUNK_FRAMES:
+        return audio.compute(values, fs)
+    total = np.zeros(len(audio.NAMES))
+    for first in range(0, count, AUDIO_CHUNK_FRAMES):
+        last = min(first + AUDIO_CHUNK_FRAMES, count)
+        begin = max(first - 1, 0)
+        rows = audio.frame_features(values[begin * step:(last - 1) * step + window], fs)
+        total += rows[first - begin:].sum(axis=0)
+    return dict(zip(audio.NAMES, (total / count).tolist(), strict=True))
+
+
+def vibration_band(fs: float) -> tuple[float, float]:
+    """The band of ``v``: SPEC 6's 10-1000 Hz, the upper edge lowered to 0.45 fs where fs cannot carry it."""
+    return BAND_HZ[0], min(BAND_HZ[1], 0.45 * fs)
+
+
+@lru_cache(maxsize=16)
+def _band_filter(fs: float) -> np.ndarray:
+    return signal.butter(4, list(vibration_band(fs)), btype="bandpass", fs=fs, output="sos")
+
+
+def band_limited(v: np.ndarray, fs: float) -> np.ndarray:
+    """Each axis of a vibration band-limited over the whole recording (:func:`vibration_band`, SPEC 6).
+
+    Raises
+    ------
+    RecordingFeatureError
+        If the rate is too low for a band above 10 Hz (<= 25 Hz) or the recording too short to filter.
+    """
+    low, high = vibration_band(fs)
+    if high <= low:
+        raise RecordingFeatureError(f"a vibration at {fs:g} Hz has no band above {low:g} Hz")
+    sos = _band_filter(float(fs))
+    values = np.asarray(v, dtype=np.float64)
+    padlen = 3 * (2 * len(sos) + 1)
+    if values.shape[0] <= padlen:
+        raise RecordingFeatureError(f"a vibration of {values.shape[0]} samples is too short to band-limit "
+                                    f"(needs more than {padlen})")
+    return signal.sosfiltfilt(sos, values, axis=0)
+
+
+def vibration_features(v: np.ndarray, fs: float) -> dict[str, float]:
+    """MiRO, MiCo (paper eqs. 13-15), std, Pearson kurtosis and mean power (SPEC 7.4) of a slide signal
+    ``v`` (band-limited, windowed, axes combined)."""
+    return dict(zip(VIBRATION_NAMES, (tactum.miro(v), tactum.mico(v, fs), other.vib_std(v),
+                                      other.vib_kurtosis(v), other.vib_energy(v)), strict=True))
+
+
+def friction_features(xyz: np.ndarray, fs: float) -> dict[str, float]:
+    """FST and FRS (paper eqs. 16, 17) of a 3-axis force: normal force z, tangential ``|(x, y)|`` after
+    taring x and y by their mean over the first 0.1 s; the stiction window is 10 ms at any rate."""
+    values = np.asarray(xyz, dtype=np.float64)
+    tare = values[:max(1, int(round(TARE_S * fs))), :2].mean(axis=0)
+    f_frt = np.hypot(*(values[:, :2] - tare).T)
+    f_frn = values[:, 2]
+    lag = max(1, int(round(FRICTION_WINDOW_S * fs)))
+    return dict(zip(FRICTION_NAMES, (tactum.fst(f_frn, f_frt, lag), tactum.frs(f_frn, f_frt, lag)), strict=True))
+
+
+# -- which families apply ----------------------------------------------------------------------------
+
+def _audio_rate_ok(fs: float) -> bool:
+    return audio.window_and_step(fs)[0] >= audio.MIN_WINDOW
+
+
+def families(recording: Recording) -> list[str]:
+    """The family and role pairs (``audio.audio``, ``image.photo``, ...) that apply to a recording."""
+    found = []
+    sound = recording.role("audio")
+    if sound is not None and _audio_rate_ok(sound.fs):
+        found.append("audio.audio")
+    vibration = recording.role("vibration")
+    if vibration is not None and vibration.fs >= VIBRATION_AUDIO_MIN_FS:
+        found.append("audio.vibration")
+    if recording.image("photo") is not None:
+        found.append("image.photo")
+    if vibration is not None and vibration_band(vibration.fs)[1] > BAND_HZ[0]:
+        found.append("vibration")
+    if recording.role("force_xyz") is not None:
+        found.append("friction")
+    return found
+
+
+FAMILY_ORDER = ("audio.audio", "audio.vibration", "image.photo", "vibration", "friction")
+
+
+def family_names(family: str) -> tuple[str, ...]:
+    """The columns of one family."""
+    if family.startswith("audio."):
+        return tuple(f"{family}.{name}" for name in audio.NAMES)
+    if family == "image.photo":
+        return tuple(f"image.photo.{name}" for name in image.NAMES)
+    return VIBRATION_NAMES if family == "vibration" else FRICTION_NAMES
+
+
+# -- one recording -----------------------------------------------------------------------------------
+
+def _windows(duration: float, windowing: Windowing) -> list[tuple[float, float]]:
+    """``[start, stop)`` seconds of every window: the whole recording, or whole windows from the start."""
+    if windowing.seconds is None or duration <= windowing.seconds:
+        return [(0.0, duration)]
+    count = int(math.floor(duration / windowing.seconds + 1e-9))
+    return [(k * windowing.seconds, (k + 1) * windowing.seconds) for k in range(count)]
+
+
+def _cut(trace: Trace | np.ndarray, fs: float, start: float, stop: float) -> np.ndarray:
+    data = trace.data if isinstance(trace, Trace) else trace
+    return data[int(round(start * fs)):int(round(stop * fs))]
+
+
+def _sampled_features(recording: Recording, applied: Sequence[str], start: float, stop: float,
+                      prepared: Mapping[str, np.ndarray]) -> dict[str, float]:
+    values: dict[str, float] = {}
+    for family in applied:
+        names = family_names(family)
+        try:
+            if family == "audio.audio":
+                sound = recording.role("audio")
+                values.update(zip(names, audio_features(_cut(sound, sound.fs, start, stop), sound.fs).values(),
+                                  strict=True))
+            elif family == "audio.vibration":
+                trace = recording.role("vibration")
+                window = _cut(trace, trace.fs, start, stop)
+                # Without its mean, as an AC-coupled microphone would give it (a BioTac's PAC sits at ~2000).
+                window = dft321(window - window.mean(axis=0))
+                values.update(zip(names, audio_features(window, trace.fs).values(), strict=True))
+            elif family == "vibration":
+                trace = recording.role("vibration")
+                v = dft321(_cut(prepared["vibration"], trace.fs, start, stop))
+                values.update(vibration_features(v, trace.fs))
+            elif family == "friction":
+                trace = recording.role("force_xyz")
+                values.update(friction_features(_cut(trace, trace.fs, start, stop), trace.fs))
+        except ValueError as problem:
+            warnings.warn(f"recording {recording.name!r}: {family}: {problem}; its features are NaN",
+                          stacklevel=2)
+            values.update(dict.fromkeys(names, math.nan))
+    return values
+
+
+def recording_rows(recording: Recording, windowing: Windowing = Windowing(), border: int = 0,
+                   applied: Sequence[str] | None = None) -> list[dict[str, float]]:
+    """The feature rows of one recording: one, or one per window with ``combine = "rows"``.
+
+    ``applied`` are the families to compute (default :func:`families`); ``border`` the crop of its photo.
+    A family whose input fails (too short to filter, a photo too small to crop) is NaN with a warning.
+    """
+    applied = list(families(recording) if applied is None else applied)
+    sampled = [f for f in applied if f != "image.photo"]
+    fixed: dict[str, float] = {}
+    if "image.photo" in applied:
+        names = family_names("image.photo")
+        photo = recording.image("photo")
+        try:
+            fixed = dict(zip(names, image.compute(photo, border=border).values(), strict=True))
+        except ValueError as problem:
+            warnings.warn(f"recording {recording.name!r}: photo: {problem}; its features are NaN", stacklevel=2)
+            fixed = dict.fromkeys(names, math.nan)
+    if not sampled:
+        return [fixed]
+    prepared = {}
+    if "vibration" in sampled:
+        trace = recording.role("vibration")
+        try:
+            prepared["vibration"] = band_limited(trace.data, trace.fs)
+        except RecordingFeatureError as problem:
+            warnings.warn(f"recording {recording.name!r}: vibration: {problem}; its features are NaN",
+                          stacklevel=2)
+            sampled.remove("vibration")
+            fixed.update(dict.fromkeys(VIBRATION_NAMES, math.nan))
+    duration = min(recording.role(_ROLE[f]).duration for f in sampled) if sampled else 0.0
+    rows = [_sampled_features(recording, sampled, start, stop, prepared)
+            for start, stop in _windows(duration, windowing)]
+    if windowing.combine != "rows" and len(rows) > 1:
+        combine = np.mean if windowing.combine == "mean" else np.median
+        rows = [{name: float(combine([row[name] for row in rows])) for name in rows[0]}]
+    return [{**fixed, **row} for row in rows]
+
+
+_ROLE = {"audio.audio": "audio", "audio.vibration": "vibration", "vibration": "vibration",
+         "friction": "force_xyz"}
+
+
+# -- a set -------------------------------------------------------------------------------------------
+
+def fold_group(recording: Recording, group_by: str | None = "auto") -> str:
+    """The cross-validation group of a recording: its group ``group_by``; with ``auto`` the ``object``,
+    else the ``photo`` its patch was cut from, else the recording itself; None: every recording alone."""
+    if group_by is None or group_by == "none":
+        return recording.name
+    if group_by == "auto":
+        return recording.group.get("object") or recording.group.get("photo") or recording.name
+    if group_by not in recording.group:
+        raise RecordingFeatureError(f"recording {recording.name!r} has no group {group_by!r} "
+                                    f"(groups: {', '.join(recording.group) or 'none'})")
+    return recording.group[group_by]
+
+
+def set_levels(recordings: Sequence[Recording]) -> tuple[str, dict[str, list[str]]]:
+    """The label's level and the coarser levels every recording defines (``meta["levels"]``)."""
+    label_level = str(recordings[0].meta.get("label_level", "label"))
+    levels: dict[str, list[str]] = {}
+    first = recordings[0].meta.get("levels") or {}
+    for name in first:
+        if name != label_level and all(name in (r.meta.get("levels") or {}) for r in recordings):
+            levels[name] = [str(r.meta["levels"][name]) for r in recordings]
+    return label_level, levels
+
+
+def _extract_one(job: tuple[Recording, Windowing, int, tuple[str, ...]]) -> tuple[list[dict[str, float]], list[str]]:
+    recording, windowing, border, applied = job
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        rows = recording_rows(recording, windowing, border, [f for f in applied if f in families(recording)])
+    return rows, list(dict.fromkeys(str(w.message) for w in caught))
+
+
+def feature_space(recordings: Sequence[Recording], windowing: Windowing = Windowing(), border: int = 0,
+                  group_by: str | None = "auto", workers: int | None = 1,
+                  progress: bool = False) -> tuple[FeatureSpace, list[str]]:
+    """The feature space of a set of recordings with its own labels, levels, groups and split, and the
+    warnings raised while extracting (one line each, naming the recording).
+
+    Columns are every family that applies to at least one recording (:func:`families`), in the order of
+    :data:`FAMILY_ORDER`; a recording without a family's role has NaN there (evaluation then leaves the
+    column out). Rows are in recording order (windows in time order with ``combine = "rows"``).
+    ``workers`` processes (1: in this process, None: one per core).
+
+    Raises
+    ------
+    RecordingFeatureError
+        If no family applies to any recording, or a recording has no label.
+    """
+    recordings = list(recordings)
+    if not recordings:
+        raise RecordingFeatureError("no recordings")
+    unlabelled = next((r.name for r in recordings if not r.label), None)
+    if unlabelled is not None:
+        raise RecordingFeatureError(f"recording {unlabelled!r} has no label")
+    present = {f for r in recordings for f in families(r)}
+    applied = tuple(f for f in FAMILY_ORDER if f in present)
+    if not applied:
+        roles = sorted({role for r in recordings for role in r.roles})
+        raise RecordingFeatureError(f"no feature family applies: the recordings have the roles "
+                                    f"{', '.join(roles) or 'none'}; the families need audio, vibration, "
+                                    "photo or force_xyz")
+    columns = tuple(name for family in applied for name in family_names(family))
+    jobs = [(r, windowing, border, applied) for r in recordings]
+    results = _map(_extract_one, jobs, workers, progress)
+    label_level, levels = set_levels(recordings)
+    X, ids, labels, groups, level_rows, split, notes = [], [], [], [], {k: [] for k in levels}, [], []
+    has_split = all(r.meta.get("split") in ("train", "test") for r in recordings)
+    for index, (recording, (rows, caught)) in enumerate(zip(recordings, results, strict=True)):
+        notes += caught
+        for k, row in enumerate(rows):
+            X.append([row.get(name, math.nan) for name in columns])
+            ids.append(recording.name if len(rows) == 1 else f"{recording.name}#w{k:03d}")
+            labels.append(str(recording.label))
+            groups.append(fold_group(recording, group_by))
+            for name in levels:
+                level_rows[name].append(levels[name][index])
+            if has_split:
+                split.append(recording.meta["split"])
+    space = FeatureSpace(np.array(X, dtype=np.float64).reshape(len(X), len(columns)), columns, ids, labels,
+                         groups, (), label_level, level_rows, split)
+    return space, list(dict.fromkeys(notes))
+
+
+def _map(function: Callable, jobs: Sequence, workers: int | None, progress: bool) -> list:
+    """``function`` of every job, in order, in this process or a process pool, with a progress bar."""
+    bar = tqdm(total=len(jobs), desc="features", unit="recording", file=sys.stderr,
+               disable=None if progress else True, leave=False)
+    workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
+    results: list = [None] * len(jobs)
+    if workers == 1:
+        for i, job in enumerate(jobs):
+            results[i] = function(job)
+            bar.update(1)
+    else:
+        with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+            futures = {pool.submit(function, job): i for i, job in enumerate(jobs)}
+            for future in concurrent.futures.as_completed(futures):
+                results[futures[future]] = future.result()
+                bar.update(1)
+    bar.close()
+    return results
+
+
+def describe_families(names: Iterable[str]) -> str:
+    """``audio.audio (35), image.photo (31)``: the families of a list of columns with their sizes."""
+    counts: dict[str, int] = {}
+    for name in names:
+        family = ".".join(name.split(".")[:2])
+        counts[family] = counts.get(family, 0) + 1
+    return ", ".join(f"{family} ({count})" for family, count in counts.items())
