@@ -562,29 +562,25 @@ def comparison_dataset(spec: str, db: Path, seed: int):
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    import warnings
-
-    from taxonomy.methods import MethodError, MethodSkipped, compare, format_comparison
+    from taxonomy.methods import MethodError, compare_methods, format_comparison
     from taxonomy.report import write_comparison
 
     started = time.perf_counter()
     dataset = comparison_dataset(args.dataset, args.db, args.seed)
     print(dataset.summary())
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", MethodSkipped)
-        results = compare(dataset, args.methods, seed=args.seed, repeats=args.repeats,
-                          progress=progress("comparing"))
-    skipped = [str(w.message) for w in caught if issubclass(w.category, MethodSkipped)]
-    for line in skipped:
-        print(f"texplorer: warning: {line}", file=sys.stderr)
+    comparison = compare_methods(dataset, args.methods, seed=args.seed, repeats=args.repeats,
+                                 progress=progress("comparing"))
+    print(comparison.format_outcome())
+    results = comparison.results
     if not results:
-        raise MethodError(f"no method could run on {args.dataset} "
-                          + ("(see the warnings above)" if skipped else "(none applies)"))
+        own = (f"; the project's own features: texplorer evaluate {args.dataset}"
+               if args.dataset.startswith("set:") else "")
+        raise MethodError(f"no method could run on {args.dataset} (see above){own}")
     print(format_comparison(results))
     slug = "".join(ch if ch.isalnum() or ch in "-_" else "-" for ch in args.dataset).strip("-") or "dataset"
     folder = args.report or (args.db / "reports" if args.db.is_dir() else Path(".")) / f"compare-{slug}"
     print(f"{len(results)} result(s) in {time.perf_counter() - started:.1f} s; report: "
-          f"{write_comparison(folder, results, dataset.summary())}")
+          f"{write_comparison(folder, results, dataset.summary(), comparison.outcome)}")
     return 0
 
 

@@ -330,8 +330,12 @@ def format_comparison(results: Sequence[MethodResult]) -> str:
     lines = ["  ".join(cell.ljust(width) for cell, width in zip(row, widths, strict=True)).rstrip()
              for row in rows]
     lines.insert(1, "  ".join("-" * width for width in widths))
-    notes = list(dict.fromkeys(note for r in results for note in r.notes))
-    return "\n".join(lines + [f"note: {note}" for note in notes])
+    return "\n".join(lines + [f"note: {note}" for note in result_notes(results)])
+
+
+def result_notes(results: Sequence[MethodResult]) -> list[str]:
+    """Every note once, naming the method (and feature set) that raised it."""
+    return list(dict.fromkeys(f"{r.method} {r.features}: {note}" for r in results for note in r.notes))
 
 
 # -- splits and scoring ------------------------------------------------------------------------------
@@ -381,8 +385,13 @@ def leave_object_out_splits(objects: Sequence[str]) -> list[Split]:
             for o in dict.fromkeys(objects.tolist())]
 
 
+def one_line(text: str) -> str:
+    """A message whole on one line: its lines joined, runs of white space made one space."""
+    return " ".join(str(text).split())
+
+
 def _messages(caught: list[warnings.WarningMessage]) -> list[str]:
-    return [f"{w.category.__name__}: {str(w.message).splitlines()[0]}" for w in caught]
+    return [f"{w.category.__name__}: {one_line(str(w.message))}" for w in caught]
 
 
 def _single_row_seconds(model: BaseEstimator, rows: np.ndarray) -> tuple[list[float], list[float]]:
@@ -823,6 +832,9 @@ def run_chathuranga(dataset: Dataset, cache: FeatureCache, seed: int, repeats: i
         else:
             results_note = []
         if not usable:
+            reason = next(iter(extracted.failed.values()), "undefined values")
+            warnings.warn(f"method chathuranga: the {name} baseline not run: {reason}", MethodSkipped,
+                          stacklevel=2)
             continue
         X_b, y_b = extracted.X[usable], dataset.y(level, usable)
         b_splits = holdout_splits(y_b, len(splits), 1 / 6, seed)
@@ -1139,6 +1151,72 @@ METHODS: Mapping[str, Method] = {m.name: m for m in (
 def applicable(dataset: Dataset) -> list[str]:
     """Names of the methods whose inputs every recording of ``dataset`` has."""
     return [name for name, method in METHODS.items() if method.applies(dataset)]
+
+
+METHOD_ROLES: Mapping[str, tuple[tuple[str, ...], ...]] = {
+    "xie": (("taxels", "electrodes"),), "huang": (("vibration",),), "chathuranga": (("force_xyz",),),
+    "hoelscher": (("vibration",), ("electrodes",), ("heat_flow", "temperature")),
+}
+"""What each method reads: alternatives (any one suffices) of roles that must all be present."""
+
+
+def not_applicable(dataset: Dataset, name: str) -> str | None:
+    """Why method ``name`` does not apply to ``dataset`` (the missing role or input), or None if it does."""
+    method = METHODS[name]
+    if method.applies(dataset):
+        return None
+    if name == "fishel":
+        return f"needs scans ({method.needs.split('(')[-1].rstrip(')')}); {dataset.name} has recordings only"
+    have = sorted(set.union(*(set(r.roles) for r in dataset.recordings)))
+    options = METHOD_ROLES[name]
+    lacking = min(([role for role in option if not all(role in r.roles for r in dataset.recordings)]
+                   for option in options), key=len)
+    count = sum(1 for r in dataset.recordings if not all(role in r.roles for role in lacking))
+    lacks = "taxels or electrodes" if name == "xie" else " + ".join(lacking)
+    needs = f"the role {lacks}" if len(options) == 1 else method.needs
+    return (f"needs {needs}; {count} of {len(dataset)} recordings lack {lacks} "
+            f"(roles present: {', '.join(have) or 'none'})")
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """The results of :func:`compare_methods` and, for every method, ``ran`` or why it did not run."""
+
+    results: list[MethodResult]
+    outcome: dict[str, str]
+
+    def format_outcome(self) -> str:
+        width = max(len(name) for name in self.outcome)
+        return "\n".join(f"{name:<{width}}  {status}" for name, status in self.outcome.items())
+
+
+def compare_methods(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Sequence[str] | None = None,
+                    *, seed: int = SEED, repeats: int = REPEATS,
+                    progress: Callable[[Iterable[str]], Iterable[str]] = iter) -> Comparison:
+    """:func:`compare`, with the outcome of every method: ``ran (n results)`` (and the parts it skipped),
+    or ``not run:`` the role or value it lacks, or why the data could not feed it."""
+    data = _as_dataset(dataset)
+    outcome = {name: f"not run: {reason}" for name in METHODS
+               if methods is None and (reason := not_applicable(data, name))}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", MethodSkipped)
+        results = compare(data, methods, seed=seed, repeats=repeats, progress=progress)
+    skipped = [str(w.message) for w in caught if issubclass(w.category, MethodSkipped)]
+    for w in caught:
+        if not issubclass(w.category, MethodSkipped):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    for name in METHODS if methods is None else methods:
+        if name in outcome:
+            continue
+        count = sum(1 for r in results if r.method == name)
+        own = [line.split(":", 1)[1].strip() if line.startswith(f"method {name} skipped:") else
+               line.removeprefix(f"method {name}: ") for line in skipped
+               if line.startswith((f"method {name} skipped:", f"method {name}:"))]
+        if count == 0:
+            outcome[name] = "not run: " + ("; ".join(own) or "no result")
+        else:
+            outcome[name] = f"ran ({count} results)" + "".join(f"; {line}" for line in own)
+    return Comparison(results, {name: outcome[name] for name in METHODS if name in outcome})
 
 
 def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Sequence[str] | None = None, *,

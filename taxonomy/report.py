@@ -17,7 +17,7 @@ import base64
 import html
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -241,15 +241,17 @@ def _figure_html(caption: str, path: Path) -> str:
 # -- comparison of the related methods (SPEC 7.5) ---------------------------------------------------------
 
 
-def write_comparison(folder: str | os.PathLike[str], results: Sequence[MethodResult], title: str) -> Path:
+def write_comparison(folder: str | os.PathLike[str], results: Sequence[MethodResult], title: str,
+                     outcome: Mapping[str, str] | None = None) -> Path:
     """Write the related-methods comparison as ``index.html`` (same page format as :func:`write_report`).
 
-    The page holds the comparison table (:data:`taxonomy.methods.COLUMNS`, times per classification), the
-    notes, an accuracy chart of every result and the confusion matrix of each method's best result; the
-    PNGs are written beside it and embedded in it. Returns the path of ``index.html``.
+    The page holds what became of every method (``outcome``: ran, or why not), the comparison table
+    (:data:`taxonomy.methods.COLUMNS`, times per classification), the notes naming their method, an
+    accuracy chart of every result and the confusion matrix of each method's best result; the PNGs are
+    written beside it and embedded in it. Returns the path of ``index.html``.
     """
     from scanner.files import atomic_write_bytes
-    from taxonomy.methods import COLUMNS, best_per_method
+    from taxonomy.methods import COLUMNS, best_per_method, result_notes
 
     e = html.escape
     folder = Path(folder)
@@ -268,11 +270,15 @@ def write_comparison(folder: str | os.PathLike[str], results: Sequence[MethodRes
     parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
              "<title>texplorer comparison of related methods</title>",
              f"<style>{PAGE_STYLE}</style></head><body>", "<h1>Related methods on the same footing</h1>",
-             f"<p>{e(title)}</p>", "<table><tr>" + "".join(f"<th>{e(c)}</th>" for c in COLUMNS) + "</tr>"]
+             f"<p>{e(title)}</p>"]
+    if outcome:
+        parts.append("<table><tr><th>method</th><th>outcome</th></tr>" + "".join(
+            f"<tr><td>{e(name)}</td><td>{e(status)}</td></tr>" for name, status in outcome.items()) + "</table>")
+    parts.append("<table><tr>" + "".join(f"<th>{e(c)}</th>" for c in COLUMNS) + "</tr>")
     parts += ["<tr>" + "".join(f"<td>{e(cell)}</td>" for cell in r.cells()) + "</tr>" for r in results]
     parts.append("</table><p>Times per classification: feature extraction in ms, classifier in us (one row "
                  "at a time). Paper: the figure its paper reports for that configuration.</p>")
-    notes = list(dict.fromkeys(note for r in results for note in r.notes))
+    notes = result_notes(results)
     details = [f"{r.method} {r.features} {r.classifier}: {r.detail}" for r in results if r.detail]
     for heading, items in (("Notes", notes), ("Details", details)):
         if items:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.stats import multivariate_normal
@@ -247,6 +249,27 @@ def test_compare_skips_a_method_the_data_cannot_feed():
         compare(short, ["xie"])
 
 
+def test_a_baseline_without_its_value_is_reported_not_dropped(soft):
+    no_speed = [replace(r, meta={k: v for k, v in r.meta.items() if k != "velocity_mm_s"})
+                for r in soft.recordings]
+    comparison = methods.compare_methods(no_speed, ["chathuranga"], repeats=2)
+    assert {r.features for r in comparison.results} == {"chathuranga4", "chathuranga_net"}
+    assert comparison.outcome == {"chathuranga": "ran (2 results); the spatial-period baseline not run: "
+                                                 "chathuranga_period needs the palpation velocity "
+                                                 f"meta['velocity_mm_s'] of recording {soft.recordings[0].name!r}"}
+
+
+def test_notes_name_their_method_and_are_whole():
+    import warnings as w
+
+    with w.catch_warnings(record=True) as caught:
+        w.simplefilter("always")
+        w.warn("lbfgs failed to converge:\nSTOP: TOTAL NO. OF ITERATIONS\n\n  Increase max_iter.", UserWarning,
+               stacklevel=1)
+    assert methods._messages(caught) == ["UserWarning: lbfgs failed to converge: STOP: TOTAL NO. OF ITERATIONS "
+                                         "Increase max_iter."]
+
+
 def test_cli_compare_prints_the_table_and_writes_the_report(tmp_path, capsys):
     from scanner.cli import COMPARE_METHODS, main
 
@@ -256,9 +279,14 @@ def test_cli_compare_prints_the_table_and_writes_the_report(tmp_path, capsys):
                  "--report", str(report)]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("sim:soft3axis: 720 recordings of 8 objects; levels material (8)")
-    assert out[1].split()[:3] == ["method", "features", "classifier"] and out[3].startswith("chathuranga")
+    # Every method with its outcome: the roles a method lacks are named.
+    assert out[1] == "fishel       not run: needs scans (v_ts, f_frn, f_frt); sim:soft3axis has recordings only"
+    assert out[2].startswith("xie          not run: needs the role taxels or electrodes; 720 of 720 recordings "
+                             "lack taxels or electrodes (roles present: force_xyz)")
+    assert out[4].startswith("chathuranga  ran (3 results)")
+    assert out[6].split()[:3] == ["method", "features", "classifier"] and out[8].startswith("chathuranga")
     page = (report / "index.html").read_text()
-    assert "<th>classify us</th>" in page and "pairwise-svm" in page
+    assert "<th>classify us</th>" in page and "pairwise-svm" in page and "<td>not run: needs the role" in page
     assert page.count("data:image/png;base64,") == 2  # the accuracy chart and one confusion matrix
     assert main(["compare", "sim:gelsight", "--db", str(tmp_path)]) == 1
     assert "unknown simulated sensor 'gelsight'" in capsys.readouterr().err
