@@ -329,7 +329,9 @@ def _extract_one(job: tuple[Recording, Windowing, int, tuple[str, ...]]) -> tupl
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         rows = recording_rows(recording, windowing, border, [f for f in applied if f in families(recording)])
-    return rows, list(dict.fromkeys(str(w.message) for w in caught))
+    messages = (str(w.message) for w in caught)
+    return rows, list(dict.fromkeys(m if m.startswith("recording ") else f"recording {recording.name!r}: {m}"
+                                    for m in messages))
 
 
 def feature_space(recordings: Sequence[Recording], windowing: Windowing = Windowing(), border: int = 0,
