@@ -214,8 +214,9 @@ def _html(space: FeatureSpace, reports: Sequence[Report], selection: Selection,
                 parts.append(f"<tr><td>{e(classifier)}</td><td>{e(feature_set)}</td>"
                              + "".join(f"<td>{e(cell)}</td>" for cell in cells) + "</tr>")
             parts.append("</table>")
+        grouping = "grouped by sample" if space.label_level is None else "grouped by the set's groups"
         splits = {"the set's own train/test split" if r.given_split else
-                  f"grouped by {groups[:-1]}" if r.grouped else "not grouped" for r in reports}
+                  grouping if r.grouped else "not grouped" for r in reports}
         parts.append(f"<p>Folds: {e(', '.join(sorted(splits)))}.</p>")
         notes = list(dict.fromkeys(note for r in reports for note in r.warnings))
         dropped = sorted({c for r in reports for c in r.dropped})
