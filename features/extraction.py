@@ -6,6 +6,7 @@ Order: 15 TacTUM, 93 image (disp, macro, illu x 31), 70 audio (finger, tool x 35
 from __future__ import annotations
 
 import concurrent.futures
+import dataclasses
 import functools
 import hashlib
 import math
@@ -47,7 +48,7 @@ TACTUM_PHOTO_SIDE = 2 * IMAGE_BORDER_PX + 2 * 2**image.TAMURA_KMAX
 """Smallest ``I_disp`` side TacTUM's MaCo and MaRG are computed on (264 px)."""
 
 _CODE_FILES = ("features/tactum.py", "features/image.py", "features/audio.py", "features/other.py",
-               "features/extraction.py", "scanner/preprocess.py")
+               "features/extraction.py", "scanner/preprocess.py", "scanner/scan.py")
 
 
 @functools.cache
@@ -125,8 +126,28 @@ def audio_features(scan: Scan) -> dict[str, float]:
     return values
 
 
+def without_short_channels(scan: Scan) -> Scan:
+    """``scan`` without the channels too short for their features (``Scan.short_channels``), with a warning.
+
+    Their features are then NaN like those of a missing channel: a single sample has no spread, no
+    relaxation and no cooling curve, and computing them anyway gives silent zeros (SPEC 7).
+    """
+    short = scan.short_channels()
+    if not short:
+        return scan
+    described = ", ".join(f"{name} ({scan[name].n} of the {need} samples its features need)"
+                          for name, need in short.items())
+    warnings.warn(f"scan {scan.scan_id}: too short: {described}; treated as missing", tactum.MissingDataWarning,
+                  stacklevel=3)
+    return dataclasses.replace(scan, traces={k: v for k, v in scan.traces.items() if k not in short})
+
+
 def extract(scan: Scan) -> dict[str, float]:
-    """The 193 named features of a scan in SPEC order (section 7); NaN where a value is undefined."""
+    """The 193 named features of a scan in SPEC order (section 7); NaN where a value is undefined.
+
+    Channels too short for their features count as missing (:func:`without_short_channels`).
+    """
+    scan = without_short_channels(scan)
     disp = prepared_disp(scan)
     values = {**tactum.compute(scan, disp=disp), **image_features(scan, disp), **audio_features(scan),
               **other.compute(scan)}

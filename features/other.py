@@ -20,7 +20,7 @@ import numpy as np
 from scipy import optimize, signal
 
 from features.tactum import MissingDataWarning, spectral_centroid
-from scanner.preprocess import QualityError, band_limit, dft321, slide_signal, slide_window
+from scanner.preprocess import NO_SLIDE, QualityError, band_limit, dft321, slide_signal, slide_start, slide_window
 from scanner.scan import Scan, Trace
 
 NAMES = (
@@ -341,12 +341,23 @@ def _magnet(scan: Scan) -> tuple[float, ...]:
 
 
 def _reflectance(scan: Scan) -> tuple[float, ...]:
+    """``reflect_static`` from the IR samples before the slide start, even if the slide window fails (SPEC
+    7.4; an IR record ending before the start gives the mean of all its samples), and ``reflect_mean``."""
     v_ts, r_ts = _trace(scan, "v_ts"), _trace(scan, "r_ts")
+    try:
+        start = slide_start(v_ts.data, fs=v_ts.fs)
+    except QualityError as problem:
+        raise _Unavailable(f"v_ts/r_ts: {problem}") from None
+    if start is None:
+        raise _Unavailable(f"v_ts/r_ts: {NO_SLIDE}")
+    static = reflect_static(r_ts.data, min(start, r_ts.n))
     try:
         window = slide_window(v_ts.data, fs=v_ts.fs, ir_samples=r_ts.n)
     except QualityError as problem:
-        raise _Unavailable(f"v_ts/r_ts: {problem}") from None
-    return reflect_static(r_ts.data, window.start), reflect_mean(r_ts.data[window.ir])
+        warnings.warn(f"scan {scan.scan_id}: v_ts/r_ts: {problem}; other.reflect_mean set to NaN",
+                      MissingDataWarning, stacklevel=3)
+        return static, math.nan
+    return static, reflect_mean(r_ts.data[window.ir])
 
 
 def _cooling(scan: Scan) -> tuple[float, ...]:

@@ -3,7 +3,7 @@
 An uploaded file is trusted for nothing: its name and declared type are ignored. Before the session decodes
 it (``Session.set_photo`` -> ``scanner.devices.camera.decode_photo``: PNG or JPEG by content, OpenCV),
 :func:`check_upload` refuses files above the size limit and PNG/JPEG headers that announce more pixels
-than :data:`DEFAULT_MAX_PIXELS`, so a small compressed file cannot expand into gigabytes when decoded.
+than the photo limit (:mod:`scanner.photo`), so a small compressed file cannot expand into gigabytes when decoded.
 Each photo the session holds is written as PNG under a random name in a staging folder for the page's
 preview until the scan is saved or abandoned; the uploaded bytes themselves are never stored.
 """
@@ -17,10 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from scanner.devices.camera import MAX_PHOTO_PIXELS as DEFAULT_MAX_PIXELS
-from scanner.devices.camera import PhotoError, check_pixels
 from scanner.files import atomic_write_bytes
-from scanner.matfile import decode_image, encode_png
+from scanner.photo import DEFAULT_MAX_PIXELS, PhotoError, check_pixels, decode, encode_png
 
 DEFAULT_MAX_BYTES = 20 * 1024 * 1024
 
@@ -78,10 +76,10 @@ class PhotoStore:
 
     def load(self, name: str) -> np.ndarray:
         """The RGB image of a staged photo."""
-        rgb = decode_image(self.path(name).read_bytes())
-        if rgb is None:
-            raise UploadError(f"staged photo {name} cannot be read")
-        return rgb
+        try:
+            return decode(self.path(name).read_bytes(), f"staged photo {name}")
+        except PhotoError as problem:
+            raise UploadError(str(problem)) from None
 
     def discard(self, names: Iterable[str]) -> None:
         """Delete staged photos (missing ones are ignored)."""

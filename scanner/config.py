@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from scanner.photo import PhotoError, check_size
 from scanner.preprocess import (
     ACCEL_V_PER_G,
     ACCEL_ZERO_V,
@@ -41,6 +42,7 @@ from scanner.preprocess import (
     fsr_volts,
     metal_sign,
 )
+from scanner.scan import MAX_CHANNEL_SECONDS
 
 DAQ_ROLES = ("accel_x", "accel_y", "accel_z", "ir", "fsr_normal", "fsr_tangential", "flex", "metal")
 """What is wired to the DAQ's analog inputs (SPEC 5)."""
@@ -414,6 +416,9 @@ def _check(config: Config) -> None:
     source = config.source
     for f in fields(StepDurations):
         _positive(source, f"steps.{f.name}", getattr(config.steps, f.name))
+        if getattr(config.steps, f.name) > MAX_CHANNEL_SECONDS:
+            raise ConfigError(f"{source}: steps.{f.name}: at most {MAX_CHANNEL_SECONDS:g} s, the longest a scan "
+                              "channel may hold")
     if config.steps.heat > MAX_HEAT_S:
         raise ConfigError(f"{source}: steps.heat: {config.steps.heat:g} s exceeds the "
                           f"{MAX_HEAT_S:g} s Peltier limit")
@@ -436,6 +441,10 @@ def _check(config: Config) -> None:
         raise ConfigError(f"{source}: camera.warmup_frames: must be >= 0")
     if min(config.simulated.image_size) < 16:
         raise ConfigError(f"{source}: simulated.image_size: both sides must be >= 16 px")
+    try:
+        check_size(*config.simulated.image_size[::-1], name="simulated.image_size")
+    except PhotoError as problem:
+        raise ConfigError(f"{source}: {problem}") from None
     if config.replay.speed < 0:
         raise ConfigError(f"{source}: replay.speed: must be >= 0 (0 = as fast as possible)")
     if "replay" in config.devices.values() and not config.replay.scan:

@@ -21,20 +21,35 @@ from __future__ import annotations
 import io
 import math
 import os
+import warnings
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 import scipy.io
 from scipy.io.matlab import mat_struct
 
 from scanner.files import atomic_write_bytes, atomic_writer
-from scanner.scan import CHANNELS, IMAGES, SCHEMA_VERSION, Scan, ScanError, ScanMeta, Trace
+from scanner.mat5 import MatFileError, read_mat
+from scanner.photo import PhotoError, encode_png, read_photo
+from scanner.scan import (
+    CHANNELS,
+    IMAGES,
+    MAX_CHANNEL_SECONDS,
+    SCHEMA_VERSION,
+    ChannelSpec,
+    Scan,
+    ScanError,
+    ScanMeta,
+    Trace,
+)
 
 REQUIRED_META = ("label", "operator", "sample_id", "scan_index", "session_id", "started",
                  "fs", "units", "schema_version")
 _OPTIONAL_NUMBERS = ("t_amb", "mass_g", "volume_cm3", "atk", "cyd")
+MAX_SCAN_BYTES = 256 << 20
+"""A ``.mat`` scan file, and its variables once inflated, may have at most this many bytes: every channel
+at its longest (``scanner.scan.MAX_CHANNEL_SECONDS``) with its raw volts takes about 200 MB."""
 
 
 class ScanFormatError(ValueError):
@@ -43,8 +58,13 @@ class ScanFormatError(ValueError):
     def __init__(self, path: str | os.PathLike[str], field: str | None, reason: str) -> None:
         self.path = Path(path)
         self.field = field
+        self.reason = reason
         where = f"{self.path}: {field}" if field else str(self.path)
         super().__init__(f"{where}: {reason}")
+
+
+class ScanFormatWarning(UserWarning):
+    """A scan file loads, but something in it is inconsistent and was resolved as SPEC 3 says."""
 
 
 def photo_file_name(mat_path: Path, variable: str) -> str:
@@ -56,21 +76,6 @@ def scan_files(path: str | os.PathLike[str], scan: Scan) -> list[Path]:
     """Every file :func:`save_scan` writes for ``scan`` at ``path`` (photos first, the ``.mat`` last)."""
     mat_path = Path(path)
     return [mat_path.with_name(photo_file_name(mat_path, v)) for v in IMAGES if v in scan.images] + [mat_path]
-
-
-def encode_png(rgb: np.ndarray) -> bytes:
-    """Lossless PNG bytes of an RGB uint8 image."""
-    ok, buffer = cv2.imencode(".png", cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR),
-                              [cv2.IMWRITE_PNG_COMPRESSION, 3])
-    if not ok:
-        raise ScanError(f"cannot encode image of shape {rgb.shape} as PNG")
-    return buffer.tobytes()
-
-
-def decode_image(data: bytes) -> np.ndarray | None:
-    """RGB uint8 array from PNG/JPEG bytes, or None if they are not a readable image."""
-    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
-    return None if image is None else cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
 
 
 def _meta_struct(scan: Scan) -> dict[str, Any]:
@@ -165,10 +170,11 @@ def _read_variables(path: Path) -> dict[str, Any]:
     if not path.is_file():
         raise ScanFormatError(path, None, "file not found")
     try:
-        return scipy.io.loadmat(path, squeeze_me=False, struct_as_record=False, chars_as_strings=True)
-    except Exception as exc:  # scipy raises many types for truncated or foreign files
-        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise ScanFormatError(path, None, f"not a readable MATLAB v5 .mat file ({reason})") from None
+        return read_mat(path, MAX_SCAN_BYTES, squeeze_me=False, struct_as_record=False, chars_as_strings=True)
+    except MatFileError as exc:
+        raise ScanFormatError(path, None, f"not a readable MATLAB v5 .mat file ({exc})") from None
+    except OSError as exc:
+        raise ScanFormatError(path, None, f"cannot be read ({exc.strerror or exc})") from None
 
 
 def _meta_number(path: Path, meta: dict[str, Any], name: str, default: float = math.nan) -> float:
@@ -176,8 +182,22 @@ def _meta_number(path: Path, meta: dict[str, Any], name: str, default: float = m
     if isinstance(value, np.ndarray) and value.size == 0:
         return default
     if not isinstance(value, float):
-        raise ScanFormatError(path, f"meta.{name}", f"must be a number, got {type(value).__name__}")
+        raise ScanFormatError(path, f"meta.{name}", f"must be a number, got {_kind(value)}")
     return value
+
+
+def _meta_flag(path: Path, meta: dict[str, Any], name: str) -> bool:
+    """A 0/1 field (``rigid``, ``raw_volts``); absent or empty means 0."""
+    value = _meta_number(path, meta, name, 0.0)
+    if value not in (0.0, 1.0):
+        raise ScanFormatError(path, f"meta.{name}", f"must be 0 or 1, got {value:g}")
+    return value == 1.0
+
+
+def _kind(value: Any) -> str:
+    if isinstance(value, np.ndarray):
+        return f"a {value.dtype} array of shape {value.shape}"
+    return type(value).__name__
 
 
 def _meta_text(path: Path, meta: dict[str, Any], name: str, default: str | None = None) -> str:
@@ -187,7 +207,7 @@ def _meta_text(path: Path, meta: dict[str, Any], name: str, default: str | None 
     if value is None:
         raise ScanFormatError(path, f"meta.{name}", "required field is missing")
     if not isinstance(value, str):
-        raise ScanFormatError(path, f"meta.{name}", f"must be text, got {type(value).__name__}")
+        raise ScanFormatError(path, f"meta.{name}", f"must be text, got {_kind(value)}")
     return value
 
 
@@ -221,7 +241,7 @@ def _parse_meta(path: Path, variables: dict[str, Any]) -> tuple[dict[str, Any], 
             scan_index=_meta_number(path, meta, "scan_index"),
             session_id=_meta_text(path, meta, "session_id"),
             started=_meta_text(path, meta, "started"),
-            rigid=_meta_number(path, meta, "rigid", 0.0) != 0.0,
+            rigid=_meta_flag(path, meta, "rigid"),
             device={k: str(v) for k, v in _meta_struct_field(path, meta, "device").items()},
             calibration=_meta_struct_field(path, meta, "calibration"),
             software_version=_meta_text(path, meta, "software_version", ""),
@@ -235,9 +255,10 @@ def _parse_meta(path: Path, variables: dict[str, Any]) -> tuple[dict[str, Any], 
     return meta, scan_meta
 
 
-def _channel_array(path: Path, name: str, value: Any, axes: int) -> np.ndarray:
+def _channel_array(path: Path, name: str, value: Any, spec: ChannelSpec) -> np.ndarray:
     if not isinstance(value, np.ndarray) or value.dtype.kind not in "fiu":
-        raise ScanFormatError(path, name, "must be a numeric array")
+        raise ScanFormatError(path, name, f"must be a real numeric array, got {_kind(value)}")
+    axes = spec.axes
     if axes == 0 and value.ndim == 2 and 1 in value.shape:
         value = value.ravel()  # MATLAB users save row or column vectors; both are a 1-D channel
     expected = f"(n, {axes})" if axes else "(n,) column or row vector"
@@ -245,6 +266,9 @@ def _channel_array(path: Path, name: str, value: Any, axes: int) -> np.ndarray:
         raise ScanFormatError(path, name, f"wrong shape {value.shape}, expected {expected}")
     if value.shape[0] == 0:
         raise ScanFormatError(path, name, "is empty")
+    if value.shape[0] > spec.max_n:  # checked before the float64 copy, which may be 8 times the stored bytes
+        raise ScanFormatError(path, name, f"{value.shape[0]} samples, more than the {spec.max_n} "
+                                          f"({MAX_CHANNEL_SECONDS:g} s at {spec.fs:g} Hz) a channel may hold")
     bad = ~np.isfinite(value)
     if bad.any():
         raise ScanFormatError(path, name, f"{int(bad.sum())} non-finite samples "
@@ -260,53 +284,70 @@ def _read_traces(path: Path, variables: dict[str, Any], meta: dict[str, Any],
     for name, spec in CHANNELS.items():
         if name + suffix not in variables:
             continue
-        data = _channel_array(path, name + suffix, variables[name + suffix], spec.axes)
+        data = _channel_array(path, name + suffix, variables[name + suffix], spec)
         rate = rates.get(name)
         if not isinstance(rate, float):
             raise ScanFormatError(path, f"meta.fs.{name}", "sample rate is missing")
         if rate != spec.fs:
             raise ScanFormatError(path, f"meta.fs.{name}", f"sample rate {rate:g} Hz, expected {spec.fs:g} Hz")
         unit = "V" if suffix else units.get(name)
-        if unit != spec.unit and not suffix:
-            raise ScanFormatError(path, f"meta.units.{name}", f"unit {unit!r}, expected {spec.unit!r}")
+        if not suffix and (not isinstance(unit, str) or unit != spec.unit):
+            shown = repr(unit[:20]) if isinstance(unit, str) else _kind(unit)
+            raise ScanFormatError(path, f"meta.units.{name}", f"unit {shown}, expected {spec.unit!r}")
         traces[name] = Trace(data, rate, unit)
     return traces
 
 
+def _photo_name(path: Path, variable: str, value: Any) -> str:
+    name = _to_python(value)
+    plain = (isinstance(name, str) and 0 < len(name) <= 255 and name not in (".", "..")
+             and not any(ch in name for ch in "/\\\x00"))
+    if not plain:
+        raise ScanFormatError(path, variable, f"must be a plain file name, got {_kind(name)}"
+                              if not isinstance(name, str) else f"must be a plain file name, got {name[:60]!r}")
+    return name
+
+
 def _read_images(path: Path, variables: dict[str, Any]) -> dict[str, np.ndarray]:
+    """The photos, each refused from its header if beyond the pixel limit (:mod:`scanner.photo`)."""
     images = {}
     for variable in IMAGES:
         if variable not in variables:
             continue
-        name = _to_python(variables[variable])
-        if not isinstance(name, str) or not name or Path(name).name != name:
-            raise ScanFormatError(path, variable, f"must be a plain file name, got {name!r}")
-        image_path = path.with_name(name)
+        name = _photo_name(path, variable, variables[variable])
         try:
-            data = image_path.read_bytes()
+            images[variable] = read_photo(path.with_name(name), f"photo {name}")
+        except PhotoError as exc:
+            raise ScanFormatError(path, variable, str(exc)) from None
         except OSError as exc:
-            raise ScanFormatError(path, variable, f"photo {name} cannot be read ({exc.strerror})") from None
-        image = decode_image(data)
-        if image is None:
-            raise ScanFormatError(path, variable, f"photo {name} is not a readable PNG or JPEG")
-        images[variable] = image
+            raise ScanFormatError(path, variable, f"photo {name} cannot be read ({exc.strerror or exc})") from None
     return images
 
 
 def load_scan(path: str | os.PathLike[str], *, images: bool = True) -> Scan:
     """Read and validate a scan written by :func:`save_scan` (or by MATLAB in the same layout).
 
-    Raises :class:`ScanFormatError` naming the file and field for a truncated or foreign file, a wrong
-    shape, non-finite samples, a missing required field, a wrong or missing rate, an unknown schema
-    version or an unreadable photo. Missing optional channels are fine. ``images=False`` skips the photos.
+    Raises :class:`ScanFormatError` naming the file and field for a truncated, foreign or oversized file
+    (:data:`MAX_SCAN_BYTES`), a wrong shape, non-finite samples, a channel longer than
+    ``scanner.scan.MAX_CHANNEL_SECONDS``, a missing required field, a meta value out of its range (module
+    ``scanner.scan``), a wrong or missing rate, an unknown schema version, or a photo that is unreadable or
+    beyond the pixel limit (checked from its header before decoding). No other exception comes out of it
+    for any content of the files. Missing optional channels are fine. A file with ``meta.rigid`` = 1 that
+    stores the fold loads with a :class:`ScanFormatWarning`: the stored fold wins (SPEC 7.1 item 10).
+    ``images=False`` skips the photos.
     """
     mat_path = Path(path)
     variables = _read_variables(mat_path)
     meta, scan_meta = _parse_meta(mat_path, variables)
     traces = _read_traces(mat_path, variables, meta)
-    raw = _read_traces(mat_path, variables, meta, suffix="_raw") if meta.get("raw_volts") else {}
+    raw = _read_traces(mat_path, variables, meta, suffix="_raw") if _meta_flag(mat_path, meta, "raw_volts") else {}
     photos = _read_images(mat_path, variables) if images else {}
     try:
-        return Scan(scan_meta, traces, photos, raw)
+        scan = Scan(scan_meta, traces, photos, raw)
     except ScanError as exc:
         raise ScanFormatError(mat_path, exc.field, exc.reason) from None
+    if scan.fold_despite_rigid:
+        stored = ", ".join(name for name in ("f_fold", "alpha_f") if name in scan.traces)
+        warnings.warn(f"{mat_path}: meta.rigid is 1 but the fold is stored ({stored}); the stored fold is used",
+                      ScanFormatWarning, stacklevel=2)
+    return scan

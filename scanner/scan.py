@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from scanner.photo import PhotoError, check_size
 from taxonomy.labels import Label, LabelError
 
 SCHEMA_VERSION = 1
@@ -23,6 +24,22 @@ JUDGED_SCALE = (0.0, 0.25, 0.5, 0.75, 1.0)
 """The five-step scale of the operator's judged adhesive tack and yielding (paper section IV-A)."""
 VOLUME_METHODS = ("water", "micro-pearls", "known")
 """How the TU4 volume was measured: water or micro-pearl displacement, or known (dimensions, supplier)."""
+
+MAX_SCAN_INDEX = 9999
+"""Scan indices are 1..9999: ``<sample>-<nnnn>`` ids stay short, and SQLite's 64-bit integers hold them."""
+T_AMB_RANGE = (-40.0, 125.0)
+"""Ambient temperature in degC: the MLX90614's ambient range."""
+MAX_MASS_G = 1e6
+MAX_VOLUME_CM3 = 1e6
+"""A sample of up to a tonne and a cubic metre: anything larger is a typing error."""
+MAX_CALIBRATION = 1e6
+"""Calibration values (volts, g, degrees, seconds) are finite and at most this in magnitude, or NaN."""
+MAX_META_KEYS = 64
+MAX_TEXT = {"software_version": 64, "notes": 4000, "device": 256}
+"""Longest text of ``meta.software_version``, ``meta.notes`` and each ``meta.device`` value."""
+MAX_CHANNEL_SECONDS = 120.0
+"""Longest recording of one channel: every step of the procedure takes seconds (SPEC 4), and the limit keeps
+a scan (and the memory its features need) bounded."""
 
 
 class ScanError(ValueError):
@@ -46,27 +63,41 @@ class ChannelSpec:
     axes: int
     step: str
     description: str
+    min_n: int = 1
+    """Samples the channel's features need (SPEC 6, 7); a shorter channel is "too short", see
+    :meth:`Scan.short_channels`."""
+
+    @property
+    def max_n(self) -> int:
+        """Most samples a channel may hold: :data:`MAX_CHANNEL_SECONDS` at its rate."""
+        return int(MAX_CHANNEL_SECONDS * self.fs)
 
 
 CHANNELS: Mapping[str, ChannelSpec] = MappingProxyType({
     "v_ft": ChannelSpec(3000.0, "g", 3, "finger_tap", "TU1 acceleration, finger tap"),
-    "v_fs": ChannelSpec(3000.0, "g", 3, "finger_slide", "TU1 acceleration, finger slide"),
-    "v_tt": ChannelSpec(3000.0, "g", 3, "tool_tap", "TU1 acceleration, tool tap"),
-    "v_ts": ChannelSpec(3000.0, "g", 3, "tool_slide", "TU1 acceleration, tool slide"),
-    "a_fs": ChannelSpec(44100.0, "FS", 0, "finger_slide", "audio during the finger slide, full scale"),
-    "a_ts": ChannelSpec(44100.0, "FS", 0, "tool_slide", "audio during the tool slide, full scale"),
+    "v_fs": ChannelSpec(3000.0, "g", 3, "finger_slide", "TU1 acceleration, finger slide", 3000),
+    "v_tt": ChannelSpec(3000.0, "g", 3, "tool_tap", "TU1 acceleration, tool tap", 30),
+    "v_ts": ChannelSpec(3000.0, "g", 3, "tool_slide", "TU1 acceleration, tool slide", 3000),
+    "a_fs": ChannelSpec(44100.0, "FS", 0, "finger_slide", "audio during the finger slide, full scale", 44100),
+    "a_ts": ChannelSpec(44100.0, "FS", 0, "tool_slide", "audio during the tool slide, full scale", 44100),
     "r_fs": ChannelSpec(3000.0, "V", 0, "finger_slide", "IR reflectance during the finger slide"),
     "r_ts": ChannelSpec(3000.0, "V", 0, "tool_slide", "IR reflectance during the tool slide"),
-    "f_frn": ChannelSpec(3000.0, "N", 0, "friction", "normal force during the friction slide"),
-    "f_frt": ChannelSpec(3000.0, "N", 0, "friction", "tangential force during the friction slide"),
-    "f_press": ChannelSpec(3000.0, "N", 0, "press", "normal force while pressing 4.0 mm"),
-    "f_fold": ChannelSpec(3000.0, "N", 0, "fold", "normal force while folding"),
-    "alpha_f": ChannelSpec(3000.0, "deg", 0, "fold", "flex angle while folding"),
-    "t_cool": ChannelSpec(20.0, "degC", 0, "thermal", "MLX90614 object temperature after heating"),
+    "f_frn": ChannelSpec(3000.0, "N", 0, "friction", "normal force during the friction slide", 331),
+    "f_frt": ChannelSpec(3000.0, "N", 0, "friction", "tangential force during the friction slide", 331),
+    "f_press": ChannelSpec(3000.0, "N", 0, "press", "normal force while pressing 4.0 mm", 2),
+    "f_fold": ChannelSpec(3000.0, "N", 0, "fold", "normal force while folding", 2),
+    "alpha_f": ChannelSpec(3000.0, "deg", 0, "fold", "flex angle while folding", 2),
+    "t_cool": ChannelSpec(20.0, "degC", 0, "thermal", "MLX90614 object temperature after heating", 3),
     "m": ChannelSpec(3000.0, "-", 0, "static", "metal electrode, +1 conductive, -1 not"),
     "dB": ChannelSpec(80.0, "uT", 0, "static", "change of magnetic field magnitude"),
 })
-"""The scan channels of SPEC section 3, in file order."""
+"""The scan channels of SPEC section 3, in file order.
+
+``min_n``: the 1 s slide window (3000 vibration, 44100 audio samples; SPEC 6), 30 samples after the tap
+peak (SPEC 7.4), the 0.1 s friction offset plus one 10 ms slope lag (SPEC 6, 7.1 items 6-7), two samples
+for a spread or a relaxation (a single sample has zero spread: a silent 0, SPEC 7), three for the cooling
+fit. The IR channels need one sample: ``reflect_static`` uses whatever precedes the slide start.
+"""
 
 IMAGES: Mapping[str, str] = MappingProxyType({
     "I_disp": "disp",
@@ -84,9 +115,9 @@ ROLES = frozenset({
 IMAGE_ROLES = frozenset({"photo"})
 """Roles played by images (RGB uint8 (h, w, 3)) instead of sampled channels."""
 
-_SAFE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
-_OPERATOR = re.compile(r"^[^\x00-\x1f\x7f/\\<>\"']{1,64}$")
-_FIELD = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,62}$")
+_SAFE_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
+_OPERATOR = re.compile(r"[^\x00-\x1f\x7f/\\<>\"']{1,64}")
+_FIELD = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,62}")
 """MATLAB struct field names: device and calibration keys become fields of ``meta``."""
 
 
@@ -167,20 +198,47 @@ def _check_judged(name: str, value: float) -> float:
     return value
 
 
-def _check_optional_number(name: str, value: Any, *, positive: bool = False) -> float:
+def _check_optional_number(name: str, value: Any, low: float, high: float, *, positive: bool = False) -> float:
+    """A number in ``[low, high]`` (``(0, high]`` if ``positive``), or NaN for "not measured"."""
     try:
         number = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ScanError(f"must be a number or NaN, got {value!r}", f"meta.{name}") from None
-    if math.isinf(number) or (positive and number <= 0):
-        raise ScanError(f"{value!r} must be {'positive' if positive else 'finite'} or NaN", f"meta.{name}")
+    if math.isnan(number):
+        return number
+    if positive and not 0 < number <= high:
+        raise ScanError(f"{value!r} must be positive and at most {high:g}, or NaN", f"meta.{name}")
+    if not low <= number <= high:
+        raise ScanError(f"{value!r} must be between {low:g} and {high:g}, or NaN", f"meta.{name}")
     return number
+
+
+def _check_text(name: str, value: Any, limit: int) -> str:
+    if not isinstance(value, str):
+        raise ScanError(f"must be text, got {type(value).__name__}", f"meta.{name}")
+    if len(value) > limit:
+        raise ScanError(f"{len(value)} characters, at most {limit} are allowed", f"meta.{name}")
+    return value
+
+
+def check_scan_index(scan_index: Any) -> int:
+    """Scan indices are whole numbers 1..:data:`MAX_SCAN_INDEX` (the ``nnn`` of ``<sample>-<nnn>``)."""
+    if isinstance(scan_index, bool):
+        raise ScanError(f"must be a whole number 1..{MAX_SCAN_INDEX}, got {scan_index!r}", "meta.scan_index")
+    try:
+        number = float(scan_index)
+    except (TypeError, ValueError, OverflowError):
+        raise ScanError(f"must be a whole number 1..{MAX_SCAN_INDEX}, got {scan_index!r}", "meta.scan_index") from None
+    if not (math.isfinite(number) and number.is_integer() and 1 <= number <= MAX_SCAN_INDEX):
+        shown = f"{number:.6g}" if math.isfinite(number) else repr(scan_index)
+        raise ScanError(f"must be a whole number 1..{MAX_SCAN_INDEX}, got {shown}", "meta.scan_index")
+    return int(number)
 
 
 def check_sample_id(sample_id: str) -> str:
     """Sample ids become folder names: 1-64 characters of letters, digits, '.', '_', '-'."""
-    if not isinstance(sample_id, str) or not _SAFE_ID.match(sample_id):
-        raise ScanError(f"sample id {sample_id!r} must be 1-64 letters, digits, '.', '_' or '-' "
+    if not isinstance(sample_id, str) or not _SAFE_ID.fullmatch(sample_id):
+        raise ScanError(f"sample id {_short(sample_id)} must be 1-64 letters, digits, '.', '_' or '-' "
                         "and start with a letter or digit", "meta.sample_id")
     return sample_id
 
@@ -216,23 +274,22 @@ class ScanMeta(_Picklable):
             object.__setattr__(self, "label", Label.parse(self.label).format())
         except LabelError as exc:
             raise ScanError(str(exc), "meta.label") from None
-        if not isinstance(self.operator, str) or not _OPERATOR.match(self.operator.strip() or "\x00"):
-            raise ScanError(f"{self.operator!r} must be 1-64 printable characters "
+        if not isinstance(self.operator, str) or not _OPERATOR.fullmatch(self.operator.strip() or "\x00"):
+            raise ScanError(f"{_short(self.operator)} must be 1-64 printable characters "
                             "without quotes, slashes or angle brackets", "meta.operator")
         check_sample_id(self.sample_id)
-        if not isinstance(self.session_id, str) or not _SAFE_ID.match(self.session_id):
-            raise ScanError(f"{self.session_id!r} must be 1-64 letters, digits, '.', '_', '-'", "meta.session_id")
-        if isinstance(self.scan_index, bool) or not float(self.scan_index).is_integer() or self.scan_index < 1:
-            raise ScanError(f"must be a positive integer, got {self.scan_index!r}", "meta.scan_index")
-        object.__setattr__(self, "scan_index", int(self.scan_index))
-        if not isinstance(self.started, str) or not _is_iso8601(self.started):
-            raise ScanError(f"{self.started!r} is not an ISO 8601 date-time", "meta.started")
-        object.__setattr__(self, "t_amb", _check_optional_number("t_amb", self.t_amb))
-        object.__setattr__(self, "mass_g", _check_optional_number("mass_g", self.mass_g, positive=True))
-        object.__setattr__(self, "volume_cm3",
-                           _check_optional_number("volume_cm3", self.volume_cm3, positive=True))
+        if not isinstance(self.session_id, str) or not _SAFE_ID.fullmatch(self.session_id):
+            raise ScanError(f"{_short(self.session_id)} must be 1-64 letters, digits, '.', '_', '-'", "meta.session_id")
+        object.__setattr__(self, "scan_index", check_scan_index(self.scan_index))
+        if not isinstance(self.started, str) or len(self.started) > 64 or not _is_iso8601(self.started):
+            raise ScanError(f"{_short(self.started)} is not an ISO 8601 date-time", "meta.started")
+        object.__setattr__(self, "t_amb", _check_optional_number("t_amb", self.t_amb, *T_AMB_RANGE))
+        object.__setattr__(self, "mass_g", _check_optional_number("mass_g", self.mass_g, 0, MAX_MASS_G,
+                                                                  positive=True))
+        object.__setattr__(self, "volume_cm3", _check_optional_number("volume_cm3", self.volume_cm3, 0,
+                                                                      MAX_VOLUME_CM3, positive=True))
         if self.volume_method not in ("", *VOLUME_METHODS):
-            raise ScanError(f"{self.volume_method!r} is not one of {', '.join(VOLUME_METHODS)} (or empty)",
+            raise ScanError(f"{_short(self.volume_method)} is not one of {', '.join(VOLUME_METHODS)} (or empty)",
                             "meta.volume_method")
         object.__setattr__(self, "atk", _check_judged("atk", self.atk))
         object.__setattr__(self, "cyd", _check_judged("cyd", self.cyd))
@@ -240,12 +297,20 @@ class ScanMeta(_Picklable):
         if self.schema_version != SCHEMA_VERSION:
             raise ScanError(f"{self.schema_version!r} is not supported (this software reads {SCHEMA_VERSION})",
                             "meta.schema_version")
-        for key in (*self.device, *self.calibration):
-            if not isinstance(key, str) or not _FIELD.match(key):
-                raise ScanError(f"key {key!r} is not a valid MATLAB field name", "meta.device/calibration")
-        object.__setattr__(self, "device", MappingProxyType({k: str(v) for k, v in self.device.items()}))
+        _check_text("software_version", self.software_version, MAX_TEXT["software_version"])
+        _check_text("notes", self.notes, MAX_TEXT["notes"])
+        for name in ("device", "calibration"):
+            keys = list(getattr(self, name))
+            if len(keys) > MAX_META_KEYS:
+                raise ScanError(f"{len(keys)} entries, at most {MAX_META_KEYS} are allowed", f"meta.{name}")
+            for key in keys:
+                if not isinstance(key, str) or not _FIELD.fullmatch(key):
+                    raise ScanError(f"key {_short(key)} is not a valid MATLAB field name", f"meta.{name}")
+        object.__setattr__(self, "device", MappingProxyType(
+            {k: _check_text(f"device.{k}", str(v), MAX_TEXT["device"]) for k, v in self.device.items()}))
         object.__setattr__(self, "calibration", MappingProxyType(
-            {str(k): _check_optional_number(f"calibration.{k}", v) for k, v in self.calibration.items()}))
+            {str(k): _check_optional_number(f"calibration.{k}", v, -MAX_CALIBRATION, MAX_CALIBRATION)
+             for k, v in self.calibration.items()}))
 
     @property
     def scan_id(self) -> str:
@@ -259,6 +324,12 @@ class ScanMeta(_Picklable):
         return all(_same(getattr(self, f.name), getattr(other, f.name)) for f in fields(self))
 
     __hash__ = None  # type: ignore[assignment]
+
+
+def _short(value: Any) -> str:
+    """``repr`` of at most 60 characters, so a hostile value still gives a one-line message."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -298,13 +369,12 @@ class Scan(_Picklable):
             raise ScanError("scan.meta must be a ScanMeta")
         for name, trace in self.traces.items():
             _check_channel(name, trace)
-        if self.meta.rigid and ({"f_fold", "alpha_f"} & set(self.traces)):
-            raise ScanError("1 means the fold was skipped, but f_fold/alpha_f are present", "meta.rigid")
         for name, trace in self.raw.items():
             if name not in CHANNELS:
-                raise ScanError(f"raw channel {name!r} is not a scan channel")
+                raise ScanError(f"raw channel {_short(name)} is not a scan channel")
             if not isinstance(trace, Trace) or trace.unit != "V":
                 raise ScanError(f"raw channel {name}_raw must be a Trace in V")
+            _check_length(f"{name}_raw", trace, CHANNELS[name])
         images = {}
         for name, image in self.images.items():
             images[name] = _check_image(name, image)
@@ -343,6 +413,19 @@ class Scan(_Picklable):
             absent = [name for name in absent if name not in ("f_fold", "alpha_f")]
         return absent
 
+    def short_channels(self) -> dict[str, int]:
+        """Channels holding fewer samples than their features need -> that need (``ChannelSpec.min_n``).
+
+        Such a scan is valid (a test session with short steps records them); its features treat these
+        channels as missing, so they are NaN rather than computed from too little data.
+        """
+        return {name: CHANNELS[name].min_n for name, trace in self.traces.items() if trace.n < CHANNELS[name].min_n}
+
+    @property
+    def fold_despite_rigid(self) -> bool:
+        """``meta.rigid`` = 1 while a fold is stored: the stored fold wins (SPEC 3, 7.1 item 10)."""
+        return self.meta.rigid and bool({"f_fold", "alpha_f"} & set(self.traces))
+
 
 def _check_channel(name: str, trace: Trace) -> None:
     spec = CHANNELS.get(name)
@@ -358,6 +441,13 @@ def _check_channel(name: str, trace: Trace) -> None:
     if trace.data.shape != expected:
         want = f"(n, {spec.axes})" if spec.axes else "(n,)"
         raise ScanError(f"shape {trace.data.shape}, expected {want}", name)
+    _check_length(name, trace, spec)
+
+
+def _check_length(name: str, trace: Trace, spec: ChannelSpec) -> None:
+    if trace.n > spec.max_n:
+        raise ScanError(f"{trace.n} samples, more than the {spec.max_n} ({MAX_CHANNEL_SECONDS:g} s at "
+                        f"{spec.fs:g} Hz) a channel may hold", name)
 
 
 def _check_image(name: str, image: np.ndarray) -> np.ndarray:
@@ -367,6 +457,10 @@ def _check_image(name: str, image: np.ndarray) -> np.ndarray:
     if array.dtype != np.uint8 or array.ndim != 3 or array.shape[2] != 3 or min(array.shape[:2]) < 1:
         raise ScanError(f"{name} must be an RGB uint8 image of shape (h, w, 3), "
                         f"got {array.dtype} {array.shape}")
+    try:
+        check_size(array.shape[1], array.shape[0], name=name)
+    except PhotoError as problem:
+        raise ScanError(str(problem).removeprefix(f"{name}: "), name) from None
     view = array.view()
     view.flags.writeable = False
     return view

@@ -147,7 +147,7 @@ def test_foreign_and_missing_files(tmp_path):
 def test_corrupt_photo_is_reported(tmp_path):
     save_scan(make_scan(), tmp_path / "s.mat")
     (tmp_path / "s_macro.png").write_bytes(b"\x89PNG broken")
-    with pytest.raises(ScanFormatError, match="I_macro: photo s_macro.png is not a readable PNG or JPEG"):
+    with pytest.raises(ScanFormatError, match="I_macro: photo s_macro.png: not a PNG or JPEG file"):
         load_scan(tmp_path / "s.mat")
     assert load_scan(tmp_path / "s.mat", images=False).images == {}
 

@@ -161,13 +161,18 @@ def test_failed_slide_check_makes_the_slide_features_nan():
     assert nan == {"reflect_static", "reflect_mean", "vib_std", "vib_kurtosis", "vib_energy"}
 
 
-def test_ir_shorter_than_the_slide_window_makes_reflectance_nan():
+def test_ir_shorter_than_the_slide_window_keeps_the_static_reflectance():
     scan = good_scan()
     short = Scan(scan.meta, {**scan.traces, "r_ts": Trace(ir_trace()[:4000], FS, "V")})
-    with pytest.warns(MissingDataWarning, match="shorter than 1 s"):
+    with pytest.warns(MissingDataWarning, match="shorter than 1 s.*other.reflect_mean set to NaN"):
         values = other.compute(short)
-    assert math.isnan(values["other.reflect_static"]) and math.isnan(values["other.reflect_mean"])
-    assert math.isfinite(values["other.vib_std"])
+    # The IR ends inside the window: reflect_static is still the mean of the 0.5 + i/1000 V ramp before START.
+    assert values["other.reflect_static"] == pytest.approx(0.5 + (START - 1) / 2000, rel=1e-14)
+    assert math.isnan(values["other.reflect_mean"]) and math.isfinite(values["other.vib_std"])
+    shorter = Scan(scan.meta, {**scan.traces, "r_ts": Trace(ir_trace()[:1000], FS, "V")})
+    with pytest.warns(MissingDataWarning, match="shorter than 1 s"):
+        values = other.compute(shorter)
+    assert values["other.reflect_static"] == pytest.approx(0.5 + 999 / 2000, rel=1e-14)  # all of it rests
 
 
 # --- density, metal, magnetism --------------------------------------------------------------------------

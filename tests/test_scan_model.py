@@ -51,16 +51,31 @@ def test_trace_rejects_bad_input(data, fs, unit, message):
         ("sample_id", "../etc", "sample id"),
         ("sample_id", "a/b", "sample id"),
         ("session_id", "", "session_id"),
-        ("scan_index", 0, "positive integer"),
-        ("scan_index", 1.5, "positive integer"),
+        ("sample_id", "a" * 65, "sample id"),
+        ("sample_id", "granite-01\n", "sample id"),
+        ("scan_index", 0, r"whole number 1\.\.9999, got 0"),
+        ("scan_index", 1.5, "whole number"),
+        ("scan_index", 10_000, "whole number 1..9999, got 10000"),
+        ("scan_index", 2**63, "got 9.22337e\\+18"),
+        ("scan_index", 1e300, "got 1e\\+300"),
+        ("scan_index", math.nan, "whole number"),
         ("started", "yesterday", "ISO 8601"),
+        ("started", "2026-11-21T08:00:00" + " " * 100, "ISO 8601"),
         ("atk", 0.3, "five-step scale"),
         ("cyd", 2.0, "five-step scale"),
         ("mass_g", -3.0, "positive"),
+        ("mass_g", 2e6, "at most 1e\\+06"),
         ("volume_cm3", math.inf, "positive"),
-        ("t_amb", math.inf, "finite"),
+        ("t_amb", math.inf, "between -40 and 125"),
+        ("t_amb", -41.0, "between -40 and 125"),
         ("schema_version", 2, "not supported"),
         ("device", {"bad key": "x"}, "MATLAB field name"),
+        ("device", {"daq": "x" * 257}, "meta.device.daq: 257 characters, at most 256"),
+        ("device", {f"k{i}": "x" for i in range(65)}, "meta.device: 65 entries, at most 64"),
+        ("calibration", {"gain": math.inf}, "meta.calibration.gain: inf must be between"),
+        ("calibration", {"gain": 1e7}, "meta.calibration.gain"),
+        ("notes", "n" * 4001, "meta.notes: 4001 characters"),
+        ("software_version", "v" * 65, "meta.software_version"),
     ],
 )
 def test_meta_rejects_bad_fields(field, value, message):
@@ -89,12 +104,26 @@ def test_scan_checks_rate_unit_and_shape_of_every_channel():
         Scan(meta, {"v_xx": Trace(np.zeros((10, 3)), 3000, "g")})
 
 
-def test_rigid_scan_has_no_fold_channels():
-    with pytest.raises(ScanError, match="rigid"):
-        make_scan(rigid=True)
-    scan = make_scan(rigid=True, drop=("f_fold", "alpha_f"))
-    assert scan.missing_channels() == []
+def test_a_rigid_scan_may_store_its_fold_and_is_flagged():
+    skipped = make_scan(rigid=True, drop=("f_fold", "alpha_f"))
+    assert skipped.missing_channels() == [] and not skipped.fold_despite_rigid
     assert make_scan(drop=("alpha_f",)).missing_channels() == ["alpha_f"]
+    assert make_scan(rigid=True).fold_despite_rigid and not make_scan().fold_despite_rigid
+
+
+def test_channel_lengths_are_bounded_and_short_channels_are_named():
+    meta = make_meta()
+    with pytest.raises(ScanError, match=r"t_cool: 2401 samples, more than the 2400 \(120 s at 20 Hz\)"):
+        Scan(meta, {"t_cool": Trace(np.zeros(2401), 20.0, "degC")})
+    Scan(meta, {"t_cool": Trace(np.zeros(2400), 20.0, "degC")})
+    with pytest.raises(ScanError, match="v_ts_raw: 360001 samples"):
+        Scan(meta, raw={"v_ts": Trace(np.zeros((360_001, 3)), 3000.0, "V")})
+    scan = make_scan(seconds=0.2)  # 600 samples at 3 kHz, 4 of t_cool, 8820 of audio
+    assert scan.short_channels() == {"v_fs": 3000, "v_ts": 3000, "a_fs": 44100, "a_ts": 44100}
+    one = Scan(meta, {name: Trace(np.zeros((1, 3) if spec.axes else 1), spec.fs, spec.unit)
+                      for name, spec in CHANNELS.items()})
+    assert set(one.short_channels()) == {name for name, spec in CHANNELS.items() if spec.min_n > 1}
+    assert {"r_ts", "m", "dB"}.isdisjoint(one.short_channels())
 
 
 def test_scan_images_must_be_rgb_uint8():

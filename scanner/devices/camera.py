@@ -9,7 +9,6 @@ into an RGB array.
 
 from __future__ import annotations
 
-import struct
 from typing import Any
 
 import cv2
@@ -18,21 +17,12 @@ import numpy as np
 from scanner.config import CameraConfig
 from scanner.devices.protocols import DeviceError, DeviceUnavailable
 from scanner.devices.sources import SignalSource
+from scanner.photo import PhotoError, check_size, decode
 from scanner.scan import IMAGES
 
 MAX_PHOTO_BYTES = 40 << 20
-MAX_PHOTO_PIXELS = 50_000_000
-"""Four times a 12-megapixel phone photo (3024 x 4032, the paper's camera)."""
-PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-JPEG_SIGNATURE = b"\xff\xd8\xff"
-_JPEG_FRAME_MARKERS = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
-"""Start-of-frame markers SOF0-SOF15; C4 (Huffman tables), C8 (reserved) and CC (arithmetic) are not."""
 """Uploads larger than this are refused (a 12 MP PNG is about 25 MB)."""
 MIN_PHOTO_PX = 16
-
-
-class PhotoError(ValueError):
-    """An uploaded photo cannot be used; the message says why in one line."""
 
 
 def _source(text: str) -> int | str:
@@ -51,6 +41,18 @@ class OpenCvCamera:
             self._capture.release()
             raise DeviceUnavailable(f"camera {config.source!r} cannot be opened "
                                     "(no such camera, URL or file)")
+        announced = (int(self._capture.get(cv2.CAP_PROP_FRAME_WIDTH)),
+                     int(self._capture.get(cv2.CAP_PROP_FRAME_HEIGHT)))
+        if min(announced) > 0:  # 0 where the backend cannot tell before the first frame
+            self._check_frame_size(*announced)
+
+    def _check_frame_size(self, width: int, height: int) -> None:
+        """Refuse frames beyond the photo limit (:mod:`scanner.photo`), announced or delivered."""
+        try:
+            check_size(width, height, name=f"camera {self.config.source!r}")
+        except PhotoError as problem:
+            self._capture.release()
+            raise DeviceError(str(problem)) from None
 
     def describe(self) -> dict[str, str]:
         return {"camera": f"OpenCV {self._capture.getBackendName()} {self.config.source}"}
@@ -67,6 +69,7 @@ class OpenCvCamera:
             frame = grabbed
         if frame is None:
             raise DeviceError(f"camera {self.config.source!r}: no frame for {photo}")
+        self._check_frame_size(frame.shape[1], frame.shape[0])
         return _rgb(frame)
 
     def close(self) -> None:
@@ -106,83 +109,17 @@ class PlaybackCamera:
         self._take = {}
 
 
-def _png_size(data: bytes) -> tuple[int, int]:
-    if len(data) < 24 or data[12:16] != b"IHDR":
-        raise PhotoError("the PNG file is damaged (no image header)")
-    width, height = struct.unpack(">II", data[16:24])
-    return width, height
-
-
-def _jpeg_size(data: bytes) -> tuple[int, int]:
-    """Width and height from the first start-of-frame segment, walking the marker segments after SOI."""
-    position = 2
-    while position + 4 <= len(data):
-        if data[position] != 0xFF:
-            raise PhotoError("the JPEG file is damaged (bad marker)")
-        marker = data[position + 1]
-        if marker == 0xFF:  # fill byte before a marker
-            position += 1
-            continue
-        if marker in (0x01, *range(0xD0, 0xD8)):  # markers without a length field
-            position += 2
-            continue
-        (length,) = struct.unpack(">H", data[position + 2:position + 4])
-        if marker in _JPEG_FRAME_MARKERS:
-            if position + 9 > len(data):
-                break
-            height, width = struct.unpack(">HH", data[position + 5:position + 9])
-            return width, height
-        position += 2 + length
-    raise PhotoError("the JPEG file is damaged (no frame header)")
-
-
-def image_size(data: bytes) -> tuple[str, int, int] | None:
-    """``(kind, width, height)`` of PNG or JPEG bytes from the header alone, or None for other content.
-
-    Raises
-    ------
-    PhotoError
-        A PNG or JPEG signature with a damaged header.
-    """
-    if data.startswith(PNG_SIGNATURE):
-        return ("PNG", *_png_size(data))
-    if data.startswith(JPEG_SIGNATURE):
-        return ("JPEG", *_jpeg_size(data))
-    return None
-
-
-def check_pixels(data: bytes, max_pixels: int = MAX_PHOTO_PIXELS, name: str = "the photo") -> None:
-    """Refuse PNG/JPEG bytes whose header announces an empty image or more than ``max_pixels`` pixels.
-
-    Checked before decoding, so a small compressed file cannot expand into gigabytes. Other content
-    passes here; decoding refuses it with its own reason.
-    """
-    size = image_size(data)
-    if size is None:
-        return
-    kind, width, height = size
-    if width < 1 or height < 1:
-        raise PhotoError(f"{name}: the {kind} header gives an empty image ({width} x {height} px)")
-    if width * height > max_pixels:
-        raise PhotoError(f"{name}: the image has {width * height / 1e6:.1f} megapixels ({width} x {height} px); "
-                         f"at most {max_pixels / 1e6:g} are accepted")
-
-
-def decode_photo(data: bytes, name: str = "upload", max_pixels: int = MAX_PHOTO_PIXELS) -> np.ndarray:
+def decode_photo(data: bytes, name: str = "upload", max_pixels: int | None = None) -> np.ndarray:
     """An uploaded PNG or JPEG file -> RGB uint8 (h, w, 3); :class:`PhotoError` for anything else.
 
-    HEIC (the iPhone default) is recognised and refused with the advice to convert it to PNG.
+    The pixel limit is ``max_pixels``, else :func:`scanner.photo.max_pixels`. HEIC (the iPhone default)
+    is recognised and refused with the advice to convert it to PNG.
     """
     if len(data) > MAX_PHOTO_BYTES:
         raise PhotoError(f"{name}: {len(data) >> 20} MB is larger than the {MAX_PHOTO_BYTES >> 20} MB limit")
     if data[4:12] in (b"ftypheic", b"ftypheix", b"ftypmif1", b"ftyphevc"):
         raise PhotoError(f"{name}: HEIC photos are not read directly; convert it to PNG first")
-    if not (data.startswith(PNG_SIGNATURE) or data.startswith(JPEG_SIGNATURE)):
-        raise PhotoError(f"{name}: not a PNG or JPEG file")
-    check_pixels(data, max_pixels, name)
-    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
-    if image is None:
-        raise PhotoError(f"{name}: the file is damaged and cannot be decoded")
+    image = decode(data, name, max_pixels)
     if min(image.shape[:2]) < MIN_PHOTO_PX:
         raise PhotoError(f"{name}: {image.shape[1]}x{image.shape[0]} px is too small")
-    return _rgb(image)
+    return image

@@ -1,0 +1,202 @@
+"""Reading MATLAB v5 ``.mat`` files with bounded memory, whatever their bytes.
+
+``scipy.io.loadmat`` trusts the file: a compressed variable of a few kilobytes can inflate to gigabytes of
+zeros, and a cell or struct array allocates one Python object per element its header announces before
+reading any (a 200-byte file announcing a 10000 x 10000 cell takes 800 MB). :func:`read_mat` therefore
+inflates every compressed variable itself, stopping at ``max_bytes`` in total, walks the element tree of the
+result (MATLAB's "MAT-File Format", 2021, chapter 1: tags, array flags, dimensions, names, fields) and
+checks every size against the bytes that hold it, and only then lets scipy read the uncompressed copy.
+Numeric and character data are read by scipy from that bounded copy, so a dimension that lies about them
+fails scipy's own reshape instead of allocating.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+import struct
+import zlib
+from pathlib import Path
+from typing import Any
+
+import scipy.io
+
+HEADER_BYTES = 128
+MI_INT8, MI_INT32, MI_UINT32, MI_MATRIX, MI_COMPRESSED = 1, 5, 6, 14, 15
+CELL, STRUCT, OBJECT, CHAR, SPARSE = 1, 2, 3, 4, 5
+NUMERIC = frozenset(range(6, 16))
+"""mxDOUBLE_CLASS .. mxUINT64_CLASS."""
+MAX_ITEMS = 4096
+"""Elements a cell or struct array may have (a scan's structs have one)."""
+MAX_FIELDS = 1024
+MAX_DEPTH = 8
+"""Nesting of structs and cells (a scan's ``meta.fs.v_ts`` is three deep)."""
+MAX_DIMS = 32
+
+
+class MatFileError(ValueError):
+    """The bytes are not a MATLAB v5 file this reader accepts; the message is the reason, one line."""
+
+
+def _padded(n: int) -> int:
+    return n + (-n % 8)
+
+
+class _Elements:
+    """The uncompressed element stream of one variable, read with the file's byte order."""
+
+    def __init__(self, data: bytes, order: str) -> None:
+        self.data = memoryview(data)
+        self.order = order
+
+    def tag(self, position: int, end: int) -> tuple[int, int, int, int]:
+        """``(type, bytes, data position, next position)`` of the element at ``position``."""
+        if position + 8 > end:
+            raise MatFileError("truncated data element")
+        (first,) = struct.unpack_from(self.order + "I", self.data, position)
+        if first >> 16:  # small data element: type and size in one word, data in the next four bytes
+            kind, size = first & 0xFFFF, first >> 16
+            if size > 4:
+                raise MatFileError(f"small data element of {size} bytes")
+            return kind, size, position + 4, position + 8
+        (size,) = struct.unpack_from(self.order + "I", self.data, position + 4)
+        stop = position + 8 + _padded(size)
+        if position + 8 + size > end:
+            raise MatFileError("data element longer than the variable holding it")
+        return first, size, position + 8, min(stop, end)
+
+    def expect(self, position: int, end: int, kind: int, what: str) -> tuple[int, int, int]:
+        found, size, data, following = self.tag(position, end)
+        if found != kind:
+            raise MatFileError(f"{what}: data type {found}, expected {kind}")
+        return size, data, following
+
+    def int32s(self, data: int, size: int) -> tuple[int, ...]:
+        return struct.unpack_from(f"{self.order}{size // 4}i", self.data, data)
+
+    def matrix(self, position: int, end: int, depth: int) -> int:
+        """Check the array element at ``position``; returns the position after it."""
+        size, data, following = self.expect(position, end, MI_MATRIX, "array")
+        stop = data + size
+        if size == 0:
+            return following
+        flags_size, flags, p = self.expect(data, stop, MI_UINT32, "array flags")
+        if flags_size != 8:
+            raise MatFileError("array flags of the wrong size")
+        kind = struct.unpack_from(self.order + "I", self.data, flags)[0] & 0xFF
+        dims_size, dims_at, p = self.expect(p, stop, MI_INT32, "dimensions")
+        dims = self.int32s(dims_at, dims_size)
+        if not 2 <= len(dims) <= MAX_DIMS or min(dims) < 0:
+            raise MatFileError(f"impossible dimensions {dims[:MAX_DIMS]}")
+        _, _, p = self.expect(p, stop, MI_INT8, "array name")
+        if kind in NUMERIC or kind in (CHAR, SPARSE):
+            return following  # scipy reads the data from these bounded bytes
+        if kind not in (CELL, STRUCT, OBJECT):
+            raise MatFileError(f"unsupported MATLAB class {kind}")
+        count = math.prod(dims)
+        if count > MAX_ITEMS:
+            raise MatFileError(f"a cell or struct array of {count} elements (at most {MAX_ITEMS})")
+        if depth >= MAX_DEPTH:
+            raise MatFileError(f"structs or cells nested more than {MAX_DEPTH} deep")
+        items = count
+        if kind in (STRUCT, OBJECT):
+            if kind == OBJECT:
+                _, _, p = self.expect(p, stop, MI_INT8, "class name")
+            length_size, length_at, p = self.expect(p, stop, MI_INT32, "field name length")
+            length = self.int32s(length_at, length_size)[0] if length_size == 4 else 0
+            names_size, _, p = self.expect(p, stop, MI_INT8, "field names")
+            if length < 1 or names_size % length or names_size // length > MAX_FIELDS:
+                raise MatFileError("malformed struct field names")
+            items = count * (names_size // length)
+        if items * 8 > stop - p:
+            raise MatFileError(f"{items} elements announced in {stop - p} bytes")
+        for _ in range(items):
+            p = self.matrix(p, stop, depth + 1)
+        return following
+
+
+def _header_order(header: bytes) -> str:
+    if len(header) < HEADER_BYTES:
+        raise MatFileError("shorter than a MATLAB v5 header")
+    if 0 in header[:4]:
+        raise MatFileError("no MATLAB v5 header (a MATLAB v4 file, or not a .mat file)")
+    indicator = header[126:128]
+    if indicator not in (b"IM", b"MI"):
+        raise MatFileError("no MATLAB v5 byte-order mark")
+    order = "<" if indicator == b"IM" else ">"
+    (version,) = struct.unpack(order + "H", header[124:126])
+    if version == 0x0200:
+        raise MatFileError("a MATLAB 7.3 (HDF5) file; save it with -v7")
+    if version != 0x0100:
+        raise MatFileError(f"unknown MATLAB file version {version:#06x}")
+    return order
+
+
+def _inflate(data: bytes, budget: int) -> bytes:
+    inflater = zlib.decompressobj()
+    try:
+        out = inflater.decompress(data, budget + 1)
+    except zlib.error as exc:
+        raise MatFileError(f"damaged compressed variable ({exc})") from None
+    if len(out) > budget:
+        raise MatFileError("its variables inflate beyond the size limit")
+    return out
+
+
+def uncompressed_copy(path: str | os.PathLike[str], max_bytes: int) -> io.BytesIO:
+    """The file's header and variables, every one inflated and checked, as one uncompressed v5 stream.
+
+    Raises
+    ------
+    MatFileError
+        The file is larger than ``max_bytes``, its variables inflate to more, or its structure is not a
+        well-formed MATLAB v5 file within the limits of this module.
+    OSError
+        The file cannot be read.
+    """
+    path = Path(path)
+    size = path.stat().st_size
+    if size > max_bytes:
+        raise MatFileError(f"{size / 1e6:.0f} MB is larger than the {max_bytes / 1e6:.0f} MB a scan file may have")
+    out = io.BytesIO()
+    total = 0
+    with open(path, "rb") as handle:
+        header = handle.read(HEADER_BYTES)
+        order = _header_order(header)
+        out.write(header)
+        while tag := handle.read(8):
+            if len(tag) < 8:
+                raise MatFileError("truncated variable")
+            kind, length = struct.unpack(order + "II", tag)
+            body = handle.read(length)
+            if len(body) < length:
+                raise MatFileError("truncated variable")
+            if kind == MI_COMPRESSED:
+                element = _inflate(body, max_bytes - total)
+            elif kind == MI_MATRIX:
+                element = tag + body
+            else:
+                raise MatFileError(f"unexpected top-level data type {kind}")
+            elements = _Elements(element, order)
+            end = elements.matrix(0, len(element), 0)
+            total += end
+            if total > max_bytes:
+                raise MatFileError("its variables inflate beyond the size limit")
+            out.write(elements.data[:end])
+    out.seek(0)
+    return out
+
+
+def read_mat(path: str | os.PathLike[str], max_bytes: int, **options: Any) -> dict[str, Any]:
+    """``scipy.io.loadmat(path, **options)`` on the checked copy of :func:`uncompressed_copy`.
+
+    Raises :class:`MatFileError` for anything wrong with the bytes, scipy's complaints included, and
+    OSError when the file cannot be read.
+    """
+    stream = uncompressed_copy(path, max_bytes)
+    try:
+        return scipy.io.loadmat(stream, **options)
+    except Exception as exc:  # scipy raises many types for malformed content; the bytes are bounded here
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise MatFileError(reason) from None
