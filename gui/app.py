@@ -128,7 +128,7 @@ def quantity(value: float, spec: str = "%g", unit: str = "") -> str:
 
 
 def _error_page(error: HTTPException) -> tuple[str, int] | Response:
-    if request_ctx.url_adapter is None:  # refused before routing (untrusted Host header): no page links
+    if request_ctx.url_adapter is None:  # refused before routing (a malformed Host header): no page links
         text = f"{error.code} {error.name}: {error.description}\n"
         return Response(text, error.code or 500, mimetype="text/plain")
     return render_template("error.html", error=error), error.code or 500
@@ -147,11 +147,10 @@ def create_app(settings: Settings) -> Flask:
     app.config.update(
         SECRET_KEY=settings.secret_key,
         MAX_CONTENT_LENGTH=3 * settings.upload_limit + MULTIPART_OVERHEAD,
-        TRUSTED_HOSTS=list(settings.trusted_hosts) if settings.trusted_hosts else None,
     )
     app.extensions["texplorer"] = Context(settings)
     app.jinja_env.filters["quantity"] = quantity
-    security.install(app)
+    security.install(app, settings.trusted_hosts)
     app.register_error_handler(RequestEntityTooLarge, _too_large)
     app.register_error_handler(HTTPException, _error_page)
 
@@ -166,6 +165,13 @@ def is_loopback(host: str) -> bool:
     return host in LOOPBACK_HOSTS
 
 
+def url_of(host: str, port: int) -> str:
+    """The address a browser opens: ``http://[::1]:8080/`` (IPv6 in brackets, RFC 3986), a wildcard bind
+    shown as this computer."""
+    shown = "127.0.0.1" if host in ("0.0.0.0", "::", "") else host
+    return f"http://[{shown}]:{port}/" if ":" in shown else f"http://{shown}:{port}/"
+
+
 def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None:
     """Run the app until Ctrl-C; warns on stderr when it listens beyond this computer."""
     from werkzeug.serving import make_server
@@ -176,9 +182,7 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None
         settings = replace(settings, trusted_hosts=None)
     app = create_app(settings)
     server = make_server(host, port, app, threaded=True)
-    shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
-    print(f"texplorer: serving {settings.db} at http://{shown}:{server.server_port}/ (Ctrl-C stops)",
-          file=sys.stderr)
+    print(f"texplorer: serving {settings.db} at {url_of(host, server.server_port)} (Ctrl-C stops)", file=sys.stderr)
     try:
         server.serve_forever()  # returns on Ctrl-C (Werkzeug handles the KeyboardInterrupt)
     finally:

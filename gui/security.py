@@ -1,5 +1,10 @@
 """Request safety for the web application: CSRF tokens, trusted hosts, security headers (SPEC 10).
 
+Trusted hosts: bound to the loopback interface, the app answers only requests whose ``Host`` header names a
+loopback host (``127.0.0.1``, ``localhost``, ``[::1]``, any port), so a web page elsewhere cannot reach it
+through DNS rebinding. Werkzeug's own check cannot match an IPv6 literal (it cuts the trusted name at its
+first colon), so the check is here.
+
 CSRF: every browser session gets a random token kept in Flask's signed session cookie (signed with
 ``itsdangerous`` under the app's secret key, ``SameSite=Strict``); every state-changing request (any method
 but GET, HEAD, OPTIONS) must send the same token as the form field ``csrf_token`` or the header
@@ -11,6 +16,7 @@ from __future__ import annotations
 
 import hmac
 import secrets
+from collections.abc import Callable, Iterable
 
 from flask import Flask, Response, abort, request, session
 
@@ -43,6 +49,25 @@ def check_csrf() -> None:
                                "submit it again (nothing was changed)")
 
 
+def host_name(host: str) -> str:
+    """The name of a ``Host`` header without its port, IPv6 brackets removed: ``[::1]:8080`` -> ``::1``."""
+    host = host.strip().lower()
+    if host.startswith("["):
+        return host[1:host.index("]")] if "]" in host else host
+    return host.rpartition(":")[0] if ":" in host else host
+
+
+def trusted_host_check(trusted: Iterable[str]) -> Callable[[], None]:
+    """A before-request hook refusing (400, before anything runs) a ``Host`` header not naming ``trusted``."""
+    names = frozenset(host_name(f"[{name}]" if ":" in name else name) for name in trusted)
+
+    def check() -> None:
+        if host_name(request.host) not in names:
+            abort(400, description=f"this server answers only to {', '.join(sorted(names))}")
+
+    return check
+
+
 def add_security_headers(response: Response) -> Response:
     """Content security policy, no MIME sniffing, no framing, no caching of pages with form tokens."""
     response.headers.setdefault("Content-Security-Policy", CONTENT_SECURITY_POLICY)
@@ -54,9 +79,12 @@ def add_security_headers(response: Response) -> Response:
     return response
 
 
-def install(app: Flask) -> None:
-    """Wire the CSRF check, the token for templates and the headers into ``app``."""
+def install(app: Flask, trusted_hosts: Iterable[str] | None = None) -> None:
+    """Wire the trusted-host check (None: any host), the CSRF check, the token for templates and the headers
+    into ``app``."""
     app.config.update(SESSION_COOKIE_HTTPONLY=True, SESSION_COOKIE_SAMESITE="Strict")
+    if trusted_hosts:
+        app.before_request(trusted_host_check(trusted_hosts))
     app.before_request(check_csrf)
     app.after_request(add_security_headers)
     app.jinja_env.globals["csrf_token"] = csrf_token

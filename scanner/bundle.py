@@ -56,8 +56,8 @@ from typing import IO, Any
 import scipy.io
 
 import scanner
-from scanner.database import Database, FileEntry, ScanRecord, content_hash
-from scanner.files import atomic_write_bytes, fsync_dir, temp_path_for
+from scanner.database import STAGING_PREFIX, Database, FileEntry, ScanRecord, content_hash
+from scanner.files import atomic_write_bytes, fsync_dir, owned_folder, temp_path_for
 from scanner.matfile import ScanFormatError, load_scan, photo_file_name
 from scanner.scan import IMAGES, SCHEMA_VERSION, ScanMeta
 
@@ -354,6 +354,14 @@ def unsafe_name(name: str) -> str | None:
     return None
 
 
+def nested_names(names: Iterable[str]) -> list[str]:
+    """Member names that put a file under another member that is a file (``features.csv/x``): a zip file
+    can hold both, a folder cannot."""
+    files = set(names)
+    return [f"{name}: inside {'/'.join(name.split('/')[:i])}, which is a file" for name in sorted(files)
+            for i in range(1, name.count("/") + 1) if "/".join(name.split("/")[:i]) in files][:100]
+
+
 class _FolderReader:
     def __init__(self, root: Path) -> None:
         self.root = root
@@ -459,6 +467,7 @@ def verify_bundle(bundle: str | os.PathLike[str], staging: str | os.PathLike[str
     reader = _open_bundle(bundle)
     try:
         names, problems = reader.members()
+        problems += nested_names(names)
         if problems:
             raise _refuse(bundle, problems)
         present = set(names)
@@ -548,6 +557,7 @@ def parse_manifest(data: bytes) -> tuple[dict[str, Any] | None, list[str]]:
         problems.append(f"{MANIFEST}: 'files' must be an object of path -> sha256 and size")
     else:
         problems += [p for name, entry in files.items() for p in _file_entry_problems(name, entry)]
+        problems += [f"{MANIFEST}: {p}" for p in nested_names([n for n in files if isinstance(n, str)])]
         problems += [f"{MANIFEST}: does not list {name}" for name in REQUIRED_FILES if name not in files]
     scans = manifest.get("scans")
     if not isinstance(scans, list):
@@ -598,9 +608,9 @@ def _stage(reader: _FolderReader | _ZipReader, name: str, expected: Mapping[str,
            staging: Path) -> str | None:
     """Copy one member into ``staging`` checking size and SHA-256 on the way; the problem, or None."""
     target = staging.joinpath(*name.split("/"))
-    target.parent.mkdir(parents=True, exist_ok=True)
     digest, size, limit = hashlib.sha256(), 0, expected["size"]
     try:
+        target.parent.mkdir(parents=True, exist_ok=True)
         with reader.open(name) as source, open(target, "xb") as out:
             while block := source.read(_CHUNK):
                 size += len(block)
@@ -688,21 +698,31 @@ def import_bundle(db: Database, bundle: str | os.PathLike[str], progress: Progre
     """
     started = time.perf_counter()
     bundle = Path(bundle)
-    staging = temp_path_for(db.root / "import")
-    staging.mkdir()
-    try:
+    with owned_folder(temp_path_for(db.root / STAGING_PREFIX.lstrip("."))) as owned:
+        staging = owned / "bundle"
         verified = verify_bundle(bundle, staging, progress)
         report = ImportReport(bundle, bytes=verified.bytes)
         new, codes = _taxonomy_codes(db, verified, _plan(db, verified, report), report)
+        previous = db.taxonomy_path.read_bytes() if db.taxonomy_path.is_file() else None
         if codes:
             _extend_taxonomy(db, codes)
             report.taxonomy_added = [entry.code for entry in codes]
-        db.add_written([(scan.meta, _staged_paths(staging, scan)) for scan in new])
+        try:
+            db.add_written([(scan.meta, _staged_paths(staging, scan)) for scan in new])
+        except BaseException:
+            if codes:  # the scans were refused: so are the codes they brought
+                _restore(db.taxonomy_path, previous)
+            raise
         report.added = [scan.meta.scan_id for scan in new]
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
     report.seconds = time.perf_counter() - started
     return report
+
+
+def _restore(path: Path, data: bytes | None) -> None:
+    if data is None:
+        path.unlink(missing_ok=True)
+    else:
+        atomic_write_bytes(path, data)
 
 
 def _staged_paths(staging: Path, scan: StagedScan) -> dict[str, Path]:

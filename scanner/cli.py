@@ -20,12 +20,14 @@ import scanner
 from scanner.database import Database, DatabaseError, is_database
 from scanner.devices.protocols import DeviceError
 from scanner.matfile import ScanFormatError
+from scanner.photo import max_pixels
 from scanner.scan import ScanError
 
 DEFAULT_DB = "texplorer-data"
 EXIT_ERROR = 1
 EXIT_PROBLEMS = 3
-"""``db check`` found missing, changed or unknown files."""
+"""``db check`` found missing, changed or unknown files; ``db rebuild`` quarantined files; ``import`` had
+conflicts."""
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -82,6 +84,10 @@ def cmd_db_show(args: argparse.Namespace) -> int:
     missing = scan.missing_channels()
     if missing:
         print(f"missing:    {', '.join(missing)}")
+    short = scan.short_channels()
+    if short:
+        print("too short:  " + ", ".join(f"{name} ({scan[name].n} of the {need} samples its features need; "
+                                         "they are NaN)" for name, need in short.items()))
     for entry in db.files(args.scan_id):
         print(f"  {entry.role:<8} {entry.path}  {entry.size} bytes  sha256 {entry.sha256[:16]}...")
     return 0
@@ -89,22 +95,30 @@ def cmd_db_show(args: argparse.Namespace) -> int:
 
 def cmd_db_check(args: argparse.Namespace) -> int:
     db = _open_db(args)
+    if args.repair:
+        for path in db.repair():
+            print(f"removed  {path}")
     report = db.check(progress=progress("checking"))
-    for label, paths in (("missing", report.missing), ("changed", report.changed), ("unknown", report.unknown)):
+    for label, paths in (("missing", report.missing), ("changed", report.changed), ("unknown", report.unknown),
+                         ("leftover", report.leftovers)):
         for path in paths:
             print(f"{label:<8} {path}")
     print(f"{report.checked} file(s) checked: {len(report.missing)} missing, {len(report.changed)} changed, "
-          f"{len(report.unknown)} unknown")
+          f"{len(report.unknown)} unknown" + (f"; {len(report.leftovers)} crash leftover(s), which "
+                                              "'texplorer db check --repair' removes" if report.leftovers else ""))
     return 0 if report.ok else EXIT_PROBLEMS
 
 
 def cmd_db_rebuild(args: argparse.Namespace) -> int:
     db = _open_db(args)
     report = db.rebuild(progress=progress("rebuilding"))
+    for path in report.removed:
+        print(f"removed  {path} (crash leftover)")
     for line in report.skipped:
         print(f"skipped  {line}")
-    print(f"catalog rebuilt: {report.scans} scan(s), {len(report.skipped)} file(s) skipped")
-    return 0
+    print(f"catalog rebuilt: {report.scans} scan(s), {len(report.skipped)} file(s) skipped"
+          + (f" and moved with their photos to {report.quarantine}" if report.quarantine else ""))
+    return EXIT_PROBLEMS if report.skipped else 0
 
 
 # -- features ----------------------------------------------------------------------------------------
@@ -488,7 +502,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
     if not args.upload_limit_mb > 0:
         raise ValueError(f"--upload-limit-mb must be positive, got {args.upload_limit_mb:g}")
     limit = int(args.upload_limit_mb * 1024 * 1024)
-    settings = Settings(db=args.db, model=args.model, device_config=config, upload_limit=limit)
+    settings = Settings(db=args.db, model=args.model, device_config=config, upload_limit=limit,
+                        max_photo_pixels=max_pixels())
     serve(settings, args.host, args.port)
     return 0
 
@@ -920,10 +935,13 @@ def build_parser() -> argparse.ArgumentParser:
     show.add_argument("scan_id")
     show.set_defaults(handler=cmd_db_show)
     check = db_commands.add_parser("check", help="verify the SHA-256 of every file; report missing, changed, "
-                                   "unknown files (exit 3 if any)")
+                                   "unknown files (exit 3 if any) and crash leftovers")
     _add_db_option(check)
+    check.add_argument("--repair", action="store_true", help="first remove crash leftovers (temp files, files of "
+                       "writes that never committed, photos without their .mat, staging of a killed import)")
     check.set_defaults(handler=cmd_db_check)
-    rebuild = db_commands.add_parser("rebuild", help="recreate the catalog from the .mat files alone")
+    rebuild = db_commands.add_parser("rebuild", help="recreate the catalog from the .mat files alone; files "
+                                     "that cannot be catalogued go to <db>/quarantine/ (exit 3)")
     _add_db_option(rebuild)
     rebuild.set_defaults(handler=cmd_db_rebuild)
 

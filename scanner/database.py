@@ -8,25 +8,36 @@ Layout::
     <root>/scans/<label>/<sample>/<scan_id>_disp.png  ... its photos
     <root>/taxonomy.csv                            optional taxonomy extension: material codes this database
                                                    uses beyond the shipped table (e.g. added by an import)
+    <root>/.pending/<random>.json                  the files a write is putting into scans/, until it commits
+    <root>/quarantine/<time>/scans/...             files ``rebuild`` could not catalogue, moved out of scans/
 
 The files are the truth; the catalog is an index that :meth:`Database.rebuild` recreates from them.
 
-Crash safety of :meth:`Database.add`: the SQLite write lock is taken first (so two writers never write
-the same scan's files), every file is written atomically (temp file + fsync + rename), and only then are
-the catalog rows inserted and committed in one transaction. A process killed at any moment leaves either
-no trace, a leftover temp file, or complete files without a catalog row (reported as "unknown" by
-:meth:`check` and overwritten by the next add of that scan); never a row pointing to a missing or partial
-file, and never a change to earlier scans. :meth:`Database.add_written` (import) moves complete files
-into place under the same lock and catalogs a whole batch in one transaction, with the same guarantees.
+Crash safety of :meth:`Database.add` follows SQLite's own rollback journal: under the SQLite write lock, a
+record of the files about to be written goes to ``.pending/`` (atomically) before any of them, every file
+is written atomically (temp file + fsync + rename), the catalog rows are inserted and committed in one
+transaction, and the record is removed. A process killed at any moment leaves either nothing, or crash
+leftovers that the record (or the temp-file name, or a photo without its ``.mat``) identifies: never a row
+pointing to a missing or partial file, and never a change to earlier scans. The next write (under the same
+lock, so nothing in flight is touched), :meth:`repair` and :meth:`rebuild` remove leftovers; files that
+belong to no scan and are not leftovers are reported by :meth:`check` as unknown and never deleted.
+:meth:`Database.add_written` (import) inserts a whole batch's rows first and then moves its complete files
+into place, with the same record, and moves them back if anything fails before the commit.
+
+A catalog SQLite cannot read (random bytes, a malformed page, a zero-length file beside stored scans) makes
+every call raise :class:`DatabaseError` saying so and naming ``texplorer db rebuild``.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import json
 import math
 import os
+import secrets
+import shutil
 import sqlite3
 import threading
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
@@ -35,7 +46,14 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from scanner.files import fsync_dir, is_temp_file, sha256_file
+from scanner.files import (
+    atomic_write_bytes,
+    fsync_dir,
+    is_abandoned,
+    is_temp_file,
+    sha256_file,
+    temp_path_for,
+)
 from scanner.matfile import ScanFormatError, load_scan, photo_file_name, save_scan, scan_files
 from scanner.scan import IMAGES, Scan, ScanMeta, check_sample_id
 from taxonomy.labels import parse_prefix
@@ -46,7 +64,15 @@ if TYPE_CHECKING:
 CATALOG = "catalog.sqlite"
 SCANS = "scans"
 TAXONOMY = "taxonomy.csv"
+PENDING = ".pending"
+QUARANTINE = "quarantine"
+STAGING_PREFIX = ".import"
+"""Import stages a bundle in ``<root>/.import.tmp-<hex>/`` (:func:`scanner.files.owned_folder`)."""
 CATALOG_SCHEMA = 1
+PHOTO_SUFFIXES = tuple(f"_{short}.png" for short in IMAGES.values())
+_CORRUPTION = ("malformed", "not a database", "encrypted", "corrupt")
+"""Words of SQLite's messages for a damaged file (SQLITE_CORRUPT, SQLITE_NOTADB)."""
+_REBUILD_HINT = "run 'texplorer db rebuild' to recreate it from the files"
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS info (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -125,12 +151,18 @@ class FileEntry:
 
 @dataclass
 class CheckReport:
-    """Result of :meth:`Database.check`: paths relative to the database root."""
+    """Result of :meth:`Database.check`: paths relative to the database root.
+
+    ``missing``, ``changed`` and ``unknown`` (a file no scan owns) are problems; ``leftovers`` are what an
+    interrupted write leaves (temp files, the files of a write that never committed, photos without their
+    ``.mat``, the staging folder of a killed import), which :meth:`Database.repair` removes.
+    """
 
     checked: int = 0
     missing: list[str] = field(default_factory=list)
     changed: list[str] = field(default_factory=list)
     unknown: list[str] = field(default_factory=list)
+    leftovers: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -144,6 +176,39 @@ class RebuildReport:
     scans: int = 0
     skipped: list[str] = field(default_factory=list)
     """``"<path>: <reason>"`` for every ``.mat`` file that could not be catalogued."""
+    quarantine: Path | None = None
+    """Where those files (with their photos) were moved, or None if there were none."""
+    removed: list[str] = field(default_factory=list)
+    """Crash leftovers removed on the way."""
+
+
+@dataclass(frozen=True)
+class _Intent:
+    """A ``.pending`` record: the scans a write is adding and the files it puts into ``scans/``."""
+
+    record: Path
+    scan_ids: tuple[str, ...]
+    files: tuple[str, ...]
+
+
+def _catalog_error(path: Path, exc: sqlite3.Error) -> DatabaseError:
+    text = str(exc)
+    if any(word in text for word in _CORRUPTION):
+        return DatabaseError(f"{path}: catalog is unreadable ({text}); {_REBUILD_HINT}")
+    return DatabaseError(f"{path}: {text}")
+
+
+def _catalog(method):
+    """Turn SQLite's errors in a :class:`Database` method into one-line :class:`DatabaseError`s."""
+
+    @functools.wraps(method)
+    def call(self: Database, *args, **kwargs):
+        try:
+            return method(self, *args, **kwargs)
+        except sqlite3.Error as exc:
+            raise _catalog_error(self.catalog_path, exc) from None
+
+    return call
 
 
 def content_hash(entries: Iterable[FileEntry]) -> str:
@@ -189,29 +254,44 @@ class Database:
         with contextlib.suppress(DatabaseError):  # a broken catalog still allows rebuild()
             self._create_schema()
 
+    @_catalog
     def _create_schema(self) -> None:
         conn = self._conn
-        try:
-            conn.executescript(_SCHEMA)
-        except sqlite3.DatabaseError as exc:
-            raise DatabaseError(f"{self.catalog_path}: catalog is unreadable ({exc}); "
-                                "run 'texplorer db rebuild' to recreate it from the files") from None
+        conn.executescript(_SCHEMA)
         conn.execute("INSERT OR IGNORE INTO info VALUES ('catalog_schema', ?)", (str(CATALOG_SCHEMA),))
 
     # -- connections -------------------------------------------------------------------------------
 
     def _connect(self) -> sqlite3.Connection:
+        if self._truncated():
+            raise DatabaseError(f"{self.catalog_path}: catalog is empty (0 bytes) although {SCANS}/ holds scans; "
+                                f"{_REBUILD_HINT}")
         try:
             conn = sqlite3.connect(self.catalog_path, timeout=60.0, isolation_level=None)
             conn.execute("PRAGMA journal_mode=WAL")
             conn.execute("PRAGMA synchronous=FULL")
             conn.execute("PRAGMA foreign_keys=ON")
             conn.execute("PRAGMA busy_timeout=60000")
-        except sqlite3.DatabaseError as exc:
-            raise DatabaseError(f"{self.catalog_path}: catalog is unreadable ({exc}); "
-                                "run 'texplorer db rebuild' to recreate it from the files") from None
+        except sqlite3.Error as exc:
+            raise _catalog_error(self.catalog_path, exc) from None
         conn.row_factory = sqlite3.Row
         return conn
+
+    def _truncated(self) -> bool:
+        """A zero-length catalog beside stored scans: SQLite would read it as an empty database.
+
+        A new catalog is zero bytes only until its first write (WAL mode writes the header then), and a new
+        database has no scans, so this is a file cut short (a failed copy, a full disk), not a fresh one.
+        """
+        try:
+            if self.catalog_path.stat().st_size > 0:
+                return False
+        except FileNotFoundError:
+            return False
+        wal = self.catalog_path.with_name(CATALOG + "-wal")
+        if wal.is_file() and wal.stat().st_size > 0:
+            return False
+        return next((self.root / SCANS).rglob("*.mat"), None) is not None
 
     @property
     def _conn(self) -> sqlite3.Connection:
@@ -252,35 +332,49 @@ class Database:
         meta = scan.meta
         return self.root / SCANS / meta.label / check_sample_id(meta.sample_id) / f"{scan.scan_id}.mat"
 
+    @_catalog
     def next_scan_index(self, sample_id: str) -> int:
         """The scan index a new scan of ``sample_id`` should get (1 for a new sample)."""
         row = self._conn.execute("SELECT MAX(scan_index) FROM scans WHERE sample_id = ?", (sample_id,)).fetchone()
         return (row[0] or 0) + 1
 
+    @_catalog
     def add(self, scan: Scan) -> str:
         """Store a scan (files, then catalog rows in one transaction); returns its scan id.
 
-        Refuses a scan id that is already stored and a sample id that belongs to another material.
+        Refuses a scan id that is already stored and a sample id that belongs to another material. Crash
+        leftovers of earlier writes are removed first. If anything fails, the files written are removed.
         """
         mat_path = self.scan_path(scan)
+        roles = file_roles(mat_path, scan)
         with self._transaction() as conn:
+            self._discard_uncommitted(conn)
             _refuse_clash(conn, scan.meta)
-            save_scan(scan, mat_path)
-            self._insert(conn, scan.meta, self._entries(file_roles(mat_path, scan)))
+            intent = self._begin_intent([scan.scan_id], [path for path, _ in roles])
+            try:
+                save_scan(scan, mat_path)
+                self._insert(conn, scan.meta, self._entries(roles))
+            except BaseException:
+                self._undo(intent)
+                raise
+        self._end_intent(intent)
         return scan.scan_id
 
+    @_catalog
     def add_written(self, staged: Sequence[tuple[ScanMeta, Mapping[str, Path]]]) -> list[str]:
         """Catalog scans whose files are already complete on this file system, all in one transaction.
 
         For import, which keeps another lab's bytes exactly. ``staged`` pairs each scan's meta with its files
         by role (``"mat"`` and photo variables such as ``"I_disp"``), written and fsync'ed, named as
         :func:`save_scan` names them. Under the write lock every scan is first checked as in :meth:`add`,
-        also against the others of the batch (nothing is moved if one fails); then each scan's files are
-        moved into place with ``os.replace`` (photos first, the ``.mat`` last) and all rows are committed
-        together. A crash leaves the catalog as it was and, at worst, complete uncatalogued files that
-        :meth:`check` reports as unknown and the next add of their scan overwrites. Returns the scan ids.
+        also against the others of the batch, and its catalog rows are inserted; only then are the files
+        moved into place with ``os.replace`` (photos first, the ``.mat`` last), and all rows are committed
+        together. If a check, an insert or a move fails, every file moved so far is moved back and the
+        catalog is unchanged. A crash leaves the catalog as it was and, at worst, crash leftovers that the
+        next write or :meth:`repair` removes. Returns the scan ids.
         """
         with self._transaction() as conn:
+            self._discard_uncommitted(conn)
             samples: dict[str, str] = {}
             ids: set[str] = set()
             for meta, files in staged:
@@ -290,21 +384,32 @@ class Database:
                 _check_staged_names(meta, files)
                 samples[meta.sample_id] = meta.label
                 ids.add(meta.scan_id)
-            moved = [(meta, self._move_into_place(meta, files)) for meta, files in staged]
-            for meta, placed in moved:
-                self._insert(conn, meta, self._entries(placed))
+            moves = [(meta, self._placement(meta, files)) for meta, files in staged]
+            for meta, placement in moves:
+                self._insert(conn, meta, [FileEntry(self._relative(target), role, sha256_file(source),
+                                                    source.stat().st_size) for source, target, role in placement])
+            intent = self._begin_intent(list(ids), [target for _, placement in moves for _, target, _ in placement])
+            moved: list[tuple[Path, Path]] = []
+            try:
+                for _, placement in moves:
+                    for source, target, _ in placement:
+                        target.parent.mkdir(parents=True, exist_ok=True)
+                        os.replace(source, target)
+                        moved.append((source, target))
+                    fsync_dir(placement[-1][1].parent)
+            except BaseException:
+                for source, target in reversed(moved):
+                    with contextlib.suppress(OSError):
+                        os.replace(target, source)
+                self._undo(intent)
+                raise
+        self._end_intent(intent)
         return [meta.scan_id for meta, _ in staged]
 
-    def _move_into_place(self, meta: ScanMeta, files: Mapping[str, Path]) -> list[tuple[Path, str]]:
+    def _placement(self, meta: ScanMeta, files: Mapping[str, Path]) -> list[tuple[Path, Path, str]]:
+        """``(staged file, target, role)`` of one scan, photos first and the ``.mat`` last."""
         folder = self.root / SCANS / meta.label / check_sample_id(meta.sample_id)
-        folder.mkdir(parents=True, exist_ok=True)
-        placed = []
-        for role in sorted(files, key=lambda r: r == "mat"):
-            target = folder / files[role].name
-            os.replace(files[role], target)
-            placed.append((target, role))
-        fsync_dir(folder)
-        return placed
+        return [(files[role], folder / files[role].name, role) for role in sorted(files, key=lambda r: r == "mat")]
 
     def _entries(self, files: Iterable[tuple[Path, str]]) -> list[FileEntry]:
         return [FileEntry(self._relative(path), role, sha256_file(path), path.stat().st_size)
@@ -326,6 +431,84 @@ class Database:
     def _relative(self, path: Path) -> str:
         return path.relative_to(self.root).as_posix()
 
+    # -- the pending record of a write (a rollback journal for files) ---------------------------------
+
+    def _begin_intent(self, scan_ids: Iterable[str], files: Iterable[Path]) -> _Intent:
+        """Record (atomically, before any of them is written) the files a write puts into ``scans/``."""
+        folder = self.root / PENDING
+        folder.mkdir(exist_ok=True)
+        intent = _Intent(folder / f"{secrets.token_hex(8)}.json", tuple(sorted(scan_ids)),
+                         tuple(self._relative(path) for path in files))
+        atomic_write_bytes(intent.record, json.dumps({"scan_ids": intent.scan_ids, "files": intent.files}).encode())
+        return intent
+
+    def _end_intent(self, intent: _Intent) -> None:
+        """The write committed: its record goes (a crash before this leaves a record of committed scans,
+        which the next cleanup simply deletes)."""
+        intent.record.unlink(missing_ok=True)
+
+    def _undo(self, intent: _Intent) -> None:
+        """The write failed before its commit: remove what it put into ``scans/`` (the lock is still held)."""
+        for relative in intent.files:
+            self._remove_file(relative, with_temps=True)
+        intent.record.unlink(missing_ok=True)
+
+    def _intents(self) -> list[_Intent]:
+        intents = []
+        for record in sorted((self.root / PENDING).glob("*.json")):
+            try:
+                content = json.loads(record.read_text(encoding="utf-8"))
+                scan_ids = tuple(str(i) for i in content["scan_ids"])
+                files = tuple(str(f) for f in content["files"])
+            except (OSError, ValueError, KeyError, TypeError):
+                continue  # not a record this program wrote: never acted on
+            if all(_inside_scans(f) for f in files):
+                intents.append(_Intent(record, scan_ids, files))
+        return intents
+
+    def _discard_uncommitted(self, conn: sqlite3.Connection) -> list[str]:
+        """Under the write lock: remove the files of every pending write that never committed (a crash),
+        every record, and the staging folders of killed imports; returns what was removed. Cheap when
+        there is nothing to do: two directory listings."""
+        removed = []
+        for folder in self._abandoned_staging():
+            shutil.rmtree(folder, ignore_errors=True)
+            removed.append(f"{folder.name}/")
+        intents = self._intents()
+        if not intents:
+            return removed
+        catalogued_ids = {row[0] for row in conn.execute("SELECT scan_id FROM scans")}
+        for intent in intents:
+            if not catalogued_ids & set(intent.scan_ids):
+                removed += [f for f in intent.files if self._remove_file(f, with_temps=True, conn=conn)]
+            intent.record.unlink(missing_ok=True)
+        return removed
+
+    def _remove_file(self, relative: str, *, with_temps: bool = False,
+                     conn: sqlite3.Connection | None = None) -> bool:
+        """Delete an uncatalogued file under ``scans/`` (and the temp files of its interrupted writes), then
+        its folders if that left them empty. True if the file was there."""
+        if conn is not None and conn.execute("SELECT 1 FROM files WHERE path = ?", (relative,)).fetchone():
+            return False
+        path = self.root / relative
+        if with_temps:
+            for temp in path.parent.glob(f".{_glob_escape(path.name)}.tmp-*"):
+                if is_temp_file(temp):
+                    temp.unlink(missing_ok=True)
+        existed = path.is_file()
+        path.unlink(missing_ok=True)
+        self._prune_folders(path.parent)
+        return existed
+
+    def _prune_folders(self, folder: Path) -> None:
+        scans = self.root / SCANS
+        while folder != scans and scans in folder.parents:
+            try:
+                folder.rmdir()
+            except OSError:
+                return
+            folder = folder.parent
+
     # -- taxonomy ----------------------------------------------------------------------------------
 
     @property
@@ -341,6 +524,7 @@ class Database:
 
     # -- reading -----------------------------------------------------------------------------------
 
+    @_catalog
     def records(self, *, label: str | None = None, sample: str | None = None, session: str | None = None,
                 operator: str | None = None) -> list[ScanRecord]:
         """Catalog rows, optionally filtered; ``label`` may be a class prefix ("C6" = every stone, not C60).
@@ -359,12 +543,14 @@ class Database:
         rows = self._conn.execute(f"SELECT * FROM scans {where} ORDER BY label, sample_id, scan_index", params)
         return [_record(row) for row in rows]
 
+    @_catalog
     def record(self, scan_id: str) -> ScanRecord:
         row = self._conn.execute("SELECT * FROM scans WHERE scan_id = ?", (scan_id,)).fetchone()
         if row is None:
             raise DatabaseError(f"no scan {scan_id!r} in {self.root}")
         return _record(row)
 
+    @_catalog
     def files(self, scan_id: str) -> list[FileEntry]:
         rows = self._conn.execute("SELECT path, role, sha256, size FROM files WHERE scan_id = ? ORDER BY path",
                                   (scan_id,))
@@ -379,9 +565,11 @@ class Database:
         for record in self.records() if records is None else records:
             yield load_scan(self.root / record.path, images=images)
 
+    @_catalog
     def __len__(self) -> int:
         return self._conn.execute("SELECT COUNT(*) FROM scans").fetchone()[0]
 
+    @_catalog
     def summary(self) -> dict[str, int]:
         """Counts of materials, samples, sessions, scans and files."""
         return {table: self._conn.execute(f"SELECT COUNT(*) FROM {table}").fetchone()[0]
@@ -389,6 +577,7 @@ class Database:
 
     # -- feature cache ---------------------------------------------------------------------------
 
+    @_catalog
     def cached_features(self, content_hash: str, code_version: str) -> dict[str, float] | None:
         row = self._conn.execute("SELECT values_json FROM feature_cache WHERE content_hash = ? AND code_version = ?",
                                  (content_hash, code_version)).fetchone()
@@ -396,6 +585,7 @@ class Database:
             return None
         return {name: (math.nan if value is None else value) for name, value in json.loads(row[0]).items()}
 
+    @_catalog
     def store_features(self, content_hash: str, code_version: str, values: dict[str, float]) -> None:
         payload = json.dumps({k: (None if math.isnan(v) else v) for k, v in values.items()})
         with self._transaction() as conn:
@@ -407,8 +597,13 @@ class Database:
         """Every file under ``scans/``, relative to the root (including leftovers of interrupted writes)."""
         return sorted(self._relative(p) for p in (self.root / SCANS).rglob("*") if p.is_file())
 
+    @_catalog
     def check(self, progress: Callable[[Iterable], Iterable] = iter) -> CheckReport:
-        """Verify every catalogued file's SHA-256; report missing, changed and unknown files."""
+        """Verify every catalogued file's SHA-256; report missing, changed and unknown files, and leftovers.
+
+        Runs without the write lock, so a write in progress at that moment may show as leftovers;
+        :meth:`repair` decides under the lock.
+        """
         report = CheckReport()
         known = {}
         for row in progress(self._conn.execute("SELECT path, sha256 FROM files ORDER BY path").fetchall()):
@@ -420,60 +615,210 @@ class Database:
                 report.missing.append(path)
             elif sha256_file(full) != digest:
                 report.changed.append(path)
-        report.unknown = [p for p in self.stored_files() if p not in known]
+        stored = self.stored_files()
+        ids = {row[0] for row in self._conn.execute("SELECT scan_id FROM scans")}
+        leftovers = set(self._leftovers(stored, set(known), ids))
+        report.unknown = [p for p in stored if p not in known and p not in leftovers]
+        report.leftovers = sorted(leftovers) + [f"{folder.name}/" for folder in self._abandoned_staging()]
         return report
 
-    def rebuild(self, progress: Callable[[Iterable], Iterable] = iter) -> RebuildReport:
-        """Recreate the catalog from the ``.mat`` files alone (the feature cache is kept).
+    def _leftovers(self, stored: list[str], catalogued: set[str], ids: set[str] | None) -> list[str]:
+        """Uncatalogued files under ``scans/`` that a crash left: temp files, photos whose ``.mat`` is not
+        beside them (photos are written first), and, given the catalogued scan ``ids``, the files of
+        pending writes that never committed."""
+        present = set(stored)
+        found = {path for path in stored if is_temp_file(Path(path))}
+        for path in stored:
+            stem = next((path[:-len(s)] for s in PHOTO_SUFFIXES if path.endswith(s)), None)
+            if stem is not None and f"{stem}.mat" not in present:
+                found.add(path)
+        for intent in self._intents() if ids is not None else ():
+            if not ids & set(intent.scan_ids):
+                found.update(f for f in intent.files if f in present)
+        return sorted(found - catalogued)
 
-        A catalog that SQLite cannot open is moved aside as ``catalog.sqlite.broken-<time>`` first.
-        Files that do not load as valid scans, and second copies of a scan id, are skipped and reported.
-        """
-        self._set_aside_if_broken()
-        report = RebuildReport()
-        found: list[tuple[Scan, list[FileEntry]]] = []
-        seen: dict[str, str] = {}
-        mats = sorted(p for p in (self.root / SCANS).rglob("*.mat") if not is_temp_file(p))
-        for mat_path in progress(mats):
-            relative = self._relative(mat_path)
-            try:
-                scan = load_scan(mat_path)
-            except ScanFormatError as exc:
-                report.skipped.append(f"{relative}: {str(exc).split(': ', 1)[-1]}")
-                continue
-            if scan.scan_id in seen:
-                report.skipped.append(f"{relative}: scan id {scan.scan_id} is already in {seen[scan.scan_id]}")
-                continue
-            seen[scan.scan_id] = relative
-            entries = [FileEntry(self._relative(p), role, sha256_file(p), p.stat().st_size)
-                       for p, role in file_roles(mat_path, scan)]
-            found.append((scan, entries))
+    def _abandoned_staging(self) -> list[Path]:
+        """Import staging folders whose importer is no longer running (:func:`scanner.files.is_abandoned`)."""
+        return sorted(p for p in self.root.glob(f"{STAGING_PREFIX}.tmp-*")
+                      if p.is_dir() and is_temp_file(p) and is_abandoned(p))
+
+    @_catalog
+    def repair(self) -> list[str]:
+        """Remove the crash leftovers :meth:`check` lists, under the write lock (nothing in flight is
+        touched); returns their paths. Files that belong to no scan and are not leftovers stay."""
         with self._transaction() as conn:
-            for table in ("files", "scans", "sessions", "samples", "materials"):
-                conn.execute(f"DELETE FROM {table}")
-            for scan, entries in found:
-                row = conn.execute("SELECT label FROM samples WHERE sample_id = ?", (scan.meta.sample_id,)).fetchone()
-                if row and row[0] != scan.meta.label:
-                    report.skipped.append(f"{entries[-1].path}: sample {scan.meta.sample_id} is already {row[0]}")
-                    continue
-                self._insert(conn, scan.meta, entries)
-                report.scans += 1
+            removed = self._remove_leftovers(conn)
+        return removed
+
+    def _remove_leftovers(self, conn: sqlite3.Connection) -> list[str]:
+        removed = self._discard_uncommitted(conn)
+        catalogued = {row[0] for row in conn.execute("SELECT path FROM files")}
+        ids = {row[0] for row in conn.execute("SELECT scan_id FROM scans")}
+        for relative in self._leftovers(self.stored_files(), catalogued, ids):
+            self._remove_file(relative)
+            removed.append(relative)
+        return sorted(set(removed))
+
+    @_catalog
+    def rebuild(self, progress: Callable[[Iterable], Iterable] = iter) -> RebuildReport:
+        """Recreate the catalog from the ``.mat`` files alone; every good file is catalogued.
+
+        A file that does not load as a valid scan (or that the catalog refuses), a second copy of a scan id
+        (the copy at the scan's own path wins) and a scan whose sample is another material elsewhere are
+        reported with the reason and moved, with their photos, to ``quarantine/<time>/`` after the new
+        catalog is committed. Crash leftovers are removed first. With a readable catalog this is one
+        transaction under the write lock (the feature cache is kept); a catalog SQLite cannot read is
+        rebuilt beside it and swapped in, and kept as ``catalog.sqlite.broken-<time>``.
+        """
+        report = RebuildReport()
+        if self._readable():
+            with self._transaction() as conn:
+                report.removed = self._remove_leftovers(conn)
+                found, bad = self._survey(progress)
+                for table in ("files", "scans", "sessions", "samples", "materials"):
+                    conn.execute(f"DELETE FROM {table}")
+                report.scans, refused = self._fill(conn, found)
+        else:
+            report.removed = self._remove_leftovers_without_catalog()
+            found, bad = self._survey(progress)
+            report.scans, refused = self._replace_broken_catalog(found)
+            for intent in self._intents():  # the pending scans were adopted: their records are done
+                intent.record.unlink(missing_ok=True)
+        bad += refused
+        report.skipped = [f"{path}: {reason}" for path, reason in bad]
+        report.quarantine = self._quarantine([path for path, _ in bad])
         return report
 
-    def _set_aside_if_broken(self) -> None:
+    def _readable(self) -> bool:
         try:
-            if self._conn.execute("PRAGMA quick_check").fetchone()[0] == "ok":
-                self._create_schema()
-                return
-        except (sqlite3.DatabaseError, DatabaseError):
-            pass
+            if self._conn.execute("PRAGMA quick_check").fetchone()[0] != "ok":
+                return False
+            self._create_schema()
+        except (sqlite3.Error, DatabaseError):
+            return False
+        return True
+
+    def _remove_leftovers_without_catalog(self) -> list[str]:
+        """Temp files and photos without their ``.mat``; without a catalog nobody can say which pending
+        writes committed, so their files are kept and catalogued like every good file."""
+        removed = self._leftovers(self.stored_files(), set(), None)
+        for relative in removed:
+            self._remove_file(relative)
+        return removed
+
+    def _survey(self, progress: Callable[[Iterable], Iterable]) -> tuple[list[tuple[Scan, list[FileEntry]]],
+                                                                          list[tuple[str, str]]]:
+        """Every ``.mat`` under ``scans/``, loaded and validated: the scans to catalogue with their file
+        entries, and ``(path, reason)`` of the files that cannot be."""
+        loaded: list[tuple[Path, Scan]] = []
+        bad: list[tuple[str, str]] = []
+        mats = sorted(p for p in (self.root / SCANS).rglob("*.mat") if p.is_file() and not is_temp_file(p))
+        for mat_path in progress(mats):
+            try:
+                loaded.append((mat_path, load_scan(mat_path)))
+            except ScanFormatError as exc:
+                reason = exc.reason if exc.field is None else f"{exc.field}: {exc.reason}"
+                bad.append((self._relative(mat_path), reason))
+        # The copy at a scan's own path wins over copies elsewhere; then the first in path order.
+        loaded.sort(key=lambda item: (item[0] != self.scan_path(item[1]), item[0]))
+        found, owner, sample_label = [], {}, {}
+        for mat_path, scan in loaded:
+            relative, meta = self._relative(mat_path), scan.meta
+            if scan.scan_id in owner:
+                bad.append((relative, f"scan id {scan.scan_id} is already in {owner[scan.scan_id]}"))
+            elif sample_label.setdefault(meta.sample_id, (meta.label, relative))[0] != meta.label:
+                label, where = sample_label[meta.sample_id]
+                bad.append((relative, f"sample {meta.sample_id} is {label} in {where}"))
+            else:
+                owner[scan.scan_id] = relative
+                found.append((scan, [FileEntry(self._relative(p), role, sha256_file(p), p.stat().st_size)
+                                     for p, role in file_roles(mat_path, scan)]))
+        return found, sorted(bad)
+
+    def _fill(self, conn: sqlite3.Connection, found: list[tuple[Scan, list[FileEntry]]]) -> tuple[int, list]:
+        """Insert every scan in its own savepoint, so one the catalog refuses does not stop the others."""
+        inserted, refused = 0, []
+        for scan, entries in found:
+            conn.execute("SAVEPOINT scan")
+            try:
+                self._insert(conn, scan.meta, entries)
+            except (sqlite3.Error, OverflowError, ValueError) as exc:
+                conn.execute("ROLLBACK TO scan")
+                refused.append((entries[-1].path, f"the catalog refused it ({exc})"))
+            else:
+                inserted += 1
+            conn.execute("RELEASE scan")
+        return inserted, refused
+
+    def _replace_broken_catalog(self, found: list[tuple[Scan, list[FileEntry]]]) -> tuple[int, list]:
+        """Build a new catalog beside the broken one, then swap it in: there is always a catalog file, and a
+        crash before the swap leaves the broken one (and a temp file) as they were."""
+        for stale in self.root.glob(f".{CATALOG}.tmp-*"):
+            stale.unlink(missing_ok=True)
+        temp = temp_path_for(self.catalog_path)
+        conn = sqlite3.connect(temp, isolation_level=None)
+        try:
+            conn.executescript(_SCHEMA)
+            conn.execute("INSERT INTO info VALUES ('catalog_schema', ?)", (str(CATALOG_SCHEMA),))
+            conn.execute("PRAGMA foreign_keys=ON")
+            conn.execute("BEGIN IMMEDIATE")
+            result = self._fill(conn, found)
+            conn.execute("COMMIT")
+            conn.execute("PRAGMA journal_mode=WAL")
+        finally:
+            conn.close()
+        with open(temp, "rb+") as handle:
+            os.fsync(handle.fileno())
         self.close()
         stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
-        for suffix in ("", "-wal", "-shm"):
-            broken = self.root / (CATALOG + suffix)
-            if broken.exists():
-                os.replace(broken, self.root / f"{CATALOG}{suffix}.broken-{stamp}")
-        self._create_schema()
+        for suffix in ("-wal", "-shm"):  # a stale WAL must never be applied to the new file
+            side = self.root / (CATALOG + suffix)
+            if side.exists():
+                os.replace(side, _unused(self.root / f"{CATALOG}{suffix}.broken-{stamp}"))
+        if self.catalog_path.exists():
+            kept = _unused(self.root / f"{CATALOG}.broken-{stamp}")
+            try:
+                os.link(self.catalog_path, kept)
+            except OSError:
+                shutil.copy2(self.catalog_path, kept)
+        os.replace(temp, self.catalog_path)
+        fsync_dir(self.root)
+        return result
+
+    def _quarantine(self, paths: list[str]) -> Path | None:
+        """Move ``.mat`` files (and their photos) out of ``scans/`` into ``quarantine/<time>/``."""
+        if not paths:
+            return None
+        folder = _unused(self.root / QUARANTINE / datetime.now(UTC).strftime("%Y%m%dT%H%M%S"))
+        for relative in paths:
+            mat = self.root / relative
+            for path in [mat.with_name(f"{mat.stem}{suffix}") for suffix in PHOTO_SUFFIXES] + [mat]:
+                if path.is_file():
+                    target = folder / self._relative(path)
+                    target.parent.mkdir(parents=True, exist_ok=True)
+                    os.replace(path, target)
+            self._prune_folders(mat.parent)
+        fsync_dir(folder)
+        return folder
+
+
+def _unused(path: Path) -> Path:
+    """``path``, or ``path-2``, ``path-3``, ... the first name not taken (two runs in the same second)."""
+    candidate, n = path, 1
+    while candidate.exists() or candidate.is_symlink():
+        n += 1
+        candidate = path.with_name(f"{path.name}-{n}")
+    return candidate
+
+
+def _inside_scans(relative: str) -> bool:
+    """A path a pending record may name: under ``scans/``, relative, no ``..``."""
+    parts = relative.split("/")
+    return parts[0] == SCANS and len(parts) > 1 and not any(part in ("", ".", "..") for part in parts)
+
+
+def _glob_escape(name: str) -> str:
+    return "".join(f"[{ch}]" if ch in "*?[" else ch for ch in name)
 
 
 def _refuse_clash(conn: sqlite3.Connection, meta: ScanMeta, batch: Mapping[str, str] | None = None) -> None:

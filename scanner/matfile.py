@@ -187,17 +187,20 @@ def _meta_number(path: Path, meta: dict[str, Any], name: str, default: float = m
 
 
 def _meta_flag(path: Path, meta: dict[str, Any], name: str) -> bool:
-    """A 0/1 field (``rigid``, ``raw_volts``); absent or empty means 0."""
-    value = _meta_number(path, meta, name, 0.0)
-    if value not in (0.0, 1.0):
-        raise ScanFormatError(path, f"meta.{name}", f"must be 0 or 1, got {value:g}")
+    """A 0/1 field (``rigid``, ``raw_volts``); absent means 0."""
+    value = meta.get(name, 0.0)
+    if not isinstance(value, float) or value not in (0.0, 1.0):
+        shown = f"{value:g}" if isinstance(value, float) else _kind(value)
+        raise ScanFormatError(path, f"meta.{name}", f"must be 0 or 1, got {shown}")
     return value == 1.0
 
 
 def _kind(value: Any) -> str:
+    """What a MATLAB value is, in MATLAB's words, for messages."""
     if isinstance(value, np.ndarray):
         return f"a {value.dtype} array of shape {value.shape}"
-    return type(value).__name__
+    kinds = {dict: "a struct", list: "a cell array", float: "a number", str: "text"}
+    return kinds.get(type(value), type(value).__name__)
 
 
 def _meta_text(path: Path, meta: dict[str, Any], name: str, default: str | None = None) -> str:

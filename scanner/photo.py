@@ -103,8 +103,8 @@ def check_size(width: int, height: int, limit: int | None = None, name: str = "t
     if width < 1 or height < 1:
         raise PhotoError(f"{name}: an empty image ({width} x {height} px)")
     if width * height > limit:
-        raise PhotoError(f"{name}: the image has {width * height / 1e6:.1f} megapixels ({width} x {height} px); "
-                         f"at most {limit / 1e6:g} are accepted (${MAX_PIXELS_ENV})")
+        raise PhotoError(f"{name}: the image has {width * height:,} pixels ({width} x {height}); "
+                         f"at most {limit:,} are accepted (${MAX_PIXELS_ENV})")
     if width > MAX_SIDE or height > MAX_SIDE:
         raise PhotoError(f"{name}: {width} x {height} px has a side longer than {MAX_SIDE} px")
 

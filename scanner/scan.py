@@ -27,7 +27,7 @@ VOLUME_METHODS = ("water", "micro-pearls", "known")
 
 MAX_SCAN_INDEX = 9999
 """Scan indices are 1..9999: ``<sample>-<nnnn>`` ids stay short, and SQLite's 64-bit integers hold them."""
-T_AMB_RANGE = (-40.0, 125.0)
+T_AMB_RANGE = (-40.0, 85.0)
 """Ambient temperature in degC: the MLX90614's ambient range."""
 MAX_MASS_G = 1e6
 MAX_VOLUME_CM3 = 1e6

@@ -54,12 +54,18 @@ from scanner.devices.camera import PhotoError, decode_photo
 from scanner.devices.protocols import DeviceError
 from scanner.devices.sources import SimulatedSample, material_for
 from scanner.recorder import Level, Recorder, StepResult, build_scan
-from scanner.scan import CHANNELS, IMAGES, JUDGED_SCALE, VOLUME_METHODS, ScanError, ScanMeta, check_sample_id
+from scanner.scan import (
+    CHANNELS,
+    IMAGES,
+    JUDGED_SCALE,
+    T_AMB_RANGE,
+    VOLUME_METHODS,
+    ScanError,
+    ScanMeta,
+    check_sample_id,
+)
 from scanner.simulate import scan_seed
 from taxonomy.labels import Label, LabelError
-
-T_AMB_RANGE = (-40.0, 85.0)
-"""The MLX90614's ambient range, degC."""
 
 
 class SessionError(ValueError):

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import functools
+import struct
+import zlib
+
 import numpy as np
 import pytest
 
@@ -40,3 +44,35 @@ def make_scan(seed: int = 0, *, seconds: float = 0.2, images: bool = True, drop:
 @pytest.fixture
 def scan() -> Scan:
     return make_scan()
+
+
+def _png_chunk(kind: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
+@functools.cache
+def png_bomb(width: int, height: int) -> bytes:
+    """A valid PNG of ``width`` x ``height`` black RGB pixels in about a thousandth of their bytes.
+
+    Each block of 16 rows is deflated after a full flush, which resets the compressor, so one block's bytes
+    repeat for the whole image without compressing gigabytes; 20000 x 20000 px (1.2 GB decoded) is 1.2 MB.
+    """
+    assert height >= 16, "a bomb has at least one block of 16 rows"
+    rows = (b"\x00" + bytes(3 * width)) * 16
+    deflate = zlib.compressobj(9)
+    first = deflate.compress(rows) + deflate.flush(zlib.Z_FULL_FLUSH)
+    block = deflate.compress(rows) + deflate.flush(zlib.Z_FULL_FLUSH)
+    blocks, rest = divmod(height, 16)
+    adler = 1
+    for _ in range(blocks):
+        adler = zlib.adler32(rows, adler)
+    tail = zlib.compressobj(9)
+    last = b""
+    if rest:
+        part = (b"\x00" + bytes(3 * width)) * rest
+        adler = zlib.adler32(part, adler)
+        last = tail.compress(part) + tail.flush(zlib.Z_FULL_FLUSH)
+        last = last[2:]  # a raw continuation: no second zlib header
+    stream = first + block * (blocks - 1) + last + b"\x03\x00" + struct.pack(">I", adler)
+    header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + _png_chunk(b"IHDR", header) + _png_chunk(b"IDAT", stream) + _png_chunk(b"IEND", b"")

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import make_scan
+from conftest import make_scan, png_bomb
 
 from features import FeatureSpace, extract
 from scanner.bundle import (
@@ -202,7 +202,8 @@ def test_export_then_import_into_an_empty_database_gives_the_same_catalog_and_fi
     assert _catalog(db.root) == _catalog(source.root)
     assert _tree(db.root / "scans") == _tree(source.root / "scans")
     assert db.check().ok
-    assert not [p for p in db.root.iterdir() if p.name.startswith(".")]  # staging folder removed
+    assert not [p for p in db.root.iterdir() if p.name.startswith(".import")]  # staging folder removed
+    assert not any((db.root / ".pending").iterdir())  # no write left a pending record
     # The lab's own material arrived in this database's taxonomy extension.
     assert report.taxonomy_added == ["C9", "C9S1", "C9S1M1"]
     assert db.taxonomy().name("C9S1M1") == "mycelium leather"
@@ -353,6 +354,110 @@ def test_a_manifest_that_misdescribes_its_scans_is_refused(bundle, target, tmp_p
     shutil.copytree(bundle, copy)
     _rewrite_manifest(copy, change)
     _refused(target, copy, problem)
+
+
+def _listed(manifest: dict, root: Path, names: list[str]) -> None:
+    """Enter files of ``root`` in the manifest with their true SHA-256 and size: a forged, consistent bundle."""
+    for name in names:
+        data = (root / name).read_bytes()
+        manifest["files"][name] = {"sha256": hashlib.sha256(data).hexdigest(), "size": len(data)}
+
+
+def _forge_scan(folder: Path, scan, **meta) -> None:
+    """Add ``scan`` to a folder bundle, its ``meta`` changed as a foreign writer could, every checksum right."""
+    from scanner.database import FileEntry, content_hash
+    from scanner.matfile import encode_mat, scan_to_variables
+
+    scan_id = f"{scan.meta.sample_id}-{int(meta.get('scan_index', scan.meta.scan_index)):03d}"
+    mat = folder / f"scans/{scan.meta.label}/{scan.meta.sample_id}/{scan_id}.mat"
+    save_scan(scan, mat)
+    variables = scan_to_variables(scan, mat)
+    variables["meta"].update(meta)
+    mat.write_bytes(encode_mat(variables))
+    files = {"mat": mat.relative_to(folder).as_posix(),
+             **{var: mat.with_name(f"{scan_id}_{short}.png").relative_to(folder).as_posix()
+                for var, short in (("I_disp", "disp"), ("I_macro", "macro"), ("I_illu", "illu"))}}
+
+    def change(manifest):
+        _listed(manifest, folder, list(files.values()))
+        entries = [FileEntry(path, role, manifest["files"][path]["sha256"], manifest["files"][path]["size"])
+                   for role, path in files.items()]
+        m = scan.meta
+        manifest["scans"].append({"scan_id": scan_id, "label": m.label, "sample_id": m.sample_id,
+                                  "session_id": m.session_id, "operator": m.operator,
+                                  "scan_index": int(meta.get("scan_index", m.scan_index)), "started": m.started,
+                                  "rigid": m.rigid, "content_hash": content_hash(entries), "files": files})
+        manifest["counts"]["scans"] += 1
+
+    _rewrite_manifest(folder, change)
+
+
+def test_forged_scans_with_consistent_checksums_are_refused_before_anything_moves(bundle, target, tmp_path):
+    overflow = tmp_path / "overflow"
+    shutil.copytree(bundle, overflow)
+    _forge_scan(overflow, make_scan(20, sample_id="granite-09"), scan_index=2.0**63)
+    bomb = tmp_path / "bomb"
+    shutil.copytree(bundle, bomb)
+    _forge_scan(bomb, make_scan(21, sample_id="granite-10", image_shape=(16, 16)))
+    photo = "scans/C6S1M1P2X1/granite-10/granite-10-001_disp.png"
+    (bomb / photo).write_bytes(png_bomb(20_000, 20_000))
+    _rewrite_manifest(bomb, lambda m: _listed(m, bomb, [photo]))
+    before = _snapshot(target.root)
+    _refused(target, overflow, "granite-09-9223372036854775808.mat: meta.scan_index: must be a whole number "
+                               "1..9999, got 9.22337e+18")
+    assert _snapshot(target.root) == before
+    error = _refused(target, bomb, "I_disp: photo granite-10-001_disp.png: the image has 400,000,000 pixels")
+    assert len(error.problems) == 1 and _snapshot(target.root) == before
+
+
+def test_a_zip_entry_nested_under_a_file_is_refused_with_the_list_of_problems(bundle_zip, target, tmp_path):
+    hostile = tmp_path / "nested.zip"
+    with zipfile.ZipFile(bundle_zip) as source, zipfile.ZipFile(hostile, "w") as out:
+        manifest = json.loads(source.read(MANIFEST))
+        for info in source.infolist():
+            if info.filename not in (MANIFEST, MANIFEST_SUM):
+                out.writestr(info, source.read(info))
+        out.writestr("features.csv/x", b"hidden")
+        manifest["files"]["features.csv/x"] = {"sha256": hashlib.sha256(b"hidden").hexdigest(), "size": 6}
+        data = json.dumps(manifest, indent=1).encode()
+        out.writestr(MANIFEST, data)
+        out.writestr(MANIFEST_SUM, f"{hashlib.sha256(data).hexdigest()}  manifest.json\n")
+    before = _snapshot(target.root)
+    error = _refused(target, hostile, "features.csv/x: inside features.csv, which is a file")
+    assert len(error.problems) == 1 and _snapshot(target.root) == before
+    _, problems = parse_manifest(json.dumps({**manifest, "format": "texplorer-bundle"}).encode())
+    assert "manifest.json: features.csv/x: inside features.csv, which is a file" in problems
+
+
+@pytest.mark.parametrize(("fail", "at"), [("insert", 3), ("move", 1), ("move", 7), ("move", 13)])
+def test_an_import_failing_at_the_catalog_or_a_move_leaves_the_database_byte_identical(
+        bundle, target, monkeypatch, fail, at):
+    import scanner.database as database
+
+    before = _snapshot(target.root)
+    calls = []
+    real_insert, real_replace = database.Database._insert, os.replace
+
+    def insert(self, conn, meta, entries):
+        calls.append("insert")
+        if fail == "insert" and calls.count("insert") == at:
+            raise sqlite3.IntegrityError("UNIQUE constraint failed: files.path")
+        real_insert(self, conn, meta, entries)
+
+    def replace(source, target_path):
+        if fail == "move" and "/scans/" in str(target_path) and ".import.tmp-" in str(source):
+            calls.append("move")
+            if calls.count("move") == at:
+                raise OSError(28, "No space left on device")
+        real_replace(source, target_path)
+
+    monkeypatch.setattr(database.Database, "_insert", insert)
+    monkeypatch.setattr(database.os, "replace", replace)
+    with pytest.raises(DatabaseError if fail == "insert" else OSError):
+        import_bundle(target, bundle)
+    assert calls.count("move") == (at if fail == "move" else 0)  # with a refused insert nothing moved
+    assert _snapshot(target.root) == before  # taxonomy.csv included: the bundle's new codes were taken back
+    assert not target.taxonomy_path.exists() and target.check().ok and target.check().leftovers == []
 
 
 def test_not_a_bundle(target, tmp_path):
@@ -518,13 +623,14 @@ def test_an_import_killed_at_any_moment_leaves_the_database_as_it_was_or_complet
     shutil.copytree(base, complete)
     counts = _run_importer(script, complete, bundle)[0].split()[-3:]
     replaces, inserts, duration = int(counts[0]), int(counts[1]), float(counts[2])
-    assert inserts == 4 and replaces == 13 + 1  # the bundle's files, then <db>/taxonomy.csv
+    # <db>/taxonomy.csv, the pending record, then the bundle's 13 files; the 4 scans' rows come first.
+    assert inserts == 4 and replaces == 1 + 1 + 13
     full_catalog = _catalog(complete)
     rng = random.Random(5)
-    # Deterministic kills inside the critical window (moving files into place, catalog rows before the
-    # commit), then kills at random moments of the whole run.
-    kills = [("replace", k) for k in sorted({1, 2, replaces // 2, replaces - 1, replaces})]
-    kills += [("insert", inserts)] + [("none", 0)] * 3
+    # Deterministic kills inside the critical window (rows inserted, the record, moving files into place,
+    # before the commit), then kills at random moments of the whole run.
+    kills = [("insert", inserts)] + [("replace", k) for k in sorted({1, 2, 3, replaces // 2, replaces})]
+    kills += [("none", 0)] * 4
     for round_, (mode, kill_at) in enumerate(kills):
         root = tmp_path / f"round-{round_}"
         shutil.copytree(base, root)
@@ -541,9 +647,14 @@ def test_an_import_killed_at_any_moment_leaves_the_database_as_it_was_or_complet
         assert all(tree[path] == data for path, data in before_tree.items() if path.startswith("scans/"))
         db = Database(root)
         report = db.check()
-        assert not report.missing and not report.changed, (mode, kill_at, report)
-        import_bundle(db, bundle)  # importing again completes the job and replaces leftovers
-        assert _catalog(root) == full_catalog and db.check().ok
+        # Whatever the kill left is recognised as a leftover (files moved before the commit, the staging
+        # folder), never as a problem or as a file nobody owns.
+        assert report.ok and not report.missing and not report.changed, (mode, kill_at, report)
+        if catalog == before_catalog and returncode == -signal.SIGKILL:
+            assert any(path.startswith(".import.tmp-") for path in report.leftovers), (mode, kill_at, report)
+        import_bundle(db, bundle)  # importing again completes the job and removes the leftovers
+        report = db.check()
+        assert _catalog(root) == full_catalog and report.ok and report.leftovers == [], report
         db.close()
 
 

@@ -40,6 +40,9 @@ def test_db_show(db_path, capsys):
     assert main(["db", "show", "granite-01-001", "--db", str(db_path)]) == 0
     out = capsys.readouterr().out
     assert "label       C6S1M1P2X1" in out and "v_ts" in out and "44100 Hz" in out and "I_disp" in out
+    # make_scan records 0.2 s per step: the slides and the audio are too short for their features.
+    assert ("too short:  v_fs (600 of the 3000 samples its features need; they are NaN), v_ts (600 of the 3000 "
+            "samples") in out
     assert main(["db", "show", "steel-01-001", "--db", str(db_path)]) == 0
     assert "rigid 1" in capsys.readouterr().out
 

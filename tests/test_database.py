@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
-import random
+import re
 import signal
 import sqlite3
 import subprocess
@@ -14,11 +15,14 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
-from conftest import make_scan
+from conftest import make_scan, png_bomb
 
+from scanner.cli import EXIT_PROBLEMS, main
 from scanner.database import Database, DatabaseError
-from scanner.files import sha256_file
+from scanner.files import owned_folder
+from scanner.matfile import encode_mat, save_scan, scan_to_variables
 from taxonomy.labels import LabelError
 
 
@@ -115,6 +119,217 @@ def test_rebuild_replaces_a_corrupt_catalog_and_skips_bad_files(tmp_path):
     assert len(report.skipped) == 1 and report.skipped[0].startswith("scans/C9S1M1P1X1/x/x-001.mat: not a readable")
     assert any(p.name.startswith("catalog.sqlite.broken-") for p in tmp_path.iterdir())
     assert len(broken) == 4
+    assert (report.quarantine / "scans/C9S1M1P1X1/x/x-001.mat").read_bytes() == b"MATLAB 5.0 truncated"
+    assert broken.check().ok and not (tmp_path / "scans/C9S1M1P1X1").exists()
+
+
+def _forged(path: Path, scan, **meta) -> Path:
+    """Write ``scan`` to ``path`` with ``meta`` fields the data model would refuse (a foreign writer)."""
+    save_scan(scan, path)
+    variables = scan_to_variables(scan, path)
+    variables["meta"].update(meta)
+    path.write_bytes(encode_mat(variables))
+    return path
+
+
+def test_rebuild_catalogues_every_good_file_and_quarantines_each_bad_one_with_its_reason(tmp_path, capsys):
+    db = Database(tmp_path)
+    _fill(db)
+    good = {r.scan_id: db.get(r.scan_id) for r in db.records()}
+    folder = tmp_path / "scans/C6S1M1P2X1/granite-01"
+    overflow = _forged(folder / "granite-01-9223372036854775808.mat", make_scan(5), scan_index=2.0**63)
+    empty_raw = _forged(folder / "granite-01-007.mat", make_scan(6, scan_index=7), raw_volts=np.zeros((0, 0)))
+    bomb = folder / "granite-01-008.mat"
+    save_scan(make_scan(7, scan_index=8, image_shape=(8, 8)), bomb)
+    (folder / "granite-01-008_disp.png").write_bytes(png_bomb(20_000, 20_000))
+    copy = tmp_path / "scans/C6S1M1P2X1/elsewhere/granite-01-001.mat"
+    save_scan(good["granite-01-001"], copy)  # a second copy of a stored scan, not at its own path
+    (tmp_path / "scans/notes.txt").write_text("the operator's notes: not a scan file, never moved")
+    db.close()
+    (tmp_path / "catalog.sqlite").write_bytes(b"\x00" * 4096)  # and the catalog is gone too
+
+    assert main(["db", "rebuild", "--db", str(tmp_path)]) == EXIT_PROBLEMS
+    out = capsys.readouterr().out
+    db = Database(tmp_path)
+    assert {r.scan_id for r in db.records()} == set(good)
+    assert all(db.get(scan_id) == scan for scan_id, scan in good.items())
+    reasons = {line.split(": ", 1)[0].removeprefix("skipped  "): line for line in out.splitlines()
+               if line.startswith("skipped  ")}
+    assert sorted(reasons) == sorted(db._relative(p) for p in (overflow, empty_raw, bomb, copy))
+    assert "meta.scan_index: must be a whole number 1..9999, got 9.22337e+18" in reasons[db._relative(overflow)]
+    assert "meta.raw_volts: must be 0 or 1, got a float64 array of shape (0, 0)" in reasons[db._relative(empty_raw)]
+    assert "I_disp: photo granite-01-008_disp.png: the image has 400,000,000 pixels" in reasons[db._relative(bomb)]
+    assert "scan id granite-01-001 is already in scans/C6S1M1P2X1/granite-01/granite-01-001.mat" in reasons[
+        db._relative(copy)]
+    quarantine = next((tmp_path / "quarantine").iterdir())
+    assert f"4 file(s) skipped and moved with their photos to {quarantine}" in out
+    moved = sorted(p.relative_to(quarantine).as_posix() for p in quarantine.rglob("*") if p.is_file())
+    assert moved == sorted([db._relative(overflow), *(db._relative(p).replace(".mat", f"_{s}.png")
+                                                      for p in (overflow, empty_raw, bomb, copy)
+                                                      for s in ("disp", "macro", "illu")),
+                            db._relative(empty_raw), db._relative(bomb), db._relative(copy)])
+    report = db.check()
+    assert report.ok is False and report.unknown == ["scans/notes.txt"] and not report.missing + report.changed
+    assert main(["db", "rebuild", "--db", str(tmp_path)]) == 0  # nothing bad is left in scans/
+    assert "catalog rebuilt: 4 scan(s), 0 file(s) skipped" in capsys.readouterr().out
+    assert (tmp_path / "scans/notes.txt").is_file()
+
+
+def test_a_scan_the_catalog_refuses_is_quarantined_and_the_others_are_catalogued(tmp_path, monkeypatch):
+    db = Database(tmp_path)
+    _fill(db)
+    real_insert = Database._insert
+
+    def refuse_one(self, conn, meta, entries):
+        if meta.scan_id == "granite-01-002":
+            raise OverflowError("Python int too large to convert to SQLite INTEGER")
+        real_insert(self, conn, meta, entries)
+
+    monkeypatch.setattr(Database, "_insert", refuse_one)
+    report = db.rebuild()  # the readable-catalog path: one transaction, a savepoint per scan
+    assert report.scans == 3 and len(db) == 3
+    assert report.skipped == ["scans/C6S1M1P2X1/granite-01/granite-01-002.mat: the catalog refused it "
+                              "(Python int too large to convert to SQLite INTEGER)"]
+    assert (report.quarantine / "scans/C6S1M1P2X1/granite-01/granite-01-002_disp.png").is_file()
+    assert db.check().ok
+
+
+def _corrupt(root: Path, how: str) -> None:
+    for name in ("catalog.sqlite-wal", "catalog.sqlite-shm"):
+        (root / name).unlink(missing_ok=True)
+    catalog = root / "catalog.sqlite"
+    data = bytearray(catalog.read_bytes())
+    if how == "zero-length":
+        data = bytearray()
+    else:  # random bytes over every page but the first: the header still says SQLite
+        rng = np.random.default_rng(3)
+        data[4096:] = rng.integers(0, 256, len(data) - 4096, dtype=np.uint8).tobytes()
+    catalog.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize(("how", "reason"), [("zero-length", "catalog is empty (0 bytes) although scans/ holds "
+                                                             "scans"),
+                                             ("random bytes", "catalog is unreadable (database disk image is "
+                                                              "malformed)")])
+def test_a_corrupt_catalog_is_never_read_as_a_database_and_names_the_rebuild(tmp_path, capsys, how, reason):
+    db = Database(tmp_path)
+    _fill(db)
+    db.close()
+    _corrupt(tmp_path, how)
+    broken = Database(tmp_path)
+    for call in (broken.records, broken.__len__, broken.summary, broken.check, broken.repair,
+                 lambda: broken.add(make_scan(9, sample_id="new-01"))):
+        with pytest.raises(DatabaseError, match=re.escape(reason) + ".*run 'texplorer db rebuild'"):
+            call()
+    assert main(["db", "list", "--db", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("texplorer: error: ") and reason in err and "texplorer db rebuild" in err
+    assert len(err.strip().splitlines()) == 1
+    assert broken.rebuild().scans == 4 and len(broken) == 4 and broken.check().ok
+
+
+def test_a_zero_length_catalog_of_a_database_without_scans_is_an_empty_database(tmp_path):
+    Database(tmp_path).close()
+    for name in ("catalog.sqlite", "catalog.sqlite-wal", "catalog.sqlite-shm"):
+        (tmp_path / name).unlink(missing_ok=True)
+    (tmp_path / "catalog.sqlite").write_bytes(b"")
+    assert len(Database(tmp_path)) == 0
+
+
+CRASHING_WRITER = textwrap.dedent("""
+    import os, signal, sys
+    sys.path.insert(0, {tests!r})
+    from conftest import make_scan
+    import scanner.database as database
+
+    def crash(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    database.Database._insert = crash  # the files are written, the catalog rows never will be
+    database.Database(sys.argv[1]).add(make_scan(int(sys.argv[2]), sample_id=sys.argv[3]))
+""")
+
+
+def _crash_during_add(tmp_path: Path, root: Path, seed: int, sample_id: str) -> None:
+    script = tmp_path / "crashing_writer.py"
+    script.write_text(CRASHING_WRITER.format(tests=str(Path(__file__).parent)))
+    run = subprocess.run([sys.executable, str(script), str(root), str(seed), sample_id], timeout=120)
+    assert run.returncode == -signal.SIGKILL
+
+
+@pytest.mark.skipif(os.name != "posix", reason="SIGKILL of a subprocess is POSIX-only")
+def test_crash_leftovers_are_listed_apart_and_removed_but_files_of_nobody_are_kept(tmp_path, capsys):
+    root = tmp_path / "db"
+    db = Database(root)
+    _fill(db)
+    _crash_during_add(tmp_path, root, 4, "granite-04")
+    uncommitted = [f"scans/C6S1M1P2X1/granite-04/granite-04-001{end}" for end in
+                   ("_disp.png", "_illu.png", "_macro.png", ".mat")]
+    folder = root / "scans/C6S1M1P2X1/granite-03"
+    folder.mkdir()
+    (folder / ".granite-03-001.mat.tmp-0123456789ab").write_bytes(b"MATLAB 5.0 half of a fi")
+    for photo in ("disp", "macro"):  # an interrupted write of an older version: photos, no .mat
+        (folder / f"granite-03-001_{photo}.png").write_bytes(b"\x89PNG...")
+    abandoned = root / ".import.tmp-00112233aabb"
+    abandoned.mkdir()
+    (abandoned / "owner.lock").write_bytes(b"")
+    (abandoned / "bundle").mkdir()
+    with owned_folder(root / ".import.tmp-ffeeddccbbaa") as running:
+        report = db.check()
+        leftovers = sorted([*uncommitted, "scans/C6S1M1P2X1/granite-03/.granite-03-001.mat.tmp-0123456789ab",
+                            "scans/C6S1M1P2X1/granite-03/granite-03-001_disp.png",
+                            "scans/C6S1M1P2X1/granite-03/granite-03-001_macro.png"]) + [".import.tmp-00112233aabb/"]
+        assert report.ok and report.unknown == [] and report.leftovers == leftovers
+        assert main(["db", "check", "--db", str(root)]) == 0
+        out = capsys.readouterr().out
+        assert all(f"leftover {path}" in out for path in leftovers)
+        assert "8 crash leftover(s), which 'texplorer db check --repair' removes" in out
+        assert main(["db", "check", "--repair", "--db", str(root)]) == 0
+        out = capsys.readouterr().out
+        assert sorted(line.removeprefix("removed  ") for line in out.splitlines()
+                      if line.startswith("removed  ")) == sorted(leftovers)
+        assert running.is_dir()  # the staging folder of a live import is left alone
+    assert db.check().leftovers == [] and not any((root / ".pending").iterdir())
+    assert not (root / "scans/C6S1M1P2X1/granite-04").exists() and not folder.exists()
+
+    # A complete scan nobody catalogued (copied in by hand) and a stray file are not leftovers: kept.
+    save_scan(make_scan(5, sample_id="granite-05"), root / "scans/C6S1M1P2X1/granite-05/granite-05-001.mat")
+    (root / "scans/readme.txt").write_text("notes")
+    assert main(["db", "check", "--repair", "--db", str(root)]) == EXIT_PROBLEMS
+    report = db.check()
+    assert report.leftovers == [] and report.unknown == sorted(
+        ["scans/readme.txt", *(f"scans/C6S1M1P2X1/granite-05/granite-05-001{end}"
+                               for end in ("_disp.png", "_illu.png", "_macro.png", ".mat"))])
+    assert db.rebuild().scans == 5 and db.check().unknown == ["scans/readme.txt"]  # rebuild adopts the scan
+
+
+@pytest.mark.skipif(os.name != "posix", reason="SIGKILL of a subprocess is POSIX-only")
+def test_the_next_add_removes_the_files_of_an_add_that_never_committed(tmp_path):
+    root = tmp_path / "db"
+    db = Database(root)
+    _fill(db)
+    _crash_during_add(tmp_path, root, 4, "granite-04")
+    assert len(db.check().leftovers) == 4 and len(list((root / ".pending").iterdir())) == 1
+    db.add(make_scan(5, sample_id="granite-05"))
+    report = db.check()
+    assert report.ok and report.leftovers == [] and not any((root / ".pending").iterdir())
+    assert db.add(make_scan(4, sample_id="granite-04")) == "granite-04-001"  # the crashed scan, added again
+    assert db.check().ok and len(db) == 6
+
+
+def test_an_add_that_fails_removes_the_files_it_wrote(tmp_path, monkeypatch):
+    db = Database(tmp_path)
+    _fill(db)
+    before = db.stored_files()
+
+    def full_disk(*args, **kwargs):
+        raise sqlite3.OperationalError("database or disk is full")
+
+    monkeypatch.setattr(Database, "_insert", full_disk)
+    with pytest.raises(DatabaseError, match="database or disk is full"):
+        db.add(make_scan(5, sample_id="granite-05"))
+    assert db.stored_files() == before and not any((tmp_path / ".pending").iterdir())
+    assert db.check().ok and db.check().leftovers == []
 
 
 def test_feature_cache_round_trips_nan(tmp_path):
@@ -180,60 +395,163 @@ def test_readers_work_while_a_writer_adds(tmp_path):
     assert len(db) == 15
 
 
-WRITER = textwrap.dedent("""
-    import sys
+KILLER = textwrap.dedent("""
+    import json, os, random, signal, sqlite3, sys, time
     sys.path.insert(0, {tests!r})
     from conftest import make_scan
     from scanner.database import Database
-    db = Database({root!r})
-    start = int(sys.argv[1])
-    for i in range(start, start + 1000):
-        db.add(make_scan(i, sample_id=f"s-{{i:04d}}", image_shape=(200, 200), seconds=0.5))
-        print(f"s-{{i:04d}}-001", flush=True)
+    from scanner.files import sha256_file
+
+    root, kills, seed = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+    rng = random.Random(seed)
+    Database(root).close()
+    committed, leftovers = set(), set()
+    for round_ in range(kills):
+        first = 1000 * round_  # a killed scan may have committed: the next writer starts at new ids
+        read, write = os.pipe()
+        pid = os.fork()  # a copy of this process with everything imported: a kill every few hundred ms
+        if pid == 0:
+            os.close(read)
+            db = Database(root)
+            for i in range(first, first + 1000):
+                db.add(make_scan(i, sample_id=f"s-{{i:05d}}", image_shape=(96, 96), seconds=0.3))
+                os.write(write, f"s-{{i:05d}}-001\\n".encode())
+            os._exit(0)
+        os.close(write)
+        time.sleep(rng.uniform(0.0, 0.3))
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+        with os.fdopen(read) as acks:
+            acknowledged = set(acks.read().split())
+        with sqlite3.connect(os.path.join(root, "catalog.sqlite")) as conn:
+            integrity = conn.execute("PRAGMA integrity_check").fetchone()[0]
+        db = Database(root)
+        ids = {{r.scan_id for r in db.records()}}
+        dangling = [e.path for r in db.records() for e in db.files(r.scan_id)
+                    if not os.path.isfile(os.path.join(root, e.path))
+                    or sha256_file(os.path.join(root, e.path)) != e.sha256]
+        report = db.check()
+        print(json.dumps({{"integrity": integrity, "lost": sorted(committed - ids),
+                          "unacknowledged_lost": sorted(acknowledged - ids), "dangling": dangling,
+                          "missing": report.missing, "changed": report.changed, "unknown": report.unknown,
+                          "stale": sorted(leftovers & set(report.leftovers)) if acknowledged else [],
+                          "acknowledged": len(acknowledged)}}), flush=True)
+        committed, leftovers = committed | ids, set(report.leftovers)
+        db.close()
+    db = Database(root)
+    removed = db.repair()
+    report = db.check()
+    print(json.dumps({{"final": True, "removed": len(removed), "ok": report.ok, "leftovers": report.leftovers,
+                      "scans": len(db)}}), flush=True)
 """)
 
 
-@pytest.mark.skipif(os.name != "posix", reason="SIGKILL of a subprocess is POSIX-only")
-def test_a_writer_killed_at_random_moments_never_corrupts_the_catalog(tmp_path):
-    root = tmp_path / "db"
-    Database(root).close()
-    script = tmp_path / "writer.py"
-    script.write_text(WRITER.format(tests=str(Path(__file__).parent), root=str(root)))
-    rng = random.Random(1234)
-    committed: set[str] = set()
-    next_index = 0
-    for _ in range(12):
-        writer = subprocess.Popen([sys.executable, str(script), str(next_index)], stdout=subprocess.PIPE, text=True)
-        time.sleep(rng.uniform(0.6, 2.0))  # interpreter start-up is ~0.5 s; kills land inside add()
-        os.kill(writer.pid, signal.SIGKILL)
-        out, _ = writer.communicate()
-        acknowledged = set(out.split())
-        committed |= acknowledged
-        next_index += 1000
+def _run_killer(script: str, tmp_path: Path, *args: str) -> list[dict]:
+    path = tmp_path / "killer.py"
+    path.write_text(script.format(tests=str(Path(__file__).parent)))
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}  # a single-threaded parent forks
+    run = subprocess.run([sys.executable, str(path), *args], capture_output=True, text=True, timeout=300, env=env)
+    assert run.returncode == 0, run.stderr[-2000:]
+    return [json.loads(line) for line in run.stdout.splitlines()]
 
+
+@pytest.mark.skipif(os.name != "posix", reason="fork and SIGKILL are POSIX-only")
+def test_writers_killed_at_60_random_moments_lose_nothing_and_leave_only_leftovers_the_next_add_removes(tmp_path):
+    rounds = _run_killer(KILLER, tmp_path, str(tmp_path / "db"), "60", "1234")
+    *kills, final = rounds
+    assert len(kills) == 60
+    for n, kill in enumerate(kills):
+        assert kill["integrity"] == "ok", n
+        assert kill["lost"] == [] and kill["unacknowledged_lost"] == [], f"kill {n} lost committed scans: {kill}"
+        assert kill["dangling"] == [] and kill["missing"] == [] and kill["changed"] == [], f"kill {n}: {kill}"
+        assert kill["unknown"] == [], f"kill {n} left files that are not recognised as leftovers: {kill}"
+        assert kill["stale"] == [], f"the add after kill {n - 1} did not remove its leftovers: {kill}"
+    assert sum(kill["acknowledged"] for kill in kills) >= 30, "the writers never got far enough to test anything"
+    assert final["ok"] and final["leftovers"] == [] and final["scans"] >= 30
+
+
+REBUILD_KILLER = textwrap.dedent("""
+    import json, os, random, shutil, signal, sys, time
+    sys.path.insert(0, {tests!r})
+    from scanner.database import Database, DatabaseError
+
+    template, work, kills, seed = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+    rng = random.Random(seed)
+    shutil.copytree(template, work + "-timing")
+    started = time.perf_counter()
+    Database(work + "-timing").rebuild()
+    duration = time.perf_counter() - started
+    # Kills at the k-th file rename (the catalog swap, the quarantine moves), then at random moments.
+    plan = [("replace", k, 0.0) for k in (1, 2, 3)] + [("time", 0, rng.uniform(0, 2 * duration))
+                                                          for _ in range(kills)]
+    for round_, (mode, kill_at, delay) in enumerate(plan):
+        root = f"{{work}}-{{round_}}"
+        shutil.copytree(template, root)
+        pid = os.fork()
+        if pid == 0:
+            if mode == "replace":
+                real, calls = os.replace, []
+                def replace(*args, **kwargs):
+                    calls.append(args)
+                    if len(calls) == kill_at:
+                        os.kill(os.getpid(), signal.SIGKILL)
+                    return real(*args, **kwargs)
+                os.replace = replace
+            Database(root).rebuild()
+            os._exit(0)
+        if mode == "time":
+            time.sleep(delay)
+            os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
         db = Database(root)
-        with sqlite3.connect(root / "catalog.sqlite") as conn:
-            assert conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
-        ids = {r.scan_id for r in db.records()}
-        assert committed <= ids, "an acknowledged scan was lost"
-        for record in db.records():
-            for entry in db.files(record.scan_id):
-                path = root / entry.path
-                assert path.is_file(), f"catalog row points to missing {entry.path}"
-                assert sha256_file(path) == entry.sha256, f"catalog row points to partial {entry.path}"
-        committed = ids
-        report = db.check()
-        assert not report.missing and not report.changed
+        try:
+            ids = sorted(r.scan_id for r in db.records())
+            report = db.check()
+            state = {{"ids": ids, "missing": report.missing, "changed": report.changed}}
+        except DatabaseError as exc:
+            state = {{"unreadable": str(exc)}}
         db.close()
-    assert len(committed) >= 5, "the writer never got far enough to test anything"
-    # An interrupted scan can simply be added again: its leftover files are overwritten.
-    db = Database(root)
-    for i in range(0, next_index, 1000):
-        for k in range(i, i + 1000):
-            if f"s-{k:04d}-001" not in committed:
-                db.add(make_scan(k, sample_id=f"s-{k:04d}", image_shape=(200, 200), seconds=0.5))
-                break
-    assert not db.check().missing
+        finished = Database(root).rebuild()
+        db = Database(root)
+        report = db.check()
+        state.update(mode=mode, after=sorted(r.scan_id for r in db.records()), skipped=len(finished.skipped),
+                     ok=report.ok, unknown=report.unknown, leftovers=report.leftovers,
+                     quarantined=sorted(p.name for p in (db.root / "quarantine").rglob("*.mat")))
+        print(json.dumps(state), flush=True)
+        db.close()
+""")
+
+
+@pytest.mark.skipif(os.name != "posix", reason="fork and SIGKILL are POSIX-only")
+@pytest.mark.parametrize("catalog", ["readable", "corrupt"])
+def test_a_rebuild_killed_at_any_moment_never_leaves_a_smaller_catalog(tmp_path, catalog):
+    template = tmp_path / "template"
+    db = Database(template)
+    for i in range(8):
+        db.add(make_scan(i, sample_id=f"s-{i:02d}", image_shape=(64, 64)))
+    for i in (8, 9):  # complete scans the catalog does not know yet: rebuild adopts them
+        save_scan(make_scan(i, sample_id=f"s-{i:02d}", image_shape=(64, 64)),
+                  template / f"scans/C6S1M1P2X1/s-{i:02d}/s-{i:02d}-001.mat")
+    (template / "scans/C6S1M1P2X1/s-03/s-03-002.mat").write_bytes(b"MATLAB 5.0 cut short")
+    catalogued = sorted(r.scan_id for r in db.records())
+    db.close()
+    if catalog == "corrupt":
+        _corrupt(template, "random bytes")
+    everything = sorted([*catalogued, "s-08-001", "s-09-001"])
+    states = _run_killer(REBUILD_KILLER, tmp_path, str(template), str(tmp_path / "work"), "12", "7")
+    for n, state in enumerate(states):
+        if catalog == "readable":  # one transaction: the old catalog or the new one, never anything less
+            assert state["ids"] in (catalogued, everything), (n, state)
+            assert state["missing"] == [] and state["changed"] == [], (n, state)
+        elif "unreadable" in state:  # killed before the new catalog was swapped in: the broken one is kept
+            assert "texplorer db rebuild" in state["unreadable"], (n, state)
+        else:  # swapped in: complete
+            assert state["ids"] == everything and state["missing"] == [] and state["changed"] == [], (n, state)
+        # Rebuilding again finishes the job: every good scan catalogued, the bad file in quarantine.
+        assert state["after"] == everything and state["ok"] and state["unknown"] == [], (n, state)
+        assert state["leftovers"] == [] and state["quarantined"] == ["s-03-002.mat"], (n, state)
+    if catalog == "corrupt":  # the deterministic kills: just before the swap, and just after it
+        assert "unreadable" in states[0] and states[1]["ids"] == everything
 
 
 def test_label_prefix_stops_at_the_class_boundary(tmp_path):

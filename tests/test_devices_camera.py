@@ -59,6 +59,24 @@ def test_warmup_frames_are_skipped_and_the_end_is_an_error(video):
         camera.close()
 
 
+def test_a_camera_announcing_frames_beyond_the_photo_limit_is_refused_before_a_frame_is_read(video, monkeypatch):
+    path, _ = video
+    monkeypatch.setenv("TEXPLORER_MAX_PHOTO_PIXELS", str(64 * 48 - 1))
+    with pytest.raises(DeviceError, match=r"camera '.*tu3.avi': the image has 3,072 pixels \(64 x 48\); at most "
+                                          r"3,071 are accepted"):
+        OpenCvCamera(CameraConfig(source=str(path), warmup_frames=0))
+    monkeypatch.setenv("TEXPLORER_MAX_PHOTO_PIXELS", str(64 * 48))
+    camera = OpenCvCamera(CameraConfig(source=str(path), warmup_frames=0))
+    assert camera.capture("I_disp").shape == (48, 64, 3)
+    camera.close()
+
+
+def test_uploads_other_than_png_or_jpeg_never_reach_a_decoder():
+    bmp = cv2.imencode(".bmp", frames(1, (40, 30))[0])[1].tobytes()  # OpenCV would decode it unchecked
+    with pytest.raises(PhotoError, match="upload: not a PNG or JPEG file"):
+        decode_photo(bmp)
+
+
 def test_missing_camera_is_one_line(tmp_path):
     with pytest.raises(DeviceUnavailable, match="cannot be opened") as error:
         OpenCvCamera(CameraConfig(source=str(tmp_path / "none.avi")))

@@ -69,6 +69,8 @@ def test_values_from_a_file(tmp_path):
     ('[calibration]\naccel_v_per_g = [0.33, 0.0, 0.33]', "accel_v_per_g: sensitivities must be > 0"),
     ('[calibration]\naccel_zero_v = [1.65, 1.65]', "calibration.accel_zero_v: must be a list of 3 numbers"),
     ('[calibration]\nflex_v1 = 0.0', "the two flex points must differ"),
+    ('[steps]\nthermal = 121.0', "steps.thermal: at most 120 s, the longest a scan channel may hold"),
+    ('[simulated]\nimage_size = [6000, 6000]', "simulated.image_size: the image has 36,000,000 pixels"),
 ])
 def test_bad_values_name_the_file_and_key(tmp_path, toml, message):
     path = tmp_path / "bad.toml"

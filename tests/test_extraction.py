@@ -14,7 +14,7 @@ import pytest
 import features
 from features import NAMES, ScanSource, extract, extract_many, image
 from features.extraction import code_version, source_of
-from scanner.scan import IMAGES, Scan
+from scanner.scan import CHANNELS, IMAGES, Scan, Trace
 from scanner.simulate import synthetic_scan
 
 SIZE = (384, 384)
@@ -79,6 +79,33 @@ def test_a_missing_channel_makes_exactly_its_features_nan(drop, expected):
         values = extract(partial)
     assert {name for name, value in values.items() if math.isnan(value)} == expected
     assert any(next(iter(drop)) in str(w.message) for w in caught)
+
+
+@functools.cache
+def foam_without_photos() -> tuple[Scan, dict[str, float]]:
+    scan = Scan(foam().meta, foam().traces)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return scan, extract(scan)
+
+
+@pytest.mark.parametrize("channel", [name for name, spec in CHANNELS.items() if spec.min_n > 1])
+def test_a_channel_too_short_for_its_features_counts_as_missing_and_is_named(channel):
+    scan, full = foam_without_photos()
+    need, trace = CHANNELS[channel].min_n, scan[channel]
+    cut = Scan(scan.meta, {**scan.traces, channel: Trace(trace.data[:need - 1], trace.fs, trace.unit)})
+    assert cut.short_channels() == {channel: need}
+    with pytest.warns(UserWarning, match=rf"too short: {channel} \({need - 1} of the {need} samples its "
+                                         r"features need\); treated as missing"):
+        values = extract(cut)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        missing = extract(Scan(scan.meta, {k: v for k, v in scan.traces.items() if k != channel}))
+    assert all(values[n] == missing[n] or (math.isnan(values[n]) and math.isnan(missing[n])) for n in NAMES)
+    nan = {n for n, v in values.items() if math.isnan(v)}
+    assert nan > {n for n, v in full.items() if math.isnan(v)}  # its features became NaN, no silent zero
+    enough = Scan(scan.meta, {**scan.traces, channel: Trace(trace.data[:need], trace.fs, trace.unit)})
+    assert enough.short_channels() == {}
 
 
 def _broken() -> Scan:

@@ -25,8 +25,8 @@ from gui.forms import (
 )
 from gui.photos import PhotoStore, UploadError, check_upload
 from scanner.devices.camera import PhotoError, decode_photo
-from scanner.photo import image_size
 from scanner.matfile import encode_png
+from scanner.photo import image_size
 from taxonomy.table import load_taxonomy
 
 # -- forms --------------------------------------------------------------------------------------------
@@ -189,7 +189,7 @@ def test_image_size_from_headers():
 
 
 def test_decoding_outside_the_web_app_refuses_a_decompression_bomb():
-    with pytest.raises(PhotoError, match=r"upload: the image has 3000.0 megapixels"):
+    with pytest.raises(PhotoError, match=r"upload: the image has 3,000,000,000 pixels"):
         decode_photo(_png_header(100_000, 30_000) + bytes(100))
 
 
@@ -197,7 +197,7 @@ def test_decoding_outside_the_web_app_refuses_a_decompression_bomb():
     (b"", "the file is empty"),
     (b"\xff\xd8\xff\xe0" + bytes(10), "JPEG file is damaged"),
     (b"\x89PNG\r\n\x1a\n" + bytes(4), "PNG file is damaged"),
-    (_png_header(100_000, 30_000), r"the image has 3000.0 megapixels \(100000 x 30000 px\); at most 25 are"),
+    (_png_header(100_000, 30_000), r"the image has 3,000,000,000 pixels \(100000 x 30000\); at most 25,000,000 are"),
     (_png_header(0, 10), "empty image"),
 ])
 def test_check_upload_refuses(data, reason):
@@ -209,7 +209,7 @@ def test_check_upload_passes_what_decoding_must_judge():
     check_upload(_png_header(10, 10))  # header only: the decoder refuses it later
     check_upload(b"%PDF-1.7")
     check_upload(_png_header(5000, 10_000), max_pixels=50_000_000)
-    with pytest.raises(UploadError, match=r"the image has 50.0 megapixels \(5001 x 10000 px\)"):
+    with pytest.raises(UploadError, match=r"the image has 50,010,000 pixels \(5001 x 10000\)"):
         check_upload(_png_header(5001, 10_000), max_pixels=50_000_000)
 
 
@@ -915,6 +915,37 @@ def test_texplorer_serve_warns_when_listening_on_the_network(tmp_path):
     try:
         _, lines = served_url(process)
         assert any(line.startswith("texplorer: warning: listening on 0.0.0.0:") for line in lines)
+    finally:
+        process.kill()
+
+
+def test_ipv6_loopback_hosts_are_trusted_and_printed_in_brackets(tmp_path):
+    from gui.app import url_of
+
+    client = make_app(tmp_path / "db").test_client()
+    assert client.get("/", base_url="http://[::1]:8080").status_code == 200
+    assert client.get("/", base_url="http://[::1]").status_code == 200
+    assert client.get("/", base_url="http://[::2]:8080").status_code == 400
+    assert client.get("/", base_url="http://127.0.0.2:8080").status_code == 400
+    assert url_of("::1", 8080) == "http://[::1]:8080/" and url_of("127.0.0.1", 80) == "http://127.0.0.1:80/"
+    assert url_of("0.0.0.0", 5) == "http://127.0.0.1:5/" and url_of("fe80::1", 5) == "http://[fe80::1]:5/"
+
+
+def test_texplorer_serve_on_ipv6_loopback_answers_a_browser(tmp_path):
+    import socket
+    import urllib.request
+
+    try:
+        with socket.socket(socket.AF_INET6) as probe:
+            probe.bind(("::1", 0))
+    except OSError:
+        pytest.skip("no IPv6 loopback on this machine")
+    process = serve_process(tmp_path, "--host", "::1")
+    try:
+        url, lines = served_url(process)
+        assert url.startswith("http://[::1]:") and not any("warning" in line for line in lines)
+        with urllib.request.urlopen(url + "/") as answer:  # sends Host: [::1]:PORT, as a browser does
+            assert answer.status == 200 and b"Start a scan" in answer.read()
     finally:
         process.kill()
 

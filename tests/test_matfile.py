@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import hashlib
+import re
+import warnings
 
 import numpy as np
 import pytest
 import scipy.io
 from conftest import make_scan
 
-from scanner.matfile import ScanFormatError, load_scan, save_scan
-from scanner.scan import CHANNELS
+from features import tactum
+from scanner.matfile import ScanFormatError, ScanFormatWarning, load_scan, save_scan
+from scanner.scan import CHANNELS, Scan, Trace
 
 META_FIELDS = {"label", "operator", "sample_id", "scan_index", "session_id", "started", "t_amb", "mass_g",
                "volume_cm3", "volume_method", "atk", "cyd", "rigid", "fs", "units", "raw_volts", "device",
@@ -167,3 +170,64 @@ def test_failed_write_leaves_the_previous_file_untouched(tmp_path, monkeypatch):
         save_scan(make_scan(seed=5, images=False), tmp_path / "s.mat")
     assert (tmp_path / "s.mat").read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.mat"]
+
+
+def test_a_rigid_flag_with_a_stored_fold_loads_with_a_warning_and_the_stored_fold_wins(tmp_path):
+    scan = make_scan(images=False)
+    folding = Trace(10.0 * scan["alpha_f"].data, 3000.0, "deg")  # std about 10 deg: not rigid by its fold
+    scan = Scan(scan.meta, {**scan.traces, "alpha_f": folding})
+    save_scan(scan, tmp_path / "good.mat")
+    variables = scipy.io.loadmat(tmp_path / "good.mat", simplify_cells=True)
+    variables["meta"]["rigid"] = 1.0
+    scipy.io.savemat(tmp_path / "rigid.mat", {k: v for k, v in variables.items() if not k.startswith("__")},
+                     long_field_names=True)
+    with pytest.warns(ScanFormatWarning, match=r"rigid.mat: meta.rigid is 1 but the fold is stored "
+                                               r"\(f_fold, alpha_f\); the stored fold is used"):
+        loaded = load_scan(tmp_path / "rigid.mat")
+    assert loaded.meta.rigid and loaded["alpha_f"] == folding and loaded.fold_despite_rigid
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        values = tactum.compute(loaded)
+    # SPEC 7.1 items 9-12: with alpha_f stored the flag is ignored; std(alpha_f) >= 1 deg is not rigid.
+    assert values["tactum.cdf"] == pytest.approx(np.std(folding.data), rel=1e-12)
+    assert values["tactum.ccp"] == pytest.approx(np.max(scan["f_press"].data) / 4.0, rel=1e-12)
+    assert values["tactum.crx"] == pytest.approx(np.max(scan["f_press"].data) - scan["f_press"].data[-1])
+
+
+@pytest.mark.parametrize(("value", "reason"), [
+    (np.zeros((0, 0)), "must be 0 or 1, got a float64 array of shape (0, 0)"),
+    (0.5, "must be 0 or 1, got 0.5"), ("yes", "must be 0 or 1, got text")])
+def test_a_flag_that_is_neither_0_nor_1_is_a_format_error(tmp_path, value, reason):
+    for field in ("raw_volts", "rigid"):
+        bad = _rewrite(tmp_path, _set(f"meta.{field}", value))
+        with pytest.raises(ScanFormatError, match=re.escape(f"bad.mat: meta.{field}: {reason}")):
+            load_scan(bad)
+
+
+def test_a_compressed_variable_inflating_beyond_the_limit_is_refused_without_inflating_it(tmp_path, monkeypatch):
+    import scanner.matfile as matfile
+
+    noisy = make_scan(images=False, seconds=2.0)
+    scan = Scan(noisy.meta, {name: Trace(np.zeros_like(trace.data), trace.fs, trace.unit)
+                             for name, trace in noisy.traces.items()})  # 2.4 MB of zeros: a few kB compressed
+    save_scan(scan, tmp_path / "s.mat")
+    assert (tmp_path / "s.mat").stat().st_size < 1 << 16
+    monkeypatch.setattr(matfile, "MAX_SCAN_BYTES", 1 << 20)
+    with pytest.raises(ScanFormatError, match="s.mat: not a readable MATLAB v5 .mat file "
+                                              r"\(its variables inflate beyond the size limit\)"):
+        load_scan(tmp_path / "s.mat")
+    monkeypatch.setattr(matfile, "MAX_SCAN_BYTES", 4 << 20)
+    assert load_scan(tmp_path / "s.mat") == scan
+
+
+def test_photo_pixel_limit_comes_from_the_environment(tmp_path, monkeypatch):
+    save_scan(make_scan(image_shape=(60, 80)), tmp_path / "s.mat")
+    monkeypatch.setenv("TEXPLORER_MAX_PHOTO_PIXELS", "4799")
+    with pytest.raises(ScanFormatError, match=r"I_disp: photo s_disp.png: the image has 4,800 pixels "
+                                              r"\(80 x 60\); at most 4,799 are accepted"):
+        load_scan(tmp_path / "s.mat")
+    monkeypatch.setenv("TEXPLORER_MAX_PHOTO_PIXELS", "4800")
+    assert load_scan(tmp_path / "s.mat").images["I_disp"].shape == (60, 80, 3)
+    monkeypatch.setenv("TEXPLORER_MAX_PHOTO_PIXELS", "many")
+    with pytest.raises(ValueError, match=r"\$TEXPLORER_MAX_PHOTO_PIXELS must be a positive whole number"):
+        load_scan(tmp_path / "s.mat")
