@@ -29,6 +29,7 @@ import re
 import secrets
 import shutil
 import tomllib
+import zipfile
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -41,6 +42,7 @@ from scipy.io import wavfile
 
 from scanner.devices.camera import PhotoError, check_pixels
 from scanner.files import atomic_write_bytes, fsync_dir
+from scanner.mat5 import MatFileError, read_mat
 from scanner.scan import ROLES, Recording, ScanError, Trace
 
 RECORDINGS = "recordings"
@@ -54,6 +56,9 @@ NAN_TOKENS = ("nan", "-nan", "+nan", "", "na", "n/a", "null", "none")
 
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 MISSING = ("interpolate", "error")
+MAX_ARRAY_BYTES = 1 << 30
+"""An NPY, NPZ or MAT file may hold at most this many bytes of arrays (once inflated): checked before
+they are read, so a small file cannot make an import take unbounded memory."""
 RATE_TOLERANCE = 0.05
 """Time steps may vary by this fraction of their median before the import notes it."""
 
@@ -576,17 +581,42 @@ def _wav_file(path: Path, spec: FileMap) -> _Read:
     return read
 
 
+def _check_sizes(path: Path, fmt: str) -> None:
+    """Refuse, from headers alone, an array file whose data would take more than :data:`MAX_ARRAY_BYTES`.
+
+    A few bytes of NPY header or a zip directory can announce terabytes; numpy would allocate them first.
+    """
+    if fmt == "npy":
+        with open(path, "rb") as handle:
+            version = np.lib.format.read_magic(handle)
+            read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+            shape, _, dtype = read(handle)
+        size = math.prod(shape) * dtype.itemsize
+    else:
+        with zipfile.ZipFile(path) as archive:
+            size = sum(info.file_size for info in archive.infolist())
+    if size > MAX_ARRAY_BYTES:
+        raise IngestError(f"{path}: its arrays take {size / 1e6:.0f} MB, more than the "
+                          f"{MAX_ARRAY_BYTES / 1e6:.0f} MB one file may hold")
+
+
 def _variables(path: Path, fmt: str) -> dict[str, np.ndarray]:
     try:
+        if fmt == "mat":
+            variables = read_mat(path, MAX_ARRAY_BYTES, squeeze_me=False)
+            return {k: v for k, v in variables.items() if not k.startswith("__")}
+        _check_sizes(path, fmt)
         if fmt == "npy":
             return {"": np.load(path, allow_pickle=False)}
-        if fmt == "npz":
-            with np.load(path, allow_pickle=False) as archive:
-                return {key: archive[key] for key in archive.files}
-        return {k: v for k, v in scipy.io.loadmat(path, squeeze_me=False).items() if not k.startswith("__")}
-    except NotImplementedError:
-        raise IngestError(f"{path}: MATLAB v7.3 (HDF5) files are not read; save with -v7") from None
-    except Exception as exc:  # numpy and scipy raise many types for foreign or damaged files
+        with np.load(path, allow_pickle=False) as archive:
+            return {key: archive[key] for key in archive.files}
+    except IngestError:
+        raise
+    except MatFileError as exc:
+        if "7.3" in str(exc):
+            raise IngestError(f"{path}: MATLAB v7.3 (HDF5) files are not read; save with -v7") from None
+        raise IngestError(f"{path}: not a readable MAT file ({exc})") from None
+    except Exception as exc:  # numpy raises many types for foreign or damaged files
         reason = f"{type(exc).__name__}: {exc}"
         raise IngestError(f"{path}: not a readable {fmt.upper()} file ({reason})") from None
 

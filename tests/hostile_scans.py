@@ -141,7 +141,7 @@ def _patched_dims(base: dict[str, Any], variable: str, dims: tuple[int, ...]) ->
     return bytes(data)
 
 
-def _inflation_bomb(inflated: int) -> bytes:
+def inflation_bomb(inflated: int) -> bytes:
     """A MAT file whose one compressed variable ``v_ts`` inflates to ``inflated`` bytes of zeros."""
     rows = inflated // 24
     header = bytearray(b"MATLAB 5.0 MAT-file, hostile".ljust(116, b" ") + bytes(8) + b"\x00\x01IM")
@@ -240,7 +240,7 @@ def cases(seed: int) -> Iterator[Case]:
     for _ in range(20):
         nested = {"x": nested}
     yield Case("meta nested 20 deep", _written(_changed(base, lambda v: v["meta"].update(device=nested)), "deep"))
-    yield Case("inflation bomb", _bytes_case(_inflation_bomb(MAX_SCAN_BYTES + (64 << 20)), "inflation"))
+    yield Case("inflation bomb", _bytes_case(inflation_bomb(MAX_SCAN_BYTES + (64 << 20)), "inflation"))
     yield Case("oversized file", _sparse(MAX_SCAN_BYTES + 10, "oversized"))
     yield Case("MATLAB v7.3 header", _bytes_case(original[:124] + b"\x00\x02IM" + original[128:4096], "v73"))
     yield Case("MATLAB v4 file", _bytes_case(bytes(20) + original[128:1024], "v4"))

@@ -101,6 +101,25 @@ def test_npy_mat_headerless_csv_and_labels_from_the_name():
     assert report.skipped[0].endswith("wood_c.mat: MATLAB v7.3 (HDF5) files are not read; save with -v7")
 
 
+def test_array_files_announcing_more_than_the_limit_are_refused_from_their_headers(tmp_path, monkeypatch):
+    from hostile_scans import inflation_bomb
+
+    header = {"descr": "<f8", "fortran_order": False, "shape": (10**6, 10**6)}
+    with open(tmp_path / "huge.npy", "wb") as handle:  # 8 TB announced in 128 bytes
+        np.lib.format.write_array_header_1_0(handle, header)
+        handle.write(bytes(64))
+    spec = ingest.FileMap(glob="*", suffix=None, format=None, channels=(ingest.ChannelMap("v", "vibration"),),
+                          rate=100.0)
+    with pytest.raises(IngestError, match=r"huge.npy: its arrays take 8000000 MB, more than the 1074 MB"):
+        ingest.read_file(tmp_path / "huge.npy", spec)
+    (tmp_path / "bomb.mat").write_bytes(inflation_bomb(64 << 20))  # 64 MB of zeros in 64 kB
+    monkeypatch.setattr(ingest, "MAX_ARRAY_BYTES", 16 << 20)
+    with pytest.raises(IngestError, match="bomb.mat: not a readable MAT file .its variables inflate beyond"):
+        ingest.read_file(tmp_path / "bomb.mat", spec)
+    np.savez(tmp_path / "ok.npz", v=np.arange(4.0))  # within the limit: read
+    assert ingest.read_file(tmp_path / "ok.npz", spec)[0]["v"].data.tolist() == [0.0, 1.0, 2.0, 3.0]
+
+
 def test_read_table_quirks(tmp_path):
     path = tmp_path / "t.csv"
     path.write_text("a,b,c,\n1,nan,3,\n4,-NaN,,\n")
