@@ -17,18 +17,22 @@ or a zip file) and renames it when complete, so a bundle that exists is whole; s
 their SHA-256 checked against the catalog on the way.
 
 Import works in two phases. **Verify** touches nothing the database uses: every file of the bundle is
-copied into a staging folder ``<db>/.import.tmp-<hex>`` (on the database's file system, so the files can
-later be moved, not copied) while its size and SHA-256 are checked against the manifest; the manifest is
-checked against ``manifest.json.sha256`` and its schema; every scan is loaded and validated and must match
-its manifest entry and path; the taxonomy must parse. Any problem refuses the whole bundle with the list of
-problems. Member names that are absolute, contain ``..``, backslashes or drive letters, and symbolic
-links, are refused before anything is extracted. **Merge** then skips scans already stored with the same
-content, reports a scan id stored with other content, a sample stored under another label and a taxonomy
-code named differently here as conflicts (nothing is overwritten), appends the codes of new materials to
-the database's taxonomy extension ``<db>/taxonomy.csv`` and catalogs all new scans in one transaction
-(:meth:`scanner.database.Database.add_written`). A process killed during import leaves the catalog as it
-was; at worst a staging folder and complete but uncatalogued files remain (``texplorer db check`` lists
-those as unknown; importing again replaces them).
+copied into a staging folder ``<db>/.import.tmp-<hex>/bundle`` (on the database's file system, so the files
+can later be moved, not copied; the folder holds a SQLite lock while the import runs,
+:func:`scanner.files.owned_folder`) while its size and SHA-256 are checked against the manifest; the
+manifest is checked against ``manifest.json.sha256`` and its schema; every scan is loaded and validated
+(with the limits of :func:`scanner.load_scan`, photos included) and must match its manifest entry and
+path; the taxonomy must parse. Any problem refuses the whole bundle with the list of problems. Member names
+that are absolute, contain ``..``, backslashes or drive letters, that put a file under another file
+(``features.csv/x``), and symbolic links, are refused before anything is extracted. **Merge** then skips
+scans already stored with the same content, reports a scan id stored with other content, a sample stored
+under another label and a taxonomy code named differently here as conflicts (nothing is overwritten),
+appends the codes of new materials to the database's taxonomy extension ``<db>/taxonomy.csv`` and catalogs
+all new scans in one transaction (:meth:`scanner.database.Database.add_written`: rows first, then the files
+are moved into place). If that fails, the moved files are moved back and the taxonomy codes taken back: the
+database is as it was. A process killed during import leaves the catalog as it was; at worst the staging
+folder, moved files of the uncommitted batch and the new taxonomy codes remain, and ``texplorer db check``
+lists the first two as crash leftovers, which the next write or ``db check --repair`` removes.
 """
 
 from __future__ import annotations

@@ -14,6 +14,14 @@ Layout of ``<scan>.mat`` (``scipy.io.savemat``, ``long_field_names=True``, ``do_
 
 In MATLAB or Octave: ``s = load('granite-01-001.mat'); plot(s.v_ts); s.meta.fs.v_ts``.
 In Python: ``scipy.io.loadmat(path, simplify_cells=True)``.
+
+Reading is bounded whatever the bytes: the file and its inflated variables at most :data:`MAX_SCAN_BYTES`
+(:mod:`scanner.mat5` checks sizes before scipy allocates), a channel at most
+``scanner.scan.MAX_CHANNEL_SECONDS`` (checked before its float64 copy), a photo within the pixel limit of
+:mod:`scanner.photo` (checked from its header before decoding). Every meta field has a range
+(``scanner.scan.ScanMeta``: ``scan_index`` 1..9999, ``t_amb`` in the MLX90614's -40..85 degC, mass and
+volume up to 1e6, ``rigid`` and ``raw_volts`` 0 or 1, ids and texts of bounded length; the full table is
+``docs/database.md``); anything outside is a :class:`ScanFormatError` naming the file and the field.
 """
 
 from __future__ import annotations
