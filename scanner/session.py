@@ -50,9 +50,10 @@ import numpy as np
 import scanner
 from scanner.config import Config
 from scanner.devices import Devices, open_devices
-from scanner.devices.camera import PhotoError, decode_photo
+from scanner.devices.camera import decode_photo
 from scanner.devices.protocols import DeviceError
 from scanner.devices.sources import SimulatedSample, material_for
+from scanner.photo import PhotoError, check_size
 from scanner.recorder import Level, Recorder, StepResult, build_scan
 from scanner.scan import (
     CHANNELS,
@@ -477,6 +478,10 @@ class Session:
         if array.dtype != np.uint8 or array.ndim != 3 or array.shape[2] != 3 or min(array.shape[:2]) < 16:
             raise SessionError(f"{name}: must be an RGB uint8 image of at least 16x16 px, "
                                f"got {array.dtype} {array.shape}")
+        try:
+            check_size(array.shape[1], array.shape[0], name=name)  # the photo limit, or it could not be saved
+        except PhotoError as exc:
+            raise SessionError(str(exc)) from None
         self._photos[name] = array.copy()
 
     def capture_photo(self, name: str) -> np.ndarray:

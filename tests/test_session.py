@@ -129,6 +129,8 @@ def test_photos_from_uploads_and_the_camera(session):
         session.set_photo("I_macro", b"GIF89a" + bytes(50))
     with pytest.raises(SessionError, match="'I_top' is not a photo"):
         session.set_photo("I_top", rgb)
+    with pytest.raises(SessionError, match=r"I_macro: the image has 25,001,984 pixels \(16384 x 1526\)"):
+        session.set_photo("I_macro", np.broadcast_to(rgb[:1, :1], (1526, 16384, 3)))  # refused, not saved later
     assert session.capture_photo("I_macro").shape == (300, 300, 3)
     assert session.status("photos").state is StepState.PENDING
     session.capture_photo("I_illu")
