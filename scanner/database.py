@@ -321,7 +321,8 @@ class Database:
         try:
             yield conn
         except BaseException:
-            conn.execute("ROLLBACK")
+            if conn.in_transaction:  # SQLite may have rolled back already (a full disk, an I/O error)
+                conn.execute("ROLLBACK")
             raise
         conn.execute("COMMIT")
 
@@ -629,7 +630,7 @@ class Database:
         present = set(stored)
         found = {path for path in stored if is_temp_file(Path(path))}
         for path in stored:
-            stem = next((path[:-len(s)] for s in PHOTO_SUFFIXES if path.endswith(s)), None)
+            stem = _photo_stem(path)
             if stem is not None and f"{stem}.mat" not in present:
                 found.add(path)
         for intent in self._intents() if ids is not None else ():
@@ -664,27 +665,38 @@ class Database:
         """Recreate the catalog from the ``.mat`` files alone; every good file is catalogued.
 
         A file that does not load as a valid scan (or that the catalog refuses), a second copy of a scan id
-        (the copy at the scan's own path wins) and a scan whose sample is another material elsewhere are
-        reported with the reason and moved, with their photos, to ``quarantine/<time>/`` after the new
-        catalog is committed. Crash leftovers are removed first. With a readable catalog this is one
-        transaction under the write lock (the feature cache is kept); a catalog SQLite cannot read is
-        rebuilt beside it and swapped in, and kept as ``catalog.sqlite.broken-<time>``.
+        (the copy at the scan's own path wins), a scan whose sample is another material elsewhere, and a
+        photo left without its scan (its ``.mat`` gone or bad) are reported with the reason and moved to
+        ``quarantine/<time>/`` after the new catalog is committed, ``.mat`` files with their photos.
+        Crash leftovers are removed first. With a readable catalog this is one transaction under the
+        write lock (the feature cache is kept); a catalog SQLite cannot read is rebuilt beside it and
+        swapped in, and kept as ``catalog.sqlite.broken-<time>``.
         """
         report = RebuildReport()
         if self._readable():
             with self._transaction() as conn:
                 report.removed = self._remove_leftovers(conn)
+                previous = {row[0] for row in conn.execute("SELECT path FROM files")}
                 found, bad = self._survey(progress)
                 for table in ("files", "scans", "sessions", "samples", "materials"):
                     conn.execute(f"DELETE FROM {table}")
                 report.scans, refused = self._fill(conn, found)
+                now = {row[0] for row in conn.execute("SELECT path FROM files")}
+            bad += refused
+            with_their_mat = {path[:-len(".mat")] for path, _ in bad if path.endswith(".mat")}
+            bad += [(path, "a photo whose scan's .mat is missing") for path in sorted(previous - now)
+                    if path.endswith(PHOTO_SUFFIXES) and _photo_stem(path) not in with_their_mat]
         else:
-            report.removed = self._remove_leftovers_without_catalog()
+            report.removed = [p for p in self.stored_files() if is_temp_file(Path(p))]
+            for relative in report.removed:
+                self._remove_file(relative)
+            # Without a catalog nobody can say whether a photo without its .mat was ever part of a scan.
+            orphans = self._leftovers(self.stored_files(), set(), None)
             found, bad = self._survey(progress)
             report.scans, refused = self._replace_broken_catalog(found)
+            bad += refused + [(path, "a photo without its .mat") for path in orphans]
             for intent in self._intents():  # the pending scans were adopted: their records are done
                 intent.record.unlink(missing_ok=True)
-        bad += refused
         report.skipped = [f"{path}: {reason}" for path, reason in bad]
         report.quarantine = self._quarantine([path for path, _ in bad])
         return report
@@ -697,14 +709,6 @@ class Database:
         except (sqlite3.Error, DatabaseError):
             return False
         return True
-
-    def _remove_leftovers_without_catalog(self) -> list[str]:
-        """Temp files and photos without their ``.mat``; without a catalog nobody can say which pending
-        writes committed, so their files are kept and catalogued like every good file."""
-        removed = self._leftovers(self.stored_files(), set(), None)
-        for relative in removed:
-            self._remove_file(relative)
-        return removed
 
     def _survey(self, progress: Callable[[Iterable], Iterable]) -> tuple[list[tuple[Scan, list[FileEntry]]],
                                                                           list[tuple[str, str]]]:
@@ -786,18 +790,19 @@ class Database:
         return result
 
     def _quarantine(self, paths: list[str]) -> Path | None:
-        """Move ``.mat`` files (and their photos) out of ``scans/`` into ``quarantine/<time>/``."""
+        """Move files (a ``.mat`` with its photos) out of ``scans/`` into ``quarantine/<time>/``."""
         if not paths:
             return None
         folder = _unused(self.root / QUARANTINE / datetime.now(UTC).strftime("%Y%m%dT%H%M%S"))
         for relative in paths:
-            mat = self.root / relative
-            for path in [mat.with_name(f"{mat.stem}{suffix}") for suffix in PHOTO_SUFFIXES] + [mat]:
-                if path.is_file():
-                    target = folder / self._relative(path)
+            path = self.root / relative
+            photos = [path.with_name(f"{path.stem}{end}") for end in PHOTO_SUFFIXES] if path.suffix == ".mat" else []
+            for moving in [*photos, path]:
+                if moving.is_file():
+                    target = folder / self._relative(moving)
                     target.parent.mkdir(parents=True, exist_ok=True)
-                    os.replace(path, target)
-            self._prune_folders(mat.parent)
+                    os.replace(moving, target)
+            self._prune_folders(path.parent)
         fsync_dir(folder)
         return folder
 
@@ -809,6 +814,11 @@ def _unused(path: Path) -> Path:
         n += 1
         candidate = path.with_name(f"{path.name}-{n}")
     return candidate
+
+
+def _photo_stem(path: str) -> str | None:
+    """``scans/.../x-001`` for a photo ``scans/.../x-001_disp.png`` (or ``_macro``, ``_illu``), else None."""
+    return next((path[:-len(end)] for end in PHOTO_SUFFIXES if path.endswith(end)), None)
 
 
 def _inside_scans(relative: str) -> bool:

@@ -175,6 +175,22 @@ def test_rebuild_catalogues_every_good_file_and_quarantines_each_bad_one_with_it
     assert (tmp_path / "scans/notes.txt").is_file()
 
 
+@pytest.mark.parametrize("catalog", ["readable", "corrupt"])
+def test_rebuild_keeps_the_photos_of_a_scan_whose_mat_is_gone(tmp_path, catalog):
+    db = Database(tmp_path)
+    _fill(db)
+    (tmp_path / "scans/C6S1M1P2X1/granite-01/granite-01-002.mat").unlink()
+    db.close()
+    if catalog == "corrupt":
+        _corrupt(tmp_path, "random bytes")
+    report = Database(tmp_path).rebuild()
+    photos = [f"scans/C6S1M1P2X1/granite-01/granite-01-002_{short}.png" for short in ("disp", "illu", "macro")]
+    reason = "a photo whose scan's .mat is missing" if catalog == "readable" else "a photo without its .mat"
+    assert report.scans == 3 and report.skipped == [f"{photo}: {reason}" for photo in photos]
+    assert all((report.quarantine / photo).is_file() for photo in photos)  # moved aside, never deleted
+    assert Database(tmp_path).check().ok
+
+
 def test_a_scan_the_catalog_refuses_is_quarantined_and_the_others_are_catalogued(tmp_path, monkeypatch):
     db = Database(tmp_path)
     _fill(db)
