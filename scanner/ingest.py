@@ -40,9 +40,9 @@ import numpy as np
 import scipy.io
 from scipy.io import wavfile
 
-from scanner.devices.camera import PhotoError, check_pixels
 from scanner.files import atomic_write_bytes, fsync_dir
 from scanner.mat5 import MatFileError, read_mat
+from scanner.photo import PhotoError, check_pixels, image_size, max_file_bytes
 from scanner.scan import ROLES, Recording, ScanError, Trace
 
 RECORDINGS = "recordings"
@@ -659,12 +659,17 @@ def read_image(path: Path) -> np.ndarray:
     """An image file (PNG, JPEG, BMP, TIFF) as RGB uint8 (h, w, 3).
 
     Gray images are repeated into three channels, an alpha channel is dropped, 16-bit images are scaled to
-    8 bits (``round(v / 257)``); a PNG or JPEG header announcing more than 50 megapixels is refused before
-    decoding. A multi-page TIFF gives its first page.
+    8 bits (``round(v / 257)``); a header announcing more pixels than the photo limit of
+    :mod:`scanner.photo` is refused before decoding, and so is any other kind of file. A multi-page TIFF
+    gives its first page (the one whose size its first directory gives).
     """
     try:
+        if path.stat().st_size > max_file_bytes(bytes_per_pixel=8):
+            raise PhotoError("the file is larger than an image within the pixel limit can be")
         data = path.read_bytes()
-        check_pixels(data, name=str(path))
+        if image_size(data) is None:
+            raise PhotoError("not a PNG, JPEG, BMP or TIFF file")
+        check_pixels(data, name=path.name)
     except (OSError, PhotoError) as exc:
         raise IngestError(f"{path}: cannot read the image ({exc})") from None
     image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)

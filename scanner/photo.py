@@ -31,6 +31,10 @@ MAX_SIDE = 16_384
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 JPEG_SIGNATURE = b"\xff\xd8\xff"
+BMP_SIGNATURE = b"BM"
+TIFF_SIGNATURES = {b"II*\x00": ("<", False), b"MM\x00*": (">", False), b"II+\x00": ("<", True),
+                   b"MM\x00+": (">", True)}
+"""Byte order and BigTIFF of the four TIFF signatures."""
 _JPEG_FRAME_MARKERS = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
 """Start-of-frame markers SOF0-SOF15; C4 (Huffman tables), C8 (reserved) and CC (arithmetic) are not."""
 
@@ -79,18 +83,53 @@ def _jpeg_size(data: bytes) -> tuple[int, int]:
     raise PhotoError("the JPEG file is damaged (no frame header)")
 
 
+def _bmp_size(data: bytes) -> tuple[int, int]:
+    """From the DIB header: 16-bit sides in the old OS/2 header (12 bytes), 32-bit (height signed) after."""
+    if len(data) < 26:
+        raise PhotoError("the BMP file is damaged (no image header)")
+    if struct.unpack_from("<I", data, 14)[0] == 12:
+        return struct.unpack_from("<HH", data, 18)
+    width, height = struct.unpack_from("<ii", data, 18)
+    return width, abs(height)
+
+
+def _tiff_size(data: bytes) -> tuple[int, int]:
+    """ImageWidth (tag 256) and ImageLength (257) of the first image file directory, the page decoded."""
+    order, big = TIFF_SIGNATURES[data[:4]]
+    count_format, entry, offset_format = ("Q", 20, "Q") if big else ("H", 12, "I")
+    try:
+        first = struct.unpack_from(order + offset_format, data, 8 if big else 4)[0]
+        (entries,) = struct.unpack_from(order + count_format, data, first)
+        start = first + struct.calcsize(count_format)
+        sides = {}
+        for k in range(min(entries, 4096)):
+            tag, kind = struct.unpack_from(order + "HH", data, start + k * entry)
+            if tag in (256, 257) and kind in (3, 4, 16):  # SHORT, LONG, LONG8
+                value_at = start + k * entry + (12 if big else 8)
+                sides[tag] = struct.unpack_from(order + {3: "H", 4: "I", 16: "Q"}[kind], data, value_at)[0]
+    except struct.error:
+        raise PhotoError("the TIFF file is damaged (no complete image directory)") from None
+    if len(sides) < 2:
+        raise PhotoError("the TIFF file is damaged (no image width and length)")
+    return sides[256], sides[257]
+
+
 def image_size(data: bytes) -> tuple[str, int, int] | None:
-    """``(kind, width, height)`` of PNG or JPEG bytes from the header alone, or None for other content.
+    """``(kind, width, height)`` of PNG, JPEG, BMP or TIFF bytes from the header alone, or None for others.
 
     Raises
     ------
     PhotoError
-        A PNG or JPEG signature with a damaged header.
+        One of these signatures with a damaged header.
     """
     if data.startswith(PNG_SIGNATURE):
         return ("PNG", *_png_size(data))
     if data.startswith(JPEG_SIGNATURE):
         return ("JPEG", *_jpeg_size(data))
+    if data.startswith(BMP_SIGNATURE):
+        return ("BMP", *_bmp_size(data))
+    if data[:4] in TIFF_SIGNATURES:
+        return ("TIFF", *_tiff_size(data))
     return None
 
 
@@ -110,7 +149,7 @@ def check_size(width: int, height: int, limit: int | None = None, name: str = "t
 
 
 def check_pixels(data: bytes, limit: int | None = None, name: str = "the photo") -> None:
-    """Refuse PNG/JPEG bytes whose header announces an empty image or one beyond the limit.
+    """Refuse PNG, JPEG, BMP or TIFF bytes whose header announces an empty image or one beyond the limit.
 
     Checked before decoding, so a small compressed file cannot expand into gigabytes. Other content
     passes here; :func:`decode` refuses it.
@@ -141,9 +180,10 @@ def decode(data: bytes, name: str = "the photo", limit: int | None = None) -> np
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
 
 
-def max_file_bytes(limit: int | None = None) -> int:
-    """The largest photo file worth reading: 4 bytes a pixel (an uncompressed RGBA PNG) and 1 MB of headers."""
-    return 4 * (max_pixels() if limit is None else limit) + (1 << 20)
+def max_file_bytes(limit: int | None = None, bytes_per_pixel: int = 4) -> int:
+    """The largest photo file worth reading: ``bytes_per_pixel`` (4: an uncompressed RGBA PNG; 8 for the
+    16-bit images :mod:`scanner.ingest` reads) for each pixel of the limit, and 1 MB of headers."""
+    return bytes_per_pixel * (max_pixels() if limit is None else limit) + (1 << 20)
 
 
 def read_photo(path: str | os.PathLike[str], name: str = "the photo", limit: int | None = None) -> np.ndarray:

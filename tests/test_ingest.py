@@ -270,6 +270,33 @@ def test_photos_of_every_kind_become_rgb_and_a_grid_cuts_them_into_patches(tmp_p
     assert np.array_equal(back["a_r1c1"].image(), rgb[20:40, 21:41]) and back["a_r1c1"].group == {"photo": "a"}
 
 
+def test_images_beyond_the_photo_limit_or_of_other_kinds_are_refused_before_decoding(tmp_path):
+    import struct
+
+    from conftest import png_bomb
+
+    folder = tmp_path / "lab" / "cork"
+    folder.mkdir(parents=True)
+    (folder / "bomb.png").write_bytes(png_bomb(20_000, 20_000))
+    bmp = b"BM" + bytes(12) + struct.pack("<Iii", 40, 100_000, -100_000) + bytes(64)
+    (folder / "huge.bmp").write_bytes(bmp)
+    entries = [(256, 4, 1, 70_000), (257, 4, 1, 70_000)]  # ImageWidth, ImageLength as LONGs
+    tiff = b"II*\x00" + struct.pack("<I", 8) + struct.pack("<H", len(entries)) + b"".join(
+        struct.pack("<HHII", *entry) for entry in entries) + bytes(4)
+    (folder / "tall.tif").write_bytes(tiff)
+    (folder / "photo.jpg").write_bytes(b"GIF89a" + bytes(64))
+    report = ingest.ingest(tmp_path / "lab", ingest.default_mapping("photos"))
+    assert report.recordings == []
+    assert sorted(line.split("/")[-1] for line in report.skipped if "cannot read" in line) == sorted([
+        "bomb.png: cannot read the image (bomb.png: the image has 400,000,000 pixels (20000 x 20000); at most "
+        "25,000,000 are accepted ($TEXPLORER_MAX_PHOTO_PIXELS))",
+        "huge.bmp: cannot read the image (huge.bmp: the image has 10,000,000,000 pixels (100000 x 100000); at "
+        "most 25,000,000 are accepted ($TEXPLORER_MAX_PHOTO_PIXELS))",
+        "tall.tif: cannot read the image (tall.tif: the image has 4,900,000,000 pixels (70000 x 70000); at most "
+        "25,000,000 are accepted ($TEXPLORER_MAX_PHOTO_PIXELS))",
+        "photo.jpg: cannot read the image (not a PNG, JPEG, BMP or TIFF file)"])
+
+
 def test_a_split_by_folder_is_kept_and_equal_names_get_ids_from_their_paths(tmp_path):
     from scipy.io import wavfile
 
