@@ -81,12 +81,12 @@ MEMORY = textwrap.dedent("""
 
 @linux_only
 def test_load_and_extract_stay_within_a_memory_limit_on_a_pixel_bomb_and_at_the_photo_limit(tmp_path):
-    # A 4 MP limit for the test (the default is 25 MP): three photos at the limit are extracted, the 20000 x
-    # 20000 bomb (1.2 GB decoded, 15 GB during extraction) is refused from its header, all in 1 GB.
-    run = _run(["-c", MEMORY, str(TESTS / "regression" / "scans"), str(tmp_path), "2000"],
-               env={"TEXPLORER_MAX_PHOTO_PIXELS": "4000000"}, timeout=180)
+    # A 2.25 MP limit for the test (the default is 25 MP): three photos exactly at the limit are extracted, the
+    # 20000 x 20000 bomb (1.2 GB decoded, 15 GB during extraction) is refused from its header, all in 1 GB.
+    run = _run(["-c", MEMORY, str(TESTS / "regression" / "scans"), str(tmp_path), "1500"],
+               env={"TEXPLORER_MAX_PHOTO_PIXELS": "2250000"}, timeout=180)
     assert run.returncode == 0, run.stderr[-3000:]
     lines = run.stdout.splitlines()
     assert lines[0] == ("bomb refused: photo s_disp.png: the image has 400,000,000 pixels (20000 x 20000); "
-                        "at most 4,000,000 are accepted ($TEXPLORER_MAX_PHOTO_PIXELS)")
+                        "at most 2,250,000 are accepted ($TEXPLORER_MAX_PHOTO_PIXELS)")
     assert lines[1] == "at the limit: 0 finite features fewer", lines
