@@ -43,7 +43,7 @@ import threading
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import TYPE_CHECKING
 
 from scanner.files import (
@@ -56,6 +56,7 @@ from scanner.files import (
 )
 from scanner.matfile import ScanFormatError, load_scan, photo_file_name, save_scan, scan_files
 from scanner.scan import IMAGES, Scan, ScanMeta, check_sample_id
+from scanner.stored import StoredScan
 from taxonomy.labels import parse_prefix
 
 if TYPE_CHECKING:
@@ -565,6 +566,15 @@ class Database:
         """Load scans lazily, all of them or those of ``records``."""
         for record in self.records() if records is None else records:
             yield load_scan(self.root / record.path, images=images)
+
+    @_catalog
+    def stored_scans(self, records: Iterable[ScanRecord]) -> list[StoredScan]:
+        """A loader of each record's scan that carries the catalogued size and SHA-256 of its files, so a
+        cluster worker loads exactly these bytes or none (:mod:`scanner.stored`); here it is ``load_scan``."""
+        catalogued: dict[str, dict[str, tuple[int, str]]] = {}
+        for scan_id, path, size, sha256 in self._conn.execute("SELECT scan_id, path, size, sha256 FROM files"):
+            catalogued.setdefault(scan_id, {})[PurePosixPath(path).name] = (size, sha256)
+        return [StoredScan(self.root / record.path, catalogued.get(record.scan_id, {})) for record in records]
 
     @_catalog
     def __len__(self) -> int:

@@ -18,7 +18,7 @@ import os
 import struct
 import zlib
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import scipy.io
 
@@ -156,34 +156,42 @@ def uncompressed_copy(path: str | os.PathLike[str], max_bytes: int) -> io.BytesI
         The file cannot be read.
     """
     path = Path(path)
-    size = path.stat().st_size
+    check_file_size(path.stat().st_size, max_bytes)
+    with open(path, "rb") as handle:
+        return _uncompressed(handle, max_bytes)
+
+
+def check_file_size(size: int, max_bytes: int) -> None:
+    """Refuse a file of ``size`` bytes beyond ``max_bytes`` before reading it (MatFileError)."""
     if size > max_bytes:
         raise MatFileError(f"{size / 1e6:.0f} MB is larger than the {max_bytes / 1e6:.0f} MB a scan file may have")
+
+
+def _uncompressed(handle: BinaryIO, max_bytes: int) -> io.BytesIO:
     out = io.BytesIO()
     total = 0
-    with open(path, "rb") as handle:
-        header = handle.read(HEADER_BYTES)
-        order = _header_order(header)
-        out.write(header)
-        while tag := handle.read(8):
-            if len(tag) < 8:
-                raise MatFileError("truncated variable")
-            kind, length = struct.unpack(order + "II", tag)
-            body = handle.read(length)
-            if len(body) < length:
-                raise MatFileError("truncated variable")
-            if kind == MI_COMPRESSED:
-                element = _inflate(body, max_bytes - total)
-            elif kind == MI_MATRIX:
-                element = tag + body
-            else:
-                raise MatFileError(f"unexpected top-level data type {kind}")
-            elements = _Elements(element, order)
-            end = elements.matrix(0, len(element), 0)
-            total += end
-            if total > max_bytes:
-                raise MatFileError("its variables inflate beyond the size limit")
-            out.write(elements.data[:end])
+    header = handle.read(HEADER_BYTES)
+    order = _header_order(header)
+    out.write(header)
+    while tag := handle.read(8):
+        if len(tag) < 8:
+            raise MatFileError("truncated variable")
+        kind, length = struct.unpack(order + "II", tag)
+        body = handle.read(length)
+        if len(body) < length:
+            raise MatFileError("truncated variable")
+        if kind == MI_COMPRESSED:
+            element = _inflate(body, max_bytes - total)
+        elif kind == MI_MATRIX:
+            element = tag + body
+        else:
+            raise MatFileError(f"unexpected top-level data type {kind}")
+        elements = _Elements(element, order)
+        end = elements.matrix(0, len(element), 0)
+        total += end
+        if total > max_bytes:
+            raise MatFileError("its variables inflate beyond the size limit")
+        out.write(elements.data[:end])
     out.seek(0)
     return out
 
@@ -194,7 +202,16 @@ def read_mat(path: str | os.PathLike[str], max_bytes: int, **options: Any) -> di
     Raises :class:`MatFileError` for anything wrong with the bytes, scipy's complaints included, and
     OSError when the file cannot be read.
     """
-    stream = uncompressed_copy(path, max_bytes)
+    return _loadmat(uncompressed_copy(path, max_bytes), options)
+
+
+def read_mat_bytes(data: bytes, max_bytes: int, **options: Any) -> dict[str, Any]:
+    """:func:`read_mat` of a file's bytes read elsewhere (a copy a cluster worker got from the client)."""
+    check_file_size(len(data), max_bytes)
+    return _loadmat(_uncompressed(io.BytesIO(data), max_bytes), options)
+
+
+def _loadmat(stream: io.BytesIO, options: dict[str, Any]) -> dict[str, Any]:
     try:
         return scipy.io.loadmat(stream, **options)
     except Exception as exc:  # scipy raises many types for malformed content; the bytes are bounded here

@@ -31,12 +31,13 @@ import math
 import os
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import scipy.io
 from scipy.io.matlab import mat_struct
 
+from scanner import mat5, photo
 from scanner.files import atomic_write_bytes, atomic_writer
 from scanner.mat5 import MatFileError, read_mat
 from scanner.photo import PhotoError, encode_png, read_photo
@@ -174,11 +175,30 @@ def _to_python(value: Any) -> Any:
     return value
 
 
-def _read_variables(path: Path) -> dict[str, Any]:
-    if not path.is_file():
+class FileView(Protocol):
+    """Where :func:`load_scan` finds a scan's files other than this machine's file system (a cluster worker
+    loading what the client sent, see :mod:`scanner.stored`). Each method answers for a path as
+    ``Path.is_file``, ``os.stat(path).st_size`` and ``Path.read_bytes`` do, raising the same ``OSError``s,
+    so every problem is reported as a local load reports it; a size beyond a limit is refused unread."""
+
+    def is_file(self, path: Path) -> bool: ...
+
+    def size(self, path: Path) -> int: ...
+
+    def read(self, path: Path) -> bytes: ...
+
+
+_MAT_OPTIONS = dict(squeeze_me=False, struct_as_record=False, chars_as_strings=True)
+
+
+def _read_variables(path: Path, files: FileView | None = None) -> dict[str, Any]:
+    if not (path.is_file() if files is None else files.is_file(path)):
         raise ScanFormatError(path, None, "file not found")
     try:
-        return read_mat(path, MAX_SCAN_BYTES, squeeze_me=False, struct_as_record=False, chars_as_strings=True)
+        if files is None:
+            return read_mat(path, MAX_SCAN_BYTES, **_MAT_OPTIONS)
+        mat5.check_file_size(files.size(path), MAX_SCAN_BYTES)
+        return mat5.read_mat_bytes(files.read(path), MAX_SCAN_BYTES, **_MAT_OPTIONS)
     except MatFileError as exc:
         raise ScanFormatError(path, None, f"not a readable MATLAB v5 .mat file ({exc})") from None
     except OSError as exc:
@@ -319,7 +339,17 @@ def _photo_name(path: Path, variable: str, value: Any) -> str:
     return name
 
 
-def _read_images(path: Path, variables: dict[str, Any]) -> dict[str, np.ndarray]:
+def photo_names(data: bytes) -> list[str]:
+    """The photo file names a ``.mat`` file's bytes name (plain names only), its traces left unread; [] if
+    the bytes are not a readable scan file."""
+    try:
+        variables = mat5.read_mat_bytes(data, MAX_SCAN_BYTES, variable_names=list(IMAGES), **_MAT_OPTIONS)
+        return [_photo_name(Path(), variable, variables[variable]) for variable in IMAGES if variable in variables]
+    except (MatFileError, ScanFormatError):  # the load that follows reports the problem, naming the file
+        return []
+
+
+def _read_images(path: Path, variables: dict[str, Any], files: FileView | None = None) -> dict[str, np.ndarray]:
     """The photos, each refused from its header if beyond the pixel limit (:mod:`scanner.photo`)."""
     images = {}
     for variable in IMAGES:
@@ -327,7 +357,11 @@ def _read_images(path: Path, variables: dict[str, Any]) -> dict[str, np.ndarray]
             continue
         name = _photo_name(path, variable, variables[variable])
         try:
-            images[variable] = read_photo(path.with_name(name), f"photo {name}")
+            if files is None:
+                images[variable] = read_photo(path.with_name(name), f"photo {name}")
+            else:
+                photo.check_file_size(files.size(path.with_name(name)), f"photo {name}")
+                images[variable] = photo.decode(files.read(path.with_name(name)), f"photo {name}")
         except PhotoError as exc:
             raise ScanFormatError(path, variable, str(exc)) from None
         except OSError as exc:
@@ -335,7 +369,7 @@ def _read_images(path: Path, variables: dict[str, Any]) -> dict[str, np.ndarray]
     return images
 
 
-def load_scan(path: str | os.PathLike[str], *, images: bool = True) -> Scan:
+def load_scan(path: str | os.PathLike[str], *, images: bool = True, files: FileView | None = None) -> Scan:
     """Read and validate a scan written by :func:`save_scan` (or by MATLAB in the same layout).
 
     Raises :class:`ScanFormatError` naming the file and field for a truncated, foreign or oversized file
@@ -345,14 +379,15 @@ def load_scan(path: str | os.PathLike[str], *, images: bool = True) -> Scan:
     beyond the pixel limit (checked from its header before decoding). No other exception comes out of it
     for any content of the files. Missing optional channels are fine. A file with ``meta.rigid`` = 1 that
     stores the fold loads with a :class:`ScanFormatWarning`: the stored fold wins (SPEC 7.1 item 10).
-    ``images=False`` skips the photos.
+    ``images=False`` skips the photos. ``files`` reads the ``.mat`` and its photos from elsewhere than this
+    machine's file system (:class:`FileView`); errors still name ``path``.
     """
     mat_path = Path(path)
-    variables = _read_variables(mat_path)
+    variables = _read_variables(mat_path, files)
     meta, scan_meta = _parse_meta(mat_path, variables)
     traces = _read_traces(mat_path, variables, meta)
     raw = _read_traces(mat_path, variables, meta, suffix="_raw") if _meta_flag(mat_path, meta, "raw_volts") else {}
-    photos = _read_images(mat_path, variables) if images else {}
+    photos = _read_images(mat_path, variables, files) if images else {}
     try:
         scan = Scan(scan_meta, traces, photos, raw)
     except ScanError as exc:

@@ -192,10 +192,14 @@ def read_photo(path: str | os.PathLike[str], name: str = "the photo", limit: int
     Raises PhotoError, or OSError if the file cannot be read.
     """
     path = Path(path)
-    size = path.stat().st_size
+    check_file_size(path.stat().st_size, name, limit)
+    return decode(path.read_bytes(), name, limit)
+
+
+def check_file_size(size: int, name: str = "the photo", limit: int | None = None) -> None:
+    """Refuse a photo file of ``size`` bytes, too large for the pixel limit, before reading it."""
     if size > max_file_bytes(limit):
         raise PhotoError(f"{name}: {size / 1e6:.0f} MB is more than a photo within the pixel limit can take")
-    return decode(path.read_bytes(), name, limit)
 
 
 def encode_png(rgb: np.ndarray) -> bytes:

@@ -1,0 +1,168 @@
+"""Stored scans loaded where they are processed: here, on a cluster worker that shares the storage, or on
+one that gets the files' bytes from this machine.
+
+A :class:`StoredScan` is what ``features.extract_many`` calls to load a scan. In a process of this machine
+it reads the ``.mat`` file and its photos as :func:`scanner.matfile.load_scan` always does. A Dask worker
+(``features.cluster``) first tries :meth:`StoredScan.load_seen`: the files at the same path as this machine
+names them (an absolute path on storage mounted alike everywhere, or a path relative to the directory the
+worker was started in), accepted only with the size and SHA-256 the catalog recorded, so a worker that has
+another database at that path never computes features for this one. A worker that cannot see the files
+(or sees other bytes) raises :class:`NotOnThisMachine`; the client then reads them itself and sends them
+as a :class:`ShippedScan`, which loads from those bytes and reports every problem exactly as a local load
+would, naming the file as this machine names it. Reading stays bounded: a file larger than a scan file or
+a photo may be is not read, its size alone travels and is refused on the worker as it would be here.
+"""
+
+from __future__ import annotations
+
+import errno
+import hashlib
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from scanner.matfile import MAX_SCAN_BYTES, load_scan, photo_names
+from scanner.photo import max_file_bytes
+from scanner.scan import Scan
+
+Catalogued = Mapping[str, tuple[int, str]]
+"""File name (the ``.mat`` and each photo) -> (size in bytes, SHA-256) as the catalog recorded them."""
+
+
+class NotOnThisMachine(Exception):
+    """A worker does not see a stored scan's file as the client does: missing, unreadable or other bytes."""
+
+
+@dataclass(frozen=True)
+class SentFile:
+    """A file as the client saw it: whether it is one, its size and its bytes, or the ``OSError`` that
+    asking raised. Bytes beyond what a load accepts stay unread (``None``): the size refuses them."""
+
+    is_file: bool
+    size: int | OSError
+    data: bytes | OSError | None
+
+
+def _sent(path: Path, limit: int) -> SentFile:
+    is_file = path.is_file()
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        return SentFile(is_file, exc, exc)
+    if size > limit:
+        return SentFile(is_file, size, None)
+    try:
+        return SentFile(is_file, size, path.read_bytes())
+    except OSError as exc:
+        return SentFile(is_file, size, exc)
+
+
+@dataclass(frozen=True)
+class ShippedScan:
+    """A stored scan's files as read on the client (file name -> :class:`SentFile`), loaded when called;
+    a :class:`scanner.matfile.FileView` that answers as this machine's file system did."""
+
+    path: Path
+    files: Mapping[str, SentFile]
+
+    def __call__(self) -> Scan:
+        return load_scan(self.path, files=self)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes carried."""
+        return sum(len(f.data) for f in self.files.values() if isinstance(f.data, bytes))
+
+    def is_file(self, path: Path) -> bool:
+        sent = self.files.get(path.name)
+        return sent is not None and sent.is_file
+
+    def size(self, path: Path) -> int:
+        return _value(self._sent(path).size)
+
+    def read(self, path: Path) -> bytes:
+        data = self._sent(path).data
+        if data is None:  # only after its size passed here: the limit differs on this worker
+            raise OSError(errno.EFBIG, "not sent, larger than the client accepts", str(path))
+        return _value(data)
+
+    def _sent(self, path: Path) -> SentFile:
+        sent = self.files.get(path.name)
+        if sent is None:  # a name the client did not read: the .mat did not name it
+            raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), str(path))
+        return sent
+
+
+def _value(value: int | bytes | OSError) -> int | bytes:
+    if isinstance(value, OSError):
+        raise value
+    return value
+
+
+@dataclass(frozen=True)
+class StoredScan:
+    """The scan stored at ``path`` (a ``.mat`` file with its photos beside it), loaded when called.
+
+    ``catalogued`` holds the size and SHA-256 of its files from the catalog; without it (files named on
+    the command line) a worker accepts whatever file it finds at ``path``.
+    """
+
+    path: Path
+    catalogued: Catalogued = field(default_factory=dict)
+
+    def __call__(self) -> Scan:
+        return load_scan(self.path)
+
+    def load_seen(self) -> Scan:
+        """Load from this machine's view of ``path``; :class:`NotOnThisMachine` if a file is missing,
+        unreadable or not the catalogued one (checked on the bytes that are then parsed)."""
+        return load_scan(self.path, files=SeenFiles(self.catalogued))
+
+    def visible(self) -> bool:
+        """Whether this machine sees the ``.mat`` file as catalogued (a worker answers for a whole run)."""
+        seen = SeenFiles(self.catalogued)
+        try:
+            if seen.is_file(self.path) and seen.size(self.path) <= MAX_SCAN_BYTES:
+                seen.read(self.path)
+        except NotOnThisMachine:
+            return False
+        return True
+
+    def shipped(self) -> ShippedScan:
+        """The ``.mat`` and the photos it names, read here for a worker that cannot see them."""
+        mat = _sent(self.path, MAX_SCAN_BYTES)
+        files = {self.path.name: mat}
+        if isinstance(mat.data, bytes):
+            files.update((name, _sent(self.path.with_name(name), max_file_bytes())) for name in photo_names(mat.data))
+        return ShippedScan(self.path, files)
+
+
+@dataclass(frozen=True)
+class SeenFiles:
+    """This machine's files as a :class:`scanner.matfile.FileView` that accepts only catalogued ones."""
+
+    catalogued: Catalogued
+
+    def is_file(self, path: Path) -> bool:
+        if not path.is_file():
+            raise NotOnThisMachine(f"{path}: no such file here")
+        return True
+
+    def size(self, path: Path) -> int:
+        try:
+            size = path.stat().st_size
+        except OSError as exc:
+            raise NotOnThisMachine(f"{path}: {exc.strerror or exc}") from None
+        if path.name in self.catalogued and size != self.catalogued[path.name][0]:
+            raise NotOnThisMachine(f"{path}: other content than catalogued (size differs)")
+        return size
+
+    def read(self, path: Path) -> bytes:
+        try:
+            data = path.read_bytes()
+        except OSError as exc:
+            raise NotOnThisMachine(f"{path}: {exc.strerror or exc}") from None
+        if path.name in self.catalogued and hashlib.sha256(data).hexdigest() != self.catalogued[path.name][1]:
+            raise NotOnThisMachine(f"{path}: other content than catalogued (SHA-256 differs)")
+        return data
