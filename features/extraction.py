@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Protocol
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from features import audio, image, other, tactum
@@ -146,11 +147,16 @@ def extract(scan: Scan) -> dict[str, float]:
     """The 193 named features of a scan in SPEC order (section 7); NaN where a value is undefined.
 
     Channels too short for their features count as missing (:func:`without_short_channels`).
+
+    BLAS runs on one thread: a product's summation order depends on its thread count, which would make
+    the last bits of a few features (Tamura contrast, MaCo, MaRG) differ between machines with other core
+    counts and between a process of this machine and a Dask worker (which starts with one BLAS thread).
     """
     scan = without_short_channels(scan)
-    disp = prepared_disp(scan)
-    values = {**tactum.compute(scan, disp=disp), **image_features(scan, disp), **audio_features(scan),
-              **other.compute(scan)}
+    with threadpool_limits(limits=1):
+        disp = prepared_disp(scan)
+        values = {**tactum.compute(scan, disp=disp), **image_features(scan, disp), **audio_features(scan),
+                  **other.compute(scan)}
     if tuple(values) != NAMES:
         # A programming error, not bad input.
         raise RuntimeError("feature modules returned names out of the fixed order of features.NAMES")
