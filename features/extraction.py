@@ -6,6 +6,7 @@ Order: 15 TacTUM, 93 image (disp, macro, illu x 31), 70 audio (finger, tool x 35
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import dataclasses
 import functools
 import hashlib
@@ -16,16 +17,20 @@ import warnings
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from features import audio, image, other, tactum
+from features import audio, cluster, image, other, tactum
 from features.space import FeatureSpace
 from scanner.preprocess import IMAGE_BORDER_PX, QualityError, slide_window
 from scanner.scan import IMAGES, Scan
+from scanner.stored import NotOnThisMachine
+
+if TYPE_CHECKING:
+    from distributed import Client
 
 AUDIO_SIGNALS = {"finger": ("v_fs", "a_fs"), "tool": ("v_ts", "a_ts")}
 """Audio feature prefix -> (vibration that fixes the slide window, audio channel)."""
@@ -198,19 +203,27 @@ def _extract_source(source: ScanSource) -> tuple[list[float] | None, str | None]
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # missing-channel warnings are expected on partial scans
             values = extract(source.load())
+    except NotOnThisMachine:
+        raise  # a cluster worker without the scan's files: the client sends them (features.cluster)
     except Exception as exc:  # one broken scan must not stop the others; reported with its id
         return None, f"{type(exc).__name__}: {exc}"
     return list(values.values()), None
 
 
 def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None, *,
-                 cache: FeatureCache | None = None, progress: bool = True) -> FeatureSpace:
+                 cache: FeatureCache | None = None, progress: bool = True, client: Client | None = None,
+                 ship_data: bool = False) -> FeatureSpace:
     """Features of many scans as a :class:`FeatureSpace`, rows in input order.
 
     ``workers`` processes (default: the number of cores; 1 = in this process). A scan that fails is
     reported in ``FeatureSpace.failed`` with its id and the reason, the others are kept. With a
     ``cache``, sources with a ``cache_key`` (the scan's content hash) are looked up first and stored after,
     keyed by :func:`code_version` too, so a second run over unchanged scans only reads the cache.
+
+    With a ``distributed.Client`` the uncached scans are extracted on its Dask cluster instead of
+    ``workers`` processes, with the same results; the cache is still read and written here only.
+    Workers read stored scans where they see them, else (or with ``ship_data``) this process sends each
+    scan's files: see :func:`features.cluster.extract`.
     """
     sources = [s if isinstance(s, ScanSource) else source_of(s) for s in scans]
     version = code_version()
@@ -226,13 +239,19 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     bar = tqdm(total=len(todo), desc="features", unit="scan", file=sys.stderr, disable=None if progress else True,
                leave=False)
     workers = max(1, min(workers or os.cpu_count() or 1, len(todo) or 1))
-    for i, (row, error) in _run(_extract_source, [sources[i] for i in todo], todo, workers, bar.update):
-        if error is not None:
-            errors[i] = error
-            continue
-        rows[i] = row
-        if cache is not None and sources[i].cache_key:
-            cache.store_features(sources[i].cache_key, version, dict(zip(NAMES, row, strict=True)))
+    if client is None:
+        results = _run(_extract_source, [sources[i] for i in todo], todo, workers, bar.update)
+    else:
+        results = cluster.extract(client, _extract_source, [sources[i] for i in todo], todo, bar.update,
+                                  version=code_version, ship_data=ship_data)
+    with contextlib.closing(results):  # leaving early (Ctrl-C) ends the workers' tasks now, not at exit
+        for i, (row, error) in results:
+            if error is not None:
+                errors[i] = error
+                continue
+            rows[i] = row
+            if cache is not None and sources[i].cache_key:
+                cache.store_features(sources[i].cache_key, version, dict(zip(NAMES, row, strict=True)))
     bar.close()
     kept = [i for i in range(len(sources)) if rows[i] is not None]
     return FeatureSpace(

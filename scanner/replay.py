@@ -15,7 +15,6 @@ delivers it to a guided session or a demo.
 
 from __future__ import annotations
 
-import functools
 import math
 import time
 from collections import Counter
@@ -29,8 +28,11 @@ import numpy as np
 from scanner.files import is_temp_file
 from scanner.matfile import load_scan
 from scanner.scan import CHANNELS, Scan
+from scanner.stored import StoredScan
 
 if TYPE_CHECKING:
+    from distributed import Client
+
     from features.space import FeatureSpace
     from taxonomy.models import TrainedModel
 
@@ -70,16 +72,18 @@ def scan_paths(paths: Iterable[str | Path]) -> list[Path]:
     return found
 
 
-def replay(paths: Sequence[Path], *, workers: int | None = None, progress: bool = True) -> FeatureSpace:
+def replay(paths: Sequence[Path], *, workers: int | None = None, progress: bool = True, client: Client | None = None,
+           ship_data: bool = False) -> FeatureSpace:
     """The 193 features of the scans stored at ``paths`` (rows in that order; failures in ``.failed``).
 
-    Each scan is loaded (validated) and extracted in a worker process; nothing is cached, so the numbers
-    are those of the current code.
+    Each scan is loaded (validated) and extracted in a worker process, or on the Dask cluster of
+    ``client`` (workers read the files at the same paths, or get them from here: ``extract_many``);
+    nothing is cached, so the numbers are those of the current code.
     """
     from features import ScanSource, extract_many
 
-    sources = [ScanSource(str(path), "", "", functools.partial(load_scan, path)) for path in paths]
-    return _identified(extract_many(sources, workers=workers, progress=progress))
+    sources = [ScanSource(str(path), "", "", StoredScan(path)) for path in paths]
+    return _identified(extract_many(sources, workers=workers, progress=progress, client=client, ship_data=ship_data))
 
 
 def _identified(space: FeatureSpace) -> FeatureSpace:

@@ -25,7 +25,9 @@ keeps every feature, without FQ selection.
 
 from __future__ import annotations
 
+import contextlib
 import re
+import sys
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -45,10 +47,14 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import MinMaxScaler
 from sklearn.svm import SVC
 from threadpoolctl import threadpool_limits
+from tqdm import tqdm
 
+from features import cluster
 from features.selection import FQSelector, KeepAll
 
 if TYPE_CHECKING:
+    from distributed import Client
+
     from features.space import FeatureSpace
 
 PROTOCOLS = ("nested", "paper")
@@ -353,7 +359,7 @@ def drop_nan_columns(space: FeatureSpace) -> tuple[FeatureSpace, tuple[str, ...]
 
 def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level: str = "fine",
              n_features: int | None = 10, folds: int = 5, seed: int = SEED, protocol: str = "nested",
-             feature_set: FeatureSet = None, use_split: bool = True) -> Report:
+             feature_set: FeatureSet = None, use_split: bool = True, client: Client | None = None) -> Report:
     """Cross-validate one classifier pipeline on ``space`` at classification ``level`` (paper section V-C).
 
     Parameters
@@ -377,6 +383,9 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
         Columns that hold NaN in any row are left out (listed in ``Report.dropped``).
     use_split : bool
         Use the space's own train/test split where it has one (``space.split``) instead of ``folds``.
+    client : distributed.Client, optional
+        Fit the folds on this Dask cluster (:mod:`features.cluster`) instead of in this process; the
+        report is the same.
 
     Returns
     -------
@@ -386,23 +395,24 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
     """
     cell = _Cell(space.check_level(level), _set_name(feature_set), feature_set, n_features)
     return _run(space, [classifier], [cell], folds, seed, protocol, workers=1, progress=False,
-                use_split=use_split)[0]
+                use_split=use_split, client=client)[0]
 
 
 def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator] = tuple(CLASSIFIERS),
                   levels: Iterable[str] | None = None, set_sizes: Iterable[int | None] = (3, 10),
                   feature_sets: Mapping[str, FeatureSet] | None = None, folds: int = 5, seed: int = SEED,
                   protocol: str = "nested", workers: int | None = None,
-                  progress: bool = False, use_split: bool = True) -> list[Report]:
+                  progress: bool = False, use_split: bool = True, client: Client | None = None) -> list[Report]:
     """Every classifier x feature set x level x set size (the paper's Figs. 16-18), folds in parallel.
 
     ``levels`` default to every level of the space (``space.level_names``); a set size None is ``all``.
 
     ``feature_sets`` maps a display name to a feature set (see :func:`evaluate`); the default is
     :data:`DEFAULT_FEATURE_SETS` restricted to the modalities present in ``space``. Each fold of each
-    (level, feature set, size) is one job in one of ``workers`` processes (default: all cores), the fine
-    level first because it takes longest; ``progress`` shows a bar. Reports come back ordered by
-    classifier, feature set, level and size, and equal those of :func:`evaluate` with the same arguments.
+    (level, feature set, size) is one job in one of ``workers`` processes (default: all cores), or one task
+    on the Dask cluster of ``client`` (each cell's data sent once), the fine level first because it takes
+    longest; ``progress`` shows a bar. Reports come back ordered by classifier, feature set, level and
+    size, and equal those of :func:`evaluate` with the same arguments.
     """
     classifiers = list(classifiers)
     levels = list(dict.fromkeys(space.check_level(level) for level in (levels or space.level_names)))
@@ -410,7 +420,7 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
     sets = dict(feature_sets) if feature_sets is not None else _present_feature_sets(space)
     cells = [_Cell(level, name, feature_set, size)
              for name, feature_set in sets.items() for level in levels for size in set_sizes]
-    reports = _run(space, classifiers, cells, folds, seed, protocol, workers, progress, use_split)
+    reports = _run(space, classifiers, cells, folds, seed, protocol, workers, progress, use_split, client)
     per_cell = len(classifiers)
     return [reports[c * per_cell + k] for k in range(per_cell) for c in range(len(cells))]
 
@@ -457,26 +467,29 @@ class _Prepared:
 
 
 def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells: Sequence[_Cell], folds: int,
-         seed: int, protocol: str, workers: int | None, progress: bool, use_split: bool = True) -> list[Report]:
+         seed: int, protocol: str, workers: int | None, progress: bool, use_split: bool = True,
+         client: Client | None = None) -> list[Report]:
     """Reports of every classifier in every cell, in that order (cells outer, classifiers inner)."""
     if protocol not in PROTOCOLS:
         raise EvaluationError(f"unknown protocol {protocol!r} (expected one of {', '.join(PROTOCOLS)})")
     prepared = [_prepare(space, cell, classifiers, folds, seed, protocol, use_split) for cell in cells]
     jobs = sorted(((c, f) for c, p in enumerate(prepared) for f in range(len(p.splits))),
                   key=lambda job: -space.level_names.index(cells[job[0]].level))
-    runner = Parallel(n_jobs=workers if workers is not None else -1, return_as="generator")
-    results = runner(delayed(_fold)(prepared[c], f, protocol) for c, f in jobs)
-    if progress:
-        import sys
-
-        from tqdm import tqdm
-
-        # disable=None hides the bar when stderr is not a terminal (logs, CI).
-        results = tqdm(results, total=len(jobs), desc="evaluating", unit="fold", file=sys.stderr, disable=None,
-                       leave=False)
+    # disable=None hides the bar when stderr is not a terminal (logs, CI).
+    bar = tqdm(total=len(jobs), desc="evaluating", unit="fold", file=sys.stderr, disable=None if progress else True,
+               leave=False)
+    if client is None:
+        runner = Parallel(n_jobs=workers if workers is not None else -1, return_as="generator")
+        results = (pair for pair in enumerate(runner(delayed(_fold)(prepared[c], f, protocol) for c, f in jobs)))
+    else:
+        on_cluster = client.scatter(prepared, hash=False)
+        results = cluster.run(client, _fold, [(on_cluster[c], f, protocol) for c, f in jobs], name="texplorer-fold")
     outcome: dict[tuple[int, int], tuple[list[np.ndarray], np.ndarray, tuple[str, ...]]] = {}
-    for job, result in zip(jobs, results, strict=True):
-        outcome[job] = result
+    with contextlib.closing(results):  # leaving early (Ctrl-C) cancels the cluster's remaining folds now
+        for j, result in results:
+            outcome[jobs[j]] = result
+            bar.update(1)
+    bar.close()
     reports = []
     for c, p in enumerate(prepared):
         per_fold = [outcome[(c, f)] for f in range(len(p.splits))]

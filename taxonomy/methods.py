@@ -44,12 +44,14 @@ to classify one row with the fitted model (rows timed one at a time, as a deploy
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from itertools import combinations
+from typing import TYPE_CHECKING
 
 import numpy as np
 from sklearn.base import BaseEstimator, ClassifierMixin, clone
@@ -67,10 +69,13 @@ from sklearn.svm import SVC, LinearSVC
 from sklearn.utils.validation import check_is_fitted
 from threadpoolctl import threadpool_limits
 
-from features import related
+from features import cluster, related
 from scanner.scan import Recording, Scan
 from taxonomy.evaluation import classifier_estimators, cv_splits
 from taxonomy.labels import Label
+
+if TYPE_CHECKING:
+    from distributed import Client
 
 SEED = 0
 REPEATS = 10
@@ -433,21 +438,38 @@ Maker = Callable[[int, np.ndarray], BaseEstimator]
 """``make(split_index, y_train)`` -> an unfitted model for that split."""
 
 
-def score(make: Maker, X: np.ndarray, y: np.ndarray, splits: Sequence[Split]) -> Scores:
-    """Fit ``make(k, y_train)`` on split k's training rows and score its predictions on the test rows."""
+def _fit_split(make: Maker, X: np.ndarray, y: np.ndarray, k: int, train: np.ndarray,
+               test: np.ndarray) -> tuple[np.ndarray, list[str], list[float], list[float]]:
+    """Split k: predictions of the test rows, the warnings of fitting, and for k = 0 the single-row times."""
+    feature: list[float] = []
+    classify: list[float] = []
+    with warnings.catch_warnings(record=True) as caught, threadpool_limits(limits=1):
+        warnings.simplefilter("always")
+        model = make(k, y[train]).fit(X[train], y[train])
+        predicted = model.predict(X[test])
+        if k == 0:
+            feature, classify = _single_row_seconds(model, X[test[:TIMED_ROWS]])
+    return predicted, _messages(caught), feature, classify
+
+
+def score(make: Maker, X: np.ndarray, y: np.ndarray, splits: Sequence[Split],
+          client: Client | None = None) -> Scores:
+    """Fit ``make(k, y_train)`` on split k's training rows and score its predictions on the test rows;
+    the splits one after the other here, or side by side on the Dask cluster of ``client``."""
+    calls = [(make, X, y, k, train, test) for k, (train, test) in enumerate(splits)]
+    if client is None:
+        fitted = [_fit_split(*call) for call in calls]
+    else:
+        fitted = [None] * len(calls)
+        with contextlib.closing(cluster.run(client, _fit_split, calls, name="texplorer-split")) as results:
+            for k, outcome in results:
+                fitted[k] = outcome
     classes = np.unique(y)
     confusion = np.zeros((classes.size, classes.size), dtype=np.int64)
     accuracy, f1, notes = [], [], []
-    feature: list[float] = []
-    classify: list[float] = []
-    for k, (train, test) in enumerate(splits):
-        with warnings.catch_warnings(record=True) as caught, threadpool_limits(limits=1):
-            warnings.simplefilter("always")
-            model = make(k, y[train]).fit(X[train], y[train])
-            predicted = model.predict(X[test])
-            if k == 0:
-                feature, classify = _single_row_seconds(model, X[test[:TIMED_ROWS]])
-        notes += _messages(caught)
+    feature, classify = fitted[0][2:] if fitted else ([], [])
+    for (_, test), (predicted, messages, _, _) in zip(splits, fitted, strict=True):
+        notes += messages
         accuracy.append(float(np.mean(predicted == y[test])))
         f1.append(float(f1_score(y[test], predicted, average="macro", zero_division=0.0)))
         confusion += confusion_matrix(y[test], predicted, labels=classes)
@@ -509,7 +531,8 @@ def usable_rows(extracted: Extracted, rows: Sequence[int]) -> tuple[np.ndarray, 
 
 # -- fishel ------------------------------------------------------------------------------------------
 
-def run_fishel(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int) -> list[MethodResult]:
+def run_fishel(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
+               client: Client | None = None) -> list[MethodResult]:
     """``fishel3`` with the project's six classifiers, 5-fold CV grouped by sample (fewer folds when a class
     has fewer scans), every taxonomy level."""
     extracted = cache.get("fishel3")
@@ -532,7 +555,7 @@ def run_fishel(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int) -
                                  ("classify", _without_probability(classifier_estimators(seed)[name]))])
             run = _Run("fishel", "fishel3", name, "tool slide + friction", level, protocol)
             seconds = float(np.nanmedian(extracted.seconds[rows]))
-            results.append(_result(run, score(make, X, y, splits), len(rows), seconds,
+            results.append(_result(run, score(make, X, y, splits, client), len(rows), seconds,
                                    [*notes, *_messages(caught)]))
     return results
 
@@ -608,7 +631,8 @@ def _slides_first(dataset: Dataset, rows: Sequence[int]) -> tuple[list[int], str
     return (slides, "slides") if slides else (list(rows), "all")
 
 
-def run_xie(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int) -> list[MethodResult]:
+def run_xie(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
+            client: Client | None = None) -> list[MethodResult]:
     """Xie et al.: PCA dimension swept per training fold with the linear SVM, then seven classifiers."""
     extracted = cache.get("xie_sequences")
     chosen, motions = _slides_first(dataset, range(len(dataset)))
@@ -628,7 +652,7 @@ def run_xie(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int) -> l
                 # The paper's k, at most the smallest training class (a class of 5 has no 10 neighbours).
                 k = min(neighbours, int(np.unique(y_train, return_counts=True)[1].min()))
                 return xie_pipeline(xie_classifier(name, k, seed), dims[fold])
-            scores = score(make, X, y, splits)
+            scores = score(make, X, y, splits, client)
             stages = (f"per sample: images -> sequences {1e3 * seconds:.2f} ms, standardised sequences -> "
                       f"11 features {1e3 * scores.feature_seconds:.2f} ms, PCA + classifier "
                       f"{1e6 * scores.classify_seconds:.0f} us; PCA dimensions per fold {dims}")
@@ -656,7 +680,8 @@ def huang_classifier(name: str, seed: int) -> BaseEstimator:
     }[name]()
 
 
-def run_huang(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int) -> list[MethodResult]:
+def run_huang(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
+              client: Client | None = None) -> list[MethodResult]:
     """Huang and Wu: seven band means, RBF SVM / random forest / kNN, 10-fold CV at the label level."""
     extracted = cache.get("huang7")
     chosen, motions = _slides_first(dataset, range(len(dataset)))
@@ -671,7 +696,7 @@ def run_huang(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int) ->
                    HUANG_PAPER[name])
         def make(_: int, __: np.ndarray, name: str = name) -> BaseEstimator:
             return huang_classifier(name, seed)
-        results.append(_result(run, score(make, X, y, splits), len(rows), seconds, notes))
+        results.append(_result(run, score(make, X, y, splits, client), len(rows), seconds, notes))
     return results
 
 
@@ -798,7 +823,8 @@ def palpation_table(dataset: Dataset, extracted: Extracted,
     return keys, np.array(table).reshape(len(keys), -1), first
 
 
-def run_chathuranga(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int) -> list[MethodResult]:
+def run_chathuranga(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
+                    client: Client | None = None) -> list[MethodResult]:
     """Chathuranga et al.: elimination over (up to) three palpations; the two single-palpation baselines."""
     c4 = cache.get("chathuranga4")
     per_trial = {}
@@ -816,7 +842,7 @@ def run_chathuranga(dataset: Dataset, cache: FeatureCache, seed: int, repeats: i
     seconds = float(np.nanmedian(c4.seconds[first])) * count
     run = _Run("chathuranga", "chathuranga4", "pairwise-svm", f"{count} palpation(s)", level, protocol,
                CHATHURANGA_PAPER["pairwise-svm"])
-    scores = score(lambda _, __: PairwiseEliminationSVM(palpations=count), X, y, splits)
+    scores = score(lambda _, __: PairwiseEliminationSVM(palpations=count), X, y, splits, client)
     results = [_result(run, scores, len(y), seconds)]
     baselines = {"spatial-period": ("chathuranga_period", NearestSpatialPeriod),
                  "neural-net": ("chathuranga_net", lambda: Pipeline([
@@ -839,8 +865,8 @@ def run_chathuranga(dataset: Dataset, cache: FeatureCache, seed: int, repeats: i
         X_b, y_b = extracted.X[usable], dataset.y(level, usable)
         b_splits = holdout_splits(y_b, len(splits), 1 / 6, seed)
         run = _Run("chathuranga", set_name, name, "1 palpation", level, protocol, CHATHURANGA_PAPER[name])
-        results.append(_result(run, score(lambda _, __, make=make: make(), X_b, y_b, b_splits), len(y_b),
-                               float(np.nanmedian(extracted.seconds[usable])), results_note))
+        scores = score(lambda _, __, make=make: make(), X_b, y_b, b_splits, client)
+        results.append(_result(run, scores, len(y_b), float(np.nanmedian(extracted.seconds[usable])), results_note))
     return results
 
 
@@ -1006,7 +1032,7 @@ def _motion_rows(dataset: Dataset, motion: str) -> list[int]:
 
 
 def _single_motion(dataset: Dataset, cache: FeatureCache, set_name: str, classifier: str, seed: int,
-                   repeats: int) -> MethodResult:
+                   repeats: int, client: Client | None = None) -> MethodResult:
     """One feature set and classifier on every motion separately; the accuracies of all motions together.
     Motions it cannot run on are noted; if that is every motion, a :class:`MethodError` says why."""
     extracted = cache.get(set_name)
@@ -1024,7 +1050,7 @@ def _single_motion(dataset: Dataset, cache: FeatureCache, set_name: str, classif
         def make(_: int, __: np.ndarray) -> Pipeline:
             return Pipeline([("features", hoelscher_features(set_name)),
                              ("classify", hoelscher_classifier(classifier, seed))])
-        result = score(make, extracted.X[np.ix_(rows, columns)], y, splits)
+        result = score(make, extracted.X[np.ix_(rows, columns)], y, splits, client)
         per_motion[motion] = float(np.mean(result.accuracy))
         scores.append(result)
         notes += dropped
@@ -1058,7 +1084,7 @@ def combined_table(dataset: Dataset, extracted: Extracted,
 
 
 def _combined(dataset: Dataset, cache: FeatureCache, mode: str, classifier: str, level: str,
-              protocol: str, seed: int, repeats: int) -> MethodResult | None:
+              protocol: str, seed: int, repeats: int, client: Client | None = None) -> MethodResult | None:
     extracted = cache.get("mean23")
     motions = dataset.motions()
     X, first = combined_table(dataset, extracted, motions)
@@ -1076,10 +1102,11 @@ def _combined(dataset: Dataset, cache: FeatureCache, mode: str, classifier: str,
     paper = HOELSCHER_PAPER.get(("mean23", classifier, mode), "") if level == dataset.label_level else ""
     run = _Run("hoelscher", "mean23", classifier, label, level, shown, paper)
     seconds = float(np.nanmedian(extracted.seconds[first])) * len(motions)
-    return _result(run, score(make, X, y, splits), len(first), seconds)
+    return _result(run, score(make, X, y, splits, client), len(first), seconds)
 
 
-def run_hoelscher(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int) -> list[MethodResult]:
+def run_hoelscher(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
+                  client: Client | None = None) -> list[MethodResult]:
     """Seed 004: every applicable feature set x classifier per motion, then motion combinations, the
     material-class level and held-out objects with the mean features."""
     sets = [s for s in HOELSCHER_SETS if _every(dataset, s)]
@@ -1087,7 +1114,7 @@ def run_hoelscher(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int
     for set_name in sets:
         for classifier in HOELSCHER_CLASSIFIERS:
             try:
-                results.append(_single_motion(dataset, cache, set_name, classifier, seed, repeats))
+                results.append(_single_motion(dataset, cache, set_name, classifier, seed, repeats, client))
             except MethodError as exc:
                 problems.append(str(exc))
     if not results:
@@ -1105,7 +1132,7 @@ def run_hoelscher(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int
                  ("concatenation", "linear-svm", level, "held-out objects")]
     for mode, classifier, level, protocol in runs:
         try:
-            result = _combined(dataset, cache, mode, classifier, level, protocol, seed, repeats)
+            result = _combined(dataset, cache, mode, classifier, level, protocol, seed, repeats, client)
         except MethodError as exc:
             warnings.warn(f"method hoelscher: {mode} of the motions ({classifier}, {level}, {protocol}) "
                           f"skipped: {exc}", MethodSkipped, stacklevel=2)
@@ -1125,7 +1152,7 @@ class Method:
     paper: str
     needs: str
     applies: Callable[[Dataset], bool]
-    run: Callable[[Dataset, FeatureCache, int, int], list[MethodResult]]
+    run: Callable[[Dataset, FeatureCache, int, int, Client | None], list[MethodResult]]
 
 
 def _every(dataset: Dataset, set_name: str) -> bool:
@@ -1220,8 +1247,8 @@ def compare_methods(dataset: Dataset | Sequence[Recording] | Sequence[Scan], met
 
 
 def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Sequence[str] | None = None, *,
-            seed: int = SEED, repeats: int = REPEATS,
-            progress: Callable[[Iterable[str]], Iterable[str]] = iter) -> list[MethodResult]:
+            seed: int = SEED, repeats: int = REPEATS, progress: Callable[[Iterable[str]], Iterable[str]] = iter,
+            client: Client | None = None) -> list[MethodResult]:
     """Run the related methods on one dataset, each with its published features, classifiers and protocol.
 
     Parameters
@@ -1238,6 +1265,9 @@ def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Se
         half as many, at least two).
     progress : callable
         Wraps the iteration over the methods (e.g. a tqdm bar).
+    client : distributed.Client, optional
+        Fit the splits of each configuration side by side on this Dask cluster (:mod:`features.cluster`)
+        instead of one after the other here; the scores are the same.
 
     Returns
     -------
@@ -1258,7 +1288,7 @@ def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Se
     results: list[MethodResult] = []
     for name in progress(names):
         try:
-            results += METHODS[name].run(data, cache, seed, repeats)
+            results += METHODS[name].run(data, cache, seed, repeats, client)
         except ValueError as exc:
             # A method the caller asked for must run; one merely applicable may find the data too small.
             reason = str(exc) if isinstance(exc, MethodError) else f"{type(exc).__name__}: {exc}"

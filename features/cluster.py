@@ -1,0 +1,301 @@
+"""Feature extraction and evaluation on a Dask cluster (``dask.distributed``) when one machine is not enough.
+
+Where the work runs is decided once per command by :func:`connect`:
+
+- nothing given: processes on this machine (the process pool of ``extract_many``, joblib for the
+  evaluation grid), as without Dask;
+- a running Dask scheduler, named by ``--scheduler tcp://HOST:PORT`` or by Dask's own configuration
+  (``scheduler-address``: the ``DASK_SCHEDULER_ADDRESS`` environment variable or a Dask YAML file), so a
+  lab that already runs Dask changes nothing;
+- ``local:N``: a ``LocalCluster`` of N single-threaded worker processes on this machine, with Dask's
+  dashboard.
+
+The process that connects (the client) alone reads the catalog and writes the feature cache: workers only
+compute and return numbers, so SQLite is never written from two machines. Cached features are looked up
+before anything is submitted. Every task runs the same functions as a local process does, so results
+equal the local run bit for bit; they are yielded in completion order and placed by their index.
+
+Where the data lives (:func:`extract`): a worker reads a stored scan from the path the client names when
+it sees the catalogued bytes there (shared storage); otherwise the client reads the files and sends them
+(``ship_data``, chosen automatically when a worker cannot see the path, and per scan for a worker that
+joins later). A worker that dies costs its tasks a rerun elsewhere (Dask's scheduler reruns a task up to
+``distributed.scheduler.allowed-failures`` times, then the scan is reported as failed). Leaving a run early
+(Ctrl-C, an error) cancels every task still submitted.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import itertools
+import os
+import uuid
+import warnings
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
+
+from threadpoolctl import threadpool_limits
+
+from scanner.stored import NotOnThisMachine
+
+if TYPE_CHECKING:
+    from distributed import Client, Future
+
+LOCAL = "local"
+"""``local`` or ``local:N``: a LocalCluster of N worker processes here (default: one per core)."""
+
+SHIP_WINDOW_PER_THREAD = 2
+"""Scans whose files are in flight per worker thread when the client sends them: enough to keep every
+worker busy while the next files travel, few enough to bound the memory of the client and the workers."""
+
+Item = TypeVar("Item")
+
+
+class ClusterError(ValueError):
+    """The cluster cannot run the work as asked (no Dask, unreachable scheduler, mismatched workers)."""
+
+
+class DataShipped(UserWarning):
+    """Workers do not see the database's files, so the client sends each scan's bytes."""
+
+
+# -- connecting --------------------------------------------------------------------------------------
+
+def _distributed():
+    try:
+        import distributed
+    except ImportError:
+        raise ClusterError("running on a Dask cluster needs dask.distributed: "
+                           "pip install 'texplorer[cluster]'") from None
+    return distributed
+
+
+def scheduler_address(scheduler: str | None = None) -> str | None:
+    """The scheduler to use: ``scheduler`` if given, else Dask's configured ``scheduler-address``
+    (``DASK_SCHEDULER_ADDRESS`` or a Dask YAML file), else None for processes on this machine."""
+    if scheduler:
+        return scheduler.strip()
+    try:
+        import dask.config
+    except ImportError:
+        if os.environ.get("DASK_SCHEDULER_ADDRESS"):
+            _distributed()  # the user asked for Dask: say what is missing
+        return None
+    return dask.config.get("scheduler-address", None) or None
+
+
+def local_workers(address: str) -> int | None:
+    """N of ``local:N`` (None for ``local``: one worker per core); ClusterError for anything else."""
+    _, _, count = address.partition(":")
+    if not count:
+        return None
+    if not count.isdigit() or int(count) < 1:
+        raise ClusterError(f"--scheduler {address}: expected local:N with N >= 1 worker processes")
+    return int(count)
+
+
+@contextlib.contextmanager
+def connect(scheduler: str | None = None) -> Iterator[Client | None]:
+    """A ``distributed.Client`` for the scheduler :func:`scheduler_address` names, closed on exit (with
+    the LocalCluster of ``local:N``); None when no scheduler is named or configured."""
+    address = scheduler_address(scheduler)
+    if address is None:
+        yield None
+        return
+    distributed = _distributed()
+    if address == LOCAL or address.startswith(LOCAL + ":"):
+        n = local_workers(address)
+        with distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True) as cluster, \
+                distributed.Client(cluster) as client:
+            yield client
+        return
+    try:  # waits as long as Dask's distributed.comm.timeouts.connect (30 s unless configured)
+        client = distributed.Client(address)
+    except (OSError, ValueError, TypeError) as exc:
+        raise ClusterError(f"cannot connect to the Dask scheduler at {address}: {exc}") from None
+    with client:
+        yield client
+
+
+def describe(client: Client) -> str:
+    """``2 workers (2 threads) at tcp://127.0.0.1:8786, dashboard http://127.0.0.1:8787/status``."""
+    threads = client.nthreads()
+    dashboard = client.dashboard_link if client.scheduler_info().get("services", {}).get("dashboard") else None
+    return (f"{len(threads)} worker(s) ({sum(threads.values())} threads) at {client.scheduler.address}"
+            + (f", dashboard {dashboard}" if dashboard else ", no dashboard"))
+
+
+# -- running tasks -----------------------------------------------------------------------------------
+
+def run(client: Client, fn: Callable[..., Any], calls: Sequence[tuple], *, name: str,
+        tick: Callable[[int], object] | None = None) -> Iterator[tuple[int, Any]]:
+    """``(i, fn(*calls[i]))`` for every call, each a task on the cluster, in completion order.
+
+    Arguments may be futures (``client.scatter``) that several calls share. An exception raised by a
+    call is raised here; leaving the iteration early (Ctrl-C, an error) cancels what is left.
+    """
+    distributed = _distributed()
+    token = uuid.uuid4().hex
+    futures = {client.submit(_pinned, fn, *args, key=f"{name}-{token}-{i}", pure=False): i
+               for i, args in enumerate(calls)}
+    try:
+        for future in distributed.as_completed(futures, loop=client.loop):
+            result = future.result()
+            if tick is not None:
+                tick(1)
+            yield futures.pop(future), result
+    finally:
+        _cancel(client, futures)
+
+
+def _pinned(fn: Callable[..., Any], *args: Any) -> Any:
+    """On a worker: ``fn(*args)`` with BLAS on one thread for good, as in a process of this machine.
+
+    Not restored afterwards: tasks in other threads of the worker must never see a limit being lifted
+    (``threadpool_limits`` changes the whole process).
+    """
+    threadpool_limits(limits=1)
+    return fn(*args)
+
+
+def _cancel(client: Client, futures: Iterable[Future]) -> None:
+    pending = [f for f in futures if not f.done()]
+    if pending:
+        client.cancel(pending)
+
+
+# -- feature extraction ------------------------------------------------------------------------------
+
+class StoredLoader(Protocol):
+    """A ``ScanSource.load`` that reads stored files (``scanner.stored.StoredScan``)."""
+
+    path: Any
+
+    def __call__(self) -> Any: ...
+
+    def load_seen(self) -> Any: ...
+
+    def visible(self) -> bool: ...
+
+    def shipped(self) -> Callable[[], Any]: ...
+
+
+def _stored(source: Any) -> StoredLoader | None:
+    load = source.load
+    return load if all(callable(getattr(load, m, None)) for m in ("load_seen", "visible", "shipped")) else None
+
+
+def _versioned(fn: Callable[[Item], Any], version: Callable[[], str], item: Item) -> tuple[Any, str, str]:
+    """On a worker: ``fn(item)`` (BLAS pinned as by :func:`_pinned`), the worker's feature code version and
+    its address."""
+    from distributed import get_worker
+
+    return _pinned(fn, item), version(), get_worker().address
+
+
+def blind_workers(client: Client, loader: StoredLoader) -> list[str]:
+    """Workers that do not see ``loader``'s stored file as the client does (each reads it once)."""
+    answers = client.run(loader.visible)
+    return sorted(worker for worker, seen in answers.items() if not seen)
+
+
+def extract(client: Client, fn: Callable[[Item], Any], sources: Sequence[Item], indices: Sequence[int],
+            tick: Callable[[int], object], *, version: Callable[[], str],
+            ship_data: bool = False) -> Iterator[tuple[int, Any]]:
+    """``(index, fn(source))`` for every source, computed on the cluster, in completion order.
+
+    ``sources`` are ``ScanSource``-like (a ``load`` attribute). Stored scans are read by the workers from
+    the path the client names, unless ``ship_data`` or a worker does not see the first one as catalogued
+    (:func:`blind_workers`, with a :class:`DataShipped` warning): then the client reads each scan's files
+    and scatters them to a worker, at most :data:`SHIP_WINDOW_PER_THREAD` per worker thread at a time. A
+    task whose worker cannot see its scan (``NotOnThisMachine``) is sent again with the bytes. Other
+    sources (scans in memory) travel with their task. Every result must come from the feature code
+    ``version()`` of this machine, or the run stops with a :class:`ClusterError`. A scan whose task
+    killed its workers is reported as its failure ``(None, reason)``, and so is one whose files were
+    lost with their worker more often than Dask's ``allowed-failures`` (each loss sends them again).
+    """
+    distributed = _distributed()
+    if not ship_data:
+        first = next((loader for loader in map(_stored, sources) if loader is not None), None)
+        blind = blind_workers(client, first) if first is not None else []
+        if blind:
+            warnings.warn(f"{len(blind)} Dask worker(s) do not see {first.path} as catalogued "
+                          f"({', '.join(blind)}); this machine sends each scan's files", DataShipped,
+                          stacklevel=3)
+            ship_data = True
+    import dask.config
+
+    expected = version()
+    allowed_losses = int(dask.config.get("distributed.scheduler.allowed-failures"))
+    losses: dict[int, int] = {}
+    token, submissions = uuid.uuid4().hex, itertools.count()
+    queue = deque((index, source, ship_data) for index, source in zip(indices, sources, strict=True))
+    in_flight: dict[Future, tuple[int, Any, bool]] = {}
+    completed = distributed.as_completed(loop=client.loop)
+
+    def submit() -> None:
+        window = None
+        while queue:
+            index, source, ship = queue[0]
+            heavy = _heavy(source, ship)
+            if heavy:
+                window = window or _ship_window(client)
+                if sum(_heavy(s, sh) for _, s, sh in in_flight.values()) >= window:
+                    return
+            queue.popleft()
+            payload = _payload(source, ship)
+            if heavy:
+                payload = client.scatter(payload, hash=False)
+            # A key per submission: one sent again must not meet the cancelled future of its first key.
+            future = client.submit(_versioned, fn, version, payload,
+                                   key=f"texplorer-extract-{token}-{next(submissions)}", pure=False)
+            in_flight[future] = (index, source, ship)
+            completed.add(future)
+
+    try:
+        submit()
+        for future in completed:
+            index, source, ship = in_flight.pop(future)
+            try:
+                result, worker_version, worker = future.result()
+            except NotOnThisMachine:
+                queue.appendleft((index, source, True))
+                submit()
+                continue
+            except distributed.CancelledError:
+                if not ship or losses.get(index, 0) >= allowed_losses:
+                    raise
+                losses[index] = losses.get(index, 0) + 1  # the worker holding its files died: send them again
+                queue.appendleft((index, source, True))
+                submit()
+                continue
+            except distributed.KilledWorker as exc:
+                result = None, (f"KilledWorker: {exc.allowed_failures + 1} Dask workers died while extracting "
+                                f"this scan (the last {exc.last_worker.address}); see their logs")
+            else:
+                if worker_version != expected:
+                    raise ClusterError(f"Dask worker {worker} runs feature code {worker_version}, this machine "
+                                       f"{expected}: install the same texplorer on the workers")
+            tick(1)
+            yield index, result
+            submit()
+    finally:
+        _cancel(client, in_flight)
+
+
+def _payload(source: Any, ship: bool) -> Any:
+    """What a task gets: the source reading the worker's view of its files, or carrying their bytes."""
+    loader = _stored(source)
+    if loader is None:
+        return source
+    return dataclasses.replace(source, load=loader.shipped() if ship else loader.load_seen)
+
+
+def _heavy(source: Any, ship: bool) -> bool:
+    """Whether a task carries scan data (files sent by the client, or a scan in memory)."""
+    return ship or _stored(source) is None
+
+
+def _ship_window(client: Client) -> int:
+    return SHIP_WINDOW_PER_THREAD * max(1, sum(client.nthreads().values()))
