@@ -41,6 +41,7 @@ never split one recording's windows. Photos are not windowed.
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import math
 import os
 import sys
@@ -48,15 +49,20 @@ import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import signal
+from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from features import audio, image, other, tactum
+from features import audio, cluster, image, other, tactum
 from features.space import FeatureSpace
 from scanner.preprocess import BAND_HZ, dft321
 from scanner.scan import Recording, Trace
+
+if TYPE_CHECKING:
+    from distributed import Client
 
 VIBRATION_AUDIO_MIN_FS = 1000.0
 """Lowest vibration rate the audio features are computed on (see the module docstring)."""
@@ -326,7 +332,8 @@ def set_levels(recordings: Sequence[Recording]) -> tuple[str, dict[str, list[str
 
 def _extract_one(job: tuple[Recording, Windowing, int, tuple[str, ...]]) -> tuple[list[dict[str, float]], list[str]]:
     recording, windowing, border, applied = job
-    with warnings.catch_warnings(record=True) as caught:
+    # One BLAS thread, as features.extract: the same bits here, in a pool and on a Dask worker.
+    with warnings.catch_warnings(record=True) as caught, threadpool_limits(limits=1):
         warnings.simplefilter("always")
         rows = recording_rows(recording, windowing, border, [f for f in applied if f in families(recording)])
     messages = (str(w.message) for w in caught)
@@ -335,15 +342,16 @@ def _extract_one(job: tuple[Recording, Windowing, int, tuple[str, ...]]) -> tupl
 
 
 def feature_space(recordings: Sequence[Recording], windowing: Windowing = Windowing(), border: int = 0,
-                  group_by: str | None = "auto", workers: int | None = 1,
-                  progress: bool = False) -> tuple[FeatureSpace, list[str]]:
+                  group_by: str | None = "auto", workers: int | None = 1, progress: bool = False,
+                  client: Client | None = None) -> tuple[FeatureSpace, list[str]]:
     """The feature space of a set of recordings with its own labels, levels, groups and split, and the
     warnings raised while extracting (one line each, naming the recording).
 
     Columns are every family that applies to at least one recording (:func:`families`), in the order of
     :data:`FAMILY_ORDER`; a recording without a family's role has NaN there (evaluation then leaves the
     column out). Rows are in recording order (windows in time order with ``combine = "rows"``).
-    ``workers`` processes (1: in this process, None: one per core).
+    ``workers`` processes (1: in this process, None: one per core), or the Dask cluster of ``client``
+    (:mod:`features.cluster`; the recordings are sent from here, the values are the same).
 
     Raises
     ------
@@ -365,7 +373,7 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
                                     "photo or force_xyz")
     columns = tuple(name for family in applied for name in family_names(family))
     jobs = [(r, windowing, border, applied) for r in recordings]
-    results = _map(_extract_one, jobs, workers, progress)
+    results = _map(_extract_one, jobs, workers, progress, client)
     label_level, levels = set_levels(recordings)
     X, ids, labels, groups, level_rows, split, notes = [], [], [], [], {k: [] for k in levels}, [], []
     has_split = all(r.meta.get("split") in ("train", "test") for r in recordings)
@@ -385,13 +393,21 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     return space, list(dict.fromkeys(notes))
 
 
-def _map(function: Callable, jobs: Sequence, workers: int | None, progress: bool) -> list:
-    """``function`` of every job, in order, in this process or a process pool, with a progress bar."""
+def _map(function: Callable, jobs: Sequence, workers: int | None, progress: bool,
+         client: Client | None = None) -> list:
+    """``function`` of every job, in order, in this process, a process pool or on a Dask cluster, with a
+    progress bar."""
     bar = tqdm(total=len(jobs), desc="features", unit="recording", file=sys.stderr,
                disable=None if progress else True, leave=False)
     workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
     results: list = [None] * len(jobs)
-    if workers == 1:
+    if client is not None:
+        on_cluster = client.scatter(list(jobs), hash=False)  # recordings travel once, not inside the tasks
+        with contextlib.closing(cluster.run(client, function, [(job,) for job in on_cluster],
+                                            name="texplorer-recording", tick=bar.update)) as done:
+            for i, result in done:
+                results[i] = result
+    elif workers == 1:
         for i, job in enumerate(jobs):
             results[i] = function(job)
             bar.update(1)

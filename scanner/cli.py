@@ -7,11 +7,13 @@ Every subcommand that uses a database takes ``--db PATH`` (default ``$TEXPLORER_
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import textwrap
 import time
-from collections.abc import Callable, Iterable, Sequence
+import warnings
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 
 from tqdm import tqdm
@@ -44,6 +46,32 @@ def progress(description: str) -> Callable[[Iterable], Iterable]:
 
 def _open_db(args: argparse.Namespace, *, create: bool = False) -> Database:
     return Database(args.db, create=create)
+
+
+@contextlib.contextmanager
+def _cluster(args: argparse.Namespace) -> Iterator:
+    """The Dask client of ``--scheduler``, else of Dask's configuration (``DASK_SCHEDULER_ADDRESS``), or
+    None for processes on this machine; an explicit ``--workers`` means processes on this machine."""
+    from features.cluster import ClusterError, connect, describe
+
+    workers = getattr(args, "workers", None)
+    if args.scheduler and workers:
+        raise ClusterError("--workers sets processes on this machine, --scheduler a Dask cluster: give one")
+    if workers:
+        yield None
+        return
+    with connect(args.scheduler) as client:
+        if client is None:
+            yield None
+            return
+        print(f"dask: {describe(client)}", file=sys.stderr)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            yield client
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"texplorer: warning: {message}", file=sys.stderr)
 
 
 # -- db ----------------------------------------------------------------------------------------------
@@ -123,18 +151,18 @@ def cmd_db_rebuild(args: argparse.Namespace) -> int:
 
 # -- features ----------------------------------------------------------------------------------------
 
-def feature_space(db: Database, workers: int | None, label: str | None = None):
-    """Extract (or read from the cache) the 193 features of every scan in ``db``."""
-    import functools
-
+def feature_space(db: Database, workers: int | None, label: str | None = None, *, client=None,
+                  ship_data: bool = False):
+    """Extract (or read from the cache) the 193 features of every scan in ``db``, on the Dask cluster of
+    ``client`` if given (the catalog and the cache are read and written here only)."""
     from features import ScanSource, extract_many
-    from scanner.matfile import load_scan
 
-    sources = [ScanSource(r.scan_id, r.label, r.sample_id, functools.partial(load_scan, db.root / r.path),
-                          cache_key=r.content_hash) for r in db.records(label=label)]
+    records = db.records(label=label)
+    sources = [ScanSource(r.scan_id, r.label, r.sample_id, stored, cache_key=r.content_hash)
+               for r, stored in zip(records, db.stored_scans(records), strict=True)]
     if not sources:
         raise DatabaseError(f"{db.root}: no scans{f' with label {label}' if label else ''} to extract")
-    return extract_many(sources, workers=workers, cache=db)
+    return extract_many(sources, workers=workers, cache=db, client=client, ship_data=ship_data)
 
 
 def _report_space(space, seconds: float) -> None:
@@ -152,7 +180,8 @@ def cmd_features(args: argparse.Namespace) -> int:
         return cmd_set_features(args)
     db = _open_db(args)
     started = time.perf_counter()
-    space = feature_space(db, args.workers, args.label)
+    with _cluster(args) as client:
+        space = feature_space(db, args.workers, args.label, client=client, ship_data=args.ship_data)
     _report_space(space, time.perf_counter() - started)
     out = args.out or db.root / "features.csv"
     space.to_csv(out)
@@ -259,7 +288,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
         model = load_model(args.model)
     expected = FeatureSpace.from_csv(args.expect) if args.expect else None
     started = time.perf_counter()
-    space = replay(paths, workers=args.workers)
+    with _cluster(args) as client:
+        space = replay(paths, workers=args.workers, client=client, ship_data=args.ship_data)
     seconds = time.perf_counter() - started
     _print_replay(space, predictions(space, model, args.k) if model else None, model.level if model else None)
     for path, reason in space.failed:
@@ -583,8 +613,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     dataset = comparison_dataset(args.dataset, args.db, args.seed)
     print(dataset.summary())
-    comparison = compare_methods(dataset, args.methods, seed=args.seed, repeats=args.repeats,
-                                 progress=progress("comparing"))
+    with _cluster(args) as client:
+        comparison = compare_methods(dataset, args.methods, seed=args.seed, repeats=args.repeats,
+                                     progress=progress("comparing"), client=client)
     print(comparison.format_outcome())
     results = comparison.results
     if not results:
@@ -604,13 +635,13 @@ def cmd_compare(args: argparse.Namespace) -> int:
 ALL = "all"
 
 
-def _space_for(args: argparse.Namespace):
+def _space_for(args: argparse.Namespace, client=None):
     """The feature space of ``--features CSV`` if given, else of the database (from its feature cache)."""
     from features import FeatureSpace
 
     if args.features:
         return FeatureSpace.from_csv(args.features)
-    space = feature_space(_open_db(args), args.workers)
+    space = feature_space(_open_db(args), args.workers, client=client, ship_data=args.ship_data)
     for scan_id, reason in space.failed:
         print(f"texplorer: warning: {scan_id} left out: {reason}", file=sys.stderr)
     return space
@@ -623,7 +654,8 @@ def _choices(values: list[str], every: Sequence[str]) -> list[str]:
 def cmd_select(args: argparse.Namespace) -> int:
     from features.selection import select_features
 
-    space = _space_for(args)
+    with _cluster(args) as client:
+        space = _space_for(args, client)
     print(select_features(space, args.level, args.n, args.max_corr).format(args.top))
     return 0
 
@@ -646,8 +678,9 @@ def set_sizes(values: Sequence[str] | None, default: Sequence[str]) -> list[int 
     return list(dict.fromkeys(sizes))
 
 
-def run_evaluation(space, args: argparse.Namespace) -> list:
-    """Evaluate the grid asked for on the command line; print the table; write the HTML report if asked."""
+def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
+    """Evaluate the grid asked for on the command line (on the Dask cluster of ``client`` if given);
+    print the table; write the HTML report if asked."""
     from taxonomy.evaluation import CLASSIFIERS, DEFAULT_FEATURE_SETS, evaluate_grid
     from taxonomy.report import format_table, write_report
 
@@ -658,7 +691,8 @@ def run_evaluation(space, args: argparse.Namespace) -> list:
     sizes = set_sizes(args.n, ("3", "10", ALL) if space.label_level is not None else ("3", "10"))
     started = time.perf_counter()
     reports = evaluate_grid(space, classifiers, levels, sizes, sets, folds=args.folds, seed=args.seed,
-                            protocol=args.protocol, workers=args.workers, progress=True, use_split=use_split)
+                            protocol=args.protocol, workers=args.workers, progress=True, use_split=use_split,
+                            client=client)
     print(format_table(reports))
     splitting = reports[0].splitting if reports else f"{args.folds} folds"
     print(f"{len(reports)} evaluations ({args.protocol} protocol, {splitting}) "
@@ -673,7 +707,8 @@ def run_evaluation(space, args: argparse.Namespace) -> list:
 def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.dataset:
         return cmd_set_evaluate(args)
-    run_evaluation(_space_for(args), args)
+    with _cluster(args) as client:
+        run_evaluation(_space_for(args, client), args, client)
     return 0
 
 
@@ -688,16 +723,17 @@ def set_recordings(spec: str, db: Path) -> tuple[str, list]:
     return spec[4:], load_recordings(set_folder(db, spec[4:]))
 
 
-def set_space(args: argparse.Namespace):
-    """The feature space of ``set:NAME`` with the windowing, crop and grouping asked for; prints a summary
-    line and the extraction warnings (a count, all with --verbose)."""
+def set_space(args: argparse.Namespace, client=None):
+    """The feature space of ``set:NAME`` with the windowing, crop and grouping asked for (on the Dask cluster
+    of ``client`` if given); prints a summary line and the extraction warnings (a count, all with
+    --verbose)."""
     from features.recordings import Windowing, describe_families, feature_space
 
     name, recordings = set_recordings(args.dataset, args.db)
     windowing = Windowing(args.window, args.combine)
     started = time.perf_counter()
     space, notes = feature_space(recordings, windowing, args.border, args.group_by, workers=args.workers,
-                                 progress=True)
+                                 progress=True, client=client)
     for note in notes if args.verbose else notes[:3]:
         print(f"texplorer: warning: {one_line(note)}", file=sys.stderr)
     if len(notes) > 3 and not args.verbose:
@@ -714,7 +750,8 @@ def set_space(args: argparse.Namespace):
 def cmd_set_features(args: argparse.Namespace) -> int:
     from scanner.ingest import set_folder
 
-    space = set_space(args)
+    with _cluster(args) as client:
+        space = set_space(args, client)
     out = args.out or set_folder(args.db, args.dataset[4:]) / "features.csv"
     print(f"wrote {space.to_csv(out)}")
     if args.mat:
@@ -725,8 +762,9 @@ def cmd_set_features(args: argparse.Namespace) -> int:
 def cmd_set_evaluate(args: argparse.Namespace) -> int:
     if args.features:
         raise ValueError("give either a set (set:NAME) or --features CSV, not both")
-    space = set_space(args)
-    reports = run_evaluation(space, args)
+    with _cluster(args) as client:
+        space = set_space(args, client)
+        reports = run_evaluation(space, args, client)
     return 0 if reports else EXIT_ERROR
 
 
@@ -749,7 +787,9 @@ def _add_set_options(parser: argparse.ArgumentParser) -> None:
 def cmd_train(args: argparse.Namespace) -> int:
     from taxonomy.models import save_model, train_model
 
-    model = train_model(_space_for(args), args.level, args.n, args.classifier, args.seed)
+    with _cluster(args) as client:
+        space = _space_for(args, client)
+    model = train_model(space, args.level, args.n, args.classifier, args.seed)
     save_model(model, args.out)
     print(model.describe())
     print(f"wrote {args.out}")
@@ -788,14 +828,15 @@ def cmd_demo(args: argparse.Namespace) -> int:
     for record in db.records():
         by_class[record.label[:2]] = by_class.get(record.label[:2], 0) + 1
     print("scans per major class: " + ", ".join(f"{c} {n}" for c, n in sorted(by_class.items())))
-    started = time.perf_counter()
-    space = feature_space(db, args.workers)
-    _report_space(space, time.perf_counter() - started)
-    print(f"wrote {space.to_csv(db.root / 'features.csv')}")
-    if args.no_evaluation:
-        return 0
-    args.report = args.report or db.root / "report"
-    run_evaluation(space, args)
+    with _cluster(args) as client:
+        started = time.perf_counter()
+        space = feature_space(db, args.workers, client=client, ship_data=args.ship_data)
+        _report_space(space, time.perf_counter() - started)
+        print(f"wrote {space.to_csv(db.root / 'features.csv')}")
+        if args.no_evaluation:
+            return 0
+        args.report = args.report or db.root / "report"
+        run_evaluation(space, args, client)
     from taxonomy.models import save_model, train_model
 
     model = train_model(space, "fine", 10, "rf", args.seed)
@@ -818,11 +859,21 @@ CLASSIFIER_NAMES = ("svm", "lda", "knn", "mlp", "rf", "nb")
 FEATURE_SETS = ("tactum", "image", "audio", "other")
 
 
+def _add_cluster_options(parser: argparse.ArgumentParser, ship: bool = True) -> None:
+    parser.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster: tcp://HOST:PORT of its "
+                        "scheduler, or local:N for N worker processes here with Dask's dashboard (default: "
+                        "Dask's scheduler-address, e.g. $DASK_SCHEDULER_ADDRESS, else processes on this machine)")
+    if ship:
+        parser.add_argument("--ship-data", action="store_true", help="send each scan's files from this machine "
+                            "to the Dask workers (automatic for workers that do not see them at the same path)")
+
+
 def _add_space_options(parser: argparse.ArgumentParser) -> None:
     _add_db_option(parser)
     parser.add_argument("--features", type=Path, help="feature table CSV (default: extract from the database, "
                         "using its feature cache)")
     parser.add_argument("--workers", type=int, help="processes (default: number of cores)")
+    _add_cluster_options(parser)
 
 
 def _add_evaluation_options(parser: argparse.ArgumentParser, report_default: str | None, seed: bool = True) -> None:
@@ -863,6 +914,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--workers", type=int, help="processes for simulation, features and evaluation "
                       "(default: number of cores)")
     demo.add_argument("--no-evaluation", action="store_true", help="stop after the feature table")
+    _add_cluster_options(demo)
     _add_evaluation_options(demo, report_default="<db>/report", seed=False)
     demo.set_defaults(handler=cmd_demo)
 
@@ -876,6 +928,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "<db>/recordings/<set>/features.csv)")
     features.add_argument("--mat", type=Path, help="also write the feature space as a .mat file")
     features.add_argument("--label", help="only scans with this label or class prefix")
+    _add_cluster_options(features)
     features.set_defaults(handler=cmd_features)
 
     select = commands.add_parser("select", help="print the FQ ranking and the selected feature set",
@@ -987,6 +1040,7 @@ def build_parser() -> argparse.ArgumentParser:
     replaying.add_argument("--pace", type=float, metavar="SPEED", help="first play each scan step by step in "
                            "real time at this speed (1 = as recorded), printing each step's levels")
     replaying.add_argument("--workers", type=int, help="processes (default: number of cores)")
+    _add_cluster_options(replaying)
     replaying.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
     replaying.set_defaults(handler=cmd_replay)
     scanning = commands.add_parser(
@@ -1087,6 +1141,7 @@ def build_parser() -> argparse.ArgumentParser:
                            "classifiers (default 0)")
     comparing.add_argument("--report", type=Path, help="HTML report folder (default <db>/reports/compare-"
                            "<dataset>, or ./compare-<dataset> without a database folder)")
+    _add_cluster_options(comparing, ship=False)
     comparing.set_defaults(handler=cmd_compare)
     return parser
 

@@ -1219,15 +1219,17 @@ class Comparison:
 
 def compare_methods(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Sequence[str] | None = None,
                     *, seed: int = SEED, repeats: int = REPEATS,
-                    progress: Callable[[Iterable[str]], Iterable[str]] = iter) -> Comparison:
-    """:func:`compare`, with the outcome of every method: ``ran (n results)`` (and the parts it skipped),
-    or ``not run:`` the role or value it lacks, or why the data could not feed it."""
+                    progress: Callable[[Iterable[str]], Iterable[str]] = iter,
+                    client: Client | None = None) -> Comparison:
+    """:func:`compare` (on the Dask cluster of ``client`` if given), with the outcome of every method:
+    ``ran (n results)`` (and the parts it skipped), or ``not run:`` the role or value it lacks, or why the
+    data could not feed it."""
     data = _as_dataset(dataset)
     outcome = {name: f"not run: {reason}" for name in METHODS
                if methods is None and (reason := not_applicable(data, name))}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", MethodSkipped)
-        results = compare(data, methods, seed=seed, repeats=repeats, progress=progress)
+        results = compare(data, methods, seed=seed, repeats=repeats, progress=progress, client=client)
     skipped = [str(w.message) for w in caught if issubclass(w.category, MethodSkipped)]
     for w in caught:
         if not issubclass(w.category, MethodSkipped):
