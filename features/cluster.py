@@ -28,7 +28,10 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import itertools
+import logging
 import os
+import signal
+import threading
 import uuid
 import warnings
 from collections import deque
@@ -106,8 +109,9 @@ def connect(scheduler: str | None = None) -> Iterator[Client | None]:
     distributed = _distributed()
     if address == LOCAL or address.startswith(LOCAL + ":"):
         n = local_workers(address)
-        with distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True) as cluster, \
-                distributed.Client(cluster) as client:
+        # Errors only: a cancelled task's warnings (Ctrl-C) are not news; the dashboard shows the rest.
+        with distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, preload=[__name__],
+                                      silence_logs=logging.ERROR) as cluster, distributed.Client(cluster) as client:
             yield client
         return
     try:  # waits as long as Dask's distributed.comm.timeouts.connect (30 s unless configured)
@@ -116,6 +120,16 @@ def connect(scheduler: str | None = None) -> Iterator[Client | None]:
         raise ClusterError(f"cannot connect to the Dask scheduler at {address}: {exc}") from None
     with client:
         yield client
+
+
+def dask_setup(worker: Any) -> None:
+    """Run by each worker of ``local:N`` as it starts (a Dask preload): ignore Ctrl-C.
+
+    The workers share the terminal, whose Ctrl-C is meant for texplorer; texplorer then cancels the work
+    and closes the cluster with its workers. Left alone, every worker would also print a traceback.
+    """
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def describe(client: Client) -> str:

@@ -129,6 +129,21 @@ def test_cli_refuses_both_workers_and_scheduler_and_an_unreachable_scheduler(pri
         "texplorer: error: cannot connect to the Dask scheduler at tcp://127.0.0.1:9: ")
 
 
+def test_local_n_starts_a_local_cluster_with_the_dashboard(pristine, tmp_path, capsys):
+    from scanner.cli import main
+
+    with connect("local:1") as client:
+        assert len(client.nthreads()) == 1 and client.scheduler.address.startswith("tcp://127.0.0.1:")
+        # Its workers leave the terminal's Ctrl-C to texplorer, which closes them with the cluster.
+        assert list(client.run(lambda: signal.getsignal(signal.SIGINT) == signal.SIG_IGN).values()) == [True]
+    root = fresh_copy(pristine, tmp_path)
+    assert main(["features", "--db", str(root), "--scheduler", "local:1"]) == 0
+    err = capsys.readouterr().err
+    assert "dask: 1 worker(s) (1 threads) at tcp://127.0.0.1:" in err and ", dashboard http://127.0.0.1:" in err
+    reference = extract_many(sources_of(Database(pristine)), workers=1, progress=False)
+    assert same_bits(FeatureSpace.from_csv(root / "features.csv"), reference)
+
+
 # -- a LocalCluster of two worker processes -----------------------------------------------------------
 
 def test_local_cluster_equals_the_serial_run_and_reports_failures_as_the_pool(local_cluster, damaged, serial):
