@@ -230,6 +230,8 @@ def extract(client: Client, fn: Callable[[Item], Any], sources: Sequence[Item], 
     lost with their worker more often than Dask's ``allowed-failures`` (each loss sends them again).
     """
     distributed = _distributed()
+    import dask.config
+
     if not ship_data:
         first = next((loader for loader in map(_stored, sources) if loader is not None), None)
         blind = blind_workers(client, first) if first is not None else []
@@ -238,8 +240,6 @@ def extract(client: Client, fn: Callable[[Item], Any], sources: Sequence[Item], 
                           f"({', '.join(blind)}); this machine sends each scan's files", DataShipped,
                           stacklevel=3)
             ship_data = True
-    import dask.config
-
     expected = version()
     allowed_losses = int(dask.config.get("distributed.scheduler.allowed-failures"))
     losses: dict[int, int] = {}
@@ -278,12 +278,15 @@ def extract(client: Client, fn: Callable[[Item], Any], sources: Sequence[Item], 
                 submit()
                 continue
             except distributed.CancelledError:
-                if not ship or losses.get(index, 0) >= allowed_losses:
-                    raise
-                losses[index] = losses.get(index, 0) + 1  # the worker holding its files died: send them again
-                queue.appendleft((index, source, True))
-                submit()
-                continue
+                if not _heavy(source, ship):
+                    raise  # cancelled by someone else
+                losses[index] = losses.get(index, 0) + 1
+                if losses[index] <= allowed_losses:  # the worker holding its scattered data died: send it again
+                    queue.appendleft((index, source, ship))
+                    submit()
+                    continue
+                result = None, (f"KilledWorker: {losses[index]} Dask workers holding this scan's data died before "
+                                f"its features came back; see their logs")
             except distributed.KilledWorker as exc:
                 result = None, (f"KilledWorker: {exc.allowed_failures + 1} Dask workers died while extracting "
                                 f"this scan (the last {exc.last_worker.address}); see their logs")

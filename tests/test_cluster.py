@@ -9,12 +9,14 @@ import _thread
 import dataclasses
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
 import sys
 import threading
 import time
+import types
 import warnings
 from pathlib import Path
 
@@ -267,6 +269,29 @@ def test_a_worker_killed_mid_run_costs_a_retry_not_the_run(local_cluster, pristi
     assert space.failed == ()
     assert space.X.tobytes() == np.vstack([reference.X] * 3).tobytes() and space.scan_ids == reference.scan_ids * 3
     assert victim not in local_cluster.scheduler_info()["workers"]  # it really died (the nanny starts a new one)
+
+
+def test_a_scan_that_kills_every_worker_it_meets_is_reported_and_the_others_kept(pristine):
+    import dask.config
+
+    sources = sources_of(Database(pristine))[:2]
+    # One scan in memory (sent with its task) and one read from storage by the worker, each killing it.
+    in_memory = ScanSource("killer-001", "C1S1M1P1X1", "killer", lambda: os._exit(1))
+    stored = types.SimpleNamespace(path=Path("killer-002.mat"), visible=lambda: True, load_seen=lambda: os._exit(1),
+                                   shipped=lambda: None)
+    killers = [in_memory, ScanSource("killer-002", "C1S1M1P1X1", "killer", stored)]
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}), distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, dashboard_address=None, host="127.0.0.1") as cluster, \
+            distributed.Client(cluster) as client:
+        space = extract_many([sources[0], *killers, sources[1]], client=client, progress=False)
+    assert same_bits(space, dataclasses.replace(extract_many(sources, workers=1, progress=False), failed=space.failed))
+    assert [scan_id for scan_id, _ in space.failed] == ["killer-001", "killer-002"]
+    # The worker that dies may hold the scattered scan (it is sent again) or only run the task (Dask reruns it).
+    assert re.fullmatch(r"KilledWorker: 2 Dask workers (died while extracting this scan \(the last "
+                        r"tcp://127\.0\.0\.1:\d+\)|holding this scan's data died before its features came "
+                        r"back); see their logs", space.failed[0][1])
+    assert re.fullmatch(r"KilledWorker: 2 Dask workers died while extracting this scan \(the last "
+                        r"tcp://127\.0\.0\.1:\d+\); see their logs", space.failed[1][1])
 
 
 # -- scheduler and workers started as `dask scheduler` / `dask worker` ----------------------------------
