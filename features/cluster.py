@@ -32,6 +32,7 @@ import logging
 import os
 import signal
 import threading
+import time
 import uuid
 import warnings
 from collections import deque
@@ -260,7 +261,7 @@ def extract(client: Client, fn: Callable[[Item], Any], sources: Sequence[Item], 
             queue.popleft()
             payload = _payload(source, ship)
             if heavy:
-                payload = client.scatter(payload, hash=False)
+                payload = _scatter(client, payload, allowed_losses + 1)
             # A key per submission: one sent again must not meet the cancelled future of its first key.
             future = client.submit(_versioned, fn, version, payload,
                                    key=f"texplorer-extract-{token}-{next(submissions)}", pure=False)
@@ -307,6 +308,16 @@ def _payload(source: Any, ship: bool) -> Any:
     if loader is None:
         return source
     return dataclasses.replace(source, load=loader.shipped() if ship else loader.load_seen)
+
+
+def _scatter(client: Client, payload: Any, attempts: int) -> Future:
+    """``client.scatter``, again when the worker it sent the data to died meanwhile."""
+    for attempt in range(1, attempts):
+        try:
+            return client.scatter(payload, hash=False)
+        except OSError:  # the dying worker's connection closed; the scheduler soon stops choosing it
+            time.sleep(0.1 * attempt)
+    return client.scatter(payload, hash=False)
 
 
 def _heavy(source: Any, ship: bool) -> bool:

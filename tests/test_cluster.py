@@ -207,6 +207,18 @@ def test_evaluation_and_compare_on_the_cluster_equal_the_local_run(local_cluster
         [(r.classifier, r.accuracy.tolist(), r.f1.tolist(), r.confusion.tolist(), r.notes) for r in alone]
 
 
+def test_a_recording_set_on_the_cluster_equals_the_local_run(local_cluster):
+    from test_recording_features import recording
+
+    from features import recordings
+    from features.recordings import Windowing
+
+    rs = [recording(1.0, f"r{i}", object=f"o{i // 2}") for i in range(4)]
+    here, notes = recordings.feature_space(rs, Windowing(0.5, "rows"), workers=1)
+    there, cluster_notes = recordings.feature_space(rs, Windowing(0.5, "rows"), client=local_cluster)
+    assert same_bits(there, here) and cluster_notes == notes and len(notes) == 4
+
+
 def test_ctrl_c_cancels_the_submitted_work_and_leaves_the_cache_consistent(local_cluster, pristine, tmp_path):
     db = Database(fresh_copy(pristine, tmp_path))
     sources = sources_of(db) * 4  # duplicates share a cache key: enough work to be interrupted
