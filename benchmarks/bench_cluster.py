@@ -151,7 +151,7 @@ def main() -> None:
         sources = [ScanSource(r.scan_id, r.label, r.sample_id, stored, cache_key=r.content_hash)
                    for r, stored in zip(records, db.stored_scans(records), strict=True)]
         n = len(sources)
-        shipped_mb = sum(s.load.shipped().size for s in sources) / n / 1e6
+        shipped_mb = sum(s.load.shipped().nbytes for s in sources) / n / 1e6
         start = time.perf_counter()
         with LocalCluster(n_workers=WORKERS, threads_per_worker=1, processes=True, dashboard_address=None,
                           host="127.0.0.1") as local, Client(local) as client:
