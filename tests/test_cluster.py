@@ -287,16 +287,19 @@ def test_a_scan_that_kills_every_worker_it_meets_is_reported_and_the_others_kept
     import dask.config
 
     sources = sources_of(Database(pristine))[:2]
-    # One scan in memory (sent with its task) and one read from storage by the worker, each killing it.
-    in_memory = ScanSource("killer-001", "C1S1M1P1X1", "killer", lambda: os._exit(1))
-    stored = types.SimpleNamespace(path=Path("killer-002.mat"), visible=lambda: True, load_seen=lambda: os._exit(1),
-                                   shipped=lambda: None)
+    # One scan in memory (sent with its task) and one read from storage by the worker, each killing it
+    # after a while: Dask counts a death against every task the worker held, and the two scans before them
+    # (run first, in the order submitted) must be done by then to be innocent of it.
+    in_memory = ScanSource("killer-001", "C1S1M1P1X1", "killer", lambda: (time.sleep(2), os._exit(1)))
+    stored = types.SimpleNamespace(path=Path("killer-002.mat"), visible=lambda: True, shipped=lambda: None,
+                                   load_seen=lambda: (time.sleep(2), os._exit(1)))
     killers = [in_memory, ScanSource("killer-002", "C1S1M1P1X1", "killer", stored)]
     with dask.config.set({"distributed.scheduler.allowed-failures": 1}), distributed.LocalCluster(
             n_workers=2, threads_per_worker=1, dashboard_address=None, host="127.0.0.1") as cluster, \
             distributed.Client(cluster) as client:
-        space = extract_many([sources[0], *killers, sources[1]], client=client, progress=False)
-    assert same_bits(space, dataclasses.replace(extract_many(sources, workers=1, progress=False), failed=space.failed))
+        space = extract_many([*sources, *killers], client=client, progress=False)
+    reference = extract_many(sources, workers=1, progress=False)
+    assert same_bits(space, dataclasses.replace(reference, failed=space.failed))
     assert [scan_id for scan_id, _ in space.failed] == ["killer-001", "killer-002"]
     # The worker that dies may hold the scattered scan (it is sent again) or only run the task (Dask reruns it).
     assert re.fullmatch(r"KilledWorker: 2 Dask workers (died while extracting this scan \(the last "

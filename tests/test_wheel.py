@@ -18,6 +18,9 @@ from pathlib import Path
 
 import pytest
 
+# One xdist worker builds the wheel for every test here: two builds at once share the tree's build/ folder.
+pytestmark = pytest.mark.xdist_group("wheel")
+
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("scanner", "features", "taxonomy", "gui")
 
