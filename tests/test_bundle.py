@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -83,7 +84,9 @@ def _tree(root: Path) -> dict[str, bytes]:
 
 def _catalog(root: Path) -> dict[str, list[tuple]]:
     """Every catalog table's rows, without the time each scan was added."""
-    with sqlite3.connect(root / "catalog.sqlite") as conn:
+    # Closed here, not whenever the garbage collector gets to it: the last connection to close deletes
+    # the WAL file, which a copy of the folder running meanwhile would miss.
+    with contextlib.closing(sqlite3.connect(root / "catalog.sqlite")) as conn:
         tables = {t: conn.execute(f"SELECT * FROM {t} ORDER BY 1").fetchall()
                   for t in ("materials", "samples", "sessions", "files")}
         tables["scans"] = conn.execute(
