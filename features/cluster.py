@@ -42,6 +42,7 @@ from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 from threadpoolctl import threadpool_limits
 
 from scanner.stored import NotOnThisMachine
+from taxonomy.errors import TexplorerError
 
 if TYPE_CHECKING:
     from distributed import Client, Future
@@ -56,7 +57,7 @@ worker busy while the next files travel, few enough to bound the memory of the c
 Item = TypeVar("Item")
 
 
-class ClusterError(ValueError):
+class ClusterError(TexplorerError, ValueError):
     """The cluster cannot run the work as asked (no Dask, unreachable scheduler, mismatched workers)."""
 
 

@@ -22,6 +22,7 @@ from scipy import optimize, signal
 from features.tactum import MissingDataWarning, spectral_centroid
 from scanner.preprocess import NO_SLIDE, QualityError, band_limit, dft321, slide_signal, slide_start, slide_window
 from scanner.scan import Scan, Trace
+from taxonomy.errors import TexplorerError
 
 NAMES = (
     "other.density", "other.metal", "other.magnet_mean", "other.magnet_peak", "other.reflect_static",
@@ -309,7 +310,7 @@ def tap_features(a: np.ndarray, fs: float = VIBRATION_FS) -> tuple[float, float,
 
 # --- the scan -----------------------------------------------------------------------------------------
 
-class _Unavailable(Exception):
+class _Unavailable(TexplorerError):
     """An input of a feature group is missing or fails its check; the message names it."""
 
 

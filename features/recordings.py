@@ -60,6 +60,7 @@ from features import audio, cluster, image, other, tactum
 from features.space import FeatureSpace
 from scanner.preprocess import BAND_HZ, dft321
 from scanner.scan import Recording, Trace
+from taxonomy.errors import TexplorerError
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -83,7 +84,7 @@ AUDIO_CHUNK_FRAMES = 256
 """Frames computed at once on a long recording (bounded memory: ~4 MB per array at 44.1 kHz)."""
 
 
-class RecordingFeatureError(ValueError):
+class RecordingFeatureError(TexplorerError, ValueError):
     """A recording or option the feature families cannot use; the message names it."""
 
 

@@ -39,9 +39,10 @@ from sklearn.utils.validation import check_is_fitted
 from features.tactum import frs, mico
 from scanner.preprocess import QualityError, band_limit, dft321, remove_friction_offset, slide_signal
 from scanner.scan import Recording, Scan, Trace
+from taxonomy.errors import TexplorerError
 
 
-class RelatedFeatureError(ValueError):
+class RelatedFeatureError(TexplorerError, ValueError):
     """Input a related-work feature set cannot use; the message names the set and what is wrong."""
 
 

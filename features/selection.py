@@ -25,6 +25,8 @@ from sklearn.base import BaseEstimator
 from sklearn.feature_selection import SelectorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from taxonomy.errors import TexplorerError
+
 SF_TOLERANCE = 1e-9
 """Largest absolute error allowed for a studentized-range p-value taken from the interpolation table."""
 
@@ -37,7 +39,7 @@ _SF_FIRST_STEP = 0.01
 _SF_REFINEMENTS = 4
 
 
-class SelectionError(ValueError):
+class SelectionError(TexplorerError, ValueError):
     """Input that feature quality or selection cannot work on; the message names what is wrong."""
 
 

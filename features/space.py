@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import scipy.io
 
+from taxonomy.errors import TexplorerError
 from taxonomy.labels import LEVELS, Label, check_level
 
 MODALITIES = ("tactum", "image", "audio", "other")
@@ -40,7 +41,7 @@ SPLITS = ("train", "test")
 """The parts of a set's own split."""
 
 
-class FeatureSpaceError(ValueError):
+class FeatureSpaceError(TexplorerError, ValueError):
     """A feature space or feature file is inconsistent; the message names what is wrong."""
 
 

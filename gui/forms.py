@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 from scanner.scan import JUDGED_SCALE, ScanError, ScanMeta, check_sample_id
 from scanner.session import T_AMB_RANGE, VOLUME_METHODS
+from taxonomy.errors import TexplorerError
 from taxonomy.labels import LabelError, parse_prefix
 from taxonomy.table import Taxonomy, UnknownLabelError
 
@@ -67,7 +68,7 @@ class OperatorValues:
     notes: str
 
 
-class FormErrors(ValueError):
+class FormErrors(TexplorerError, ValueError):
     """The form has invalid fields; ``errors`` maps each field name to the reason shown beside it."""
 
     def __init__(self, errors: Mapping[str, str]) -> None:

@@ -23,6 +23,7 @@ from typing import Any
 
 from gui.photos import PhotoStore
 from scanner.session import Session, SessionState
+from taxonomy.errors import TexplorerError
 
 WATCHDOG_PERIOD_S = 0.25
 
@@ -58,7 +59,7 @@ class Operation:
         return self.session.running and level is not None and level.phase == "heating"
 
 
-class SessionBusy(RuntimeError):
+class SessionBusy(TexplorerError, RuntimeError):
     """A session is already running; the scanner has one set of devices."""
 
 

@@ -19,13 +19,14 @@ import numpy as np
 
 from scanner.files import atomic_write_bytes
 from scanner.photo import DEFAULT_MAX_PIXELS, PhotoError, check_pixels, decode, encode_png
+from taxonomy.errors import TexplorerError
 
 DEFAULT_MAX_BYTES = 20 * 1024 * 1024
 
 _STAGED_NAME = re.compile(r"^[0-9a-f]{32}\.png$")
 
 
-class UploadError(ValueError):
+class UploadError(TexplorerError, ValueError):
     """An uploaded photo is refused; the message is one line for the operator."""
 
 

@@ -20,12 +20,14 @@ from scanner.scan import (
     ScanMeta,
     Trace,
 )
+from taxonomy.errors import TexplorerError
 
 __version__ = "0.1.0"
 
 __all__ = [
     "CHANNELS", "IMAGES", "JUDGED_SCALE", "ROLES", "SCHEMA_VERSION", "VOLUME_METHODS",
-    "Database", "DatabaseError", "Recording", "Scan", "ScanError", "ScanFormatError", "ScanMeta", "Trace",
+    "Database", "DatabaseError", "Recording", "Scan", "ScanError", "ScanFormatError", "ScanMeta", "TexplorerError",
+    "Trace",
     "__version__", "load_scan", "save_scan",
 ]
 

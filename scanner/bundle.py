@@ -64,6 +64,7 @@ from scanner.database import STAGING_PREFIX, Database, FileEntry, ScanRecord, co
 from scanner.files import atomic_write_bytes, fsync_dir, owned_folder, temp_path_for
 from scanner.matfile import ScanFormatError, load_scan, photo_file_name
 from scanner.scan import IMAGES, SCHEMA_VERSION, ScanMeta
+from taxonomy.errors import TexplorerError
 
 BUNDLE_FORMAT = "texplorer-bundle"
 BUNDLE_SCHEMA = 1
@@ -94,7 +95,7 @@ _SCAN_FIELDS: dict[str, type] = {"scan_id": str, "label": str, "sample_id": str,
 Progress = Callable[[Iterable], Iterable]
 
 
-class BundleError(ValueError):
+class BundleError(TexplorerError, ValueError):
     """A bundle cannot be written or is refused; ``problems`` lists every reason found, one line each."""
 
     def __init__(self, message: str, problems: Sequence[str] = ()) -> None:

@@ -21,9 +21,8 @@ from tqdm import tqdm
 import scanner
 from scanner.database import Database, DatabaseError, is_database
 from scanner.devices.protocols import DeviceError
-from scanner.matfile import ScanFormatError
 from scanner.photo import max_pixels
-from scanner.scan import ScanError
+from taxonomy.errors import TexplorerError
 
 DEFAULT_DB = "texplorer-data"
 EXIT_ERROR = 1
@@ -32,6 +31,10 @@ EXIT_PROBLEMS = 3
 conflicts."""
 
 Handler = Callable[[argparse.Namespace], int]
+
+
+class UsageError(TexplorerError, ValueError):
+    """Options that do not fit together or a value out of range; the message names the option."""
 
 
 def default_db() -> Path:
@@ -314,7 +317,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
 ABORT = "a"
 
 
-class _Aborted(Exception):
+class _Aborted(TexplorerError):
     """The operator chose to abort the scan (or the input ended)."""
 
 
@@ -530,7 +533,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     config = load_config(args.config)
     if not args.upload_limit_mb > 0:
-        raise ValueError(f"--upload-limit-mb must be positive, got {args.upload_limit_mb:g}")
+        raise UsageError(f"--upload-limit-mb must be positive, got {args.upload_limit_mb:g}")
     limit = int(args.upload_limit_mb * 1024 * 1024)
     settings = Settings(db=args.db, model=args.model, device_config=config, upload_limit=limit,
                         max_photo_pixels=max_pixels())
@@ -603,7 +606,7 @@ def comparison_dataset(spec: str, db: Path, seed: int):
         return Dataset.from_scans(str(folder), scans)
     if folder.is_dir():
         return Dataset.from_recordings(str(folder), load_recordings(folder))
-    raise ValueError(f"dataset {spec!r} is none of: {DATASET_HELP}")
+    raise UsageError(f"dataset {spec!r} is none of: {DATASET_HELP}")
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
@@ -674,7 +677,7 @@ def set_sizes(values: Sequence[str] | None, default: Sequence[str]) -> list[int 
         elif value.isdigit() and int(value) > 0:
             sizes.append(int(value))
         else:
-            raise ValueError(f"--n: {value!r} is neither a positive number of features nor 'all'")
+            raise UsageError(f"--n: {value!r} is neither a positive number of features nor 'all'")
     return list(dict.fromkeys(sizes))
 
 
@@ -719,7 +722,7 @@ def set_recordings(spec: str, db: Path) -> tuple[str, list]:
     from scanner.ingest import load_recordings, set_folder
 
     if not spec.startswith("set:"):
-        raise ValueError(f"{spec!r} is not a recording set; name one as set:NAME (see 'texplorer ingest')")
+        raise UsageError(f"{spec!r} is not a recording set; name one as set:NAME (see 'texplorer ingest')")
     return spec[4:], load_recordings(set_folder(db, spec[4:]))
 
 
@@ -761,7 +764,7 @@ def cmd_set_features(args: argparse.Namespace) -> int:
 
 def cmd_set_evaluate(args: argparse.Namespace) -> int:
     if args.features:
-        raise ValueError("give either a set (set:NAME) or --features CSV, not both")
+        raise UsageError("give either a set (set:NAME) or --features CSV, not both")
     with _cluster(args) as client:
         space = set_space(args, client)
         reports = run_evaluation(space, args, client)
@@ -1159,7 +1162,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("texplorer: interrupted", file=sys.stderr)
         return 130
-    except (DatabaseError, ScanFormatError, ScanError, OSError, ValueError, DeviceError) as exc:
+    except (TexplorerError, OSError) as exc:
         if args.debug:
             raise
         print(f"texplorer: error: {exc}", file=sys.stderr)

@@ -43,6 +43,7 @@ from scanner.preprocess import (
     metal_sign,
 )
 from scanner.scan import MAX_CHANNEL_SECONDS
+from taxonomy.errors import TexplorerError
 
 DAQ_ROLES = ("accel_x", "accel_y", "accel_z", "ir", "fsr_normal", "fsr_tangential", "flex", "metal")
 """What is wired to the DAQ's analog inputs (SPEC 5)."""
@@ -80,7 +81,7 @@ _GRPC = re.compile(r"^grpc://(?P<address>[^/\s]+:\d{1,5})$")
 _AI = re.compile(r"^ai\d{1,3}$")
 
 
-class ConfigError(ValueError):
+class ConfigError(TexplorerError, ValueError):
     """The configuration file or a value in it is invalid; the message names the file and the key."""
 
 

@@ -57,6 +57,7 @@ from scanner.files import (
 from scanner.matfile import ScanFormatError, load_scan, photo_file_name, save_scan, scan_files
 from scanner.scan import IMAGES, Scan, ScanMeta, check_sample_id
 from scanner.stored import StoredScan
+from taxonomy.errors import TexplorerError
 from taxonomy.labels import parse_prefix
 
 if TYPE_CHECKING:
@@ -121,7 +122,7 @@ CREATE TABLE IF NOT EXISTS feature_cache (
 """
 
 
-class DatabaseError(RuntimeError):
+class DatabaseError(TexplorerError, RuntimeError):
     """The database cannot do what was asked; the message says why in one line."""
 
 

@@ -44,6 +44,7 @@ from scanner.files import atomic_write_bytes, fsync_dir
 from scanner.mat5 import MatFileError, read_mat
 from scanner.photo import PhotoError, check_pixels, image_size, max_file_bytes
 from scanner.scan import ROLES, Recording, ScanError, Trace
+from taxonomy.errors import TexplorerError
 
 RECORDINGS = "recordings"
 """Folder of imported recording sets inside a database."""
@@ -72,7 +73,7 @@ _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,62}$")
 _SET = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
 
 
-class IngestError(ValueError):
+class IngestError(TexplorerError, ValueError):
     """A mapping file or a data file that cannot be used; the message names it and the reason."""
 
 

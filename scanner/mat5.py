@@ -22,6 +22,8 @@ from typing import Any, BinaryIO
 
 import scipy.io
 
+from taxonomy.errors import TexplorerError
+
 HEADER_BYTES = 128
 MI_INT8, MI_INT32, MI_UINT32, MI_MATRIX, MI_COMPRESSED = 1, 5, 6, 14, 15
 CELL, STRUCT, OBJECT, CHAR, SPARSE = 1, 2, 3, 4, 5
@@ -35,7 +37,7 @@ MAX_DEPTH = 8
 MAX_DIMS = 32
 
 
-class MatFileError(ValueError):
+class MatFileError(TexplorerError, ValueError):
     """The bytes are not a MATLAB v5 file this reader accepts; the message is the reason, one line."""
 
 

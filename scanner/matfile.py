@@ -52,6 +52,7 @@ from scanner.scan import (
     ScanMeta,
     Trace,
 )
+from taxonomy.errors import TexplorerError
 
 REQUIRED_META = ("label", "operator", "sample_id", "scan_index", "session_id", "started",
                  "fs", "units", "schema_version")
@@ -61,7 +62,7 @@ MAX_SCAN_BYTES = 256 << 20
 at its longest (``scanner.scan.MAX_CHANNEL_SECONDS``) with its raw volts takes about 200 MB."""
 
 
-class ScanFormatError(ValueError):
+class ScanFormatError(TexplorerError, ValueError):
     """A ``.mat`` scan file cannot be read as a valid scan; the message names the file and the field."""
 
     def __init__(self, path: str | os.PathLike[str], field: str | None, reason: str) -> None:
@@ -148,7 +149,7 @@ def save_scan(scan: Scan, path: str | os.PathLike[str]) -> list[Path]:
     """
     mat_path = Path(path)
     if mat_path.suffix != ".mat":
-        raise ValueError(f"{mat_path}: a scan file must end in .mat")
+        raise ScanFormatError(f"{mat_path}: a scan file must end in .mat")
     mat_path.parent.mkdir(parents=True, exist_ok=True)
     for variable in IMAGES:
         if variable in scan.images:

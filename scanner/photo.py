@@ -23,6 +23,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from taxonomy.errors import TexplorerError
+
 MAX_PIXELS_ENV = "TEXPLORER_MAX_PHOTO_PIXELS"
 DEFAULT_MAX_PIXELS = 25_000_000
 """A 12-megapixel phone photo (4032 x 3024, the paper's camera class) with a factor of two to spare."""
@@ -39,7 +41,7 @@ _JPEG_FRAME_MARKERS = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
 """Start-of-frame markers SOF0-SOF15; C4 (Huffman tables), C8 (reserved) and CC (arithmetic) are not."""
 
 
-class PhotoError(ValueError):
+class PhotoError(TexplorerError, ValueError):
     """A photo cannot be used; the message says why in one line."""
 
 

@@ -20,6 +20,7 @@ import numpy as np
 from scipy import signal
 
 from scanner.scan import Trace
+from taxonomy.errors import TexplorerError
 
 IMAGE_BORDER_PX = 100
 """Pixels cropped from every border of a photo before any image feature (SPEC 6)."""
@@ -42,7 +43,7 @@ CLIPPED = "clipped"
 NO_CONTACT = "no contact force"
 
 
-class QualityError(ValueError):
+class QualityError(TexplorerError, ValueError):
     """A recorded step fails a quality check; the message is the problem as shown to the operator."""
 
 

@@ -29,6 +29,7 @@ from scanner.files import is_temp_file
 from scanner.matfile import load_scan
 from scanner.scan import CHANNELS, Scan
 from scanner.stored import StoredScan
+from taxonomy.errors import TexplorerError
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -48,7 +49,7 @@ STEPS = ("finger_tap", "finger_slide", "tool_tap", "tool_slide", "static", "ther
 """Recorded steps of the scanning procedure in the order of SPEC 4 (the photos come last)."""
 
 
-class ReplayError(ValueError):
+class ReplayError(TexplorerError, ValueError):
     """Replay inputs that cannot be used (no scans found, duplicate scan ids, bad tolerance); one line."""
 
 

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from scanner.photo import PhotoError, check_size
+from taxonomy.errors import TexplorerError
 from taxonomy.labels import Label, LabelError
 
 SCHEMA_VERSION = 1
@@ -42,7 +43,7 @@ MAX_CHANNEL_SECONDS = 120.0
 a scan (and the memory its features need) bounded."""
 
 
-class ScanError(ValueError):
+class ScanError(TexplorerError, ValueError):
     """A trace, recording or scan violates the data model; the message names the field.
 
     ``field`` (e.g. ``"meta.atk"``) is set where one field is at fault, so file readers can report it.

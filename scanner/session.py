@@ -66,10 +66,11 @@ from scanner.scan import (
     check_sample_id,
 )
 from scanner.simulate import scan_seed
+from taxonomy.errors import TexplorerError
 from taxonomy.labels import Label, LabelError
 
 
-class SessionError(ValueError):
+class SessionError(TexplorerError, ValueError):
     """A session action that is not allowed now (or a bad value); the message says why in one line."""
 
 

@@ -56,6 +56,7 @@ import scanner
 from scanner.database import Database
 from scanner.preprocess import ACCEL_V_PER_G, ACCEL_ZERO_V, accel_g, fsr_newtons, fsr_volts
 from scanner.scan import CHANNELS, JUDGED_SCALE, Scan, ScanMeta, Trace
+from taxonomy.errors import TexplorerError
 
 DEFAULT_LIBRARY = Path(__file__).with_name("data") / "materials.toml"
 
@@ -85,7 +86,7 @@ Layers = tuple[np.ndarray, np.ndarray]
 """A texture's colour field (0 = dominant colour .. 1 = last colour) and its surface height."""
 
 
-class MaterialLibraryError(ValueError):
+class MaterialLibraryError(TexplorerError, ValueError):
     """The material library file is malformed; the message names the file, the material and the field."""
 
 
@@ -413,7 +414,7 @@ def _read_library(path: Path) -> dict[str, Material]:
     return {slug: _material(slug, table, path) for slug, table in document.items()}
 
 
-class UnknownMaterialError(KeyError):
+class UnknownMaterialError(TexplorerError, KeyError):
     """A slug that is not in the default material library."""
 
     def __str__(self) -> str:

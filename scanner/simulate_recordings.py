@@ -35,6 +35,7 @@ import numpy as np
 from scipy import ndimage
 
 from scanner.scan import Recording, Trace
+from taxonomy.errors import TexplorerError
 
 KINDS = ("biotac", "array", "soft3axis")
 """Simulated sensors, as named in ``sim:<kind>`` datasets."""
@@ -42,7 +43,7 @@ KINDS = ("biotac", "array", "soft3axis")
 _KIND_ID = {kind: index + 1 for index, kind in enumerate(KINDS)}
 
 
-class SimulationError(ValueError):
+class SimulationError(TexplorerError, ValueError):
     """Arguments the simulator cannot use; the message says which."""
 
 

@@ -25,12 +25,13 @@ from pathlib import Path
 from scanner.matfile import MAX_SCAN_BYTES, load_scan, photo_names
 from scanner.photo import max_file_bytes
 from scanner.scan import Scan
+from taxonomy.errors import TexplorerError
 
 Catalogued = Mapping[str, tuple[int, str]]
 """File name (the ``.mat`` and each photo) -> (size in bytes, SHA-256) as the catalog recorded them."""
 
 
-class NotOnThisMachine(Exception):
+class NotOnThisMachine(TexplorerError):
     """A worker does not see a stored scan's file as the client does: missing, unreadable or other bytes."""
 
 

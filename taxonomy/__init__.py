@@ -2,6 +2,7 @@
 
 import importlib
 
+from taxonomy.errors import TexplorerError
 from taxonomy.labels import LEVELS, Label, LabelError, check_level, format_code, parse_code
 from taxonomy.table import (
     ENV_VAR,
@@ -19,7 +20,8 @@ from taxonomy.table import (
 
 __all__ = [
     "ENV_VAR", "KINDS", "LEVELS", "SHIPPED_TABLE",
-    "Entry", "Label", "LabelError", "LabelNames", "Material", "Taxonomy", "TaxonomyError", "UnknownLabelError",
+    "Entry", "Label", "LabelError", "LabelNames", "Material", "Taxonomy", "TaxonomyError", "TexplorerError",
+    "UnknownLabelError",
     "check_level", "format_code", "load_taxonomy", "parse_code", "read_table",
     "CLASSIFIERS", "EvaluationError", "Report", "evaluate", "evaluate_grid", "make_pipeline", "r_c",
     "ModelError", "TrainedModel", "load_model", "predict_top", "save_model", "train_model",

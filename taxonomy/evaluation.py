@@ -51,6 +51,7 @@ from tqdm import tqdm
 
 from features import cluster
 from features.selection import FQSelector, KeepAll
+from taxonomy.errors import TexplorerError
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -71,7 +72,7 @@ DEFAULT_FEATURE_SETS: dict[str, FeatureSet] = {
 """The paper's Figs. 16-18 columns: one modality at a time, then all 193 (X3 of "all" is the best-3)."""
 
 
-class EvaluationError(ValueError):
+class EvaluationError(TexplorerError, ValueError):
     """An evaluation that cannot run as asked; the message says why."""
 
 

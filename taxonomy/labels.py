@@ -17,6 +17,8 @@ import reprlib
 from dataclasses import dataclass
 from typing import Any, NoReturn
 
+from taxonomy.errors import TexplorerError
+
 LEVELS = ("coarse", "medium", "fine")
 """Classification levels, from the major class alone to the full material label."""
 
@@ -35,11 +37,11 @@ _shown = _REPR.repr
 """``repr`` cut short, so that even a hostile input gives a one-line message."""
 
 
-class LabelError(ValueError):
+class LabelError(TexplorerError, ValueError):
     """Text or numbers that do not form a C/S/M/P/X label or code; the message says what is wrong."""
 
 
-class _Malformed(Exception):
+class _Malformed(TexplorerError):
     """The reason a code is malformed, before it is phrased as a :class:`LabelError`."""
 
 
@@ -152,9 +154,10 @@ def format_code(letters: str, numbers: tuple[int, ...]) -> str:
 
 
 def check_level(level: Any) -> str:
-    """Return ``level`` if it is one of :data:`LEVELS`, else raise ValueError naming the allowed ones."""
+    """Return ``level`` if it is one of :data:`LEVELS`, else raise :class:`LabelError` (a ValueError) naming
+    the allowed ones."""
     if level not in LEVELS:
-        raise ValueError(f"unknown classification level {level!r} (expected one of {', '.join(LEVELS)})")
+        raise LabelError(f"unknown classification level {level!r} (expected one of {', '.join(LEVELS)})")
     return level
 
 

@@ -71,6 +71,7 @@ from threadpoolctl import threadpool_limits
 
 from features import cluster, related
 from scanner.scan import Recording, Scan
+from taxonomy.errors import TexplorerError
 from taxonomy.evaluation import classifier_estimators, cv_splits
 from taxonomy.labels import Label
 
@@ -86,7 +87,7 @@ TIMED_ROWS = 5
 alike; timing every split would cost more than the evaluation)."""
 
 
-class MethodError(ValueError):
+class MethodError(TexplorerError, ValueError):
     """A dataset or method that cannot be compared as asked; the message says why."""
 
 

@@ -32,6 +32,7 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import MinMaxScaler
 
 from features.selection import FQSelector
+from taxonomy.errors import TexplorerError
 from taxonomy.evaluation import (
     CLASSIFIERS,
     SEED,
@@ -71,7 +72,7 @@ _META_TYPES: dict[str, type | tuple[type, ...]] = {
 }
 
 
-class ModelError(ValueError):
+class ModelError(TexplorerError, ValueError):
     """A model file that cannot be used, or feature values a model cannot classify; one line saying why."""
 
 

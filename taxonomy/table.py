@@ -25,6 +25,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import NamedTuple
 
+from taxonomy.errors import TexplorerError
 from taxonomy.labels import Label, LabelError, format_code, parse_code
 
 KINDS = ("C", "S", "M", "P", "X")
@@ -44,11 +45,11 @@ _QUERY_CODE = re.compile(r"C[0-9]*|C[0-9]+S[0-9]*|C[0-9]+S[0-9]+M[0-9]*|C[0-9]+S
 """The beginnings of a label a picker query may be: "C", "C6", "C6S", ..., "C6S1M1P2X1"."""
 
 
-class TaxonomyError(ValueError):
+class TaxonomyError(TexplorerError, ValueError):
     """A taxonomy file or row is unusable; the message names the file, the line and the reason."""
 
 
-class UnknownLabelError(ValueError):
+class UnknownLabelError(TexplorerError, ValueError):
     """A well-formed label uses a code the taxonomy does not define; the message names the code."""
 
 

@@ -50,6 +50,7 @@ from scanner.devices.protocols import (
     DeviceUnavailable,
 )
 from scanner.devices.sources import Pacer, SignalSource
+from taxonomy.errors import TexplorerError
 
 BOARD_ID = "TEXPLORER-SB"
 MAX_HEAT_MS = int(MAX_HEAT_S * 1000)
@@ -64,7 +65,7 @@ EARTH_FIELD_UT = np.array([18.0, -4.0, 41.0])
 """What the MAG3110 reads before ``CAL M`` zeroes it: the earth's field plus the unit's own offsets."""
 
 
-class LineError(ValueError):
+class LineError(TexplorerError, ValueError):
     """A line from the board that is not a valid frame; ``garbage`` says whether it is noise (no frame)."""
 
     def __init__(self, reason: str, *, garbage: bool) -> None:

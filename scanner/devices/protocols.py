@@ -19,8 +19,10 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from taxonomy.errors import TexplorerError
 
-class DeviceError(RuntimeError):
+
+class DeviceError(TexplorerError, RuntimeError):
     """A device failed; the message says which and why in one line."""
 
 

@@ -36,6 +36,7 @@ import numpy as np
 from scanner.config import DAQ_ROLES, DEFAULT_CHANNEL_MAP, Calibration
 from scanner.devices.sources import SignalSource, rest_volts
 from scanner.simulate import STEPS
+from taxonomy.errors import TexplorerError
 
 try:
     import grpc
@@ -65,7 +66,7 @@ ERROR_TEXT = {
 _RANGE = re.compile(r"^(?P<device>[^/]+)/(?P<kind>ai|port\d+/line)(?P<first>\d+)(?::(?P<last>\d+))?$")
 
 
-class _Failure(Exception):
+class _Failure(TexplorerError):
     def __init__(self, code: int, read: int | None = None) -> None:
         super().__init__(code)
         self.code, self.read = code, read
