@@ -29,7 +29,8 @@ from scanner.bundle import export_bundle, import_bundle  # noqa: E402
 from scanner.database import Database  # noqa: E402
 from scanner.matfile import load_scan  # noqa: E402
 from scanner.replay import replay, scan_paths  # noqa: E402
-from scanner.simulate import _default_library, synthetic_database  # noqa: E402
+from scanner.simulation import load_materials  # noqa: E402
+from scanner.simulation.database import synthetic_database  # noqa: E402
 
 MATERIALS = 24
 SCANS_PER_MATERIAL = 5
@@ -53,7 +54,7 @@ def line(what: str, megabytes: float, seconds: float, reference: str, ref_second
 
 
 def bench_export_import(tmp: Path) -> Database:
-    slugs = list(_default_library())[:MATERIALS]
+    slugs = list(load_materials())[:MATERIALS]
     seconds, db = timed(lambda: synthetic_database(tmp / "db", materials=slugs,
                                                    scans_per_material=SCANS_PER_MATERIAL,
                                                    image_size=IMAGE_SIZE, progress=False))

@@ -37,7 +37,8 @@ from scanner.database import Database  # noqa: E402
 from scanner.matfile import load_scan  # noqa: E402
 from scanner.preprocess import crop_image, grayscale  # noqa: E402
 from scanner.scan import IMAGES, Scan  # noqa: E402
-from scanner.simulate import synthetic_database, synthetic_scan  # noqa: E402
+from scanner.simulation import synthetic_scan  # noqa: E402
+from scanner.simulation.database import synthetic_database  # noqa: E402
 
 cv2.setNumThreads(1)
 

@@ -1,6 +1,6 @@
 """Time per classification of the related methods, next to the figures their papers report.
 
-Each method is fitted on its simulated sensor (``scanner.simulate_recordings``) and then timed the way its
+Each method is fitted on its simulated sensor (``scanner.simulation.recordings``) and then timed the way its
 paper reports time: per sample, one sample at a time (median over samples), split into feature extraction
 and classification. References in the same run: the batch prediction time per row (what one call on many
 rows costs; the gap is scikit-learn's per-call input checking) and a bare FFT of the same signal for the
@@ -21,7 +21,7 @@ import numpy as np
 from sklearn.base import BaseEstimator
 
 from features import related
-from scanner.simulate_recordings import array_recordings, biotac_recordings, soft3axis_recordings
+from scanner.simulation.recordings import array_recordings, biotac_recordings, soft3axis_recordings
 from taxonomy import methods
 from taxonomy.methods import Dataset
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from timing import median_time
 
-from scanner import simulate as sim
+from scanner import simulation as sim
 
 IMAGE_SIZE = (512, 512)
 MATERIALS = ("oak-planed", "polyurethane-foam", "perforated-steel-plate", "granite-polished")

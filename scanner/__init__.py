@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
-from types import ModuleType
-
 from scanner.database import Database, DatabaseError
 from scanner.matfile import ScanFormatError, load_scan, save_scan
 from scanner.scan import (
@@ -27,15 +24,5 @@ __version__ = "0.1.0"
 __all__ = [
     "CHANNELS", "IMAGES", "JUDGED_SCALE", "ROLES", "SCHEMA_VERSION", "VOLUME_METHODS",
     "Database", "DatabaseError", "Recording", "Scan", "ScanError", "ScanFormatError", "ScanMeta", "TexplorerError",
-    "Trace",
-    "__version__", "load_scan", "save_scan",
+    "Trace", "__version__", "load_scan", "save_scan",
 ]
-
-_LAZY_SUBMODULES = {"simulate", "preprocess"}
-
-
-def __getattr__(name: str) -> ModuleType:
-    # ``scanner.simulate.synthetic_database(...)`` works after a plain ``import scanner``.
-    if name in _LAZY_SUBMODULES:
-        return importlib.import_module(f"scanner.{name}")
-    raise AttributeError(f"module 'scanner' has no attribute {name!r}")

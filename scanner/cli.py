@@ -590,7 +590,7 @@ DATASET_HELP = ("sim:biotac, sim:array or sim:soft3axis (simulated sensors), set
 def comparison_dataset(spec: str, db: Path, seed: int):
     """The dataset a ``compare`` argument names (see :data:`DATASET_HELP`)."""
     from scanner.ingest import load_recordings, set_folder
-    from scanner.simulate_recordings import simulate_recordings
+    from scanner.simulation.recordings import simulate_recordings
     from taxonomy.methods import Dataset
 
     if spec.startswith("sim:"):
@@ -818,7 +818,7 @@ DEMO_SAMPLES = 2
 DEMO_SCANS = 3
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from scanner.simulate import synthetic_database
+    from scanner.simulation.database import synthetic_database
 
     started = time.perf_counter()
     db = synthetic_database(args.db, materials=args.materials, scans_per_material=args.scans, seed=args.seed,

@@ -65,7 +65,7 @@ from scanner.scan import (
     ScanMeta,
     check_sample_id,
 )
-from scanner.simulate import scan_seed
+from scanner.simulation import scan_seed
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import Label, LabelError
 

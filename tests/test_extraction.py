@@ -15,7 +15,7 @@ import features
 from features import NAMES, ScanSource, extract, extract_many, image
 from features.extraction import code_version, source_of
 from scanner.scan import CHANNELS, IMAGES, Scan, Trace
-from scanner.simulate import synthetic_scan
+from scanner.simulation import synthetic_scan
 
 SIZE = (384, 384)
 IMAGES_BY_SHORT = {short: variable for variable, short in IMAGES.items()}

@@ -10,7 +10,7 @@ import pytest
 from scanner import ingest
 from scanner.ingest import IngestError
 from scanner.scan import Recording, Trace
-from scanner.simulate_recordings import biotac_recordings, biotac_rows
+from scanner.simulation.recordings import biotac_recordings, biotac_rows
 
 FIXTURES = Path(__file__).parent / "fixtures" / "ingest"
 

@@ -11,8 +11,8 @@ from sklearn.neighbors import KNeighborsClassifier
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
-from scanner import simulate_recordings as sim
 from scanner.scan import Recording, Trace
+from scanner.simulation import recordings as sim
 from taxonomy import methods
 from taxonomy.methods import Dataset, MethodError, compare
 
@@ -227,7 +227,7 @@ def test_huang_and_hoelscher_end_to_end():
 
 
 def test_fishel_on_scans():
-    from scanner.simulate import synthetic_scans
+    from scanner.simulation import synthetic_scans
 
     scans = list(synthetic_scans(["polyurethane-foam", "mild-steel-brushed", "float-glass"], 3,
                                  image_size=(64, 64)))

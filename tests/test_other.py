@@ -444,7 +444,7 @@ def test_tap_features_reject_a_one_dimensional_tap():
 @pytest.fixture(scope="module")
 def simulated():
     """Other features of simulated scans, by (material slug, seed); skips a material the library lacks."""
-    simulate = pytest.importorskip("scanner.simulate")
+    simulate = pytest.importorskip("scanner.simulation")
     slugs = simulate.load_materials()
     cache: dict[tuple[str, int], dict[str, float]] = {}
 

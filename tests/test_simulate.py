@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from scanner import simulate as sim
+from scanner import simulation as sim
 from scanner.scan import CHANNELS
+from scanner.simulation.database import synthetic_database
 
 SMALL = (48, 64)
 BAND = signal.butter(4, [10, 1000], btype="bandpass", fs=3000, output="sos")
@@ -258,7 +259,7 @@ def test_bad_arguments_are_refused():
     with pytest.raises(ValueError, match="scans_per_material must be an integer >= 1, got 0"):
         next(sim.synthetic_scans(["float-glass"], scans_per_material=0))
     with pytest.raises(ValueError, match="samples_per_material must be an integer >= 1, got 0"):
-        sim.synthetic_database("unused", ["float-glass"], samples_per_material=0)
+        synthetic_database("unused", ["float-glass"], samples_per_material=0)
     assert not Path("unused").exists()
     with pytest.raises(ValueError, match="fold_skip_probability must be in"):
         sim.draw_operator(np.random.default_rng(0), fold_skip_probability=1.5)
@@ -277,8 +278,8 @@ def test_samples_of_a_material_are_distinct_pieces_with_their_own_scans():
 
 
 def test_synthetic_database_stores_every_scan(tmp_path):
-    database = sim.synthetic_database(tmp_path / "db", ["copper-polished"], scans_per_material=2, seed=1,
-                                      image_size=SMALL, progress=False)
+    database = synthetic_database(tmp_path / "db", ["copper-polished"], scans_per_material=2, seed=1,
+                                  image_size=SMALL, progress=False)
     assert len(database) == 2
     stored = database.get("copper-polished-01-002")
     fresh = sim.synthetic_scan("copper-polished", seed=sim.scan_seed(1, "copper-polished", 2), scan_index=2,

@@ -522,7 +522,7 @@ def test_compute_uses_the_preprocessed_tool_slide():
 # --- physical direction on simulated materials --------------------------------------------------------------
 
 def _simulated(slug: str, seed: int) -> Scan:
-    simulate = pytest.importorskip("scanner.simulate")
+    simulate = pytest.importorskip("scanner.simulation")
     return simulate.synthetic_scan(slug, seed=seed, image_size=(256, 256))
 
 

@@ -7,7 +7,7 @@ unit is placed, the photos and the room's ambient temperature. The playback devi
 (:mod:`scanner.emulators`) turn these into what each device reports, so "simulated" and "replay" differ
 only in their source.
 
-:class:`SimulatedSample` gets its physics from :mod:`scanner.simulate` (one function per procedure step).
+:class:`SimulatedSample` gets its physics from :mod:`scanner.simulation` (one function per procedure step).
 Every time a device starts recording a step, the operator performs that step once more (a *take*): take
 ``k`` of a step is seeded by (seed, step, k), so a redo gives a new, still deterministic, performance, and
 the DAQ and the microphone starting the same slide for the k-th time see the same take.
@@ -28,7 +28,7 @@ import numpy as np
 
 from scanner.config import CHANNEL_ROLES, DAQ_ROLES, Calibration, ConfigError
 from scanner.scan import CHANNELS, Scan
-from scanner.simulate import STEP_FUNCTIONS, STEPS, Material, draw_operator, load_materials, photos, sample_of
+from scanner.simulation import STEP_FUNCTIONS, STEPS, Material, draw_operator, load_materials, photos, sample_of
 
 STEP_SECONDS = 5.0
 """Length of a simulated tap, slide, friction, press or fold (SPEC 4)."""
@@ -103,7 +103,7 @@ class SimulatedSample:
     material : Material or str
         A library material or its slug.
     sample_id : str, optional
-        Which physical piece (:func:`scanner.simulate.sample_of`: a few percent off the library values);
+        Which physical piece (:func:`scanner.simulation.sample_of`: a few percent off the library values);
         default ``<slug>-01``.
     seed : int
         Seeds the operator draw and every take.

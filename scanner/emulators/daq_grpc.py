@@ -35,7 +35,7 @@ import numpy as np
 
 from scanner.config import DAQ_ROLES, DEFAULT_CHANNEL_MAP, Calibration
 from scanner.devices.sources import SignalSource, rest_volts
-from scanner.simulate import STEPS
+from scanner.simulation import STEPS
 from taxonomy.errors import TexplorerError
 
 try:

@@ -35,16 +35,12 @@ import numpy as np
 from scipy import ndimage
 
 from scanner.scan import Recording, Trace
-from taxonomy.errors import TexplorerError
+from scanner.simulation.materials import SimulationError
 
 KINDS = ("biotac", "array", "soft3axis")
 """Simulated sensors, as named in ``sim:<kind>`` datasets."""
 
 _KIND_ID = {kind: index + 1 for index, kind in enumerate(KINDS)}
-
-
-class SimulationError(TexplorerError, ValueError):
-    """Arguments the simulator cannot use; the message says which."""
 
 
 def _rng(seed: int, kind: str, *keys: int) -> np.random.Generator:

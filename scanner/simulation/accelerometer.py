@@ -1,0 +1,111 @@
+"""The simulated ADXL335 accelerometer of TU1 (0.330 V/g around 1.65 V through the DAQ's 16 bits over
++-10 V, +-3.6 g rails): the finger and tool taps, and the unit's vibration while it slides."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal
+
+from scanner.preprocess import ACCEL_V_PER_G, ACCEL_ZERO_V, accel_g
+from scanner.simulation.materials import Material
+from scanner.simulation.signals import (
+    DAQ_LSB_V,
+    FS_AUDIO,
+    FS_DAQ,
+    STEP_S,
+    Arrays,
+    Rng,
+    band_noise,
+    gravity,
+    quantise,
+    resonance_sos,
+    tilt,
+    times,
+)
+from scanner.simulation.surface import FINGER, G_MM_S2, TOOL, SlidePath, Tip, contact_frequency_hz, damping_ratio
+from scanner.simulation.variability import OperatorDraw
+
+ADXL_RANGE_G = 3.6
+ADXL_NOISE_G = np.array([0.003, 0.003, 0.005])
+"""ADXL335 noise over the 1.5 kHz band (x/y 150, z 300 ug/sqrt(Hz) datasheet densities, band-limited)."""
+def adxl335(acceleration: np.ndarray, rng: Rng) -> np.ndarray:
+    """Acceleration (n, 3) in g as the DAQ reads it: sensor noise, +-3.6 g rails, DAQ quantisation."""
+    noisy = acceleration + rng.standard_normal(acceleration.shape) * ADXL_NOISE_G
+    volts = ACCEL_ZERO_V + ACCEL_V_PER_G * np.clip(noisy, -ADXL_RANGE_G, ADXL_RANGE_G)
+    return accel_g(quantise(volts, DAQ_LSB_V))
+
+def _tap_train(material: Material, rng: Rng, operator: OperatorDraw, tip: Tip) -> np.ndarray:
+    """(n, 3) acceleration in g of 3-5 taps: each a decaying contact resonance plus the hand's stop.
+
+    ``a(t) = A exp(-t/tau) sin(2 pi f t)`` with f the contact resonance, ``tau = 1 / (2 pi f zeta)`` and
+    ``A = tap_g * strength * sqrt(f / 500 Hz)`` (harder contacts decelerate the unit more abruptly).
+    """
+    t = times(STEP_S, FS_DAQ)
+    f = contact_frequency_hz(material, tip)
+    tau = 1.0 / (2 * np.pi * f * damping_ratio(material, tip))
+    count = int(rng.integers(3, 6))
+    onsets = 0.6 + (np.arange(count) + rng.uniform(0.1, 0.6, count)) * (3.9 / count)
+    unit = np.zeros((t.size, 3))
+    for onset, strength in zip(onsets, operator.tap_strength * rng.uniform(0.8, 1.2, count), strict=True):
+        since = t - onset
+        hit = since >= 0
+        ring = np.zeros(t.size)
+        ring[hit] = np.exp(-since[hit] / tau) * np.sin(2 * np.pi * f * since[hit])
+        approach = -since / 0.03 * np.exp(-0.5 * (since / 0.03) ** 2)
+        amplitude = tip.tap_g * strength * np.sqrt(f / 500.0)
+        direction = np.array([rng.normal(0, 0.15), rng.normal(0, 0.15), 1.0])
+        unit += np.outer(amplitude * ring + 0.15 * strength * approach, direction)
+    return unit @ tilt(*operator.tilt_deg).T + gravity(t.size, operator.tilt_deg)
+
+
+def finger_tap(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
+    """TU1 finger tap: ``v_ft`` (SPEC 4 step 1)."""
+    return {"v_ft": adxl335(_tap_train(material, rng, operator, FINGER), rng)}
+
+
+def tool_tap(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
+    """TU1 tool tap: ``v_tt`` (SPEC 4 step 3)."""
+    return {"v_tt": adxl335(_tap_train(material, rng, operator, TOOL), rng)}
+
+
+ROLLING_G = 0.2
+"""Broadband excitation of the unit by its rolling bearings at 130 mm/s (g, before the contact resonance)."""
+STICK_SLIP_G = 0.2
+"""Tangential stick-slip excitation per unit kinetic friction at 130 mm/s (g)."""
+
+
+def onset_jolt(rng: Rng, t: np.ndarray, start_s: float) -> np.ndarray:
+    """(n, 3) g: the hand's jerk and the unit's ringing as it breaks loose (what the start detector sees)."""
+    since = t - start_s
+    width = rng.uniform(0.004, 0.008)
+    pulse = np.where((since >= 0) & (since < width), np.sin(np.pi * np.clip(since, 0, None) / width), 0.0)
+    after = np.clip(since, 0, None)
+    ring = np.where(since >= 0, np.exp(-after / 0.006), 0.0) * np.sin(2 * np.pi * 1150 * since)
+    amplitude = rng.uniform(0.15, 0.35)
+    return amplitude * np.column_stack([pulse + 0.5 * ring, 0.3 * ring, 0.5 * pulse + 0.4 * ring])
+
+def contact_vibration(material: Material, rng: Rng, tip: Tip, path: SlidePath, normal: np.ndarray,
+                       lateral: np.ndarray) -> np.ndarray:
+    """(n, 3) g at 3000 Hz: tip accelerations and the bearings' rolling through the contact resonance.
+
+    The normal track drives z, the lateral track (scaled by the kinetic friction, plus stick-slip) drives x;
+    y sees a little of both. Computed at 44100 Hz, then resampled to the DAQ rate (anti-aliased).
+    """
+    n = path.x.size
+    contact = resonance_sos(contact_frequency_hz(material, tip), damping_ratio(material, tip), FS_AUDIO)
+    rolling = ROLLING_G * (path.v / 130.0) * band_noise(rng, n, FS_AUDIO, 50.0, 3000.0)
+    stick_slip = STICK_SLIP_G * np.sqrt(path.v / 130.0) * band_noise(rng, n, FS_AUDIO, 50.0, 3000.0)
+    seen_z = signal.sosfilt(contact, normal + rolling) * tip.gain
+    seen_x = signal.sosfilt(contact, material.friction.kinetic * (lateral + stick_slip) + rolling) * tip.gain
+    unit = np.column_stack([seen_x, 0.3 * seen_z + 0.2 * seen_x, seen_z])
+    return signal.resample_poly(unit, 10, 147, axis=0)
+
+
+def hand_motion(rng: Rng, path: SlidePath) -> np.ndarray:
+    """(n, 3) g: the unit's own acceleration along the path and the hand's slow sway (below 5 Hz)."""
+    n = path.x.size
+    hand = np.zeros((n, 3))
+    hand[:, 0] = path.dv / G_MM_S2
+    sway = np.column_stack([band_noise(rng, n, FS_DAQ, 0.3, 5.0) for _ in range(2)])
+    hand[:, :2] += 0.02 * (path.v / 130.0)[:, None] * sway
+    return hand

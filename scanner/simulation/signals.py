@@ -1,0 +1,68 @@
+"""Building blocks shared by the simulated sensors: sample rates and step lengths of the scanning procedure,
+the DAQ's quantisation, smooth ramps, band-limited noise, a contact resonance, the unit's tilt and gravity."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy import signal
+
+from scanner.scan import CHANNELS
+
+FS_DAQ = CHANNELS["v_ts"].fs
+FS_AUDIO = CHANNELS["a_ts"].fs
+FS_THERMAL = CHANNELS["t_cool"].fs
+FS_MAGNET = CHANNELS["dB"].fs
+STEP_S = 5.0
+"""Length of every tap, slide, friction, press and fold recording (SPEC 4)."""
+STATIC_S = 1.0
+Rng = np.random.Generator
+Arrays = dict[str, np.ndarray]
+DAQ_LSB_V = 20.0 / 65536
+"""NI USB-6002: 16 bits over +-10 V."""
+def quantise(x: Any, step: float) -> Any:
+    return np.round(np.asarray(x, dtype=np.float64) / step) * step if np.ndim(x) else round(x / step) * step
+
+def smoothstep(x: np.ndarray) -> np.ndarray:
+    """0 -> 1 with zero first and second derivatives at both ends (quintic)."""
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * x * (x * (6.0 * x - 15.0) + 10.0)
+
+
+def times(seconds: float, fs: float) -> np.ndarray:
+    return np.arange(int(round(seconds * fs))) / fs
+
+
+def band_noise(rng: Rng, n: int, fs: float, lo: float, hi: float) -> np.ndarray:
+    """Unit-rms Gaussian noise band-limited to [lo, hi] Hz (brick-wall in the frequency domain)."""
+    spectrum = rng.standard_normal(n // 2 + 1) + 1j * rng.standard_normal(n // 2 + 1)
+    freqs = np.fft.rfftfreq(n, 1.0 / fs)
+    spectrum[(freqs < lo) | (freqs > hi)] = 0.0
+    x = np.fft.irfft(spectrum, n)
+    rms = np.sqrt(np.mean(x**2))
+    return x / rms if rms > 0 else x
+
+
+def resonance_sos(f0: float, zeta: float, fs: float) -> np.ndarray:
+    """Second-order low-pass ``w0^2 / (s^2 + 2 zeta w0 s + w0^2)`` (unit DC gain), bilinear, pre-warped."""
+    f0 = min(f0, 0.45 * fs)
+    w0 = 2 * fs * np.tan(np.pi * f0 / fs)
+    b, a = signal.bilinear([w0**2], [1.0, 2 * zeta * w0, w0**2], fs)
+    return signal.tf2sos(b, a)
+
+
+def tilt(pitch_deg: float, roll_deg: float) -> np.ndarray:
+    """Rotation from the unit's frame to the accelerometer axes for a unit held slightly tilted."""
+    p, r = np.radians(pitch_deg), np.radians(roll_deg)
+    about_y = np.array([[np.cos(p), 0, np.sin(p)], [0, 1, 0], [-np.sin(p), 0, np.cos(p)]])
+    about_x = np.array([[1, 0, 0], [0, np.cos(r), -np.sin(r)], [0, np.sin(r), np.cos(r)]])
+    return about_x @ about_y
+
+
+def gravity(n: int, tilt_deg: tuple[float, float]) -> np.ndarray:
+    """1 g along the unit's vertical, seen through the operator's tilt: mostly on z."""
+    return np.tile(tilt(*tilt_deg) @ np.array([0.0, 0.0, 1.0]), (n, 1))
+
+def envelope(t: np.ndarray, on: float, rise: float, off: float, fall: float) -> np.ndarray:
+    return smoothstep((t - on) / rise) * (1.0 - smoothstep((t - off) / fall))

@@ -1,0 +1,115 @@
+"""What changes from scan to scan: the operator's draw (speeds, forces, timing, judgement, camera) and the
+physical sample (a piece a few percent off the library's typical material)."""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from scanner.simulation.materials import Material, SimulationError
+from scanner.simulation.signals import Rng, quantise
+
+
+@dataclass(frozen=True)
+class OperatorDraw:
+    """What one operator does differently in one scan (SPEC 5): speeds, forces, timing, judgement, camera.
+
+    Speeds are in mm/s within the 20-240 mm/s range of hand-held exploration (Culbertson et al., paper
+    section III-D); ``*_start_s`` is when the unit starts moving after resting still.
+    """
+
+    t_amb: float
+    finger_speed_mm_s: float
+    tool_speed_mm_s: float
+    friction_speed_mm_s: float
+    finger_slide_start_s: float
+    tool_slide_start_s: float
+    friction_start_s: float
+    friction_normal_n: float
+    friction_factor: float
+    press_force_n: float
+    press_start_s: float
+    fold_force_n: float
+    fold_extent: float
+    tap_strength: float
+    tilt_deg: tuple[float, float]
+    heat_delay_s: float
+    skips_rigid_fold: bool
+    atk_offset: float
+    cyd_offset: float
+    light_gain: float
+    white_balance: tuple[float, float, float]
+    camera_zoom: float
+    photo_rotation_deg: float
+
+
+SPEED_RANGE_MM_S = (20.0, 240.0)
+SLIDE_START_RANGE_S = (0.42, 0.75)
+
+
+def draw_operator(rng: Rng, *, t_amb: float | None = None,
+                  fold_skip_probability: float = 0.5) -> OperatorDraw:
+    """Draw one scan's operator variability.
+
+    The judged tack and yielding are off by +-0.25 in about one scan in six; a rigid sample's fold step is
+    skipped with ``fold_skip_probability``. ``friction_factor`` scales both friction coefficients for the
+    operator's finger that day (skin moisture, contact angle: about +-12 %); the camera draws exposure,
+    white balance, distance (zoom +-8 %) and rotation. ``t_amb`` (degC) is the session's MLX90614 ambient
+    reading, drawn around 21.5 degC when not given and quantised to the sensor's 0.02 degC steps.
+    """
+    if not 0.0 <= fold_skip_probability <= 1.0:
+        raise SimulationError(f"fold_skip_probability must be in [0, 1], got {fold_skip_probability!r}")
+    ambient = rng.normal(21.5, 1.2) if t_amb is None else float(t_amb)
+    speeds = rng.uniform(*SPEED_RANGE_MM_S, size=3)
+    starts = rng.uniform(*SLIDE_START_RANGE_S, size=3)
+    disagree = rng.random(2) < 1 / 6
+    return OperatorDraw(
+        t_amb=quantise(ambient, 0.02),
+        finger_speed_mm_s=float(speeds[0]), tool_speed_mm_s=float(speeds[1]),
+        friction_speed_mm_s=float(speeds[2]),
+        finger_slide_start_s=float(starts[0]), tool_slide_start_s=float(starts[1]),
+        friction_start_s=float(starts[2]),
+        friction_normal_n=float(rng.uniform(3.0, 7.0)),
+        friction_factor=float(rng.lognormal(0.0, 0.12)),
+        press_force_n=float(rng.uniform(6.0, 15.0)),
+        press_start_s=float(rng.uniform(0.3, 0.8)),
+        fold_force_n=float(rng.uniform(1.0, 3.0)),
+        fold_extent=float(rng.uniform(0.7, 1.1)),
+        tap_strength=float(rng.uniform(0.6, 1.4)),
+        tilt_deg=(float(rng.normal(0.0, 6.0)), float(rng.normal(0.0, 6.0))),
+        heat_delay_s=float(rng.uniform(0.6, 1.4)),
+        skips_rigid_fold=bool(rng.random() < fold_skip_probability),
+        atk_offset=float(disagree[0] * rng.choice([-0.25, 0.25])),
+        cyd_offset=float(disagree[1] * rng.choice([-0.25, 0.25])),
+        light_gain=float(np.clip(rng.normal(1.0, 0.1), 0.7, 1.3)),
+        white_balance=tuple(float(g) for g in np.clip(rng.normal(1.0, 0.04, 3), 0.9, 1.1)),
+        camera_zoom=float(rng.uniform(0.92, 1.08)),
+        photo_rotation_deg=float(rng.normal(0.0, 10.0)),
+    )
+
+
+def sample_of(material: Material, sample_id: str) -> Material:
+    """The material as one physical sample: a few percent off the library's typical values.
+
+    Deterministic in (slug, sample_id), so every scan of a sample sees the same piece: its volume (80-125 %
+    of the typical sample), density (+-1 %, at most 2 %), roughness and friction (+-5 %), heat rise (+-5 %)
+    and colour.
+    """
+    rng = np.random.default_rng(zlib.crc32(f"{material.slug}/{sample_id}".encode()))
+    scale = rng.normal(1.0, 0.05, size=5)
+    rough, fric, thermal, look = material.roughness, material.friction, material.thermal, material.appearance
+    tint = np.clip(rng.normal(1.0, 0.03, size=3), 0.85, 1.15)
+    colors = tuple(tuple(float(min(255.0, c * t)) for c, t in zip(color, tint, strict=True))
+                   for color in look.colors)
+    return replace(
+        material,
+        density_g_cm3=material.density_g_cm3 * float(np.clip(rng.normal(1.0, 0.01), 0.98, 1.02)),
+        sample_volume_cm3=material.sample_volume_cm3 * float(rng.uniform(0.8, 1.25)),
+        roughness=replace(rough, micro_um=rough.micro_um * scale[0],
+                          macro_height_um=rough.macro_height_um * min(scale[1], 1.1)),
+        friction=replace(fric, static=fric.static * scale[2], kinetic=fric.kinetic * min(scale[2], scale[3])),
+        thermal=replace(thermal, heat_rise_k=thermal.heat_rise_k * scale[4]),
+        appearance=replace(look, colors=colors),
+    )
