@@ -1,6 +1,14 @@
-"""texplorer taxonomy: C/S/M/P/X material labels, the taxonomy table and classification levels (SPEC 9)."""
+"""texplorer taxonomy: C/S/M/P/X material labels, the taxonomy table and classification levels (SPEC 9).
 
-import importlib
+This package's surface is the ground layer that every other layer builds on: labels, the taxonomy table
+and the project's base error. The learning modules are imported by their own names, since they build on
+the features, which build on the scan model, which needs the labels:
+
+- :mod:`taxonomy.evaluation`: classifiers, cross-validation and metrics (``evaluate``, ``evaluate_grid``);
+- :mod:`taxonomy.models`: trained models (``train_model``, ``predict_top``);
+- :mod:`taxonomy.methods`: the related papers' methods (``compare``);
+- :mod:`taxonomy.report`, :mod:`taxonomy.plots`: tables, HTML reports and figures.
+"""
 
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import LEVELS, Label, LabelError, check_level, format_code, parse_code
@@ -23,20 +31,4 @@ __all__ = [
     "Entry", "Label", "LabelError", "LabelNames", "Material", "Taxonomy", "TaxonomyError", "TexplorerError",
     "UnknownLabelError",
     "check_level", "format_code", "load_taxonomy", "parse_code", "read_table",
-    "CLASSIFIERS", "EvaluationError", "Report", "evaluate", "evaluate_grid", "make_pipeline", "r_c",
-    "ModelError", "TrainedModel", "load_model", "predict_top", "save_model", "train_model",
 ]
-
-_LAZY = {
-    **dict.fromkeys(("CLASSIFIERS", "EvaluationError", "Report", "evaluate", "evaluate_grid", "make_pipeline",
-                     "r_c"), "taxonomy.evaluation"),
-    **dict.fromkeys(("ModelError", "TrainedModel", "load_model", "predict_top", "save_model", "train_model"),
-                    "taxonomy.models"),
-}
-
-
-def __getattr__(name: str) -> object:
-    # scikit-learn and skops take seconds to import; ``import scanner`` (which needs the labels) stays fast.
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'taxonomy' has no attribute {name!r}")

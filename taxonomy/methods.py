@@ -540,7 +540,7 @@ def run_fishel(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
     rows, columns, notes = usable_rows(extracted, range(len(dataset)))
     X = extracted.X[np.ix_(rows, columns)]
     groups = [object_of(dataset.recordings[i]) for i in rows]
-    # The fine labels decide the grouping, so every level is split alike (as taxonomy.evaluate does).
+    # The fine labels decide the grouping, so every level is split alike (as taxonomy.evaluation.evaluate does).
     fine = dataset.y(dataset.label_level, rows)
     folds = max(2, min(5, int(np.unique(fine, return_counts=True)[1].min())))
     results = []

@@ -108,8 +108,8 @@ def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, 
                 seed: int = SEED, feature_set: FeatureSet = None) -> TrainedModel:
     """Fit ``scale -> select n_features -> classifier`` on every row of ``space`` at ``level``.
 
-    Columns that hold NaN in any row are left out, as in ``taxonomy.evaluate`` (listed in ``dropped``).
-    Cross-validated scores of the same settings come from ``taxonomy.evaluate``.
+    Columns that hold NaN in any row are left out, as in ``taxonomy.evaluation.evaluate`` (listed in ``dropped``).
+    Cross-validated scores of the same settings come from ``taxonomy.evaluation.evaluate``.
     """
     from scanner import __version__
 

@@ -118,7 +118,7 @@ def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: S
     space : features.space.FeatureSpace
         The feature space the reports were computed on (for FQ, Spearman, PCA and box plots).
     reports : list of Report
-        From ``taxonomy.evaluate`` / ``evaluate_grid``; may be empty.
+        From ``taxonomy.evaluation.evaluate`` / ``evaluate_grid``; may be empty.
     level, n_features : str, int
         Level and set size of the FQ ranking and Spearman heat map (selection on all rows).
     feature : str, optional
