@@ -21,7 +21,6 @@ for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_variable] = "1"
 
 import dataclasses  # noqa: E402
-import functools  # noqa: E402
 import math  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -31,14 +30,14 @@ from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
 
-from features import ScanSource, extract, extract_many, image, other, tactum  # noqa: E402
+from features import extract, extract_many, image, other, tactum  # noqa: E402
 from features.extraction import audio_features  # noqa: E402
 from scanner.database import Database  # noqa: E402
-from scanner.matfile import load_scan  # noqa: E402
 from scanner.preprocess import crop_image, grayscale  # noqa: E402
 from scanner.scan import IMAGES, Scan  # noqa: E402
 from scanner.simulation import synthetic_scan  # noqa: E402
 from scanner.simulation.database import synthetic_database  # noqa: E402
+from scanner.workflows import database_sources  # noqa: E402
 
 cv2.setNumThreads(1)
 
@@ -105,9 +104,7 @@ def per_scan() -> None:
 
 def many(folder: Path, materials: list[str], scans: int) -> None:
     db = synthetic_database(folder / "db", materials=materials, scans_per_material=scans, progress=False)
-    records = db.records()
-    sources = [ScanSource(r.scan_id, r.label, r.sample_id, functools.partial(load_scan, db.root / r.path),
-                          cache_key=r.content_hash) for r in records]
+    sources = database_sources(db, db.records())
     t1 = best_times({"1": lambda: extract_many(sources, workers=1, progress=False)}, 1)["1"][0]
     t2 = best_times({"2": lambda: extract_many(sources, workers=2, progress=False)}, 1)["2"][0]
     print(f"\nextract_many over {len(sources)} scans (512x512): 1 worker {t1:6.1f} s, 2 workers {t2:6.1f} s, "

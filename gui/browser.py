@@ -23,11 +23,13 @@ from flask import Blueprint, abort, flash, jsonify, redirect, render_template, r
 from werkzeug.wrappers import Response
 
 from gui.app import context
-from gui.exports import ExportBusy, ExportError, ExportJob, scan_source
+from gui.exports import ExportBusy, ExportError, ExportJob
 from gui.forms import parse_label_filter
 from scanner.database import DatabaseError, ScanRecord
 from scanner.files import temp_path_for
 from scanner.scan import CHANNELS, IMAGES
+from scanner.workflows import extract_database, stored_features
+from taxonomy.plots import plot_scan
 from taxonomy.table import Taxonomy
 
 blueprint = Blueprint("database", __name__)
@@ -102,14 +104,8 @@ def scans() -> str:
 
 
 def feature_values(record: ScanRecord) -> tuple[dict[str, float], str | None]:
-    """The 193 features of a stored scan from the database's cache (extracted and cached if missing)."""
-    from features import extract_many
-
-    db = context().db
-    space = extract_many([scan_source(db, record)], workers=1, cache=db, progress=False)
-    if space.failed:
-        return {}, space.failed[0][1]
-    return dict(zip(space.columns, space.X[0].tolist(), strict=True)), None
+    """The features of a stored scan from the database's cache (extracted and cached if missing)."""
+    return stored_features(context().db, record)
 
 
 def group_features(values: dict[str, float]) -> list[tuple[str, list[tuple[str, str]]]]:
@@ -143,8 +139,6 @@ def scan(scan_id: str) -> str:
 
 def plot_file(record: ScanRecord) -> Path:
     """The cached trace figure of a scan, drawn by ``plot_scan`` on first request (atomic rename)."""
-    from taxonomy.plots import plot_scan
-
     ctx = context()
     path = ctx.plot_dir / f"{record.content_hash}.png"
     if not path.is_file():
@@ -172,11 +166,9 @@ def photo(scan_id: str, variable: str) -> Response:
 @blueprint.get("/export/features.csv")
 def export_features() -> Response:
     """The feature space of every scan (SPEC 8) as CSV, from the database's feature cache."""
-    from scanner.cli import feature_space
-
     ctx = context()
     try:
-        space = feature_space(ctx.db, ctx.settings.workers)
+        space = extract_database(ctx.db, workers=ctx.settings.workers)
     except DatabaseError as exc:
         abort(404, description=str(exc))
     with tempfile.TemporaryDirectory(prefix="texplorer-features-") as scratch:  # nothing kept on the server

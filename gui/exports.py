@@ -34,10 +34,9 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import IO, Any
 
-from features import ScanSource, extract_many
 from scanner.bundle import BundleError, export_bundle
 from scanner.database import Database, ScanRecord
-from scanner.matfile import load_scan
+from scanner.workflows import extract_database
 
 FEATURE_CHUNK = 16
 """Scans whose features are extracted between two progress reports (and cancellation checks)."""
@@ -70,12 +69,6 @@ class ExportBusy(ExportError):
 
 class _Cancelled(Exception):
     """Raised inside the export to stop it; ``export_bundle`` deletes its partial file on the way out."""
-
-
-def scan_source(db: Database, record: ScanRecord) -> ScanSource:
-    """A catalogued scan for :func:`features.extract_many`, keyed for the database's feature cache."""
-    return ScanSource(record.scan_id, record.label, record.sample_id,
-                      functools.partial(load_scan, db.root / record.path), cache_key=record.content_hash)
 
 
 def filter_text(label: str | None, session: str | None) -> str:
@@ -177,12 +170,11 @@ class ExportJob:
 
     def _warm_feature_cache(self, abandon_after_s: float) -> None:
         """Features of every exported scan into the cache, so ``export_bundle`` only reads them."""
-        sources = [scan_source(self.db, record) for record in self.records]
-        for start in range(0, len(sources), FEATURE_CHUNK):
+        for start in range(0, len(self.records), FEATURE_CHUNK):
             self._check(abandon_after_s)
-            extract_many(sources[start:start + FEATURE_CHUNK], workers=self.workers, cache=self.db,
-                         progress=False)
-            self.done = min(start + FEATURE_CHUNK, len(sources))
+            extract_database(self.db, records=self.records[start:start + FEATURE_CHUNK], workers=self.workers,
+                             progress=False)
+            self.done = min(start + FEATURE_CHUNK, len(self.records))
 
     def _count(self, records: Iterable[ScanRecord], abandon_after_s: float) -> Iterator[ScanRecord]:
         """``export_bundle``'s progress callback: hands on every scan, counts it, stops when cancelled."""

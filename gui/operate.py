@@ -21,6 +21,7 @@ from typing import Any
 from flask import Blueprint, abort, flash, jsonify, redirect, render_template, request, send_file, url_for
 from werkzeug.wrappers import Response
 
+from features import extract
 from gui.app import context
 from gui.forms import (
     TACK_CHOICES,
@@ -38,6 +39,9 @@ from scanner.database import DatabaseError
 from scanner.devices.protocols import DeviceError
 from scanner.scan import IMAGES
 from scanner.session import VOLUME_METHODS, Session, SessionError, StepInfo, StepState
+from scanner.workflows import predict_values
+from taxonomy.models import ModelError
+from taxonomy.plots import plot_scan
 
 blueprint = Blueprint("operate", __name__)
 
@@ -422,8 +426,6 @@ def _format(value: float) -> str:
 
 def summarise(op: Operation) -> Summary:
     """TacTUM values and the model's top three of the scan as it would be saved (cached per change)."""
-    from features import extract
-
     cached = op.summary_cache.get("summary")
     if cached is not None:
         return cached
@@ -442,8 +444,6 @@ def summarise(op: Operation) -> Summary:
 
 
 def _predict(values: dict[str, float]) -> tuple[list[tuple[str, float, str]] | None, str]:
-    from taxonomy.models import ModelError, predict_top
-
     ctx = context()
     try:
         model = ctx.model
@@ -452,17 +452,10 @@ def _predict(values: dict[str, float]) -> tuple[list[tuple[str, float, str]] | N
     if model is None:
         return None, "no trained model: run 'texplorer train' (or 'texplorer demo') to see predictions here"
     try:
-        top = predict_top(model, values, 3)
+        top = predict_values(model, values, 3, ctx.db.taxonomy())
     except ModelError as exc:
         return None, f"no prediction: {session_error(exc)}"
-    taxonomy = ctx.db.taxonomy()
-    named = []
-    for label, probability in top:
-        try:
-            words = taxonomy.name(label)
-        except ValueError:
-            words = "(not in the taxonomy table)"
-        named.append((label, probability, words))
+    named = [(p.label, p.probability, p.names) for p in top]
     return named, f"{model.classifier} at level {model.level}, trained on {model.n_rows} scans"
 
 
@@ -510,8 +503,6 @@ def step_traces(step_id: str) -> Response:
 
 @blueprint.get("/session/summary/traces.png")
 def summary_traces() -> Response:
-    from taxonomy.plots import plot_scan
-
     op = operation()
     if op.session.missing():
         abort(409, description="the scan is not complete yet")

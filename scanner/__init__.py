@@ -17,9 +17,8 @@ from scanner.scan import (
     ScanMeta,
     Trace,
 )
+from scanner.version import __version__
 from taxonomy.errors import TexplorerError
-
-__version__ = "0.1.0"
 
 __all__ = [
     "CHANNELS", "IMAGES", "JUDGED_SCALE", "ROLES", "SCHEMA_VERSION", "VOLUME_METHODS",

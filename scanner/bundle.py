@@ -59,11 +59,11 @@ from typing import IO, Any
 
 import scipy.io
 
-import scanner
 from scanner.database import STAGING_PREFIX, Database, FileEntry, ScanRecord, content_hash
 from scanner.files import atomic_write_bytes, fsync_dir, owned_folder, temp_path_for
 from scanner.matfile import ScanFormatError, load_scan, photo_file_name
 from scanner.scan import IMAGES, SCHEMA_VERSION, ScanMeta
+from scanner.version import __version__
 from taxonomy.errors import TexplorerError
 
 BUNDLE_FORMAT = "texplorer-bundle"
@@ -253,7 +253,7 @@ def _manifest(db: Database, records: Sequence[ScanRecord], scans: list[dict[str,
         "format": BUNDLE_FORMAT,
         "bundle_schema": BUNDLE_SCHEMA,
         "scan_schema": SCHEMA_VERSION,
-        "software_version": scanner.__version__,
+        "software_version": __version__,
         "feature_code_version": code_version(),
         "created": created.isoformat(),
         "filters": {"label": label, "session": session},

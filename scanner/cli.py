@@ -18,10 +18,12 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-import scanner
 from scanner.database import Database, DatabaseError, is_database
 from scanner.devices.protocols import DeviceError
 from scanner.photo import max_pixels
+from scanner.scan import IMAGES, JUDGED_SCALE
+from scanner.version import __version__
+from scanner.workflows import extract_database, format_predictions, predict_scan
 from taxonomy.errors import TexplorerError
 
 DEFAULT_DB = "texplorer-data"
@@ -154,20 +156,6 @@ def cmd_db_rebuild(args: argparse.Namespace) -> int:
 
 # -- features ----------------------------------------------------------------------------------------
 
-def feature_space(db: Database, workers: int | None, label: str | None = None, *, client=None,
-                  ship_data: bool = False):
-    """Extract (or read from the cache) the 193 features of every scan in ``db``, on the Dask cluster of
-    ``client`` if given (the catalog and the cache are read and written here only)."""
-    from features import ScanSource, extract_many
-
-    records = db.records(label=label)
-    sources = [ScanSource(r.scan_id, r.label, r.sample_id, stored, cache_key=r.content_hash)
-               for r, stored in zip(records, db.stored_scans(records), strict=True)]
-    if not sources:
-        raise DatabaseError(f"{db.root}: no scans{f' with label {label}' if label else ''} to extract")
-    return extract_many(sources, workers=workers, cache=db, client=client, ship_data=ship_data)
-
-
 def _report_space(space, seconds: float) -> None:
     import numpy as np
 
@@ -184,7 +172,7 @@ def cmd_features(args: argparse.Namespace) -> int:
     db = _open_db(args)
     started = time.perf_counter()
     with _cluster(args) as client:
-        space = feature_space(db, args.workers, args.label, client=client, ship_data=args.ship_data)
+        space = extract_database(db, label=args.label, workers=args.workers, client=client, ship_data=args.ship_data)
     _report_space(space, time.perf_counter() - started)
     out = args.out or db.root / "features.csv"
     space.to_csv(out)
@@ -386,7 +374,7 @@ def _record_step(session, step) -> None:
 def _take_photos(session) -> None:
     from scanner.session import SessionError
 
-    for name in scanner.IMAGES:
+    for name in IMAGES:
         while True:
             answer = _ask(f"  {name}: [Enter] capture with the camera, or a PNG/JPEG file, a abort: ")
             try:
@@ -405,7 +393,7 @@ def _tu4(session) -> None:
     _ask_value(session, "  mass (g): ", "mass_g")
     _ask_value(session, "  volume (cm^3): ", "volume_cm3")
     _ask_value(session, f"  volume measured by ({'/'.join(VOLUME_METHODS)}): ", "volume_method", str)
-    scale = "/".join(f"{v:g}" for v in scanner.JUDGED_SCALE)
+    scale = "/".join(f"{v:g}" for v in JUDGED_SCALE)
     _ask_value(session, f"  adhesive tack ({scale}): ", "atk")
     _ask_value(session, f"  yielding ({scale}): ", "cyd")
     _ask_value(session, "  notes (optional): ", "notes", str, optional=True)
@@ -476,12 +464,8 @@ def cmd_scan(args: argparse.Namespace) -> int:
         return EXIT_ERROR
     print(f"saved {scan_id} in {args.db}")
     if model is not None:
-        from features import extract
-        from taxonomy.models import format_predictions, predict_top
-        from taxonomy.table import load_taxonomy
-
-        scan = _open_db(args).get(scan_id)
-        print(format_predictions(predict_top(model, extract(scan), 3), load_taxonomy()))
+        db = _open_db(args)
+        print(format_predictions(predict_scan(model, db.get(scan_id), 3, db.taxonomy())))
     return 0
 
 
@@ -644,7 +628,7 @@ def _space_for(args: argparse.Namespace, client=None):
 
     if args.features:
         return FeatureSpace.from_csv(args.features)
-    space = feature_space(_open_db(args), args.workers, client=client, ship_data=args.ship_data)
+    space = extract_database(_open_db(args), workers=args.workers, client=client, ship_data=args.ship_data)
     for scan_id, reason in space.failed:
         print(f"texplorer: warning: {scan_id} left out: {reason}", file=sys.stderr)
     return space
@@ -800,15 +784,14 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_classify(args: argparse.Namespace) -> int:
-    from features import extract
     from scanner.matfile import load_scan
-    from taxonomy.models import format_predictions, load_model, predict_top
+    from taxonomy.models import load_model
     from taxonomy.table import load_taxonomy
 
     model = load_model(args.model)
     scan = load_scan(args.scan)
     print(f"{scan.scan_id} ({scan.meta.label} recorded) with {model.describe()}")
-    print(format_predictions(predict_top(model, extract(scan), args.k), load_taxonomy()))
+    print(format_predictions(predict_scan(model, scan, args.k, load_taxonomy())))
     return 0
 
 
@@ -833,7 +816,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     print("scans per major class: " + ", ".join(f"{c} {n}" for c, n in sorted(by_class.items())))
     with _cluster(args) as client:
         started = time.perf_counter()
-        space = feature_space(db, args.workers, client=client, ship_data=args.ship_data)
+        space = extract_database(db, workers=args.workers, client=client, ship_data=args.ship_data)
         _report_space(space, time.perf_counter() - started)
         print(f"wrote {space.to_csv(db.root / 'features.csv')}")
         if args.no_evaluation:
@@ -900,7 +883,7 @@ def _add_evaluation_options(parser: argparse.ArgumentParser, report_default: str
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="texplorer", description="Multimodal material scanner: acquisition, "
                                      "database, features and classification.")
-    parser.add_argument("--version", action="version", version=f"texplorer {scanner.__version__}")
+    parser.add_argument("--version", action="version", version=f"texplorer {__version__}")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 

@@ -47,7 +47,6 @@ from typing import Any
 
 import numpy as np
 
-import scanner
 from scanner.config import Config
 from scanner.devices import Devices, open_devices
 from scanner.devices.camera import decode_photo
@@ -61,11 +60,13 @@ from scanner.scan import (
     JUDGED_SCALE,
     T_AMB_RANGE,
     VOLUME_METHODS,
+    Scan,
     ScanError,
     ScanMeta,
     check_sample_id,
 )
 from scanner.simulation import scan_seed
+from scanner.version import __version__
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import Label, LabelError
 
@@ -495,7 +496,7 @@ class Session:
 
     # -- the end ---------------------------------------------------------------------------------
 
-    def scan(self, scan_index: int = 1) -> scanner.Scan:
+    def scan(self, scan_index: int = 1) -> Scan:
         """The scan as it would be saved (raises :class:`SessionError` listing what is missing)."""
         missing = self.missing()
         if missing:
@@ -508,7 +509,7 @@ class Session:
                             scan_index=scan_index, session_id=self.session_id, started=self.started,
                             t_amb=self.t_amb, mass_g=values.mass_g, volume_cm3=values.volume_cm3,
                             volume_method=values.volume_method, atk=values.atk, cyd=values.cyd, rigid=self.rigid,
-                            device=device, calibration=calibration, software_version=scanner.__version__,
+                            device=device, calibration=calibration, software_version=__version__,
                             notes=values.notes)
             return build_scan(meta, results, self._photos)
         except ScanError as exc:

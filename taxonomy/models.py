@@ -23,7 +23,7 @@ import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import sklearn
@@ -32,6 +32,9 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import MinMaxScaler
 
 from features.selection import FQSelector
+from features.space import FeatureSpace
+from scanner import __version__
+from scanner.files import atomic_write_bytes
 from taxonomy.errors import TexplorerError
 from taxonomy.evaluation import (
     CLASSIFIERS,
@@ -43,10 +46,7 @@ from taxonomy.evaluation import (
     resolve_feature_set,
 )
 from taxonomy.labels import LEVELS, check_level
-
-if TYPE_CHECKING:
-    from features.space import FeatureSpace
-    from taxonomy.table import Taxonomy
+from taxonomy.table import Taxonomy
 
 MODEL_FORMAT = "texplorer-model"
 MODEL_FORMAT_VERSION = 1
@@ -111,8 +111,6 @@ def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, 
     Columns that hold NaN in any row are left out, as in ``taxonomy.evaluation.evaluate`` (listed in ``dropped``).
     Cross-validated scores of the same settings come from ``taxonomy.evaluation.evaluate``.
     """
-    from scanner import __version__
-
     check_level(level)
     if classifier not in CLASSIFIERS:
         raise ModelError(f"unknown classifier {classifier!r} (known: {', '.join(CLASSIFIERS)})")
@@ -137,8 +135,6 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
 
     Refuses (ModelError) a model that :func:`load_model` would refuse, so no unreadable file is written.
     """
-    from scanner.files import atomic_write_bytes
-
     path = Path(path)
     payload = {
         "format": MODEL_FORMAT, "format_version": MODEL_FORMAT_VERSION, "pipeline": model.pipeline,

@@ -16,13 +16,11 @@ from sklearn.preprocessing import FunctionTransformer, MinMaxScaler
 
 from features.selection import FQSelector
 from features.space import FeatureSpace
-from taxonomy import load_taxonomy
 from taxonomy.evaluation import CLASSIFIERS
 from taxonomy.models import (
     MODEL_FORMAT,
     ModelError,
     TrainedModel,
-    format_predictions,
     load_model,
     predict_top,
     save_model,
@@ -193,9 +191,3 @@ def test_unselected_features_may_be_undefined(space, model):
     del holes["audio.tool.zcr"]
     assert predict_top(model, holes) == predict_top(model, values)
 
-
-def test_predictions_are_printed_with_taxonomy_names():
-    text = format_predictions([("C6S1M1P2X1", 0.75), ("C9S9M9P9X9", 0.25)], load_taxonomy())
-    first, second = text.splitlines()
-    assert first.startswith("1. C6S1M1P2X1   75.0 %  granite")
-    assert second.endswith("25.0 %  (not in the taxonomy table)")

@@ -11,12 +11,12 @@ from typing import Any
 
 import numpy as np
 
-import scanner
 from scanner.scan import CHANNELS, Scan, ScanMeta, Trace
 from scanner.simulation.camera import photos
 from scanner.simulation.materials import Material, SimulationError, default_library, known, resolve
 from scanner.simulation.steps import STEP_FUNCTIONS, STEPS
 from scanner.simulation.variability import OperatorDraw, draw_operator, sample_of
+from scanner.version import __version__
 
 SIMULATOR = "texplorer-sim"
 _EPOCH = datetime.fromisoformat("2024-03-04T09:00:00+00:00")
@@ -64,7 +64,7 @@ def synthetic_scan(material: Material | str, *, seed: int, scan_index: int = 1, 
         device={"simulator": SIMULATOR, "material": material.slug, "seed": str(seed),
                 "daq": "NI USB-6002 (simulated)", "sensor_board": "TEXPLORER-SB (simulated)",
                 "camera": "procedural"},
-        software_version=scanner.__version__, notes=_notes(draw), **results["tu4"])
+        software_version=__version__, notes=_notes(draw), **results["tu4"])
     return Scan(meta, traces, results["photos"])
 
 

@@ -1,0 +1,118 @@
+"""The workflows that the CLI, the web application, replay and the benchmarks share, each written once.
+
+- **Extract a database with its feature cache**: :func:`database_sources` turns catalog rows into
+  :class:`features.ScanSource` objects keyed by the scan's content hash; :func:`extract_database` extracts
+  them with the database as the cache (a second run over unchanged scans only reads it);
+  :func:`stored_features` gives one stored scan's values.
+- **Predict a scan's top k with names**: :func:`predict_scan` extracts a scan's features and names the
+  model's most probable labels with the taxonomy the caller gives (a database's own taxonomy, with its lab
+  codes, where there is a database); :func:`name_predictions` names predictions made elsewhere.
+
+This module sits above storage, features and learning and below the CLI and the web application, which
+call it rather than wiring those layers together themselves (see ``docs/extending.md``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from features import FeatureSpace, ScanSource, extract, extract_many
+from scanner.database import Database, DatabaseError, ScanRecord
+from scanner.scan import Scan
+from taxonomy.labels import LabelError
+from taxonomy.models import TrainedModel, predict_top
+from taxonomy.table import Taxonomy, UnknownLabelError
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+NOT_IN_TAXONOMY = "(not in the taxonomy table)"
+"""Shown instead of the names of a predicted label the taxonomy does not know."""
+
+
+# -- extract a database with its cache ---------------------------------------------------------------
+
+def database_sources(db: Database, records: Iterable[ScanRecord]) -> list[ScanSource]:
+    """One :class:`features.ScanSource` per catalog row: loaded where it is extracted (on a cluster worker,
+    exactly the catalogued bytes: :meth:`scanner.database.Database.stored_scans`), cached by content."""
+    records = list(records)
+    return [ScanSource(r.scan_id, r.label, r.sample_id, stored, cache_key=r.content_hash)
+            for r, stored in zip(records, db.stored_scans(records), strict=True)]
+
+
+def extract_database(db: Database, *, label: str | None = None, records: Sequence[ScanRecord] | None = None,
+                     workers: int | None = None, progress: bool = True, client: Client | None = None,
+                     ship_data: bool = False) -> FeatureSpace:
+    """The features of every scan of ``db`` (or of ``label``, a label or class prefix, or of ``records``),
+    read from the database's feature cache where the scan and the feature code are unchanged; extracted in
+    ``workers`` processes here, or on the Dask cluster of ``client`` (``ship_data``: send the files to the
+    workers; see :func:`features.extract_many`). The catalog and the cache are read and written here only.
+
+    Raises
+    ------
+    DatabaseError
+        No scan to extract.
+    """
+    if records is None:
+        records = db.records(label=label)
+    if not records:
+        raise DatabaseError(f"{db.root}: no scans{f' with label {label}' if label else ''} to extract")
+    return extract_many(database_sources(db, records), workers=workers, cache=db, progress=progress, client=client,
+                        ship_data=ship_data)
+
+
+def stored_features(db: Database, record: ScanRecord) -> tuple[dict[str, float], str | None]:
+    """One stored scan's named feature values from the cache (extracted and cached if missing), or ``{}``
+    and the reason its extraction failed."""
+    space = extract_database(db, records=[record], workers=1, progress=False)
+    if space.failed:
+        return {}, space.failed[0][1]
+    return dict(zip(space.columns, space.X[0].tolist(), strict=True)), None
+
+
+# -- predict a scan's top k with names ---------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Prediction:
+    """One of a model's most probable labels for a scan, with the taxonomy's words for it."""
+
+    label: str
+    probability: float
+    names: str
+
+
+def name_predictions(top: Iterable[tuple[str, float]], taxonomy: Taxonomy) -> list[Prediction]:
+    """``[(label, probability), ...]`` (:func:`taxonomy.models.predict_top`) with each label's names."""
+    return [Prediction(label, probability, _names(label, taxonomy)) for label, probability in top]
+
+
+def _names(label: str, taxonomy: Taxonomy) -> str:
+    try:
+        return taxonomy.name(label)
+    except (LabelError, UnknownLabelError):
+        return NOT_IN_TAXONOMY
+
+
+def predict_scan(model: TrainedModel, scan: Scan, k: int, taxonomy: Taxonomy) -> list[Prediction]:
+    """The ``k`` most probable labels of ``scan`` by ``model``, most probable first, named by ``taxonomy``.
+
+    Raises
+    ------
+    taxonomy.models.ModelError
+        A feature the model needs is missing or undefined for this scan.
+    """
+    return predict_values(model, extract(scan), k, taxonomy)
+
+
+def predict_values(model: TrainedModel, values: dict[str, float], k: int, taxonomy: Taxonomy) -> list[Prediction]:
+    """As :func:`predict_scan`, from the scan's feature values already extracted."""
+    return name_predictions(predict_top(model, values, k), taxonomy)
+
+
+def format_predictions(predictions: Sequence[Prediction]) -> str:
+    """Lines like ``1. C6S1M1P2X1   82.0 %  granite (igneous stone, stone), polished, plain``."""
+    width = max((len(p.label) for p in predictions), default=0)
+    return "\n".join(f"{rank}. {p.label:<{width}}  {100 * p.probability:5.1f} %  {p.names}"
+                     for rank, p in enumerate(predictions, start=1))

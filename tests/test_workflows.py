@@ -1,0 +1,85 @@
+"""The shared workflows (scanner.workflows): a database's features through its cache, named predictions."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from features import code_version, extract
+from scanner.database import Database, DatabaseError
+from scanner.simulation.database import synthetic_database
+from scanner.workflows import (
+    NOT_IN_TAXONOMY,
+    Prediction,
+    database_sources,
+    extract_database,
+    format_predictions,
+    name_predictions,
+    stored_features,
+)
+from taxonomy.table import load_taxonomy
+
+SMALL = (64, 64)
+
+
+@pytest.fixture(scope="module")
+def db(tmp_path_factory) -> Database:
+    root = tmp_path_factory.mktemp("workflows") / "db"
+    return synthetic_database(root, ["granite-polished", "oak-planed"], scans_per_material=1, image_size=SMALL,
+                              progress=False, workers=1)
+
+
+def test_sources_are_the_catalog_rows_keyed_by_content(db):
+    records = db.records()
+    sources = database_sources(db, records)
+    assert [s.scan_id for s in sources] == [r.scan_id for r in records]
+    assert [s.cache_key for s in sources] == [r.content_hash for r in records]
+    assert sources[0].load().scan_id == records[0].scan_id
+
+
+def test_a_database_is_extracted_once_then_read_from_its_cache(db):
+    with pytest.warns(Warning):  # the 64 px photos are too small for image features
+        expected = [extract(db.get(r.scan_id)) for r in db.records()]
+    space = extract_database(db, workers=1, progress=False)
+    assert space.scan_ids == tuple(r.scan_id for r in db.records())
+    for row, values in zip(space.X, expected, strict=True):
+        np.testing.assert_array_equal(row, np.array(list(values.values())))
+    for record in db.records():
+        cached = db.cached_features(record.content_hash, code_version())
+        assert cached is not None and list(cached) == list(space.columns)
+    again = extract_database(db, workers=1, progress=False)
+    np.testing.assert_array_equal(again.X, space.X)
+
+
+def test_label_filter_and_an_empty_selection(db):
+    assert extract_database(db, label="C6", workers=1, progress=False).scan_ids == ("granite-polished-01-001",)
+    with pytest.raises(DatabaseError, match="no scans with label C5 to extract"):
+        extract_database(db, label="C5", workers=1, progress=False)
+
+
+def test_one_stored_scan(db):
+    record = db.records()[0]
+    values, failure = stored_features(db, record)
+    assert failure is None
+    expected = extract_database(db, records=[record], workers=1, progress=False)
+    assert list(values) == list(expected.columns)
+    assert all(math.isnan(a) and math.isnan(b) or a == b for a, b in zip(values.values(), expected.X[0], strict=True))
+
+
+def test_predictions_are_named_by_the_taxonomy_given():
+    named = name_predictions([("C6S1M1P2X1", 0.75), ("C9S9M9P9X9", 0.25)], load_taxonomy())
+    assert named[0] == Prediction("C6S1M1P2X1", 0.75, load_taxonomy().name("C6S1M1P2X1"))
+    assert named[1].names == NOT_IN_TAXONOMY
+    first, second = format_predictions(named).splitlines()
+    assert first.startswith("1. C6S1M1P2X1   75.0 %  granite")
+    assert second.endswith("25.0 %  (not in the taxonomy table)")
+
+
+def test_a_lab_code_is_named_by_the_database_taxonomy(tmp_path):
+    extension = tmp_path / "taxonomy.csv"
+    extension.write_text("kind,code,name,description\nM,C6S1M9,diorite,Intermediate intrusive rock\n")
+    taxonomy = load_taxonomy(extension)
+    assert "diorite" in name_predictions([("C6S1M9P2X1", 1.0)], taxonomy)[0].names
+    assert name_predictions([("C6S1M9P2X1", 1.0)], load_taxonomy())[0].names == NOT_IN_TAXONOMY
