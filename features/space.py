@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import scipy.io
 
+from scanner.files import atomic_write_bytes
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import LEVELS, Label, check_level
 
@@ -177,8 +178,6 @@ class FeatureSpace:
 
     def to_csv(self, path: str | os.PathLike[str]) -> Path:
         """Write the CSV described in the module docstring, atomically."""
-        from scanner.files import atomic_write_bytes
-
         buffer = io.StringIO()
         writer = csv.writer(buffer, lineterminator="\n")
         label = "label" if self.label_level is None else f"label:{self.label_level}"
@@ -239,8 +238,6 @@ class FeatureSpace:
 
     def to_mat(self, path: str | os.PathLike[str]) -> Path:
         """Write ``X``, ``columns``, ``labels``, ``label``, ``scan_id``, ``sample_id`` as MATLAB v5, atomically."""
-        from scanner.files import atomic_write_bytes
-
         buffer = io.BytesIO()
         free = {} if self.label_level is None else {
             "label_level": self.label_level,

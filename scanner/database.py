@@ -44,7 +44,6 @@ from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path, PurePosixPath
-from typing import TYPE_CHECKING
 
 from scanner.files import (
     atomic_write_bytes,
@@ -59,9 +58,7 @@ from scanner.scan import IMAGES, Scan, ScanMeta, check_sample_id
 from scanner.stored import StoredScan
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import parse_prefix
-
-if TYPE_CHECKING:
-    from taxonomy.table import Taxonomy
+from taxonomy.table import Taxonomy, load_taxonomy
 
 CATALOG = "catalog.sqlite"
 SCANS = "scans"
@@ -521,8 +518,6 @@ class Database:
 
     def taxonomy(self) -> Taxonomy:
         """The shipped taxonomy merged with ``$TEXPLORER_TAXONOMY`` and this database's extension, if any."""
-        from taxonomy.table import load_taxonomy
-
         return load_taxonomy(self.taxonomy_path if self.taxonomy_path.is_file() else None)
 
     # -- reading -----------------------------------------------------------------------------------

@@ -25,17 +25,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from features import ScanSource, extract_many
+from features.space import FeatureSpace
 from scanner.files import is_temp_file
 from scanner.matfile import load_scan
 from scanner.scan import CHANNELS, Scan
 from scanner.stored import StoredScan
 from taxonomy.errors import TexplorerError
+from taxonomy.models import ModelError, TrainedModel, predict_top
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
     from distributed import Client
-
-    from features.space import FeatureSpace
-    from taxonomy.models import TrainedModel
 
 DEFAULT_RTOL = 1e-9
 """Relative tolerance of :func:`compare` for closed-form features (sums, FFTs, filters), whose values differ
@@ -81,16 +81,12 @@ def replay(paths: Sequence[Path], *, workers: int | None = None, progress: bool 
     ``client`` (workers read the files at the same paths, or get them from here: ``extract_many``);
     nothing is cached, so the numbers are those of the current code.
     """
-    from features import ScanSource, extract_many
-
     sources = [ScanSource(str(path), "", "", StoredScan(path)) for path in paths]
     return _identified(extract_many(sources, workers=workers, progress=progress, client=client, ship_data=ship_data))
 
 
 def _identified(space: FeatureSpace) -> FeatureSpace:
     """Rows named by the scan id, label and sample stored in each file (extraction named them by path)."""
-    from features.space import FeatureSpace
-
     metas = [load_scan(path, images=False).meta for path in space.scan_ids]
     return FeatureSpace(space.X, space.columns, [m.scan_id for m in metas], [m.label for m in metas],
                         [m.sample_id for m in metas], space.failed)
@@ -105,8 +101,6 @@ def check_unique(space: FeatureSpace) -> None:
 
 def predictions(space: FeatureSpace, model: TrainedModel, k: int = 3) -> list[list[tuple[str, float]] | str]:
     """Per row of ``space``: the model's ``k`` most probable classes, or why it cannot classify that scan."""
-    from taxonomy.models import ModelError, predict_top
-
     results: list[list[tuple[str, float]] | str] = []
     for row in space.X:
         try:

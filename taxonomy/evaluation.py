@@ -51,12 +51,11 @@ from tqdm import tqdm
 
 from features import cluster
 from features.selection import FQSelector, KeepAll
+from features.space import FeatureSpace
 from taxonomy.errors import TexplorerError
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
     from distributed import Client
-
-    from features.space import FeatureSpace
 
 PROTOCOLS = ("nested", "paper")
 

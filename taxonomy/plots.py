@@ -12,7 +12,7 @@ import re
 import textwrap
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, BinaryIO
+from typing import BinaryIO
 
 import numpy as np
 import scipy.stats
@@ -21,10 +21,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from scanner.scan import Scan, Trace
+from taxonomy.evaluation import Report
 from taxonomy.table import Taxonomy, load_taxonomy
-
-if TYPE_CHECKING:
-    from taxonomy.evaluation import Report
 
 Traces = Mapping[str, Trace]
 """Channel name -> trace: a scan's ``traces`` or one recorded step's."""

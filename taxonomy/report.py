@@ -19,13 +19,15 @@ import math
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from features.selection import Selection, select_features
+from features.space import FeatureSpace
+from scanner.files import atomic_write_bytes
 from taxonomy.evaluation import Report, format_r_c, major_class, size_name
 from taxonomy.labels import LEVELS
+from taxonomy.methods import COLUMNS, MethodResult, best_per_method, result_notes
 from taxonomy.plots import (
     plot_confusion,
     plot_feature_boxes,
@@ -34,10 +36,6 @@ from taxonomy.plots import (
     plot_scores,
     plot_spearman,
 )
-
-if TYPE_CHECKING:
-    from features.space import FeatureSpace
-    from taxonomy.methods import MethodResult
 
 CELL_LEGEND = ("accuracy % (mean +- std over folds), macro F1, r_C (paper eq. 32; - where undefined: no "
                "misclassification, or the coarse level, where every misclassification leaves the major class)")
@@ -127,8 +125,6 @@ def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: S
         Bars in the FQ chart; classes in the box plot (beyond it only the major class with the most
         classes is shown, as in the paper's Fig. 14) and labelled classes in a confusion matrix.
     """
-    from scanner.files import atomic_write_bytes
-
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     figures: list[tuple[str, Path]] = []
@@ -251,9 +247,6 @@ def write_comparison(folder: str | os.PathLike[str], results: Sequence[MethodRes
     accuracy chart of every result and the confusion matrix of each method's best result; the PNGs are
     written beside it and embedded in it. Returns the path of ``index.html``.
     """
-    from scanner.files import atomic_write_bytes
-    from taxonomy.methods import COLUMNS, best_per_method, result_notes
-
     e = html.escape
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

@@ -22,6 +22,10 @@ from dataclasses import dataclass
 from typing import Any
 
 from scanner.config import Config
+from scanner.devices.audio import PlaybackMicrophone, SoundDeviceMicrophone
+from scanner.devices.board import BoardPeltier, PlaybackBoard, SerialBoard
+from scanner.devices.camera import OpenCvCamera, PlaybackCamera
+from scanner.devices.daq import DaqPeltier, NidaqmxDaq, PlaybackDaq
 from scanner.devices.protocols import (
     AcquisitionError,
     BoardTimeout,
@@ -120,8 +124,6 @@ def _open(opened: list[Any], factory: Any, config: Config, sources: dict[str, Si
 
 
 def _daq(config: Config, sources: dict[str, SignalSource], pacers: dict[str, Pacer]) -> Daq:
-    from scanner.devices.daq import NidaqmxDaq, PlaybackDaq
-
     kind = config.implementation("daq")
     if kind == "nidaqmx":
         return NidaqmxDaq(config.daq)
@@ -130,8 +132,6 @@ def _daq(config: Config, sources: dict[str, SignalSource], pacers: dict[str, Pac
 
 
 def _microphone(config: Config, sources: dict[str, SignalSource], pacers: dict[str, Pacer]) -> Microphone:
-    from scanner.devices.audio import PlaybackMicrophone, SoundDeviceMicrophone
-
     kind = config.implementation("microphone")
     if kind == "sounddevice":
         return SoundDeviceMicrophone(config.microphone)
@@ -143,8 +143,6 @@ def _microphone(config: Config, sources: dict[str, SignalSource], pacers: dict[s
 
 
 def _board(config: Config, sources: dict[str, SignalSource], pacers: dict[str, Pacer]) -> SensorBoard:
-    from scanner.devices.board import PlaybackBoard, SerialBoard
-
     kind = config.implementation("board")
     if kind == "serial":
         return SerialBoard(config.board)
@@ -152,8 +150,6 @@ def _board(config: Config, sources: dict[str, SignalSource], pacers: dict[str, P
 
 
 def _camera(config: Config, sources: dict[str, SignalSource], pacers: dict[str, Pacer]) -> Camera:
-    from scanner.devices.camera import OpenCvCamera, PlaybackCamera
-
     kind = config.implementation("camera")
     if kind == "opencv":
         return OpenCvCamera(config.camera)
@@ -161,9 +157,6 @@ def _camera(config: Config, sources: dict[str, SignalSource], pacers: dict[str, 
 
 
 def _peltier(config: Config, daq: Daq, board: SensorBoard) -> Peltier:
-    from scanner.devices.board import BoardPeltier
-    from scanner.devices.daq import DaqPeltier
-
     if config.implementation("peltier") == "daq":
         return DaqPeltier(daq)
     return BoardPeltier(board)

@@ -27,6 +27,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from scanner.config import CHANNEL_ROLES, DAQ_ROLES, Calibration, ConfigError
+from scanner.matfile import load_scan
 from scanner.scan import CHANNELS, Scan
 from scanner.simulation import STEP_FUNCTIONS, STEPS, Material, draw_operator, load_materials, photos, sample_of
 
@@ -195,8 +196,6 @@ class StoredScan:
 
     @classmethod
     def load(cls, path: str | Path) -> StoredScan:
-        from scanner.matfile import load_scan
-
         return cls(load_scan(path), Path(path).name)
 
     def describe(self) -> str:
