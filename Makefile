@@ -30,6 +30,7 @@ bench: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check scanner features taxonomy gui tests benchmarks
+	$(BIN)/lint-imports --no-logo
 
 # The newest releases pip resolves today, in a scratch environment, written as the new constraints; then
 # `make test` installs and tests exactly them. Commit constraints.txt when the tests pass.

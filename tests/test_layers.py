@@ -1,0 +1,90 @@
+"""The layer order of docs/extending.md holds: import-linter's contracts (pyproject.toml) are kept, every
+module sits in a layer, no module imports itself through others, and no project import hides in a function."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import grimp
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("scanner", "features", "taxonomy", "gui")
+CONFIG = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
+
+PENDING_IN_FUNCTIONS = {"scanner/cli.py", "scanner/bundle.py", "gui/app.py"}
+"""Files whose project imports inside functions are still to be lifted to the module top."""
+
+
+@pytest.fixture(scope="module")
+def graph() -> grimp.ImportGraph:
+    return grimp.build_graph(*PACKAGES, cache_dir=None)
+
+
+def test_import_linter_contracts_are_kept():
+    linter = Path(sys.executable).with_name("lint-imports")
+    run = subprocess.run([str(linter), "--no-cache", "--no-logo"], cwd=ROOT, capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert f"Contracts: {len(CONFIG['contracts'])} kept, 0 broken." in run.stdout
+
+
+def _layer_modules() -> set[str]:
+    names = set()
+    for contract in CONFIG["contracts"]:
+        if contract["type"] == "layers":
+            for layer in contract["layers"]:
+                names.update(part.strip() for part in layer.replace("|", ":").split(":"))
+    return names
+
+
+def test_every_module_sits_in_a_layer(graph):
+    layers = _layer_modules()
+    outside = sorted(module for module in graph.modules if module not in PACKAGES
+                     and not any(module == layer or module.startswith(layer + ".") for layer in layers))
+    assert outside == []
+
+
+def test_no_module_imports_itself_through_others(graph):
+    cycles = []
+    for importer in sorted(graph.modules):
+        for imported in sorted(graph.find_modules_directly_imported_by(importer)):
+            chain = graph.find_shortest_chain(importer=imported, imported=importer)
+            if chain is not None:
+                cycles.append(" -> ".join((importer, *chain)))
+    assert cycles == [
+        "gui.app -> gui.browser -> gui.app",
+        "gui.app -> gui.operate -> gui.app",
+        "gui.browser -> gui.app -> gui.browser",
+        "gui.operate -> gui.app -> gui.operate",
+    ]
+
+
+def _imports_in_functions(path: Path, root: Path = ROOT) -> list[str]:
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            for inner in ast.walk(node):
+                names = ([inner.module or ""] if isinstance(inner, ast.ImportFrom)
+                         else [alias.name for alias in inner.names] if isinstance(inner, ast.Import) else [])
+                found += [f"{path.relative_to(root)}:{inner.lineno} {name}" for name in names
+                          if name.split(".")[0] in PACKAGES]
+    return found
+
+
+def test_no_project_import_hides_in_a_function():
+    files = sorted(path for package in PACKAGES for path in (ROOT / package).rglob("*.py"))
+    assert len(files) > 60
+    hidden = [line for path in files if str(path.relative_to(ROOT)) not in PENDING_IN_FUNCTIONS
+              for line in _imports_in_functions(path)]
+    assert hidden == []
+
+
+def test_the_check_sees_an_import_in_a_function(tmp_path):
+    sample = tmp_path / "sample.py"
+    sample.write_text("import numpy\n\n\ndef f():\n    from scanner.scan import Scan\n    return Scan\n")
+    assert _imports_in_functions(sample, tmp_path) == ["sample.py:5 scanner.scan"]
