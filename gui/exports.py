@@ -37,6 +37,7 @@ from typing import IO, Any
 from scanner.bundle import BundleError, export_bundle
 from scanner.database import Database, ScanRecord
 from scanner.workflows import extract_database
+from taxonomy.errors import TexplorerError
 
 FEATURE_CHUNK = 16
 """Scans whose features are extracted between two progress reports (and cancellation checks)."""
@@ -55,7 +56,7 @@ PHASE_TEXT = {
 }
 
 
-class ExportError(ValueError):
+class ExportError(TexplorerError, ValueError):
     """An export that cannot start or failed; one line for the page."""
 
 
@@ -67,7 +68,7 @@ class ExportBusy(ExportError):
         self.job = job
 
 
-class _Cancelled(Exception):
+class _Cancelled(TexplorerError):
     """Raised inside the export to stop it; ``export_bundle`` deletes its partial file on the way out."""
 
 

@@ -41,7 +41,7 @@ from scanner.scan import IMAGES
 from scanner.session import VOLUME_METHODS, Session, SessionError, StepInfo, StepState
 from scanner.workflows import predict_values
 from taxonomy.models import ModelError
-from taxonomy.plots import plot_scan
+from taxonomy.plots import plot_scan, plot_step
 
 blueprint = Blueprint("operate", __name__)
 
@@ -485,8 +485,6 @@ def _send_png(data: bytes) -> Response:
 @blueprint.get("/session/step/<step_id>/traces.png")
 def step_traces(step_id: str) -> Response:
     """The traces of a recorded step, drawn in memory by ``taxonomy.plots.plot_step`` (cached per change)."""
-    from taxonomy.plots import plot_step
-
     op = operation()
     info = _record_step(op.session, step_id)
     result = op.session.result(step_id)

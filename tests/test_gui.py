@@ -787,13 +787,13 @@ def test_second_export_while_one_runs_is_refused_and_cancel_deletes(exporter, tm
 
     exports_ = exporter.extensions["texplorer"].exports
     gate = threading.Event()
-    original = exports.extract_many
+    original = exports.extract_database
 
     def held(*args, **kwargs):  # the first chunk waits until the test has looked
         gate.wait(10)
         return original(*args, **kwargs)
 
-    exports.extract_many = held
+    exports.extract_database = held
     try:
         client = exporter.test_client()
         first = post(client, "/db/export", {})
@@ -807,7 +807,7 @@ def test_second_export_while_one_runs_is_refused_and_cancel_deletes(exporter, tm
         assert post(client, f"/db/export/{job.id}/cancel").status_code == 302
         assert first.status_code == 302 and job.phase in ("cancelled", "done") and not job.thread.is_alive()
     finally:
-        exports.extract_many = original
+        exports.extract_database = original
     assert job.phase == "cancelled" and not list((tmp_path / "tmp").iterdir())
 
 

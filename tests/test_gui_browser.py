@@ -393,16 +393,16 @@ def test_export_job_with_progress_and_filter(page, server, tmp_path, monkeypatch
     db.add(make_scan(9, label="C7S1M1P8X1", sample_id="steel-01", rigid=True, drop=("f_fold", "alpha_f")))
     # Hold the second chunk of feature extraction, so the page can be seen part-way through.
     gate, held = threading.Event(), threading.Event()
-    original = exports.extract_many
+    original = exports.extract_database
 
-    def extract_held(sources, **kwargs):
-        if any(source.scan_id == "granite-01-003" for source in sources):
+    def extract_held(db, *, records, **kwargs):
+        if any(record.scan_id == "granite-01-003" for record in records):
             held.set()
             gate.wait(20)
-        return original(sources, **kwargs)
+        return original(db, records=records, **kwargs)
 
     monkeypatch.setattr(exports, "FEATURE_CHUNK", 2)
-    monkeypatch.setattr(exports, "extract_many", extract_held)
+    monkeypatch.setattr(exports, "extract_database", extract_held)
     page.set_viewport_size({"width": 800, "height": 900})
     page.goto(base + "/db/")
     page.fill("#export-label", "c6")
