@@ -31,7 +31,7 @@ from pathlib import Path  # noqa: E402
 import cv2  # noqa: E402
 
 from features import extract, extract_many, image, other, tactum  # noqa: E402
-from features.extraction import audio_features  # noqa: E402
+from features.families import audio_features  # noqa: E402
 from scanner.database import Database  # noqa: E402
 from scanner.preprocess import crop_image, grayscale  # noqa: E402
 from scanner.scan import IMAGES, Scan  # noqa: E402

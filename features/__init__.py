@@ -1,11 +1,15 @@
 """texplorer features: pure functions from a scan to named feature values, and the feature space (SPEC 7, 8).
 
-``extract(scan)`` gives the 193 features in SPEC order; ``extract_many(scans, workers=None)`` builds a
-:class:`FeatureSpace` in parallel. Submodules: ``tactum``, ``image``, ``audio``, ``other``, ``space``.
+``extract(scan)`` gives the features of every registered family (:mod:`features.registry`; the paper's 193,
+:mod:`features.families`, in SPEC order); ``extract_many(scans, workers=None)`` builds a
+:class:`FeatureSpace` in parallel. Submodules: ``tactum``, ``image``, ``audio``, ``other``, ``related``,
+``selection``, ``space``.
 """
 
-from features.extraction import NAMES, SOLVER_RTOL, FeatureCache, ScanSource, code_version, extract, extract_many
-from features.space import MODALITIES, FeatureSpace, FeatureSpaceError
+from features.extraction import FeatureCache, ScanSource, code_version, extract, extract_many
+from features.families import NAMES, SOLVER_RTOL
+from features.registry import REGISTRY, Family
+from features.space import FeatureSpace, FeatureSpaceError
 
-__all__ = ["MODALITIES", "NAMES", "SOLVER_RTOL", "FeatureCache", "FeatureSpace", "FeatureSpaceError", "ScanSource",
-           "code_version", "extract", "extract_many"]
+__all__ = ["NAMES", "REGISTRY", "SOLVER_RTOL", "Family", "FeatureCache", "FeatureSpace", "FeatureSpaceError",
+           "ScanSource", "code_version", "extract", "extract_many"]

@@ -1,170 +1,59 @@
-"""The 193 features of a scan (SPEC section 7) and their parallel, cached extraction into a feature space.
+"""The features of a scan (SPEC section 7) and their parallel, cached extraction into a feature space.
 
-Order: 15 TacTUM, 93 image (disp, macro, illu x 31), 70 audio (finger, tool x 35), 15 other.
+The features are those of the registered families (:mod:`features.registry`), in their order; the paper's
+193 (:mod:`features.families`) are registered when this package is imported.
 """
 
 from __future__ import annotations
 
 import concurrent.futures
 import contextlib
-import dataclasses
 import functools
-import hashlib
-import math
 import os
 import sys
 import warnings
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from features import audio, cluster, image, other, tactum
+from features import cluster
+from features.prepared import PreparedScan
+from features.registry import REGISTRY
 from features.space import FeatureSpace
-from scanner.preprocess import IMAGE_BORDER_PX, QualityError, slide_window
-from scanner.scan import IMAGES, Scan
+from scanner.scan import Scan
 from scanner.stored import NotOnThisMachine
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
     from distributed import Client
 
-AUDIO_SIGNALS = {"finger": ("v_fs", "a_fs"), "tool": ("v_ts", "a_ts")}
-"""Audio feature prefix -> (vibration that fixes the slide window, audio channel)."""
 
-NAMES: tuple[str, ...] = (
-    *tactum.NAMES,
-    *(f"image.{short}.{name}" for short in IMAGES.values() for name in image.NAMES),
-    *(f"audio.{which}.{name}" for which in AUDIO_SIGNALS for name in audio.NAMES),
-    *other.NAMES,
-)
-"""The 193 feature names in SPEC order."""
-
-SOLVER_RTOL: dict[str, float] = {**other.SOLVER_RTOL}
-"""Relative tolerance of each feature computed by an iterative fit (the others are closed-form)."""
-
-MIN_PHOTO_SIDE = 2 * IMAGE_BORDER_PX + image.MIN_SIDE_PX
-"""Smallest photo side with image features: the crop plus 2 px (202 px); Tamura coarseness needs the crop
-plus its largest pair of windows (264 px) and is NaN below that (``image.FEATURE_MIN_SIDE_PX``)."""
-
-TACTUM_PHOTO_SIDE = 2 * IMAGE_BORDER_PX + 2 * 2**image.TAMURA_KMAX
-"""Smallest ``I_disp`` side TacTUM's MaCo and MaRG are computed on (264 px)."""
-
-_CODE_FILES = ("features/tactum.py", "features/image.py", "features/audio.py", "features/other.py",
-               "features/extraction.py", "scanner/preprocess.py", "scanner/scan.py")
-
-
-@functools.cache
 def code_version() -> str:
-    """Hash of the feature code: a cached feature vector is reused only with the code that computed it."""
-    root = Path(__file__).resolve().parents[1]
-    digest = hashlib.sha256()
-    for relative in _CODE_FILES:
-        digest.update(relative.encode() + b"\0" + (root / relative).read_bytes())
-    return digest.hexdigest()[:20]
-
-
-def _nan(names: Iterable[str]) -> dict[str, float]:
-    return dict.fromkeys(names, math.nan)
-
-
-def prepared_disp(scan: Scan) -> image.PreparedPhoto | None:
-    """``I_disp`` prepared once for TacTUM (MaCo, MaRG) and its image features, which share its gray image,
-    Tamura contrast and spectrum; None if the photo is missing or too small for image features."""
-    photo = scan.images.get("I_disp")
-    if photo is None or min(photo.shape[:2]) < TACTUM_PHOTO_SIDE:
-        return None
-    return image.PreparedPhoto(photo)
-
-
-def image_features(scan: Scan, disp: image.PreparedPhoto | None = None) -> dict[str, float]:
-    """31 features for each photo (SPEC 7.2); NaN with a warning for a missing or too small photo.
-
-    ``disp`` is ``I_disp`` already prepared (:func:`prepared_disp`); the other photos are prepared here.
-    Each photo releases its memory once its features are computed (``disp`` too) and the next photo's
-    gray image is computed in it: fresh memory is slow to fault in.
-    """
-    values: dict[str, float] = {}
-    spare = None
-    for variable, short in IMAGES.items():
-        names = [f"image.{short}.{name}" for name in image.NAMES]
-        photo = scan.images.get(variable)
-        if photo is None:
-            warnings.warn(f"scan {scan.scan_id}: no photo {variable}; its image features are NaN", stacklevel=2)
-            values.update(_nan(names))
-        elif min(photo.shape[:2]) < MIN_PHOTO_SIDE:
-            warnings.warn(f"scan {scan.scan_id}: photo {variable} of {photo.shape[1]}x{photo.shape[0]} px is smaller "
-                          f"than {MIN_PHOTO_SIDE} px; its image features are NaN", stacklevel=2)
-            values.update(_nan(names))
-        else:
-            shared = variable == "I_disp" and disp is not None
-            prepared = disp if shared else image.PreparedPhoto(photo, keep_gray=False, buffer=spare)
-            computed = image.compute(photo, prepared=prepared)
-            spare = prepared.release()
-            values.update({f"image.{short}.{name}": computed[name] for name in image.NAMES})
-    return values
-
-
-def audio_features(scan: Scan) -> dict[str, float]:
-    """35 features of the finger and of the tool audio in the 1 s slide window (SPEC 6, 7.3)."""
-    values: dict[str, float] = {}
-    for which, (vibration, sound) in AUDIO_SIGNALS.items():
-        names = [f"audio.{which}.{name}" for name in audio.NAMES]
-        v, a = scan.get(vibration), scan.get(sound)
-        missing = [name for name, trace in ((sound, a), (vibration, v)) if trace is None]
-        if missing:
-            warnings.warn(f"scan {scan.scan_id}: no {' or '.join(missing)}; audio.{which} features are NaN",
-                          stacklevel=2)
-            values.update(_nan(names))
-            continue
-        try:
-            window = slide_window(v.data, fs=v.fs, audio_samples=a.n, audio_fs=a.fs)
-        except QualityError as problem:
-            warnings.warn(f"scan {scan.scan_id}: {vibration}: {problem}; audio.{which} features are NaN",
-                          stacklevel=2)
-            values.update(_nan(names))
-            continue
-        computed = audio.compute(a.data[window.audio], fs=a.fs)
-        values.update({f"audio.{which}.{name}": computed[name] for name in audio.NAMES})
-    return values
-
-
-def without_short_channels(scan: Scan) -> Scan:
-    """``scan`` without the channels too short for their features (``Scan.short_channels``), with a warning.
-
-    Their features are then NaN like those of a missing channel: a single sample has no spread, no
-    relaxation and no cooling curve, and computing them anyway gives silent zeros (SPEC 7).
-    """
-    short = scan.short_channels()
-    if not short:
-        return scan
-    described = ", ".join(f"{name} ({scan[name].n} of the {need} samples its features need)"
-                          for name, need in short.items())
-    warnings.warn(f"scan {scan.scan_id}: too short: {described}; treated as missing", tactum.MissingDataWarning,
-                  stacklevel=3)
-    return dataclasses.replace(scan, traces={k: v for k, v in scan.traces.items() if k not in short})
+    """Hash of the feature code (every registered family's module, this module and what they import): a
+    cached feature vector is reused only with the code that computed it."""
+    return REGISTRY.code_version(__name__)
 
 
 def extract(scan: Scan) -> dict[str, float]:
-    """The 193 named features of a scan in SPEC order (section 7); NaN where a value is undefined.
-
-    Channels too short for their features count as missing (:func:`without_short_channels`).
+    """The named features of a scan (SPEC section 7): every registered family's, in order; NaN where a
+    value is undefined. The scan is prepared once (:class:`~features.prepared.PreparedScan`) for all of them.
 
     BLAS runs on one thread: a product's summation order depends on its thread count, which would make
     the last bits of a few features (Tamura contrast, MaCo, MaRG) differ between machines with other core
     counts and between a process of this machine and a Dask worker (which starts with one BLAS thread).
     """
-    scan = without_short_channels(scan)
+    values: dict[str, float] = {}
     with threadpool_limits(limits=1):
-        disp = prepared_disp(scan)
-        values = {**tactum.compute(scan, disp=disp), **image_features(scan, disp), **audio_features(scan),
-                  **other.compute(scan)}
-    if tuple(values) != NAMES:
-        # A programming error, not bad input.
-        raise RuntimeError("feature modules returned names out of the fixed order of features.NAMES")
+        prepared = PreparedScan(scan)
+        for family in REGISTRY:
+            computed = family.compute(prepared)
+            if tuple(computed) != family.columns:
+                # A programming error, not bad input.
+                raise RuntimeError(f"the {family.name} family returned names out of its fixed column order")
+            values.update(computed)
     return values
 
 
@@ -226,13 +115,14 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     scan's files: see :func:`features.cluster.extract`.
     """
     sources = [s if isinstance(s, ScanSource) else source_of(s) for s in scans]
+    names = REGISTRY.names
     version = code_version()
     rows: list[list[float] | None] = [None] * len(sources)
     errors: dict[int, str] = {}
     todo = []
     for i, source in enumerate(sources):
         cached = cache.cached_features(source.cache_key, version) if cache and source.cache_key else None
-        if cached is not None and tuple(cached) == NAMES:
+        if cached is not None and tuple(cached) == names:
             rows[i] = list(cached.values())
         else:
             todo.append(i)
@@ -251,12 +141,12 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
                 continue
             rows[i] = row
             if cache is not None and sources[i].cache_key:
-                cache.store_features(sources[i].cache_key, version, dict(zip(NAMES, row, strict=True)))
+                cache.store_features(sources[i].cache_key, version, dict(zip(names, row, strict=True)))
     bar.close()
     kept = [i for i in range(len(sources)) if rows[i] is not None]
     return FeatureSpace(
-        X=np.array([rows[i] for i in kept], dtype=np.float64).reshape(len(kept), len(NAMES)),
-        columns=NAMES,
+        X=np.array([rows[i] for i in kept], dtype=np.float64).reshape(len(kept), len(names)),
+        columns=names,
         scan_ids=[sources[i].scan_id for i in kept],
         label_text=[sources[i].label for i in kept],
         groups=[sources[i].group for i in kept],

@@ -29,12 +29,10 @@ from pathlib import Path
 import numpy as np
 import scipy.io
 
+from features.registry import REGISTRY
 from scanner.files import atomic_write_bytes
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import LEVELS, Label, check_level
-
-MODALITIES = ("tactum", "image", "audio", "other")
-"""Column groups by the first part of the feature name."""
 
 _ID_COLUMNS = ("scan_id", "sample_id", "label")
 _LABEL_PARTS = ("C", "S", "M", "P", "X")
@@ -141,9 +139,10 @@ class FeatureSpace:
         return np.array(self.label_text if level == self.label_level else self.levels[level])
 
     def modality(self, name: str) -> FeatureSpace:
-        """The columns of one modality: ``tactum``, ``image``, ``audio`` or ``other``."""
-        if name not in MODALITIES:
-            raise FeatureSpaceError(f"unknown modality {name!r} (known: {', '.join(MODALITIES)})")
+        """The columns of one modality: a registered family (``tactum``, ``image``, ``audio``, ``other``),
+        whose name is the first part of its column names."""
+        if name not in REGISTRY.modalities:
+            raise FeatureSpaceError(f"unknown modality {name!r} (known: {', '.join(REGISTRY.modalities)})")
         return self.subset([c for c in self.columns if c.split(".", 1)[0] == name])
 
     def subset(self, columns: Sequence[str]) -> FeatureSpace:

@@ -22,6 +22,7 @@ from typing import Any
 from flask import Blueprint, abort, flash, jsonify, redirect, render_template, request, send_file, url_for
 from werkzeug.wrappers import Response
 
+from features import REGISTRY
 from gui.app import context
 from gui.exports import ExportBusy, ExportError, ExportJob
 from gui.forms import parse_label_filter
@@ -34,10 +35,6 @@ from taxonomy.table import Taxonomy
 
 blueprint = Blueprint("database", __name__)
 
-FEATURE_GROUPS = (("tactum", "TacTUM (paper section IV-A)"), ("image.disp", "image: photo"),
-                  ("image.macro", "image: macro lens"), ("image.illu", "image: flash"),
-                  ("audio.finger", "audio: finger slide"), ("audio.tool", "audio: tool slide"),
-                  ("other", "other"))
 SESSION_CHOICES = 200
 """Sessions offered in the export form's list (newest first); any other can still be typed."""
 
@@ -111,7 +108,7 @@ def feature_values(record: ScanRecord) -> tuple[dict[str, float], str | None]:
 def group_features(values: dict[str, float]) -> list[tuple[str, list[tuple[str, str]]]]:
     """Feature values by modality for display: ``[(title, [(short name, formatted value), ...]), ...]``."""
     groups = []
-    for prefix, title in FEATURE_GROUPS:
+    for prefix, title in REGISTRY.groups:
         rows = [(name[len(prefix) + 1:], _format(value)) for name, value in values.items()
                 if name.startswith(prefix + ".")]
         if rows:

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from features import REGISTRY
 from scanner.database import Database, DatabaseError, is_database
 from scanner.devices.protocols import DeviceError
 from scanner.photo import max_pixels
@@ -668,12 +669,12 @@ def set_sizes(values: Sequence[str] | None, default: Sequence[str]) -> list[int 
 def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
     """Evaluate the grid asked for on the command line (on the Dask cluster of ``client`` if given);
     print the table; write the HTML report if asked."""
-    from taxonomy.evaluation import CLASSIFIERS, DEFAULT_FEATURE_SETS, evaluate_grid
+    from taxonomy.evaluation import CLASSIFIERS, default_feature_sets, evaluate_grid
     from taxonomy.report import format_table, write_report
 
     classifiers = _choices(args.classifier, list(CLASSIFIERS))
     levels = _choices(args.level, space.level_names)
-    sets = None if ALL in args.feature_set else {name: DEFAULT_FEATURE_SETS[name] for name in args.feature_set}
+    sets = None if ALL in args.feature_set else {name: default_feature_sets()[name] for name in args.feature_set}
     use_split = not getattr(args, "ignore_split", False)
     sizes = set_sizes(args.n, ("3", "10", ALL) if space.label_level is not None else ("3", "10"))
     started = time.perf_counter()
@@ -842,7 +843,7 @@ def _add_db_option(parser: argparse.ArgumentParser) -> None:
 
 LEVELS = ("coarse", "medium", "fine")
 CLASSIFIER_NAMES = ("svm", "lda", "knn", "mlp", "rf", "nb")
-FEATURE_SETS = ("tactum", "image", "audio", "other")
+FEATURE_SETS = REGISTRY.modalities
 
 
 def _add_cluster_options(parser: argparse.ArgumentParser, ship: bool = True) -> None:
@@ -870,7 +871,8 @@ def _add_evaluation_options(parser: argparse.ArgumentParser, report_default: str
     parser.add_argument("--n", nargs="+", metavar="N", help="selected set sizes, and 'all' for every feature "
                         "without selection (default 3 10; for a set 3 10 all)")
     parser.add_argument("--feature-set", nargs="+", choices=(*FEATURE_SETS, ALL), default=[ALL],
-                        help="feature sets: one modality each, or all = every modality and all 193 (default)")
+                        help=f"feature sets: one modality each, or all = every modality and all "
+                        f"{len(REGISTRY.names)} (default)")
     parser.add_argument("--protocol", choices=("nested", "paper"), default="nested",
                         help="nested (default): scaling and selection inside the folds; paper: on all data first")
     parser.add_argument("--folds", type=int, default=5, help="cross-validation folds (default 5)")
@@ -887,8 +889,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
+    count = len(REGISTRY.names)
     demo = commands.add_parser("demo", help="build a synthetic database from the simulated scanner and summarise it",
-                               description="Simulated scanner -> database -> 193 features -> "
+                               description=f"Simulated scanner -> database -> {count} features -> "
                                "cross-validated evaluation (table + HTML report) -> a trained random forest.")
     _add_db_option(demo)
     demo.add_argument("--materials", nargs="+", metavar="SLUG", help="material slugs (default: whole library)")
@@ -904,8 +907,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_evaluation_options(demo, report_default="<db>/report", seed=False)
     demo.set_defaults(handler=cmd_demo)
 
-    features = commands.add_parser("features", help="extract the 193 features of every scan into a feature table",
-                                   description="Extract the 193 features of every scan (cached in the database "
+    features = commands.add_parser("features", help=f"extract the {count} features of every scan into a feature table",
+                                   description=f"Extract the {count} features of every scan (cached in the database "
                                    "by scan content and feature-code version) and write features.csv.")
     _add_db_option(features)
     _add_set_options(features)
@@ -1009,7 +1012,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     replaying = commands.add_parser(
         "replay", help="run stored scans through preprocessing, features and a model; check expected values",
-        description="Replay stored .mat scans through preprocessing and the 193 features (and a model). "
+        description=f"Replay stored .mat scans through preprocessing and the {count} features (and a model). "
         "With --expect, compare with a feature table: |actual - expected| <= atol + rtol * |expected|, NaN "
         f"matches only NaN; exit {EXIT_MISMATCH} on any difference.")
     replaying.add_argument("paths", nargs="+", type=Path, metavar="PATH", help=".mat files or their folders")

@@ -1,6 +1,6 @@
 """Replay of stored scans: the regression suite and the replay device's pacing (SPEC sections 5 and 11).
 
-:func:`replay` runs stored ``.mat`` scans through preprocessing and the 193 features (``features.extract``,
+:func:`replay` runs stored ``.mat`` scans through preprocessing and the features (``features.extract``,
 which does the preprocessing of SPEC 6 itself); :func:`predictions` adds a saved model's top classes;
 :func:`compare` checks the feature values against an expected feature table (the CSV of
 ``FeatureSpace.to_csv``) with a relative and an absolute tolerance. ``tests/regression/`` holds a few
@@ -75,7 +75,7 @@ def scan_paths(paths: Iterable[str | Path]) -> list[Path]:
 
 def replay(paths: Sequence[Path], *, workers: int | None = None, progress: bool = True, client: Client | None = None,
            ship_data: bool = False) -> FeatureSpace:
-    """The 193 features of the scans stored at ``paths`` (rows in that order; failures in ``.failed``).
+    """The features of the scans stored at ``paths`` (rows in that order; failures in ``.failed``).
 
     Each scan is loaded (validated) and extracted in a worker process, or on the Dask cluster of
     ``client`` (workers read the files at the same paths, or get them from here: ``extract_many``);

@@ -50,6 +50,7 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from features import cluster
+from features.registry import REGISTRY
 from features.selection import FQSelector, KeepAll
 from features.space import FeatureSpace
 from taxonomy.errors import TexplorerError
@@ -65,10 +66,12 @@ SEED = 0
 FeatureSet = str | Sequence[str] | None
 """Columns to evaluate: None or ``"all"`` (every column), a modality name, or an explicit list of names."""
 
-DEFAULT_FEATURE_SETS: dict[str, FeatureSet] = {
-    "tactum": "tactum", "image": "image", "audio": "audio", "other": "other", "all": None,
-}
-"""The paper's Figs. 16-18 columns: one modality at a time, then all 193 (X3 of "all" is the best-3)."""
+
+
+def default_feature_sets() -> dict[str, FeatureSet]:
+    """The paper's Figs. 16-18 columns: one modality (registered feature family) at a time, then all of them
+    (X3 of "all" is the best-3)."""
+    return {**{name: name for name in REGISTRY.modalities}, "all": None}
 
 
 class EvaluationError(TexplorerError, ValueError):
@@ -408,7 +411,7 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
     ``levels`` default to every level of the space (``space.level_names``); a set size None is ``all``.
 
     ``feature_sets`` maps a display name to a feature set (see :func:`evaluate`); the default is
-    :data:`DEFAULT_FEATURE_SETS` restricted to the modalities present in ``space``. Each fold of each
+    :func:`default_feature_sets` restricted to the modalities present in ``space``. Each fold of each
     (level, feature set, size) is one job in one of ``workers`` processes (default: all cores), or one task
     on the Dask cluster of ``client`` (each cell's data sent once), the fine level first because it takes
     longest; ``progress`` shows a bar. Reports come back ordered by classifier, feature set, level and
@@ -428,7 +431,7 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
 def _present_feature_sets(space: FeatureSpace) -> dict[str, FeatureSet]:
     """The modalities present, then all of them; a single modality only once (it is all of them)."""
     prefixes = {c.split(".", 1)[0] for c in space.columns}
-    present = {name: fs for name, fs in DEFAULT_FEATURE_SETS.items() if fs in prefixes}
+    present = {name: fs for name, fs in default_feature_sets().items() if fs in prefixes}
     return present if len(present) == 1 else {**present, "all": None}
 
 

@@ -1,0 +1,122 @@
+"""The paper's feature families (Strese et al. 2020, section IV; SPEC 7), registered in extraction order.
+
+=========  ==================================================  ==========================================
+family     columns                                             module
+=========  ==================================================  ==========================================
+``tactum`` 15 TacTUM features (paper section IV-A)            :mod:`features.tactum`
+``image``  31 per photo: ``image.disp``, ``image.macro``,      :mod:`features.image`
+           ``image.illu``
+``audio``  35 per slide: ``audio.finger`` (``a_fs``),          :mod:`features.audio`
+           ``audio.tool`` (``a_ts``), in the 1 s slide window
+``other``  15 more (SPEC 7.4)                                  :mod:`features.other`
+=========  ==================================================  ==========================================
+
+A new family is registered the same way (``REGISTRY.register(Family(...))``, see ``docs/extending.md``).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Iterable
+
+from features import audio, image, other, tactum
+from features.prepared import MIN_PHOTO_SIDE, PreparedScan
+from features.registry import REGISTRY, Family
+from scanner.preprocess import QualityError, slide_window
+from scanner.scan import IMAGES, Scan
+
+AUDIO_SIGNALS = {"finger": ("v_fs", "a_fs"), "tool": ("v_ts", "a_ts")}
+"""Audio feature prefix -> (vibration that fixes the slide window, audio channel)."""
+
+PHOTO_TITLES = {"disp": "image: photo", "macro": "image: macro lens", "illu": "image: flash"}
+SLIDE_TITLES = {"finger": "audio: finger slide", "tool": "audio: tool slide"}
+
+
+def _nan(names: Iterable[str]) -> dict[str, float]:
+    return dict.fromkeys(names, math.nan)
+
+
+def image_features(scan: Scan, disp: image.PreparedPhoto | None = None) -> dict[str, float]:
+    """31 features for each photo (SPEC 7.2); NaN with a warning for a missing or too small photo.
+
+    ``disp`` is ``I_disp`` already prepared (:func:`prepared_disp`); the other photos are prepared here.
+    Each photo releases its memory once its features are computed (``disp`` too) and the next photo's
+    gray image is computed in it: fresh memory is slow to fault in.
+    """
+    values: dict[str, float] = {}
+    spare = None
+    for variable, short in IMAGES.items():
+        names = [f"image.{short}.{name}" for name in image.NAMES]
+        photo = scan.images.get(variable)
+        if photo is None:
+            warnings.warn(f"scan {scan.scan_id}: no photo {variable}; its image features are NaN", stacklevel=2)
+            values.update(_nan(names))
+        elif min(photo.shape[:2]) < MIN_PHOTO_SIDE:
+            warnings.warn(f"scan {scan.scan_id}: photo {variable} of {photo.shape[1]}x{photo.shape[0]} px is smaller "
+                          f"than {MIN_PHOTO_SIDE} px; its image features are NaN", stacklevel=2)
+            values.update(_nan(names))
+        else:
+            shared = variable == "I_disp" and disp is not None
+            prepared = disp if shared else image.PreparedPhoto(photo, keep_gray=False, buffer=spare)
+            computed = image.compute(photo, prepared=prepared)
+            spare = prepared.release()
+            values.update({f"image.{short}.{name}": computed[name] for name in image.NAMES})
+    return values
+
+
+def audio_features(scan: Scan) -> dict[str, float]:
+    """35 features of the finger and of the tool audio in the 1 s slide window (SPEC 6, 7.3)."""
+    values: dict[str, float] = {}
+    for which, (vibration, sound) in AUDIO_SIGNALS.items():
+        names = [f"audio.{which}.{name}" for name in audio.NAMES]
+        v, a = scan.get(vibration), scan.get(sound)
+        missing = [name for name, trace in ((sound, a), (vibration, v)) if trace is None]
+        if missing:
+            warnings.warn(f"scan {scan.scan_id}: no {' or '.join(missing)}; audio.{which} features are NaN",
+                          stacklevel=2)
+            values.update(_nan(names))
+            continue
+        try:
+            window = slide_window(v.data, fs=v.fs, audio_samples=a.n, audio_fs=a.fs)
+        except QualityError as problem:
+            warnings.warn(f"scan {scan.scan_id}: {vibration}: {problem}; audio.{which} features are NaN",
+                          stacklevel=2)
+            values.update(_nan(names))
+            continue
+        computed = audio.compute(a.data[window.audio], fs=a.fs)
+        values.update({f"audio.{which}.{name}": computed[name] for name in audio.NAMES})
+    return values
+
+
+def _tactum(prepared: PreparedScan) -> dict[str, float]:
+    return tactum.compute(prepared.scan, disp=prepared.disp)
+
+
+def _image(prepared: PreparedScan) -> dict[str, float]:
+    return image_features(prepared.scan, prepared.disp)
+
+
+def _audio(prepared: PreparedScan) -> dict[str, float]:
+    return audio_features(prepared.scan)
+
+
+def _other(prepared: PreparedScan) -> dict[str, float]:
+    return other.compute(prepared.scan)
+
+
+TACTUM = REGISTRY.register(Family("tactum", "TacTUM (paper section IV-A)", tactum.NAMES, _tactum))
+IMAGE = REGISTRY.register(Family(
+    "image", "image", tuple(f"image.{short}.{name}" for short in IMAGES.values() for name in image.NAMES), _image,
+    groups=tuple((f"image.{short}", PHOTO_TITLES[short]) for short in IMAGES.values())))
+AUDIO = REGISTRY.register(Family(
+    "audio", "audio", tuple(f"audio.{which}.{name}" for which in AUDIO_SIGNALS for name in audio.NAMES), _audio,
+    groups=tuple((f"audio.{which}", SLIDE_TITLES[which]) for which in AUDIO_SIGNALS)))
+OTHER = REGISTRY.register(Family("other", "other", other.NAMES, _other, solver_rtol=other.SOLVER_RTOL))
+
+NAMES: tuple[str, ...] = REGISTRY.names
+"""The paper's 193 feature names in SPEC order: 15 TacTUM, 93 image (disp, macro, illu x 31), 70 audio
+(finger, tool x 35), 15 other."""
+
+SOLVER_RTOL: dict[str, float] = REGISTRY.solver_rtol
+"""Relative tolerance of each of these features computed by an iterative fit (the others are closed-form)."""

@@ -1,0 +1,188 @@
+"""The feature families and the one registry everything about them is derived from.
+
+A family is named columns computed from a scan by one function: TacTUM, image, audio and other are the
+paper's (:mod:`features.families` registers them). Registering a family is the only step that adds
+features: extraction (:func:`features.extract`, ``extract_many``) computes every registered family in
+order, the feature space knows its modality, the evaluation grid gets a feature set for it, the web
+application a group of values, and the feature cache's code version covers the source of its module and
+of every project module that module imports, so a change to the code never serves stale cached values.
+
+The registry holds the families' order; the column names of all of them, in that order, are the rows'
+order everywhere (CSV, ``.mat``, cache).
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+import importlib.util
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+
+from features.prepared import PreparedScan
+from taxonomy.errors import TexplorerError
+
+PROJECT_PACKAGES = ("scanner", "features", "taxonomy", "gui")
+"""Packages whose modules count towards the code version when a family's module imports them."""
+
+Compute = Callable[[PreparedScan], Mapping[str, float]]
+"""A family's function: the prepared scan -> its values by column name, in the family's column order."""
+
+
+class RegistryError(TexplorerError, ValueError):
+    """A family that cannot be registered (a name or column already taken, a malformed column name)."""
+
+
+@dataclass(frozen=True)
+class Family:
+    """One feature family.
+
+    ``name`` is the modality: the first part of every column name (``tactum.matx``). ``groups`` are the
+    web application's groups of values, ``(column prefix, title)``, by default the whole family under its
+    ``title``. ``solver_rtol`` gives the relative tolerance of columns computed by an iterative fit (the
+    regression comparison uses it; closed-form columns have none).
+    """
+
+    name: str
+    title: str
+    columns: tuple[str, ...]
+    compute: Compute
+    groups: tuple[tuple[str, str], ...] = ()
+    solver_rtol: Mapping[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "columns", tuple(self.columns))
+        if not self.groups:
+            object.__setattr__(self, "groups", ((self.name, self.title),))
+        if not self.name or "." in self.name:
+            raise RegistryError(f"family name must be a non-empty word without dots, got {self.name!r}")
+        strays = [c for c in self.columns if not c.startswith(self.name + ".")]
+        if strays or not self.columns:
+            raise RegistryError(f"family {self.name!r}: every column must start with '{self.name}.' "
+                                f"(got {', '.join(strays[:3]) or 'no columns'})")
+        if len(set(self.columns)) != len(self.columns):
+            raise RegistryError(f"family {self.name!r}: column names repeat")
+
+    @property
+    def module(self) -> str:
+        """The module that defines the family's function."""
+        return self.compute.__module__
+
+
+class Registry:
+    """The registered families, in extraction order."""
+
+    def __init__(self) -> None:
+        self._families: dict[str, Family] = {}
+
+    def register(self, family: Family) -> Family:
+        """Add ``family`` after the others; returns it."""
+        if family.name in self._families:
+            raise RegistryError(f"a feature family {family.name!r} is already registered")
+        self._families[family.name] = family
+        return family
+
+    def unregister(self, name: str) -> Family:
+        """Remove the family ``name`` (a plug-in or a test undoing its registration); returns it."""
+        try:
+            return self._families.pop(name)
+        except KeyError:
+            raise RegistryError(f"no feature family {name!r} (registered: {', '.join(self._families)})") from None
+
+    def __iter__(self) -> Iterator[Family]:
+        return iter(tuple(self._families.values()))
+
+    def __len__(self) -> int:
+        return len(self._families)
+
+    def __getitem__(self, name: str) -> Family:
+        return self._families[name]
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Every column of every family, in order."""
+        return tuple(column for family in self for column in family.columns)
+
+    @property
+    def modalities(self) -> tuple[str, ...]:
+        """The family names, in order."""
+        return tuple(self._families)
+
+    @property
+    def groups(self) -> tuple[tuple[str, str], ...]:
+        """The web application's groups of values, ``(column prefix, title)``, in order."""
+        return tuple(group for family in self for group in family.groups)
+
+    @property
+    def solver_rtol(self) -> dict[str, float]:
+        """Relative tolerance of every column computed by an iterative fit."""
+        return {column: rtol for family in self for column, rtol in family.solver_rtol.items()}
+
+    def code_modules(self, *extra: str) -> tuple[str, ...]:
+        """The modules whose source the values depend on: each family's module, ``extra`` modules (the
+        extraction's own), and every project module they import, directly or not."""
+        return _closure(tuple(sorted({family.module for family in self} | set(extra))))
+
+    def code_version(self, *extra: str) -> str:
+        """Hash of the source of :meth:`code_modules`: a cached feature vector is reused only with the code
+        that computed it."""
+        return _digest(self.code_modules(*extra))
+
+
+REGISTRY = Registry()
+"""The families every extraction computes (the paper's four, registered by :mod:`features.families`)."""
+
+
+# -- the code a family depends on ---------------------------------------------------------------------
+
+@cache
+def _closure(start: tuple[str, ...]) -> tuple[str, ...]:
+    seen: set[str] = set()
+    todo = list(start)
+    while todo:
+        module = todo.pop()
+        if module not in seen:
+            seen.add(module)
+            todo.extend(_imported(module))
+    return tuple(sorted(seen))
+
+
+def _source(module: str) -> Path:
+    spec = importlib.util.find_spec(module)
+    if spec is None or spec.origin is None:
+        raise RegistryError(f"cannot find the source of module {module!r}")
+    return Path(spec.origin)
+
+
+def _imported(module: str) -> set[str]:
+    """Project modules that ``module`` imports (modules only import at their top, see docs/extending.md)."""
+    tree = ast.parse(_source(module).read_text(encoding="utf-8"))
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            found.add(node.module)
+            found.update(f"{node.module}.{alias.name}" for alias in node.names)
+    return {name for name in found if name.split(".")[0] in PROJECT_PACKAGES and _is_module(name)}
+
+
+def _is_module(name: str) -> bool:
+    try:
+        return importlib.util.find_spec(name) is not None
+    except ModuleNotFoundError:  # "package.attribute": its parent is a module, the name is not
+        return False
+
+
+@cache
+def _digest(modules: tuple[str, ...]) -> str:
+    root = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256()
+    for module in modules:
+        path = _source(module).resolve()
+        shown = path.relative_to(root).as_posix() if path.is_relative_to(root) else module
+        digest.update(shown.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()[:20]
+
