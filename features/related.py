@@ -34,7 +34,7 @@ import pywt
 from scipy import ndimage, optimize, signal
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.preprocessing import StandardScaler
-from sklearn.utils.validation import check_is_fitted
+from sklearn.utils.validation import check_is_fitted, validate_data
 
 from features.tactum import frs, mico
 from scanner.preprocess import QualityError, band_limit, dft321, remove_friction_offset, slide_signal
@@ -225,12 +225,13 @@ class XieFeatures(TransformerMixin, BaseEstimator):
     """
 
     def fit(self, X: np.ndarray, y: np.ndarray | None = None) -> XieFeatures:
-        self.scaler_ = StandardScaler().fit(np.asarray(X, dtype=np.float64))
+        X = validate_data(self, X)
+        self.scaler_ = StandardScaler().fit(X)
         return self
 
     def transform(self, X: np.ndarray) -> np.ndarray:
         check_is_fitted(self, "scaler_")
-        standard = self.scaler_.transform(np.asarray(X, dtype=np.float64))
+        standard = self.scaler_.transform(validate_data(self, X, reset=False))
         return np.array([xie11_from_vector(row) for row in standard]).reshape(len(standard), len(XIE_NAMES))
 
 

@@ -66,7 +66,9 @@ from sklearn.neural_network import MLPClassifier
 from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import MinMaxScaler, StandardScaler
 from sklearn.svm import SVC, LinearSVC
-from sklearn.utils.validation import check_is_fitted
+from sklearn.utils import Tags
+from sklearn.utils.multiclass import check_classification_targets
+from sklearn.utils.validation import check_is_fitted, validate_data
 from threadpoolctl import threadpool_limits
 
 from features import cluster, related
@@ -722,13 +724,14 @@ class PairwiseEliminationSVM(ClassifierMixin, BaseEstimator):
         self.keep = keep
 
     def _split(self, X: np.ndarray) -> np.ndarray:
-        X = np.asarray(X, dtype=np.float64)
-        if X.ndim != 2 or X.shape[1] % self.palpations:
+        if X.shape[1] % self.palpations:
             raise MethodError(f"rows must hold {self.palpations} palpations of equal width, "
                               f"got shape {X.shape}")
         return X.reshape(X.shape[0], self.palpations, -1)
 
     def fit(self, X: np.ndarray, y: np.ndarray) -> PairwiseEliminationSVM:
+        X, y = validate_data(self, X, y)
+        check_classification_targets(y)
         palpations = self._split(X)
         rows = palpations.reshape(-1, palpations.shape[2])
         labels = np.repeat(np.asarray(y), self.palpations)
@@ -778,6 +781,7 @@ class PairwiseEliminationSVM(ClassifierMixin, BaseEstimator):
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         check_is_fitted(self, "support_")
+        X = validate_data(self, X, reset=False)
         return self.classes_[[self._classify(rows) for rows in self._split(X)]]
 
 
@@ -788,9 +792,15 @@ class NearestSpatialPeriod(ClassifierMixin, BaseEstimator):
     ``|lambda - mean_c| / std_c`` (population std, floored at 1e-12 so a constant class still works).
     """
 
+    def __sklearn_tags__(self) -> Tags:
+        tags = super().__sklearn_tags__()
+        tags.classifier_tags.poor_score = True  # a one-column baseline (the paper: 36 %), by design
+        return tags
+
     def fit(self, X: np.ndarray, y: np.ndarray) -> NearestSpatialPeriod:
-        values = np.asarray(X, dtype=np.float64)[:, 0]
-        y = np.asarray(y)
+        X, y = validate_data(self, X, y)
+        check_classification_targets(y)
+        values = X[:, 0]
         self.classes_ = np.unique(y)
         self.mean_ = np.array([values[y == c].mean() for c in self.classes_])
         self.std_ = np.maximum(np.array([values[y == c].std() for c in self.classes_]), 1e-12)
@@ -798,7 +808,7 @@ class NearestSpatialPeriod(ClassifierMixin, BaseEstimator):
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         check_is_fitted(self, "mean_")
-        values = np.asarray(X, dtype=np.float64)[:, :1]
+        values = validate_data(self, X, reset=False)[:, :1]
         return self.classes_[np.argmin(np.abs(values - self.mean_) / self.std_, axis=1)]
 
 
@@ -913,8 +923,8 @@ class ShrunkGaussian(ClassifierMixin, BaseEstimator):
         self.shrinkage = shrinkage
 
     def fit(self, X: np.ndarray, y: np.ndarray) -> ShrunkGaussian:
-        X = np.asarray(X, dtype=np.float64)
-        y = np.asarray(y)
+        X, y = validate_data(self, X, y)
+        check_classification_targets(y)
         self.classes_, counts = np.unique(y, return_counts=True)
         eye = np.eye(X.shape[1])
         self.means_ = np.array([X[y == c].mean(axis=0) for c in self.classes_])
@@ -927,7 +937,7 @@ class ShrunkGaussian(ClassifierMixin, BaseEstimator):
         return self
 
     def _log_posterior(self, X: np.ndarray) -> np.ndarray:
-        centred = np.asarray(X, dtype=np.float64)[:, None, :] - self.means_[None]
+        centred = validate_data(self, X, reset=False)[:, None, :] - self.means_[None]
         distance = np.einsum("ncj,cjk,nck->nc", centred, self.precisions_, centred)
         return -0.5 * distance - self.log_norm_
 
@@ -983,7 +993,6 @@ class MotionCombination(ClassifierMixin, BaseEstimator):
         self.seed = seed
 
     def _split(self, X: np.ndarray) -> list[np.ndarray]:
-        X = np.asarray(X, dtype=np.float64)
         if X.shape[1] % self.blocks:
             raise MethodError(f"{X.shape[1]} columns do not split into {self.blocks} motions")
         return np.split(X, self.blocks, axis=1)
@@ -991,8 +1000,9 @@ class MotionCombination(ClassifierMixin, BaseEstimator):
     def fit(self, X: np.ndarray, y: np.ndarray) -> MotionCombination:
         if self.mode not in COMBINATIONS:
             raise MethodError(f"unknown combination {self.mode!r} (known: {', '.join(COMBINATIONS)})")
+        X, y = validate_data(self, X, y)
+        check_classification_targets(y)
         parts = self._split(X)
-        y = np.asarray(y)
         self.classes_ = np.unique(y)
         if self.mode == "concatenation":
             self.steps_ = [clone(self.features).fit(part) for part in parts]
@@ -1007,7 +1017,7 @@ class MotionCombination(ClassifierMixin, BaseEstimator):
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         check_is_fitted(self, "classes_")
-        parts = self._split(X)
+        parts = self._split(validate_data(self, X, reset=False))
         if self.mode == "concatenation":
             return self.model_.predict(self._joined(parts))
         if self.mode == "probabilities":

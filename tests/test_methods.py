@@ -7,10 +7,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from scipy.stats import multivariate_normal
+from sklearn.naive_bayes import GaussianNB
 from sklearn.neighbors import KNeighborsClassifier
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
+from sklearn.utils.estimator_checks import parametrize_with_checks
 
+from features import related
 from scanner.scan import Recording, Trace
 from scanner.simulation import recordings as sim
 from taxonomy import methods
@@ -109,6 +112,8 @@ def test_pairwise_elimination_keeps_the_best_half():
     single = methods.PairwiseEliminationSVM(palpations=1).fit(X, y)
     assert single.predict(np.full((1, 4), 30.0)).tolist() == ["c3"]
     with pytest.raises(MethodError, match="rows must hold 2 palpations of equal width"):
+        methods.PairwiseEliminationSVM(palpations=2).fit(np.hstack([X, X[:, :3]]), y)
+    with pytest.raises(ValueError, match="X has 7 features, but PairwiseEliminationSVM is expecting 8"):
         model.predict(np.zeros((1, 7)))
 
 
@@ -290,3 +295,28 @@ def test_cli_compare_prints_the_table_and_writes_the_report(tmp_path, capsys):
     assert page.count("data:image/png;base64,") == 2  # the accuracy chart and one confusion matrix
     assert main(["compare", "sim:gelsight", "--db", str(tmp_path)]) == 1
     assert "unknown simulated sensor 'gelsight'" in capsys.readouterr().err
+
+
+# -- scikit-learn estimator checks ---------------------------------------------------------------------
+
+XIE_WIDTH = "XieFeatures takes 3n-vectors (n >= 2) of Xie's three sequences; this check feeds another width"
+
+
+def _expected_failures(estimator) -> dict[str, str]:
+    if not isinstance(estimator, related.XieFeatures):
+        return {}
+    return dict.fromkeys((
+        "check_fit_score_takes_y", "check_estimators_dtypes", "check_dtype_object", "check_pipeline_consistency",
+        "check_estimators_pickle", "check_f_contiguous_array_estimator", "check_transformer_data_not_an_array",
+        "check_transformer_general", "check_transformer_preserve_dtypes", "check_methods_sample_order_invariance",
+        "check_methods_subset_invariance", "check_dict_unchanged", "check_fit_idempotent"), XIE_WIDTH)
+
+
+@parametrize_with_checks([methods.PairwiseEliminationSVM(palpations=1), methods.NearestSpatialPeriod(),
+                          methods.ShrunkGaussian(),
+                          methods.MotionCombination(StandardScaler(), methods.ShrunkGaussian(), blocks=1),
+                          methods.MotionCombination(StandardScaler(), GaussianNB(), blocks=1, mode="voting"),
+                          related.XieFeatures()],
+                         expected_failed_checks=_expected_failures)
+def test_scikit_learn_estimator_checks(estimator, check):
+    check(estimator)
