@@ -26,7 +26,6 @@ keeps every feature, without FQ selection.
 from __future__ import annotations
 
 import contextlib
-import re
 import sys
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
@@ -53,7 +52,9 @@ from features import cluster
 from features.registry import REGISTRY
 from features.selection import FQSelector, KeepAll
 from features.space import FeatureSpace
+from taxonomy import labels
 from taxonomy.errors import TexplorerError
+from taxonomy.labels import LabelError
 
 if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
     from distributed import Client
@@ -145,15 +146,13 @@ def classifier_name(classifier: str | BaseEstimator) -> str:
 
 # -- metrics -----------------------------------------------------------------------------------------
 
-_MAJOR = re.compile(r"C[1-9][0-9]*")
-
-
 def major_class(code: str) -> str:
-    """The major class C of a class code at any level: ``"C6S1M1P2X1"`` and ``"C6S1"`` give ``"C6"``."""
-    match = _MAJOR.match(code)
-    if match is None:
-        raise EvaluationError(f"class {code!r} does not start with a major class code C<c>")
-    return match.group()
+    """The major class C of a class code at any level (:func:`taxonomy.labels.major_class`), as an
+    :class:`EvaluationError` for a class without one."""
+    try:
+        return labels.major_class(code)
+    except LabelError as exc:
+        raise EvaluationError(str(exc)) from None
 
 
 def r_c(confusion: np.ndarray, classes: Sequence[str]) -> float:

@@ -31,6 +31,7 @@ MAX_DIGITS = 3
 _EXAMPLE = {"C": 6, "S": 1, "M": 1, "P": 2, "X": 1}
 _NUMBER = re.compile(r"[+-]?[0-9]*")
 _UPPER = str.maketrans("csmpx", "CSMPX")
+_MAJOR = re.compile(r"C[1-9][0-9]*")
 _REPR = reprlib.Repr()
 _REPR.maxstring = _REPR.maxother = 60
 _shown = _REPR.repr
@@ -146,6 +147,20 @@ def parse_prefix(text: Any) -> str:
         reason = str(exc).split(": ", 1)[-1].rsplit(" (expected", 1)[0]
         raise LabelError(f"{_shown(text)} is not a label or class prefix: {reason} (expected C<n>, C<n>S<n>, "
                          f"... up to a full label, e.g. C6, C6S1 or {_example(LABEL_PARTS)})") from None
+
+
+def major_class(code: str) -> str:
+    """The major class C of a class code at any level: ``"C6S1M1P2X1"`` and ``"C6S1"`` give ``"C6"``.
+
+    Raises
+    ------
+    LabelError
+        ``code`` does not start with a major class code C<c>.
+    """
+    match = _MAJOR.match(code) if isinstance(code, str) else None
+    if match is None:
+        raise LabelError(f"class {_shown(code)} does not start with a major class code C<c>")
+    return match.group()
 
 
 def format_code(letters: str, numbers: tuple[int, ...]) -> str:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import functools
 import os
-import re
 import textwrap
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -22,6 +21,7 @@ from matplotlib.figure import Figure
 
 from scanner.scan import Scan, Trace
 from taxonomy.evaluation import Report
+from taxonomy.labels import LabelError, major_class
 from taxonomy.table import Taxonomy, load_taxonomy
 
 Traces = Mapping[str, Trace]
@@ -264,8 +264,10 @@ def _save(figure: Figure, path: str | os.PathLike[str], dpi: int = 100) -> Path:
 
 def _major_class(code: str) -> str:
     """``"C6"`` of ``"C6S1M1P2X1"``; a code without a major class stays as it is."""
-    match = re.match(r"C[0-9]+", code)
-    return match.group() if match else code
+    try:
+        return major_class(code)
+    except LabelError:
+        return code
 
 
 def _label_size(count: int) -> float:

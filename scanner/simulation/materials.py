@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import math
-import re
 import tomllib
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, fields
@@ -14,6 +13,7 @@ from typing import Any
 
 from scanner.scan import JUDGED_SCALE
 from taxonomy.errors import TexplorerError
+from taxonomy.labels import Label, LabelError
 
 DEFAULT_LIBRARY = Path(__file__).parents[1] / "data" / "materials.toml"
 TEXTURES = ("smooth", "grain", "speckle", "granular", "cellular", "fibrous", "brushed", "veined", "weave",
@@ -308,7 +308,11 @@ def _material(slug: str, table: Any, path: Path) -> Material:
 
 
 def _is_label(text: str) -> bool:
-    return re.fullmatch(r"C[1-9]\d*S[1-9]\d*M[1-9]\d*P[1-9]\d*X[1-9]\d*", text) is not None
+    """A full label written canonically (the library's labels are compared as text)."""
+    try:
+        return str(Label.parse(text)) == text
+    except LabelError:
+        return False
 
 
 def load_materials(path: str | Path | None = None) -> dict[str, Material]:
