@@ -51,7 +51,7 @@ from scanner.config import Config
 from scanner.devices import Devices, open_devices
 from scanner.devices.camera import decode_photo
 from scanner.devices.protocols import DeviceError
-from scanner.devices.sources import SimulatedSample, material_for
+from scanner.devices.sources import Specimen
 from scanner.photo import PhotoError, check_size
 from scanner.recorder import Level, Recorder, StepResult, build_scan
 from scanner.scan import (
@@ -65,7 +65,6 @@ from scanner.scan import (
     ScanMeta,
     check_sample_id,
 )
-from scanner.simulation import scan_seed
 from scanner.version import __version__
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import Label, LabelError
@@ -217,9 +216,9 @@ class Session:
              **kwargs: Any) -> Session:
         """Open the configured devices and start a session.
 
-        Simulated devices observe the library material with ``label`` (or ``simulated.material``), as the
-        piece ``sample_id``; the seed follows ``simulated.seed``, the material and the scan index this scan
-        will get in ``db``, so repeated scans of a sample differ like real ones.
+        The configuration chooses the devices; simulated ones observe the library material with ``label``
+        as the piece ``sample_id`` (:func:`scanner.devices.sources.simulated_sample`), seeded by the scan
+        index this scan will get in ``db``, so repeated scans of a sample differ like real ones.
         """
         try:
             check_sample_id(sample_id)
@@ -232,13 +231,8 @@ class Session:
             if stored and canonical not in stored:
                 raise SessionError(f"sample {sample_id} is {', '.join(sorted(stored))} in the database, "
                                    f"not {canonical}")
-        simulated = None
-        if "simulated" in config.devices.values():
-            material = material_for(canonical, config.simulated.material)
-            index = db.next_scan_index(sample_id) if db is not None else 1
-            simulated = SimulatedSample(material, sample_id=sample_id, image_size=config.simulated.image_size,
-                                        seed=scan_seed(config.simulated.seed, material.slug, index))
-        devices = open_devices(config, simulated)
+        index = db.next_scan_index(sample_id) if db is not None else 1
+        devices = open_devices(config, specimen=Specimen(canonical, sample_id, index))
         try:
             return cls(devices, config, label=label, sample_id=sample_id, operator=operator, **kwargs)
         except BaseException:

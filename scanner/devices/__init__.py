@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from scanner.config import Config
+from scanner.config import Config, ConfigError
 from scanner.devices.audio import PlaybackMicrophone, SoundDeviceMicrophone
 from scanner.devices.board import BoardPeltier, PlaybackBoard, SerialBoard
 from scanner.devices.camera import OpenCvCamera, PlaybackCamera
@@ -38,7 +38,7 @@ from scanner.devices.protocols import (
     Peltier,
     SensorBoard,
 )
-from scanner.devices.sources import Pacer, SignalSource, StoredScan
+from scanner.devices.sources import Pacer, SignalSource, Specimen, StoredScan, simulated_sample
 
 __all__ = [
     "AcquisitionError", "BoardTimeout", "ConnectionLost", "DeviceError", "DeviceUnavailable", "Devices",
@@ -76,11 +76,13 @@ class Devices:
             raise errors[0]
 
 
-def open_devices(config: Config, simulated: SignalSource | None = None) -> Devices:
+def open_devices(config: Config, simulated: SignalSource | None = None, *,
+                 specimen: Specimen | None = None) -> Devices:
     """Open the devices ``config`` asks for.
 
-    ``simulated`` is the sample the simulated devices observe (required if any device is simulated);
-    replay devices play ``config.replay.scan``. Devices opened before a failure are closed again.
+    Simulated devices observe ``simulated``, else the simulated sample of ``specimen`` (the sample being
+    scanned) that ``config.simulated`` describes; replay devices play ``config.replay.scan``. Devices
+    opened before a failure are closed again.
 
     Raises
     ------
@@ -89,7 +91,7 @@ def open_devices(config: Config, simulated: SignalSource | None = None) -> Devic
     """
     opened: list[Any] = []
     try:
-        sources = _sources(config, simulated)
+        sources = _sources(config, simulated, specimen)
         pacers = {kind: Pacer(speed) for kind, speed in
                   (("simulated", 1.0 if config.simulated.realtime else 0.0), ("replay", config.replay.speed))}
         daq = _open(opened, _daq, config, sources, pacers)
@@ -104,13 +106,14 @@ def open_devices(config: Config, simulated: SignalSource | None = None) -> Devic
     return Devices(daq=daq, board=board, microphone=microphone, camera=camera, peltier=peltier)
 
 
-def _sources(config: Config, simulated: SignalSource | None) -> dict[str, SignalSource]:
+def _sources(config: Config, simulated: SignalSource | None,
+             specimen: Specimen | None) -> dict[str, SignalSource]:
     choices = set(config.devices.values())
     sources: dict[str, SignalSource] = {}
     if "simulated" in choices:
-        if simulated is None:
-            raise ValueError("simulated devices need a simulated sample")
-        sources["simulated"] = simulated
+        if simulated is None and specimen is None:
+            raise ConfigError("simulated devices need a simulated sample or the specimen they observe")
+        sources["simulated"] = simulated if simulated is not None else simulated_sample(config, specimen)
     if "replay" in choices:
         sources["replay"] = StoredScan.load(config.replay.scan)
     return sources

@@ -21,15 +21,25 @@ import math
 import threading
 import time
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 
-from scanner.config import CHANNEL_ROLES, DAQ_ROLES, Calibration, ConfigError
+from scanner.config import CHANNEL_ROLES, DAQ_ROLES, Calibration, Config, ConfigError
 from scanner.matfile import load_scan
 from scanner.scan import CHANNELS, Scan
-from scanner.simulation import STEP_FUNCTIONS, STEPS, Material, draw_operator, load_materials, photos, sample_of
+from scanner.simulation import (
+    STEP_FUNCTIONS,
+    STEPS,
+    Material,
+    draw_operator,
+    load_materials,
+    photos,
+    sample_of,
+    scan_seed,
+)
 
 STEP_SECONDS = 5.0
 """Length of a simulated tap, slide, friction, press or fold (SPEC 4)."""
@@ -225,6 +235,24 @@ class StoredScan:
 
     def photos(self, device: str = "camera") -> Mapping[str, np.ndarray]:
         return dict(self.scan.images)
+
+
+@dataclass(frozen=True)
+class Specimen:
+    """The sample the scanner is put on: its label, its id and the index of the scan about to be taken."""
+
+    label: str
+    sample_id: str
+    scan_index: int = 1
+
+
+def simulated_sample(config: Config, specimen: Specimen) -> SimulatedSample:
+    """What simulated devices observe of ``specimen``, as ``config.simulated`` says: the library material
+    with its label (or ``simulated.material``) as the piece ``sample_id``, seeded by ``simulated.seed``, the
+    material and the scan index, so repeated scans of a sample differ like real ones."""
+    material = material_for(specimen.label, config.simulated.material)
+    return SimulatedSample(material, sample_id=specimen.sample_id, image_size=config.simulated.image_size,
+                           seed=scan_seed(config.simulated.seed, material.slug, specimen.scan_index))
 
 
 def material_for(label: str, slug: str = "") -> Material:
