@@ -23,7 +23,7 @@ from flask import Blueprint, abort, flash, jsonify, redirect, render_template, r
 from werkzeug.wrappers import Response
 
 from features import REGISTRY
-from gui.app import context
+from gui.context import context
 from gui.exports import ExportBusy, ExportError, ExportJob
 from gui.forms import parse_label_filter
 from scanner.database import DatabaseError, ScanRecord

@@ -22,7 +22,7 @@ from flask import Blueprint, abort, flash, jsonify, redirect, render_template, r
 from werkzeug.wrappers import Response
 
 from features import extract
-from gui.app import context
+from gui.context import context
 from gui.forms import (
     TACK_CHOICES,
     VOLUME_METHOD_WORDS,

@@ -1,0 +1,101 @@
+"""What every request of the web application needs: the settings of ``texplorer serve`` and the
+:class:`Context` built from them (database, device configuration, staged photos, the running scan, the
+export job, the model), reached from a page through :func:`context`."""
+
+from __future__ import annotations
+
+import secrets
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+from flask import current_app
+
+from gui.exports import Exports
+from gui.operation import Operations
+from gui.photos import DEFAULT_MAX_BYTES, DEFAULT_MAX_PIXELS, PhotoStore
+from scanner.config import Config
+from scanner.database import Database
+from taxonomy.models import TrainedModel, load_model
+
+LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
+DEMO_MODEL = Path("models") / "rf-fine-X10.skops"
+"""Where ``texplorer demo`` saves its model; used when no ``--model`` is given and the file exists."""
+
+@dataclass(frozen=True)
+class Settings:
+    """What ``texplorer serve`` configures.
+
+    ``upload_limit`` is per photo in bytes; a request may carry three photos plus the form fields.
+    ``heartbeat_timeout_s``: a recording browser that has not polled for this long counts as
+    disconnected (the Peltier is switched off). ``device_config`` is the scanner configuration
+    (``scanner.config.load_config``; tests pass short step durations). ``trusted_hosts`` guards against
+    DNS rebinding when bound to the loopback interface; None accepts any Host header. ``export_dir`` is
+    where export bundles are built before they are streamed (default: the system's temporary folder,
+    ``$TMPDIR``); an export nobody has asked about for ``export_abandon_s`` is cancelled and its file
+    deleted. Paths are made absolute when the settings are made.
+    """
+
+    db: Path
+    model: Path | None = None
+    device_config: Config = field(default_factory=Config)
+    upload_limit: int = DEFAULT_MAX_BYTES
+    max_photo_pixels: int = DEFAULT_MAX_PIXELS
+    heartbeat_timeout_s: float = 5.0
+    secret_key: bytes = field(default_factory=lambda: secrets.token_bytes(32), repr=False)
+    trusted_hosts: tuple[str, ...] | None = LOOPBACK_HOSTS
+    workers: int | None = None
+    export_dir: Path | None = None
+    export_abandon_s: float = 120.0
+
+    def __post_init__(self) -> None:
+        # Resolved once here: Flask's send_file reads a relative path against the package folder, not the
+        # folder 'texplorer serve' was started in, and the server must not depend on its working directory.
+        for name in ("db", "model", "export_dir"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, Path(value).expanduser().resolve())
+
+    @property
+    def work_dir(self) -> Path:
+        """The app's own files (staged uploads, plot cache), beside but outside the database's scans."""
+        return Path(self.db) / ".gui"
+
+
+class Context:
+    """What every request needs: settings, database, device configuration, staged photos, the running scan,
+    the export job, the model."""
+
+    def __init__(self, settings: Settings) -> None:
+        self.settings = settings
+        self.db = Database(settings.db)
+        self.device_config = settings.device_config
+        self.photos = PhotoStore(settings.work_dir / "uploads")
+        self.plot_dir = settings.work_dir / "plots"
+        self.operations = Operations(self.photos, settings.heartbeat_timeout_s)
+        self.exports = Exports(self.db, settings.export_dir, workers=settings.workers,
+                               abandon_after_s=settings.export_abandon_s)
+
+    @property
+    def model_path(self) -> Path | None:
+        """``--model``, else the demo's model in the database folder if it exists, else None."""
+        if self.settings.model is not None:
+            return Path(self.settings.model)
+        demo = Path(self.settings.db) / DEMO_MODEL
+        return demo if demo.is_file() else None
+
+    @cached_property
+    def model(self) -> TrainedModel | None:
+        """The trained model (loaded on first use), or None."""
+        path = self.model_path
+        return None if path is None else load_model(path)
+
+    def shutdown(self) -> None:
+        """Abort a running scan (Peltier off, devices released); cancel an export and delete its file."""
+        self.operations.shutdown()
+        self.exports.shutdown()
+
+
+def context() -> Context:
+    """The running app's :class:`Context`."""
+    return current_app.extensions["texplorer"]
