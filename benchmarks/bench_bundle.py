@@ -25,12 +25,13 @@ import zipfile  # noqa: E402
 from collections.abc import Callable  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from scanner.bundle import export_bundle, import_bundle  # noqa: E402
+from scanner.bundle import import_bundle  # noqa: E402
 from scanner.database import Database  # noqa: E402
 from scanner.matfile import load_scan  # noqa: E402
 from scanner.replay import replay, scan_paths  # noqa: E402
 from scanner.simulation import load_materials  # noqa: E402
 from scanner.simulation.database import synthetic_database  # noqa: E402
+from scanner.workflows import export_database  # noqa: E402
 
 MATERIALS = 24
 SCANS_PER_MATERIAL = 5
@@ -61,10 +62,10 @@ def bench_export_import(tmp: Path) -> Database:
     scans_mb = folder_bytes(tmp / "db" / "scans") / 1e6
     print(f"database: {len(db)} scans, {scans_mb:.1f} MB of .mat and photos, simulated in {seconds:.1f} s")
 
-    cold, _ = timed(lambda: export_bundle(db, tmp / "cold", workers=2))
+    cold, _ = timed(lambda: export_database(db, tmp / "cold", workers=2))
     print(f"  first export, features extracted on 2 workers: {cold:.1f} s")
-    t_folder, folder = timed(lambda: export_bundle(db, tmp / "bundle", workers=2))
-    t_zip, archive = timed(lambda: export_bundle(db, tmp / "bundle.zip", workers=2))
+    t_folder, folder = timed(lambda: export_database(db, tmp / "bundle", workers=2))
+    t_zip, archive = timed(lambda: export_database(db, tmp / "bundle.zip", workers=2))
     t_copy, _ = timed(lambda: shutil.copytree(tmp / "db" / "scans", tmp / "copy" / "scans"))
     t_make, _ = timed(lambda: shutil.make_archive(str(tmp / "plain"), "zip", tmp / "db", "scans"))
     bundle_mb = folder.bytes / 1e6

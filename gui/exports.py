@@ -3,7 +3,7 @@
 A bundle of a whole database is as large as the database (hundreds of MB), so it is not built inside a
 request: :meth:`Exports.start` starts an :class:`ExportJob` in a thread and the page polls its progress.
 The job fills the database's feature cache first (in chunks, so it can report progress and be cancelled
-between them), then calls :func:`scanner.bundle.export_bundle`, the same exporter as ``texplorer export``,
+between them), then calls :func:`scanner.workflows.export_database`, the same exporter as ``texplorer export``,
 with the same filters (label or class prefix, session), counting the scans its progress callback hands on.
 
 Where the bundle lives, and for how long:
@@ -34,9 +34,9 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import IO, Any
 
-from scanner.bundle import BundleError, export_bundle
+from scanner.bundle import BundleError
 from scanner.database import Database, ScanRecord
-from scanner.workflows import extract_database
+from scanner.workflows import export_database, extract_database
 from taxonomy.errors import TexplorerError
 
 FEATURE_CHUNK = 16
@@ -69,7 +69,7 @@ class ExportBusy(ExportError):
 
 
 class _Cancelled(TexplorerError):
-    """Raised inside the export to stop it; ``export_bundle`` deletes its partial file on the way out."""
+    """Raised inside the export to stop it; the exporter deletes its partial file on the way out."""
 
 
 def filter_text(label: str | None, session: str | None) -> str:
@@ -143,9 +143,9 @@ class ExportJob:
             self._warm_feature_cache(abandon_after_s)
             self.phase, self.done = "copying", 0
             stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
-            report = export_bundle(self.db, self.folder / f"texplorer-export-{stamp}.zip", label=self.label,
-                                   session=self.session, workers=self.workers,
-                                   progress=functools.partial(self._count, abandon_after_s=abandon_after_s))
+            report = export_database(self.db, self.folder / f"texplorer-export-{stamp}.zip", label=self.label,
+                                     session=self.session, workers=self.workers,
+                                     progress=functools.partial(self._count, abandon_after_s=abandon_after_s))
             self.path, self.name, self.size = report.path, report.path.name, report.path.stat().st_size
             self.phase = "done"
             while not self.cancel.wait(0.5) and not self._abandoned(abandon_after_s):
@@ -170,7 +170,7 @@ class ExportJob:
             raise _Cancelled
 
     def _warm_feature_cache(self, abandon_after_s: float) -> None:
-        """Features of every exported scan into the cache, so ``export_bundle`` only reads them."""
+        """Features of every exported scan into the cache, so the exporter only reads them."""
         for start in range(0, len(self.records), FEATURE_CHUNK):
             self._check(abandon_after_s)
             extract_database(self.db, records=self.records[start:start + FEATURE_CHUNK], workers=self.workers,
@@ -178,7 +178,7 @@ class ExportJob:
             self.done = min(start + FEATURE_CHUNK, len(self.records))
 
     def _count(self, records: Iterable[ScanRecord], abandon_after_s: float) -> Iterator[ScanRecord]:
-        """``export_bundle``'s progress callback: hands on every scan, counts it, stops when cancelled."""
+        """The exporter's progress callback: hands on every scan, counts it, stops when cancelled."""
         for record in records:
             self._check(abandon_after_s)
             yield record

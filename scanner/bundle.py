@@ -55,7 +55,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, Protocol
 
 import scipy.io
 
@@ -65,6 +65,8 @@ from scanner.matfile import ScanFormatError, load_scan, photo_file_name
 from scanner.scan import IMAGES, SCHEMA_VERSION, ScanMeta
 from scanner.version import __version__
 from taxonomy.errors import TexplorerError
+from taxonomy.labels import Label
+from taxonomy.table import HEADER, Taxonomy, TaxonomyError, read_table
 
 BUNDLE_FORMAT = "texplorer-bundle"
 BUNDLE_SCHEMA = 1
@@ -93,6 +95,24 @@ _SCAN_FIELDS: dict[str, type] = {"scan_id": str, "label": str, "sample_id": str,
                                  "content_hash": str, "files": dict}
 
 Progress = Callable[[Iterable], Iterable]
+
+
+class FeatureTable(Protocol):
+    """The feature space of the exported scans, as the caller computed it (``features.FeatureSpace``)."""
+
+    columns: Sequence[str]
+    failed: Sequence[tuple[str, str]]
+
+    def __len__(self) -> int: ...
+
+    def to_csv(self, path: str | os.PathLike[str]) -> Path: ...
+
+    def to_mat(self, path: str | os.PathLike[str]) -> Path: ...
+
+
+Features = Callable[[Sequence[ScanRecord]], FeatureTable]
+"""The caller's feature space of the scans to export (``scanner.workflows.export_database`` reads it from
+the database's feature cache)."""
 
 
 class BundleError(TexplorerError, ValueError):
@@ -132,13 +152,13 @@ class ImportReport:
 
 # -- export ------------------------------------------------------------------------------------------
 
-def export_bundle(db: Database, out: str | os.PathLike[str], *, label: str | None = None,
-                  session: str | None = None, workers: int | None = None,
-                  progress: Progress = iter) -> ExportReport:
+def export_bundle(db: Database, out: str | os.PathLike[str], features: Features, *, feature_code_version: str,
+                  label: str | None = None, session: str | None = None, progress: Progress = iter) -> ExportReport:
     """Write the scans of ``db`` (optionally only a label or class prefix, or one session) as a bundle.
 
-    ``out`` ending in ``.zip`` gives a zip file, anything else a folder; it must not exist yet. Features
-    come from the database's feature cache where possible (``workers`` processes extract the rest).
+    ``out`` ending in ``.zip`` gives a zip file, anything else a folder; it must not exist yet. The feature
+    tables are ``features(records)``, the caller's feature space of the scans in export order, computed by
+    ``feature_code_version`` (recorded in the manifest).
 
     Raises
     ------
@@ -153,7 +173,7 @@ def export_bundle(db: Database, out: str | os.PathLike[str], *, label: str | Non
     records = sorted(db.records(label=label, session=session), key=lambda r: (r.started, r.scan_id))
     if not records:
         raise BundleError(f"{db.root}: no scans{_filter_text(label, session)} to export")
-    space = _feature_space(db, records, workers)
+    space = features(records)
     out.parent.mkdir(parents=True, exist_ok=True)
     created = datetime.now(UTC).replace(microsecond=0)
     writer = _ZipWriter(out, created) if out.suffix.lower() == ".zip" else _FolderWriter(out)
@@ -166,7 +186,7 @@ def export_bundle(db: Database, out: str | os.PathLike[str], *, label: str | Non
             scans.append(_scan_entry(record, entries))
         for name, data in _generated_files(db, space).items():
             files[name] = writer.add(name, io.BytesIO(data))
-        manifest = _manifest(db, records, scans, files, space, created, label, session)
+        manifest = _manifest(db, records, scans, files, space, created, label, session, feature_code_version)
         manifest_bytes = json.dumps(manifest, indent=1, allow_nan=False).encode("utf-8") + b"\n"
         writer.add(MANIFEST, io.BytesIO(manifest_bytes))
         writer.add(MANIFEST_SUM, io.BytesIO(_manifest_sum(manifest_bytes)))
@@ -181,17 +201,6 @@ def export_bundle(db: Database, out: str | os.PathLike[str], *, label: str | Non
 def _filter_text(label: str | None, session: str | None) -> str:
     parts = [text for text in (label and f"label {label}", session and f"session {session}") if text]
     return f" with {' and '.join(parts)}" if parts else ""
-
-
-def _feature_space(db: Database, records: Sequence[ScanRecord], workers: int | None):
-    """The feature space of ``records``, from the feature cache where possible (as ``texplorer features``)."""
-    import functools
-
-    from features import ScanSource, extract_many
-
-    sources = [ScanSource(r.scan_id, r.label, r.sample_id, functools.partial(load_scan, db.root / r.path),
-                          cache_key=r.content_hash) for r in records]
-    return extract_many(sources, workers=workers, cache=db)
 
 
 def _copy_checked(db: Database, entry: FileEntry, writer: _FolderWriter | _ZipWriter) -> dict[str, Any]:
@@ -210,7 +219,7 @@ def _scan_entry(record: ScanRecord, entries: Sequence[FileEntry]) -> dict[str, A
             "files": {entry.role: entry.path for entry in entries}}
 
 
-def _generated_files(db: Database, space) -> dict[str, bytes]:
+def _generated_files(db: Database, space: FeatureTable) -> dict[str, bytes]:
     """Feature tables, taxonomy, README and loaders as bytes (the writers do the atomic part)."""
     with tempfile.TemporaryDirectory(prefix="texplorer-export-") as scratch:
         folder = Path(scratch)
@@ -245,16 +254,14 @@ def _json_number(value: Any) -> float | None:
 
 
 def _manifest(db: Database, records: Sequence[ScanRecord], scans: list[dict[str, Any]],
-              files: Mapping[str, dict[str, Any]], space, created: datetime, label: str | None,
-              session: str | None) -> dict[str, Any]:
-    from features import code_version
-
+              files: Mapping[str, dict[str, Any]], space: FeatureTable, created: datetime, label: str | None,
+              session: str | None, feature_code_version: str) -> dict[str, Any]:
     return {
         "format": BUNDLE_FORMAT,
         "bundle_schema": BUNDLE_SCHEMA,
         "scan_schema": SCHEMA_VERSION,
         "software_version": __version__,
-        "feature_code_version": code_version(),
+        "feature_code_version": feature_code_version,
         "created": created.isoformat(),
         "filters": {"label": label, "session": session},
         "counts": {"scans": len(records), "materials": len({r.label for r in records}),
@@ -678,8 +685,6 @@ def _content_hash(roles: Mapping[str, str], files: Mapping[str, Any]) -> str:
 
 
 def _check_taxonomy(staging: Path, staged_ok: set[str]) -> tuple[dict[str, Any], list[str]]:
-    from taxonomy.table import Taxonomy, TaxonomyError, read_table
-
     if TAXONOMY_CSV not in staged_ok:
         return {}, []
     try:
@@ -767,8 +772,6 @@ def _taxonomy_codes(db: Database, verified: VerifiedBundle, new: list[StagedScan
     same code would mean two materials) and is left out. Labels neither taxonomy knows are imported and
     listed in ``report.unknown_labels``.
     """
-    from taxonomy.labels import Label
-
     local = {entry.code: entry for entry in db.taxonomy().entries()}
     kept, needed = [], {}
     for scan in new:
@@ -793,8 +796,6 @@ def _taxonomy_codes(db: Database, verified: VerifiedBundle, new: list[StagedScan
 
 def _extend_taxonomy(db: Database, entries: list) -> None:
     """Append rows to ``<db>/taxonomy.csv`` (atomically), after checking the merged table is consistent."""
-    from taxonomy.table import HEADER, Taxonomy, read_table
-
     path = db.taxonomy_path
     existing = list(read_table(path)) if path.is_file() else []
     Taxonomy([*db.taxonomy().entries(), *entries])  # raises TaxonomyError before anything is written

@@ -24,7 +24,7 @@ from scanner.devices.protocols import DeviceError
 from scanner.photo import max_pixels
 from scanner.scan import IMAGES, JUDGED_SCALE
 from scanner.version import __version__
-from scanner.workflows import extract_database, format_predictions, predict_scan
+from scanner.workflows import export_database, extract_database, format_predictions, predict_scan
 from taxonomy.errors import TexplorerError
 
 DEFAULT_DB = "texplorer-data"
@@ -191,10 +191,8 @@ EXIT_MISMATCH = 4
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from scanner.bundle import export_bundle
-
-    report = export_bundle(_open_db(args), args.out, label=args.label, session=args.session,
-                           workers=args.workers, progress=progress("exporting"))
+    report = export_database(_open_db(args), args.out, label=args.label, session=args.session,
+                             workers=args.workers, progress=progress("exporting"))
     for scan_id, reason in report.feature_failures:
         print(f"texplorer: warning: no feature row for {scan_id}: {reason}", file=sys.stderr)
     print(f"exported {report.scans} scan(s), {report.files} files, {report.bytes / 1e6:.1f} MB "

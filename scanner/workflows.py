@@ -4,6 +4,8 @@
   :class:`features.ScanSource` objects keyed by the scan's content hash; :func:`extract_database` extracts
   them with the database as the cache (a second run over unchanged scans only reads it);
   :func:`stored_features` gives one stored scan's values.
+- **Export a database with its features**: :func:`export_database` writes an export bundle
+  (:func:`scanner.bundle.export_bundle`) whose feature tables come from the database's feature cache.
 - **Predict a scan's top k with names**: :func:`predict_scan` extracts a scan's features and names the
   model's most probable labels with the taxonomy the caller gives (a database's own taxonomy, with its lab
   codes, where there is a database); :func:`name_predictions` names predictions made elsewhere.
@@ -14,11 +16,13 @@ call it rather than wiring those layers together themselves (see ``docs/extendin
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from features import FeatureSpace, ScanSource, extract, extract_many
+from features import FeatureSpace, ScanSource, code_version, extract, extract_many
+from scanner.bundle import ExportReport, Progress, export_bundle
 from scanner.database import Database, DatabaseError, ScanRecord
 from scanner.scan import Scan
 from taxonomy.labels import LabelError
@@ -70,6 +74,20 @@ def stored_features(db: Database, record: ScanRecord) -> tuple[dict[str, float],
     if space.failed:
         return {}, space.failed[0][1]
     return dict(zip(space.columns, space.X[0].tolist(), strict=True)), None
+
+
+# -- export a database with its features -----------------------------------------------------------
+
+def export_database(db: Database, out: str | os.PathLike[str], *, label: str | None = None,
+                    session: str | None = None, workers: int | None = None, progress: Progress = iter) -> ExportReport:
+    """Write the scans of ``db`` (optionally a label or class prefix, or one session) as an export bundle
+    with their features, read from the feature cache where possible (``workers`` processes extract the
+    rest); see :func:`scanner.bundle.export_bundle` for the bundle and its errors."""
+    def features(records: Sequence[ScanRecord]) -> FeatureSpace:
+        return extract_database(db, records=records, workers=workers)
+
+    return export_bundle(db, out, features, feature_code_version=code_version(), label=label, session=session,
+                         progress=progress)
 
 
 # -- predict a scan's top k with names ---------------------------------------------------------------

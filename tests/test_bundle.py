@@ -27,7 +27,6 @@ from scanner.bundle import (
     MANIFEST,
     MANIFEST_SUM,
     BundleError,
-    export_bundle,
     import_bundle,
     parse_manifest,
     unsafe_name,
@@ -35,6 +34,7 @@ from scanner.bundle import (
 from scanner.cli import EXIT_PROBLEMS, main
 from scanner.database import Database, DatabaseError
 from scanner.matfile import save_scan
+from scanner.workflows import export_database
 from taxonomy.table import Taxonomy, load_taxonomy
 
 LAB_TAXONOMY = """kind,code,name,description
@@ -69,12 +69,12 @@ def source(tmp_path_factory) -> Database:
 
 @pytest.fixture(scope="module")
 def bundle(source, tmp_path_factory) -> Path:
-    return export_bundle(source, tmp_path_factory.mktemp("bundles") / "bundle", workers=1).path
+    return export_database(source, tmp_path_factory.mktemp("bundles") / "bundle", workers=1).path
 
 
 @pytest.fixture(scope="module")
 def bundle_zip(source, tmp_path_factory) -> Path:
-    return export_bundle(source, tmp_path_factory.mktemp("bundles") / "bundle.zip", workers=1).path
+    return export_database(source, tmp_path_factory.mktemp("bundles") / "bundle.zip", workers=1).path
 
 
 def _tree(root: Path) -> dict[str, bytes]:
@@ -163,19 +163,19 @@ def test_bundle_feature_tables_hold_the_features_of_each_scan(source, bundle):
 
 
 def test_export_filters_and_refusals(source, tmp_path):
-    stones = export_bundle(source, tmp_path / "stones", label="C6", workers=1)
+    stones = export_database(source, tmp_path / "stones", label="C6", workers=1)
     assert stones.scans == 2
     assert [s["scan_id"] for s in json.loads((tmp_path / "stones" / MANIFEST).read_text())["scans"]] == [
         "granite-01-001", "granite-01-002"]
-    session = export_bundle(source, tmp_path / "s2.zip", session="s-2", workers=1)
+    session = export_database(source, tmp_path / "s2.zip", session="s-2", workers=1)
     with zipfile.ZipFile(session.path) as archive:
         manifest = json.loads(archive.read(MANIFEST))
     assert [s["scan_id"] for s in manifest["scans"]] == ["granite-01-002", "steel-01-001"]
     assert manifest["filters"] == {"label": None, "session": "s-2"}
     with pytest.raises(BundleError, match="no scans with label C5 and session s-2 to export"):
-        export_bundle(source, tmp_path / "none", label="C5", session="s-2")
+        export_database(source, tmp_path / "none", label="C5", session="s-2")
     with pytest.raises(BundleError, match="stones already exists"):
-        export_bundle(source, tmp_path / "stones")
+        export_database(source, tmp_path / "stones")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s2.zip", "stones"]  # no temporary leftovers
 
 
@@ -183,13 +183,13 @@ def test_export_refuses_a_database_file_changed_since_it_was_catalogued(tmp_path
     db = Database(tmp_path / "db")
     db.add(make_scan(0, images=False))
     mat = tmp_path / "db/scans/C6S1M1P2X1/granite-01/granite-01-001.mat"
-    extract_first = export_bundle(db, tmp_path / "ok", workers=1)  # fills the feature cache
+    extract_first = export_database(db, tmp_path / "ok", workers=1)  # fills the feature cache
     assert extract_first.scans == 1
     data = bytearray(mat.read_bytes())
     data[-1] ^= 0xFF
     mat.write_bytes(bytes(data))
     with pytest.raises(BundleError, match="differs from the catalog's SHA-256"):
-        export_bundle(db, tmp_path / "bad.zip", workers=1)
+        export_database(db, tmp_path / "bad.zip", workers=1)
     assert not any(p.name.startswith(".bad.zip") or p.name == "bad.zip" for p in tmp_path.iterdir())
 
 
@@ -525,7 +525,7 @@ def test_a_taxonomy_code_named_differently_here_is_a_conflict(bundle, tmp_path):
 def test_labels_no_taxonomy_knows_are_imported_and_listed(tmp_path):
     source = Database(tmp_path / "source")
     source.add(make_scan(0, label="C9S9M9P1X1", sample_id="odd-01", images=False))
-    export_bundle(source, tmp_path / "b", workers=1)
+    export_database(source, tmp_path / "b", workers=1)
     db = Database(tmp_path / "lab")
     report = import_bundle(db, tmp_path / "b")
     assert report.added == ["odd-01-001"] and report.unknown_labels == ["C9S9M9P1X1"]
