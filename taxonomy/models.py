@@ -23,11 +23,11 @@ import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
 import sklearn
-import skops.io
 from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import MinMaxScaler
 
@@ -129,6 +129,14 @@ def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, 
 
 # -- files -------------------------------------------------------------------------------------------
 
+def _skops() -> ModuleType:
+    """``skops.io``, imported when a model file is read or written: it takes a third of a second, which
+    every command and page that never touches a model file would pay."""
+    import skops.io
+
+    return skops.io
+
+
 
 def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
     """Write ``model`` to ``path`` as a skops archive, atomically (temp file + fsync + rename).
@@ -143,9 +151,9 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
         "seed": int(model.seed), "software_version": model.software_version,
         "sklearn_version": model.sklearn_version, "dropped": list(model.dropped), "n_rows": int(model.n_rows),
     }
-    data = skops.io.dumps(payload)
+    data = _skops().dumps(payload)
     _check_types(path, data)
-    _model_from(path, skops.io.loads(data, trusted=list(TRUSTED_TYPES)))
+    _model_from(path, _skops().loads(data, trusted=list(TRUSTED_TYPES)))
     atomic_write_bytes(path, data)
     return path
 
@@ -159,7 +167,7 @@ def load_model(path: str | os.PathLike[str]) -> TrainedModel:
         raise ModelError(f"{path}: cannot read the model file ({exc.strerror or exc})") from None
     _check_types(path, data)
     try:
-        payload = skops.io.loads(data, trusted=list(TRUSTED_TYPES))
+        payload = _skops().loads(data, trusted=list(TRUSTED_TYPES))
     except Exception as exc:  # skops raises many types for damaged archives
         raise ModelError(f"{path}: damaged model file ({type(exc).__name__}: {_first_line(exc)})") from None
     model = _model_from(path, payload)
@@ -171,7 +179,7 @@ def load_model(path: str | os.PathLike[str]) -> TrainedModel:
 
 def _check_types(path: Path, data: bytes) -> None:
     try:
-        untrusted = skops.io.get_untrusted_types(data=data)
+        untrusted = _skops().get_untrusted_types(data=data)
     except zipfile.BadZipFile as exc:
         raise ModelError(f"{path}: not a readable model file, damaged, truncated or not a skops archive "
                          f"({_first_line(exc)})") from None
