@@ -841,7 +841,6 @@ def _add_db_option(parser: argparse.ArgumentParser) -> None:
 
 LEVELS = ("coarse", "medium", "fine")
 CLASSIFIER_NAMES = ("svm", "lda", "knn", "mlp", "rf", "nb")
-FEATURE_SETS = REGISTRY.modalities
 
 
 def _add_cluster_options(parser: argparse.ArgumentParser, ship: bool = True) -> None:
@@ -868,7 +867,7 @@ def _add_evaluation_options(parser: argparse.ArgumentParser, report_default: str
                         "own levels (default all)")
     parser.add_argument("--n", nargs="+", metavar="N", help="selected set sizes, and 'all' for every feature "
                         "without selection (default 3 10; for a set 3 10 all)")
-    parser.add_argument("--feature-set", nargs="+", choices=(*FEATURE_SETS, ALL), default=[ALL],
+    parser.add_argument("--feature-set", nargs="+", choices=(*REGISTRY.modalities, ALL), default=[ALL],
                         help=f"feature sets: one modality each, or all = every modality and all "
                         f"{len(REGISTRY.names)} (default)")
     parser.add_argument("--protocol", choices=("nested", "paper"), default="nested",

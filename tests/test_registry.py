@@ -12,6 +12,8 @@ from conftest import make_scan
 from features import NAMES, REGISTRY, Family, FeatureSpace, code_version, extract, extract_many
 from features.extraction import source_of
 from features.registry import RegistryError
+from gui.browser import group_features
+from scanner import cli
 from taxonomy.evaluation import default_feature_sets, evaluate
 
 TOY = ("toy.peak_v_ts", "toy.samples_v_ts")
@@ -78,6 +80,17 @@ def test_a_toy_family_is_a_feature_set_of_the_evaluation(toy):
 
 def test_a_toy_family_is_a_group_of_the_web_page(toy):
     assert REGISTRY.groups[-1] == ("toy", "toy: v_ts at a glance")
+    values = {**dict.fromkeys(NAMES, 1.0), "toy.peak_v_ts": 2.5, "toy.samples_v_ts": 15000.0}
+    assert group_features(values)[-1] == ("toy: v_ts at a glance", [("peak_v_ts", "2.5"), ("samples_v_ts", "15000")])
+
+
+def test_a_toy_family_is_counted_in_the_cli_help(toy, capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["features", "--help"])
+    assert f"Extract the {len(NAMES) + 2} features of every scan" in " ".join(capsys.readouterr().out.split())
+    with pytest.raises(SystemExit):
+        cli.main(["evaluate", "--help"])
+    assert "toy" in capsys.readouterr().out
 
 
 def test_a_toy_family_changes_the_cache_key_and_is_not_served_stale(toy):
