@@ -1,0 +1,42 @@
+"""``texplorer serve``: the operator's web application, a command group the web application adds to
+the CLI (through the ``texplorer.commands`` entry point: the CLI, a layer below, does not import it)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from gui.app import Settings, serve
+from scanner.cli.common import UsageError, add_db_option
+from scanner.config import load_config
+from scanner.photo import max_pixels
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    config = load_config(args.config)
+    if not args.upload_limit_mb > 0:
+        raise UsageError(f"--upload-limit-mb must be positive, got {args.upload_limit_mb:g}")
+    limit = int(args.upload_limit_mb * 1024 * 1024)
+    settings = Settings(db=args.db, model=args.model, device_config=config, upload_limit=limit,
+                        max_photo_pixels=max_pixels())
+    serve(settings, args.host, args.port)
+    return 0
+
+
+def register(commands: argparse._SubParsersAction) -> None:
+    serving = commands.add_parser(
+        "serve", help="the operator's web application: guided scans, operator form, database browser",
+        description="Serve the operator's web application for the database: start a scan, the guided steps "
+        "with live levels, the operator form with photo uploads, the summary with the prediction, and the "
+        "database browser with export. Listens on 127.0.0.1 only, unless --host says otherwise.")
+    add_db_option(serving)
+    serving.add_argument("--host", default="127.0.0.1", help="interface to listen on (default 127.0.0.1; "
+                         "anything else makes the scanner reachable from the network, with a warning)")
+    serving.add_argument("--port", type=int, default=8080, help="port (default 8080; 0 = any free port)")
+    serving.add_argument("--config", type=Path, help="device configuration TOML (default: the simulated "
+                         "scanner; see docs/texplorer.example.toml)")
+    serving.add_argument("--model", type=Path, help="model for the prediction on the summary page (default: "
+                         "<db>/models/rf-fine-X10.skops if 'texplorer demo' made one)")
+    serving.add_argument("--upload-limit-mb", type=float, default=20.0, help="largest photo upload in MB "
+                         "(default 20)")
+    serving.set_defaults(handler=cmd_serve)

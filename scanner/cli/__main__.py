@@ -1,0 +1,7 @@
+"""``python -m scanner.cli``: the ``texplorer`` command."""
+
+import sys
+
+from scanner.cli import main
+
+sys.exit(main())

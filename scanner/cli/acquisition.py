@@ -1,0 +1,269 @@
+"""``texplorer scan`` (the guided session in the terminal) and ``texplorer emulate`` (device emulators)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import textwrap
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from scanner.cli.common import EXIT_ERROR, add_db_option, open_db
+from scanner.config import load_config
+from scanner.database import DatabaseError, is_database
+from scanner.devices.protocols import DeviceError
+from scanner.devices.sources import SimulatedSample
+from scanner.scan import IMAGES, JUDGED_SCALE
+from scanner.session import VOLUME_METHODS, Session, SessionError, StepState
+from scanner.workflows import format_predictions, predict_scan
+from taxonomy.errors import TexplorerError
+from taxonomy.models import load_model
+
+try:  # pseudo-terminals: POSIX only
+    from scanner.emulators.board import BoardEmulator, FaultPlan
+except ImportError as missing:
+    BoardEmulator = FaultPlan = None
+    NO_PSEUDO_TERMINALS = str(missing)
+
+
+ABORT = "a"
+
+
+class _Aborted(TexplorerError):
+    """The operator chose to abort the scan (or the input ended)."""
+
+
+def _ask(prompt: str) -> str:
+    """One answer from the operator; 'a' or the end of the input aborts."""
+    try:
+        answer = input(prompt).strip()
+    except EOFError:
+        print()
+        raise _Aborted("input ended") from None
+    if answer.lower() == ABORT:
+        raise _Aborted("aborted by the operator")
+    return answer
+
+
+def _ask_value(session, prompt: str, name: str, convert: Callable[[str], object] = float,
+               optional: bool = False) -> None:
+    """Ask until the session accepts the value of ``name`` (its error is shown before asking again)."""
+    while True:
+        answer = _ask(prompt)
+        if not answer and optional:
+            return
+        try:
+            session.set_values(**{name: convert(answer)})
+            return
+        except (SessionError, ValueError) as exc:
+            print(f"  {exc}")
+
+
+def _meter(reading) -> None:
+    """The live level on stderr (only on a terminal): bar, signal value, elapsed time."""
+    if not sys.stderr.isatty():
+        return
+    bar = "#" * int(round(20 * reading.fraction))
+    print(f"\r  {reading.phase:<9} [{bar:<20}] {reading.signal} {reading.value:8.3f} {reading.unit:<4} "
+          f"{reading.elapsed_s:5.1f}/{reading.duration_s:g} s", end="", file=sys.stderr, flush=True)
+
+
+def _record_step(session, step) -> None:
+    """Record (or skip) one step until the operator keeps it."""
+    while True:
+        options = "[Enter] record" + (", s skip (rigid sample)" if step.skippable else "") + ", a abort: "
+        if _ask(f"  {options}").lower() == "s" and step.skippable:
+            session.skip(step.id)
+            print("  skipped: the sample is recorded as rigid")
+            return
+        status = session.record(step.id, level=_meter)
+        if sys.stderr.isatty():
+            print(file=sys.stderr)
+        if status.state is StepState.FAILED:
+            print(f"  failed: {status.error}")
+            session.redo(step.id)
+            continue
+        for problem in status.problems:
+            print(f"  quality: {problem}")
+        verdict = "check the problems above" if status.problems else "quality ok"
+        if _ask(f"  {verdict}. [Enter] keep, r redo, a abort: ").lower() != "r":
+            return
+        session.redo(step.id)
+
+
+def _take_photos(session) -> None:
+    for name in IMAGES:
+        while True:
+            answer = _ask(f"  {name}: [Enter] capture with the camera, or a PNG/JPEG file, a abort: ")
+            try:
+                if answer:
+                    session.set_photo(name, Path(answer).expanduser().read_bytes())
+                else:
+                    session.capture_photo(name)
+                break
+            except (SessionError, OSError, DeviceError) as exc:
+                print(f"  {exc}")
+
+
+def _tu4(session) -> None:
+    _ask_value(session, "  mass (g): ", "mass_g")
+    _ask_value(session, "  volume (cm^3): ", "volume_cm3")
+    _ask_value(session, f"  volume measured by ({'/'.join(VOLUME_METHODS)}): ", "volume_method", str)
+    scale = "/".join(f"{v:g}" for v in JUDGED_SCALE)
+    _ask_value(session, f"  adhesive tack ({scale}): ", "atk")
+    _ask_value(session, f"  yielding ({scale}): ", "cyd")
+    _ask_value(session, "  notes (optional): ", "notes", str, optional=True)
+
+
+def _guide(session, args: argparse.Namespace) -> str | None:
+    """Walk the operator through every step; the saved scan id, or None if not saved."""
+    answer = _ask(f"ambient temperature {session.t_amb:.2f} degC: [Enter] keep, or type degC: ")
+    while answer:
+        try:
+            session.t_amb = float(answer)
+            break
+        except ValueError as exc:
+            answer = _ask(f"  {exc}; degC: ")
+    total = len(session.steps)
+    for index, step in enumerate(session.steps, 1):
+        duration = f" ({step.duration_s:g} s)" if step.duration_s else ""
+        print(f"\nstep {index}/{total}: {step.title}{duration}")
+        print(textwrap.fill(step.instruction, 100, initial_indent="  ", subsequent_indent="  "))
+        if step.kind == "record":
+            _record_step(session, step)
+        elif step.kind == "photos":
+            _take_photos(session)
+        else:
+            _tu4(session)
+    if _ask("\nsave the scan? [Y/n] ").lower() in ("n", "no"):
+        return None
+    while True:
+        try:
+            return session.save(open_db(args, create=True))
+        except (DatabaseError, OSError) as exc:
+            # The recording is still in the session: let the operator fix the disk or path and retry.
+            _ask(f"  not saved: {exc}\n  [Enter] retry, a abort: ")
+
+
+def cmd_scan(args: argparse.Namespace) -> int:
+    config = load_config(args.config)
+    model = None
+    if args.model:
+        model = load_model(args.model)
+    if args.daq:
+        config = config.with_daq_server(args.daq)
+    if args.board:
+        config = config.with_board_port(args.board)
+    # An aborted scan leaves no trace: an existing database is only read, a new one is made when saving.
+    db = open_db(args) if is_database(args.db) else None
+    session = Session.open(config, label=args.label, sample_id=args.sample, operator=args.operator, db=db)
+    try:
+        print(f"scan of {session.label}, sample {session.sample_id}, operator {session.operator} "
+              f"(session {session.session_id}); 'a' aborts at any prompt")
+        for name, description in session.devices.describe().items():
+            print(f"  {name:<13} {description}")
+        for warning in session.warnings:
+            print(f"texplorer: warning: {warning}", file=sys.stderr)
+        scan_id = _guide(session, args)
+    except _Aborted as reason:
+        print(f"scan aborted ({reason}): nothing was saved")
+        return EXIT_ERROR
+    finally:
+        session.abort()
+    if scan_id is None:
+        print("not saved")
+        return EXIT_ERROR
+    print(f"saved {scan_id} in {args.db}")
+    if model is not None:
+        db = open_db(args)
+        print(format_predictions(predict_scan(model, db.get(scan_id), 3, db.taxonomy())))
+    return 0
+
+
+def cmd_emulate_board(args: argparse.Namespace) -> int:
+    if BoardEmulator is None:
+        raise OSError(f"the board emulator needs pseudo-terminals (Linux, macOS): {NO_PSEUDO_TERMINALS}")
+
+    faults = FaultPlan(args.bad_checksum_every, args.garbage_every, args.gap_every)
+    sample = SimulatedSample(args.material, seed=args.seed)
+    try:
+        with BoardEmulator(sample, link=args.link, faults=faults) as emulator:
+            print(f"serial sensor board emulator: {sample.describe()}; Ctrl-C stops it", file=sys.stderr)
+            print(emulator.path, flush=True)
+            _serve_forever()
+    except KeyboardInterrupt:
+        pass
+    return 0
+
+
+def cmd_emulate_daq(args: argparse.Namespace) -> int:
+    # The emulator is built on gRPC and the nidaqmx stubs, optional libraries no other command loads.
+    from scanner.emulators.daq_grpc import DaqEmulator, DaqServicer
+
+
+    sample = SimulatedSample(args.material, seed=args.seed)
+    try:
+        with DaqEmulator(DaqServicer(sample), host=args.host, port=args.port) as emulator:
+            print(f"NI-DAQmx gRPC emulator: {sample.describe()}; Ctrl-C stops it", file=sys.stderr)
+            print(f"grpc://{emulator.address}", flush=True)
+            _serve_forever()
+    except KeyboardInterrupt:
+        pass
+    return 0
+
+
+def _serve_forever() -> None:
+    """The emulators work in their own threads; this one waits for Ctrl-C."""
+    while True:
+        time.sleep(3600)
+
+
+def register(commands: argparse._SubParsersAction) -> None:
+    scanning = commands.add_parser(
+        "scan", help="guided scanning session in the terminal (simulated devices unless configured)",
+        description="Guide the operator through the steps of a scan (Strese et al. 2020, section III) with live "
+        "levels, quality checks and redo, then save it. Devices come from --config (default: the simulated scanner).")
+    add_db_option(scanning)
+    scanning.add_argument("--label", required=True, help="material label, e.g. C6S1M1P2X1")
+    scanning.add_argument("--sample", required=True, help="sample id, e.g. granite-01")
+    scanning.add_argument("--operator", required=True, help="operator name or initials")
+    scanning.add_argument("--config", type=Path, help="device configuration TOML "
+                          "(see docs/texplorer.example.toml)")
+    scanning.add_argument("--daq", metavar="grpc://HOST:PORT", help="read the real DAQ through this NI gRPC "
+                          "Device Server")
+    scanning.add_argument("--board", metavar="PORT", help="use the real sensor board on this serial port "
+                          "(COM3, /dev/ttyACM0)")
+    scanning.add_argument("--model", type=Path, help="after saving, print the prediction of this model")
+    scanning.set_defaults(handler=cmd_scan)
+
+    emulate = commands.add_parser("emulate", help="run a device emulator to try the app without hardware",
+                                  description="Emulated hardware playing a simulated material sample.")
+    emulators = emulate.add_subparsers(dest="emulator", metavar="DEVICE", required=True)
+    emulate_board = emulators.add_parser(
+        "board", help="serial sensor board on a pseudo-terminal; prints its device path",
+        description="The serial sensor board (its line protocol is described in scanner/devices/board.py) "
+        "on a pseudo-terminal, until Ctrl-C. Use the "
+        "printed path as board.port or with 'texplorer scan --board PATH'. POSIX only.")
+    emulate_board.add_argument("--link", type=Path, help="path of the port's symbolic link "
+                               "(default: in a new temporary folder)")
+    emulate_board.add_argument("--bad-checksum-every", type=int, default=0, metavar="N",
+                               help="corrupt the checksum of every N-th data line")
+    emulate_board.add_argument("--garbage-every", type=int, default=0, metavar="N",
+                               help="send garbage bytes before every N-th data line")
+    emulate_board.add_argument("--gap-every", type=int, default=0, metavar="N",
+                               help="leave out every N-th data line (a counter gap)")
+    emulate_board.set_defaults(handler=cmd_emulate_board)
+    emulate_daq = emulators.add_parser(
+        "daq", help="NI-DAQmx gRPC server; prints its grpc:// address",
+        description="An NI gRPC Device Server with an emulated USB-6002 (Dev1), until Ctrl-C. Use the "
+        "printed address with 'texplorer scan --daq ADDRESS'.")
+    emulate_daq.add_argument("--host", default="127.0.0.1", help="interface to listen on (default 127.0.0.1)")
+    emulate_daq.add_argument("--port", type=int, default=0, help="port (default: any free port)")
+    emulate_daq.set_defaults(handler=cmd_emulate_daq)
+    for emulator in (emulate_board, emulate_daq):
+        emulator.add_argument("--material", default="granite-polished", help="simulated material slug "
+                              "(default granite-polished)")
+        emulator.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+        emulator.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                              help="show tracebacks")

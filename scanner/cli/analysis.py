@@ -1,0 +1,242 @@
+"""``texplorer features``, ``select``, ``evaluate``, ``train``, ``classify``: the feature space, feature
+selection, cross-validated evaluation and trained models, of the database's scans or of a recording set."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from features import REGISTRY
+from features.recordings import Windowing, describe_families, feature_space
+from features.selection import select_features
+from scanner.cli.common import (
+    ALL,
+    CLASSIFIER_NAMES,
+    EXIT_ERROR,
+    UsageError,
+    add_cluster_options,
+    add_db_option,
+    add_evaluation_options,
+    add_space_options,
+    choices,
+    cluster,
+    one_line,
+    open_db,
+    set_sizes,
+    space_for,
+)
+from scanner.ingest import load_recordings, set_folder
+from scanner.matfile import load_scan
+from scanner.workflows import extract_database, format_predictions, predict_scan
+from taxonomy.evaluation import CLASSIFIERS, default_feature_sets, evaluate_grid
+from taxonomy.labels import LEVELS
+from taxonomy.models import load_model, save_model, train_model
+from taxonomy.report import format_table, write_report
+from taxonomy.table import load_taxonomy
+
+
+def report_space(space, seconds: float) -> None:
+    import numpy as np
+
+    nan_columns = int(np.isnan(space.X).any(axis=0).sum()) if len(space) else 0
+    print(f"{len(space)} scans x {len(space.columns)} features in {seconds:.1f} s "
+          f"({nan_columns} column(s) with NaN, {len(space.failed)} scan(s) failed)")
+    for scan_id, reason in space.failed:
+        print(f"failed   {scan_id}: {reason}")
+
+
+def cmd_features(args: argparse.Namespace) -> int:
+    if args.dataset:
+        return cmd_set_features(args)
+    db = open_db(args)
+    started = time.perf_counter()
+    with cluster(args) as client:
+        space = extract_database(db, label=args.label, workers=args.workers, client=client, ship_data=args.ship_data)
+    report_space(space, time.perf_counter() - started)
+    out = args.out or db.root / "features.csv"
+    space.to_csv(out)
+    print(f"wrote {out}")
+    if args.mat:
+        space.to_mat(args.mat)
+        print(f"wrote {args.mat}")
+    return EXIT_ERROR if space.failed else 0
+
+
+def cmd_select(args: argparse.Namespace) -> int:
+    with cluster(args) as client:
+        space = space_for(args, client)
+    print(select_features(space, args.level, args.n, args.max_corr).format(args.top))
+    return 0
+
+
+def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
+    """Evaluate the grid asked for on the command line (on the Dask cluster of ``client`` if given);
+    print the table; write the HTML report if asked."""
+    classifiers = choices(args.classifier, list(CLASSIFIERS))
+    levels = choices(args.level, space.level_names)
+    sets = None if ALL in args.feature_set else {name: default_feature_sets()[name] for name in args.feature_set}
+    use_split = not getattr(args, "ignore_split", False)
+    sizes = set_sizes(args.n, ("3", "10", ALL) if space.label_level is not None else ("3", "10"))
+    started = time.perf_counter()
+    reports = evaluate_grid(space, classifiers, levels, sizes, sets, folds=args.folds, seed=args.seed,
+                            protocol=args.protocol, workers=args.workers, progress=True, use_split=use_split,
+                            client=client)
+    print(format_table(reports))
+    splitting = reports[0].splitting if reports else f"{args.folds} folds"
+    print(f"{len(reports)} evaluations ({args.protocol} protocol, {splitting}) "
+          f"in {time.perf_counter() - started:.1f} s")
+    for warning in sorted({w for report in reports for w in report.warnings if w.strip()}):
+        print(f"texplorer: warning: {warning}", file=sys.stderr)
+    if args.report:
+        print(f"report: {write_report(args.report, space, reports)}")
+    return reports
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    if args.dataset:
+        return cmd_set_evaluate(args)
+    with cluster(args) as client:
+        run_evaluation(space_for(args, client), args, client)
+    return 0
+
+
+def set_recordings(spec: str, db: Path) -> tuple[str, list]:
+    """The set name and recordings a ``set:NAME`` argument names."""
+    if not spec.startswith("set:"):
+        raise UsageError(f"{spec!r} is not a recording set; name one as set:NAME (see 'texplorer ingest')")
+    return spec[4:], load_recordings(set_folder(db, spec[4:]))
+
+
+def set_space(args: argparse.Namespace, client=None):
+    """The feature space of ``set:NAME`` with the windowing, crop and grouping asked for (on the Dask cluster
+    of ``client`` if given); prints a summary line and the extraction warnings (a count, all with
+    --verbose)."""
+    name, recordings = set_recordings(args.dataset, args.db)
+    windowing = Windowing(args.window, args.combine)
+    started = time.perf_counter()
+    space, notes = feature_space(recordings, windowing, args.border, args.group_by, workers=args.workers,
+                                 progress=True, client=client)
+    for note in notes if args.verbose else notes[:3]:
+        print(f"texplorer: warning: {one_line(note)}", file=sys.stderr)
+    if len(notes) > 3 and not args.verbose:
+        print(f"texplorer: warning: {len(notes) - 3} more warning(s); --verbose lists them", file=sys.stderr)
+    levels = ", ".join(f"{level} ({len(set(space.y(level)))} classes)" for level in reversed(space.level_names))
+    split = (f"; split {space.split.count('train')} train / {space.split.count('test')} test"
+             if space.split else "")
+    print(f"set:{name}: {len(recordings)} recordings -> {len(space)} rows ({windowing.describe()}), "
+          f"{len(set(space.groups))} groups; levels {levels}{split}")
+    print(f"features: {describe_families(space.columns)} in {time.perf_counter() - started:.1f} s")
+    return space
+
+
+def cmd_set_features(args: argparse.Namespace) -> int:
+    with cluster(args) as client:
+        space = set_space(args, client)
+    out = args.out or set_folder(args.db, args.dataset[4:]) / "features.csv"
+    print(f"wrote {space.to_csv(out)}")
+    if args.mat:
+        print(f"wrote {space.to_mat(args.mat)}")
+    return 0
+
+
+def cmd_set_evaluate(args: argparse.Namespace) -> int:
+    if args.features:
+        raise UsageError("give either a set (set:NAME) or --features CSV, not both")
+    with cluster(args) as client:
+        space = set_space(args, client)
+        reports = run_evaluation(space, args, client)
+    return 0 if reports else EXIT_ERROR
+
+
+def _add_set_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("dataset", nargs="?", metavar="set:NAME", help="a recording set imported with "
+                        "'texplorer ingest' (default: the scans of the database)")
+    parser.add_argument("--window", type=float, metavar="SECONDS", help="sets: cut each recording into "
+                        "windows of this length (default: the whole recording)")
+    parser.add_argument("--combine", choices=("mean", "median", "rows"), default="mean", help="sets: combine "
+                        "the windows' features by their mean (default) or median, or make each window a row "
+                        "(in its recording's group)")
+    parser.add_argument("--border", type=int, default=0, metavar="PX", help="sets: pixels cropped from every "
+                        "side of a photo before its features (default 0; the scanner's photos use 100)")
+    parser.add_argument("--group-by", default="auto", metavar="GROUP", help="sets: the group folds keep "
+                        "together: a group of the mapping's pattern, 'none', or auto (default: object, else "
+                        "the photo a patch was cut from, else the recording)")
+    parser.add_argument("--verbose", action="store_true", help="sets: print every extraction warning")
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    with cluster(args) as client:
+        space = space_for(args, client)
+    model = train_model(space, args.level, args.n, args.classifier, args.seed)
+    save_model(model, args.out)
+    print(model.describe())
+    print(f"wrote {args.out}")
+    return 0
+
+
+def cmd_classify(args: argparse.Namespace) -> int:
+    model = load_model(args.model)
+    scan = load_scan(args.scan)
+    print(f"{scan.scan_id} ({scan.meta.label} recorded) with {model.describe()}")
+    print(format_predictions(predict_scan(model, scan, args.k, load_taxonomy())))
+    return 0
+
+
+def register(commands: argparse._SubParsersAction) -> None:
+    count = len(REGISTRY.names)
+    features = commands.add_parser("features", help=f"extract the {count} features of every scan into a feature table",
+                                   description=f"Extract the {count} features of every scan (cached in the database "
+                                   "by scan content and feature-code version) and write features.csv.")
+    add_db_option(features)
+    _add_set_options(features)
+    features.add_argument("--workers", type=int, help="processes (default: number of cores)")
+    features.add_argument("--out", type=Path, help="CSV file (default: <db>/features.csv; for a set "
+                          "<db>/recordings/<set>/features.csv)")
+    features.add_argument("--mat", type=Path, help="also write the feature space as a .mat file")
+    features.add_argument("--label", help="only scans with this label or class prefix")
+    add_cluster_options(features)
+    features.set_defaults(handler=cmd_features)
+
+    select = commands.add_parser("select", help="print the FQ ranking and the selected feature set",
+                                 description="Feature quality (Kruskal-Wallis + Tukey-Kramer) ranking and the "
+                                 "FQ + Spearman selection on all scans.")
+    add_space_options(select)
+    select.add_argument("--level", choices=LEVELS, default="fine", help="classification level (default fine)")
+    select.add_argument("--n", type=int, default=10, help="features to select (default 10)")
+    select.add_argument("--max-corr", type=float, default=0.5, help="Spearman limit (default 0.5)")
+    select.add_argument("--top", type=int, default=20, help="rows of the FQ ranking to print (default 20)")
+    select.set_defaults(handler=cmd_select)
+
+    evaluate = commands.add_parser("evaluate", help="cross-validate classifiers x feature sets x levels; "
+                                   "table and HTML report", description="Cross-validated accuracy, macro F1 and "
+                                   "r_C of classifiers x feature sets x levels x set sizes. For a recording set "
+                                   "(set:NAME): its own class names and levels, folds grouped by its groups, or "
+                                   "its own train/test split when it has one.")
+    add_space_options(evaluate)
+    _add_set_options(evaluate)
+    add_evaluation_options(evaluate, report_default=None)
+    evaluate.add_argument("--ignore-split", action="store_true", help="sets: cross-validate over every "
+                          "recording even if the set has its own train/test split")
+    evaluate.set_defaults(handler=cmd_evaluate)
+
+    train = commands.add_parser("train", help="train a classifier on all scans and save it (skops)",
+                                description="Fit scaler -> FQ selector -> classifier on every scan and save "
+                                "the model in a format that cannot execute code when loaded.")
+    add_space_options(train)
+    train.add_argument("--out", type=Path, required=True, help="model file (.skops)")
+    train.add_argument("--level", choices=LEVELS, default="fine", help="classification level (default fine)")
+    train.add_argument("--n", type=int, default=10, help="selected features (default 10)")
+    train.add_argument("--classifier", choices=CLASSIFIER_NAMES, default="rf", help="classifier (default rf)")
+    train.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    train.set_defaults(handler=cmd_train)
+
+    classify = commands.add_parser("classify", help="predict the material of a stored scan (.mat)",
+                                   description="Extract the features of SCAN.mat and print the most probable "
+                                   "labels with a trained model.")
+    classify.add_argument("scan", type=Path, help="scan file (.mat)")
+    classify.add_argument("--model", type=Path, required=True, help="model file written by 'texplorer train'")
+    classify.add_argument("--k", type=int, default=3, help="how many labels to print (default 3)")
+    classify.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
+    classify.set_defaults(handler=cmd_classify)

@@ -1,0 +1,165 @@
+"""What every command group shares: the database option, progress bars, exit codes, the feature space of
+``--features`` or the database, and the evaluation options."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import sys
+import warnings
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from pathlib import Path
+
+from tqdm import tqdm
+
+from features import REGISTRY, FeatureSpace
+from features.cluster import ClusterError, connect, describe
+from scanner.database import Database
+from scanner.workflows import extract_database
+from taxonomy.errors import TexplorerError
+from taxonomy.evaluation import CLASSIFIERS
+
+DEFAULT_DB = "texplorer-data"
+
+
+EXIT_ERROR = 1
+
+
+EXIT_PROBLEMS = 3
+"""``db check`` found missing, changed or unknown files; ``db rebuild`` quarantined files; ``import`` had
+conflicts."""
+
+
+Handler = Callable[[argparse.Namespace], int]
+
+
+class UsageError(TexplorerError, ValueError):
+    """Options that do not fit together or a value out of range; the message names the option."""
+
+
+def default_db() -> Path:
+    return Path(os.environ.get("TEXPLORER_DB") or DEFAULT_DB)
+
+
+def progress(description: str) -> Callable[[Iterable], Iterable]:
+    """A tqdm progress bar on stderr (hidden when stderr is not a terminal)."""
+    return lambda items: tqdm(items, desc=description, unit="scan", file=sys.stderr, disable=None,
+                              leave=False)
+
+
+def open_db(args: argparse.Namespace, *, create: bool = False) -> Database:
+    return Database(args.db, create=create)
+
+
+def table_lines(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
+    """Left-aligned columns as wide as their longest entry (the last column is not padded)."""
+    widths = [max(len(str(cell)) for cell in column) for column in zip(header, *rows, strict=True)]
+    return [" ".join(f"{cell!s:<{width}}" for cell, width in zip(row, widths, strict=True)).rstrip()
+            for row in (header, *rows)]
+
+
+ALL = "all"
+
+
+def space_for(args: argparse.Namespace, client=None):
+    """The feature space of ``--features CSV`` if given, else of the database (from its feature cache)."""
+    if args.features:
+        return FeatureSpace.from_csv(args.features)
+    space = extract_database(open_db(args), workers=args.workers, client=client, ship_data=args.ship_data)
+    for scan_id, reason in space.failed:
+        print(f"texplorer: warning: {scan_id} left out: {reason}", file=sys.stderr)
+    return space
+
+
+def choices(values: list[str], every: Sequence[str]) -> list[str]:
+    return list(every) if ALL in values else values
+
+
+def one_line(message: str) -> str:
+    """A warning's text on one line, whole: its lines joined, runs of white space made one space."""
+    return " ".join(str(message).split())
+
+
+def set_sizes(values: Sequence[str] | None, default: Sequence[str]) -> list[int | None]:
+    """``--n`` values: positive integers, and ``all`` (every feature, no selection) as None."""
+    sizes: list[int | None] = []
+    for value in values or default:
+        if value == ALL:
+            sizes.append(None)
+        elif value.isdigit() and int(value) > 0:
+            sizes.append(int(value))
+        else:
+            raise UsageError(f"--n: {value!r} is neither a positive number of features nor 'all'")
+    return list(dict.fromkeys(sizes))
+
+
+def add_db_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--db", type=Path, default=default_db(),
+                        help="database folder (default: $TEXPLORER_DB, else ./texplorer-data)")
+    parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show tracebacks on errors")
+
+
+CLASSIFIER_NAMES = tuple(CLASSIFIERS)
+"""The paper's six classifiers, as ``--classifier`` offers them."""
+
+
+def add_space_options(parser: argparse.ArgumentParser) -> None:
+    add_db_option(parser)
+    parser.add_argument("--features", type=Path, help="feature table CSV (default: extract from the database, "
+                        "using its feature cache)")
+    parser.add_argument("--workers", type=int, help="processes (default: number of cores)")
+    add_cluster_options(parser)
+
+
+def add_evaluation_options(parser: argparse.ArgumentParser, report_default: str | None, seed: bool = True) -> None:
+    parser.add_argument("--classifier", nargs="+", choices=(*CLASSIFIER_NAMES, ALL), default=[ALL],
+                        help="classifiers (default all)")
+    parser.add_argument("--level", nargs="+", default=[ALL], help="levels: coarse, medium, fine, or a set's "
+                        "own levels (default all)")
+    parser.add_argument("--n", nargs="+", metavar="N", help="selected set sizes, and 'all' for every feature "
+                        "without selection (default 3 10; for a set 3 10 all)")
+    parser.add_argument("--feature-set", nargs="+", choices=(*REGISTRY.modalities, ALL), default=[ALL],
+                        help=f"feature sets: one modality each, or all = every modality and all "
+                        f"{len(REGISTRY.names)} (default)")
+    parser.add_argument("--protocol", choices=("nested", "paper"), default="nested",
+                        help="nested (default): scaling and selection inside the folds; paper: on all data first")
+    parser.add_argument("--folds", type=int, default=5, help="cross-validation folds (default 5)")
+    if seed:
+        parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    default = f" (default {report_default})" if report_default else ""
+    parser.add_argument("--report", type=Path, default=None, help=f"write the HTML report into this folder{default}")
+
+
+@contextlib.contextmanager
+def cluster(args: argparse.Namespace) -> Iterator:
+    """The Dask client of ``--scheduler``, else of Dask's configuration (``DASK_SCHEDULER_ADDRESS``), or
+    None for processes on this machine; an explicit ``--workers`` means processes on this machine."""
+    workers = getattr(args, "workers", None)
+    if args.scheduler and workers:
+        raise ClusterError("--workers sets processes on this machine, --scheduler a Dask cluster: give one")
+    if workers:
+        yield None
+        return
+    with connect(args.scheduler) as client:
+        if client is None:
+            yield None
+            return
+        print(f"dask: {describe(client)}", file=sys.stderr)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            yield client
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"texplorer: warning: {message}", file=sys.stderr)
+
+
+def add_cluster_options(parser: argparse.ArgumentParser, ship: bool = True) -> None:
+    parser.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster: tcp://HOST:PORT of its "
+                        "scheduler, or local:N for N worker processes here with Dask's dashboard (default: "
+                        "Dask's scheduler-address, e.g. $DASK_SCHEDULER_ADDRESS, else processes on this machine)")
+    if ship:
+        parser.add_argument("--ship-data", action="store_true", help="send each scan's files from this machine "
+                            "to the Dask workers (automatic for workers that do not see them at the same path)")

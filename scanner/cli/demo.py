@@ -1,0 +1,66 @@
+"""``texplorer demo``: simulated scanner -> database -> features -> evaluation -> a trained model."""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from features import REGISTRY
+from scanner.cli.analysis import report_space, run_evaluation
+from scanner.cli.common import add_cluster_options, add_db_option, add_evaluation_options, cluster
+from scanner.simulation.database import synthetic_database
+from scanner.workflows import extract_database
+from taxonomy.models import save_model, train_model
+
+DEMO_SAMPLES = 2
+
+
+DEMO_SCANS = 3
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    started = time.perf_counter()
+    db = synthetic_database(args.db, materials=args.materials, scans_per_material=args.scans, seed=args.seed,
+                            image_size=(args.image_size, args.image_size), progress=True,
+                            samples_per_material=args.samples)
+    summary = db.summary()
+    print(f"database {args.db}: {summary['scans']} scans of {summary['materials']} materials "
+          f"({summary['samples']} samples, {summary['files']} files) in {time.perf_counter() - started:.1f} s")
+    by_class: dict[str, int] = {}
+    for record in db.records():
+        by_class[record.label[:2]] = by_class.get(record.label[:2], 0) + 1
+    print("scans per major class: " + ", ".join(f"{c} {n}" for c, n in sorted(by_class.items())))
+    with cluster(args) as client:
+        started = time.perf_counter()
+        space = extract_database(db, workers=args.workers, client=client, ship_data=args.ship_data)
+        report_space(space, time.perf_counter() - started)
+        print(f"wrote {space.to_csv(db.root / 'features.csv')}")
+        if args.no_evaluation:
+            return 0
+        args.report = args.report or db.root / "report"
+        run_evaluation(space, args, client)
+
+    model = train_model(space, "fine", 10, "rf", args.seed)
+    path = save_model(model, db.root / "models" / "rf-fine-X10.skops")
+    print(f"model: {path} ({model.describe()})")
+    return 0
+
+
+def register(commands: argparse._SubParsersAction) -> None:
+    count = len(REGISTRY.names)
+    demo = commands.add_parser("demo", help="build a synthetic database from the simulated scanner and summarise it",
+                               description=f"Simulated scanner -> database -> {count} features -> "
+                               "cross-validated evaluation (table + HTML report) -> a trained random forest.")
+    add_db_option(demo)
+    demo.add_argument("--materials", nargs="+", metavar="SLUG", help="material slugs (default: whole library)")
+    demo.add_argument("--samples", type=int, default=DEMO_SAMPLES, help="samples (pieces) per material "
+                      f"(default {DEMO_SAMPLES}: two or more let cross-validation keep each piece in one fold)")
+    demo.add_argument("--scans", type=int, default=DEMO_SCANS, help=f"scans per sample (default {DEMO_SCANS})")
+    demo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    demo.add_argument("--image-size", type=int, default=512, help="photo size in pixels (default 512)")
+    demo.add_argument("--workers", type=int, help="processes for simulation, features and evaluation "
+                      "(default: number of cores)")
+    demo.add_argument("--no-evaluation", action="store_true", help="stop after the feature table")
+    add_cluster_options(demo)
+    add_evaluation_options(demo, report_default="<db>/report", seed=False)
+    demo.set_defaults(handler=cmd_demo)
