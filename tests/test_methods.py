@@ -271,7 +271,7 @@ def test_notes_name_their_method_and_are_whole():
         w.simplefilter("always")
         w.warn("lbfgs failed to converge:\nSTOP: TOTAL NO. OF ITERATIONS\n\n  Increase max_iter.", UserWarning,
                stacklevel=1)
-    assert methods._messages(caught) == ["UserWarning: lbfgs failed to converge: STOP: TOTAL NO. OF ITERATIONS "
+    assert methods.messages(caught) == ["UserWarning: lbfgs failed to converge: STOP: TOTAL NO. OF ITERATIONS "
                                          "Increase max_iter."]
 
 

@@ -1,0 +1,283 @@
+"""The splits of the methods' protocols, scoring a method on them, and the comparison's results."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+from sklearn.base import BaseEstimator
+from sklearn.metrics import confusion_matrix, f1_score
+from sklearn.model_selection import StratifiedKFold, StratifiedShuffleSplit
+from sklearn.pipeline import Pipeline
+from threadpoolctl import threadpool_limits
+
+from features import cluster
+
+if TYPE_CHECKING:
+    from distributed import Client
+from taxonomy.methods.datasets import TIMED_ROWS, Extracted, MethodError
+
+
+@dataclass(frozen=True, eq=False)
+class MethodResult:
+    """One configuration of one method on one dataset.
+
+    ``accuracy`` and ``f1`` (macro, over the classes in each split's true or predicted labels) hold one
+    value per split; ``confusion`` sums all splits (rows true, columns predicted, order of ``classes``).
+    Times are per classification in seconds. ``paper`` is the figure the paper reports for this
+    configuration, where it reports one.
+    """
+
+    method: str
+    features: str
+    classifier: str
+    motions: str
+    level: str
+    protocol: str
+    accuracy: np.ndarray
+    f1: np.ndarray
+    classes: tuple[str, ...]
+    confusion: np.ndarray
+    n_samples: int
+    feature_seconds: float
+    classify_seconds: float
+    paper: str = ""
+    detail: str = ""
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def accuracy_mean(self) -> float:
+        return float(np.mean(self.accuracy))
+
+    @property
+    def accuracy_std(self) -> float:
+        return float(np.std(self.accuracy, ddof=1)) if len(self.accuracy) > 1 else 0.0
+
+    @property
+    def f1_mean(self) -> float:
+        return float(np.mean(self.f1))
+
+    @property
+    def chance(self) -> float:
+        """Accuracy of always answering the most frequent class."""
+        counts = self.confusion.sum(axis=1)
+        return float(counts.max() / counts.sum()) if counts.sum() else math.nan
+
+    def cells(self) -> tuple[str, ...]:
+        """The row of the comparison table, in :data:`COLUMNS` order."""
+        return (self.method, self.features, self.classifier, self.motions,
+                f"{self.level} ({len(self.classes)})", self.protocol,
+                f"{100 * self.accuracy_mean:5.1f} +- {100 * self.accuracy_std:4.1f}", f"{self.f1_mean:4.2f}",
+                f"{1e3 * self.feature_seconds:8.3f}", f"{1e6 * self.classify_seconds:9.1f}", self.paper)
+
+
+COLUMNS = ("method", "features", "classifier", "motions", "level (classes)", "protocol", "accuracy %",
+           "macro F1", "features ms", "classify us", "paper")
+"""Columns of the comparison table (times per classification)."""
+
+
+def format_comparison(results: Sequence[MethodResult]) -> str:
+    """The comparison table as text: one row per result, then the notes."""
+    if not results:
+        return "no method applies to this dataset"
+    rows = [COLUMNS, *(r.cells() for r in results)]
+    widths = [max(len(row[k]) for row in rows) for k in range(len(COLUMNS))]
+    lines = ["  ".join(cell.ljust(width) for cell, width in zip(row, widths, strict=True)).rstrip()
+             for row in rows]
+    lines.insert(1, "  ".join("-" * width for width in widths))
+    return "\n".join(lines + [f"note: {note}" for note in result_notes(results)])
+
+
+def result_notes(results: Sequence[MethodResult]) -> list[str]:
+    """Every note once, naming the method (and feature set) that raised it."""
+    return list(dict.fromkeys(f"{r.method} {r.features}: {note}" for r in results for note in r.notes))
+
+
+Split = tuple[np.ndarray, np.ndarray]
+
+
+def kfold_splits(y: np.ndarray, folds: int, seed: int) -> list[Split]:
+    """Stratified shuffled k-fold; fewer folds when the smallest class has fewer rows (at least 2)."""
+    smallest = int(np.unique(y, return_counts=True)[1].min())
+    folds = min(folds, smallest)
+    if folds < 2:
+        raise MethodError(f"cross-validation needs two rows of every class; "
+                          f"the smallest class has {smallest}")
+    splitter = StratifiedKFold(n_splits=folds, shuffle=True, random_state=seed)
+    return list(splitter.split(np.zeros(len(y)), y))
+
+
+def holdout_splits(y: np.ndarray, repeats: int, test_size: float, seed: int) -> list[Split]:
+    """``repeats`` stratified random holdouts of ``test_size`` of the rows."""
+    splitter = StratifiedShuffleSplit(n_splits=repeats, test_size=test_size, random_state=seed)
+    return list(splitter.split(np.zeros(len(y)), y))
+
+
+def one_per_object_splits(objects: Sequence[str], repeats: int, seed: int) -> list[Split]:
+    """Seed 004's protocol: each split tests one randomly chosen row of every object, trains on the rest.
+
+    Objects with a single row are always in training.
+    """
+    objects = np.asarray(objects)
+    rng = np.random.default_rng(seed)
+    groups = [np.flatnonzero(objects == o) for o in dict.fromkeys(objects.tolist())]
+    groups = [g for g in groups if g.size > 1]
+    if not groups:
+        raise MethodError("leave-one-per-object-out needs objects with at least two trials")
+    splits = []
+    for _ in range(repeats):
+        test = np.sort(np.array([rng.choice(g) for g in groups]))
+        splits.append((np.setdiff1d(np.arange(objects.size), test), test))
+    return splits
+
+
+def leave_object_out_splits(objects: Sequence[str]) -> list[Split]:
+    """One split per object: all its rows test, every other object's rows train."""
+    objects = np.asarray(objects)
+    return [(np.flatnonzero(objects != o), np.flatnonzero(objects == o))
+            for o in dict.fromkeys(objects.tolist())]
+
+
+def one_line(text: str) -> str:
+    """A message whole on one line: its lines joined, runs of white space made one space."""
+    return " ".join(str(text).split())
+
+
+def messages(caught: list[warnings.WarningMessage]) -> list[str]:
+    return [f"{w.category.__name__}: {one_line(str(w.message))}" for w in caught]
+
+
+def _single_row_seconds(model: BaseEstimator, rows: np.ndarray) -> tuple[list[float], list[float]]:
+    """Per-row (feature step, classifier) times of a fitted model; a pipeline's steps up to one named
+    ``features`` count as feature extraction."""
+    steps = model.steps if isinstance(model, Pipeline) else [("classify", model)]
+    names = [name for name, _ in steps]
+    last_feature = names.index("features") if "features" in names else -1
+    feature, classify = [], []
+    for row in rows:
+        x = row[None, :]
+        spent = [0.0, 0.0]
+        for index, (_, step) in enumerate(steps[:-1]):
+            started = time.perf_counter()
+            x = step.transform(x)
+            spent[index > last_feature] += time.perf_counter() - started
+        started = time.perf_counter()
+        steps[-1][1].predict(x)
+        spent[1] += time.perf_counter() - started
+        feature.append(spent[0])
+        classify.append(spent[1])
+    return feature, classify
+
+
+@dataclass(frozen=True)
+class Scores:
+    """Cross-validated scores of one model: per-split accuracy and F1, summed confusion, row timings."""
+
+    accuracy: np.ndarray
+    f1: np.ndarray
+    classes: tuple[str, ...]
+    confusion: np.ndarray
+    feature_seconds: float
+    classify_seconds: float
+    notes: tuple[str, ...]
+
+
+Maker = Callable[[int, np.ndarray], BaseEstimator]
+"""``make(split_index, y_train)`` -> an unfitted model for that split."""
+
+
+def _fit_split(make: Maker, X: np.ndarray, y: np.ndarray, k: int, train: np.ndarray,
+               test: np.ndarray) -> tuple[np.ndarray, list[str], list[float], list[float]]:
+    """Split k: predictions of the test rows, the warnings of fitting, and for k = 0 the single-row times."""
+    feature: list[float] = []
+    classify: list[float] = []
+    with warnings.catch_warnings(record=True) as caught, threadpool_limits(limits=1):
+        warnings.simplefilter("always")
+        model = make(k, y[train]).fit(X[train], y[train])
+        predicted = model.predict(X[test])
+        if k == 0:
+            feature, classify = _single_row_seconds(model, X[test[:TIMED_ROWS]])
+    return predicted, messages(caught), feature, classify
+
+
+def score(make: Maker, X: np.ndarray, y: np.ndarray, splits: Sequence[Split],
+          client: Client | None = None) -> Scores:
+    """Fit ``make(k, y_train)`` on split k's training rows and score its predictions on the test rows;
+    the splits one after the other here, or side by side on the Dask cluster of ``client``."""
+    calls = [(make, X, y, k, train, test) for k, (train, test) in enumerate(splits)]
+    if client is None:
+        fitted = [_fit_split(*call) for call in calls]
+    else:
+        fitted = [None] * len(calls)
+        with contextlib.closing(cluster.run(client, _fit_split, calls, name="texplorer-split")) as results:
+            for k, outcome in results:
+                fitted[k] = outcome
+    classes = np.unique(y)
+    confusion = np.zeros((classes.size, classes.size), dtype=np.int64)
+    accuracy, f1, notes = [], [], []
+    feature, classify = fitted[0][2:] if fitted else ([], [])
+    for (_, test), (predicted, messages, _, _) in zip(splits, fitted, strict=True):
+        notes += messages
+        accuracy.append(float(np.mean(predicted == y[test])))
+        f1.append(float(f1_score(y[test], predicted, average="macro", zero_division=0.0)))
+        confusion += confusion_matrix(y[test], predicted, labels=classes)
+    return Scores(np.array(accuracy), np.array(f1), tuple(classes.tolist()), confusion,
+                  float(np.median(feature)), float(np.median(classify)), tuple(dict.fromkeys(notes)))
+
+
+@dataclass(frozen=True)
+class Run:
+    """What a result row says about its configuration besides the scores."""
+
+    method: str
+    features: str
+    classifier: str
+    motions: str
+    level: str
+    protocol: str
+    paper: str = ""
+    detail: str = ""
+
+
+def method_result(run: Run, scores: Scores, n_samples: int, extraction_seconds: float,
+            notes: Sequence[str] = ()) -> MethodResult:
+    return MethodResult(run.method, run.features, run.classifier, run.motions, run.level, run.protocol,
+                        scores.accuracy, scores.f1, scores.classes, scores.confusion, n_samples,
+                        extraction_seconds + scores.feature_seconds, scores.classify_seconds, run.paper,
+                        run.detail, tuple(dict.fromkeys([*notes, *scores.notes])))
+
+
+def usable_rows(extracted: Extracted, rows: Sequence[int]) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """The rows whose extraction worked and the columns without NaN among them, with notes on what was left
+    out. A set whose every column has a NaN keeps its columns and loses the rows with NaN instead.
+
+    Raises
+    ------
+    MethodError
+        If no row is left, naming the first extraction failure.
+    """
+    wanted = list(rows)
+    rows = np.array([i for i in wanted if i not in extracted.failed], dtype=np.int64)
+    failures = [extracted.failed[i] for i in wanted if i in extracted.failed]
+    notes = [f"{extracted.name}: {len(failures)} recording(s) left out, e.g. {failures[0]}"
+             for _ in failures[:1]]
+    if rows.size == 0:
+        raise MethodError(f"{extracted.name} works on none of {len(wanted)} recording(s)"
+                          + (f", e.g. {failures[0]}" if failures else ""))
+    finite = np.isfinite(extracted.X[rows])
+    columns = np.flatnonzero(finite.all(axis=0))
+    if columns.size == 0:
+        keep = finite.all(axis=1)
+        notes.append(f"{extracted.name}: {int((~keep).sum())} row(s) with undefined values left out")
+        return rows[keep], np.arange(extracted.X.shape[1]), notes
+    if columns.size < extracted.X.shape[1]:
+        kept = set(columns.tolist())
+        dropped = [extracted.columns[k] for k in range(extracted.X.shape[1]) if k not in kept]
+        notes.append(f"{extracted.name}: column(s) with undefined values left out: {', '.join(dropped)}")
+    return rows, columns, notes
