@@ -34,7 +34,7 @@ from distributed import Client, LocalCluster, get_task_stream
 
 from features import FeatureSpace, ScanSource, cluster, extract, extract_many
 from scanner.scan import Scan
-from scanner.simulate import synthetic_database
+from scanner.simulation.database import synthetic_database
 
 MATERIALS = ["polyurethane-foam", "mild-steel-brushed", "granite-polished", "oak-planed", "sandpaper-p80",
              "float-glass"]
