@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import dataclasses
 import functools
 import os
 import sys
@@ -20,7 +21,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from features import cluster
+from features import cluster, tactum
 from features.prepared import PreparedScan
 from features.registry import REGISTRY
 from features.space import FeatureSpace
@@ -37,9 +38,26 @@ def code_version() -> str:
     return REGISTRY.code_version(__name__)
 
 
+def without_short_channels(scan: Scan) -> Scan:
+    """``scan`` without the channels too short for their features (``Scan.short_channels``), with a warning.
+
+    Their features are then NaN like those of a missing channel: a single sample has no spread, no
+    relaxation and no cooling curve, and computing them anyway gives silent zeros (SPEC 7).
+    """
+    short = scan.short_channels()
+    if not short:
+        return scan
+    described = ", ".join(f"{name} ({scan[name].n} of the {need} samples its features need)"
+                          for name, need in short.items())
+    warnings.warn(f"scan {scan.scan_id}: too short: {described}; treated as missing", tactum.MissingDataWarning,
+                  stacklevel=3)  # the caller of features.extract
+    return dataclasses.replace(scan, traces={k: v for k, v in scan.traces.items() if k not in short})
+
+
 def extract(scan: Scan) -> dict[str, float]:
     """The named features of a scan (SPEC section 7): every registered family's, in order; NaN where a
-    value is undefined. The scan is prepared once (:class:`~features.prepared.PreparedScan`) for all of them.
+    value is undefined. The scan is prepared once (:class:`~features.prepared.PreparedScan`) for all of them;
+    channels too short for their features count as missing (:func:`without_short_channels`).
 
     BLAS runs on one thread: a product's summation order depends on its thread count, which would make
     the last bits of a few features (Tamura contrast, MaCo, MaRG) differ between machines with other core
@@ -47,7 +65,7 @@ def extract(scan: Scan) -> dict[str, float]:
     """
     values: dict[str, float] = {}
     with threadpool_limits(limits=1):
-        prepared = PreparedScan(scan)
+        prepared = PreparedScan(without_short_channels(scan))
         for family in REGISTRY:
             computed = family.compute(prepared)
             if tuple(computed) != family.columns:

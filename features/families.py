@@ -23,7 +23,7 @@ from collections.abc import Iterable
 from features import audio, image, other, tactum
 from features.prepared import MIN_PHOTO_SIDE, PreparedScan
 from features.registry import REGISTRY, Family
-from scanner.preprocess import QualityError, slide_window
+from scanner.preprocess import QualityError
 from scanner.scan import IMAGES, Scan
 
 AUDIO_SIGNALS = {"finger": ("v_fs", "a_fs"), "tool": ("v_ts", "a_ts")}
@@ -65,7 +65,7 @@ def image_features(scan: Scan, disp: image.PreparedPhoto | None = None) -> dict[
     return values
 
 
-def audio_features(scan: Scan) -> dict[str, float]:
+def audio_features(scan: Scan, prepared: PreparedScan | None = None) -> dict[str, float]:
     """35 features of the finger and of the tool audio in the 1 s slide window (SPEC 6, 7.3)."""
     values: dict[str, float] = {}
     for which, (vibration, sound) in AUDIO_SIGNALS.items():
@@ -78,7 +78,7 @@ def audio_features(scan: Scan) -> dict[str, float]:
             values.update(_nan(names))
             continue
         try:
-            window = slide_window(v.data, fs=v.fs, audio_samples=a.n, audio_fs=a.fs)
+            window = (prepared or PreparedScan(scan)).slide_window(vibration, audio_samples=a.n, audio_fs=a.fs)
         except QualityError as problem:
             warnings.warn(f"scan {scan.scan_id}: {vibration}: {problem}; audio.{which} features are NaN",
                           stacklevel=2)
@@ -90,7 +90,7 @@ def audio_features(scan: Scan) -> dict[str, float]:
 
 
 def _tactum(prepared: PreparedScan) -> dict[str, float]:
-    return tactum.compute(prepared.scan, disp=prepared.disp)
+    return tactum.compute(prepared.scan, disp=prepared.disp, prepared=prepared)
 
 
 def _image(prepared: PreparedScan) -> dict[str, float]:
@@ -98,11 +98,11 @@ def _image(prepared: PreparedScan) -> dict[str, float]:
 
 
 def _audio(prepared: PreparedScan) -> dict[str, float]:
-    return audio_features(prepared.scan)
+    return audio_features(prepared.scan, prepared)
 
 
 def _other(prepared: PreparedScan) -> dict[str, float]:
-    return other.compute(prepared.scan)
+    return other.compute(prepared.scan, prepared=prepared)
 
 
 TACTUM = REGISTRY.register(Family("tactum", "TacTUM (paper section IV-A)", tactum.NAMES, _tactum))

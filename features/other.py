@@ -19,8 +19,9 @@ from collections.abc import Callable
 import numpy as np
 from scipy import optimize, signal
 
+from features.prepared import PreparedScan
 from features.tactum import MissingDataWarning, spectral_centroid
-from scanner.preprocess import NO_SLIDE, QualityError, band_limit, dft321, slide_signal, slide_start, slide_window
+from scanner.preprocess import NO_SLIDE, QualityError, dft321
 from scanner.scan import Scan, Trace
 from taxonomy.errors import TexplorerError
 
@@ -328,32 +329,37 @@ def _meta_value(scan: Scan, name: str, meaning: str) -> float:
     return value
 
 
-def _density(scan: Scan) -> tuple[float, ...]:
+def _density(prepared: PreparedScan) -> tuple[float, ...]:
+    scan = prepared.scan
     return (density(_meta_value(scan, "mass_g", "mass"), _meta_value(scan, "volume_cm3", "volume")),)
 
 
-def _metal(scan: Scan) -> tuple[float, ...]:
+def _metal(prepared: PreparedScan) -> tuple[float, ...]:
+    scan = prepared.scan
     return (metal(_trace(scan, "m").data),)
 
 
-def _magnet(scan: Scan) -> tuple[float, ...]:
+def _magnet(prepared: PreparedScan) -> tuple[float, ...]:
+    scan = prepared.scan
     dB = _trace(scan, "dB").data
     return magnet_mean(dB), magnet_peak(dB)
 
 
-def _reflectance(scan: Scan) -> tuple[float, ...]:
+def _reflectance(prepared: PreparedScan) -> tuple[float, ...]:
     """``reflect_static`` from the IR samples before the slide start, even if the slide window fails (SPEC
     7.4; an IR record ending before the start gives the mean of all its samples), and ``reflect_mean``."""
-    v_ts, r_ts = _trace(scan, "v_ts"), _trace(scan, "r_ts")
+    scan = prepared.scan
+    _trace(scan, "v_ts")
+    r_ts = _trace(scan, "r_ts")
     try:
-        start = slide_start(v_ts.data, fs=v_ts.fs)
+        start = prepared.slide_start("v_ts")
     except QualityError as problem:
         raise _Unavailable(f"v_ts/r_ts: {problem}") from None
     if start is None:
         raise _Unavailable(f"v_ts/r_ts: {NO_SLIDE}")
     static = reflect_static(r_ts.data, min(start, r_ts.n))
     try:
-        window = slide_window(v_ts.data, fs=v_ts.fs, ir_samples=r_ts.n)
+        window = prepared.slide_window("v_ts", ir_samples=r_ts.n)
     except QualityError as problem:
         warnings.warn(f"scan {scan.scan_id}: v_ts/r_ts: {problem}; other.reflect_mean set to NaN",
                       MissingDataWarning, stacklevel=3)
@@ -361,38 +367,42 @@ def _reflectance(scan: Scan) -> tuple[float, ...]:
     return static, reflect_mean(r_ts.data[window.ir])
 
 
-def _cooling(scan: Scan) -> tuple[float, ...]:
+def _cooling(prepared: PreparedScan) -> tuple[float, ...]:
+    scan = prepared.scan
     t_cool = _trace(scan, "t_cool")
     return (cooling_rate(t_cool.data, _meta_value(scan, "t_amb", "ambient temperature"), t_cool.fs),)
 
 
-def _slide(scan: Scan, name: str) -> np.ndarray:
+def _slide(prepared: PreparedScan, name: str) -> np.ndarray:
+    _trace(prepared.scan, name)
     try:
-        return slide_signal(_trace(scan, name))
+        return prepared.slide_signal(name)
     except QualityError as problem:
         raise _Unavailable(f"{name}: {problem}") from None
 
 
-def _tool_vibration(scan: Scan) -> tuple[float, ...]:
-    v = _slide(scan, "v_ts")
+def _tool_vibration(prepared: PreparedScan) -> tuple[float, ...]:
+    v = _slide(prepared, "v_ts")
     return vib_std(v), vib_kurtosis(v), vib_energy(v)
 
 
-def _finger_vibration(scan: Scan) -> tuple[float, ...]:
-    v_f = _slide(scan, "v_fs")
+def _finger_vibration(prepared: PreparedScan) -> tuple[float, ...]:
+    scan = prepared.scan
+    v_f = _slide(prepared, "v_fs")
     return vib_energy(v_f), vib_centroid(v_f, scan["v_fs"].fs)
 
 
-def _tap(scan: Scan) -> tuple[float, ...]:
+def _tap(prepared: PreparedScan) -> tuple[float, ...]:
+    scan = prepared.scan
     v_tt = _trace(scan, "v_tt")
     try:
-        a = band_limit(v_tt.data, v_tt.fs)
+        a = prepared.band_limited("v_tt")
     except ValueError as problem:
         raise _Unavailable(f"v_tt: {problem}") from None
     return tap_features(a, v_tt.fs)
 
 
-_GROUPS: tuple[tuple[tuple[str, ...], Callable[[Scan], tuple[float, ...]]], ...] = (
+_GROUPS: tuple[tuple[tuple[str, ...], Callable[[PreparedScan], tuple[float, ...]]], ...] = (
     (("other.density",), _density),
     (("other.metal",), _metal),
     (("other.magnet_mean", "other.magnet_peak"), _magnet),
@@ -405,7 +415,7 @@ _GROUPS: tuple[tuple[tuple[str, ...], Callable[[Scan], tuple[float, ...]]], ...]
 """Feature groups sharing their inputs: (names, function of the scan returning their values)."""
 
 
-def compute(scan: Scan) -> dict[str, float]:
+def compute(scan: Scan, *, prepared: PreparedScan | None = None) -> dict[str, float]:
     """The 15 other features of a scan, in :data:`NAMES` order (SPEC 7.4).
 
     Inputs are preprocessed as in SPEC 6: ``v`` and ``v_f`` (band limit, slide window, DFT321), the IR
@@ -414,10 +424,11 @@ def compute(scan: Scan) -> dict[str, float]:
     ``meta.t_amb``) or fails its slide check are NaN, with one :class:`MissingDataWarning` naming the
     input and the features it made NaN.
     """
+    prepared = prepared if prepared is not None else PreparedScan(scan)
     values: dict[str, float] = {}
     for names, group in _GROUPS:
         try:
-            values.update(zip(names, (float(x) for x in group(scan)), strict=True))
+            values.update(zip(names, (float(x) for x in group(prepared)), strict=True))
         except _Unavailable as problem:
             values.update(dict.fromkeys(names, math.nan))
             warnings.warn(f"scan {scan.scan_id}: {problem}; {', '.join(names)} set to NaN",

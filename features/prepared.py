@@ -6,12 +6,23 @@
 
 from __future__ import annotations
 
-import dataclasses
-import warnings
+from collections.abc import Callable
 from functools import cached_property
+from typing import Any
 
-from features import image, tactum
-from scanner.preprocess import IMAGE_BORDER_PX
+import numpy as np
+
+from features import image
+from scanner.preprocess import (
+    AUDIO_FS,
+    IMAGE_BORDER_PX,
+    QualityError,
+    SlideWindow,
+    band_limit,
+    dft321,
+    slide_start,
+    window_at,
+)
 from scanner.scan import Scan
 
 MIN_PHOTO_SIDE = 2 * IMAGE_BORDER_PX + image.MIN_SIDE_PX
@@ -31,30 +42,48 @@ def prepared_disp(scan: Scan) -> image.PreparedPhoto | None:
     return image.PreparedPhoto(photo)
 
 
-def without_short_channels(scan: Scan) -> Scan:
-    """``scan`` without the channels too short for their features (``Scan.short_channels``), with a warning.
-
-    Their features are then NaN like those of a missing channel: a single sample has no spread, no
-    relaxation and no cooling curve, and computing them anyway gives silent zeros (SPEC 7).
-    """
-    short = scan.short_channels()
-    if not short:
-        return scan
-    described = ", ".join(f"{name} ({scan[name].n} of the {need} samples its features need)"
-                          for name, need in short.items())
-    warnings.warn(f"scan {scan.scan_id}: too short: {described}; treated as missing", tactum.MissingDataWarning,
-                  stacklevel=4)  # the caller of features.extract
-    return dataclasses.replace(scan, traces={k: v for k, v in scan.traces.items() if k not in short})
-
-
 class PreparedScan:
-    """A scan and the intermediates its feature families share, each computed on first use.
-
-    Channels too short for their features count as missing (:func:`without_short_channels`).
-    """
+    """A scan and the intermediates its feature families share, each computed on first use: the slide start
+    and window of a slide channel, its band-limited vibration and its slide signal (band limit, window,
+    DFT321; SPEC 6), and the prepared ``I_disp``. Values equal those computed alone, bit for bit."""
 
     def __init__(self, scan: Scan) -> None:
-        self.scan = without_short_channels(scan)
+        self.scan = scan
+        self._memo: dict[tuple[str, str], Any] = {}
+
+    def _once(self, what: str, name: str, compute: Callable[[], Any]) -> Any:
+        """``compute()`` the first time, its value (or its exception, raised again) after that."""
+        key = (what, name)
+        if key not in self._memo:
+            try:
+                self._memo[key] = (compute(), None)
+            except (QualityError, ValueError) as problem:
+                self._memo[key] = (None, problem)
+        value, problem = self._memo[key]
+        if problem is not None:
+            raise problem
+        return value
+
+    def slide_start(self, name: str) -> int | None:
+        """:func:`scanner.preprocess.slide_start` of the channel ``name`` (``v_ts``, ``v_fs``)."""
+        trace = self.scan[name]
+        return self._once("start", name, lambda: slide_start(trace.data, fs=trace.fs))
+
+    def slide_window(self, name: str, *, audio_samples: int | None = None, ir_samples: int | None = None,
+                     audio_fs: float = AUDIO_FS) -> SlideWindow:
+        """:func:`scanner.preprocess.slide_window` of the channel ``name`` from its slide start found once."""
+        trace = self.scan[name]
+        return window_at(self.slide_start(name), trace.n, fs=trace.fs, audio_samples=audio_samples,
+                         ir_samples=ir_samples, audio_fs=audio_fs)
+
+    def band_limited(self, name: str) -> np.ndarray:
+        """:func:`scanner.preprocess.band_limit` of the whole channel ``name``."""
+        trace = self.scan[name]
+        return self._once("band", name, lambda: band_limit(trace.data, trace.fs))
+
+    def slide_signal(self, name: str) -> np.ndarray:
+        """:func:`scanner.preprocess.slide_signal` of the channel ``name``: band limit, window, DFT321."""
+        return self._once("signal", name, lambda: dft321(self.band_limited(name)[self.slide_window(name).vibration]))
 
     @cached_property
     def disp(self) -> image.PreparedPhoto | None:

@@ -21,11 +21,10 @@ import numpy as np
 import pywt
 
 from features.image import PreparedPhoto, RealSpectrum, tamura_contrast
+from features.prepared import PreparedScan
 from scanner.preprocess import (
     QualityError,
     remove_friction_offset,
-    slide_signal,
-    slide_window,
 )
 from scanner.scan import JUDGED_SCALE, Scan
 
@@ -535,20 +534,20 @@ class _Inputs:
         return self.values.get(key)
 
 
-def _slide_inputs(scan: Scan, inputs: _Inputs) -> None:
+def _slide_inputs(prepared: PreparedScan, inputs: _Inputs) -> None:
     """``v`` and the IR window ``r_w`` of the tool slide; a failed slide check leaves both absent."""
-    v_ts, r_ts = scan.get("v_ts"), scan.get("r_ts")
+    v_ts, r_ts = prepared.scan.get("v_ts"), prepared.scan.get("r_ts")
     if v_ts is None:
         inputs.put("v", None, "v_ts is missing")
         inputs.put("r_w", None, "v_ts is missing")
         return
     try:
-        window = slide_window(v_ts.data, fs=v_ts.fs)
+        window = prepared.slide_window("v_ts")
     except QualityError as problem:
         inputs.put("v", None, f"v_ts: {problem}")
         inputs.put("r_w", None, f"v_ts: {problem}")
         return
-    inputs.put("v", slide_signal(v_ts, window))
+    inputs.put("v", prepared.slide_signal("v_ts"))
     if r_ts is None:
         inputs.put("r_w", None, "r_ts is missing")
     elif r_ts.n < window.ir.stop:
@@ -570,9 +569,10 @@ def _photo_inputs(scan: Scan, inputs: _Inputs, disp: PreparedPhoto | None) -> No
         inputs.put("photo", None, f"I_disp: {problem}")
 
 
-def _gather(scan: Scan, disp: PreparedPhoto | None) -> _Inputs:
+def _gather(prepared: PreparedScan, disp: PreparedPhoto | None) -> _Inputs:
+    scan = prepared.scan
     inputs = _Inputs()
-    _slide_inputs(scan, inputs)
+    _slide_inputs(prepared, inputs)
     _photo_inputs(scan, inputs, disp)
     for name in ("f_frn", "f_press", "f_fold", "alpha_f", "t_cool"):
         trace = scan.get(name)
@@ -622,7 +622,7 @@ def _recipes(inputs: _Inputs, scan: Scan) -> dict[str, tuple[Callable[..., float
     return {name: recipes[name] for name in NAMES}
 
 
-def compute(scan: Scan, *, disp: PreparedPhoto | None = None) -> dict[str, float]:
+def compute(scan: Scan, *, disp: PreparedPhoto | None = None, prepared: PreparedScan | None = None) -> dict[str, float]:
     """The 15 TacTUM features of a scan, in :data:`NAMES` order (SPEC 7.1).
 
     Inputs are preprocessed as in SPEC 6: ``v`` from ``v_ts`` (band limit, slide window, DFT321), the IR
@@ -636,6 +636,8 @@ def compute(scan: Scan, *, disp: PreparedPhoto | None = None) -> dict[str, float
     disp : PreparedPhoto, optional
         ``PreparedPhoto(scan.images["I_disp"])`` when the caller shares it with the image features; the
         values are the same.
+    prepared : PreparedScan, optional
+        The scan prepared once for every feature family (:func:`features.extract`); the values are the same.
 
     Raises
     ------
@@ -645,7 +647,7 @@ def compute(scan: Scan, *, disp: PreparedPhoto | None = None) -> dict[str, float
     """
     if disp is not None and disp.source is not scan.images.get("I_disp"):
         raise ValueError("disp was not prepared from this scan's I_disp photo")
-    inputs = _gather(scan, disp)
+    inputs = _gather(prepared if prepared is not None else PreparedScan(scan), disp)
     values: dict[str, float] = {}
     blocked: dict[str, list[str]] = {}
     for name, (function, keys) in _recipes(inputs, scan).items():

@@ -210,10 +210,17 @@ def slide_window(v: np.ndarray, *, fs: float = VIBRATION_FS, audio_samples: int 
         1 s of any of the recordings follows the start.
     """
     start = slide_start(v, fs=fs, frame=frame, noise_frames=noise_frames, factor=factor)
+    return window_at(start, len(v), fs=fs, audio_samples=audio_samples, ir_samples=ir_samples, audio_fs=audio_fs)
+
+
+def window_at(start: int | None, n: int, *, fs: float = VIBRATION_FS, audio_samples: int | None = None,
+              ir_samples: int | None = None, audio_fs: float = AUDIO_FS) -> SlideWindow:
+    """:func:`slide_window` from a slide start already found (:func:`slide_start`; ``n`` vibration samples),
+    with the same checks and errors."""
     if start is None:
         raise QualityError(NO_SLIDE)
     window = SlideWindow(start, fs=fs, audio_fs=audio_fs)
-    lengths = {"vibration": (len(v), window.vibration, fs), "IR": (ir_samples, window.ir, fs),
+    lengths = {"vibration": (n, window.vibration, fs), "IR": (ir_samples, window.ir, fs),
                "audio": (audio_samples, window.audio, audio_fs)}
     for what, (n, part, rate) in lengths.items():
         if n is not None and n < part.stop:
