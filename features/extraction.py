@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
+import cv2
 import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
@@ -264,6 +265,17 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     )
 
 
+def _one_thread_per_worker() -> None:
+    """Pool initializer: OpenCV, BLAS and OpenMP run one thread in each worker process.
+
+    The workers already keep every core busy; each one's own thread pools (OpenCV's as many threads as
+    cores, BLAS's for long dot products) would put several threads on a core and make the workers wait
+    for each other.
+    """
+    cv2.setNumThreads(1)
+    threadpool_limits(1)
+
+
 def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,
          tick: Callable[[int], object]) -> Iterable[tuple[int, tuple]]:
     """``(index, fn(item))`` for every item, in this process or a process pool (completion order)."""
@@ -273,7 +285,7 @@ def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,
             tick(1)
             yield index, result
         return
-    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+    with concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=_one_thread_per_worker) as pool:
         futures = {pool.submit(fn, item): index for index, item in zip(indices, items, strict=True)}
         for future in concurrent.futures.as_completed(futures):
             tick(1)

@@ -797,7 +797,10 @@ def _tamura_contrast(values: np.ndarray, mean: float, constant: bool) -> float:
         squared = np.subtract(values[start:stop], mean, out=scratch[:stop - start])
         squared *= squared
         second += float(squared.sum())
-        fourth += float(np.dot(squared.ravel(), squared.ravel()))
+        # numpy's own sums, not a BLAS dot product, whose threads would make the rounding vary with
+        # their number (extract_many's workers run one thread each).
+        squared *= squared
+        fourth += float(squared.sum())
     variance = second / values.size
     kurtosis = fourth / values.size / variance**2
     return float(np.sqrt(variance) / kurtosis**0.25)
