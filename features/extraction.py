@@ -14,7 +14,7 @@ import math
 import os
 import sys
 import warnings
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
@@ -265,15 +265,20 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     )
 
 
-def _one_thread_per_worker() -> None:
-    """Pool initializer: OpenCV, BLAS and OpenMP run one thread in each worker process.
-
-    The workers already keep every core busy; each one's own thread pools (OpenCV's as many threads as
-    cores, BLAS's for long dot products) would put several threads on a core and make the workers wait
-    for each other.
+@contextlib.contextmanager
+def _one_thread_each() -> Iterator[None]:
+    """OpenCV, BLAS and OpenMP on one thread while worker processes are forked, so that each worker
+    inherits that: the workers already keep every core busy, and each one's own thread pools (OpenCV's as
+    many threads as cores, BLAS's for long dot products) would put several threads on a core. Set in the
+    parent because a forked child must not reconfigure OpenCV's inherited thread pool (it can hang).
     """
+    threads = cv2.getNumThreads()
     cv2.setNumThreads(1)
-    threadpool_limits(1)
+    try:
+        with threadpool_limits(1):
+            yield
+    finally:
+        cv2.setNumThreads(threads)
 
 
 def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,
@@ -285,8 +290,9 @@ def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,
             tick(1)
             yield index, result
         return
-    with concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=_one_thread_per_worker) as pool:
-        futures = {pool.submit(fn, item): index for index, item in zip(indices, items, strict=True)}
+    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+        with _one_thread_each():  # the first submission forks every worker
+            futures = {pool.submit(fn, item): index for index, item in zip(indices, items, strict=True)}
         for future in concurrent.futures.as_completed(futures):
             tick(1)
             yield futures[future], future.result()
