@@ -655,3 +655,12 @@ def test_gray_features_reject_bad_images(function):
     nan_image[3, 4] = np.nan
     with pytest.raises(ValueError, match="NaN or infinite"):
         function(nan_image)
+
+
+def test_the_8_bit_gray_image_of_every_rgb_colour_is_gray_uint8():
+    # The prepared photo truncates gray + 0.5 instead of flooring and clipping: the same for every one of
+    # the 2^24 colours (their gray values lie in 0 .. 255 plus rounding).
+    red, green = np.meshgrid(np.arange(256, dtype=np.uint8), np.arange(256, dtype=np.uint8), indexing="ij")
+    for blue in range(256):
+        gray = grayscale(np.stack([red, green, np.full_like(red, blue)], axis=-1))
+        np.testing.assert_array_equal(image._gray_u8_of_photo(gray), gray_uint8(gray))
