@@ -181,6 +181,26 @@ def test_harris_corners_are_those_of_good_features_to_track_in_the_same_order(ki
         np.testing.assert_array_equal(tactum.harris_corners(gray), _good_features_to_track(gray))
 
 
+def test_harris_corners_of_large_images_from_the_strongest_responses_or_from_all():
+    # From 2^20 pixels on, the corners are first looked for among the strongest responses: enough on a
+    # texture and on a few squares over faint noise (no other candidate passes the threshold); a small
+    # checkerboard's crowded corners over noise leave too few there, and every candidate is looked at.
+    rng = np.random.default_rng(12)
+    texture = gaussian_filter(rng.uniform(0, 255, (1100, 1000)), 2.0)
+    squares = rng.uniform(0, 2, (1100, 1000))
+    for top, left in [(100, 100), (500, 600), (800, 200)]:
+        squares[top:top + 150, left:left + 150] += 200
+    crowded = rng.uniform(0, 90, (1100, 1000))
+    rows, cols = np.mgrid[:60, :60]
+    crowded[500:560, 500:560] = ((rows // 3 + cols // 3) % 2) * 255.0
+    for gray, decided in ((texture, True), (squares, True), (crowded, False)):
+        response = cv2.cornerHarris(gray.astype(np.float32), 3, 3, 0.04)
+        threshold = float(response.max()) * 0.01
+        found = tactum._corners_above(response, threshold, tactum._strong_cut(response))
+        assert (found is not None) == decided
+        np.testing.assert_array_equal(tactum.harris_corners(gray), _good_features_to_track(gray))
+
+
 def test_candidates_in_batches_come_in_the_order_of_one_full_sort():
     # Larger value first, ties by larger index, as OpenCV sorts; batches of 3, 12, 48, ... candidates.
     rng = np.random.default_rng(3)
