@@ -93,7 +93,15 @@ def frames(signal: np.ndarray, fs: float = 44100.0) -> np.ndarray:
     x = _checked_signal(signal, fs)
     window, step = window_and_step(fs)
     framed = np.lib.stride_tricks.sliding_window_view(x, window)[::step]
-    return framed * np.hamming(window)
+    return framed * _hamming(window)
+
+
+@lru_cache(maxsize=8)
+def _hamming(window: int) -> np.ndarray:
+    """``np.hamming(window)``, made once per window length (read-only)."""
+    weights = np.hamming(window)
+    weights.flags.writeable = False
+    return weights
 
 
 def spectrum(framed: np.ndarray) -> np.ndarray:
@@ -127,16 +135,26 @@ def energy(framed: np.ndarray) -> np.ndarray:
     return np.mean(framed**2, axis=1)
 
 
+def _energies(squares: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``energy`` and ``energy_entropy`` from the frames' squared samples, computed once for both."""
+    return np.mean(squares, axis=1), _block_entropy_of_squares(squares, N_BLOCKS)
+
+
 def _block_entropy(values: np.ndarray, n_blocks: int) -> np.ndarray:
     """Entropy ``-sum_j e_j log2(e_j + eps)`` of the normalised energies ``e_j`` of ``n_blocks`` sub-blocks.
 
     The row is cut into ``n_blocks`` contiguous blocks of ``floor(len / n_blocks)`` values, trailing values
     dropped; ``e_j`` = block energy / (energy of the whole row + eps), as both toolbox entropies do.
     """
-    length = values.shape[1] // n_blocks
-    total = np.sum(values**2, axis=1, keepdims=True)
-    blocks = values[:, : length * n_blocks].reshape(values.shape[0], n_blocks, length)
-    shares = np.sum(blocks**2, axis=2) / (total + EPS)
+    return _block_entropy_of_squares(values**2, n_blocks)
+
+
+def _block_entropy_of_squares(squares: np.ndarray, n_blocks: int) -> np.ndarray:
+    """:func:`_block_entropy` of the values whose squares are given."""
+    length = squares.shape[1] // n_blocks
+    total = np.sum(squares, axis=1, keepdims=True)
+    blocks = squares[:, : length * n_blocks].reshape(squares.shape[0], n_blocks, length)
+    shares = np.sum(blocks, axis=2) / (total + EPS)
     return -np.sum(shares * np.log2(shares + EPS), axis=1)
 
 
@@ -195,14 +213,18 @@ def spectral_rolloff(spectra: np.ndarray, c: float = ROLLOFF_C) -> np.ndarray:
     ``c`` times the total; ``K`` the number of bins. If no bin does (an all-zero spectrum) the toolbox's
     loop runs off the end and gives ``(K-1)/K``.
     """
-    power = spectra**2
+    return _rolloff_of_power(spectra**2, c)
+
+
+def _rolloff_of_power(power: np.ndarray, c: float = ROLLOFF_C) -> np.ndarray:
+    """:func:`spectral_rolloff` of the spectra whose squares are ``power``."""
     cumulative = np.cumsum(power, axis=1)
     exceeded = cumulative > c * power.sum(axis=1, keepdims=True)
-    first = np.where(exceeded.any(axis=1), exceeded.argmax(axis=1), spectra.shape[1] - 1)
-    return first / spectra.shape[1]
+    first = np.where(exceeded.any(axis=1), exceeded.argmax(axis=1), power.shape[1] - 1)
+    return first / power.shape[1]
 
 
-def harmonic(framed: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
+def harmonic(framed: np.ndarray, fs: float, squares: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Harmonic ratio and fundamental frequency in Hz per frame (``feature_harmonic.m``).
 
     With ``R(m)`` the autocorrelation at lag ``m``, ``m0`` the first lag ``m >= 2`` where ``R`` crosses
@@ -210,7 +232,8 @@ def harmonic(framed: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
     autocorrelation is ``Gamma(m) = R(m) / (sqrt(R(0) sum_{n<N-m} x(n)^2) + eps)`` for ``m0 <= m <= M``
     and 0 below ``m0``. If ``Gamma`` is noise-like (its zero-crossing rate, ``zcr``, exceeds 0.15) both
     values are 0 (unvoiced). Otherwise ``HR = max Gamma`` at lag ``T0`` (first maximum) and
-    ``f0 = fs / T0``, set to 0 when it exceeds 5000 Hz or ``HR < 0.1``.
+    ``f0 = fs / T0``, set to 0 when it exceeds 5000 Hz or ``HR < 0.1``. ``squares`` is ``framed**2`` when
+    the caller has it already.
 
     ``R`` is computed by FFT, as MATLAB's ``xcorr`` does, for the lags up to ``M`` only: a crossing after
     ``M`` leaves ``Gamma`` all 0 wherever it is, and an FFT of ``N + M`` samples (instead of ``2N - 1``)
@@ -221,7 +244,7 @@ def harmonic(framed: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
     n = framed.shape[1]
     max_lag = min(matlab_round(0.016 * fs), n - 1)
     autocorr = _autocorrelation(framed, max_lag)
-    squares = framed**2
+    squares = framed**2 if squares is None else squares
     frame_energy = squares.sum(axis=1, keepdims=True)
     # FFT round-off (~1e-15 R(0)) would otherwise decide the sign tests and, divided by the eps of an
     # all-zero head, the whole Gamma of a nearly silent frame; exact arithmetic gives 0 there.
@@ -230,7 +253,7 @@ def harmonic(framed: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
     lags = np.arange(1, max_lag + 1)
     head_energy = _head_energies(squares, max_lag)
     denominator = np.sqrt(frame_energy * head_energy) + EPS
-    gamma = np.where(lags >= first_zero[:, None], autocorr[:, lags] / denominator, 0.0)
+    gamma = np.where(lags >= first_zero[:, None], autocorr[:, 1:max_lag + 1] / denominator, 0.0)
     voiced = zcr(gamma) <= 0.15
     ratio = np.where(voiced, gamma.max(axis=1), 0.0)
     f0 = fs / (gamma.argmax(axis=1) + 1.0)
@@ -388,19 +411,20 @@ def frame_features(signal: np.ndarray, fs: float = 44100.0) -> np.ndarray:
         For bad input, see ``frames``.
     """
     framed = frames(signal, fs)
+    squares = framed**2  # shared by the energies and the harmonic features, as the power by two spectral ones
     magnitudes = _magnitudes(framed)
     spectra = _spectrum(magnitudes, framed.shape[1])
+    power = spectra**2
     centroid, spread = spectral_centroid_spread(spectra, fs)
-    ratio, f0 = harmonic(framed, fs)
+    ratio, f0 = harmonic(framed, fs, squares)
     table = np.column_stack([
         zcr(framed),
-        energy(framed),
-        energy_entropy(framed),
+        *_energies(squares),
         centroid,
         spread,
-        spectral_entropy(spectra),
+        _block_entropy_of_squares(power, N_BLOCKS),
         spectral_flux(spectra),
-        spectral_rolloff(spectra),
+        _rolloff_of_power(power),
         ratio,
         f0,
         mfcc(spectra, fs),
@@ -454,7 +478,7 @@ def _checked_signal(signal: np.ndarray, fs: float) -> np.ndarray:
         raise ValueError(f"audio signal must be 1-D, got shape {x.shape}")
     if not (np.issubdtype(x.dtype, np.number) and not np.iscomplexobj(x)):
         raise ValueError(f"audio signal must be real numbers, got dtype {x.dtype}")
-    x = x.astype(np.float64)
+    x = x.astype(np.float64, copy=False)  # read only: frames() makes new arrays
     if not np.all(np.isfinite(x)):
         raise ValueError("audio signal contains NaN or infinite samples")
     if x.size < window:
