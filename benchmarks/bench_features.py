@@ -2,19 +2,18 @@
 
 - per-scan time of ``features.extract`` with 512 x 512 and 3024 x 4032 photos on one core, as wall and CPU
   time, and as a ratio against a same-process reference (one ``cv2.dft`` of a cropped gray photo: the
-  spectrum every photo needs, the largest single step). Goals: a 12 MP scan in at most 5.6 such DFTs
-  (0.6 s on a quiet machine whose DFT takes 107 ms), a 512 x 512 scan in at most 0.02 s;
+  transform every photo's spectrum stands for; extract gets the spectrum at about 60 % of it). Goals: a
+  12 MP scan in at most 5.6 such DFTs (0.6 s on a quiet machine whose DFT takes 107 ms), a 512 x 512
+  scan in at most 0.02 s;
 - where the full-resolution time goes: TacTUM, each photo's image features, audio and other features,
   timed alone in the same rounds, each with its ratio against the reference, and what extract saves by
   sharing ``I_disp`` between TacTUM and the image features;
-- peak resident memory of extracting one 12 MP scan (the scan itself excluded);
+- peak resident memory while extracting one 12 MP scan, and how much above the loaded scan it is;
 - speed-up of ``extract_many`` on 2 workers against 1 over 12 scans (goal >= 1.9x);
 - a synthetic database extracted cold and again from the feature cache.
 
 The machine may be shared: every timing is the best of several rounds that run all stages in turn, so
 each stage sees the same load, and the load average is printed with the results.
-
-Before/after figures measured in one session are at the end of this file.
 """
 
 from __future__ import annotations
@@ -55,17 +54,22 @@ TARGET_SPEEDUP = 1.9
 """extract_many on 2 workers against 1."""
 
 
-def peak_rss_mb(fn: Callable[[], object]) -> float | None:
-    """Peak resident memory in MB while ``fn`` runs (Linux: the high-water mark is reset first), else None."""
+def peak_rss_mb(fn: Callable[[], object]) -> tuple[float, float] | None:
+    """Resident memory in MB before ``fn`` and its peak while ``fn`` runs (Linux: the high-water mark is
+    reset first), else None."""
     try:
         with open("/proc/self/clear_refs", "w") as clear:
             clear.write("5")
     except OSError:
         return None
+    before = _status_mb("VmRSS:")
     fn()
+    return before, _status_mb("VmHWM:")
+
+
+def _status_mb(field: str) -> float:
     with open("/proc/self/status") as status:
-        line = next(line for line in status if line.startswith("VmHWM:"))
-    return int(line.split()[1]) / 1024
+        return int(next(line for line in status if line.startswith(field)).split()[1]) / 1024
 
 
 def best_times(stages: dict[str, Callable[[], object]], rounds: int) -> dict[str, tuple[float, float]]:
@@ -120,7 +124,8 @@ def per_scan() -> None:
         print(f"  reference cv2.dft of one cropped photo {ref_wall * 1e3:7.1f} ms wall {ref_cpu * 1e3:7.1f} ms CPU  "
               f"extract / reference {wall / ref_wall:5.2f}x wall, {cpu / ref_cpu:5.2f}x CPU")
         if resident is not None:
-            print(f"  peak resident memory while extracting {resident:7.0f} MB (the loaded scan excluded)")
+            print(f"  resident memory {resident[0]:5.0f} MB with the scan loaded, peak {resident[1]:5.0f} MB while "
+                  f"extracting: +{resident[1] - resident[0]:.0f} MB")
         for name, (stage_wall, stage_cpu) in times.items():
             print(f"    {name:26s} {stage_wall * 1e3:8.1f} ms wall {stage_cpu * 1e3:8.1f} ms CPU  "
                   f"{stage_wall / wall:6.1%}  {stage_wall / ref_wall:5.2f}x reference")
