@@ -290,9 +290,10 @@ def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,
             tick(1)
             yield index, result
         return
-    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
-        with _one_thread_each():  # the first submission forks every worker
-            futures = {pool.submit(fn, item): index for index, item in zip(indices, items, strict=True)}
+    # The first submission forks every worker. OpenCV's threads are restored only once the pool is done:
+    # restarted at once, they would spin-wait on the cores the workers need.
+    with _one_thread_each(), concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = {pool.submit(fn, item): index for index, item in zip(indices, items, strict=True)}
         for future in concurrent.futures.as_completed(futures):
             tick(1)
             yield futures[future], future.result()
