@@ -1,12 +1,15 @@
 """Feature extraction benchmark (SPEC 7, 8): all 193 features per scan, parallel and cached extraction.
 
-- per-scan time of ``features.extract`` with 512 x 512 and 3024 x 4032 photos on one core (target <= 3 s at
-  full resolution), as wall and CPU time, and as a ratio against a same-process reference (one
-  ``cv2.dft`` of a cropped gray photo: the spectrum every photo needs, the largest single step);
+- per-scan time of ``features.extract`` with 512 x 512 and 3024 x 4032 photos on one core, as wall and CPU
+  time, and as a ratio against a same-process reference (one ``cv2.dft`` of a cropped gray photo: the
+  transform every photo's spectrum stands for; extract gets the spectrum at about 60 % of it). Goals: a
+  12 MP scan in at most 5.6 such DFTs (0.6 s on a quiet machine whose DFT takes 107 ms), a 512 x 512
+  scan in at most 0.02 s;
 - where the full-resolution time goes: TacTUM, each photo's image features, audio and other features,
-  timed alone in the same rounds, and what extract saves by sharing ``I_disp`` between TacTUM and the
-  image features;
-- speed-up of ``extract_many`` on 2 workers against 1 (target >= 1.7x);
+  timed alone in the same rounds, each with its ratio against the reference, and what extract saves by
+  sharing ``I_disp`` between TacTUM and the image features;
+- peak resident memory while extracting one 12 MP scan, and how much above the loaded scan it is;
+- speed-up of ``extract_many`` on 2 workers against 1 over 12 scans (goal >= 1.9x);
 - a synthetic database extracted cold and again from the feature cache.
 
 The machine may be shared: every timing is the best of several rounds that run all stages in turn, so
@@ -21,6 +24,7 @@ for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_variable] = "1"
 
 import dataclasses  # noqa: E402
+import functools  # noqa: E402
 import math  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -41,8 +45,32 @@ from scanner.workflows import database_sources  # noqa: E402
 
 cv2.setNumThreads(1)
 
-TARGET_S = 3.0
-"""All 193 features of a scan with three 12-megapixel photos, on one core."""
+TARGET_RATIO = 5.6
+"""All 193 features of a scan with three 12-megapixel photos, on one core, in this many reference DFTs."""
+
+TARGET_SMALL_S = 0.02
+"""All 193 features of a scan with three 512 x 512 photos, on one core."""
+
+TARGET_SPEEDUP = 1.9
+"""extract_many on 2 workers against 1."""
+
+
+def peak_rss_mb(fn: Callable[[], object]) -> tuple[float, float] | None:
+    """Resident memory in MB before ``fn`` and its peak while ``fn`` runs (Linux: the high-water mark is
+    reset first), else None."""
+    try:
+        with open("/proc/self/clear_refs", "w") as clear:
+            clear.write("5")
+    except OSError:
+        return None
+    before = _status_mb("VmRSS:")
+    fn()
+    return before, _status_mb("VmHWM:")
+
+
+def _status_mb(field: str) -> float:
+    with open("/proc/self/status") as status:
+        return int(next(line for line in status if line.startswith(field)).split()[1]) / 1024
 
 
 def best_times(stages: dict[str, Callable[[], object]], rounds: int) -> dict[str, tuple[float, float]]:
@@ -86,16 +114,22 @@ def per_scan() -> None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             times = best_times(stages(scan), rounds)
-        (wall, cpu), (ref_wall, _) = times.pop("extract"), times.pop("reference")
-        met = "met" if wall <= TARGET_S else "NOT met"
-        verdict = "" if size[0] < 1000 else f"   target <= {TARGET_S:.0f} s: {met}"
-        print(f"\nphotos {size[0]}x{size[1]}: extract {wall:6.2f} s wall, {cpu:6.2f} s CPU per scan, best of "
-              f"{rounds}{verdict}")
-        print(f"  reference cv2.dft of one cropped photo {ref_wall * 1e3:7.1f} ms   "
-              f"ratio {wall / ref_wall:6.1f}x")
+            resident = peak_rss_mb(lambda s=scan: extract(s))
+        (wall, cpu), (ref_wall, ref_cpu) = times.pop("extract"), times.pop("reference")
+        if size[0] < 1000:
+            verdict = f"target <= {TARGET_SMALL_S:.2f} s: {'met' if wall <= TARGET_SMALL_S else 'NOT met'}"
+        else:
+            verdict = f"target <= {TARGET_RATIO:.1f} DFTs: {'met' if wall / ref_wall <= TARGET_RATIO else 'NOT met'}"
+        print(f"\nphotos {size[0]}x{size[1]}: extract {wall:6.3f} s wall, {cpu:6.3f} s CPU per scan, best of "
+              f"{rounds}   {verdict}")
+        print(f"  reference cv2.dft of one cropped photo {ref_wall * 1e3:7.1f} ms wall {ref_cpu * 1e3:7.1f} ms CPU  "
+              f"extract / reference {wall / ref_wall:5.2f}x wall, {cpu / ref_cpu:5.2f}x CPU")
+        if resident is not None:
+            print(f"  resident memory {resident[0]:5.0f} MB with the scan loaded, peak {resident[1]:5.0f} MB while "
+                  f"extracting: +{resident[1] - resident[0]:.0f} MB")
         for name, (stage_wall, stage_cpu) in times.items():
             print(f"    {name:26s} {stage_wall * 1e3:8.1f} ms wall {stage_cpu * 1e3:8.1f} ms CPU  "
-                  f"{stage_wall / wall:6.1%}")
+                  f"{stage_wall / wall:6.1%}  {stage_wall / ref_wall:5.2f}x reference")
         alone = math.fsum(stage_wall for stage_wall, _ in times.values())
         print(f"    {'sum of the stages alone':26s} {alone * 1e3:8.1f} ms; extract shares I_disp and saves "
               f"{(alone - wall) * 1e3:.1f} ms")
@@ -105,10 +139,14 @@ def per_scan() -> None:
 def many(folder: Path, materials: list[str], scans: int) -> None:
     db = synthetic_database(folder / "db", materials=materials, scans_per_material=scans, progress=False)
     sources = database_sources(db, db.records())
-    t1 = best_times({"1": lambda: extract_many(sources, workers=1, progress=False)}, 1)["1"][0]
-    t2 = best_times({"2": lambda: extract_many(sources, workers=2, progress=False)}, 1)["2"][0]
-    print(f"\nextract_many over {len(sources)} scans (512x512): 1 worker {t1:6.1f} s, 2 workers {t2:6.1f} s, "
-          f"speed-up {t1 / t2:4.2f}x (os.cpu_count() = {os.cpu_count()})")
+    runs = {str(workers): functools.partial(extract_many, sources, workers=workers, progress=False)
+            for workers in (1, 2)}
+    times = best_times(runs, 3)
+    t1, t2 = times["1"][0], times["2"][0]
+    met = "met" if t1 / t2 >= TARGET_SPEEDUP else "NOT met"
+    print(f"\nextract_many over {len(sources)} scans (512x512): 1 worker {t1:6.2f} s, 2 workers {t2:6.2f} s, "
+          f"speed-up {t1 / t2:4.2f}x (target >= {TARGET_SPEEDUP}: {met}; os.cpu_count() = {os.cpu_count()}, "
+          f"load average {os.getloadavg()[0]:.1f})")
     fresh = Database(folder / "db")
     start = time.perf_counter()
     extract_many(sources, workers=2, cache=fresh, progress=False)

@@ -2,9 +2,9 @@
 
 Prints the total, where the time goes (input preprocessing and each feature on the prepared inputs), and
 ratios against references in the same process: one whole-image ``scipy.ndimage.gaussian_filter`` at
-sigma 2 of the same cropped gray photo, and one ``cv2.dft`` of it (MaRG's unavoidable floor, the spectrum
-``features.extract`` shares with the image features' ``dft_80`` and ``dft_85``). Ratios, not absolute
-times, compare across machines. Target: the 15 features in <= 1.5 s on one core.
+sigma 2 of the same cropped gray photo, and one ``cv2.dft`` of it (MaRG's spectrum, which
+``features.extract`` shares with the image features' ``dft_80`` and ``dft_85``, takes about 60 % of it).
+Ratios, not absolute times, compare across machines. Target: the 15 features in <= 1.5 s on one core.
 """
 
 from __future__ import annotations
@@ -117,7 +117,7 @@ def stages(scan: Scan) -> dict[str, Callable[[], object]]:
         "matx": lambda: tactum.matx(v, f_frt, r_w),
         "maco: Harris corners (cv2)": lambda: tactum.harris_corners(gray),
         "maco: DoH scales at the corners": lambda: tactum.corner_scales(gray, corners),
-        "marg (cv2.dft + kept peaks)": lambda: tactum.marg(v, gray, contrast=contrast),
+        "marg (half-size DFT + kept peaks)": lambda: tactum.marg(v, gray, contrast=contrast),
         "miro": lambda: tactum.miro(v),
         "mico": lambda: tactum.mico(v),
         "fst + frs": lambda: (tactum.fst(f_frn, f_frt), tactum.frs(f_frn, f_frt)),

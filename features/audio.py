@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from functools import lru_cache
 
+import cv2
 import numpy as np
 from scipy import fft as sp_fft
 
@@ -92,13 +93,29 @@ def frames(signal: np.ndarray, fs: float = 44100.0) -> np.ndarray:
     x = _checked_signal(signal, fs)
     window, step = window_and_step(fs)
     framed = np.lib.stride_tricks.sliding_window_view(x, window)[::step]
-    return framed * np.hamming(window)
+    return framed * _hamming(window)
+
+
+@lru_cache(maxsize=8)
+def _hamming(window: int) -> np.ndarray:
+    """``np.hamming(window)``, made once per window length (read-only)."""
+    weights = np.hamming(window)
+    weights.flags.writeable = False
+    return weights
 
 
 def spectrum(framed: np.ndarray) -> np.ndarray:
     """Magnitude spectra ``|fft(frame)| / N`` over the first ``ceil(N/2)`` bins (``getDFT.m``)."""
-    n = framed.shape[1]
-    return np.abs(sp_fft.rfft(framed, axis=1)[:, : (n + 1) // 2]) / n
+    return _spectrum(_magnitudes(framed), framed.shape[1])
+
+
+def _magnitudes(framed: np.ndarray) -> np.ndarray:
+    """``|fft(frame)|`` over bins 0 .. N//2: the one transform the spectrum and the chroma share."""
+    return np.abs(sp_fft.rfft(framed, axis=1))
+
+
+def _spectrum(magnitudes: np.ndarray, n: int) -> np.ndarray:
+    return magnitudes[:, : (n + 1) // 2] / n
 
 
 def zcr(framed: np.ndarray) -> np.ndarray:
@@ -107,8 +124,9 @@ def zcr(framed: np.ndarray) -> np.ndarray:
     Because the sample before the frame counts as 0, a frame with a non-zero first sample gets an extra
     ``1/(2N)``; a sample that is exactly 0 counts as half a crossing on each side.
     """
-    signs = np.sign(framed)
-    changes = np.abs(np.diff(signs, axis=1, prepend=0.0)).sum(axis=1)
+    # Signs as int8 and integer sums: the same counts as in floats, without float temporaries.
+    signs = (framed > 0).view(np.int8) - (framed < 0).view(np.int8)
+    changes = np.abs(np.diff(signs, axis=1)).sum(axis=1, dtype=np.int64) + np.abs(signs[:, 0])
     return changes / (2.0 * framed.shape[1])
 
 
@@ -117,16 +135,26 @@ def energy(framed: np.ndarray) -> np.ndarray:
     return np.mean(framed**2, axis=1)
 
 
+def _energies(squares: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``energy`` and ``energy_entropy`` from the frames' squared samples, computed once for both."""
+    return np.mean(squares, axis=1), _block_entropy_of_squares(squares, N_BLOCKS)
+
+
 def _block_entropy(values: np.ndarray, n_blocks: int) -> np.ndarray:
     """Entropy ``-sum_j e_j log2(e_j + eps)`` of the normalised energies ``e_j`` of ``n_blocks`` sub-blocks.
 
     The row is cut into ``n_blocks`` contiguous blocks of ``floor(len / n_blocks)`` values, trailing values
     dropped; ``e_j`` = block energy / (energy of the whole row + eps), as both toolbox entropies do.
     """
-    length = values.shape[1] // n_blocks
-    total = np.sum(values**2, axis=1, keepdims=True)
-    blocks = values[:, : length * n_blocks].reshape(values.shape[0], n_blocks, length)
-    shares = np.sum(blocks**2, axis=2) / (total + EPS)
+    return _block_entropy_of_squares(values**2, n_blocks)
+
+
+def _block_entropy_of_squares(squares: np.ndarray, n_blocks: int) -> np.ndarray:
+    """:func:`_block_entropy` of the values whose squares are given."""
+    length = squares.shape[1] // n_blocks
+    total = np.sum(squares, axis=1, keepdims=True)
+    blocks = squares[:, : length * n_blocks].reshape(squares.shape[0], n_blocks, length)
+    shares = np.sum(blocks, axis=2) / (total + EPS)
     return -np.sum(shares * np.log2(shares + EPS), axis=1)
 
 
@@ -185,14 +213,18 @@ def spectral_rolloff(spectra: np.ndarray, c: float = ROLLOFF_C) -> np.ndarray:
     ``c`` times the total; ``K`` the number of bins. If no bin does (an all-zero spectrum) the toolbox's
     loop runs off the end and gives ``(K-1)/K``.
     """
-    power = spectra**2
+    return _rolloff_of_power(spectra**2, c)
+
+
+def _rolloff_of_power(power: np.ndarray, c: float = ROLLOFF_C) -> np.ndarray:
+    """:func:`spectral_rolloff` of the spectra whose squares are ``power``."""
     cumulative = np.cumsum(power, axis=1)
     exceeded = cumulative > c * power.sum(axis=1, keepdims=True)
-    first = np.where(exceeded.any(axis=1), exceeded.argmax(axis=1), spectra.shape[1] - 1)
-    return first / spectra.shape[1]
+    first = np.where(exceeded.any(axis=1), exceeded.argmax(axis=1), power.shape[1] - 1)
+    return first / power.shape[1]
 
 
-def harmonic(framed: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
+def harmonic(framed: np.ndarray, fs: float, squares: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Harmonic ratio and fundamental frequency in Hz per frame (``feature_harmonic.m``).
 
     With ``R(m)`` the autocorrelation at lag ``m``, ``m0`` the first lag ``m >= 2`` where ``R`` crosses
@@ -200,26 +232,28 @@ def harmonic(framed: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
     autocorrelation is ``Gamma(m) = R(m) / (sqrt(R(0) sum_{n<N-m} x(n)^2) + eps)`` for ``m0 <= m <= M``
     and 0 below ``m0``. If ``Gamma`` is noise-like (its zero-crossing rate, ``zcr``, exceeds 0.15) both
     values are 0 (unvoiced). Otherwise ``HR = max Gamma`` at lag ``T0`` (first maximum) and
-    ``f0 = fs / T0``, set to 0 when it exceeds 5000 Hz or ``HR < 0.1``.
+    ``f0 = fs / T0``, set to 0 when it exceeds 5000 Hz or ``HR < 0.1``. ``squares`` is ``framed**2`` when
+    the caller has it already.
 
-    ``R`` is computed by FFT, as MATLAB's ``xcorr`` does; deliberately, values within ``1e-12 R(0)`` of
-    zero are set to 0, so that nearly silent frames get the exact-arithmetic result on every machine
-    instead of one decided by round-off.
+    ``R`` is computed by FFT, as MATLAB's ``xcorr`` does, for the lags up to ``M`` only: a crossing after
+    ``M`` leaves ``Gamma`` all 0 wherever it is, and an FFT of ``N + M`` samples (instead of ``2N - 1``)
+    holds those lags without wrap-around, at a third of the cost. Deliberately, values within
+    ``1e-12 R(0)`` of zero are set to 0, so that nearly silent frames get the exact-arithmetic result on
+    every machine instead of one decided by round-off.
     """
     n = framed.shape[1]
-    n_fft = sp_fft.next_fast_len(2 * n - 1, real=True)
-    autocorr = sp_fft.irfft(np.abs(sp_fft.rfft(framed, n_fft, axis=1)) ** 2, n_fft, axis=1)[:, :n]
-    squares = framed**2
+    max_lag = min(matlab_round(0.016 * fs), n - 1)
+    autocorr = _autocorrelation(framed, max_lag)
+    squares = framed**2 if squares is None else squares
     frame_energy = squares.sum(axis=1, keepdims=True)
     # FFT round-off (~1e-15 R(0)) would otherwise decide the sign tests and, divided by the eps of an
     # all-zero head, the whole Gamma of a nearly silent frame; exact arithmetic gives 0 there.
     autocorr[np.abs(autocorr) <= AUTOCORR_TOL * frame_energy] = 0.0
     first_zero = _first_downward_crossing(autocorr)
-    max_lag = min(matlab_round(0.016 * fs), n - 1)
     lags = np.arange(1, max_lag + 1)
-    head_energy = np.cumsum(squares, axis=1)[:, n - lags - 1]
+    head_energy = _head_energies(squares, max_lag)
     denominator = np.sqrt(frame_energy * head_energy) + EPS
-    gamma = np.where(lags >= first_zero[:, None], autocorr[:, lags] / denominator, 0.0)
+    gamma = np.where(lags >= first_zero[:, None], autocorr[:, 1:max_lag + 1] / denominator, 0.0)
     voiced = zcr(gamma) <= 0.15
     ratio = np.where(voiced, gamma.max(axis=1), 0.0)
     f0 = fs / (gamma.argmax(axis=1) + 1.0)
@@ -227,8 +261,35 @@ def harmonic(framed: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
     return ratio, f0
 
 
+def _head_energies(squares: np.ndarray, max_lag: int) -> np.ndarray:
+    """``sum_{n < N-m} x(n)^2`` for m = 1 .. max_lag, per row of squares ``x(n)^2``.
+
+    One sum of the samples every head holds, then a running sum over the rest only: the terms are not
+    negative, so the order of the additions changes nothing beyond rounding.
+    """
+    n = squares.shape[1]
+    shared = n - max_lag - 1
+    heads = np.cumsum(squares[:, shared:n - 1], axis=1)
+    heads += squares[:, :shared].sum(axis=1, keepdims=True)
+    return heads[:, ::-1]
+
+
+def _autocorrelation(framed: np.ndarray, max_lag: int) -> np.ndarray:
+    """``R(m) = sum_n x(n) x(n+m)`` of each row for m = 0 .. max_lag, by FFT without wrap-around.
+
+    ``cv2.dft`` on the rows and ``cv2.mulSpectrums`` for ``|X|^2``: half the time of ``scipy.fft`` here.
+    """
+    rows, n = framed.shape
+    padded = np.zeros((rows, cv2.getOptimalDFTSize(n + max_lag)))
+    padded[:, :n] = framed
+    spectra = cv2.dft(padded, dst=padded, flags=cv2.DFT_ROWS)
+    power = cv2.mulSpectrums(spectra, spectra, cv2.DFT_ROWS, conjB=True)
+    autocorr = cv2.dft(power, dst=power, flags=cv2.DFT_ROWS | cv2.DFT_INVERSE | cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE)
+    return autocorr[:, :max_lag + 1]
+
+
 def _first_downward_crossing(autocorr: np.ndarray) -> np.ndarray:
-    """Per row, the first lag ``m >= 2`` with ``R(m) < 0 <= R(m-1)``; the frame length ``N`` if none."""
+    """Per row, the first lag ``m >= 2`` with ``R(m) < 0 <= R(m-1)``; the number of lags given if none."""
     crossing = (autocorr[:, 2:] < 0) & (autocorr[:, 1:-1] >= 0)
     return np.where(crossing.any(axis=1), crossing.argmax(axis=1) + 2, autocorr.shape[1])
 
@@ -311,17 +372,31 @@ def chroma(framed: np.ndarray, fs: float) -> np.ndarray:
     start at A (55 Hz): ``chroma_01`` is A, ``chroma_02`` A#, ..., ``chroma_12`` G#. An all-zero frame
     gives zeros.
     """
-    n = framed.shape[1]
-    in_band, classes = _chroma_classes(n, float(fs))
+    return _chroma(framed, _magnitudes(framed), fs)
+
+
+def _chroma(framed: np.ndarray, magnitudes: np.ndarray, fs: float) -> np.ndarray:
+    band, membership = _chroma_band(framed.shape[1], float(fs))
     peak = np.abs(framed).max(axis=1, keepdims=True)
-    magnitude = np.abs(sp_fft.rfft(framed, axis=1)[:, : n // 2]) * in_band
-    magnitude = np.divide(magnitude, peak, out=np.zeros_like(magnitude), where=peak > 0)
-    padded = np.pad(magnitude, ((0, 0), (1, 1)))
+    # Zeroed bins are never peaks, so only the band is looked at, between two zero bins.
+    padded = np.zeros((framed.shape[0], band.stop - band.start + 2))
+    magnitude = padded[:, 1:-1]
+    np.divide(magnitudes[:, band], peak, out=magnitude, where=peak > 0)
     is_peak = (magnitude > padded[:, :-2]) & (magnitude > padded[:, 2:])
-    membership = np.eye(N_CHROMA)[classes]
     sums = (magnitude * is_peak) @ membership
     counts = is_peak.astype(np.float64) @ membership
     return sums / (counts + 1.0)
+
+
+@lru_cache(maxsize=8)
+def _chroma_band(n: int, fs: float) -> tuple[slice, np.ndarray]:
+    """The bins of ``_chroma_classes`` in 55-2000 Hz (consecutive) and their one-hot pitch classes."""
+    in_band, classes = _chroma_classes(n, fs)
+    bins = np.flatnonzero(in_band)
+    band = slice(int(bins[0]), int(bins[-1]) + 1) if bins.size else slice(0, 0)
+    membership = np.eye(N_CHROMA)[classes[band]]
+    membership.flags.writeable = False
+    return band, membership
 
 
 def frame_features(signal: np.ndarray, fs: float = 44100.0) -> np.ndarray:
@@ -336,22 +411,24 @@ def frame_features(signal: np.ndarray, fs: float = 44100.0) -> np.ndarray:
         For bad input, see ``frames``.
     """
     framed = frames(signal, fs)
-    spectra = spectrum(framed)
+    squares = framed**2  # shared by the energies and the harmonic features, as the power by two spectral ones
+    magnitudes = _magnitudes(framed)
+    spectra = _spectrum(magnitudes, framed.shape[1])
+    power = spectra**2
     centroid, spread = spectral_centroid_spread(spectra, fs)
-    ratio, f0 = harmonic(framed, fs)
+    ratio, f0 = harmonic(framed, fs, squares)
     table = np.column_stack([
         zcr(framed),
-        energy(framed),
-        energy_entropy(framed),
+        *_energies(squares),
         centroid,
         spread,
-        spectral_entropy(spectra),
+        _block_entropy_of_squares(power, N_BLOCKS),
         spectral_flux(spectra),
-        spectral_rolloff(spectra),
+        _rolloff_of_power(power),
         ratio,
         f0,
         mfcc(spectra, fs),
-        chroma(framed, fs),
+        _chroma(framed, magnitudes, fs),
     ])
     silent = np.sum(np.abs(framed), axis=1) <= EPS
     table[silent] = 0.0
@@ -401,7 +478,7 @@ def _checked_signal(signal: np.ndarray, fs: float) -> np.ndarray:
         raise ValueError(f"audio signal must be 1-D, got shape {x.shape}")
     if not (np.issubdtype(x.dtype, np.number) and not np.iscomplexobj(x)):
         raise ValueError(f"audio signal must be real numbers, got dtype {x.dtype}")
-    x = x.astype(np.float64)
+    x = x.astype(np.float64, copy=False)  # read only: frames() makes new arrays
     if not np.all(np.isfinite(x)):
         raise ValueError("audio signal contains NaN or infinite samples")
     if x.size < window:

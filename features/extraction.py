@@ -13,10 +13,11 @@ import functools
 import os
 import sys
 import warnings
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
+import cv2
 import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
@@ -172,6 +173,22 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     )
 
 
+@contextlib.contextmanager
+def _one_thread_each() -> Iterator[None]:
+    """OpenCV, BLAS and OpenMP on one thread while worker processes are forked, so that each worker
+    inherits that: the workers already keep every core busy, and each one's own thread pools (OpenCV's as
+    many threads as cores, BLAS's for long dot products) would put several threads on a core. Set in the
+    parent because a forked child must not reconfigure OpenCV's inherited thread pool (it can hang).
+    """
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        with threadpool_limits(1):
+            yield
+    finally:
+        cv2.setNumThreads(threads)
+
+
 def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,
          tick: Callable[[int], object]) -> Iterable[tuple[int, tuple]]:
     """``(index, fn(item))`` for every item, in this process or a process pool (completion order)."""
@@ -181,7 +198,9 @@ def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,
             tick(1)
             yield index, result
         return
-    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+    # The first submission forks every worker. OpenCV's threads are restored only once the pool is done:
+    # restarted at once, they would spin-wait on the cores the workers need.
+    with _one_thread_each(), concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
         futures = {pool.submit(fn, item): index for index, item in zip(indices, items, strict=True)}
         for future in concurrent.futures.as_completed(futures):
             tick(1)

@@ -24,7 +24,7 @@ from collections.abc import Callable, Iterator, Sequence
 import cv2
 import numpy as np
 
-from scanner.preprocess import IMAGE_BORDER_PX, crop_image, gray_uint8, grayscale
+from scanner.preprocess import IMAGE_BORDER_PX, crop_image, grayscale
 
 HARALICK_NAMES = (
     "angular_second_moment", "contrast", "correlation", "sum_of_squares", "inverse_difference_moment",
@@ -103,6 +103,19 @@ def _banded(function: Callable[[np.ndarray], np.ndarray], image: np.ndarray, dty
     return out
 
 
+def _gray_u8_of_photo(gray: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """``scanner.preprocess.gray_uint8`` of the gray image of an 8-bit photo, in two passes instead of four.
+
+    Such gray values lie in [0, 255 + a few ulp], so ``floor(gray + 0.5)`` needs no clipping and is the
+    truncation of the (positive) ``gray + 0.5`` to an integer, which the cast to uint8 does.
+    """
+    shifted = gray + 0.5
+    if out is None:
+        return shifted.astype(np.uint8)
+    np.copyto(out, shifted, casting="unsafe")
+    return out
+
+
 def _check_rgb(rgb: np.ndarray) -> np.ndarray:
     if not isinstance(rgb, np.ndarray) or rgb.dtype != np.uint8:
         raise ValueError(f"expected an RGB photo as a uint8 array, got {getattr(rgb, 'dtype', type(rgb))}")
@@ -172,9 +185,26 @@ class PreparedPhoto:
 
     @functools.cached_property
     def gray(self) -> np.ndarray:
-        """``scanner.preprocess.grayscale`` of the cropped photo (float64, 0..255)."""
+        """``scanner.preprocess.grayscale`` of the cropped photo (float64, 0..255).
+
+        The first time, its 8-bit version and extremes come from the same pass, band by band while the
+        band is in cache, instead of reading the 86 MB of a 12-megapixel gray image again for each.
+        """
         buffer, self._buffer = self._buffer, None
-        return _banded(grayscale, self.photo, np.float64, out=buffer)
+        gray = np.empty(self.photo.shape[:2]) if buffer is None else buffer
+        first = "gray_u8" not in self.__dict__
+        gray_u8 = np.empty(gray.shape, np.uint8)
+        low, high = math.inf, -math.inf
+        for start, stop in _bands(gray.shape[0], _rows_per_band(gray.shape[1])):
+            band = grayscale(self.photo[start:stop])
+            gray[start:stop] = band
+            low, high = min(low, float(band.min())), max(high, float(band.max()))
+            if first:
+                _gray_u8_of_photo(band, out=gray_u8[start:stop])
+        if first:
+            self.__dict__["gray_u8"] = gray_u8
+        self.__dict__["extremes"] = (low, high)
+        return gray
 
     def release(self) -> np.ndarray | None:
         """Give up the memory of the spectrum (else of the gray image) for the ``buffer`` of the next photo.
@@ -186,7 +216,7 @@ class PreparedPhoto:
         self._spectrum_memory = None
         spectrum = self.__dict__.pop("spectrum", None)
         gray = self.__dict__.pop("gray", None)
-        return gray if spectrum is None else spectrum.packed
+        return gray if spectrum is None else spectrum.memory
 
     @functools.cached_property
     def gray32(self) -> np.ndarray:
@@ -204,8 +234,9 @@ class PreparedPhoto:
 
     @functools.cached_property
     def gray_u8(self) -> np.ndarray:
-        """``scanner.preprocess.gray_uint8`` of :attr:`gray`."""
-        return _banded(gray_uint8, self.gray, np.uint8)
+        """``scanner.preprocess.gray_uint8`` of :attr:`gray` (made with it, see there)."""
+        _ = self.gray  # the first pass over the photo stores this one too
+        return self.__dict__["gray_u8"]
 
     @functools.cached_property
     def mean(self) -> float:
@@ -349,20 +380,27 @@ def edginess(gray_u8: np.ndarray) -> float:
 
 
 class RealSpectrum:
-    """The real part of the 2-D DFT of a real M x N image, ``Re(fft2(image))``, from one ``cv2.dft``.
+    """The real part of the 2-D DFT of a real M x N image, ``Re Y = Re(fft2(image))``, at half the cost.
 
-    ``cv2.dft`` returns the CCS-packed half spectrum, 2-3 times faster than ``numpy.fft`` or ``scipy.fft``
-    on the prime-factor sizes of cropped photos (2824 x 3832 = 8 * 353 x 8 * 479). The real part of the
-    spectrum of a real image is point-symmetric, ``Re Y(k, l) = Re Y(-k, -l)``, so the half holds every
-    value. Column l = 1 .. (N-1)//2 of the spectrum sits at packed column 2l-1 and stands for column N-l
-    too, so it counts twice. Columns 0 and N/2 (N even) are packed along their rows: Re Y(0) first, then
-    Re Y(j) (twice, for rows j and M-j) at rows 2j-1, then Re Y(M/2) last for even M.
+    ``Re Y`` is the DFT of the image's point-symmetric part ``e(m, n) = (x(m, n) + x(-m, -n)) / 2``
+    (indices modulo M and N), and the DFT of a point-symmetric image takes half the work of a real one:
+    the row transforms of rows -m are the conjugates of those of rows m, so only rows 0 .. M//2 are
+    transformed, and each column of those transforms is Hermitian, so a real-output inverse transform of
+    its conjugate direction gives the column of ``Re Y``. ``cv2.dft`` does both, 2-3 times faster than
+    ``numpy.fft`` or ``scipy.fft`` on the prime-factor sizes of cropped photos (2824 x 3832 =
+    8 * 353 x 8 * 479); the two take 60 % of one whole-image ``cv2.dft`` and round within a few units of
+    the last place of the largest value.
+
+    :attr:`values` holds column l = 0 .. N//2 of ``Re Y`` as row l, its frequency k at position ``-k mod M``
+    (the inverse transform's order). ``Re Y(k, l) = Re Y(-k, -l)``, so columns 1 .. (N-1)//2 stand for
+    columns N-l too and count twice; column 0 and, for even N, column N/2 count once.
 
     Parameters
     ----------
     image : (M, N) float64 array
     overwrite : bool
-        Compute the spectrum in the memory of ``image`` (saves an image-sized buffer).
+        Compute the spectrum in the memory of ``image`` (saves an image-sized buffer); it is kept as
+        :attr:`memory`, and its contents are lost.
     """
 
     def __init__(self, image: np.ndarray, *, overwrite: bool = False) -> None:
@@ -370,19 +408,17 @@ class RealSpectrum:
             raise ValueError(f"expected a non-empty 2-D float64 image, got {image.dtype} of shape "
                              f"{image.shape}")
         self.shape: tuple[int, int] = image.shape
-        self.packed = cv2.dft(image, dst=image if overwrite else None)
+        self.memory = image if overwrite and image.flags.c_contiguous else image.copy()
+        self.values = _real_spectrum(self.memory)
         self._selection: tuple[float, list[tuple[np.ndarray, int]]] | None = None
 
     @functools.cached_property
     def parts(self) -> list[tuple[np.ndarray, int]]:
-        """Every value of the spectrum once, as (view of the packed array, multiplicity) pairs."""
-        m, n = self.shape
-        packed = self.packed
-        parts = [(packed[:, 1:2 * ((n - 1) // 2):2], 2)]
-        for column in [0] + ([n - 1] if n % 2 == 0 else []):
-            parts += [(packed[:1, column], 1), (packed[1:2 * ((m - 1) // 2):2, column], 2)]
-            if m % 2 == 0:
-                parts.append((packed[m - 1:, column], 1))
+        """Every value of the spectrum once, as (view of :attr:`values`, multiplicity) pairs."""
+        n = self.shape[1]
+        parts = [(self.values[1:(n - 1) // 2 + 1], 2), (self.values[:1], 1)]
+        if n % 2 == 0 and n > 1:
+            parts.append((self.values[n // 2:], 1))
         return parts
 
     @functools.cached_property
@@ -414,17 +450,63 @@ class RealSpectrum:
         m, n = self.shape
         rows = np.mod(np.asarray(rows, dtype=np.intp), m)[:, None]
         cols = np.mod(np.asarray(cols, dtype=np.intp), n)[None, :]
-        # Columns right of N/2 are read at (-k, -l).
+        # Columns right of N/2 are read at (-k, -l); frequency k sits at position -k.
         mirrored = cols > n // 2
-        col = np.where(mirrored, n - cols, cols)
-        row = np.where(mirrored, np.mod(-rows, m), rows)
-        interior = (col >= 1) & (col <= (n - 1) // 2)
-        # Columns 0 and N/2 are packed down the rows; their real part is symmetric in k too.
-        fold = np.minimum(row, m - row)
-        edge_row = np.where(fold == 0, 0, np.where(2 * fold == m, m - 1, 2 * fold - 1))
-        edge_col = np.where(col == 0, 0, n - 1)
-        inside = self.packed[row, np.maximum(2 * col - 1, 0)]
-        return np.where(interior, inside, self.packed[edge_row, edge_col])
+        return self.values[np.where(mirrored, n - cols, cols), np.where(mirrored, rows, np.mod(-rows, m))]
+
+
+def _real_spectrum(image: np.ndarray) -> np.ndarray:
+    """:attr:`RealSpectrum.values` of ``image`` (C-contiguous, overwritten and reused for the result)."""
+    m, n = image.shape
+    half = m // 2 + 1
+    _point_symmetric_rows(image)
+    rows = cv2.dft(image[:half], dst=image[:half], flags=cv2.DFT_ROWS)
+    columns = _hermitian_columns(rows, m, n)
+    values = image.reshape(-1)[:columns.shape[0] * m].reshape(columns.shape[0], m)
+    return cv2.dft(columns[:, 1:m + 1], dst=values, flags=cv2.DFT_ROWS | cv2.DFT_INVERSE | cv2.DFT_REAL_OUTPUT)
+
+
+def _point_symmetric_rows(image: np.ndarray) -> None:
+    """Rows 0 .. M//2 of ``image`` become ``(x(m, n) + x(-m, -n)) / 2``, band by band, in place.
+
+    Row m < M/2 reads row M-m, which is never written; rows 0 and M/2 pair with themselves.
+    """
+    m, n = image.shape
+    for row in {0, m // 2} if m % 2 == 0 else {0}:
+        mirror = image[row].copy()
+        image[row, 1:] += mirror[:0:-1]
+        image[row, 0] += mirror[0]
+    band_rows = _rows_per_band(n)
+    for start, stop in _bands((m - 1) // 2, band_rows):
+        first, last = start + 1, stop + 1  # rows first .. last-1 pair with rows m-last+1 .. m-first
+        mirrored = cv2.flip(image[m - last + 1:m - first + 1], -1)  # column j holds column n-1-j
+        image[first:last, 1:] += mirrored[:, :-1]
+        image[first:last, 0] += mirrored[:, -1]
+    image[:m // 2 + 1] *= 0.5
+
+
+def _hermitian_columns(rows: np.ndarray, m: int, n: int) -> np.ndarray:
+    """The columns l = 0 .. N//2 of the row transforms ``rows`` (CCS-packed, rows 0 .. M//2) as rows that
+    ``cv2.dft``'s real-output inverse reads at ``[:, 1:M+1]``: ``Re Z(0)``, then ``Re Z(j), Im Z(j)``
+    for j = 1 .. (M-1)//2, then ``Re Z(M/2)`` for even M.
+
+    The complex columns are transposed as pairs, which puts ``Im Z(0)`` (0 for a point-symmetric image)
+    right after ``Re Z(0)``; it is overwritten by ``Re Z(0)`` to start the packed row one place later.
+    """
+    half = rows.shape[0]
+    inner = (n - 1) // 2
+    real_columns = [0] + ([n - 1] if n % 2 == 0 and n > 1 else [])
+    columns = np.empty((inner + len(real_columns), 2 * half))
+    if inner:
+        pairs = rows[:, 1:1 + 2 * inner].reshape(half, inner, 2)
+        cv2.transpose(pairs, dst=columns[1:1 + inner].reshape(inner, half, 2))
+        columns[1:1 + inner, 1] = columns[1:1 + inner, 0]
+    for target, source in zip([0, inner + 1], real_columns, strict=False):
+        packed = columns[target, 1:m + 1]
+        packed[0] = rows[0, source]
+        packed[1::2] = rows[1:1 + m // 2, source]
+        packed[2::2] = 0.0
+    return columns
 
 
 def dft_peak_means(gray: np.ndarray, fractions: Sequence[float] = DFT_FRACTIONS) -> tuple[float, ...]:
@@ -453,7 +535,7 @@ def dft_peak_means(gray: np.ndarray, fractions: Sequence[float] = DFT_FRACTIONS)
 
 def _dft_peak_means(spectrum: RealSpectrum, fractions: Sequence[float]) -> tuple[float, ...]:
     """``dft_peak_means`` of the image whose centred spectrum is ``spectrum``."""
-    scale = np.sqrt(spectrum.packed.size)
+    scale = np.sqrt(spectrum.shape[0] * spectrum.shape[1])
     means = []
     for fraction in fractions:
         total, count = spectrum.peak_sum(fraction)
@@ -797,7 +879,10 @@ def _tamura_contrast(values: np.ndarray, mean: float, constant: bool) -> float:
         squared = np.subtract(values[start:stop], mean, out=scratch[:stop - start])
         squared *= squared
         second += float(squared.sum())
-        fourth += float(np.dot(squared.ravel(), squared.ravel()))
+        # numpy's own sums, not a BLAS dot product, whose threads would make the rounding vary with
+        # their number (extract_many's workers run one thread each).
+        squared *= squared
+        fourth += float(squared.sum())
     variance = second / values.size
     kurtosis = fourth / values.size / variance**2
     return float(np.sqrt(variance) / kurtosis**0.25)

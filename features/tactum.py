@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import cv2
@@ -153,22 +153,118 @@ def matx(v: np.ndarray, f_frt: np.ndarray, r_window: np.ndarray) -> float:
 
 # --- 2. MaCo -------------------------------------------------------------------------------------------
 
+HARRIS = {"maxCorners": 100, "qualityLevel": 0.01, "minDistance": 10, "blockSize": 3, "k": 0.04}
+"""``cv2.goodFeaturesToTrack`` parameters of MaCo's Harris corners (SPEC 7.1)."""
+
+_HARRIS_APERTURE = 3
+"""Sobel aperture ``goodFeaturesToTrack`` gives ``cornerHarris`` (its ``gradientSize`` default)."""
+
+
 def harris_corners(gray: np.ndarray) -> np.ndarray:
     """Up to 100 Harris corners of a gray image as integer (row, column) pixels (paper section IV-A1b).
 
     ``cv2.goodFeaturesToTrack(gray.astype(float32), maxCorners=100, qualityLevel=0.01, minDistance=10,
-    blockSize=3, useHarrisDetector=True, k=0.04)``, rounded to the nearest pixel (SPEC 7.1).
+    blockSize=3, useHarrisDetector=True, k=0.04)``, rounded to the nearest pixel (SPEC 7.1); the corners
+    are the same, in the same order, from :func:`_harris_corners`.
     """
     return _harris_corners(np.asarray(gray, dtype=np.float32))
 
 
 def _harris_corners(gray32: np.ndarray) -> np.ndarray:
-    points = cv2.goodFeaturesToTrack(gray32, maxCorners=100, qualityLevel=0.01, minDistance=10,
-                                     blockSize=3, useHarrisDetector=True, k=0.04)
+    """``goodFeaturesToTrack``'s corners, its steps run one by one: a 12-megapixel photo has ~10^6 local
+    maxima, and OpenCV finds and sorts them all (two thirds of its time) where the 100 corners need only
+    the strongest few thousand. The response, its threshold and the 3 x 3 maxima are OpenCV's own
+    functions, so every value and decision is the same.
+    """
+    response = cv2.cornerHarris(gray32, HARRIS["blockSize"], _HARRIS_APERTURE, HARRIS["k"])
+    threshold = cv2.minMaxLoc(response)[1] * HARRIS["qualityLevel"]
+    if response.size >= _HARRIS_CUT_MIN_PIXELS:
+        corners = _corners_above(response, threshold, _strong_cut(response))
+        if corners is not None:
+            return corners
+    cv2.threshold(response, threshold, 0, cv2.THRESH_TOZERO, dst=response)
+    # A candidate is a non-zero interior value equal to the largest of its 3 x 3 neighbourhood.
+    is_max = cv2.compare(response, cv2.dilate(response, None), cv2.CMP_EQ)
+    cv2.bitwise_and(is_max, cv2.compare(response, 0, cv2.CMP_NE), dst=is_max)
+    is_max[[0, -1], :] = 0
+    is_max[:, [0, -1]] = 0
+    index = np.flatnonzero(is_max)
+    return _spaced_strongest(index, response.ravel()[index], response.shape[1])[0]
+
+
+_HARRIS_CUT_MIN_PIXELS = 1 << 20
+"""Images from this size on look for their corners among the strongest responses first."""
+
+_HARRIS_CUT_SHARE = 1 / 512
+"""Share of the responses above the first cut: ~20,000 of a 12-megapixel photo."""
+
+
+def _strong_cut(response: np.ndarray, step: int = 16) -> float:
+    """A response value about :data:`_HARRIS_CUT_SHARE` of the pixels reach, from every 16th row and column."""
+    sample = response[::step, ::step].ravel()
+    keep = max(1, int(sample.size * _HARRIS_CUT_SHARE))
+    return float(np.partition(sample, sample.size - keep)[sample.size - keep])
+
+
+def _corners_above(response: np.ndarray, threshold: float, cut: float) -> np.ndarray | None:
+    """The corners, found among the candidates whose response reaches ``cut``; None if those do not decide
+    them (fewer than ``maxCorners`` kept while weaker candidates exist), so that all must be looked at.
+
+    Each pixel reaching the cut is tested as ``goodFeaturesToTrack`` tests it: its 3 x 3 neighbourhood,
+    thresholded by ``cv2.threshold`` with the same arguments, has its value as the largest.
+    """
+    h, w = response.shape
+    strong = cv2.compare(response, cut, cv2.CMP_GE)
+    strong[[0, -1], :] = 0
+    strong[:, [0, -1]] = 0
+    points = cv2.findNonZero(strong)
     if points is None:
-        return np.empty((0, 2), dtype=np.intp)
-    xy = np.rint(points.reshape(-1, 2)).astype(np.intp)
-    return xy[:, ::-1]
+        return None if cut > threshold else np.empty((0, 2), dtype=np.intp)
+    cols, rows = points.reshape(-1, 2).astype(np.intp).T
+    offsets = np.arange(-1, 2)
+    around = response[(rows[:, None] + offsets)[:, :, None], (cols[:, None] + offsets)[:, None, :]].reshape(-1, 9)
+    kept = cv2.threshold(around, threshold, 0, cv2.THRESH_TOZERO)[1]
+    centre = kept[:, 4]
+    is_max = (centre != 0) & (centre == kept.max(axis=1))
+    corners, complete = _spaced_strongest(rows[is_max] * w + cols[is_max], centre[is_max], w)
+    return corners if complete or cut <= threshold else None
+
+
+def _strongest_first(index: np.ndarray, value: np.ndarray, batch: int = 4096) -> Iterator[np.ndarray]:
+    """``index`` in OpenCV's order (largest value first, ties by larger index), one batch at a time.
+
+    Each batch holds every candidate at least as strong as its weakest, so the order across batches is
+    the order of one full sort.
+    """
+    while index.size:
+        if index.size > batch:
+            cut = np.partition(value, index.size - batch)[index.size - batch]
+            top = value >= cut
+        else:
+            top = np.ones(index.size, bool)
+        chosen, chosen_value = index[top], value[top]
+        yield chosen[np.lexsort((-chosen, -chosen_value))]
+        index, value = index[~top], value[~top]
+        batch *= 4
+
+
+def _spaced_strongest(index: np.ndarray, value: np.ndarray, width: int) -> tuple[np.ndarray, bool]:
+    """The strongest candidates, each at least ``minDistance`` px (Euclidean) from every stronger one kept,
+    until ``maxCorners``: ``goodFeaturesToTrack``'s greedy pass (its grid only speeds up the same test).
+    Also whether ``maxCorners`` were reached."""
+    limit, reach2 = HARRIS["maxCorners"], float(HARRIS["minDistance"]) ** 2
+    kept = np.empty((limit, 2), dtype=np.intp)
+    n = 0
+    for ordered in _strongest_first(index, value):
+        for row, col in zip(*np.divmod(ordered, width), strict=True):
+            near = kept[:n] - (row, col)
+            if n and np.min(np.einsum("ij,ij->i", near, near)) < reach2:
+                continue
+            kept[n] = row, col
+            n += 1
+            if n == limit:
+                return kept, True
+    return kept[:n], False
 
 
 def _radius(sigma: float, truncate: float = 4.0) -> int:
@@ -200,11 +296,21 @@ def _reflect(index: np.ndarray, n: int) -> np.ndarray:
 
 
 def _patches(gray: np.ndarray, corners: np.ndarray, radius: int) -> np.ndarray:
-    """(n, 2r+1, 2r+1) neighbourhoods of the corners, padded exactly as whole-image filtering pads."""
+    """(n, 2r+1, 2r+1) neighbourhoods of the corners, padded exactly as whole-image filtering pads.
+
+    A neighbourhood inside the image is copied as a block; only those crossing the border are gathered
+    through reflected indices (a gather costs several times a block copy).
+    """
+    h, w = gray.shape
+    size = 2 * radius + 1
+    patches = np.empty((corners.shape[0], size, size), dtype=gray.dtype)
     offsets = np.arange(-radius, radius + 1)
-    rows = _reflect(corners[:, 0, None] + offsets, gray.shape[0])
-    cols = _reflect(corners[:, 1, None] + offsets, gray.shape[1])
-    return gray[rows[:, :, None], cols[:, None, :]]
+    for patch, (row, col) in zip(patches, corners, strict=True):
+        if radius <= row < h - radius and radius <= col < w - radius:
+            patch[...] = gray[row - radius:row + radius + 1, col - radius:col + radius + 1]
+        else:
+            patch[...] = gray[_reflect(row + offsets, h)[:, None], _reflect(col + offsets, w)[None, :]]
+    return patches
 
 
 def _doh(patches: np.ndarray, sigma: float) -> np.ndarray:

@@ -206,6 +206,56 @@ def test_harmonic_of_a_zero_frame_is_zero():
     assert ratio[0] == 0.0 and f0[0] == 0.0
 
 
+def _straightforward_harmonic(frame: np.ndarray, fs: float) -> tuple[float, float]:
+    """``feature_harmonic.m`` for one frame, term by term: the direct autocorrelation over every lag."""
+    n = frame.size
+    r = np.correlate(frame, frame, "full")[n - 1:]
+    r[np.abs(r) <= audio.AUTOCORR_TOL * np.sum(frame**2)] = 0.0
+    m0 = next((m for m in range(2, n) if r[m] < 0 <= r[m - 1]), n)
+    max_lag = min(audio.matlab_round(0.016 * fs), n - 1)
+    gamma = np.zeros(max_lag)
+    for m in range(max(m0, 1), max_lag + 1):
+        gamma[m - 1] = r[m] / (math.sqrt(r[0] * np.sum(frame[:n - m] ** 2)) + audio.EPS)
+    signs = np.sign(gamma)
+    zcr = np.sum(np.abs(np.diff(signs, prepend=0.0))) / (2 * max_lag)
+    if zcr > 0.15:
+        return 0.0, 0.0
+    ratio, f0 = float(gamma.max()), fs / (int(np.argmax(gamma)) + 1)
+    return ratio, f0 if f0 <= 5000.0 and ratio >= 0.1 else 0.0
+
+
+@pytest.mark.parametrize("fs", [44100.0, 8000.0, 400.0])
+def test_harmonic_by_fft_equals_the_direct_autocorrelation(fs):
+    # The FFT holds only the lags up to M; the direct sums hold them all, so a crossing after M counts too.
+    rng = np.random.default_rng(int(fs))
+    t = np.arange(int(fs)) / fs
+    signals = [rng.standard_normal(t.size), np.sin(2 * np.pi * 97 * t) + 0.02 * rng.standard_normal(t.size),
+               np.where(t < 0.5, 0.0, np.sin(2 * np.pi * 51 * t)), np.sign(np.sin(2 * np.pi * 140 * t))]
+    for signal in signals:
+        framed = audio.frames(signal, fs)
+        ratio, f0 = audio.harmonic(framed, fs)
+        expected = np.array([_straightforward_harmonic(frame, fs) for frame in framed])
+        # FFT and direct sums round differently, by ~1e-15 of R(0) over about 10^3 terms.
+        np.testing.assert_allclose(ratio, expected[:, 0], rtol=1e-11, atol=1e-12)
+        np.testing.assert_array_equal(f0, expected[:, 1])
+
+
+def test_zcr_and_chroma_equal_their_float_formulas_on_random_frames():
+    # zcr counts sign changes in integers; chroma looks only at the 55-2000 Hz bins. Both as the formulas.
+    framed = audio.frames(np.random.default_rng(4).standard_normal(44100))
+    framed[0, :50] = 0.0
+    signs = np.sign(framed)
+    zcr = np.abs(np.diff(signs, axis=1, prepend=0.0)).sum(axis=1) / (2.0 * N)
+    np.testing.assert_array_equal(audio.zcr(framed), zcr)
+    in_band, classes = audio._chroma_classes(N, FS)
+    magnitude = np.abs(np.fft.rfft(framed, axis=1)[:, :N // 2]) * in_band / np.abs(framed).max(axis=1)[:, None]
+    padded = np.pad(magnitude, ((0, 0), (1, 1)))
+    is_peak = (magnitude > padded[:, :-2]) & (magnitude > padded[:, 2:])
+    sums = np.stack([(magnitude * is_peak)[:, classes == c].sum(axis=1) for c in range(12)], axis=1)
+    counts = np.stack([is_peak[:, classes == c].sum(axis=1) for c in range(12)], axis=1)
+    np.testing.assert_allclose(audio.chroma(framed, FS), sums / (counts + 1.0), rtol=1e-12)
+
+
 # --- MFCC ---------------------------------------------------------------------------------------------
 
 

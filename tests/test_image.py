@@ -224,6 +224,21 @@ def test_real_spectrum_of_an_impulse_is_a_cosine_at_every_frequency(shape):
     assert spectrum.peak == pytest.approx(1.0, abs=1e-12)
 
 
+def test_real_spectrum_equals_numpy_fft2_on_random_images_of_every_parity():
+    # The point-symmetric half transform against the whole complex DFT, value by value and as a multiset.
+    rng = np.random.default_rng(11)
+    shapes = [(m, n) for m in range(1, 12) for n in range(1, 12)] + [(64, 101), (101, 64), (128, 130)]
+    for shape in shapes:
+        gray = rng.uniform(0, 255, shape)
+        expected = np.real(np.fft.fft2(gray))
+        spectrum = image.RealSpectrum(gray)
+        scale = np.abs(expected).max()
+        rows, cols = np.arange(shape[0]), np.arange(shape[1])
+        np.testing.assert_allclose(spectrum.at(rows, cols), expected, rtol=0, atol=1e-14 * scale)
+        values = np.concatenate([np.repeat(part.ravel(), weight) for part, weight in spectrum.parts])
+        np.testing.assert_allclose(np.sort(values), np.sort(expected.ravel()), rtol=0, atol=1e-14 * scale)
+
+
 def test_real_spectrum_peak_sums_of_two_gratings_and_narrowed_selections():
     # Cosines of amplitude 10 and 8 put 10 M N / 2 and 8 M N / 2 at (0, +-3) and (+-2, +-5).
     m, n = 32, 64
@@ -243,10 +258,13 @@ def test_real_spectrum_peak_sums_of_two_gratings_and_narrowed_selections():
 
 def test_real_spectrum_in_place_and_rejects_bad_images():
     gray = np.random.default_rng(3).uniform(size=(9, 12))
-    kept = image.RealSpectrum(gray.copy())
+    original = gray.copy()
+    kept = image.RealSpectrum(original)
+    np.testing.assert_array_equal(original, gray)  # a copy was used
     scratch = gray.copy()
-    assert image.RealSpectrum(scratch, overwrite=True).packed is scratch
-    np.testing.assert_array_equal(scratch, kept.packed)
+    in_place = image.RealSpectrum(scratch, overwrite=True)
+    assert in_place.memory is scratch and np.shares_memory(in_place.values, scratch)
+    np.testing.assert_array_equal(in_place.values, kept.values)
     for bad in (np.zeros((0, 3)), np.zeros(5), np.zeros((4, 4), np.float32)):
         with pytest.raises(ValueError, match="2-D float64"):
             image.RealSpectrum(bad)
@@ -284,7 +302,7 @@ def test_a_photo_that_does_not_keep_its_gray_image_computes_the_spectrum_in_its_
     gray = grayscale(crop_image(rgb))
     private = image.PreparedPhoto(rgb, keep_gray=False)
     buffer = private.gray
-    assert private.spectrum.packed is buffer
+    assert private.spectrum.memory is buffer
     assert image._dft_peak_means(private.spectrum, image.DFT_FRACTIONS) == image.dft_peak_means(gray)
     np.testing.assert_array_equal(private.gray, gray)  # asked again: computed again
     assert private.contrast == image.tamura_contrast(gray)
@@ -294,7 +312,7 @@ def test_a_released_buffer_holds_the_next_photos_gray_image():
     first, second = textured_photo(seed=7), textured_photo(seed=8)
     photo = image.PreparedPhoto(first)
     assert photo.release() is None  # nothing computed yet
-    spectrum = photo.spectrum.packed
+    spectrum = photo.spectrum.memory
     buffer = photo.release()
     assert buffer is spectrum
     following = image.PreparedPhoto(second, buffer=buffer)
@@ -637,3 +655,12 @@ def test_gray_features_reject_bad_images(function):
     nan_image[3, 4] = np.nan
     with pytest.raises(ValueError, match="NaN or infinite"):
         function(nan_image)
+
+
+def test_the_8_bit_gray_image_of_every_rgb_colour_is_gray_uint8():
+    # The prepared photo truncates gray + 0.5 instead of flooring and clipping: the same for every one of
+    # the 2^24 colours (their gray values lie in 0 .. 255 plus rounding).
+    red, green = np.meshgrid(np.arange(256, dtype=np.uint8), np.arange(256, dtype=np.uint8), indexing="ij")
+    for blue in range(256):
+        gray = grayscale(np.stack([red, green, np.full_like(red, blue)], axis=-1))
+        np.testing.assert_array_equal(image._gray_u8_of_photo(gray), gray_uint8(gray))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import warnings
 
+import cv2
 import numpy as np
 import pytest
 import pywt
@@ -147,6 +148,68 @@ def test_harris_corners_of_a_square():
     assert np.all(distance.min(axis=0) <= 2.0)   # every true corner found
     assert np.all(distance.min(axis=1) <= 3.0)   # nothing else
     assert tactum.harris_corners(np.full((50, 50), 7.0)).shape == (0, 2)
+
+
+def _good_features_to_track(gray: np.ndarray) -> np.ndarray:
+    """SPEC 7.1's definition of MaCo's corners, OpenCV's detector called as the specification says."""
+    points = cv2.goodFeaturesToTrack(gray.astype(np.float32), maxCorners=100, qualityLevel=0.01, minDistance=10,
+                                     blockSize=3, useHarrisDetector=True, k=0.04)
+    if points is None:
+        return np.empty((0, 2), np.intp)
+    return np.rint(points.reshape(-1, 2)).astype(np.intp)[:, ::-1]
+
+
+def _harris_test_image(kind: str, h: int, w: int, rng: np.random.Generator) -> np.ndarray:
+    rows, cols = np.mgrid[:h, :w]
+    if kind == "noise":
+        return rng.uniform(0, 255, (h, w))
+    if kind == "few levels":
+        return rng.integers(0, 3, (h, w)) * 80.0
+    if kind == "blurred":
+        return gaussian_filter(rng.uniform(0, 255, (h, w)), 3.0)
+    if kind == "step":
+        return np.where((rows > h // 3) & (cols > w // 4), 200.0, 5.0)
+    return (rows % 7 + cols % 5) * 10.0
+
+
+@pytest.mark.parametrize("kind", ["noise", "few levels", "blurred", "step", "lattice"])
+def test_harris_corners_are_those_of_good_features_to_track_in_the_same_order(kind):
+    # Few levels and lattices make many equal responses, so the order of ties is checked too.
+    rng = np.random.default_rng(len(kind))
+    for h, w in [(3, 3), (17, 400), (240, 181), (301, 302)]:
+        gray = _harris_test_image(kind, h, w, rng)
+        np.testing.assert_array_equal(tactum.harris_corners(gray), _good_features_to_track(gray))
+
+
+def test_harris_corners_of_large_images_from_the_strongest_responses_or_from_all():
+    # From 2^20 pixels on, the corners are first looked for among the strongest responses: enough on a
+    # texture and on a few squares over faint noise (no other candidate passes the threshold); a small
+    # checkerboard's crowded corners over noise leave too few there, and every candidate is looked at.
+    rng = np.random.default_rng(12)
+    texture = gaussian_filter(rng.uniform(0, 255, (1100, 1000)), 2.0)
+    squares = rng.uniform(0, 2, (1100, 1000))
+    for top, left in [(100, 100), (500, 600), (800, 200)]:
+        squares[top:top + 150, left:left + 150] += 200
+    crowded = rng.uniform(0, 90, (1100, 1000))
+    rows, cols = np.mgrid[:60, :60]
+    crowded[500:560, 500:560] = ((rows // 3 + cols // 3) % 2) * 255.0
+    for gray, decided in ((texture, True), (squares, True), (crowded, False)):
+        response = cv2.cornerHarris(gray.astype(np.float32), 3, 3, 0.04)
+        threshold = float(response.max()) * 0.01
+        found = tactum._corners_above(response, threshold, tactum._strong_cut(response))
+        assert (found is not None) == decided
+        np.testing.assert_array_equal(tactum.harris_corners(gray), _good_features_to_track(gray))
+
+
+def test_candidates_in_batches_come_in_the_order_of_one_full_sort():
+    # Larger value first, ties by larger index, as OpenCV sorts; batches of 3, 12, 48, ... candidates.
+    rng = np.random.default_rng(3)
+    index = rng.permutation(1000)[:200]
+    value = rng.integers(0, 20, 200).astype(np.float32)
+    batches = list(tactum._strongest_first(index, value, batch=3))
+    assert len(batches) > 2
+    order = sorted(range(200), key=lambda i: (-value[i], -index[i]))
+    np.testing.assert_array_equal(np.concatenate(batches), index[order])
 
 
 @pytest.mark.parametrize("shape", [(40, 50), (140, 97)])

@@ -9,6 +9,7 @@ commands then run from an unrelated folder, so nothing can be imported from the 
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import sysconfig
@@ -43,10 +44,22 @@ def _source_files() -> set[str]:
     return found
 
 
+def _clean_source(target: Path) -> Path:
+    """The files a release is built from, copied without build leftovers: setuptools reuses ``build/``, so
+    a module moved or deleted since the last build in the tree itself would still land in the wheel."""
+    for name in ("pyproject.toml", "README.md"):
+        (target / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(ROOT / name, target / name)
+    for package in PACKAGES:
+        shutil.copytree(ROOT / package, target / package, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    return target
+
+
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("wheel")
-    run = _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-w", out, ROOT],
+    source = _clean_source(tmp_path_factory.mktemp("source"))
+    run = _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-w", out, source],
                cwd=out)
     assert "warning" not in (run.stdout + run.stderr).lower().replace("warnings", "")
     (path,) = out.glob("texplorer-*.whl")
