@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from bench_audio import numpy_reference
 from timing import best_time, median_time
 
 from features import audio, recordings
@@ -56,12 +57,6 @@ def librosa_mfcc() -> Callable[[np.ndarray], object] | str:
                                           window="hamming", center=False)
 
 
-def framing_floor(x: np.ndarray) -> np.ndarray:
-    window, step = audio.window_and_step(FS)
-    framed = np.lib.stride_tricks.sliding_window_view(x, window)[::step] * np.hamming(window)
-    return np.abs(np.fft.rfft(framed, axis=1))
-
-
 def mahotas_haralick() -> Callable[[np.ndarray], object] | str:
     try:
         import mahotas.features
@@ -82,7 +77,7 @@ def main() -> None:
     for family in ("audio.audio", "audio.vibration", "vibration", "friction"):
         ours = median_time(lambda f=family: recordings.recording_rows(recording, applied=[f]), repeat=5)
         if family.startswith("audio"):
-            line(family, ours, "numpy framing + rfft of every frame", median_time(lambda: framing_floor(sound), 5))
+            line(family, ours, "numpy framing + rfft of every frame", median_time(lambda: numpy_reference(sound), 5))
             reference = librosa_mfcc()
             if isinstance(reference, str):
                 print(f"  {'':16} librosa skipped: {reference}")

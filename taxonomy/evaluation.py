@@ -565,14 +565,14 @@ def _fold(prepared: _Prepared, fold: int,
 
 
 def _messages(caught: list[warnings.WarningMessage], source: str = "") -> tuple[str, ...]:
-    """Each warning as one line: who raised it, its category and its first paragraph, whole."""
-    return tuple(dict.fromkeys(f"{source}{w.category.__name__}: {first_paragraph(str(w.message))}"
+    """Each warning as one line: who raised it, its category and its whole text."""
+    return tuple(dict.fromkeys(f"{source}{w.category.__name__}: {one_line(str(w.message))}"
                                for w in caught))
 
 
-def first_paragraph(message: str) -> str:
-    """The text up to the first blank line, on one line (scikit-learn's warnings add advice after one)."""
-    return " ".join(message.strip().split("\n\n", 1)[0].split())
+def one_line(message: str) -> str:
+    """A message whole on one line: its lines joined, runs of white space made one space."""
+    return " ".join(str(message).split())
 
 
 def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],

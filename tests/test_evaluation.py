@@ -238,14 +238,14 @@ def test_fallback_to_ungrouped_folds_is_reported():
     assert any("single sample" in note for note in report.warnings)
 
 
-def test_warnings_name_their_classifier_and_keep_their_first_paragraph_whole():
+def test_warnings_name_their_classifier_and_are_whole_on_one_line():
     from sklearn.neural_network import MLPClassifier
 
     report = evaluate(labelled_space(), MLPClassifier(max_iter=2, random_state=0), level="fine", n_features=3)
     (warning,) = [w for w in report.warnings if "ConvergenceWarning" in w]
     assert warning.startswith("MLPClassifier: ConvergenceWarning: Stochastic Optimizer: Maximum iterations (2)")
     assert warning.endswith("the optimization hasn't converged yet.") and "\n" not in warning
-    assert evaluation.first_paragraph("a\nb:\n  c\n\nadvice") == "a b: c"
+    assert evaluation.one_line("a\nb:\n  c\n\nadvice.") == "a b: c advice."
 
 
 @pytest.mark.parametrize(("kwargs", "error", "message"), [

@@ -22,7 +22,6 @@ from scanner.cli.common import (
     add_space_options,
     choices,
     cluster,
-    one_line,
     open_db,
     set_sizes,
     space_for,
@@ -30,7 +29,7 @@ from scanner.cli.common import (
 from scanner.ingest import load_recordings, set_folder
 from scanner.matfile import load_scan
 from scanner.workflows import extract_database, format_predictions, predict_scan
-from taxonomy.evaluation import CLASSIFIERS, default_feature_sets, evaluate_grid
+from taxonomy.evaluation import CLASSIFIERS, default_feature_sets, evaluate_grid, one_line
 from taxonomy.labels import LEVELS
 from taxonomy.models import load_model, save_model, train_model
 from taxonomy.report import format_table, write_report

@@ -76,11 +76,6 @@ def choices(values: list[str], every: Sequence[str]) -> list[str]:
     return list(every) if ALL in values else values
 
 
-def one_line(message: str) -> str:
-    """A warning's text on one line, whole: its lines joined, runs of white space made one space."""
-    return " ".join(str(message).split())
-
-
 def set_sizes(values: Sequence[str] | None, default: Sequence[str]) -> list[int | None]:
     """``--n`` values: positive integers, and ``all`` (every feature, no selection) as None."""
     sizes: list[int | None] = []

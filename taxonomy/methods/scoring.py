@@ -21,6 +21,7 @@ from features import cluster
 
 if TYPE_CHECKING:
     from distributed import Client
+from taxonomy.evaluation import one_line
 from taxonomy.methods.datasets import TIMED_ROWS, Extracted, MethodError
 
 
@@ -142,11 +143,6 @@ def leave_object_out_splits(objects: Sequence[str]) -> list[Split]:
     objects = np.asarray(objects)
     return [(np.flatnonzero(objects != o), np.flatnonzero(objects == o))
             for o in dict.fromkeys(objects.tolist())]
-
-
-def one_line(text: str) -> str:
-    """A message whole on one line: its lines joined, runs of white space made one space."""
-    return " ".join(str(text).split())
 
 
 def messages(caught: list[warnings.WarningMessage]) -> list[str]:
