@@ -7,11 +7,12 @@ every definition. ``compute`` returns the 31 values under ``NAMES``; the caller 
 gray image, statistics and spectrum, each made once, which ``features.extract`` shares with TacTUM for
 ``I_disp``.
 
-A 12-megapixel photo has ~11 million pixels, so the per-pixel work (grayscale, quantisation, the GLCM
-counts, LBP codes, Tamura's window differences) runs over bands of rows into preallocated buffers: a
-band's temporaries stay in cache instead of costing a hundred megabytes per step. Band results are
-integer counts or the same float64 operations as the whole-image formula, so banding changes no value
-(Tamura contrast's moment sums only regroup, to rounding).
+A 12-megapixel photo has ~11 million pixels. The per-pixel work of a photo (its gray images and GLCM
+counts, LBP codes, Tamura coarseness) runs in the compiled single-pass loops of :mod:`features.kernels`;
+the rest runs over bands of rows into preallocated buffers, so that a band's temporaries stay in cache
+instead of costing a hundred megabytes per step. Both give the same float64 operations as the whole-image
+formula, or exact integer counts, so they change no value (Tamura contrast's moment sums only regroup,
+to rounding).
 """
 
 from __future__ import annotations
@@ -19,12 +20,13 @@ from __future__ import annotations
 import functools
 import math
 import warnings
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 
 import cv2
 import numpy as np
 
-from scanner.preprocess import IMAGE_BORDER_PX, crop_image, grayscale
+from features import kernels
+from scanner.preprocess import IMAGE_BORDER_PX, crop_image
 
 HARALICK_NAMES = (
     "angular_second_moment", "contrast", "correlation", "sum_of_squares", "inverse_difference_moment",
@@ -88,32 +90,6 @@ def _bands(n_rows: int, rows_per_band: int) -> Iterator[tuple[int, int]]:
 
 def _rows_per_band(width: int, elements: int | None = None) -> int:
     return max(1, (elements or _BAND_ELEMENTS) // max(width, 1))
-
-
-def _banded(function: Callable[[np.ndarray], np.ndarray], image: np.ndarray, dtype: type,
-            out: np.ndarray | None = None) -> np.ndarray:
-    """``function`` applied band by band; only for element-wise functions, whose result is then identical.
-
-    ``out``, if given, must be a C-contiguous array of ``dtype`` and the image's (h, w).
-    """
-    if out is None:
-        out = np.empty(image.shape[:2], dtype)
-    for start, stop in _bands(image.shape[0], _rows_per_band(image.shape[1])):
-        out[start:stop] = function(image[start:stop])
-    return out
-
-
-def _gray_u8_of_photo(gray: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """``scanner.preprocess.gray_uint8`` of the gray image of an 8-bit photo, in two passes instead of four.
-
-    Such gray values lie in [0, 255 + a few ulp], so ``floor(gray + 0.5)`` needs no clipping and is the
-    truncation of the (positive) ``gray + 0.5`` to an integer, which the cast to uint8 does.
-    """
-    shifted = gray + 0.5
-    if out is None:
-        return shifted.astype(np.uint8)
-    np.copyto(out, shifted, casting="unsafe")
-    return out
 
 
 def _check_rgb(rgb: np.ndarray) -> np.ndarray:
@@ -187,23 +163,20 @@ class PreparedPhoto:
     def gray(self) -> np.ndarray:
         """``scanner.preprocess.grayscale`` of the cropped photo (float64, 0..255).
 
-        The first time, its 8-bit version and extremes come from the same pass, band by band while the
-        band is in cache, instead of reading the 86 MB of a 12-megapixel gray image again for each.
+        Made by :func:`features.kernels.gray_images` with its 8-bit version, its extremes and the GLCM
+        level counts, in one pass over the photo instead of reading the 86 MB of a 12-megapixel gray
+        image again for each (made again after :meth:`release`, which forgets only the gray image).
         """
         buffer, self._buffer = self._buffer, None
         gray = np.empty(self.photo.shape[:2]) if buffer is None else buffer
-        first = "gray_u8" not in self.__dict__
         gray_u8 = np.empty(gray.shape, np.uint8)
-        low, high = math.inf, -math.inf
-        for start, stop in _bands(gray.shape[0], _rows_per_band(gray.shape[1])):
-            band = grayscale(self.photo[start:stop])
-            gray[start:stop] = band
-            low, high = min(low, float(band.min())), max(high, float(band.max()))
-            if first:
-                _gray_u8_of_photo(band, out=gray_u8[start:stop])
-        if first:
-            self.__dict__["gray_u8"] = gray_u8
+        triples = np.empty((GLCM_LEVELS,) * 3, np.int64)
+        diagonal = np.empty((GLCM_LEVELS,) * 2, np.int64)
+        edges = np.empty((2, GLCM_LEVELS, GLCM_LEVELS), np.int64)
+        low, high = kernels.gray_images(self.photo, gray, gray_u8, GLCM_LEVELS, triples, diagonal, edges)
+        self.__dict__.setdefault("gray_u8", gray_u8)
         self.__dict__["extremes"] = (low, high)
+        self.__dict__.setdefault("direction_counts", _counts_by_direction(triples, diagonal, edges))
         return gray
 
     def release(self) -> np.ndarray | None:
@@ -235,8 +208,14 @@ class PreparedPhoto:
     @functools.cached_property
     def gray_u8(self) -> np.ndarray:
         """``scanner.preprocess.gray_uint8`` of :attr:`gray` (made with it, see there)."""
-        _ = self.gray  # the first pass over the photo stores this one too
+        _ = self.gray  # the pass over the photo stores this one too
         return self.__dict__["gray_u8"]
+
+    @functools.cached_property
+    def direction_counts(self) -> list[np.ndarray]:
+        """:func:`_direction_counts` of the 32-level quantised :attr:`gray` (made with it, see there)."""
+        _ = self.gray
+        return self.__dict__["direction_counts"]
 
     @functools.cached_property
     def mean(self) -> float:
@@ -261,9 +240,9 @@ class PreparedPhoto:
         if self.keep_gray:
             memory, self._spectrum_memory = self._spectrum_memory, None
             self.__dict__.pop("gray32", None)
-            return RealSpectrum(np.subtract(gray, mean, out=memory), overwrite=True)
+            return RealSpectrum(gray, mean=mean, out=memory)
         del self.gray
-        return RealSpectrum(np.subtract(gray, mean, out=gray), overwrite=True)
+        return RealSpectrum(gray, mean=mean, overwrite=True)
 
 
 def compute(rgb: np.ndarray, *, prepared: PreparedPhoto | None = None,
@@ -308,10 +287,9 @@ def compute(rgb: np.ndarray, *, prepared: PreparedPhoto | None = None,
     gray, mean = photo.gray, photo.mean
     high = photo.extremes[1]
     first = [color(photo.photo), mean / 255.0, edginess(photo.gray_u8)]
-    coarseness = math.nan if "tamura_coarseness" in small else \
-        _tamura_coarseness(gray, TAMURA_KMAX, 1e-9 * high * 1000, thousandths=True)
+    coarseness = math.nan if "tamura_coarseness" in small else _tamura_coarseness_of_photo(gray, high)
     lbp = [math.nan] * LBP_BINS if "lbp_0" in small else _lbp_histogram(gray)
-    rest = [*_haralick(gray), coarseness, photo.contrast, *lbp]
+    rest = [*_haralick_from_counts(photo.direction_counts), coarseness, photo.contrast, *lbp]
     # Last: the spectrum of a photo prepared here is computed in the memory of its gray image.
     dft = _dft_peak_means(photo.spectrum, DFT_FRACTIONS)
     return dict(zip(NAMES, map(float, [*first, *dft, *rest]), strict=True))
@@ -398,17 +376,28 @@ class RealSpectrum:
     Parameters
     ----------
     image : (M, N) float64 array
+    mean : float
+        Transform ``image - mean`` (the subtraction is done as the point-symmetric part is made, in the
+        same pass).
     overwrite : bool
         Compute the spectrum in the memory of ``image`` (saves an image-sized buffer); it is kept as
         :attr:`memory`, and its contents are lost.
+    out : ndarray, optional
+        Memory for the spectrum instead (a C-contiguous float64 array of the image's shape); ``image`` is
+        then left as it is.
     """
 
-    def __init__(self, image: np.ndarray, *, overwrite: bool = False) -> None:
+    def __init__(self, image: np.ndarray, *, mean: float = 0.0, overwrite: bool = False,
+                 out: np.ndarray | None = None) -> None:
         if image.ndim != 2 or image.size == 0 or image.dtype != np.float64:
             raise ValueError(f"expected a non-empty 2-D float64 image, got {image.dtype} of shape "
                              f"{image.shape}")
         self.shape: tuple[int, int] = image.shape
-        self.memory = image if overwrite and image.flags.c_contiguous else image.copy()
+        if out is not None:
+            self.memory = out
+        else:
+            self.memory = image if overwrite and image.flags.c_contiguous else np.empty(image.shape)
+        kernels.centred_point_symmetric_rows(image, mean, self.memory)
         self.values = _real_spectrum(self.memory)
         self._selection: tuple[float, list[tuple[np.ndarray, int]]] | None = None
 
@@ -456,33 +445,14 @@ class RealSpectrum:
 
 
 def _real_spectrum(image: np.ndarray) -> np.ndarray:
-    """:attr:`RealSpectrum.values` of ``image`` (C-contiguous, overwritten and reused for the result)."""
+    """:attr:`RealSpectrum.values` from ``image`` (C-contiguous) whose rows 0 .. M//2 hold the point-symmetric
+    part (:func:`features.kernels.centred_point_symmetric_rows`); its memory is reused for the result."""
     m, n = image.shape
     half = m // 2 + 1
-    _point_symmetric_rows(image)
     rows = cv2.dft(image[:half], dst=image[:half], flags=cv2.DFT_ROWS)
     columns = _hermitian_columns(rows, m, n)
     values = image.reshape(-1)[:columns.shape[0] * m].reshape(columns.shape[0], m)
     return cv2.dft(columns[:, 1:m + 1], dst=values, flags=cv2.DFT_ROWS | cv2.DFT_INVERSE | cv2.DFT_REAL_OUTPUT)
-
-
-def _point_symmetric_rows(image: np.ndarray) -> None:
-    """Rows 0 .. M//2 of ``image`` become ``(x(m, n) + x(-m, -n)) / 2``, band by band, in place.
-
-    Row m < M/2 reads row M-m, which is never written; rows 0 and M/2 pair with themselves.
-    """
-    m, n = image.shape
-    for row in {0, m // 2} if m % 2 == 0 else {0}:
-        mirror = image[row].copy()
-        image[row, 1:] += mirror[:0:-1]
-        image[row, 0] += mirror[0]
-    band_rows = _rows_per_band(n)
-    for start, stop in _bands((m - 1) // 2, band_rows):
-        first, last = start + 1, stop + 1  # rows first .. last-1 pair with rows m-last+1 .. m-first
-        mirrored = cv2.flip(image[m - last + 1:m - first + 1], -1)  # column j holds column n-1-j
-        image[first:last, 1:] += mirrored[:, :-1]
-        image[first:last, 0] += mirrored[:, -1]
-    image[:m // 2 + 1] *= 0.5
 
 
 def _hermitian_columns(rows: np.ndarray, m: int, n: int) -> np.ndarray:
@@ -530,7 +500,7 @@ def dft_peak_means(gray: np.ndarray, fractions: Sequence[float] = DFT_FRACTIONS)
     [226.27417, 226.27417]
     """
     image = _check_gray(gray, min_side=2, purpose="the DFT peak mean")
-    return _dft_peak_means(RealSpectrum(image - np.mean(image), overwrite=True), fractions)
+    return _dft_peak_means(RealSpectrum(image, mean=float(np.mean(image))), fractions)
 
 
 def _dft_peak_means(spectrum: RealSpectrum, fractions: Sequence[float]) -> tuple[float, ...]:
@@ -633,15 +603,24 @@ def _direction_counts(q: np.ndarray, levels: int) -> list[np.ndarray]:
 
     One 3-D histogram of the L-shaped triples (q[r, c], q[r, c+1], q[r+1, c]) holds a pair of each of
     0, 45 and 90 degrees, at half the cost of three pair histograms; the triples miss the last row's
-    0-degree pairs and the last column's 90-degree pairs, which are added. 135 degrees is counted alone.
+    0-degree pairs and the last column's 90-degree pairs, which are counted apart. 135 degrees is counted
+    alone. (:func:`features.kernels.gray_images` counts the same tuples of a photo as it makes its gray
+    image.)
     """
     corner, right, below = q[:-1, :-1], q[:-1, 1:], q[1:, :-1]
-    triples = _histogram([corner, right, below], levels)
+    edges = np.stack([_histogram([q[-1:, :-1], q[-1:, 1:]], levels), _histogram([q[1:, -1:], q[:-1, -1:]], levels)])
+    return _counts_by_direction(_histogram([corner, right, below], levels),
+                                _histogram(list(_pair_views(q, GLCM_OFFSETS[3])), levels), edges)
+
+
+def _counts_by_direction(triples: np.ndarray, diagonal: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
+    """The four directions' pair counts from the triple counts, the 135-degree pair counts and the pairs
+    the triples miss (``edges[0]`` the last row's at 0 degrees, ``edges[1]`` the last column's at 90)."""
     return [
-        triples.sum(axis=2) + _histogram([q[-1:, :-1], q[-1:, 1:]], levels),    # (r, c) -> (r, c+1)
-        triples.sum(axis=0).T,                                                  # (r+1, c) -> (r, c+1)
-        triples.sum(axis=1).T + _histogram([q[1:, -1:], q[:-1, -1:]], levels),  # (r+1, c) -> (r, c)
-        _histogram(list(_pair_views(q, GLCM_OFFSETS[3])), levels),
+        triples.sum(axis=2) + edges[0],  # (r, c) -> (r, c+1)
+        triples.sum(axis=0).T,           # (r+1, c) -> (r, c+1)
+        triples.sum(axis=1).T + edges[1],  # (r+1, c) -> (r, c)
+        diagonal,
     ]
 
 
@@ -749,8 +728,11 @@ def haralick(gray: np.ndarray) -> np.ndarray:
 
 
 def _haralick(image: np.ndarray) -> np.ndarray:
-    q = _quantize(image, GLCM_LEVELS)
-    directions = _direction_counts(q, GLCM_LEVELS)
+    return _haralick_from_counts(_direction_counts(_quantize(image, GLCM_LEVELS), GLCM_LEVELS))
+
+
+def _haralick_from_counts(directions: list[np.ndarray]) -> np.ndarray:
+    """:func:`haralick` from the pair counts of the four directions (:func:`_direction_counts`)."""
     per_direction = [haralick_from_glcm(_symmetric_normalised(counts)) for counts in directions]
     return np.mean(per_direction, axis=0)
 
@@ -782,31 +764,30 @@ def tamura_coarseness(gray: np.ndarray, kmax: int = TAMURA_KMAX) -> float:
     return _tamura_coarseness(image, kmax, 1e-9 * float(image.max()))
 
 
-def _thousandths(gray: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """``1000 * gray`` rounded to int32: exactly ``299 R + 587 G + 114 B`` for a gray image of SPEC 6.
+def _tamura_coarseness_of_photo(gray: np.ndarray, high: float) -> float:
+    """:func:`tamura_coarseness` of the gray image of an 8-bit photo whose largest value is ``high``.
 
-    ``cv2.multiply`` rounds to the nearest integer as ``np.rint`` does, in one pass.
+    :func:`features.kernels.tamura_coarseness_total` runs on the integers ``rint(1000 gray)``, which are
+    exactly ``299 R + 587 G + 114 B`` for such an image: then every window sum and difference is exact in
+    int32 (at most 1024 * 255000 < 2^31). The decisions equal the float64 ones: distinct ``E_k`` differ by
+    at least 1 / (1000 * 4^kmax) ~ 1e-6 gray levels, far more than the tie tolerance (at most 2.6e-7 for
+    gray values up to 255) and float64 rounding, while equal ones stay equal (within rounding) in float64.
     """
-    return cv2.multiply(gray, 1000.0, dst=out, dtype=cv2.CV_32S)
+    # The tolerance in the kernel's unit, 1 / (1000 * 4^kmax) gray levels; for integers E >= M - tol is
+    # E >= M - floor(tol).
+    tolerance = math.floor(1e-9 * high * 1000 * 4**kernels.TAMURA_KERNEL_KMAX)
+    margin = 2**kernels.TAMURA_KERNEL_KMAX
+    h, w = gray.shape
+    return kernels.tamura_coarseness_total(gray, tolerance) / ((h - 2 * margin + 1) * (w - 2 * margin + 1))
 
 
-def _tamura_coarseness(image: np.ndarray, kmax: int, tolerance: float, *, thousandths: bool = False) -> float:
-    """Tamura coarseness of float64 gray values, or with ``thousandths`` of their int32 ``_thousandths``.
-
-    ``tolerance`` is in the units of the values compared: gray levels, or thousandths of them. ``compute``
-    asks for the integers 1000 * gray, converted tile by tile (no image-sized int32 copy): then every
-    window sum and difference is exact in int32 (at most 1024 * 255000 < 2^31) and half the bytes of
-    float64. The decisions equal the float64 ones: distinct ``E_k`` differ by at least
-    1 / (1000 * 4^kmax) ~ 1e-6 gray levels, far more than the tie tolerance (at most 2.6e-7 for gray
-    values up to 255) and float64 rounding, while equal ones stay equal (within rounding) in float64.
-    """
+def _tamura_coarseness(image: np.ndarray, kmax: int, tolerance: float) -> float:
+    """Tamura coarseness of float64 gray values, with the tie ``tolerance`` in gray levels, tile by tile."""
     margin = 2**kmax
     h, w = image.shape
-    dtype = np.dtype(np.int32) if thousandths else image.dtype
+    dtype = image.dtype
     # Sums over 4^k pixels scaled by 4^(kmax-k) put every E_k in units of 1 / 4^kmax of ``image``'s unit.
     tolerance *= 4**kmax
-    if dtype.kind == "i":
-        tolerance = math.floor(tolerance)  # for integers, E >= M - tol is E >= M - floor(tol)
     out_rows, out_cols = h - 2 * margin + 1, w - 2 * margin + 1
     tile_rows, tile_cols = min(_TAMURA_TILE[0], out_rows), min(_TAMURA_TILE[1], out_cols)
     in_shape = (tile_rows + 2 * margin - 1, tile_cols + 2 * margin - 1)
@@ -821,8 +802,6 @@ def _tamura_coarseness(image: np.ndarray, kmax: int, tolerance: float, *, thousa
             # Tile-local (i, j) is image pixel (row + i, col + j); output pixels are i = margin .. margin+n-1,
             # j = margin .. margin+m-1. Level k holds the window sum with its top-left corner at (i, j).
             level = image[row:row_stop + 2 * margin - 1, col:col_stop + 2 * margin - 1]
-            if thousandths:  # into the buffer of level 2: level 1 reads it, level 2 overwrites it
-                level = _thousandths(level, out=level_buffers[0][:level.shape[0], :level.shape[1]])
             prefixes: list[np.ndarray] = []
             for k in range(1, kmax + 1):
                 size, half = 2**k, 2 ** (k - 1)
@@ -873,16 +852,9 @@ def tamura_contrast(gray: np.ndarray) -> float:
 def _tamura_contrast(values: np.ndarray, mean: float, constant: bool) -> float:
     if constant:
         return 0.0
-    second = fourth = 0.0
-    scratch = np.empty((_rows_per_band(values.shape[1]), values.shape[1]))
-    for start, stop in _bands(values.shape[0], scratch.shape[0]):
-        squared = np.subtract(values[start:stop], mean, out=scratch[:stop - start])
-        squared *= squared
-        second += float(squared.sum())
-        # numpy's own sums, not a BLAS dot product, whose threads would make the rounding vary with
-        # their number (extract_many's workers run one thread each).
-        squared *= squared
-        fourth += float(squared.sum())
+    # One compiled pass, not a BLAS dot product, whose threads would make the rounding vary with their
+    # number (extract_many's workers run one thread each).
+    second, fourth = kernels.central_moment_sums(np.ascontiguousarray(values), mean)
     variance = second / values.size
     kurtosis = fourth / values.size / variance**2
     return float(np.sqrt(variance) / kurtosis**0.25)
@@ -917,52 +889,14 @@ def _interpolation_weights(n: int, offset: float) -> tuple[np.ndarray, np.ndarra
     return 1 - fraction, fraction
 
 
-def _band_weights(weights: tuple[np.ndarray, np.ndarray], start: int,
-                  stop: int) -> tuple[np.ndarray, np.ndarray] | tuple[float, float]:
-    """Rows ``start:stop`` of per-row weights, as two scalars when every row has the same ones.
-
-    They do except where ``index + offset`` crosses a power of two, and numpy multiplies by a scalar about
-    three times as fast as by a column (the same products).
-    """
-    first, second = (f[start:stop] for f in weights)
-    if (first == first[0]).all() and (second == second[0]).all():
-        return float(first[0, 0]), float(second[0, 0])
-    return first, second
-
-
-def _lerp(x: np.ndarray, y: np.ndarray, weights: tuple[np.ndarray, np.ndarray] | tuple[float, float],
-          out: np.ndarray, scratch: np.ndarray) -> np.ndarray:
-    """``(1 - f) * x + f * y`` in scikit-image's bilinear order: two products, then their sum."""
-    np.multiply(weights[0], x, out=out)
-    np.multiply(weights[1], y, out=scratch)
-    return np.add(out, scratch, out=out)
-
-
-def _lbp_neighbours(rows: np.ndarray, tr: np.ndarray, tl: np.ndarray, up: tuple, down: tuple, out: np.ndarray,
-                    scratch: np.ndarray) -> Iterator[np.ndarray]:
-    """The 8 neighbours of a band's interior pixels for p = 7 .. 0 (skimage's p runs counter-clockwise from
-    the right, rows growing down), so that shifting the code left before each new bit puts neighbour p at
-    bit p. ``tr``/``tl`` are the rows interpolated towards the right/left neighbour column; each diagonal
-    neighbour is written into ``out``, valid until the next one is produced.
-    """
-    yield _lerp(tr[1:-1], tr[2:], down, out, scratch)
-    yield rows[2:, 1:-1]
-    yield _lerp(tl[1:-1], tl[2:], down, out, scratch)
-    yield rows[1:-1, :-2]
-    yield _lerp(tl[:-2], tl[1:-1], up, out, scratch)
-    yield rows[:-2, 1:-1]
-    yield _lerp(tr[:-2], tr[1:-1], up, out, scratch)
-    yield rows[1:-1, 2:]
-
-
 def lbp_histogram(gray: np.ndarray) -> np.ndarray:
     """Normalised histogram of rotation-invariant uniform LBP codes, P = 8, R = 1 (SPEC 7.2, ``lbp_0..9``).
 
     The codes are those of ``skimage.feature.local_binary_pattern(gray, 8, 1, method="uniform")``,
-    reproduced bit for bit with whole-array operations: neighbours on the axes are pixels, the four
-    diagonal ones are bilinearly interpolated at offsets of +-0.70711 px with scikit-image's weights and
-    operation order, and a neighbour counts as 1 when it is >= the centre. The histogram runs over the
-    pixels at least 1 px from the border and sums to 1.
+    reproduced bit for bit in one pass (:func:`features.kernels.lbp_code_counts`): neighbours on the axes
+    are pixels, the four diagonal ones are bilinearly interpolated at offsets of +-0.70711 px with
+    scikit-image's weights and operation order, and a neighbour counts as 1 when it is >= the centre. The
+    histogram runs over the pixels at least 1 px from the border and sums to 1.
 
     Returns
     -------
@@ -973,38 +907,15 @@ def lbp_histogram(gray: np.ndarray) -> np.ndarray:
 
 
 def _lbp_histogram(image: np.ndarray) -> np.ndarray:
+    """:func:`lbp_histogram` by :func:`features.kernels.lbp_code_counts`, one pass over the image.
+
+    scikit-image interpolates at absolute coordinates, so the weights differ (in the last bits) per row and
+    column: rows for the neighbours above and below, columns for those right and left.
+    """
     h, w = image.shape
     diagonal = float(abs(_lbp_offsets()[0][1]))
-    # skimage interpolates at absolute coordinates, so the weights differ (in the last bits) per row and
-    # column: rows for the neighbours above and below, columns for those right and left, interior only.
-    above, below = (tuple(f[1:-1, None] for f in _interpolation_weights(h, sign * diagonal))
-                    for sign in (-1, 1))
-    right, left = (tuple(f[1:-1] for f in _interpolation_weights(w, sign * diagonal)) for sign in (1, -1))
-    band_rows = min(_rows_per_band(w), h - 2)
-    towards_right, towards_left, scratch = np.empty((3, band_rows + 2, w - 2))
-    neighbour = np.empty((band_rows, w - 2))
-    bit = np.empty((band_rows, w - 2), bool)
-    code = np.empty((band_rows, w - 2), np.uint8)
-    code_counts = np.zeros(256, np.int64)
-    done = 0  # rows of the band already interpolated: the previous band's last two
-    for start, stop in _bands(h - 2, band_rows):
-        n = stop - start
-        rows = image[start:stop + 2]  # interior rows start+1 .. stop, with one row either side
-        # As in skimage: interpolate along the rows first ("top" and "bottom"), then between them.
-        _lerp(rows[done:, 1:-1], rows[done:, 2:], right, towards_right[done:n + 2], scratch[done:n + 2])
-        _lerp(rows[done:, :-2], rows[done:, 1:-1], left, towards_left[done:n + 2], scratch[done:n + 2])
-        tr, tl = towards_right[:n + 2], towards_left[:n + 2]
-        up, down = _band_weights(above, start, stop), _band_weights(below, start, stop)
-        centre = rows[1:-1, 1:-1]
-        codes, bits = code[:n], bit[:n]
-        codes.fill(0)
-        for value in _lbp_neighbours(rows, tr, tl, up, down, neighbour[:n], scratch[:n]):
-            np.greater_equal(value, centre, out=bits)
-            np.add(codes, codes, out=codes)  # a left shift, but vectorised where numpy's uint8 shift is not
-            np.bitwise_or(codes, bits.view(np.uint8), out=codes)
-        # Exact counts: a band holds far fewer than 2^24 pixels.
-        code_counts += cv2.calcHist([codes], [0], None, [256], [0, 256]).ravel().astype(np.int64)
-        towards_right[:2], towards_left[:2] = towards_right[n:n + 2], towards_left[n:n + 2]
-        done = 2
+    code_counts = kernels.lbp_code_counts(np.ascontiguousarray(image), _interpolation_weights(w, diagonal),
+                                          _interpolation_weights(w, -diagonal),
+                                          _interpolation_weights(h, -diagonal), _interpolation_weights(h, diagonal))
     histogram = np.bincount(_uniform_labels(), weights=code_counts, minlength=LBP_BINS)
     return histogram / histogram.sum()

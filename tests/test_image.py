@@ -256,6 +256,19 @@ def test_real_spectrum_peak_sums_of_two_gratings_and_narrowed_selections():
     assert [spectrum.peak_sum(f) for f in (0.8, 0.85)] == [fresh.peak_sum(f) for f in (0.8, 0.85)]
 
 
+@pytest.mark.parametrize("shape", [(1, 1), (1, 6), (2, 5), (5, 2), (6, 7), (7, 6), (33, 40)])
+def test_real_spectrum_of_the_centred_image_is_the_spectrum_of_its_subtraction_bit_for_bit(shape):
+    # The mean is subtracted in the pass that makes the point-symmetric part, in place or not.
+    gray = np.random.default_rng(shape[0] * 100 + shape[1]).uniform(0, 255, shape)
+    mean = float(np.mean(gray))
+    expected = image.RealSpectrum(gray - mean).values
+    np.testing.assert_array_equal(image.RealSpectrum(gray, mean=mean).values, expected)
+    out = np.full(shape, np.nan)
+    np.testing.assert_array_equal(image.RealSpectrum(gray, mean=mean, out=out).values, expected)
+    in_place = gray.copy()
+    np.testing.assert_array_equal(image.RealSpectrum(in_place, mean=mean, overwrite=True).values, expected)
+
+
 def test_real_spectrum_in_place_and_rejects_bad_images():
     gray = np.random.default_rng(3).uniform(size=(9, 12))
     original = gray.copy()
@@ -373,6 +386,18 @@ def test_glcm_rejects_levels_out_of_range():
         image.glcm(np.array([[0, 1]]), (-1, 0), levels=2)
 
 
+@pytest.mark.parametrize("shape", [(2, 2), (2, 9), (7, 2), (41, 37), (300, 330)])
+def test_the_prepared_photo_counts_the_pairs_of_every_direction_as_the_gray_image_gives_them(shape):
+    # features.kernels.gray_images counts the level tuples row by row as it makes the gray image.
+    rng = np.random.default_rng(shape[0] + shape[1])
+    for photo in (rng.integers(0, 256, (*shape, 3)).astype(np.uint8), textured_photo(*shape, seed=3)
+                  if min(shape) > 2 else np.full((*shape, 3), 77, np.uint8)):
+        prepared = image.PreparedPhoto(photo, border=0)
+        expected = image._direction_counts(image.quantize(grayscale(photo)), image.GLCM_LEVELS)
+        for ours, theirs in zip(prepared.direction_counts, expected, strict=True):
+            np.testing.assert_array_equal(ours, theirs)
+
+
 def test_haralick_of_a_constant_image():
     f = image.haralick(np.full((20, 30), 100.0))  # level q = 12, 1-based 13
     assert f[0] == 1.0  # ASM
@@ -468,6 +493,16 @@ def test_haralick_agrees_with_mahotas_after_its_documented_differences():
 # --- Tamura -------------------------------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("shape", [(1, 5), (7, 1), (40, 33), (300, 301)])
+def test_tamura_contrast_equals_the_moments_formula(shape):
+    # The compiled pass sums per row; the rounding of either sum is a few hundred ulps at most.
+    gray = np.random.default_rng(shape[0]).gamma(2.0, 30.0, shape)
+    centred = gray - gray.mean()
+    variance, fourth = np.mean(centred**2), np.mean(centred**4)
+    expected = np.sqrt(variance) / (fourth / variance**2) ** 0.25
+    assert image.tamura_contrast(gray) == pytest.approx(expected, rel=1e-13)
+
+
 def test_tamura_contrast_of_two_level_images():
     half = np.array([[10.0, 30.0]] * 4)  # p = 1/2: sigma = 10, kurtosis 1
     assert image.tamura_contrast(half) == pytest.approx(10.0, rel=1e-14)
@@ -553,15 +588,6 @@ def test_tamura_coarseness_follows_the_definition_pixel_by_pixel(kind, tile, mon
     assert image.tamura_coarseness(gray) == tamura_coarseness_by_definition(gray)
 
 
-def test_thousandths_of_every_gray_value_are_exact_integers():
-    # compute() runs Tamura coarseness on 1000 * gray in int32; that is exact for every 8-bit colour.
-    g, b = (channel.ravel() for channel in np.meshgrid(np.arange(256), np.arange(256), indexing="ij"))
-    for r in range(256):
-        rgb = np.stack([np.full_like(g, r), g, b], axis=-1).astype(np.uint8)[None]
-        expected = 299 * r + 587 * g + 114 * b
-        np.testing.assert_array_equal(image._thousandths(grayscale(rgb))[0], expected)
-
-
 @pytest.mark.parametrize("kind", ["texture", "flat_blocks", "one_level_steps"])
 def test_compute_gives_the_float64_tamura_coarseness(kind):
     rng = np.random.default_rng(7)
@@ -629,11 +655,8 @@ def test_lbp_matches_scikit_image_exactly(shape, kind):
     np.testing.assert_array_equal(image.lbp_histogram(gray), expected)
 
 
-@pytest.mark.parametrize("band_elements", [None, 3000])
-def test_lbp_matches_scikit_image_across_bands_and_powers_of_two(band_elements, monkeypatch):
+def test_lbp_matches_scikit_image_across_powers_of_two():
     # Rows and columns 512 and 513 are where skimage's interpolation weights change binade.
-    if band_elements:
-        monkeypatch.setattr(image, "_BAND_ELEMENTS", band_elements)
     gray = np.random.default_rng(13).uniform(0, 255, (530, 520))
     gray[100:140] = 77.7  # a flat stretch: exact ties
     with warnings.catch_warnings():
@@ -657,10 +680,17 @@ def test_gray_features_reject_bad_images(function):
         function(nan_image)
 
 
-def test_the_8_bit_gray_image_of_every_rgb_colour_is_gray_uint8():
-    # The prepared photo truncates gray + 0.5 instead of flooring and clipping: the same for every one of
-    # the 2^24 colours (their gray values lie in 0 .. 255 plus rounding).
-    red, green = np.meshgrid(np.arange(256, dtype=np.uint8), np.arange(256, dtype=np.uint8), indexing="ij")
+def test_the_prepared_gray_images_of_every_rgb_colour():
+    # The prepared photo makes its gray images in one compiled pass: gray + 0.5 truncated instead of
+    # floored and clipped, and Tamura coarseness on rint(1000 gray) as integers. All three must equal the
+    # straightforward formulas for every one of the 2^24 colours (their gray values lie in 0 .. 255 plus
+    # rounding), and the thousandths must be exactly 299 R + 587 G + 114 B.
+    red, green = np.meshgrid(np.arange(256), np.arange(256), indexing="ij")
     for blue in range(256):
-        gray = grayscale(np.stack([red, green, np.full_like(red, blue)], axis=-1))
-        np.testing.assert_array_equal(image._gray_u8_of_photo(gray), gray_uint8(gray))
+        rgb = np.stack([red, green, np.full_like(red, blue)], axis=-1).astype(np.uint8)
+        photo = image.PreparedPhoto(rgb, border=0)
+        gray = grayscale(rgb)
+        np.testing.assert_array_equal(photo.gray, gray)
+        np.testing.assert_array_equal(photo.gray_u8, gray_uint8(gray))
+        assert photo.extremes == (gray.min(), gray.max())
+        np.testing.assert_array_equal(np.rint(1000 * photo.gray), 299 * red + 587 * green + 114 * blue)

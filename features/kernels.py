@@ -1,0 +1,287 @@
+"""Compiled per-pixel loops of the image features: one pass over a photo where whole-array code needs many.
+
+A 12-megapixel photo has ~11 million pixels. Written with whole-array operations, each step of LBP,
+Tamura coarseness or the gray-level co-occurrence counts reads and writes the image again (LBP: about 40
+passes; Tamura: about 45 per tile), so memory traffic, not arithmetic, sets their time. Here each is one
+loop that keeps a pixel's intermediates in registers, compiled by numba (Lam et al. 2015, LLVM).
+
+Every kernel does the same IEEE operations in the same order as the formulation it replaces, so the
+results are bit for bit the same: numba compiles without ``fastmath``, which keeps LLVM from reassociating
+sums or contracting a product and a sum into one fused multiply-add (the rounding of ``a * b + c`` is
+that of two operations). Integer results (counts, window sums) are exact anyway. ``tests/test_image.py``
+compares each kernel with the straightforward formulation on random images.
+
+``cache=True`` stores the machine code beside this file (or in numba's user cache if that is read-only),
+so only the first run on a machine compiles (about a second per kernel).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+_JIT = {"cache": True, "nogil": True, "boundscheck": False}
+"""No ``fastmath``: see the module docstring."""
+
+
+@numba.njit(**_JIT)
+def gray_images(rgb: np.ndarray, gray: np.ndarray, gray_u8: np.ndarray, levels: int,
+                triples: np.ndarray, diagonal: np.ndarray, edges: np.ndarray) -> tuple[float, float]:
+    """The gray image of an 8-bit RGB photo and what is made from it, in one pass over its pixels.
+
+    Per pixel, exactly as ``scanner.preprocess.grayscale``, ``features.image._gray_u8_of_photo`` and
+    ``features.image._quantize`` compute them:
+
+    - ``gray = 0.299 R + 0.587 G + 0.114 B`` (float64, left to right), written into ``gray``;
+    - ``gray_u8 = uint8(gray + 0.5)``, the rounded 8-bit gray image (``gray`` lies in [0, 255]);
+    - the GLCM level ``q = trunc(clip(gray * levels / 256, 0, levels - 1))``, kept for two rows only: the
+      level tuples ``features.image._direction_counts`` counts are counted from them as the rows arrive.
+
+    Counts (int64, zeroed here), for q the image of levels:
+
+    - ``triples[a, b, c]``: the L-shaped triples ``(q[r, c], q[r, c+1], q[r+1, c])``;
+    - ``diagonal[a, b]``: the pairs ``(q[r, c], q[r-1, c-1])`` (135 degrees);
+    - ``edges[0, a, b]``: the last row's pairs ``(q[-1, c], q[-1, c+1])``; ``edges[1, a, b]``: the last
+      column's pairs ``(q[r, -1], q[r-1, -1])``, which the triples miss.
+
+    Each histogram is kept four times over and added up at the end: neighbouring pixels often share
+    their levels, and consecutive increments of one counter would wait for each other.
+
+    Returns
+    -------
+    (float, float)
+        The smallest and largest gray value.
+    """
+    h, w = gray.shape
+    scale = levels / 256.0
+    top = levels - 1.0
+    quantised = np.empty((2, w), np.uint8)  # row r's levels at r % 2
+    # int32: a photo within the pixel limit (16384 px a side) puts at most 2^26 counts in each copy.
+    triple_counts = np.zeros((4, levels, levels, levels), np.int32)
+    diagonal_counts = np.zeros((4, levels, levels), np.int32)
+    edges[:] = 0
+    low, high = np.inf, -np.inf
+    for r in range(h):
+        row, row_u8 = gray[r], gray_u8[r]
+        current, previous = quantised[r & 1], quantised[(r - 1) & 1]
+        for c in range(w):
+            value = 0.299 * rgb[r, c, 0] + 0.587 * rgb[r, c, 1] + 0.114 * rgb[r, c, 2]
+            row[c] = value
+            row_u8[c] = np.uint8(value + 0.5)
+            low = min(low, value)
+            high = max(high, value)
+            current[c] = np.uint8(min(max(value * scale, 0.0), top))
+        if r > 0:
+            for c in range(w - 1):
+                triple_counts[c & 3, previous[c], previous[c + 1], current[c]] += 1
+            for c in range(1, w):
+                diagonal_counts[c & 3, current[c], previous[c - 1]] += 1
+            edges[1, current[w - 1], previous[w - 1]] += 1
+    last = quantised[(h - 1) & 1]
+    for c in range(w - 1):
+        edges[0, last[c], last[c + 1]] += 1
+    triples[:] = triple_counts.sum(axis=0)
+    diagonal[:] = diagonal_counts.sum(axis=0)
+    return low, high
+
+
+@numba.njit(**_JIT)
+def central_moment_sums(gray: np.ndarray, mean: float) -> tuple[float, float]:
+    """``sum (x - mean)^2`` and ``sum (x - mean)^4`` over a 2-D image, in one pass.
+
+    Tamura contrast's moments (``features.image._tamura_contrast``). Each row is summed in four
+    interleaved partial sums (columns c mod 4), so that the additions need not wait for each other, and
+    the rows' sums are added up; the rounding error stays near (row length / 4 + rows) ulps, the order of
+    numpy's pairwise sums.
+    """
+    second = fourth = 0.0
+    for r in range(gray.shape[0]):
+        row = gray[r]
+        s0 = s1 = s2 = s3 = f0 = f1 = f2 = f3 = 0.0
+        n = row.shape[0]
+        quads = n - n % 4
+        for c in range(0, quads, 4):
+            d0, d1, d2, d3 = row[c] - mean, row[c + 1] - mean, row[c + 2] - mean, row[c + 3] - mean
+            q0, q1, q2, q3 = d0 * d0, d1 * d1, d2 * d2, d3 * d3
+            s0 += q0
+            s1 += q1
+            s2 += q2
+            s3 += q3
+            f0 += q0 * q0
+            f1 += q1 * q1
+            f2 += q2 * q2
+            f3 += q3 * q3
+        for c in range(quads, n):
+            d0 = row[c] - mean
+            q0 = d0 * d0
+            s0 += q0
+            f0 += q0 * q0
+        second += (s0 + s1) + (s2 + s3)
+        fourth += (f0 + f1) + (f2 + f3)
+    return second, fourth
+
+
+@numba.njit(**_JIT)
+def centred_point_symmetric_rows(image: np.ndarray, mean: float, out: np.ndarray) -> None:
+    """Rows 0 .. M//2 of ``out`` become ``((x(m, n) - mean) + (x(-m, -n) - mean)) / 2`` (indices modulo M, N).
+
+    The point-symmetric part of the centred image, which ``features.image.RealSpectrum`` transforms,
+    with the subtraction, the sum and the halving in that order. ``out`` may be ``image`` itself: row m
+    of the result needs only rows m and M - m, and row M - m > M/2 is never written; the two rows that
+    pair with themselves (0 and M/2) are read from a copy.
+    """
+    m, n = image.shape
+    mirror = np.empty(n)
+    for row in range(m // 2 + 1):
+        partner = (m - row) % m
+        source = image[partner]
+        if partner == row:
+            mirror[:] = source
+            source = mirror
+        here, target = image[row], out[row]
+        target[0] = ((here[0] - mean) + (source[0] - mean)) * 0.5
+        for col in range(1, n):
+            target[col] = ((here[col] - mean) + (source[n - col] - mean)) * 0.5
+
+
+@numba.njit(**_JIT)
+def lbp_code_counts(image: np.ndarray, right: tuple[np.ndarray, np.ndarray], left: tuple[np.ndarray, np.ndarray],
+                    up: tuple[np.ndarray, np.ndarray], down: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Counts of the 256 LBP codes (P = 8, R = 1) over the pixels at least 1 px from the border.
+
+    Bit p of a code is ``neighbour p >= centre``, neighbour p at angle 2 pi p / 8 counter-clockwise from
+    the right (rows grow down), as ``skimage.feature.local_binary_pattern`` orders them. The four
+    diagonal neighbours are interpolated as scikit-image does: along the row first, ``(1 - f) x + f y``
+    with the column weights ``right``/``left`` (``(1 - f, f)`` per column, towards the right and left
+    neighbour column), then between two such rows with the row weights ``up``/``down``. Two products and
+    their sum, in that order, give scikit-image's rounding; the weights come from
+    ``features.image._interpolation_weights``, per absolute row and column as scikit-image computes them.
+    """
+    h, w = image.shape
+    right0, right1 = right
+    left0, left1 = left
+    up0, up1 = up
+    down0, down1 = down
+    counts = np.zeros((4, 256), np.int64)  # four interleaved histograms: no wait on the previous count
+    towards_right = np.empty((3, w))  # row r lerped towards its right neighbour column, row r at r % 3
+    towards_left = np.empty((3, w))
+    codes = np.empty(w, np.uint8)
+    for r in range(min(2, h)):
+        _lerp_row(image[r], right0, right1, left0, left1, towards_right[r], towards_left[r])
+    for r in range(1, h - 1):
+        before, here, after = (r - 1) % 3, r % 3, (r + 1) % 3
+        _lerp_row(image[r + 1], right0, right1, left0, left1, towards_right[after], towards_left[after])
+        tr_before, tr_here, tr_after = towards_right[before], towards_right[here], towards_right[after]
+        tl_before, tl_here, tl_after = towards_left[before], towards_left[here], towards_left[after]
+        above, row, below = image[r - 1], image[r], image[r + 1]
+        u0, u1, d0, d1 = up0[r], up1[r], down0[r], down1[r]
+        for c in range(1, w - 1):
+            centre = row[c]
+            code = np.uint8((d0 * tr_here[c] + d1 * tr_after[c]) >= centre) << 7
+            code |= np.uint8(below[c] >= centre) << 6
+            code |= np.uint8((d0 * tl_here[c] + d1 * tl_after[c]) >= centre) << 5
+            code |= np.uint8(row[c - 1] >= centre) << 4
+            code |= np.uint8((u0 * tl_before[c] + u1 * tl_here[c]) >= centre) << 3
+            code |= np.uint8(above[c] >= centre) << 2
+            code |= np.uint8((u0 * tr_before[c] + u1 * tr_here[c]) >= centre) << 1
+            code |= np.uint8(row[c + 1] >= centre)
+            codes[c] = code
+        for c in range(1, w - 1):
+            counts[c & 3, codes[c]] += 1
+    return counts.sum(axis=0)
+
+
+@numba.njit(**_JIT, inline="always")
+def _lerp_row(row: np.ndarray, right0: np.ndarray, right1: np.ndarray, left0: np.ndarray, left1: np.ndarray,
+              towards_right: np.ndarray, towards_left: np.ndarray) -> None:
+    """A row interpolated towards its right and its left neighbour column (interior columns)."""
+    for c in range(1, row.shape[0] - 1):
+        towards_right[c] = right0[c] * row[c] + right1[c] * row[c + 1]
+        towards_left[c] = left0[c] * row[c - 1] + left1[c] * row[c]
+
+
+TAMURA_KERNEL_KMAX = 5
+"""The window sizes :func:`tamura_coarseness_total` is written for: 2^1 .. 2^5, the paper's."""
+
+
+@numba.njit(**_JIT)
+def tamura_coarseness_total(gray: np.ndarray, tolerance: int) -> int:
+    """Sum over the output pixels of Tamura's best window size ``S_best`` for kmax = 5, in one pass.
+
+    The image is read as ``t = rint(1000 gray)`` (int32, exact for gray images of 8-bit photos, see
+    ``features.image._thousandths``), so every window sum is an exact integer. Level k holds the sums of
+    the 2^k x 2^k windows by their top-left pixel, each the sum of four windows of level k - 1; the rows
+    of each level live in a ring of 64 rows, made as the photo's rows arrive. At output pixel (r, c),
+    ``E_k = max(|S_k(r - h, c) - S_k(r - h, c - 2^k)|, |S_k(r, c - h) - S_k(r - 2^k, c - h)|)`` with
+    h = 2^(k-1) (the window means' differences of ``features.image.tamura_coarseness`` times 4^k), scaled
+    by 4^(5 - k) to a common unit; ``S_best = 2^k`` for the first k with ``E_k >= max E - tolerance``.
+
+    The five levels are written out rather than looped over: with them as constants the compiler keeps
+    a pixel's ten window differences in registers (a loop over k takes twice the time).
+
+    Parameters
+    ----------
+    gray : (h, w) float64 array, h and w at least 64
+    tolerance : int
+        The tie tolerance in units of ``1 / (1000 * 4^5)`` gray levels.
+    """
+    h, w = gray.shape
+    margin = 32
+    levels = np.zeros((6, 64, w), np.int32)  # level k, row i at i % 64 (i & 63)
+    total = 0
+    for x in range(h):
+        base, row = levels[0, x & 63], gray[x]
+        for j in range(w):
+            base[j] = np.int32(np.rint(row[j] * 1000.0))
+        # Row x completes level k's row x - (2^k - 1), from level k - 1's rows x - (2^k - 1) and x - (2^(k-1) - 1);
+        # the window halves are literals, so that each loop is compiled for its own offsets.
+        if x >= 1:
+            _window_sums(levels[0, (x - 1) & 63], levels[0, x & 63], 1, levels[1, (x - 1) & 63])
+        if x >= 3:
+            _window_sums(levels[1, (x - 3) & 63], levels[1, (x - 1) & 63], 2, levels[2, (x - 3) & 63])
+        if x >= 7:
+            _window_sums(levels[2, (x - 7) & 63], levels[2, (x - 3) & 63], 4, levels[3, (x - 7) & 63])
+        if x >= 15:
+            _window_sums(levels[3, (x - 15) & 63], levels[3, (x - 7) & 63], 8, levels[4, (x - 15) & 63])
+        if x >= 31:
+            _window_sums(levels[4, (x - 31) & 63], levels[4, (x - 15) & 63], 16, levels[5, (x - 31) & 63])
+        r = x - (margin - 1)  # the newest row whose windows are all complete
+        if margin <= r <= h - margin:
+            total += _best_sizes(levels, r, w, tolerance)
+    return total
+
+
+@numba.njit(**_JIT, inline="always")
+def _window_sums(top: np.ndarray, bottom: np.ndarray, half: int, out: np.ndarray) -> None:
+    """Row of level k from rows i and i + h of level k - 1: four windows of side h make one of side 2h."""
+    for j in range(out.shape[0] - 2 * half + 1):
+        out[j] = (top[j] + bottom[j]) + (top[j + half] + bottom[j + half])
+
+
+@numba.njit(**_JIT, inline="always")
+def _best_sizes(levels: np.ndarray, r: int, w: int, tolerance: int) -> int:
+    """Sum of ``S_best`` over output row r (columns 32 .. w - 32), see :func:`tamura_coarseness_total`."""
+    m1, c1, t1 = levels[1, (r - 1) & 63], levels[1, r & 63], levels[1, (r - 2) & 63]
+    m2, c2, t2 = levels[2, (r - 2) & 63], levels[2, r & 63], levels[2, (r - 4) & 63]
+    m3, c3, t3 = levels[3, (r - 4) & 63], levels[3, r & 63], levels[3, (r - 8) & 63]
+    m4, c4, t4 = levels[4, (r - 8) & 63], levels[4, r & 63], levels[4, (r - 16) & 63]
+    m5, c5, t5 = levels[5, (r - 16) & 63], levels[5, r & 63], levels[5, (r - 32) & 63]
+    total = 0
+    for c in range(32, w - 32 + 1):
+        e1 = max(abs(m1[c] - m1[c - 2]), abs(c1[c - 1] - t1[c - 1])) * 256
+        e2 = max(abs(m2[c] - m2[c - 4]), abs(c2[c - 2] - t2[c - 2])) * 64
+        e3 = max(abs(m3[c] - m3[c - 8]), abs(c3[c - 4] - t3[c - 4])) * 16
+        e4 = max(abs(m4[c] - m4[c - 16]), abs(c4[c - 8] - t4[c - 8])) * 4
+        e5 = max(abs(m5[c] - m5[c - 32]), abs(c5[c - 16] - t5[c - 16]))
+        threshold = max(max(max(e1, e2), max(e3, e4)), e5) - tolerance
+        best = 32
+        if e4 >= threshold:
+            best = 16
+        if e3 >= threshold:
+            best = 8
+        if e2 >= threshold:
+            best = 4
+        if e1 >= threshold:
+            best = 2
+        total += best
+    return total
