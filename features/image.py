@@ -170,12 +170,18 @@ class PreparedPhoto:
         buffer, self._buffer = self._buffer, None
         gray = np.empty(self.photo.shape[:2]) if buffer is None else buffer
         gray_u8 = np.empty(gray.shape, np.uint8)
+        with_float32 = self.keep_gray and "gray32" not in self.__dict__
+        gray32 = self._gray32_memory() if with_float32 else np.empty((0, 0), np.float32)
         triples = np.empty((GLCM_LEVELS,) * 3, np.int64)
         diagonal = np.empty((GLCM_LEVELS,) * 2, np.int64)
         edges = np.empty((2, GLCM_LEVELS, GLCM_LEVELS), np.int64)
-        low, high = kernels.gray_images(self.photo, gray, gray_u8, GLCM_LEVELS, triples, diagonal, edges)
+        low, high, total = kernels.gray_images(self.photo, gray, gray_u8, gray32, GLCM_LEVELS, triples, diagonal,
+                                               edges)
         self.__dict__.setdefault("gray_u8", gray_u8)
+        if gray32.size:
+            self.__dict__["gray32"] = gray32
         self.__dict__["extremes"] = (low, high)
+        self.__dict__["mean"] = total / gray.size
         self.__dict__.setdefault("direction_counts", _counts_by_direction(triples, diagonal, edges))
         return gray
 
@@ -200,10 +206,18 @@ class PreparedPhoto:
         """
         if not self.keep_gray:
             return self.gray.astype(np.float32)
-        self._spectrum_memory = np.empty(self.gray.shape)
-        gray32 = self._spectrum_memory.reshape(-1).view(np.float32)[:self.gray.size].reshape(self.gray.shape)
+        if "gray" not in self.__dict__:  # the pass that makes the gray image makes this one too
+            _ = self.gray
+            return self.__dict__["gray32"]
+        gray32 = self._gray32_memory()
         np.copyto(gray32, self.gray, casting="same_kind")
         return gray32
+
+    def _gray32_memory(self) -> np.ndarray:
+        """A float32 image in the first half of fresh memory for the spectrum (see :attr:`gray32`)."""
+        self._spectrum_memory = np.empty(self.photo.shape[:2])
+        return self._spectrum_memory.reshape(-1).view(np.float32)[:self._spectrum_memory.size].reshape(
+            self._spectrum_memory.shape)
 
     @functools.cached_property
     def gray_u8(self) -> np.ndarray:
@@ -219,8 +233,9 @@ class PreparedPhoto:
 
     @functools.cached_property
     def mean(self) -> float:
-        """Mean gray value."""
-        return float(np.mean(self.gray))
+        """Mean gray value (:func:`_mean`; made with :attr:`gray`)."""
+        gray = self.gray
+        return self.__dict__["mean"] if "mean" in self.__dict__ else _mean(gray)
 
     @functools.cached_property
     def extremes(self) -> tuple[float, float]:
@@ -339,7 +354,13 @@ def color(rgb: np.ndarray) -> float:
 
 def brightness(gray: np.ndarray) -> float:
     """Mean gray value / 255 (paper: I_br; SPEC 7.2), in [0, 1] for a gray image in 0..255."""
-    return float(np.mean(_check_gray(gray))) / 255.0
+    return _mean(_check_gray(gray)) / 255.0
+
+
+def _mean(image: np.ndarray) -> float:
+    """Mean of a 2-D float64 image, summed in :func:`features.kernels.pixel_sum`'s order, the one order of
+    every image feature's mean (the prepared photo sums its gray image in that order as it makes it)."""
+    return kernels.pixel_sum(np.ascontiguousarray(image)) / image.size
 
 
 def edginess(gray_u8: np.ndarray) -> float:
@@ -500,7 +521,7 @@ def dft_peak_means(gray: np.ndarray, fractions: Sequence[float] = DFT_FRACTIONS)
     [226.27417, 226.27417]
     """
     image = _check_gray(gray, min_side=2, purpose="the DFT peak mean")
-    return _dft_peak_means(RealSpectrum(image, mean=float(np.mean(image))), fractions)
+    return _dft_peak_means(RealSpectrum(image, mean=_mean(image)), fractions)
 
 
 def _dft_peak_means(spectrum: RealSpectrum, fractions: Sequence[float]) -> tuple[float, ...]:
@@ -846,7 +867,7 @@ def tamura_contrast(gray: np.ndarray) -> float:
     if values.size == 0:
         return 0.0
     low, high = values.min(), values.max()
-    return _tamura_contrast(values, float(values.mean()), low == high)
+    return _tamura_contrast(values, _mean(values), low == high)
 
 
 def _tamura_contrast(values: np.ndarray, mean: float, constant: bool) -> float:

@@ -25,8 +25,8 @@ _JIT = {"cache": True, "nogil": True, "boundscheck": False}
 
 
 @numba.njit(**_JIT)
-def gray_images(rgb: np.ndarray, gray: np.ndarray, gray_u8: np.ndarray, levels: int,
-                triples: np.ndarray, diagonal: np.ndarray, edges: np.ndarray) -> tuple[float, float]:
+def gray_images(rgb: np.ndarray, gray: np.ndarray, gray_u8: np.ndarray, gray32: np.ndarray, levels: int,
+                triples: np.ndarray, diagonal: np.ndarray, edges: np.ndarray) -> tuple[float, float, float]:
     """The gray image of an 8-bit RGB photo and what is made from it, in one pass over its pixels.
 
     Per pixel, exactly as ``scanner.preprocess.grayscale``, ``features.image._gray_u8_of_photo`` and
@@ -34,6 +34,7 @@ def gray_images(rgb: np.ndarray, gray: np.ndarray, gray_u8: np.ndarray, levels: 
 
     - ``gray = 0.299 R + 0.587 G + 0.114 B`` (float64, left to right), written into ``gray``;
     - ``gray_u8 = uint8(gray + 0.5)``, the rounded 8-bit gray image (``gray`` lies in [0, 255]);
+    - ``gray32 = float32(gray)`` for Harris corners, unless ``gray32`` is empty (shape (0, 0));
     - the GLCM level ``q = trunc(clip(gray * levels / 256, 0, levels - 1))``, kept for two rows only: the
       level tuples ``features.image._direction_counts`` counts are counted from them as the rows arrive.
 
@@ -49,10 +50,12 @@ def gray_images(rgb: np.ndarray, gray: np.ndarray, gray_u8: np.ndarray, levels: 
 
     Returns
     -------
-    (float, float)
-        The smallest and largest gray value.
+    (float, float, float)
+        The smallest and largest gray value, and the sum of all (:func:`pixel_sum`'s order).
     """
     h, w = gray.shape
+    with_float32 = gray32.shape[0] > 0
+    total = 0.0
     scale = levels / 256.0
     top = levels - 1.0
     quantised = np.empty((2, w), np.uint8)  # row r's levels at r % 2
@@ -71,6 +74,11 @@ def gray_images(rgb: np.ndarray, gray: np.ndarray, gray_u8: np.ndarray, levels: 
             low = min(low, value)
             high = max(high, value)
             current[c] = np.uint8(min(max(value * scale, 0.0), top))
+        total += _row_sum(row)
+        if with_float32:
+            row32 = gray32[r]
+            for c in range(w):
+                row32[c] = np.float32(row[c])
         if r > 0:
             for c in range(w - 1):
                 triple_counts[c & 3, previous[c], previous[c + 1], current[c]] += 1
@@ -82,7 +90,38 @@ def gray_images(rgb: np.ndarray, gray: np.ndarray, gray_u8: np.ndarray, levels: 
         edges[0, last[c], last[c + 1]] += 1
     triples[:] = triple_counts.sum(axis=0)
     diagonal[:] = diagonal_counts.sum(axis=0)
-    return low, high
+    return low, high, total
+
+
+@numba.njit(**_JIT)
+def pixel_sum(image: np.ndarray) -> float:
+    """The sum of a 2-D float64 image: each row in four interleaved partial sums, then the rows in order.
+
+    The mean gray value of every image feature comes from this one order (:func:`gray_images` adds up
+    its rows the same way), so that a feature computed alone equals the same feature from the prepared
+    photo bit for bit. Its rounding error is near (row length / 4 + rows) ulps, the order of numpy's
+    pairwise sum.
+    """
+    total = 0.0
+    for r in range(image.shape[0]):
+        total += _row_sum(image[r])
+    return total
+
+
+@numba.njit(**_JIT, inline="always")
+def _row_sum(row: np.ndarray) -> float:
+    """Sum of a row in four partial sums (columns c mod 4), so that the additions need not wait for each other."""
+    s0 = s1 = s2 = s3 = 0.0
+    n = row.shape[0]
+    quads = n - n % 4
+    for c in range(0, quads, 4):
+        s0 += row[c]
+        s1 += row[c + 1]
+        s2 += row[c + 2]
+        s3 += row[c + 3]
+    for c in range(quads, n):
+        s0 += row[c]
+    return (s0 + s1) + (s2 + s3)
 
 
 @numba.njit(**_JIT)
