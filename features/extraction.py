@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import ctypes
 import dataclasses
 import functools
 import os
@@ -189,6 +190,36 @@ def _one_thread_each() -> Iterator[None]:
         cv2.setNumThreads(threads)
 
 
+_M_TRIM_THRESHOLD = -1
+_M_MMAP_MAX = -4
+"""glibc's ``mallopt`` parameters (malloc.h)."""
+
+
+def keep_freed_memory() -> bool:
+    """Let this process reuse the memory it frees instead of returning it to the system (glibc's malloc).
+
+    Extracting a 12-megapixel scan allocates and frees some 250 MB of temporaries (OpenCV's Harris response
+    and its derivatives alone 210 MB). glibc serves blocks that large with fresh mappings and unmaps them
+    when freed, so every scan faults them in again, a page at a time: about 70 ms of system time of a 1 s
+    scan. With mappings off and no trimming they come from the heap and stay there for the next scan; the
+    process then holds its peak resident memory until it ends. :func:`extract_many`'s workers do this: they
+    live for one batch of scans. Values are unaffected (only where memory comes from changes).
+
+    Returns
+    -------
+    bool
+        Whether the setting took (False where the C library has no glibc ``mallopt``).
+    """
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):
+        return False
+    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
+    return bool(mallopt(_M_MMAP_MAX, 0)) and bool(mallopt(_M_TRIM_THRESHOLD, 2**31 - 1))
+
+
 def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,
          tick: Callable[[int], object]) -> Iterable[tuple[int, tuple]]:
     """``(index, fn(item))`` for every item, in this process or a process pool (completion order)."""
@@ -200,7 +231,8 @@ def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,
         return
     # The first submission forks every worker. OpenCV's threads are restored only once the pool is done:
     # restarted at once, they would spin-wait on the cores the workers need.
-    with _one_thread_each(), concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+    with _one_thread_each(), concurrent.futures.ProcessPoolExecutor(max_workers=workers,
+                                                                    initializer=keep_freed_memory) as pool:
         futures = {pool.submit(fn, item): index for index, item in zip(indices, items, strict=True)}
         for future in concurrent.futures.as_completed(futures):
             tick(1)

@@ -6,6 +6,8 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import subprocess
+import sys
 import warnings
 
 import numpy as np
@@ -174,3 +176,35 @@ def test_a_photo_too_small_for_tamura_coarseness_keeps_the_other_image_features(
         assert all(values[f"image.{short}.{n}"] == computed[n] for n in image.NAMES if n != "tamura_coarseness")
     assert any("63x200 px (after cropping 100 px) is too small for tamura_coarseness" in str(w.message)
                for w in caught)
+
+
+_RESIDENT_AFTER_FREEING = """
+import sys
+import numpy as np
+from features.extraction import keep_freed_memory
+
+def resident_mb():
+    with open("/proc/self/status") as status:
+        return int(next(line for line in status if line.startswith("VmRSS:")).split()[1]) / 1024
+
+kept = keep_freed_memory() if sys.argv[1] == "keep" else None
+before = resident_mb()
+block = np.ones(2**24)  # 128 MB, more than glibc's largest mapping threshold
+del block
+print(kept, resident_mb() - before)
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's mallopt is Linux-only")
+def test_workers_keep_the_memory_they_free_for_the_next_scan():
+    # By default glibc unmaps a freed 128 MB block at once (the next scan faults it in again); a worker
+    # that keeps freed memory (extract_many's, keep_freed_memory) still holds it for its next allocation.
+    held = {}
+    for mode in ("default", "keep"):
+        run = subprocess.run([sys.executable, "-c", _RESIDENT_AFTER_FREEING, mode], capture_output=True,
+                             text=True, check=True, timeout=120)
+        kept, megabytes = run.stdout.split()
+        held[mode] = float(megabytes)
+        assert kept == ("True" if mode == "keep" else "None")
+    assert held["default"] < 16
+    assert held["keep"] > 120
