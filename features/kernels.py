@@ -8,8 +8,10 @@ loop that keeps a pixel's intermediates in registers, compiled by numba (Lam et 
 Every kernel does the same IEEE operations in the same order as the formulation it replaces, so the
 results are bit for bit the same: numba compiles without ``fastmath``, which keeps LLVM from reassociating
 sums or contracting a product and a sum into one fused multiply-add (the rounding of ``a * b + c`` is
-that of two operations). Integer results (counts, window sums) are exact anyway. ``tests/test_image.py``
-compares each kernel with the straightforward formulation on random images.
+that of two operations). Integer results (counts, window sums) are exact anyway. The two long sums
+(:func:`pixel_sum`, :func:`central_moment_sums`) fix their own order, documented there, and are equal to
+rounding to numpy's. ``tests/test_image.py`` compares each kernel with the straightforward formulation on
+random images, and the gray images with it for every 8-bit colour.
 
 ``cache=True`` stores the machine code beside this file (or in numba's user cache if that is read-only),
 so only the first run on a machine compiles (about a second per kernel).
@@ -29,11 +31,13 @@ def gray_images(rgb: np.ndarray, gray: np.ndarray, gray_u8: np.ndarray, gray32: 
                 triples: np.ndarray, diagonal: np.ndarray, edges: np.ndarray) -> tuple[float, float, float]:
     """The gray image of an 8-bit RGB photo and what is made from it, in one pass over its pixels.
 
-    Per pixel, exactly as ``scanner.preprocess.grayscale``, ``features.image._gray_u8_of_photo`` and
+    Per pixel, exactly as ``scanner.preprocess.grayscale``, ``scanner.preprocess.gray_uint8`` and
     ``features.image._quantize`` compute them:
 
     - ``gray = 0.299 R + 0.587 G + 0.114 B`` (float64, left to right), written into ``gray``;
-    - ``gray_u8 = uint8(gray + 0.5)``, the rounded 8-bit gray image (``gray`` lies in [0, 255]);
+    - ``gray_u8 = uint8(gray + 0.5)``: ``gray_uint8``'s ``clip(floor(gray + 0.5), 0, 255)``, as the gray
+      value of an 8-bit colour lies in [0, 255 + a few ulp], where truncation is the floor and nothing
+      needs clipping;
     - ``gray32 = float32(gray)`` for Harris corners, unless ``gray32`` is empty (shape (0, 0));
     - the GLCM level ``q = trunc(clip(gray * levels / 256, 0, levels - 1))``, kept for two rows only: the
       level tuples ``features.image._direction_counts`` counts are counted from them as the rows arrive.
