@@ -24,7 +24,7 @@ import numpy as np
 
 from features.selection import Selection, select_features
 from features.space import FeatureSpace
-from scanner.files import atomic_write_bytes
+from scanner.storage.files import atomic_write_bytes
 from taxonomy.evaluation import Report, format_r_c, major_class, size_name
 from taxonomy.labels import LEVELS
 from taxonomy.methods import COLUMNS, MethodResult, best_per_method, result_notes

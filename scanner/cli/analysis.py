@@ -26,8 +26,8 @@ from scanner.cli.common import (
     set_sizes,
     space_for,
 )
-from scanner.ingest import load_recordings, set_folder
-from scanner.matfile import load_scan
+from scanner.storage.ingest import load_recordings, set_folder
+from scanner.storage.matfile import load_scan
 from scanner.workflows import extract_database, format_predictions, predict_scan
 from taxonomy.evaluation import CLASSIFIERS, default_feature_sets, evaluate_grid, one_line
 from taxonomy.labels import LEVELS
