@@ -22,8 +22,9 @@ from scanner.storage.ingest import (
     summarise_notes,
     with_grid,
 )
-from taxonomy.methods import METHODS, Dataset, MethodError, compare_methods, format_comparison
+from taxonomy.methods import METHODS, Dataset, MethodError, compare_methods
 from taxonomy.report import write_comparison
+from taxonomy.results import format_comparison
 
 
 def ingest_mapping(args: argparse.Namespace):
