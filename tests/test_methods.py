@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import pickle
 from dataclasses import replace
 
 import numpy as np
 import pytest
 from scipy.stats import multivariate_normal
+from sklearn.base import clone
 from sklearn.naive_bayes import GaussianNB
 from sklearn.neighbors import KNeighborsClassifier
 from sklearn.preprocessing import StandardScaler
@@ -311,6 +313,32 @@ def _expected_failures(estimator) -> dict[str, str]:
         "check_estimators_pickle", "check_f_contiguous_array_estimator", "check_transformer_data_not_an_array",
         "check_transformer_general", "check_transformer_preserve_dtypes", "check_methods_sample_order_invariance",
         "check_methods_subset_invariance", "check_dict_unchanged", "check_fit_idempotent"), XIE_WIDTH)
+
+
+def test_xie_features_keep_the_estimator_contract_on_sequence_vectors():
+    """What the checks above cannot feed XieFeatures (3n-wide rows): pickling, repeated fits, row order and
+    subsets, input types, an unchanged state after transform and a clear refusal of another width."""
+    rng = np.random.default_rng(5)
+    X = rng.normal(3.0, 1.5, (24, 3 * 100))  # 100 samples per sequence: wavelet level 4 without boundary effects
+    step = related.XieFeatures()
+    assert step.fit(X) is step and clone(step).get_params() == {}
+    out = step.transform(X)
+    state = pickle.dumps(step.__dict__)
+    assert np.array_equal(step.transform(X), out) and pickle.dumps(step.__dict__) == state
+    assert np.array_equal(related.XieFeatures().fit(X).transform(X), out)  # fit is idempotent
+    assert np.array_equal(pickle.loads(pickle.dumps(step)).transform(X), out)
+    order = rng.permutation(len(X))
+    assert np.allclose(step.transform(X[order]), out[order], rtol=1e-12, atol=1e-12)
+    assert np.allclose(step.transform(X[5:9]), out[5:9], rtol=1e-12, atol=1e-12)
+    assert np.allclose(step.transform(X.tolist()), out, rtol=1e-12, atol=1e-12)
+    assert np.allclose(related.XieFeatures().fit(np.asfortranarray(X)).transform(X), out, rtol=1e-12, atol=1e-12)
+    whole = np.rint(X).astype(np.int64)
+    assert np.allclose(related.XieFeatures().fit(whole).transform(whole),
+                       related.XieFeatures().fit(whole.astype(np.float64)).transform(whole), rtol=1e-12)
+    with pytest.raises(ValueError, match="features"):  # scikit-learn's own check of the width seen in fit
+        step.transform(X[:, :30])
+    with pytest.raises(related.RelatedFeatureError, match=r"3n >= 6 entries, got shape \(10,\)"):
+        related.XieFeatures().fit(X[:, :10]).transform(X[:, :10])
 
 
 @parametrize_with_checks([methods.PairwiseEliminationSVM(palpations=1), methods.NearestSpatialPeriod(),
