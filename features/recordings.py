@@ -192,6 +192,14 @@ def _audio_rate_ok(fs: float) -> bool:
     return audio.window_and_step(fs)[0] >= audio.MIN_WINDOW
 
 
+def _vibration_audio_rate_ok(fs: float) -> bool:
+    return fs >= VIBRATION_AUDIO_MIN_FS
+
+
+def _vibration_band_ok(fs: float) -> bool:
+    return vibration_band(fs)[1] > BAND_HZ[0]
+
+
 def _sound_audio(window: np.ndarray, fs: float) -> list[float]:
     return list(audio_features(window, fs).values())
 
@@ -218,12 +226,11 @@ AUDIO_AUDIO = ROLE_REGISTRY.register(RoleFamily(
     applies=_audio_rate_ok))
 AUDIO_VIBRATION = ROLE_REGISTRY.register(RoleFamily(
     "audio.vibration", "vibration", tuple(f"audio.vibration.{name}" for name in audio.NAMES), _vibration_audio,
-    applies=lambda fs: fs >= VIBRATION_AUDIO_MIN_FS))
+    applies=_vibration_audio_rate_ok))
 IMAGE_PHOTO = ROLE_REGISTRY.register(RoleFamily(
     "image.photo", "photo", tuple(f"image.photo.{name}" for name in image.NAMES), _photo))
 VIBRATION = ROLE_REGISTRY.register(RoleFamily(
-    "vibration", "vibration", VIBRATION_NAMES, _vibration, applies=lambda fs: vibration_band(fs)[1] > BAND_HZ[0],
-    prepare=lambda v, fs: band_limited(v, fs)))
+    "vibration", "vibration", VIBRATION_NAMES, _vibration, applies=_vibration_band_ok, prepare=band_limited))
 FRICTION = ROLE_REGISTRY.register(RoleFamily("friction", "force_xyz", FRICTION_NAMES, _friction))
 
 

@@ -95,7 +95,7 @@ class RoleFamily:
     role: str
     columns: tuple[str, ...]
     compute: Callable[[np.ndarray, Any], Sequence[float]]
-    applies: Callable[[float], bool] = field(default=lambda fs: True)
+    applies: Callable[[float], bool] = field(default=lambda fs: True)  # any rate
     prepare: Callable[[np.ndarray, float], np.ndarray] | None = None
 
     def __post_init__(self) -> None:
