@@ -43,8 +43,19 @@ class RegistryError(TexplorerError, ValueError):
     """A family that cannot be registered (a name or column already taken, a malformed column name)."""
 
 
+class _Code:
+    """What a family's values depend on: the module that defines its function."""
+
+    compute: Callable[..., object]
+
+    @property
+    def module(self) -> str:
+        """The module that defines the family's function."""
+        return self.compute.__module__
+
+
 @dataclass(frozen=True)
-class Family:
+class Family(_Code):
     """One feature family.
 
     ``name`` is the modality: the first part of every column name (``tactum.matx``). ``groups`` are the
@@ -66,21 +77,11 @@ class Family:
             object.__setattr__(self, "groups", ((self.name, self.title),))
         if not self.name or "." in self.name:
             raise RegistryError(f"family name must be a non-empty word without dots, got {self.name!r}")
-        strays = [c for c in self.columns if not c.startswith(self.name + ".")]
-        if strays or not self.columns:
-            raise RegistryError(f"family {self.name!r}: every column must start with '{self.name}.' "
-                                f"(got {', '.join(strays[:3]) or 'no columns'})")
-        if len(set(self.columns)) != len(self.columns):
-            raise RegistryError(f"family {self.name!r}: column names repeat")
-
-    @property
-    def module(self) -> str:
-        """The module that defines the family's function."""
-        return self.compute.__module__
+        _check_columns(self, lambda c: not c.startswith(self.name + "."), f"start with '{self.name}.'")
 
 
 @dataclass(frozen=True)
-class RoleFamily:
+class RoleFamily(_Code):
     """One feature family of a generic recording, computed on the channel role ``role`` (or its photo).
 
     ``name`` names the family (``audio.vibration``: the audio features of the vibration); every column is
@@ -100,17 +101,18 @@ class RoleFamily:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "columns", tuple(self.columns))
-        strays = [c for c in self.columns if len(c.split(".")) != 3 or c.split(".")[1] != self.role]
-        if strays or not self.columns:
-            raise RegistryError(f"family {self.name!r}: every column must be '<modality>.{self.role}.<feature>' "
-                                f"(got {', '.join(strays[:3]) or 'no columns'})")
-        if len(set(self.columns)) != len(self.columns):
-            raise RegistryError(f"family {self.name!r}: column names repeat")
+        _check_columns(self, lambda c: len(c.split(".")) != 3 or c.split(".")[1] != self.role,
+                       f"be '<modality>.{self.role}.<feature>'")
 
-    @property
-    def module(self) -> str:
-        """The module that defines the family's function."""
-        return self.compute.__module__
+
+def _check_columns(family: Family | RoleFamily, stray: Callable[[str], bool], rule: str) -> None:
+    """Every column of ``family`` follows ``rule`` (``stray`` finds those that do not), none repeats."""
+    strays = [c for c in family.columns if stray(c)]
+    if strays or not family.columns:
+        raise RegistryError(f"family {family.name!r}: every column must {rule} "
+                            f"(got {', '.join(strays[:3]) or 'no columns'})")
+    if len(set(family.columns)) != len(family.columns):
+        raise RegistryError(f"family {family.name!r}: column names repeat")
 
 
 F = TypeVar("F", Family, RoleFamily)
