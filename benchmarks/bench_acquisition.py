@@ -28,12 +28,12 @@ from pathlib import Path
 
 import numpy as np
 
-from scanner.config import BoardConfig, DaqConfig, MicrophoneConfig
-from scanner.devices.audio import PlaybackMicrophone, SoundDeviceMicrophone
-from scanner.devices.board import SerialBoard, StreamCollector
-from scanner.devices.daq import NidaqmxDaq
-from scanner.devices.protocols import AcquisitionError, DeviceError
-from scanner.devices.sources import Pacer, SimulatedSample
+from scanner.acquisition.config import BoardConfig, DaqConfig, MicrophoneConfig
+from scanner.acquisition.devices.audio import PlaybackMicrophone, SoundDeviceMicrophone
+from scanner.acquisition.devices.board import SerialBoard, StreamCollector
+from scanner.acquisition.devices.daq import NidaqmxDaq
+from scanner.acquisition.devices.protocols import AcquisitionError, DeviceError
+from scanner.acquisition.devices.sources import Pacer, SimulatedSample
 
 NOMINAL_PER_CHANNEL = 3000.0
 CHANNELS = 8

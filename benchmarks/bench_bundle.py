@@ -25,12 +25,12 @@ import zipfile  # noqa: E402
 from collections.abc import Callable  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from scanner.bundle import import_bundle  # noqa: E402
-from scanner.database import Database  # noqa: E402
-from scanner.matfile import load_scan  # noqa: E402
 from scanner.replay import replay, scan_paths  # noqa: E402
 from scanner.simulation import load_materials  # noqa: E402
 from scanner.simulation.database import synthetic_database  # noqa: E402
+from scanner.storage.bundle import import_bundle  # noqa: E402
+from scanner.storage.database import Database  # noqa: E402
+from scanner.storage.matfile import load_scan  # noqa: E402
 from scanner.workflows import export_database  # noqa: E402
 
 MATERIALS = 24

@@ -39,11 +39,11 @@ import cv2  # noqa: E402
 from features import extract, extract_many, image, other, tactum  # noqa: E402
 from features.extraction import keep_freed_memory  # noqa: E402
 from features.families import audio_features  # noqa: E402
-from scanner.database import Database  # noqa: E402
 from scanner.preprocess import crop_image, grayscale  # noqa: E402
 from scanner.scan import IMAGES, Scan  # noqa: E402
 from scanner.simulation import synthetic_scan  # noqa: E402
 from scanner.simulation.database import synthetic_database  # noqa: E402
+from scanner.storage.database import Database  # noqa: E402
 from scanner.workflows import database_sources  # noqa: E402
 
 cv2.setNumThreads(1)

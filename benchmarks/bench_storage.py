@@ -17,8 +17,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from conftest import make_meta, make_scan  # noqa: E402
 from timing import best_time  # noqa: E402
 
-from scanner.database import Database, FileEntry  # noqa: E402
-from scanner.matfile import load_scan, save_scan  # noqa: E402
+from scanner.storage.database import Database, FileEntry  # noqa: E402
+from scanner.storage.matfile import load_scan, save_scan  # noqa: E402
 
 
 def bench_mat(folder: Path) -> None:

@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 from threadpoolctl import threadpool_limits
 
-from scanner.stored import NotOnThisMachine
+from scanner.storage.stored import NotOnThisMachine
 from taxonomy.errors import TexplorerError
 
 if TYPE_CHECKING:
@@ -184,7 +184,7 @@ def _cancel(client: Client, futures: Iterable[Future]) -> None:
 # -- feature extraction ------------------------------------------------------------------------------
 
 class StoredLoader(Protocol):
-    """A ``ScanSource.load`` that reads stored files (``scanner.stored.StoredScan``)."""
+    """A ``ScanSource.load`` that reads stored files (``scanner.storage.stored.StoredScan``)."""
 
     path: Any
 

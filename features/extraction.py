@@ -28,7 +28,7 @@ from features.prepared import PreparedScan
 from features.registry import REGISTRY
 from features.space import FeatureSpace
 from scanner.scan import Scan
-from scanner.stored import NotOnThisMachine
+from scanner.storage.stored import NotOnThisMachine
 
 if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
     from distributed import Client

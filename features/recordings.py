@@ -32,6 +32,10 @@ toolbox's spectral features describe the spectrum's shape at any rate, but the P
 vibration lives in reaches ~500 Hz (Bensmaia and Hollins 2003), which needs fs >= 1 kHz. Below that the
 audio features would describe only the slow part of the contact, so they are left out.
 
+The families are registered in :data:`features.registry.ROLE_REGISTRY` (at the end of the section "the
+families, registered" below); the columns, the families that apply to a recording and the roles named
+when none does come from there, so a new family is one registration (``docs/extending.md``).
+
 Windowing (:class:`Windowing`): the whole recording (default), or windows of N seconds cut from the start
 (a shorter recording is one window); the windows' values are combined by their ``mean`` or ``median``, or
 each window becomes its own row (``rows``) named ``<recording>#w<k>`` in the recording's group, so folds
@@ -57,9 +61,10 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from features import audio, cluster, image, other, tactum
+from features.registry import ROLE_REGISTRY, RoleFamily
 from features.space import FeatureSpace
 from scanner.preprocess import BAND_HZ, dft321
-from scanner.scan import Recording, Trace
+from scanner.scan import IMAGE_ROLES, Recording, Trace
 from taxonomy.errors import TexplorerError
 
 if TYPE_CHECKING:
@@ -181,40 +186,71 @@ def friction_features(xyz: np.ndarray, fs: float) -> dict[str, float]:
     return dict(zip(FRICTION_NAMES, (tactum.fst(f_frn, f_frt, lag), tactum.frs(f_frn, f_frt, lag)), strict=True))
 
 
-# -- which families apply ----------------------------------------------------------------------------
+# -- the families, registered ------------------------------------------------------------------------
 
 def _audio_rate_ok(fs: float) -> bool:
     return audio.window_and_step(fs)[0] >= audio.MIN_WINDOW
 
 
+def _vibration_audio_rate_ok(fs: float) -> bool:
+    return fs >= VIBRATION_AUDIO_MIN_FS
+
+
+def _vibration_band_ok(fs: float) -> bool:
+    return vibration_band(fs)[1] > BAND_HZ[0]
+
+
+def _sound_audio(window: np.ndarray, fs: float) -> list[float]:
+    return list(audio_features(window, fs).values())
+
+
+def _vibration_audio(window: np.ndarray, fs: float) -> list[float]:
+    # Without its mean, as an AC-coupled microphone would give it (a BioTac's PAC sits at ~2000).
+    return list(audio_features(dft321(window - window.mean(axis=0)), fs).values())
+
+
+def _photo(photo: np.ndarray, border: int) -> list[float]:
+    return list(image.compute(photo, border=border).values())
+
+
+def _vibration(band: np.ndarray, fs: float) -> list[float]:
+    return list(vibration_features(dft321(band), fs).values())
+
+
+def _friction(xyz: np.ndarray, fs: float) -> list[float]:
+    return list(friction_features(xyz, fs).values())
+
+
+AUDIO_AUDIO = ROLE_REGISTRY.register(RoleFamily(
+    "audio.audio", "audio", tuple(f"audio.audio.{name}" for name in audio.NAMES), _sound_audio,
+    applies=_audio_rate_ok))
+AUDIO_VIBRATION = ROLE_REGISTRY.register(RoleFamily(
+    "audio.vibration", "vibration", tuple(f"audio.vibration.{name}" for name in audio.NAMES), _vibration_audio,
+    applies=_vibration_audio_rate_ok))
+IMAGE_PHOTO = ROLE_REGISTRY.register(RoleFamily(
+    "image.photo", "photo", tuple(f"image.photo.{name}" for name in image.NAMES), _photo))
+VIBRATION = ROLE_REGISTRY.register(RoleFamily(
+    "vibration", "vibration", VIBRATION_NAMES, _vibration, applies=_vibration_band_ok, prepare=band_limited))
+FRICTION = ROLE_REGISTRY.register(RoleFamily("friction", "force_xyz", FRICTION_NAMES, _friction))
+
+
 def families(recording: Recording) -> list[str]:
-    """The family and role pairs (``audio.audio``, ``image.photo``, ...) that apply to a recording."""
+    """The registered families (``audio.audio``, ``image.photo``, ...) that apply to a recording, in order."""
     found = []
-    sound = recording.role("audio")
-    if sound is not None and _audio_rate_ok(sound.fs):
-        found.append("audio.audio")
-    vibration = recording.role("vibration")
-    if vibration is not None and vibration.fs >= VIBRATION_AUDIO_MIN_FS:
-        found.append("audio.vibration")
-    if recording.image("photo") is not None:
-        found.append("image.photo")
-    if vibration is not None and vibration_band(vibration.fs)[1] > BAND_HZ[0]:
-        found.append("vibration")
-    if recording.role("force_xyz") is not None:
-        found.append("friction")
+    for family in ROLE_REGISTRY:
+        if family.role in IMAGE_ROLES:
+            applies = recording.image(family.role) is not None
+        else:
+            trace = recording.role(family.role)
+            applies = trace is not None and family.applies(trace.fs)
+        if applies:
+            found.append(family.name)
     return found
-
-
-FAMILY_ORDER = ("audio.audio", "audio.vibration", "image.photo", "vibration", "friction")
 
 
 def family_names(family: str) -> tuple[str, ...]:
     """The columns of one family."""
-    if family.startswith("audio."):
-        return tuple(f"{family}.{name}" for name in audio.NAMES)
-    if family == "image.photo":
-        return tuple(f"image.photo.{name}" for name in image.NAMES)
-    return VIBRATION_NAMES if family == "vibration" else FRICTION_NAMES
+    return ROLE_REGISTRY[family].columns
 
 
 # -- one recording -----------------------------------------------------------------------------------
@@ -235,30 +271,16 @@ def _cut(trace: Trace | np.ndarray, fs: float, start: float, stop: float) -> np.
 def _sampled_features(recording: Recording, applied: Sequence[str], start: float, stop: float,
                       prepared: Mapping[str, np.ndarray]) -> dict[str, float]:
     values: dict[str, float] = {}
-    for family in applied:
-        names = family_names(family)
+    for name in applied:
+        family = ROLE_REGISTRY[name]
+        fs = recording.role(family.role).fs
         try:
-            if family == "audio.audio":
-                sound = recording.role("audio")
-                values.update(zip(names, audio_features(_cut(sound, sound.fs, start, stop), sound.fs).values(),
-                                  strict=True))
-            elif family == "audio.vibration":
-                trace = recording.role("vibration")
-                window = _cut(trace, trace.fs, start, stop)
-                # Without its mean, as an AC-coupled microphone would give it (a BioTac's PAC sits at ~2000).
-                window = dft321(window - window.mean(axis=0))
-                values.update(zip(names, audio_features(window, trace.fs).values(), strict=True))
-            elif family == "vibration":
-                trace = recording.role("vibration")
-                v = dft321(_cut(prepared["vibration"], trace.fs, start, stop))
-                values.update(vibration_features(v, trace.fs))
-            elif family == "friction":
-                trace = recording.role("force_xyz")
-                values.update(friction_features(_cut(trace, trace.fs, start, stop), trace.fs))
+            window = _cut(prepared[name], fs, start, stop)
+            values.update(zip(family.columns, family.compute(window, fs), strict=True))
         except ValueError as problem:
-            warnings.warn(f"recording {recording.name!r}: {family}: {problem}; its features are NaN",
+            warnings.warn(f"recording {recording.name!r}: {name}: {problem}; its features are NaN",
                           stacklevel=2)
-            values.update(dict.fromkeys(names, math.nan))
+            values.update(dict.fromkeys(family.columns, math.nan))
     return values
 
 
@@ -270,39 +292,29 @@ def recording_rows(recording: Recording, windowing: Windowing = Windowing(), bor
     A family whose input fails (too short to filter, a photo too small to crop) is NaN with a warning.
     """
     applied = list(families(recording) if applied is None else applied)
-    sampled = [f for f in applied if f != "image.photo"]
     fixed: dict[str, float] = {}
-    if "image.photo" in applied:
-        names = family_names("image.photo")
-        photo = recording.image("photo")
+    prepared: dict[str, np.ndarray] = {}
+    for name in applied:
+        family = ROLE_REGISTRY[name]
         try:
-            fixed = dict(zip(names, image.compute(photo, border=border).values(), strict=True))
+            if family.role in IMAGE_ROLES:
+                fixed.update(zip(family.columns, family.compute(recording.image(family.role), border), strict=True))
+            else:
+                trace = recording.role(family.role)
+                prepared[name] = trace.data if family.prepare is None else family.prepare(trace.data, trace.fs)
         except ValueError as problem:
-            warnings.warn(f"recording {recording.name!r}: photo: {problem}; its features are NaN", stacklevel=2)
-            fixed = dict.fromkeys(names, math.nan)
-    if not sampled:
-        return [fixed]
-    prepared = {}
-    if "vibration" in sampled:
-        trace = recording.role("vibration")
-        try:
-            prepared["vibration"] = band_limited(trace.data, trace.fs)
-        except RecordingFeatureError as problem:
-            warnings.warn(f"recording {recording.name!r}: vibration: {problem}; its features are NaN",
+            warnings.warn(f"recording {recording.name!r}: {family.role}: {problem}; its features are NaN",
                           stacklevel=2)
-            sampled.remove("vibration")
-            fixed.update(dict.fromkeys(VIBRATION_NAMES, math.nan))
-    duration = min(recording.role(_ROLE[f]).duration for f in sampled) if sampled else 0.0
-    rows = [_sampled_features(recording, sampled, start, stop, prepared)
+            fixed.update(dict.fromkeys(family.columns, math.nan))
+    if not prepared:
+        return [fixed]
+    duration = min(recording.role(ROLE_REGISTRY[name].role).duration for name in prepared)
+    rows = [_sampled_features(recording, list(prepared), start, stop, prepared)
             for start, stop in _windows(duration, windowing)]
     if windowing.combine != "rows" and len(rows) > 1:
         combine = np.mean if windowing.combine == "mean" else np.median
         rows = [{name: float(combine([row[name] for row in rows])) for name in rows[0]}]
     return [{**fixed, **row} for row in rows]
-
-
-_ROLE = {"audio.audio": "audio", "audio.vibration": "vibration", "vibration": "vibration",
-         "friction": "force_xyz"}
 
 
 # -- a set -------------------------------------------------------------------------------------------
@@ -349,10 +361,11 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     warnings raised while extracting (one line each, naming the recording).
 
     Columns are every family that applies to at least one recording (:func:`families`), in the order of
-    :data:`FAMILY_ORDER`; a recording without a family's role has NaN there (evaluation then leaves the
-    column out). Rows are in recording order (windows in time order with ``combine = "rows"``).
-    ``workers`` processes (1: in this process, None: one per core), or the Dask cluster of ``client``
-    (:mod:`features.cluster`; the recordings are sent from here, the values are the same).
+    the registry (:data:`features.registry.ROLE_REGISTRY`); a recording without a family's role has NaN
+    there (evaluation then leaves the column out). Rows are in recording order (windows in time order with
+    ``combine = "rows"``). ``workers`` processes (1: in this process, None: one per core), or the Dask
+    cluster of ``client`` (:mod:`features.cluster`; the recordings are sent from here, the values are the
+    same).
 
     Raises
     ------
@@ -366,12 +379,13 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     if unlabelled is not None:
         raise RecordingFeatureError(f"recording {unlabelled!r} has no label")
     present = {f for r in recordings for f in families(r)}
-    applied = tuple(f for f in FAMILY_ORDER if f in present)
+    applied = tuple(f for f in ROLE_REGISTRY.modalities if f in present)
     if not applied:
         roles = sorted({role for r in recordings for role in r.roles})
+        needed = list(dict.fromkeys(family.role for family in ROLE_REGISTRY))
         raise RecordingFeatureError(f"no feature family applies: the recordings have the roles "
-                                    f"{', '.join(roles) or 'none'}; the families need audio, vibration, "
-                                    "photo or force_xyz")
+                                    f"{', '.join(roles) or 'none'}; the families need "
+                                    f"{', '.join(needed[:-1])} or {needed[-1]}")
     columns = tuple(name for family in applied for name in family_names(family))
     jobs = [(r, windowing, border, applied) for r in recordings]
     results = _map(_extract_one, jobs, workers, progress, client)

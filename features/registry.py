@@ -9,6 +9,11 @@ of every project module that module imports, so a change to the code never serve
 
 The registry holds the families' order; the column names of all of them, in that order, are the rows'
 order everywhere (CSV, ``.mat``, cache).
+
+Other labs' recordings have channel roles instead of the scanner's channels: :data:`ROLE_REGISTRY` holds
+the families computed on one role of a generic recording (:class:`RoleFamily`, registered by
+:mod:`features.recordings`), from which that module's columns, the families that apply to a recording and
+the roles they need are derived in the same way.
 """
 
 from __future__ import annotations
@@ -16,10 +21,13 @@ from __future__ import annotations
 import ast
 import hashlib
 import importlib.util
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
+from typing import Any, Generic, TypeVar
+
+import numpy as np
 
 from features.prepared import PreparedScan
 from taxonomy.errors import TexplorerError
@@ -35,8 +43,19 @@ class RegistryError(TexplorerError, ValueError):
     """A family that cannot be registered (a name or column already taken, a malformed column name)."""
 
 
+class _Code:
+    """What a family's values depend on: the module that defines its function."""
+
+    compute: Callable[..., object]
+
+    @property
+    def module(self) -> str:
+        """The module that defines the family's function."""
+        return self.compute.__module__
+
+
 @dataclass(frozen=True)
-class Family:
+class Family(_Code):
     """One feature family.
 
     ``name`` is the modality: the first part of every column name (``tactum.matx``). ``groups`` are the
@@ -58,46 +77,77 @@ class Family:
             object.__setattr__(self, "groups", ((self.name, self.title),))
         if not self.name or "." in self.name:
             raise RegistryError(f"family name must be a non-empty word without dots, got {self.name!r}")
-        strays = [c for c in self.columns if not c.startswith(self.name + ".")]
-        if strays or not self.columns:
-            raise RegistryError(f"family {self.name!r}: every column must start with '{self.name}.' "
-                                f"(got {', '.join(strays[:3]) or 'no columns'})")
-        if len(set(self.columns)) != len(self.columns):
-            raise RegistryError(f"family {self.name!r}: column names repeat")
-
-    @property
-    def module(self) -> str:
-        """The module that defines the family's function."""
-        return self.compute.__module__
+        _check_columns(self, lambda c: not c.startswith(self.name + "."), f"start with '{self.name}.'")
 
 
-class Registry:
-    """The registered families, in extraction order."""
+@dataclass(frozen=True)
+class RoleFamily(_Code):
+    """One feature family of a generic recording, computed on the channel role ``role`` (or its photo).
+
+    ``name`` names the family (``audio.vibration``: the audio features of the vibration); every column is
+    ``<modality>.<role>.<feature>``, the modality a scan family's, so ``FeatureSpace.modality`` finds it.
+    A sampled role: ``applies(fs)`` says whether a channel sampled at ``fs`` Hz can carry the family,
+    ``prepare(data, fs)`` (optional) runs once on the whole recording before it is cut into windows (a
+    band limit), and ``compute(window, fs)`` gives the values of one window of the prepared data, in
+    column order. An image role (``photo``): ``compute(image, border)``, the border cropped in pixels.
+    """
+
+    name: str
+    role: str
+    columns: tuple[str, ...]
+    compute: Callable[[np.ndarray, Any], Sequence[float]]
+    applies: Callable[[float], bool] = field(default=lambda fs: True)  # any rate
+    prepare: Callable[[np.ndarray, float], np.ndarray] | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "columns", tuple(self.columns))
+        _check_columns(self, lambda c: len(c.split(".")) != 3 or c.split(".")[1] != self.role,
+                       f"be '<modality>.{self.role}.<feature>'")
+
+
+def _check_columns(family: Family | RoleFamily, stray: Callable[[str], bool], rule: str) -> None:
+    """Every column of ``family`` follows ``rule`` (``stray`` finds those that do not), none repeats."""
+    strays = [c for c in family.columns if stray(c)]
+    if strays or not family.columns:
+        raise RegistryError(f"family {family.name!r}: every column must {rule} "
+                            f"(got {', '.join(strays[:3]) or 'no columns'})")
+    if len(set(family.columns)) != len(family.columns):
+        raise RegistryError(f"family {family.name!r}: column names repeat")
+
+
+F = TypeVar("F", Family, RoleFamily)
+
+
+class Registry(Generic[F]):
+    """Registered families, in extraction (column) order."""
 
     def __init__(self) -> None:
-        self._families: dict[str, Family] = {}
+        self._families: dict[str, F] = {}
 
-    def register(self, family: Family) -> Family:
+    def register(self, family: F) -> F:
         """Add ``family`` after the others; returns it."""
         if family.name in self._families:
             raise RegistryError(f"a feature family {family.name!r} is already registered")
+        taken = sorted(set(family.columns) & set(self.names))
+        if taken:
+            raise RegistryError(f"family {family.name!r}: column(s) already registered: {', '.join(taken[:3])}")
         self._families[family.name] = family
         return family
 
-    def unregister(self, name: str) -> Family:
+    def unregister(self, name: str) -> F:
         """Remove the family ``name`` (a plug-in or a test undoing its registration); returns it."""
         try:
             return self._families.pop(name)
         except KeyError:
             raise RegistryError(f"no feature family {name!r} (registered: {', '.join(self._families)})") from None
 
-    def __iter__(self) -> Iterator[Family]:
+    def __iter__(self) -> Iterator[F]:
         return iter(tuple(self._families.values()))
 
     def __len__(self) -> int:
         return len(self._families)
 
-    def __getitem__(self, name: str) -> Family:
+    def __getitem__(self, name: str) -> F:
         return self._families[name]
 
     @property
@@ -110,16 +160,6 @@ class Registry:
         """The family names, in order."""
         return tuple(self._families)
 
-    @property
-    def groups(self) -> tuple[tuple[str, str], ...]:
-        """The web application's groups of values, ``(column prefix, title)``, in order."""
-        return tuple(group for family in self for group in family.groups)
-
-    @property
-    def solver_rtol(self) -> dict[str, float]:
-        """Relative tolerance of every column computed by an iterative fit."""
-        return {column: rtol for family in self for column, rtol in family.solver_rtol.items()}
-
     def code_modules(self, *extra: str) -> tuple[str, ...]:
         """The modules whose source the values depend on: each family's module, ``extra`` modules (the
         extraction's own), and every project module they import, directly or not."""
@@ -131,8 +171,26 @@ class Registry:
         return _digest(self.code_modules(*extra))
 
 
-REGISTRY = Registry()
+class ScanRegistry(Registry[Family]):
+    """The scan families, with what only they carry: the web application's groups and solver tolerances."""
+
+    @property
+    def groups(self) -> tuple[tuple[str, str], ...]:
+        """The web application's groups of values, ``(column prefix, title)``, in order."""
+        return tuple(group for family in self for group in family.groups)
+
+    @property
+    def solver_rtol(self) -> dict[str, float]:
+        """Relative tolerance of every column computed by an iterative fit."""
+        return {column: rtol for family in self for column, rtol in family.solver_rtol.items()}
+
+
+REGISTRY = ScanRegistry()
 """The families every extraction computes (the paper's four, registered by :mod:`features.families`)."""
+
+ROLE_REGISTRY: Registry[RoleFamily] = Registry()
+"""The families computed on generic recordings by channel role (the project's five, registered by
+:mod:`features.recordings`)."""
 
 
 # -- the code a family depends on ---------------------------------------------------------------------

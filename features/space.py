@@ -30,7 +30,7 @@ import numpy as np
 import scipy.io
 
 from features.registry import REGISTRY
-from scanner.files import atomic_write_bytes
+from scanner.storage.files import atomic_write_bytes
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import LEVELS, Label, check_level
 

@@ -1,6 +1,6 @@
 """texplorer gui: the operator's web application (SPEC 10), served by ``texplorer serve``.
 
 ``gui.app.create_app(Settings(db=...))`` builds the Flask app: start a scan, the guided steps of SPEC 4
-over ``scanner.session.Session``, the operator form, the summary with the prediction, and the database
+over ``scanner.acquisition.session.Session``, the operator form, the summary with the prediction, and the database
 browser with export. It holds no business logic; see ``docs/gui.md``.
 """

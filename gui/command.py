@@ -7,8 +7,8 @@ import argparse
 from pathlib import Path
 
 from gui.app import Settings, serve
+from scanner.acquisition.config import load_config
 from scanner.cli.common import UsageError, add_db_option
-from scanner.config import load_config
 from scanner.photo import max_pixels
 
 

@@ -14,8 +14,8 @@ from flask import current_app
 from gui.exports import Exports
 from gui.operation import Operations
 from gui.photos import DEFAULT_MAX_BYTES, DEFAULT_MAX_PIXELS, PhotoStore
-from scanner.config import Config
-from scanner.database import Database
+from scanner.acquisition.config import Config
+from scanner.storage.database import Database
 from taxonomy.models import TrainedModel, load_model
 
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
@@ -29,7 +29,7 @@ class Settings:
     ``upload_limit`` is per photo in bytes; a request may carry three photos plus the form fields.
     ``heartbeat_timeout_s``: a recording browser that has not polled for this long counts as
     disconnected (the Peltier is switched off). ``device_config`` is the scanner configuration
-    (``scanner.config.load_config``; tests pass short step durations). ``trusted_hosts`` guards against
+    (``scanner.acquisition.config.load_config``; tests pass short step durations). ``trusted_hosts`` guards against
     DNS rebinding when bound to the loopback interface; None accepts any Host header. ``export_dir`` is
     where export bundles are built before they are streamed (default: the system's temporary folder,
     ``$TMPDIR``); an export nobody has asked about for ``export_abandon_s`` is cancelled and its file

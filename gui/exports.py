@@ -34,8 +34,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import IO, Any
 
-from scanner.bundle import BundleError
-from scanner.database import Database, ScanRecord
+from scanner.storage.bundle import BundleError
+from scanner.storage.database import Database, ScanRecord
 from scanner.workflows import export_database, extract_database
 from taxonomy.errors import TexplorerError
 

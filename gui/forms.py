@@ -16,8 +16,8 @@ import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
+from scanner.acquisition.session import T_AMB_RANGE, VOLUME_METHODS
 from scanner.scan import JUDGED_SCALE, ScanError, ScanMeta, check_sample_id
-from scanner.session import T_AMB_RANGE, VOLUME_METHODS
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import LabelError, parse_prefix
 from taxonomy.table import Taxonomy, UnknownLabelError
@@ -36,7 +36,7 @@ VOLUME_METHOD_WORDS: Mapping[str, str] = {
     "micro-pearls": "micro-pearl displacement",
     "known": "known volume (dimensions or supplier)",
 }
-"""Words shown for the volume methods the session accepts (``scanner.session.VOLUME_METHODS``)."""
+"""Words shown for the volume methods the session accepts (``scanner.acquisition.session.VOLUME_METHODS``)."""
 
 NOTES_MAX_CHARS = 2000
 
@@ -118,7 +118,7 @@ def parse_judged(text: str, choices: tuple[tuple[float, str], ...], *, what: str
 
 
 def parse_ambient(text: str) -> float:
-    """The ambient temperature in degC, within the MLX90614's range (``scanner.session.T_AMB_RANGE``)."""
+    """The ambient temperature in degC, within the MLX90614's range (``scanner.acquisition.session.T_AMB_RANGE``)."""
     match = re.fullmatch(rf"\s*({_NUMBER})\s*(?:°?C|degC)?\s*", text or "", flags=re.IGNORECASE)
     if not text or not text.strip():
         raise ValueError("enter the ambient temperature in degC")

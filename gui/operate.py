@@ -1,6 +1,6 @@
 """The operator's pages (SPEC 4 and 10): start a scan, the guided steps, the operator form, the summary.
 
-Every page is a view of the running :class:`scanner.session.Session` (through :mod:`gui.operation`); every
+Every page is a view of the running :class:`scanner.acquisition.session.Session` (through :mod:`gui.operation`); every
 action is one session call: ``Session.open``, ``start_step``, ``cancel_step``, ``redo``, ``skip``,
 ``set_photo``, ``capture_photo``, ``set_values``, ``t_amb``, ``save`` and ``abort``. Input is validated by
 :mod:`gui.forms` first so that each reason appears beside its field; the session checks again and its
@@ -34,11 +34,11 @@ from gui.forms import (
 )
 from gui.operation import Operation, SessionBusy
 from gui.photos import UploadError, check_size, check_upload, file_size
-from scanner.config import ConfigError
-from scanner.database import DatabaseError
-from scanner.devices.protocols import DeviceError
+from scanner.acquisition.config import ConfigError
+from scanner.acquisition.devices.protocols import DeviceError
+from scanner.acquisition.session import VOLUME_METHODS, Session, SessionError, StepInfo, StepState
 from scanner.scan import IMAGES
-from scanner.session import VOLUME_METHODS, Session, SessionError, StepInfo, StepState
+from scanner.storage.database import DatabaseError
 from scanner.workflows import predict_values
 from taxonomy.models import ModelError
 from taxonomy.plots import plot_scan, plot_step
@@ -68,7 +68,7 @@ PHASE_TEXT = {
     "heating": "Peltier heating: keep TU2 pressed on the surface",
     "cooling": "Cooling: hold the temperature sensor over the heated spot",
 }
-"""What the operator should be doing in each phase of a recording (``scanner.recorder.Level.phase``)."""
+"""What the operator should be doing in each phase of a recording (``scanner.acquisition.recorder.Level.phase``)."""
 
 
 # -- helpers -------------------------------------------------------------------------------------------

@@ -1,6 +1,6 @@
 """The guided session the web application is running, and the watchdog that keeps the Peltier safe.
 
-The scanner is one device, so the app runs at most one :class:`scanner.session.Session` at a time. An
+The scanner is one device, so the app runs at most one :class:`scanner.acquisition.session.Session` at a time. An
 :class:`Operation` wraps it with what only the web pages need: the staged photo files shown as previews,
 the operator form as typed, a change counter that keys the summary's cached plot and prediction, and the
 time the browser last asked for the recording's status.
@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from gui.photos import PhotoStore
-from scanner.session import Session, SessionState
+from scanner.acquisition.session import Session, SessionState
 from taxonomy.errors import TexplorerError
 
 WATCHDOG_PERIOD_S = 0.25

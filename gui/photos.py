@@ -1,7 +1,7 @@
 """Photo uploads (SPEC 4 step 9, SPEC 10): size-limited, checked before decoding, staged under random names.
 
 An uploaded file is trusted for nothing: its name and declared type are ignored. Before the session decodes
-it (``Session.set_photo`` -> ``scanner.devices.camera.decode_photo``: PNG or JPEG by content, OpenCV),
+it (``Session.set_photo`` -> ``scanner.acquisition.devices.camera.decode_photo``: PNG or JPEG by content, OpenCV),
 :func:`check_upload` refuses files above the size limit and PNG/JPEG headers that announce more pixels
 than the photo limit (:mod:`scanner.photo`), so a small compressed file cannot expand into gigabytes when decoded.
 Each photo the session holds is written as PNG under a random name in a staging folder for the page's
@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from scanner.files import atomic_write_bytes
 from scanner.photo import DEFAULT_MAX_PIXELS, PhotoError, check_pixels, decode, encode_png
+from scanner.storage.files import atomic_write_bytes
 from taxonomy.errors import TexplorerError
 
 DEFAULT_MAX_BYTES = 20 * 1024 * 1024

@@ -1,9 +1,11 @@
-"""texplorer scanner: data model, devices, guided session, preprocessing, storage and the CLI."""
+"""texplorer scanner: the scan model, preprocessing, storage (:mod:`scanner.storage`), acquisition
+(:mod:`scanner.acquisition`), the simulator (:mod:`scanner.simulation`), the shared workflows and the CLI.
+
+This package's surface is the scan model and storage: ``Scan``, ``Recording``, ``Database``, ``load_scan``, ...
+"""
 
 from __future__ import annotations
 
-from scanner.database import Database, DatabaseError
-from scanner.matfile import ScanFormatError, load_scan, save_scan
 from scanner.scan import (
     CHANNELS,
     IMAGES,
@@ -17,6 +19,8 @@ from scanner.scan import (
     ScanMeta,
     Trace,
 )
+from scanner.storage.database import Database, DatabaseError
+from scanner.storage.matfile import ScanFormatError, load_scan, save_scan
 from scanner.version import __version__
 from taxonomy.errors import TexplorerError
 

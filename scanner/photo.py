@@ -2,7 +2,7 @@
 
 Every way a photo enters goes through :func:`decode`: :func:`scanner.load_scan` (and with it import, replay,
 rebuild and feature extraction), web uploads and uploaded files in a session
-(:func:`scanner.devices.camera.decode_photo`). The camera checks the frame size it announces with
+(:func:`scanner.acquisition.devices.camera.decode_photo`). The camera checks the frame size it announces with
 :func:`check_size` before the first frame is read, and :class:`scanner.Scan` refuses an image array beyond
 the limit, so a scan that is saved can always be loaded again.
 
@@ -184,7 +184,7 @@ def decode(data: bytes, name: str = "the photo", limit: int | None = None) -> np
 
 def max_file_bytes(limit: int | None = None, bytes_per_pixel: int = 4) -> int:
     """The largest photo file worth reading: ``bytes_per_pixel`` (4: an uncompressed RGBA PNG; 8 for the
-    16-bit images :mod:`scanner.ingest` reads) for each pixel of the limit, and 1 MB of headers."""
+    16-bit images :mod:`scanner.storage.ingest` reads) for each pixel of the limit, and 1 MB of headers."""
     return bytes_per_pixel * (max_pixels() if limit is None else limit) + (1 << 20)
 
 

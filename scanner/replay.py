@@ -27,10 +27,10 @@ import numpy as np
 
 from features import ScanSource, extract_many
 from features.space import FeatureSpace
-from scanner.files import is_temp_file
-from scanner.matfile import load_scan
 from scanner.scan import CHANNELS, Scan
-from scanner.stored import StoredScan
+from scanner.storage.files import is_temp_file
+from scanner.storage.matfile import load_scan
+from scanner.storage.stored import StoredScan
 from taxonomy.errors import TexplorerError
 from taxonomy.models import ModelError, TrainedModel, predict_top
 

@@ -5,7 +5,7 @@
   them with the database as the cache (a second run over unchanged scans only reads it);
   :func:`stored_features` gives one stored scan's values.
 - **Export a database with its features**: :func:`export_database` writes an export bundle
-  (:func:`scanner.bundle.export_bundle`) whose feature tables come from the database's feature cache.
+  (:func:`scanner.storage.bundle.export_bundle`) whose feature tables come from the database's feature cache.
 - **Predict a scan's top k with names**: :func:`predict_scan` extracts a scan's features and names the
   model's most probable labels with the taxonomy the caller gives (a database's own taxonomy, with its lab
   codes, where there is a database); :func:`name_predictions` names predictions made elsewhere.
@@ -22,9 +22,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from features import FeatureSpace, ScanSource, code_version, extract, extract_many
-from scanner.bundle import ExportReport, Progress, export_bundle
-from scanner.database import Database, DatabaseError, ScanRecord
 from scanner.scan import Scan
+from scanner.storage.bundle import ExportReport, Progress, export_bundle
+from scanner.storage.database import Database, DatabaseError, ScanRecord
 from taxonomy.labels import LabelError
 from taxonomy.models import TrainedModel, predict_top
 from taxonomy.table import Taxonomy, UnknownLabelError
@@ -40,7 +40,7 @@ NOT_IN_TAXONOMY = "(not in the taxonomy table)"
 
 def database_sources(db: Database, records: Iterable[ScanRecord]) -> list[ScanSource]:
     """One :class:`features.ScanSource` per catalog row: loaded where it is extracted (on a cluster worker,
-    exactly the catalogued bytes: :meth:`scanner.database.Database.stored_scans`), cached by content."""
+    exactly the catalogued bytes: :meth:`scanner.storage.database.Database.stored_scans`), cached by content."""
     records = list(records)
     return [ScanSource(r.scan_id, r.label, r.sample_id, stored, cache_key=r.content_hash)
             for r, stored in zip(records, db.stored_scans(records), strict=True)]
@@ -82,7 +82,7 @@ def export_database(db: Database, out: str | os.PathLike[str], *, label: str | N
                     session: str | None = None, workers: int | None = None, progress: Progress = iter) -> ExportReport:
     """Write the scans of ``db`` (optionally a label or class prefix, or one session) as an export bundle
     with their features, read from the feature cache where possible (``workers`` processes extract the
-    rest); see :func:`scanner.bundle.export_bundle` for the bundle and its errors."""
+    rest); see :func:`scanner.storage.bundle.export_bundle` for the bundle and its errors."""
     def features(records: Sequence[ScanRecord]) -> FeatureSpace:
         return extract_database(db, records=records, workers=workers)
 

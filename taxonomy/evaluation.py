@@ -29,8 +29,8 @@ import contextlib
 import sys
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from joblib import Parallel, delayed
@@ -52,9 +52,7 @@ from features import cluster
 from features.registry import REGISTRY
 from features.selection import FQSelector, KeepAll
 from features.space import FeatureSpace
-from taxonomy import labels
-from taxonomy.errors import TexplorerError
-from taxonomy.labels import LabelError
+from taxonomy.results import OWN_METHOD, EvaluationError, Result, warning_notes
 
 if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
     from distributed import Client
@@ -73,10 +71,6 @@ def default_feature_sets() -> dict[str, FeatureSet]:
     """The paper's Figs. 16-18 columns: one modality (registered feature family) at a time, then all of them
     (X3 of "all" is the best-3)."""
     return {**{name: name for name in REGISTRY.modalities}, "all": None}
-
-
-class EvaluationError(TexplorerError, ValueError):
-    """An evaluation that cannot run as asked; the message says why."""
 
 
 def classifier_estimators(seed: int) -> dict[str, BaseEstimator]:
@@ -108,11 +102,6 @@ def _pipeline(classifier: BaseEstimator, n_features: int | None) -> Pipeline:
     ])
 
 
-def size_name(n_features: int | None) -> str:
-    """``X10`` for a selected set size, ``all`` for every feature without selection."""
-    return "all" if n_features is None else f"X{n_features}"
-
-
 CLASSIFIERS: dict[str, Pipeline] = {
     name: _pipeline(estimator, 10) for name, estimator in classifier_estimators(SEED).items()
 }
@@ -142,138 +131,6 @@ def make_pipeline(classifier: str | BaseEstimator = "rf", n_features: int | None
 
 def classifier_name(classifier: str | BaseEstimator) -> str:
     return classifier if isinstance(classifier, str) else type(classifier).__name__
-
-
-# -- metrics -----------------------------------------------------------------------------------------
-
-def major_class(code: str) -> str:
-    """The major class C of a class code at any level (:func:`taxonomy.labels.major_class`), as an
-    :class:`EvaluationError` for a class without one."""
-    try:
-        return labels.major_class(code)
-    except LabelError as exc:
-        raise EvaluationError(str(exc)) from None
-
-
-def r_c(confusion: np.ndarray, classes: Sequence[str]) -> float:
-    """Share of misclassifications whose predicted major class differs from the true one (paper eq. 32).
-
-    ``r_C = sum over misclassified n of (1 - delta(yhat_C,n, y_C,n)) / N_miss``, read from a confusion
-    matrix (rows true, columns predicted, in the order of ``classes``).
-
-    NaN where the metric is undefined (reports show "-"): when nothing is misclassified (no N_miss), and
-    at the coarse level, where the classes are the major classes themselves: every misclassification
-    changes C by definition, so the ratio would be 1 whatever the classifier does and says nothing.
-    """
-    confusion = np.asarray(confusion)
-    if confusion.shape != (len(classes), len(classes)):
-        raise EvaluationError(f"confusion matrix of shape {confusion.shape} for {len(classes)} classes")
-    majors = np.array([major_class(c) for c in classes])
-    if all(major == code for major, code in zip(majors, classes, strict=True)):
-        return float("nan")
-    wrong = ~np.eye(len(classes), dtype=bool)
-    errors = confusion[wrong].sum()
-    if errors == 0:
-        return float("nan")
-    other_major = majors[:, None] != majors[None, :]
-    return float(confusion[other_major].sum() / errors)
-
-
-@dataclass(frozen=True, eq=False)
-class Report:
-    """The cross-validated result of one classifier on one feature set at one level.
-
-    ``accuracy`` and ``f1`` hold one value per fold; ``y_true``, ``y_pred`` and ``fold`` one value per row of
-    the feature space (out-of-fold predictions); ``confusion`` sums all folds (rows true, columns
-    predicted, in the order of ``classes``); ``selected`` lists the feature names each fold's selector kept,
-    best FQ first; ``dropped`` the columns left out because they hold NaN; ``warnings`` what scikit-learn or
-    the split reported while fitting (e.g. an MLP that did not converge). ``n_features`` None means every
-    feature; ``given_split`` that the set's own train/test split was used (one "fold"); ``taxonomy`` that
-    the classes are taxonomy codes (else ``r_c`` is NaN).
-    """
-
-    classifier: str
-    level: str
-    n_features: int | None
-    protocol: str
-    feature_set: str
-    folds: int
-    seed: int
-    grouped: bool
-    classes: tuple[str, ...]
-    accuracy: np.ndarray
-    f1: np.ndarray
-    confusion: np.ndarray
-    selected: tuple[tuple[str, ...], ...]
-    y_true: np.ndarray
-    y_pred: np.ndarray
-    fold: np.ndarray
-    columns: tuple[str, ...]
-    dropped: tuple[str, ...] = ()
-    warnings: tuple[str, ...] = field(default=())
-    given_split: bool = False
-    taxonomy: bool = True
-
-    @property
-    def accuracy_mean(self) -> float:
-        return float(np.mean(self.accuracy))
-
-    @property
-    def accuracy_std(self) -> float:
-        """Sample standard deviation over folds (ddof = 1, MATLAB's ``std``, as the paper's +- values)."""
-        return _fold_std(self.accuracy)
-
-    @property
-    def f1_mean(self) -> float:
-        return float(np.mean(self.f1))
-
-    @property
-    def f1_std(self) -> float:
-        return _fold_std(self.f1)
-
-    @property
-    def r_c(self) -> float:
-        """Paper eq. (32) over all folds' misclassifications; NaN where undefined (no misclassification, the
-        coarse level, or classes that are not taxonomy codes), see :func:`r_c`."""
-        return r_c(self.confusion, self.classes) if self.taxonomy else float("nan")
-
-    @property
-    def splitting(self) -> str:
-        """How the rows were split: ``5 grouped folds``, ``the set's train/test split``, ..."""
-        if self.given_split:
-            return "the set's train/test split"
-        return f"{self.folds} {'grouped' if self.grouped else 'ungrouped'} folds"
-
-    def summary(self) -> str:
-        """One line: ``rf fine X10 all (nested): accuracy 90.2 % +- 1.2 %, F1 0.90 +- 0.01, r_C 0.05 ...``."""
-        return (f"{self.classifier} {self.level} {size_name(self.n_features)} {self.feature_set} "
-                f"({self.protocol}): accuracy {100 * self.accuracy_mean:.1f} % +- {100 * self.accuracy_std:.1f} %, "
-                f"F1 {self.f1_mean:.2f} +- {self.f1_std:.2f}, r_C {format_r_c(self.r_c)} "
-                f"({self.splitting}, {len(self.classes)} classes, seed {self.seed})")
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain JSON-ready values (lists, numbers, strings; NaN r_C becomes None)."""
-        r = self.r_c
-        return {
-            "classifier": self.classifier, "level": self.level, "n_features": self.n_features,
-            "protocol": self.protocol, "feature_set": self.feature_set, "folds": self.folds,
-            "seed": self.seed, "grouped": self.grouped, "given_split": self.given_split,
-            "accuracy": self.accuracy.tolist(), "f1": self.f1.tolist(),
-            "accuracy_mean": self.accuracy_mean, "accuracy_std": self.accuracy_std,
-            "f1_mean": self.f1_mean, "f1_std": self.f1_std, "r_c": None if np.isnan(r) else r,
-            "classes": list(self.classes), "confusion": self.confusion.tolist(),
-            "selected": [list(s) for s in self.selected], "columns": list(self.columns),
-            "dropped": list(self.dropped), "warnings": list(self.warnings),
-        }
-
-
-def format_r_c(value: float) -> str:
-    """r_C with two decimals, or "-" where it is undefined (NaN, see :func:`r_c`)."""
-    return "-" if np.isnan(value) else f"{value:.2f}"
-
-
-def _fold_std(values: np.ndarray) -> float:
-    return float(np.std(values, ddof=1)) if len(values) > 1 else 0.0
 
 
 # -- splits ------------------------------------------------------------------------------------------
@@ -361,7 +218,7 @@ def drop_nan_columns(space: FeatureSpace) -> tuple[FeatureSpace, tuple[str, ...]
 
 def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level: str = "fine",
              n_features: int | None = 10, folds: int = 5, seed: int = SEED, protocol: str = "nested",
-             feature_set: FeatureSet = None, use_split: bool = True, client: Client | None = None) -> Report:
+             feature_set: FeatureSet = None, use_split: bool = True, client: Client | None = None) -> Result:
     """Cross-validate one classifier pipeline on ``space`` at classification ``level`` (paper section V-C).
 
     Parameters
@@ -382,7 +239,7 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
         ``"nested"`` (everything fitted inside the folds) or ``"paper"`` (scaling and selection on all rows).
     feature_set : None, str or list of str
         None / ``"all"``, a modality (``"tactum"``, ``"image"``, ``"audio"``, ``"other"``) or column names.
-        Columns that hold NaN in any row are left out (listed in ``Report.dropped``).
+        Columns that hold NaN in any row are left out (listed in ``Result.dropped``).
     use_split : bool
         Use the space's own train/test split where it has one (``space.split``) instead of ``folds``.
     client : distributed.Client, optional
@@ -391,9 +248,9 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
 
     Returns
     -------
-    Report
+    Result
         Identical on every rerun with the same arguments. Warnings raised while fitting (an MLP that did
-        not converge, the fallback to ungrouped folds) are collected in ``Report.warnings``.
+        not converge, the fallback to ungrouped folds) are collected in ``Result.notes``.
     """
     cell = _Cell(space.check_level(level), _set_name(feature_set), feature_set, n_features)
     return _run(space, [classifier], [cell], folds, seed, protocol, workers=1, progress=False,
@@ -404,7 +261,7 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
                   levels: Iterable[str] | None = None, set_sizes: Iterable[int | None] = (3, 10),
                   feature_sets: Mapping[str, FeatureSet] | None = None, folds: int = 5, seed: int = SEED,
                   protocol: str = "nested", workers: int | None = None,
-                  progress: bool = False, use_split: bool = True, client: Client | None = None) -> list[Report]:
+                  progress: bool = False, use_split: bool = True, client: Client | None = None) -> list[Result]:
     """Every classifier x feature set x level x set size (the paper's Figs. 16-18), folds in parallel.
 
     ``levels`` default to every level of the space (``space.level_names``); a set size None is ``all``.
@@ -413,7 +270,7 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
     :func:`default_feature_sets` restricted to the modalities present in ``space``. Each fold of each
     (level, feature set, size) is one job in one of ``workers`` processes (default: all cores), or one task
     on the Dask cluster of ``client`` (each cell's data sent once), the fine level first because it takes
-    longest; ``progress`` shows a bar. Reports come back ordered by classifier, feature set, level and
+    longest; ``progress`` shows a bar. Results come back ordered by classifier, feature set, level and
     size, and equal those of :func:`evaluate` with the same arguments.
     """
     classifiers = list(classifiers)
@@ -470,8 +327,8 @@ class _Prepared:
 
 def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells: Sequence[_Cell], folds: int,
          seed: int, protocol: str, workers: int | None, progress: bool, use_split: bool = True,
-         client: Client | None = None) -> list[Report]:
-    """Reports of every classifier in every cell, in that order (cells outer, classifiers inner)."""
+         client: Client | None = None) -> list[Result]:
+    """Results of every classifier in every cell, in that order (cells outer, classifiers inner)."""
     if protocol not in PROTOCOLS:
         raise EvaluationError(f"unknown protocol {protocol!r} (expected one of {', '.join(PROTOCOLS)})")
     prepared = [_prepare(space, cell, classifiers, folds, seed, protocol, use_split) for cell in cells]
@@ -518,7 +375,7 @@ def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseE
             with threadpool_limits(limits=1):
                 shared = clone(pipelines[0][:-1]).fit(subset.X, y)
     return _Prepared(cell, subset.X, y, subset.columns, dropped, splits, grouped, own,
-                     space.label_level is None, pipelines, shared, _messages(caught))
+                     space.label_level is None, pipelines, shared, warning_notes(caught))
 
 
 def _without_probabilities(pipeline: Pipeline) -> Pipeline:
@@ -553,31 +410,20 @@ def _fold(prepared: _Prepared, fold: int,
         if protocol == "nested":
             shared = clone(prepared.pipelines[0][:-1]).fit(X[train], y[train])
         X_train, X_test = shared.transform(X[train]), shared.transform(X[test])
-    messages = _messages(caught)
+    messages = warning_notes(caught)
     predictions = []
     for pipeline in prepared.pipelines:
         with warnings.catch_warnings(record=True) as caught, threadpool_limits(limits=1):
             warnings.simplefilter("always")
             classifier = clone(pipeline[-1])
             predictions.append(classifier.fit(X_train, y[train]).predict(X_test))
-        messages += _messages(caught, f"{type(classifier).__name__}: ")
+        messages += warning_notes(caught, f"{type(classifier).__name__}: ")
     return predictions, shared.named_steps["select"].selected_, tuple(dict.fromkeys(messages))
-
-
-def _messages(caught: list[warnings.WarningMessage], source: str = "") -> tuple[str, ...]:
-    """Each warning as one line: who raised it, its category and its whole text."""
-    return tuple(dict.fromkeys(f"{source}{w.category.__name__}: {one_line(str(w.message))}"
-                               for w in caught))
-
-
-def one_line(message: str) -> str:
-    """A message whole on one line: its lines joined, runs of white space made one space."""
-    return " ".join(str(message).split())
 
 
 def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],
              per_fold: list[tuple[list[np.ndarray], np.ndarray, tuple[str, ...]]], seed: int,
-             protocol: str) -> list[Report]:
+             protocol: str) -> list[Result]:
     y, splits, cell = prepared.y, prepared.splits, prepared.cell
     fold_of_row = np.full(len(y), -1, dtype=np.int64)  # -1: a training row of the set's own split
     for index, (_, test) in enumerate(splits):
@@ -594,12 +440,19 @@ def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],
         accuracy = np.array([np.mean(y_pred[test] == y[test]) for _, test in splits])
         f1 = np.array([f1_score(y[test], y_pred[test], average="macro", zero_division=0.0)
                        for _, test in splits])
-        reports.append(Report(
-            classifier=classifier_name(classifier), level=cell.level, n_features=cell.n_features,
-            protocol=protocol, feature_set=cell.set_name, folds=len(splits), seed=seed,
-            grouped=prepared.grouped, classes=tuple(classes.tolist()), accuracy=accuracy, f1=f1,
-            confusion=confusion_matrix(y[tested], y_pred[tested], labels=classes), selected=selected,
-            y_true=y, y_pred=y_pred, fold=fold_of_row, columns=prepared.columns, dropped=prepared.dropped,
-            warnings=notes, given_split=prepared.given_split, taxonomy=prepared.taxonomy,
+        reports.append(Result(
+            method=OWN_METHOD, feature_set=cell.set_name, classifier=classifier_name(classifier),
+            level=cell.level, protocol=protocol, splitting=_splitting(prepared), classes=tuple(classes.tolist()),
+            accuracy=accuracy, f1=f1, confusion=confusion_matrix(y[tested], y_pred[tested], labels=classes),
+            n_samples=len(y), seed=seed, notes=notes, taxonomy=prepared.taxonomy, n_features=cell.n_features,
+            grouped=prepared.grouped, given_split=prepared.given_split, columns=prepared.columns,
+            dropped=prepared.dropped, selected=selected, y_true=y, y_pred=y_pred, fold=fold_of_row,
         ))
     return reports
+
+
+def _splitting(prepared: _Prepared) -> str:
+    """How the rows were split: ``5 grouped folds``, ``the set's train/test split``, ..."""
+    if prepared.given_split:
+        return "the set's train/test split"
+    return f"{len(prepared.splits)} {'grouped' if prepared.grouped else 'ungrouped'} folds"

@@ -33,8 +33,8 @@ from sklearn.preprocessing import MinMaxScaler
 
 from features.selection import FQSelector
 from features.space import FeatureSpace
-from scanner import __version__
-from scanner.files import atomic_write_bytes
+from scanner.storage.files import atomic_write_bytes
+from scanner.version import __version__
 from taxonomy.errors import TexplorerError
 from taxonomy.evaluation import (
     CLASSIFIERS,

@@ -17,8 +17,8 @@ import numpy as np
 import scipy.stats
 
 from scanner.scan import Scan, Trace
-from taxonomy.evaluation import Report
 from taxonomy.labels import LabelError, major_class
+from taxonomy.results import Result
 from taxonomy.table import Taxonomy, load_taxonomy
 
 if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn (_new_figure)
@@ -309,7 +309,7 @@ def class_labels(classes: Sequence[str], taxonomy: Taxonomy | None = None, width
     return labels
 
 
-def plot_scores(reports: Sequence[Report], level: str, n_features: int | None,
+def plot_scores(reports: Sequence[Result], level: str, n_features: int | None,
                 path: str | os.PathLike[str]) -> Path:
     """Accuracy (top) and macro F1 (bottom) per feature set and classifier, like the paper's Figs. 16-18.
 

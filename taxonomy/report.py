@@ -24,10 +24,8 @@ import numpy as np
 
 from features.selection import Selection, select_features
 from features.space import FeatureSpace
-from scanner.files import atomic_write_bytes
-from taxonomy.evaluation import Report, format_r_c, major_class, size_name
+from scanner.storage.files import atomic_write_bytes
 from taxonomy.labels import LEVELS
-from taxonomy.methods import COLUMNS, MethodResult, best_per_method, result_notes
 from taxonomy.plots import (
     plot_confusion,
     plot_feature_boxes,
@@ -36,6 +34,7 @@ from taxonomy.plots import (
     plot_scores,
     plot_spearman,
 )
+from taxonomy.results import COLUMNS, Result, best_per_method, format_r_c, major_class, result_notes, size_name
 
 CELL_LEGEND = ("accuracy % (mean +- std over folds), macro F1, r_C (paper eq. 32; - where undefined: no "
                "misclassification, or the coarse level, where every misclassification leaves the major class)")
@@ -47,23 +46,23 @@ PAGE_STYLE = ("body{font-family:sans-serif;margin:2em;max-width:1200px}table{bor
 """The CSS of every texplorer report page; a wide table scrolls inside the page (a tablet's 800 px)."""
 
 
-def cell_text(report: Report) -> str:
+def cell_text(report: Result) -> str:
     """``"90.2 +- 1.2  0.90  0.05"``: accuracy in percent, macro F1 and r_C.
 
-    r_C is NaN where it is undefined (``taxonomy.evaluation.r_c``: no misclassification, or the coarse
+    r_C is NaN where it is undefined (``taxonomy.results.r_c``: no misclassification, or the coarse
     level) and shown as ``-`` then, never as a number.
     """
     return (f"{100 * report.accuracy_mean:5.1f} +- {100 * report.accuracy_std:4.1f}  {report.f1_mean:4.2f}  "
             f"{format_r_c(report.r_c):>4}")
 
 
-def _level_order(reports: Sequence[Report]) -> list[str]:
+def _level_order(reports: Sequence[Result]) -> list[str]:
     """The levels of the reports, coarse to fine: the taxonomy's, then a set's own in the order evaluated."""
     return [level for level in dict.fromkeys([*LEVELS, *(r.level for r in reports)])
             if any(r.level == level for r in reports)]
 
 
-def _blocks(reports: Sequence[Report]) -> list[tuple[str, list[str], list[tuple[str, str, list[str]]]]]:
+def _blocks(reports: Sequence[Result]) -> list[tuple[str, list[str], list[tuple[str, str, list[str]]]]]:
     """Per (set size, protocol): a title, the levels present, and rows (classifier, feature set, cells)."""
     blocks = []
     for size, protocol in dict.fromkeys((r.n_features, r.protocol) for r in reports):
@@ -85,7 +84,7 @@ def _blocks(reports: Sequence[Report]) -> list[tuple[str, list[str], list[tuple[
     return blocks
 
 
-def format_table(reports: Sequence[Report]) -> str:
+def format_table(reports: Sequence[Result]) -> str:
     """The classifier x feature set x level table as text, one block per set size and protocol."""
     if not reports:
         return "no results"
@@ -106,7 +105,7 @@ def format_table(reports: Sequence[Report]) -> str:
 # -- HTML page ---------------------------------------------------------------------------------------
 
 
-def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: Sequence[Report],
+def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: Sequence[Result],
                  level: str = "fine", n_features: int = 10, feature: str | None = None, top: int = 30,
                  max_classes: int = 40) -> Path:
     """Write ``index.html`` and its PNG figures into ``folder``; returns the path of ``index.html``.
@@ -115,7 +114,7 @@ def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: S
     ----------
     space : features.space.FeatureSpace
         The feature space the reports were computed on (for FQ, Spearman, PCA and box plots).
-    reports : list of Report
+    reports : list of Result
         From ``taxonomy.evaluation.evaluate`` / ``evaluate_grid``; may be empty.
     level, n_features : str, int
         Level and set size of the FQ ranking and Spearman heat map (selection on all rows).
@@ -185,7 +184,7 @@ def _boxes(folder: Path, space: FeatureSpace, feature: str, level: str,
     return f"{feature} per class at the {level} level{scope} (Fig. 14)", path
 
 
-def _html(space: FeatureSpace, reports: Sequence[Report], selection: Selection,
+def _html(space: FeatureSpace, reports: Sequence[Result], selection: Selection,
           figures: list[tuple[str, Path]]) -> str:
     e = html.escape
     counts = ", ".join(f"{np.unique(space.y(level)).size} {level}" for level in space.level_names)
@@ -214,7 +213,7 @@ def _html(space: FeatureSpace, reports: Sequence[Report], selection: Selection,
         splits = {"the set's own train/test split" if r.given_split else
                   grouping if r.grouped else "not grouped" for r in reports}
         parts.append(f"<p>Folds: {e(', '.join(sorted(splits)))}.</p>")
-        notes = list(dict.fromkeys(note for r in reports for note in r.warnings))
+        notes = list(dict.fromkeys(note for r in reports for note in r.notes))
         dropped = sorted({c for r in reports for c in r.dropped})
         if dropped:
             parts.append(f"<p>Left out for NaN values: {e(', '.join(dropped))}.</p>")
@@ -238,12 +237,12 @@ def _figure_html(caption: str, path: Path) -> str:
 # -- comparison of the related methods (SPEC 7.5) ---------------------------------------------------------
 
 
-def write_comparison(folder: str | os.PathLike[str], results: Sequence[MethodResult], title: str,
+def write_comparison(folder: str | os.PathLike[str], results: Sequence[Result], title: str,
                      outcome: Mapping[str, str] | None = None) -> Path:
     """Write the related-methods comparison as ``index.html`` (same page format as :func:`write_report`).
 
     The page holds what became of every method (``outcome``: ran, or why not), the comparison table
-    (:data:`taxonomy.methods.COLUMNS`, times per classification), the notes naming their method, an
+    (:data:`taxonomy.results.COLUMNS`, times per classification), the notes naming their method, an
     accuracy chart of every result and the confusion matrix of each method's best result; the PNGs are
     written beside it and embedded in it. Returns the path of ``index.html``.
     """
@@ -256,7 +255,7 @@ def write_comparison(folder: str | os.PathLike[str], results: Sequence[MethodRes
         figures.append(("accuracy of every method, feature set, classifier and motion set (mean +- std over "
                         "splits); grey ticks: the most frequent class", chart))
     for best in best_per_method(results):
-        caption = (f"{best.method}: {best.features}, {best.classifier}, {best.motions}, {best.level}; "
+        caption = (f"{best.method}: {best.feature_set}, {best.classifier}, {best.motions}, {best.level}; "
                    f"accuracy {100 * best.accuracy_mean:.1f} %")
         figures.append((f"confusion matrix of the best {best.method} result ({caption})",
                         plot_confusion(best.confusion, best.classes, folder / f"confusion_{best.method}.png",
@@ -273,7 +272,7 @@ def write_comparison(folder: str | os.PathLike[str], results: Sequence[MethodRes
     parts.append("</table><p>Times per classification: feature extraction in ms, classifier in us (one row "
                  "at a time). Paper: the figure its paper reports for that configuration.</p>")
     notes = result_notes(results)
-    details = [f"{r.method} {r.features} {r.classifier}: {r.detail}" for r in results if r.detail]
+    details = [f"{r.method} {r.feature_set} {r.classifier}: {r.detail}" for r in results if r.detail]
     for heading, items in (("Notes", notes), ("Details", details)):
         if items:
             parts.append(f"<h3>{heading}</h3><ul>" + "".join(f"<li>{e(i)}</li>" for i in items) + "</ul>")
@@ -285,7 +284,7 @@ def write_comparison(folder: str | os.PathLike[str], results: Sequence[MethodRes
     return page
 
 
-def _plot_comparison(results: Sequence[MethodResult], path: Path) -> Path:
+def _plot_comparison(results: Sequence[Result], path: Path) -> Path:
     """Horizontal accuracy bars, one per result, coloured by method, with the majority-class rate."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -299,7 +298,7 @@ def _plot_comparison(results: Sequence[MethodResult], path: Path) -> Path:
     ax.barh(y, [100 * r.accuracy_mean for r in results], xerr=[100 * r.accuracy_std for r in results],
             color=colours, error_kw={"elinewidth": 0.8})
     ax.scatter([100 * r.chance for r in results], y, marker="|", color="0.4", s=80, zorder=3)
-    labels = [f"{r.method} {r.features} {r.classifier} {r.motions} {r.level}" for r in results]
+    labels = [f"{r.method} {r.feature_set} {r.classifier} {r.motions} {r.level}" for r in results]
     ax.set_yticks(y, labels, fontsize=float(np.clip(300 / max(len(results), 1), 5, 9)))
     ax.set_xlim(0, 105)
     ax.set_xlabel("accuracy (%)")

@@ -31,8 +31,8 @@ import scipy.io
 from conftest import png_bomb
 
 import features
-from scanner.matfile import MAX_SCAN_BYTES, ScanFormatError, encode_mat, load_scan, scan_to_variables
 from scanner.scan import CHANNELS
+from scanner.storage.matfile import MAX_SCAN_BYTES, ScanFormatError, encode_mat, load_scan, scan_to_variables
 
 REGRESSION = Path(__file__).parent / "regression" / "scans"
 BASE = "granite-polished-01-001"

@@ -23,7 +23,8 @@ import pytest
 from conftest import make_scan, png_bomb
 
 from features import FeatureSpace, extract
-from scanner.bundle import (
+from scanner.cli import EXIT_PROBLEMS, main
+from scanner.storage.bundle import (
     MANIFEST,
     MANIFEST_SUM,
     BundleError,
@@ -31,9 +32,8 @@ from scanner.bundle import (
     parse_manifest,
     unsafe_name,
 )
-from scanner.cli import EXIT_PROBLEMS, main
-from scanner.database import Database, DatabaseError
-from scanner.matfile import save_scan
+from scanner.storage.database import Database, DatabaseError
+from scanner.storage.matfile import save_scan
 from scanner.workflows import export_database
 from taxonomy.table import Taxonomy, load_taxonomy
 
@@ -368,8 +368,8 @@ def _listed(manifest: dict, root: Path, names: list[str]) -> None:
 
 def _forge_scan(folder: Path, scan, **meta) -> None:
     """Add ``scan`` to a folder bundle, its ``meta`` changed as a foreign writer could, every checksum right."""
-    from scanner.database import FileEntry, content_hash
-    from scanner.matfile import encode_mat, scan_to_variables
+    from scanner.storage.database import FileEntry, content_hash
+    from scanner.storage.matfile import encode_mat, scan_to_variables
 
     scan_id = f"{scan.meta.sample_id}-{int(meta.get('scan_index', scan.meta.scan_index)):03d}"
     mat = folder / f"scans/{scan.meta.label}/{scan.meta.sample_id}/{scan_id}.mat"
@@ -435,7 +435,7 @@ def test_a_zip_entry_nested_under_a_file_is_refused_with_the_list_of_problems(bu
 @pytest.mark.parametrize(("fail", "at"), [("insert", 3), ("move", 1), ("move", 7), ("move", 13)])
 def test_an_import_failing_at_the_catalog_or_a_move_leaves_the_database_byte_identical(
         bundle, target, monkeypatch, fail, at):
-    import scanner.database as database
+    import scanner.storage.database as database
 
     before = _snapshot(target.root)
     calls = []
@@ -574,8 +574,8 @@ def test_add_written_moves_nothing_when_one_scan_of_the_batch_clashes(tmp_path):
 
 IMPORTER = textwrap.dedent("""
     import os, signal, sys, time
-    import scanner.database as database
-    from scanner.bundle import import_bundle
+    import scanner.storage.database as database
+    from scanner.storage.bundle import import_bundle
 
     mode, kill_at = sys.argv[3], int(sys.argv[4])
     calls = {"replace": 0, "insert": 0}

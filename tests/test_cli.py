@@ -12,7 +12,7 @@ import pytest
 from conftest import make_scan
 
 from scanner.cli import EXIT_PIPE, EXIT_PROBLEMS, build_parser, main
-from scanner.database import Database
+from scanner.storage.database import Database
 
 
 @pytest.fixture

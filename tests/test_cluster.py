@@ -29,9 +29,9 @@ from test_evaluation import labelled_space  # noqa: E402
 
 from features import FeatureSpace, ScanSource, code_version, extract_many  # noqa: E402
 from features.cluster import ClusterError, DataShipped, connect, local_workers, scheduler_address  # noqa: E402
-from scanner.database import Database  # noqa: E402
 from scanner.simulation import recordings as sim  # noqa: E402
 from scanner.simulation.database import synthetic_database  # noqa: E402
+from scanner.storage.database import Database  # noqa: E402
 from taxonomy.evaluation import evaluate, evaluate_grid  # noqa: E402
 from taxonomy.methods import Dataset, compare  # noqa: E402
 

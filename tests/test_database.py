@@ -20,9 +20,9 @@ import pytest
 from conftest import make_scan, png_bomb
 
 from scanner.cli import EXIT_PROBLEMS, main
-from scanner.database import Database, DatabaseError
-from scanner.files import owned_folder
-from scanner.matfile import encode_mat, save_scan, scan_to_variables
+from scanner.storage.database import Database, DatabaseError
+from scanner.storage.files import owned_folder
+from scanner.storage.matfile import encode_mat, save_scan, scan_to_variables
 from taxonomy.labels import LabelError
 
 
@@ -256,7 +256,7 @@ CRASHING_WRITER = textwrap.dedent("""
     import os, signal, sys
     sys.path.insert(0, {tests!r})
     from conftest import make_scan
-    import scanner.database as database
+    import scanner.storage.database as database
 
     def crash(*args, **kwargs):
         os.kill(os.getpid(), signal.SIGKILL)
@@ -415,8 +415,8 @@ KILLER = textwrap.dedent("""
     import json, os, random, signal, sqlite3, sys, time
     sys.path.insert(0, {tests!r})
     from conftest import make_scan
-    from scanner.database import Database
-    from scanner.files import sha256_file
+    from scanner.storage.database import Database
+    from scanner.storage.files import sha256_file
 
     root, kills, seed = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
     rng = random.Random(seed)
@@ -489,7 +489,7 @@ def test_writers_killed_at_60_random_moments_lose_nothing_and_leave_only_leftove
 REBUILD_KILLER = textwrap.dedent("""
     import json, os, random, shutil, signal, sys, time
     sys.path.insert(0, {tests!r})
-    from scanner.database import Database, DatabaseError
+    from scanner.storage.database import Database, DatabaseError
 
     template, work, kills, seed = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
     rng = random.Random(seed)

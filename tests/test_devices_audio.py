@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scanner.devices.audio import PlaybackMicrophone
-from scanner.devices.sources import Pacer, SimulatedSample
+from scanner.acquisition.devices.audio import PlaybackMicrophone
+from scanner.acquisition.devices.sources import Pacer, SimulatedSample
 
 SYSTEM_ALSA = Path("/usr/share/alsa/alsa.conf")
 
@@ -58,9 +58,9 @@ def alsa_file_device(tmp_path):
 CAPTURE = textwrap.dedent("""\
     import json, sys, time
     import numpy as np
-    from scanner.config import MicrophoneConfig
-    from scanner.devices.audio import SoundDeviceMicrophone
-    from scanner.devices.protocols import DeviceUnavailable
+    from scanner.acquisition.config import MicrophoneConfig
+    from scanner.acquisition.devices.audio import SoundDeviceMicrophone
+    from scanner.acquisition.devices.protocols import DeviceUnavailable
 
     microphone = SoundDeviceMicrophone(MicrophoneConfig(device="texplorer_mic"))
     before = time.perf_counter()

@@ -19,9 +19,9 @@ pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminal
 
 serial = pytest.importorskip("serial")
 
-from scanner.config import BoardConfig  # noqa: E402
-from scanner.devices import board as board_module  # noqa: E402
-from scanner.devices.board import (  # noqa: E402
+from scanner.acquisition.config import BoardConfig  # noqa: E402
+from scanner.acquisition.devices import board as board_module  # noqa: E402
+from scanner.acquisition.devices.board import (  # noqa: E402
     BoardModel,
     LineError,
     SerialBoard,
@@ -33,15 +33,15 @@ from scanner.devices.board import (  # noqa: E402
     parse_data_line,
     resync,
 )
-from scanner.devices.protocols import (  # noqa: E402
+from scanner.acquisition.devices.protocols import (  # noqa: E402
     BoardSample,
     BoardTimeout,
     ConnectionLost,
     DeviceError,
     DeviceUnavailable,
 )
-from scanner.devices.sources import SimulatedSample  # noqa: E402
-from scanner.emulators.board import BoardEmulator, FaultPlan  # noqa: E402
+from scanner.acquisition.devices.sources import SimulatedSample  # noqa: E402
+from scanner.acquisition.emulators.board import BoardEmulator, FaultPlan  # noqa: E402
 
 
 def test_docstring_examples():

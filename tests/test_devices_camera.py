@@ -6,10 +6,10 @@ import cv2
 import numpy as np
 import pytest
 
-from scanner.config import CameraConfig
-from scanner.devices.camera import OpenCvCamera, PhotoError, PlaybackCamera, decode_photo
-from scanner.devices.protocols import DeviceError, DeviceUnavailable
-from scanner.devices.sources import SimulatedSample
+from scanner.acquisition.config import CameraConfig
+from scanner.acquisition.devices.camera import OpenCvCamera, PhotoError, PlaybackCamera, decode_photo
+from scanner.acquisition.devices.protocols import DeviceError, DeviceUnavailable
+from scanner.acquisition.devices.sources import SimulatedSample
 
 
 def frames(count: int, shape=(48, 64)) -> list[np.ndarray]:

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scanner.config import (
+from scanner.acquisition.config import (
     DAQ_ROLES,
     DEFAULT_CHANNEL_MAP,
     Calibration,

@@ -13,11 +13,11 @@ import pytest
 pytest.importorskip("grpc")
 nidaqmx = pytest.importorskip("nidaqmx")
 
-from scanner.config import DAQ_ROLES, Calibration, Config, DaqConfig  # noqa: E402
-from scanner.devices.daq import NidaqmxDaq, PlaybackDaq  # noqa: E402
-from scanner.devices.protocols import AcquisitionError, DeviceUnavailable  # noqa: E402
-from scanner.devices.sources import Pacer, SimulatedSample, rest_volts  # noqa: E402
-from scanner.emulators.daq_grpc import DaqEmulator, DaqServicer, expand_channels  # noqa: E402
+from scanner.acquisition.config import DAQ_ROLES, Calibration, Config, DaqConfig  # noqa: E402
+from scanner.acquisition.devices.daq import NidaqmxDaq, PlaybackDaq  # noqa: E402
+from scanner.acquisition.devices.protocols import AcquisitionError, DeviceUnavailable  # noqa: E402
+from scanner.acquisition.devices.sources import Pacer, SimulatedSample, rest_volts  # noqa: E402
+from scanner.acquisition.emulators.daq_grpc import DaqEmulator, DaqServicer, expand_channels  # noqa: E402
 
 
 class RampSource:

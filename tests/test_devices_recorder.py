@@ -12,15 +12,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from scanner.config import BoardConfig, Calibration, Config, parse_config
-from scanner.devices import Devices
-from scanner.devices.audio import PlaybackMicrophone
-from scanner.devices.board import BoardPeltier, PlaybackBoard, SerialBoard
-from scanner.devices.camera import PlaybackCamera
-from scanner.devices.daq import DaqPeltier, NidaqmxDaq, PlaybackDaq
-from scanner.devices.protocols import AudioCapture, ConnectionLost
-from scanner.devices.sources import Pacer, SimulatedSample, rest_volts
-from scanner.recorder import Recorder, StepCancelled, heat
+from scanner.acquisition.config import BoardConfig, Calibration, Config, parse_config
+from scanner.acquisition.devices import Devices
+from scanner.acquisition.devices.audio import PlaybackMicrophone
+from scanner.acquisition.devices.board import BoardPeltier, PlaybackBoard, SerialBoard
+from scanner.acquisition.devices.camera import PlaybackCamera
+from scanner.acquisition.devices.daq import DaqPeltier, NidaqmxDaq, PlaybackDaq
+from scanner.acquisition.devices.protocols import AudioCapture, ConnectionLost
+from scanner.acquisition.devices.sources import Pacer, SimulatedSample, rest_volts
+from scanner.acquisition.recorder import Recorder, StepCancelled, heat
 
 posix = pytest.mark.skipif(sys.platform == "win32", reason="the board emulator needs pseudo-terminals")
 
@@ -29,7 +29,7 @@ posix = pytest.mark.skipif(sys.platform == "win32", reason="the board emulator n
 
 @pytest.fixture
 def board_emulator():
-    from scanner.emulators.board import BoardEmulator
+    from scanner.acquisition.emulators.board import BoardEmulator
 
     emulator = BoardEmulator(SimulatedSample("granite-polished", seed=1))
     board = SerialBoard(BoardConfig(port=str(emulator.path), reconnect_s=2.0))
@@ -138,7 +138,7 @@ def test_a_board_that_stays_away_switches_off_by_itself(board_emulator):
 @pytest.fixture
 def line():
     pytest.importorskip("grpc")
-    from scanner.emulators.daq_grpc import DaqEmulator, DaqServicer
+    from scanner.acquisition.emulators.daq_grpc import DaqEmulator, DaqServicer
 
     with DaqEmulator(DaqServicer()) as emulator:
         daq = NidaqmxDaq(Config().with_daq_server(f"grpc://{emulator.address}").daq)
@@ -338,7 +338,7 @@ def test_level_readings_follow_the_recording():
 
 @posix
 def test_board_gaps_during_cooling_are_interpolated_and_reported():
-    from scanner.emulators.board import BoardEmulator, FaultPlan
+    from scanner.acquisition.emulators.board import BoardEmulator, FaultPlan
 
     sample = SimulatedSample("granite-polished", seed=1)
     with BoardEmulator(sample, faults=FaultPlan(gap_every=7)) as emulator:

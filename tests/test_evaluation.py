@@ -24,11 +24,10 @@ from taxonomy.evaluation import (
     cv_splits,
     evaluate,
     evaluate_grid,
-    major_class,
     make_pipeline,
-    r_c,
 )
 from taxonomy.report import cell_text, format_table, write_report
+from taxonomy.results import major_class, one_line, r_c
 
 MODALITIES = ("tactum", "image", "audio", "other")
 
@@ -235,17 +234,17 @@ def test_feature_sets_pick_columns():
 def test_fallback_to_ungrouped_folds_is_reported():
     report = evaluate(labelled_space(samples=1, scans=5), "nb", level="fine", n_features=3)
     assert not report.grouped
-    assert any("single sample" in note for note in report.warnings)
+    assert any("single sample" in note for note in report.notes)
 
 
 def test_warnings_name_their_classifier_and_are_whole_on_one_line():
     from sklearn.neural_network import MLPClassifier
 
     report = evaluate(labelled_space(), MLPClassifier(max_iter=2, random_state=0), level="fine", n_features=3)
-    (warning,) = [w for w in report.warnings if "ConvergenceWarning" in w]
+    (warning,) = [w for w in report.notes if "ConvergenceWarning" in w]
     assert warning.startswith("MLPClassifier: ConvergenceWarning: Stochastic Optimizer: Maximum iterations (2)")
     assert warning.endswith("the optimization hasn't converged yet.") and "\n" not in warning
-    assert evaluation.one_line("a\nb:\n  c\n\nadvice.") == "a b: c advice."
+    assert one_line("a\nb:\n  c\n\nadvice.") == "a b: c advice."
 
 
 @pytest.mark.parametrize(("kwargs", "error", "message"), [

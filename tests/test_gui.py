@@ -24,9 +24,9 @@ from gui.forms import (
     validate_start,
 )
 from gui.photos import PhotoStore, UploadError, check_upload
-from scanner.devices.camera import PhotoError, decode_photo
-from scanner.matfile import encode_png
+from scanner.acquisition.devices.camera import PhotoError, decode_photo
 from scanner.photo import image_size
+from scanner.storage.matfile import encode_png
 from taxonomy.table import load_taxonomy
 
 # -- forms --------------------------------------------------------------------------------------------
@@ -245,7 +245,7 @@ RECORDED_STEPS = ("finger_tap", "finger_slide", "tool_tap", "tool_slide", "stati
 
 def fast_config(realtime=False, heat=0.2):
     """Simulated devices with short steps; not paced in real time unless asked."""
-    from scanner.config import Config, SimulatedConfig, StepDurations
+    from scanner.acquisition.config import Config, SimulatedConfig, StepDurations
 
     return Config(steps=StepDurations(finger_tap=0.3, finger_slide=0.6, tool_tap=0.3, tool_slide=0.6,
                                       static=0.2, heat=heat, thermal=0.4, friction=0.3, press=0.3, fold=0.3),
@@ -637,7 +637,7 @@ def test_peltier_off_when_the_browser_goes_silent_while_heating(tmp_path):
 def stocked(tmp_path):
     from conftest import make_scan
 
-    from scanner.database import Database
+    from scanner.storage.database import Database
 
     db = Database(tmp_path / "db")
     db.add(make_scan(0, sample_id="granite-01", scan_index=1, image_shape=(300, 300)))
@@ -721,7 +721,7 @@ def exporter(tmp_path):
     """The stocked database's app with its own temporary folder for bundles, to see what is left there."""
     from conftest import make_scan
 
-    from scanner.database import Database
+    from scanner.storage.database import Database
 
     db = Database(tmp_path / "db")
     db.add(make_scan(0, sample_id="granite-01", scan_index=1, session_id="s-1", image_shape=(300, 300)))
@@ -849,7 +849,7 @@ def test_relative_database_path_serves_files(tmp_path, monkeypatch):
     although Flask reads relative paths against its package folder (they were all HTTP 500)."""
     from conftest import make_scan
 
-    from scanner.database import Database
+    from scanner.storage.database import Database
 
     monkeypatch.chdir(tmp_path)
     Database("texplorer-data").add(make_scan(0, image_shape=(300, 300)))
@@ -963,7 +963,7 @@ def test_texplorer_serve_refuses_bad_options(tmp_path, capsys):
 def test_unmeasured_values_read_not_measured(tmp_path):
     from conftest import make_scan
 
-    from scanner.database import Database
+    from scanner.storage.database import Database
 
     Database(tmp_path / "db").add(make_scan(0, mass_g=math.nan, t_amb=math.nan, atk=math.nan))
     app = make_app(tmp_path / "db")
@@ -976,7 +976,7 @@ def test_unmeasured_values_read_not_measured(tmp_path):
 def test_export_folder_missing_is_one_line(tmp_path):
     from conftest import make_scan
 
-    from scanner.database import Database
+    from scanner.storage.database import Database
 
     Database(tmp_path / "db").add(make_scan(0))
     app = make_app(tmp_path / "db", export_dir=tmp_path / "no-such-folder")

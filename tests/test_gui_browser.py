@@ -32,8 +32,8 @@ if not Path(CHROMIUM).is_file():
 
 from test_gui import make_app  # noqa: E402
 
-from scanner.config import Config, SimulatedConfig, StepDurations  # noqa: E402
-from scanner.matfile import encode_png  # noqa: E402
+from scanner.acquisition.config import Config, SimulatedConfig, StepDurations  # noqa: E402
+from scanner.storage.matfile import encode_png  # noqa: E402
 
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                  "--disable-background-networking", "--disable-component-update", "--disable-sync"]

@@ -55,7 +55,7 @@ MEMORY = textwrap.dedent("""
     import cv2, numpy as np
     import features
     from conftest import png_bomb
-    from scanner.matfile import ScanFormatError, load_scan, save_scan
+    from scanner.storage.matfile import ScanFormatError, load_scan, save_scan
 
     warnings.simplefilter("ignore")
     regression, work, side = Path(sys.argv[1]), Path(sys.argv[2]), int(sys.argv[3])

@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scanner import ingest
-from scanner.ingest import IngestError
 from scanner.scan import Recording, Trace
 from scanner.simulation.recordings import biotac_recordings, biotac_rows
+from scanner.storage import ingest
+from scanner.storage.ingest import IngestError
 
 FIXTURES = Path(__file__).parent / "fixtures" / "ingest"
 

@@ -12,8 +12,8 @@ import scipy.io
 from conftest import make_scan
 
 from features import tactum
-from scanner.matfile import ScanFormatError, ScanFormatWarning, load_scan, save_scan
 from scanner.scan import CHANNELS, Scan, Trace
+from scanner.storage.matfile import ScanFormatError, ScanFormatWarning, load_scan, save_scan
 
 META_FIELDS = {"label", "operator", "sample_id", "scan_index", "session_id", "started", "t_amb", "mass_g",
                "volume_cm3", "volume_method", "atk", "cyd", "rigid", "fs", "units", "raw_volts", "device",
@@ -156,7 +156,7 @@ def test_corrupt_photo_is_reported(tmp_path):
 
 
 def test_failed_write_leaves_the_previous_file_untouched(tmp_path, monkeypatch):
-    import scanner.matfile as matfile
+    import scanner.storage.matfile as matfile
 
     first = make_scan(images=False)
     save_scan(first, tmp_path / "s.mat")
@@ -205,7 +205,7 @@ def test_a_flag_that_is_neither_0_nor_1_is_a_format_error(tmp_path, value, reaso
 
 
 def test_a_compressed_variable_inflating_beyond_the_limit_is_refused_without_inflating_it(tmp_path, monkeypatch):
-    import scanner.matfile as matfile
+    import scanner.storage.matfile as matfile
 
     noisy = make_scan(images=False, seconds=2.0)
     scan = Scan(noisy.meta, {name: Trace(np.zeros_like(trace.data), trace.fs, trace.unit)

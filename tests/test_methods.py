@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import pickle
 from dataclasses import replace
 
 import numpy as np
 import pytest
 from scipy.stats import multivariate_normal
+from sklearn.base import clone
 from sklearn.naive_bayes import GaussianNB
 from sklearn.neighbors import KNeighborsClassifier
 from sklearn.preprocessing import StandardScaler
@@ -18,6 +20,7 @@ from scanner.scan import Recording, Trace
 from scanner.simulation import recordings as sim
 from taxonomy import methods
 from taxonomy.methods import Dataset, MethodError, compare
+from taxonomy.results import format_comparison, warning_notes
 
 # -- simulated sensors -------------------------------------------------------------------------------
 
@@ -193,7 +196,7 @@ def test_chathuranga_end_to_end(soft):
     assert by["pairwise-svm"].n_samples == 48 and len(by["pairwise-svm"].accuracy) == 2
     assert all(r.accuracy_mean > 0.4 for r in results)  # chance: 0.25
     assert 0 < by["pairwise-svm"].classify_seconds < 0.1 and by["pairwise-svm"].paper == "89 %, 280 us"
-    table = methods.format_comparison(results)
+    table = format_comparison(results)
     assert table.splitlines()[0].split()[:3] == ["method", "features", "classifier"]
     assert "pairwise-svm" in table
 
@@ -219,9 +222,9 @@ def test_huang_and_hoelscher_end_to_end():
     assert max(r.accuracy_mean for r in huang) > 0.5  # 8 objects: chance 0.125
     results = compare(data, ["hoelscher"], repeats=2)
     singles = [r for r in results if r.motions == "each"]
-    assert {r.features for r in singles} == set(methods.HOELSCHER_SETS)
+    assert {r.feature_set for r in singles} == set(methods.HOELSCHER_SETS)
     assert len(singles) == len(methods.HOELSCHER_SETS) * len(methods.HOELSCHER_CLASSIFIERS)
-    combined = {(r.motions, r.classifier, r.level, r.protocol): r for r in results if r.motions != "each"}
+    combined = {(r.motions, r.classifier, r.level, r.splitting): r for r in results if r.motions != "each"}
     concatenated = combined[("2 motions, concatenation", "linear-svm", "object", "2 x one per object")]
     assert concatenated.accuracy_mean > 0.6 and concatenated.paper.startswith("97.6")
     assert ("2 motions, probabilities", "gaussian", "object", "2 x one per object") in combined
@@ -249,7 +252,7 @@ def test_compare_skips_a_method_the_data_cannot_feed():
     # 20 rows at 100 Hz: Xie needs 1 s, so it cannot run; seed 004's electrode features can.
     with pytest.warns(methods.MethodSkipped, match="method xie skipped: xie_sequences works on none of 6"):
         results = compare(short, repeats=1)
-    assert {r.method for r in results} == {"hoelscher"} and {r.features for r in results} == {"chitta"}
+    assert {r.method for r in results} == {"hoelscher"} and {r.feature_set for r in results} == {"chitta"}
     with pytest.raises(MethodError, match=r"method xie: xie_sequences works on none.*1 s of electrodes"):
         compare(short, ["xie"])
 
@@ -258,7 +261,7 @@ def test_a_baseline_without_its_value_is_reported_not_dropped(soft):
     no_speed = [replace(r, meta={k: v for k, v in r.meta.items() if k != "velocity_mm_s"})
                 for r in soft.recordings]
     comparison = methods.compare_methods(no_speed, ["chathuranga"], repeats=2)
-    assert {r.features for r in comparison.results} == {"chathuranga4", "chathuranga_net"}
+    assert {r.feature_set for r in comparison.results} == {"chathuranga4", "chathuranga_net"}
     assert comparison.outcome == {"chathuranga": "ran (2 results); the spatial-period baseline not run: "
                                                  "chathuranga_period needs the palpation velocity "
                                                  f"meta['velocity_mm_s'] of recording {soft.recordings[0].name!r}"}
@@ -271,8 +274,8 @@ def test_notes_name_their_method_and_are_whole():
         w.simplefilter("always")
         w.warn("lbfgs failed to converge:\nSTOP: TOTAL NO. OF ITERATIONS\n\n  Increase max_iter.", UserWarning,
                stacklevel=1)
-    assert methods.messages(caught) == ["UserWarning: lbfgs failed to converge: STOP: TOTAL NO. OF ITERATIONS "
-                                         "Increase max_iter."]
+    assert warning_notes(caught) == ("UserWarning: lbfgs failed to converge: STOP: TOTAL NO. OF ITERATIONS "
+                                     "Increase max_iter.",)
 
 
 def test_cli_compare_prints_the_table_and_writes_the_report(tmp_path, capsys):
@@ -310,6 +313,32 @@ def _expected_failures(estimator) -> dict[str, str]:
         "check_estimators_pickle", "check_f_contiguous_array_estimator", "check_transformer_data_not_an_array",
         "check_transformer_general", "check_transformer_preserve_dtypes", "check_methods_sample_order_invariance",
         "check_methods_subset_invariance", "check_dict_unchanged", "check_fit_idempotent"), XIE_WIDTH)
+
+
+def test_xie_features_keep_the_estimator_contract_on_sequence_vectors():
+    """What the checks above cannot feed XieFeatures (3n-wide rows): pickling, repeated fits, row order and
+    subsets, input types, an unchanged state after transform and a clear refusal of another width."""
+    rng = np.random.default_rng(5)
+    X = rng.normal(3.0, 1.5, (24, 3 * 100))  # 100 samples per sequence: wavelet level 4 without boundary effects
+    step = related.XieFeatures()
+    assert step.fit(X) is step and clone(step).get_params() == {}
+    out = step.transform(X)
+    state = pickle.dumps(step.__dict__)
+    assert np.array_equal(step.transform(X), out) and pickle.dumps(step.__dict__) == state
+    assert np.array_equal(related.XieFeatures().fit(X).transform(X), out)  # fit is idempotent
+    assert np.array_equal(pickle.loads(pickle.dumps(step)).transform(X), out)
+    order = rng.permutation(len(X))
+    assert np.allclose(step.transform(X[order]), out[order], rtol=1e-12, atol=1e-12)
+    assert np.allclose(step.transform(X[5:9]), out[5:9], rtol=1e-12, atol=1e-12)
+    assert np.allclose(step.transform(X.tolist()), out, rtol=1e-12, atol=1e-12)
+    assert np.allclose(related.XieFeatures().fit(np.asfortranarray(X)).transform(X), out, rtol=1e-12, atol=1e-12)
+    whole = np.rint(X).astype(np.int64)
+    assert np.allclose(related.XieFeatures().fit(whole).transform(whole),
+                       related.XieFeatures().fit(whole.astype(np.float64)).transform(whole), rtol=1e-12)
+    with pytest.raises(ValueError, match="features"):  # scikit-learn's own check of the width seen in fit
+        step.transform(X[:, :30])
+    with pytest.raises(related.RelatedFeatureError, match=r"3n >= 6 entries, got shape \(10,\)"):
+        related.XieFeatures().fit(X[:, :10]).transform(X[:, :10])
 
 
 @parametrize_with_checks([methods.PairwiseEliminationSVM(palpations=1), methods.NearestSpatialPeriod(),

@@ -23,7 +23,7 @@ from scipy.io import wavfile
 from features import FeatureSpace
 from features.recordings import Windowing, feature_space
 from scanner.cli import main
-from scanner.ingest import load_recordings, set_folder
+from scanner.storage.ingest import load_recordings, set_folder
 from taxonomy.evaluation import evaluate_grid
 from taxonomy.report import cell_text
 

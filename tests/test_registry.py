@@ -1,5 +1,6 @@
-"""The feature-family registry: a toy family added through the registry alone reaches extraction, the
-feature space, evaluation, the web groups and the cache key."""
+"""The feature-family registries: a toy family added through the registry alone reaches extraction, the
+feature space, evaluation, the web groups and the cache key; a toy family of generic recordings reaches
+their families, columns, feature space and the message naming the roles the families need."""
 
 from __future__ import annotations
 
@@ -11,9 +12,11 @@ from conftest import make_scan
 
 from features import NAMES, REGISTRY, Family, FeatureSpace, code_version, extract, extract_many
 from features.extraction import source_of
-from features.registry import RegistryError
+from features.recordings import describe_families, families, feature_space
+from features.registry import ROLE_REGISTRY, RegistryError, RoleFamily
 from gui.browser import group_features
 from scanner import cli
+from scanner.scan import Recording, Trace
 from taxonomy.evaluation import default_feature_sets, evaluate
 
 TOY = ("toy.peak_v_ts", "toy.samples_v_ts")
@@ -116,3 +119,56 @@ def test_a_family_is_refused_when_it_clashes():
         Family("toy", "toy", ("peak",), toy_values)
     with pytest.raises(RegistryError, match="no feature family 'smell'"):
         REGISTRY.unregister("smell")
+
+
+# -- families of generic recordings -----------------------------------------------------------------------
+
+TOY_TEMPERATURE = ("other.temperature.mean", "other.temperature.range")
+
+
+def temperature_values(window: np.ndarray, fs: float) -> list[float]:
+    """The mean and the range of a temperature window: values known without any feature code."""
+    return [float(window.mean()), float(window.max() - window.min())]
+
+
+@pytest.fixture
+def toy_role():
+    family = ROLE_REGISTRY.register(RoleFamily("temperature", "temperature", TOY_TEMPERATURE, temperature_values,
+                                               applies=lambda fs: fs >= 1.0))
+    yield family
+    ROLE_REGISTRY.unregister(family.name)
+
+
+def warm(name: str, label: str, degrees: float) -> Recording:
+    ramp = degrees + np.linspace(0.0, 2.0, 40)
+    return Recording(name, {"t": Trace(ramp, 10.0, "degC")}, {"temperature": "t"}, label)
+
+
+def test_the_project_families_of_recordings_in_order():
+    assert ROLE_REGISTRY.modalities == ("audio.audio", "audio.vibration", "image.photo", "vibration", "friction")
+    assert [family.role for family in ROLE_REGISTRY] == ["audio", "vibration", "photo", "vibration", "force_xyz"]
+
+
+def test_a_toy_role_family_reaches_the_recordings_features(toy_role):
+    recordings = [warm("a", "cold", 20.0), warm("b", "warm", 30.0)]
+    assert families(recordings[0]) == ["temperature"]
+    space, notes = feature_space(recordings)
+    assert space.columns == TOY_TEMPERATURE and notes == []
+    assert space.X.tolist() == [[21.0, 2.0], [31.0, 2.0]]
+    assert space.modality("other").columns == TOY_TEMPERATURE
+    assert describe_families(space.columns) == "other.temperature (2)"
+    slow = Recording("c", {"t": Trace(np.ones(4), 0.5, "degC")}, {"temperature": "t"}, "cold")
+    assert families(slow) == []  # its applies() refuses 0.5 Hz
+
+
+def test_the_roles_the_families_need_come_from_the_registry(toy_role):
+    pressed = Recording("p", {"d": Trace(np.ones(10), 100.0, "kPa")}, {"pressure_dc": "d"}, "soft")
+    with pytest.raises(ValueError, match="the families need audio, vibration, photo, force_xyz or temperature$"):
+        feature_space([pressed])
+
+
+def test_a_role_family_is_refused_when_it_clashes():
+    with pytest.raises(RegistryError, match="'<modality>.photo.<feature>'"):
+        RoleFamily("toy", "photo", ("image.disp.lbp_0",), temperature_values)
+    with pytest.raises(RegistryError, match="already registered: audio.audio.zcr"):
+        ROLE_REGISTRY.register(RoleFamily("sound again", "audio", ("audio.audio.zcr",), temperature_values))

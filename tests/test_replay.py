@@ -13,7 +13,6 @@ from conftest import make_scan
 
 from features import NAMES, SOLVER_RTOL, FeatureSpace
 from scanner.cli import EXIT_MISMATCH, main
-from scanner.matfile import save_scan
 from scanner.replay import (
     STEPS,
     Difference,
@@ -26,6 +25,7 @@ from scanner.replay import (
     scan_paths,
     within,
 )
+from scanner.storage.matfile import save_scan
 
 REGRESSION = Path(__file__).with_name("regression")
 SCANS = REGRESSION / "scans"

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from features import extract
+from scanner.acquisition.config import ConfigError, parse_config
+from scanner.acquisition.session import Session, SessionError, SessionState, StepState, procedure
 from scanner.cli import main
-from scanner.config import ConfigError, parse_config
-from scanner.database import Database
-from scanner.session import Session, SessionError, SessionState, StepState, procedure
+from scanner.storage.database import Database
 
 FAST = {"steps": {"finger_tap": 2.0, "finger_slide": 2.0, "tool_tap": 2.0, "tool_slide": 2.0, "static": 0.5,
                   "heat": 0.1, "thermal": 1.0, "friction": 1.5, "press": 1.5, "fold": 1.5},
@@ -324,9 +324,9 @@ def test_texplorer_scan_reprompts_bad_values(tmp_path, monkeypatch, capsys):
 @pytest.mark.skipif(sys.platform == "win32", reason="the board emulator needs pseudo-terminals")
 def test_texplorer_scan_through_the_emulators(tmp_path, monkeypatch, capsys):
     pytest.importorskip("grpc")
-    from scanner.devices.sources import SimulatedSample
-    from scanner.emulators.board import BoardEmulator
-    from scanner.emulators.daq_grpc import DaqEmulator, DaqServicer
+    from scanner.acquisition.devices.sources import SimulatedSample
+    from scanner.acquisition.emulators.board import BoardEmulator
+    from scanner.acquisition.emulators.daq_grpc import DaqEmulator, DaqServicer
 
     sample = SimulatedSample("granite-polished", sample_id="granite-01", seed=21)
     with DaqEmulator(DaqServicer(sample)) as daq, BoardEmulator(sample) as board:
@@ -353,8 +353,8 @@ def test_texplorer_scan_through_the_emulators(tmp_path, monkeypatch, capsys):
 def test_real_device_libraries_load_only_when_used():
     import subprocess
 
-    code = ("import sys\nfrom scanner.cli import build_parser\nfrom scanner.config import parse_config\n"
-            "from scanner.session import Session\n"
+    code = ("import sys\nfrom scanner.cli import build_parser\nfrom scanner.acquisition.config import parse_config\n"
+            "from scanner.acquisition.session import Session\n"
             "s = Session.open(parse_config({'simulated': {'realtime': False}}), label='C6S1M1P2X1', "
             "sample_id='g-01', operator='ab')\ns.record('press')\ns.abort()\n"
             "print(sorted(m for m in ('nidaqmx', 'sounddevice', 'serial', 'grpc') if m in sys.modules))")

@@ -539,8 +539,8 @@ def test_plot_scan_writes_one_page_png_also_without_fold_channels(tmp_path, foam
 def test_plot_step_draws_one_steps_channels_800_px_wide(foam_and_steel):
     import io
 
-    from scanner.config import Config
-    from scanner.session import procedure
+    from scanner.acquisition.config import Config
+    from scanner.acquisition.session import procedure
     from taxonomy.plots import plot_step
 
     scan = foam_and_steel[0]

@@ -1,4 +1,4 @@
-"""Stored scans loaded elsewhere (scanner.stored): a worker's view of the files is checked against the
+"""Stored scans loaded elsewhere (scanner.storage.stored): a worker's view of the files is checked against the
 catalogued size and SHA-256, and a scan sent as bytes loads, or fails, exactly as a local load does."""
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ from pathlib import Path
 import pytest
 from conftest import make_scan
 
-from scanner import matfile
-from scanner.matfile import ScanFormatError, encode_mat, load_scan, photo_names, save_scan, scan_to_variables
 from scanner.photo import MAX_PIXELS_ENV
-from scanner.stored import NotOnThisMachine, SeenFiles, ShippedScan, StoredScan
+from scanner.storage import matfile
+from scanner.storage.matfile import ScanFormatError, encode_mat, load_scan, photo_names, save_scan, scan_to_variables
+from scanner.storage.stored import NotOnThisMachine, SeenFiles, ShippedScan, StoredScan
 
 
 def stored(tmp_path: Path, image_shape: tuple[int, int] = (240, 320)) -> StoredScan:
@@ -97,7 +97,7 @@ def test_files_beyond_the_limits_are_refused_unread_and_reported_as_locally(tmp_
     monkeypatch.delenv(MAX_PIXELS_ENV)
     scan = stored(tmp_path)
     monkeypatch.setattr(matfile, "MAX_SCAN_BYTES", 1000)
-    monkeypatch.setattr("scanner.stored.MAX_SCAN_BYTES", 1000)
+    monkeypatch.setattr("scanner.storage.stored.MAX_SCAN_BYTES", 1000)
     expected = local_error(scan.path)
     assert "MB is larger than the 0 MB a scan file may have" in expected
     shipped = received(scan, tmp_path)

@@ -71,8 +71,9 @@ def test_the_wheel_holds_every_module_template_static_and_data_file(wheel):
     with zipfile.ZipFile(wheel) as archive:
         names = {name for name in archive.namelist() if not name.startswith("texplorer-")}
     assert names == _source_files()
-    for expected in ("scanner/devices/daq.py", "scanner/emulators/board.py", "gui/templates/step.html",
-                     "gui/static/app.js", "scanner/data/materials.toml", "taxonomy/data/taxonomy.csv"):
+    for expected in ("scanner/acquisition/devices/daq.py", "scanner/acquisition/emulators/board.py",
+                     "scanner/storage/bundle.py", "gui/templates/step.html", "gui/static/app.js",
+                     "scanner/data/materials.toml", "taxonomy/data/taxonomy.csv"):
         assert expected in names
 
 
@@ -90,8 +91,8 @@ def test_the_installed_wheel_runs_without_the_source_tree(wheel, tmp_path):
     work = tmp_path / "elsewhere"
     work.mkdir()
 
-    where = _run([python, "-c", "import scanner, features, taxonomy, gui, scanner.devices.daq, "
-                  "scanner.emulators.board; print(scanner.__file__, gui.__file__)"], cwd=work).stdout
+    where = _run([python, "-c", "import scanner, features, taxonomy, gui, scanner.acquisition.devices.daq, "
+                  "scanner.acquisition.emulators.board; print(scanner.__file__, gui.__file__)"], cwd=work).stdout
     assert str(ROOT) not in where and str(purelib) in where
 
     texplorer = env_dir / "bin" / "texplorer"

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from features import code_version, extract
-from scanner.database import Database, DatabaseError
 from scanner.simulation.database import synthetic_database
+from scanner.storage.database import Database, DatabaseError
 from scanner.workflows import (
     NOT_IN_TAXONOMY,
     Prediction,

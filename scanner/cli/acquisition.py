@@ -9,19 +9,19 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from scanner.acquisition.config import load_config
+from scanner.acquisition.devices.protocols import DeviceError
+from scanner.acquisition.devices.sources import SimulatedSample
+from scanner.acquisition.session import VOLUME_METHODS, Session, SessionError, StepState
 from scanner.cli.common import EXIT_ERROR, add_db_option, open_db
-from scanner.config import load_config
-from scanner.database import DatabaseError, is_database
-from scanner.devices.protocols import DeviceError
-from scanner.devices.sources import SimulatedSample
 from scanner.scan import IMAGES, JUDGED_SCALE
-from scanner.session import VOLUME_METHODS, Session, SessionError, StepState
+from scanner.storage.database import DatabaseError, is_database
 from scanner.workflows import format_predictions, predict_scan
 from taxonomy.errors import TexplorerError
 from taxonomy.models import load_model
 
 try:  # pseudo-terminals: POSIX only
-    from scanner.emulators.board import BoardEmulator, FaultPlan
+    from scanner.acquisition.emulators.board import BoardEmulator, FaultPlan
 except ImportError as missing:
     BoardEmulator = FaultPlan = None
     NO_PSEUDO_TERMINALS = str(missing)
@@ -199,7 +199,7 @@ def cmd_emulate_board(args: argparse.Namespace) -> int:
 
 def cmd_emulate_daq(args: argparse.Namespace) -> int:
     # The emulator is built on gRPC and the nidaqmx stubs, optional libraries no other command loads.
-    from scanner.emulators.daq_grpc import DaqEmulator, DaqServicer
+    from scanner.acquisition.emulators.daq_grpc import DaqEmulator, DaqServicer
 
 
     sample = SimulatedSample(args.material, seed=args.seed)
@@ -242,7 +242,7 @@ def register(commands: argparse._SubParsersAction) -> None:
     emulators = emulate.add_subparsers(dest="emulator", metavar="DEVICE", required=True)
     emulate_board = emulators.add_parser(
         "board", help="serial sensor board on a pseudo-terminal; prints its device path",
-        description="The serial sensor board (its line protocol is described in scanner/devices/board.py) "
+        description="The serial sensor board (its line protocol is described in scanner/acquisition/devices/board.py) "
         "on a pseudo-terminal, until Ctrl-C. Use the "
         "printed path as board.port or with 'texplorer scan --board PATH'. POSIX only.")
     emulate_board.add_argument("--link", type=Path, help="path of the port's symbolic link "

@@ -26,13 +26,14 @@ from scanner.cli.common import (
     set_sizes,
     space_for,
 )
-from scanner.ingest import load_recordings, set_folder
-from scanner.matfile import load_scan
+from scanner.storage.ingest import load_recordings, set_folder
+from scanner.storage.matfile import load_scan
 from scanner.workflows import extract_database, format_predictions, predict_scan
-from taxonomy.evaluation import CLASSIFIERS, default_feature_sets, evaluate_grid, one_line
+from taxonomy.evaluation import CLASSIFIERS, default_feature_sets, evaluate_grid
 from taxonomy.labels import LEVELS
 from taxonomy.models import load_model, save_model, train_model
 from taxonomy.report import format_table, write_report
+from taxonomy.results import one_line
 from taxonomy.table import load_taxonomy
 
 
@@ -86,7 +87,7 @@ def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
     splitting = reports[0].splitting if reports else f"{args.folds} folds"
     print(f"{len(reports)} evaluations ({args.protocol} protocol, {splitting}) "
           f"in {time.perf_counter() - started:.1f} s")
-    for warning in sorted({w for report in reports for w in report.warnings if w.strip()}):
+    for warning in sorted({w for report in reports for w in report.notes if w.strip()}):
         print(f"texplorer: warning: {warning}", file=sys.stderr)
     if args.report:
         print(f"report: {write_report(args.report, space, reports)}")

@@ -15,7 +15,7 @@ from tqdm import tqdm
 
 from features import REGISTRY, FeatureSpace
 from features.cluster import ClusterError, connect, describe
-from scanner.database import Database
+from scanner.storage.database import Database
 from scanner.workflows import extract_database
 from taxonomy.errors import TexplorerError
 from taxonomy.evaluation import CLASSIFIERS

@@ -9,9 +9,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from features import REGISTRY, SOLVER_RTOL, FeatureSpace
-from scanner.bundle import BundleError, import_bundle
 from scanner.cli.common import EXIT_ERROR, EXIT_PROBLEMS, add_cluster_options, add_db_option, cluster, open_db, progress
-from scanner.matfile import load_scan
 from scanner.replay import (
     DEFAULT_ATOL,
     DEFAULT_RTOL,
@@ -24,6 +22,8 @@ from scanner.replay import (
     replay,
     scan_paths,
 )
+from scanner.storage.bundle import BundleError, import_bundle
+from scanner.storage.matfile import load_scan
 from scanner.workflows import export_database
 from taxonomy.labels import Label
 from taxonomy.models import load_model

@@ -7,8 +7,9 @@ import time
 from pathlib import Path
 
 from scanner.cli.common import EXIT_PROBLEMS, UsageError, add_cluster_options, add_db_option, cluster, progress
-from scanner.database import Database, DatabaseError
-from scanner.ingest import (
+from scanner.simulation.recordings import simulate_recordings
+from scanner.storage.database import Database, DatabaseError
+from scanner.storage.ingest import (
     IngestError,
     default_mapping,
     ingest,
@@ -21,9 +22,9 @@ from scanner.ingest import (
     summarise_notes,
     with_grid,
 )
-from scanner.simulation.recordings import simulate_recordings
-from taxonomy.methods import METHODS, Dataset, MethodError, compare_methods, format_comparison
+from taxonomy.methods import METHODS, Dataset, MethodError, compare_methods
 from taxonomy.report import write_comparison
+from taxonomy.results import format_comparison
 
 
 def ingest_mapping(args: argparse.Namespace):

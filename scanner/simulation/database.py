@@ -1,4 +1,4 @@
-"""A simulated database: many synthetic scans stored through :class:`scanner.database.Database` (``texplorer
+"""A simulated database: many synthetic scans stored through :class:`scanner.storage.database.Database` (``texplorer
 demo``). Kept apart from the simulator's physics so that the simulated devices do not depend on storage."""
 
 from __future__ import annotations
@@ -11,16 +11,16 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from scanner.database import Database
 from scanner.scan import Scan
 from scanner.simulation.scans import scan_jobs, simulate_one
+from scanner.storage.database import Database
 
 
 def synthetic_database(root: str | Path, materials: Iterable[str] | None = None, scans_per_material: int = 5,
                        seed: int = 0, image_size: tuple[int, int] = (512, 512), progress: bool = True,
                        fold_skip_probability: float = 0.5, workers: int | None = None,
                        samples_per_material: int = 1) -> Database:
-    """Simulate scans (see :func:`synthetic_scans`) into ``scanner.database.Database(root)``; returns it.
+    """Simulate scans (see :func:`synthetic_scans`) into ``scanner.storage.database.Database(root)``; returns it.
 
     Scans are simulated in ``workers`` processes (default: the number of cores) and added by this process
     in a fixed order. Scans whose id is already in the database are kept, not simulated again, so an

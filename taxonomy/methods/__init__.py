@@ -1,8 +1,9 @@
 """The related methods on the same footing: each seed paper's features, classifiers and protocol (SPEC 7.5).
 
 :func:`compare` runs every method that applies to a :class:`Dataset` (our scans, imported recordings or a
-simulated sensor) and returns one :class:`MethodResult` per (method, feature set, classifier, motions,
-level): accuracy and macro F1 over the splits of the method's published protocol, and the time per
+simulated sensor) and returns one :class:`taxonomy.results.Result` per (method, feature set, classifier,
+motions, level), the type the project's own evaluation returns too (:func:`taxonomy.results.format_comparison`
+prints them as a table): accuracy and macro F1 over the splits of the method's published protocol, and the time per
 classification split into feature extraction and the classifier itself.
 
 =============  =========================================================================================
@@ -54,7 +55,6 @@ from taxonomy.methods.compare import (
     Comparison,
     Method,
     applicable,
-    best_per_method,
     compare,
     compare_methods,
     every,
@@ -91,21 +91,15 @@ from taxonomy.methods.hoelscher import (
 )
 from taxonomy.methods.huang import HUANG_PAPER, huang_classifier, run_huang
 from taxonomy.methods.scoring import (
-    COLUMNS,
     Maker,
-    MethodResult,
-    Run,
     Scores,
     Split,
-    format_comparison,
     holdout_splits,
     kfold_splits,
     leave_object_out_splits,
-    messages,
-    method_result,
     one_per_object_splits,
-    result_notes,
     score,
+    scored,
     usable_rows,
 )
 from taxonomy.methods.xie import (
@@ -120,15 +114,13 @@ from taxonomy.methods.xie import (
 )
 
 __all__ = [
-    "applicable", "best_per_method", "CHATHURANGA_PAPER", "COLUMNS", "COMBINATIONS", "combined_table", "compare",
-    "compare_methods", "Comparison", "Dataset", "every", "extract", "Extracted", "FeatureCache",
-    "format_comparison", "hoelscher_classifier", "HOELSCHER_CLASSIFIERS", "hoelscher_features", "HOELSCHER_PAPER",
-    "HOELSCHER_SETS", "holdout_splits", "huang_classifier", "HUANG_PAPER", "kfold_splits",
-    "leave_object_out_splits", "Maker", "MEAN_DIMENSIONS", "messages", "Method", "METHOD_ROLES", "MethodError",
-    "MethodResult", "METHODS", "MethodSkipped", "motion_of", "MotionCombination", "NearestSpatialPeriod",
-    "not_applicable", "object_of", "one_per_object_splits", "PairwiseEliminationSVM", "palpation_table",
-    "pca_sweep", "REPEATS", "method_result", "result_notes", "Run", "run_chathuranga", "run_fishel", "run_hoelscher",
-    "run_huang", "run_xie", "score", "Scores", "SEED", "ShrunkGaussian", "slides_first", "Split", "TIMED_ROWS",
-    "trial_of", "usable_rows", "ValidationSplit", "xie_classifier", "XIE_CLASSIFIERS", "XIE_MAX_DIMENSIONS",
-    "XIE_PAPER", "xie_pipeline",
+    "applicable", "CHATHURANGA_PAPER", "COMBINATIONS", "combined_table", "compare", "compare_methods", "Comparison",
+    "Dataset", "every", "extract", "Extracted", "FeatureCache", "hoelscher_classifier", "HOELSCHER_CLASSIFIERS",
+    "hoelscher_features", "HOELSCHER_PAPER", "HOELSCHER_SETS", "holdout_splits", "huang_classifier", "HUANG_PAPER",
+    "kfold_splits", "leave_object_out_splits", "Maker", "MEAN_DIMENSIONS", "Method", "METHOD_ROLES", "MethodError",
+    "METHODS", "MethodSkipped", "motion_of", "MotionCombination", "NearestSpatialPeriod", "not_applicable",
+    "object_of", "one_per_object_splits", "PairwiseEliminationSVM", "palpation_table", "pca_sweep", "REPEATS",
+    "run_chathuranga", "run_fishel", "run_hoelscher", "run_huang", "run_xie", "score", "scored", "Scores", "SEED",
+    "ShrunkGaussian", "slides_first", "Split", "TIMED_ROWS", "trial_of", "usable_rows", "ValidationSplit",
+    "xie_classifier", "XIE_CLASSIFIERS", "XIE_MAX_DIMENSIONS", "XIE_PAPER", "xie_pipeline",
 ]

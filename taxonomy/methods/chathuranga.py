@@ -21,7 +21,8 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 if TYPE_CHECKING:
     from distributed import Client
 from taxonomy.methods.datasets import Dataset, Extracted, FeatureCache, MethodError, MethodSkipped, motion_of, trial_of
-from taxonomy.methods.scoring import MethodResult, Run, holdout_splits, method_result, score
+from taxonomy.methods.scoring import holdout_splits, score, scored
+from taxonomy.results import Result
 
 
 class PairwiseEliminationSVM(ClassifierMixin, BaseEstimator):
@@ -154,7 +155,7 @@ def palpation_table(dataset: Dataset, extracted: Extracted,
 
 
 def run_chathuranga(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
-                    client: Client | None = None) -> list[MethodResult]:
+                    client: Client | None = None) -> list[Result]:
     """Chathuranga et al.: elimination over (up to) three palpations; the two single-palpation baselines."""
     c4 = cache.get("chathuranga4")
     per_trial = {}
@@ -167,13 +168,13 @@ def run_chathuranga(dataset: Dataset, cache: FeatureCache, seed: int, repeats: i
     _, X, first = palpation_table(dataset, c4, count)
     y = dataset.y(dataset.label_level, first)
     splits = holdout_splits(y, max(repeats // 2, 2), 1 / 6, seed)
-    protocol = f"{len(splits)} x holdout 1/6"
+    splitting = f"{len(splits)} x holdout 1/6"
     level = dataset.label_level
     seconds = float(np.nanmedian(c4.seconds[first])) * count
-    run = Run("chathuranga", "chathuranga4", "pairwise-svm", f"{count} palpation(s)", level, protocol,
-               CHATHURANGA_PAPER["pairwise-svm"])
     scores = score(lambda _, __: PairwiseEliminationSVM(palpations=count), X, y, splits, client)
-    results = [method_result(run, scores, len(y), seconds)]
+    results = [scored(scores, len(y), seconds, method="chathuranga", feature_set="chathuranga4",
+                      classifier="pairwise-svm", motions=f"{count} palpation(s)", level=level, splitting=splitting,
+                      seed=seed, paper=CHATHURANGA_PAPER["pairwise-svm"])]
     baselines = {"spatial-period": ("chathuranga_period", NearestSpatialPeriod),
                  "neural-net": ("chathuranga_net", lambda: Pipeline([
                      ("scale", StandardScaler()),
@@ -194,8 +195,9 @@ def run_chathuranga(dataset: Dataset, cache: FeatureCache, seed: int, repeats: i
             continue
         X_b, y_b = extracted.X[usable], dataset.y(level, usable)
         b_splits = holdout_splits(y_b, len(splits), 1 / 6, seed)
-        run = Run("chathuranga", set_name, name, "1 palpation", level, protocol, CHATHURANGA_PAPER[name])
         scores = score(lambda _, __, make=make: make(), X_b, y_b, b_splits, client)
         seconds = float(np.nanmedian(extracted.seconds[usable]))
-        results.append(method_result(run, scores, len(y_b), seconds, results_note))
+        results.append(scored(scores, len(y_b), seconds, results_note, method="chathuranga", feature_set=set_name,
+                              classifier=name, motions="1 palpation", level=level, splitting=splitting, seed=seed,
+                              paper=CHATHURANGA_PAPER[name]))
     return results

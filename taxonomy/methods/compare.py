@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -16,8 +16,8 @@ from taxonomy.methods.datasets import REPEATS, SEED, Dataset, FeatureCache, Meth
 from taxonomy.methods.fishel import run_fishel
 from taxonomy.methods.hoelscher import HOELSCHER_SETS, run_hoelscher
 from taxonomy.methods.huang import run_huang
-from taxonomy.methods.scoring import MethodResult
 from taxonomy.methods.xie import run_xie
+from taxonomy.results import Result
 
 
 @dataclass(frozen=True)
@@ -28,7 +28,7 @@ class Method:
     paper: str
     needs: str
     applies: Callable[[Dataset], bool]
-    run: Callable[[Dataset, FeatureCache, int, int, Client | None], list[MethodResult]]
+    run: Callable[[Dataset, FeatureCache, int, int, Client | None], list[Result]]
 
 
 
@@ -83,7 +83,7 @@ def not_applicable(dataset: Dataset, name: str) -> str | None:
 class Comparison:
     """The results of :func:`compare_methods` and, for every method, ``ran`` or why it did not run."""
 
-    results: list[MethodResult]
+    results: list[Result]
     outcome: dict[str, str]
 
     def format_outcome(self) -> str:
@@ -124,7 +124,7 @@ def compare_methods(dataset: Dataset | Sequence[Recording] | Sequence[Scan], met
 
 def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Sequence[str] | None = None, *,
             seed: int = SEED, repeats: int = REPEATS, progress: Callable[[Iterable[str]], Iterable[str]] = iter,
-            client: Client | None = None) -> list[MethodResult]:
+            client: Client | None = None) -> list[Result]:
     """Run the related methods on one dataset, each with its published features, classifiers and protocol.
 
     Parameters
@@ -147,8 +147,8 @@ def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Se
 
     Returns
     -------
-    list of MethodResult
-        In method order; see :func:`format_comparison` for the table.
+    list of Result
+        In method order; see :func:`taxonomy.results.format_comparison` for the table.
     """
     data = _as_dataset(dataset)
     names = applicable(data) if methods is None else list(methods)
@@ -161,7 +161,7 @@ def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Se
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise MethodError(f"repeats must be a positive integer, got {repeats!r}")
     cache = FeatureCache(data)
-    results: list[MethodResult] = []
+    results: list[Result] = []
     for name in progress(names):
         try:
             results += METHODS[name].run(data, cache, seed, repeats, client)
@@ -183,9 +183,3 @@ def _as_dataset(dataset: Dataset | Sequence[Recording] | Sequence[Scan]) -> Data
     if items and all(isinstance(item, Recording) for item in items):
         return Dataset.from_recordings("recordings", items)
     raise MethodError("compare needs a Dataset, or a non-empty list of only scans or only recordings")
-
-
-def best_per_method(results: Sequence[MethodResult]) -> Iterator[MethodResult]:
-    """The most accurate result of every method (first on ties), in method order."""
-    for method in dict.fromkeys(r.method for r in results):
-        yield max((r for r in results if r.method == method), key=lambda r: r.accuracy_mean)

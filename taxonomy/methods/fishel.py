@@ -16,11 +16,12 @@ from taxonomy.evaluation import classifier_estimators, cv_splits
 if TYPE_CHECKING:
     from distributed import Client
 from taxonomy.methods.datasets import Dataset, FeatureCache, object_of
-from taxonomy.methods.scoring import MethodResult, Run, messages, method_result, score, usable_rows
+from taxonomy.methods.scoring import score, scored, usable_rows
+from taxonomy.results import Result, warning_notes
 
 
 def run_fishel(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
-               client: Client | None = None) -> list[MethodResult]:
+               client: Client | None = None) -> list[Result]:
     """``fishel3`` with the project's six classifiers, 5-fold CV grouped by sample (fewer folds when a class
     has fewer scans), every taxonomy level."""
     extracted = cache.get("fishel3")
@@ -36,15 +37,16 @@ def run_fishel(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             splits, grouped = cv_splits(y, groups, folds, seed, grouping_labels=fine)
-        protocol = f"{len(splits)}-fold CV{' by sample' if grouped else ''}"
+        splitting = f"{len(splits)}-fold CV{' by sample' if grouped else ''}"
         for name in classifier_estimators(seed):
             def make(_: int, __: np.ndarray, name: str = name) -> Pipeline:
                 return Pipeline([("scale", MinMaxScaler()),
                                  ("classify", _without_probability(classifier_estimators(seed)[name]))])
-            run = Run("fishel", "fishel3", name, "tool slide + friction", level, protocol)
             seconds = float(np.nanmedian(extracted.seconds[rows]))
-            results.append(method_result(run, score(make, X, y, splits, client), len(rows), seconds,
-                                   [*notes, *messages(caught)]))
+            results.append(scored(score(make, X, y, splits, client), len(rows), seconds,
+                                  [*notes, *warning_notes(caught)], method="fishel", feature_set="fishel3",
+                                  classifier=name, motions="tool slide + friction", level=level,
+                                  splitting=splitting, seed=seed, taxonomy=True))
     return results
 
 

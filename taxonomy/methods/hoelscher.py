@@ -34,16 +34,15 @@ from taxonomy.methods.datasets import (
     trial_of,
 )
 from taxonomy.methods.scoring import (
-    MethodResult,
-    Run,
     Scores,
     Split,
     leave_object_out_splits,
-    method_result,
     one_per_object_splits,
     score,
+    scored,
     usable_rows,
 )
+from taxonomy.results import Result
 
 HOELSCHER_SETS = ("xu3", "chu", "mean23", "dallaire", "chitta", "temperature")
 HOELSCHER_CLASSIFIERS = ("nb", "gaussian", "linear-svm", "rbf-svm", "rf")
@@ -205,7 +204,7 @@ def _motion_rows(dataset: Dataset, motion: str) -> list[int]:
 
 
 def _single_motion(dataset: Dataset, cache: FeatureCache, set_name: str, classifier: str, seed: int,
-                   repeats: int, client: Client | None = None) -> MethodResult:
+                   repeats: int, client: Client | None = None) -> Result:
     """One feature set and classifier on every motion separately; the accuracies of all motions together.
     Motions it cannot run on are noted; if that is every motion, a :class:`MethodError` says why."""
     extracted = cache.get(set_name)
@@ -238,10 +237,11 @@ def _single_motion(dataset: Dataset, cache: FeatureCache, set_name: str, classif
                     tuple(dict.fromkeys(n for s in scores for n in s.notes)))
     motions = "static" if list(per_motion) == ["static"] else (
         "each" if len(per_motion) > 1 else next(iter(per_motion)))
-    run = Run("hoelscher", set_name, classifier, motions, level, f"{repeats} x one per object",
-               HOELSCHER_PAPER.get((set_name, classifier, motions), ""),
-               "per motion: " + ", ".join(f"{m} {100 * a:.1f} %" for m, a in per_motion.items()))
-    return method_result(run, merged, int(np.mean(sizes)), float(np.median(seconds)), notes)
+    return scored(merged, int(np.mean(sizes)), float(np.median(seconds)), notes, method="hoelscher",
+                  feature_set=set_name, classifier=classifier, motions=motions, level=level,
+                  splitting=f"{repeats} x one per object", seed=seed,
+                  paper=HOELSCHER_PAPER.get((set_name, classifier, motions), ""),
+                  detail="per motion: " + ", ".join(f"{m} {100 * a:.1f} %" for m, a in per_motion.items()))
 
 
 def combined_table(dataset: Dataset, extracted: Extracted,
@@ -257,7 +257,7 @@ def combined_table(dataset: Dataset, extracted: Extracted,
 
 
 def _combined(dataset: Dataset, cache: FeatureCache, mode: str, classifier: str, level: str,
-              protocol: str, seed: int, repeats: int, client: Client | None = None) -> MethodResult | None:
+              protocol: str, seed: int, repeats: int, client: Client | None = None) -> Result | None:
     extracted = cache.get("mean23")
     motions = dataset.motions()
     X, first = combined_table(dataset, extracted, motions)
@@ -273,13 +273,13 @@ def _combined(dataset: Dataset, cache: FeatureCache, mode: str, classifier: str,
     label = f"{len(motions)} motions, {mode}"
     shown = f"{repeats} x one per object" if protocol == "one per object" else "held-out objects"
     paper = HOELSCHER_PAPER.get(("mean23", classifier, mode), "") if level == dataset.label_level else ""
-    run = Run("hoelscher", "mean23", classifier, label, level, shown, paper)
     seconds = float(np.nanmedian(extracted.seconds[first])) * len(motions)
-    return method_result(run, score(make, X, y, splits, client), len(first), seconds)
+    return scored(score(make, X, y, splits, client), len(first), seconds, method="hoelscher", feature_set="mean23",
+                  classifier=classifier, motions=label, level=level, splitting=shown, seed=seed, paper=paper)
 
 
 def run_hoelscher(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
-                  client: Client | None = None) -> list[MethodResult]:
+                  client: Client | None = None) -> list[Result]:
     """Seed 004: every applicable feature set x classifier per motion, then motion combinations, the
     material-class level and held-out objects with the mean features."""
     sets = [s for s in HOELSCHER_SETS if every(dataset, s)]

@@ -16,7 +16,8 @@ from sklearn.svm import SVC
 if TYPE_CHECKING:
     from distributed import Client
 from taxonomy.methods.datasets import Dataset, FeatureCache, slides_first
-from taxonomy.methods.scoring import MethodResult, Run, kfold_splits, method_result, score, usable_rows
+from taxonomy.methods.scoring import kfold_splits, score, scored, usable_rows
+from taxonomy.results import Result
 
 HUANG_PAPER = {"svm": "95 +- 2.3 %, 0.47 s features", "rf": "94 +- 2.2 %, 0.47 s features",
                "knn": "94 +- 2.2 %, 0.47 s features"}
@@ -35,7 +36,7 @@ def huang_classifier(name: str, seed: int) -> BaseEstimator:
 
 
 def run_huang(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
-              client: Client | None = None) -> list[MethodResult]:
+              client: Client | None = None) -> list[Result]:
     """Huang and Wu: seven band means, RBF SVM / random forest / kNN, 10-fold CV at the label level."""
     extracted = cache.get("huang7")
     chosen, motions = slides_first(dataset, range(len(dataset)))
@@ -46,9 +47,9 @@ def run_huang(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
     seconds = float(np.nanmedian(extracted.seconds[rows]))
     results = []
     for name in HUANG_PAPER:
-        run = Run("huang", "huang7", name, motions, dataset.label_level, f"{len(splits)}-fold CV",
-                   HUANG_PAPER[name])
         def make(_: int, __: np.ndarray, name: str = name) -> BaseEstimator:
             return huang_classifier(name, seed)
-        results.append(method_result(run, score(make, X, y, splits, client), len(rows), seconds, notes))
+        results.append(scored(score(make, X, y, splits, client), len(rows), seconds, notes, method="huang",
+                              feature_set="huang7", classifier=name, motions=motions, level=dataset.label_level,
+                              splitting=f"{len(splits)}-fold CV", seed=seed, paper=HUANG_PAPER[name]))
     return results

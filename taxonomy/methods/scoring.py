@@ -1,13 +1,12 @@
-"""The splits of the methods' protocols, scoring a method on them, and the comparison's results."""
+"""The splits of the methods' protocols, scoring a method on them, and its :class:`~taxonomy.results.Result`."""
 
 from __future__ import annotations
 
 import contextlib
-import math
 import time
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -21,84 +20,8 @@ from features import cluster
 
 if TYPE_CHECKING:
     from distributed import Client
-from taxonomy.evaluation import one_line
 from taxonomy.methods.datasets import TIMED_ROWS, Extracted, MethodError
-
-
-@dataclass(frozen=True, eq=False)
-class MethodResult:
-    """One configuration of one method on one dataset.
-
-    ``accuracy`` and ``f1`` (macro, over the classes in each split's true or predicted labels) hold one
-    value per split; ``confusion`` sums all splits (rows true, columns predicted, order of ``classes``).
-    Times are per classification in seconds. ``paper`` is the figure the paper reports for this
-    configuration, where it reports one.
-    """
-
-    method: str
-    features: str
-    classifier: str
-    motions: str
-    level: str
-    protocol: str
-    accuracy: np.ndarray
-    f1: np.ndarray
-    classes: tuple[str, ...]
-    confusion: np.ndarray
-    n_samples: int
-    feature_seconds: float
-    classify_seconds: float
-    paper: str = ""
-    detail: str = ""
-    notes: tuple[str, ...] = field(default=())
-
-    @property
-    def accuracy_mean(self) -> float:
-        return float(np.mean(self.accuracy))
-
-    @property
-    def accuracy_std(self) -> float:
-        return float(np.std(self.accuracy, ddof=1)) if len(self.accuracy) > 1 else 0.0
-
-    @property
-    def f1_mean(self) -> float:
-        return float(np.mean(self.f1))
-
-    @property
-    def chance(self) -> float:
-        """Accuracy of always answering the most frequent class."""
-        counts = self.confusion.sum(axis=1)
-        return float(counts.max() / counts.sum()) if counts.sum() else math.nan
-
-    def cells(self) -> tuple[str, ...]:
-        """The row of the comparison table, in :data:`COLUMNS` order."""
-        return (self.method, self.features, self.classifier, self.motions,
-                f"{self.level} ({len(self.classes)})", self.protocol,
-                f"{100 * self.accuracy_mean:5.1f} +- {100 * self.accuracy_std:4.1f}", f"{self.f1_mean:4.2f}",
-                f"{1e3 * self.feature_seconds:8.3f}", f"{1e6 * self.classify_seconds:9.1f}", self.paper)
-
-
-COLUMNS = ("method", "features", "classifier", "motions", "level (classes)", "protocol", "accuracy %",
-           "macro F1", "features ms", "classify us", "paper")
-"""Columns of the comparison table (times per classification)."""
-
-
-def format_comparison(results: Sequence[MethodResult]) -> str:
-    """The comparison table as text: one row per result, then the notes."""
-    if not results:
-        return "no method applies to this dataset"
-    rows = [COLUMNS, *(r.cells() for r in results)]
-    widths = [max(len(row[k]) for row in rows) for k in range(len(COLUMNS))]
-    lines = ["  ".join(cell.ljust(width) for cell, width in zip(row, widths, strict=True)).rstrip()
-             for row in rows]
-    lines.insert(1, "  ".join("-" * width for width in widths))
-    return "\n".join(lines + [f"note: {note}" for note in result_notes(results)])
-
-
-def result_notes(results: Sequence[MethodResult]) -> list[str]:
-    """Every note once, naming the method (and feature set) that raised it."""
-    return list(dict.fromkeys(f"{r.method} {r.features}: {note}" for r in results for note in r.notes))
-
+from taxonomy.results import Result, warning_notes
 
 Split = tuple[np.ndarray, np.ndarray]
 
@@ -143,10 +66,6 @@ def leave_object_out_splits(objects: Sequence[str]) -> list[Split]:
     objects = np.asarray(objects)
     return [(np.flatnonzero(objects != o), np.flatnonzero(objects == o))
             for o in dict.fromkeys(objects.tolist())]
-
-
-def messages(caught: list[warnings.WarningMessage]) -> list[str]:
-    return [f"{w.category.__name__}: {one_line(str(w.message))}" for w in caught]
 
 
 def _single_row_seconds(model: BaseEstimator, rows: np.ndarray) -> tuple[list[float], list[float]]:
@@ -199,7 +118,7 @@ def _fit_split(make: Maker, X: np.ndarray, y: np.ndarray, k: int, train: np.ndar
         predicted = model.predict(X[test])
         if k == 0:
             feature, classify = _single_row_seconds(model, X[test[:TIMED_ROWS]])
-    return predicted, messages(caught), feature, classify
+    return predicted, list(warning_notes(caught)), feature, classify
 
 
 def score(make: Maker, X: np.ndarray, y: np.ndarray, splits: Sequence[Split],
@@ -227,26 +146,22 @@ def score(make: Maker, X: np.ndarray, y: np.ndarray, splits: Sequence[Split],
                   float(np.median(feature)), float(np.median(classify)), tuple(dict.fromkeys(notes)))
 
 
-@dataclass(frozen=True)
-class Run:
-    """What a result row says about its configuration besides the scores."""
+def scored(scores: Scores, n_samples: int, extraction_seconds: float, notes: Sequence[str] = (), *, method: str,
+           feature_set: str, classifier: str, motions: str, level: str, splitting: str, seed: int, paper: str = "",
+           detail: str = "", taxonomy: bool = False) -> Result:
+    """The :class:`Result` of one configuration of a related method from its :func:`score`.
 
-    method: str
-    features: str
-    classifier: str
-    motions: str
-    level: str
-    protocol: str
-    paper: str = ""
-    detail: str = ""
-
-
-def method_result(run: Run, scores: Scores, n_samples: int, extraction_seconds: float,
-            notes: Sequence[str] = ()) -> MethodResult:
-    return MethodResult(run.method, run.features, run.classifier, run.motions, run.level, run.protocol,
-                        scores.accuracy, scores.f1, scores.classes, scores.confusion, n_samples,
-                        extraction_seconds + scores.feature_seconds, scores.classify_seconds, run.paper,
-                        run.detail, tuple(dict.fromkeys([*notes, *scores.notes])))
+    ``extraction_seconds`` is the extraction time of the recordings one classification needs (added to any
+    feature step inside the fitted model); ``notes`` come first, the warnings of fitting after them.
+    ``taxonomy``: the classes are taxonomy codes (``r_C`` is defined). Every method fits its scaling and
+    features inside the training rows of each split, so the protocol is ``nested``.
+    """
+    return Result(method=method, feature_set=feature_set, classifier=classifier, level=level, protocol="nested",
+                  splitting=splitting, classes=scores.classes, accuracy=scores.accuracy, f1=scores.f1,
+                  confusion=scores.confusion, n_samples=n_samples, seed=seed,
+                  notes=tuple(dict.fromkeys([*notes, *scores.notes])), taxonomy=taxonomy, motions=motions,
+                  feature_seconds=extraction_seconds + scores.feature_seconds,
+                  classify_seconds=scores.classify_seconds, paper=paper, detail=detail)
 
 
 def usable_rows(extracted: Extracted, rows: Sequence[int]) -> tuple[np.ndarray, np.ndarray, list[str]]:

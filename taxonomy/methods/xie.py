@@ -22,7 +22,8 @@ from features import related
 if TYPE_CHECKING:
     from distributed import Client
 from taxonomy.methods.datasets import Dataset, FeatureCache, slides_first
-from taxonomy.methods.scoring import MethodResult, Run, kfold_splits, method_result, score, usable_rows
+from taxonomy.methods.scoring import kfold_splits, score, scored, usable_rows
+from taxonomy.results import Result
 
 XIE_CLASSIFIERS = ("linear-svm", "rbf-svm", "knn", "lda", "nb", "rf", "mlp")
 XIE_PAPER = {
@@ -80,7 +81,7 @@ def pca_sweep(X: np.ndarray, y: np.ndarray, seed: int, folds: int = 5) -> np.nda
 
 
 def run_xie(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
-            client: Client | None = None) -> list[MethodResult]:
+            client: Client | None = None) -> list[Result]:
     """Xie et al.: PCA dimension swept per training fold with the linear SVM, then seven classifiers."""
     extracted = cache.get("xie_sequences")
     chosen, motions = slides_first(dataset, range(len(dataset)))
@@ -104,7 +105,7 @@ def run_xie(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
             stages = (f"per sample: images -> sequences {1e3 * seconds:.2f} ms, standardised sequences -> "
                       f"11 features {1e3 * scores.feature_seconds:.2f} ms, PCA + classifier "
                       f"{1e6 * scores.classify_seconds:.0f} us; PCA dimensions per fold {dims}")
-            run = Run("xie", "xie11", name, motions, level, f"{len(splits)}-fold CV", XIE_PAPER[kind][name],
-                       stages)
-            results.append(method_result(run, scores, len(rows), seconds, notes))
+            results.append(scored(scores, len(rows), seconds, notes, method="xie", feature_set="xie11",
+                                  classifier=name, motions=motions, level=level, splitting=f"{len(splits)}-fold CV",
+                                  seed=seed, paper=XIE_PAPER[kind][name], detail=stages))
     return results

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from scanner.matfile import save_scan
 from scanner.simulation import synthetic_scan
+from scanner.storage.matfile import save_scan
 
 MATERIALS = ("granite-polished", "oak-planed", "polyurethane-foam", "mild-steel-brushed")
 """Stone, wood, a soft foldable foam and a conductive, magnetic metal: every sensor sees something."""

@@ -14,9 +14,9 @@ from typing import Any
 import cv2
 import numpy as np
 
-from scanner.config import CameraConfig
-from scanner.devices.protocols import DeviceError, DeviceUnavailable
-from scanner.devices.sources import SignalSource
+from scanner.acquisition.config import CameraConfig
+from scanner.acquisition.devices.protocols import DeviceError, DeviceUnavailable
+from scanner.acquisition.devices.sources import SignalSource
 from scanner.photo import PhotoError, check_size, decode
 from scanner.scan import IMAGES
 

@@ -1,11 +1,12 @@
 """The serial sensor board on a pseudo-terminal, speaking the protocol of SPEC 5 (see
-:mod:`scanner.devices.board`), with faults a test (or a person trying the app) can inject.
+:mod:`scanner.acquisition.devices.board`), with faults a test (or a person trying the app) can inject.
 
 The host opens :attr:`BoardEmulator.path` with ``pyserial`` like any serial port. The path is a symbolic
 link to the current pseudo-terminal, so after an injected :meth:`~BoardEmulator.disconnect` the board comes
-back under the same name, as a USB board does. The sensors read a :class:`~scanner.devices.board.BoardModel`
-of a :class:`~scanner.devices.sources.SignalSource`: the cooling curve after ``HEAT``, the field change after
-``CAL M``.
+back under the same name, as a USB board does. The sensors read a
+:class:`~scanner.acquisition.devices.board.BoardModel` of a
+:class:`~scanner.acquisition.devices.sources.SignalSource`: the cooling curve after ``HEAT``, the field
+change after ``CAL M``.
 
 Faults: :meth:`~BoardEmulator.corrupt_checksums` (the next n data lines),
 :meth:`~BoardEmulator.inject_garbage` (bytes in front of the next data line),
@@ -29,8 +30,8 @@ import tty
 from dataclasses import dataclass
 from pathlib import Path
 
-from scanner.devices.board import BOARD_ID, DATA_FIELDS, MAX_HEAT_MS, BoardModel, format_data_line
-from scanner.devices.sources import SignalSource
+from scanner.acquisition.devices.board import BOARD_ID, DATA_FIELDS, MAX_HEAT_MS, BoardModel, format_data_line
+from scanner.acquisition.devices.sources import SignalSource
 
 VERSION = "1.2"
 MAX_STREAM_HZ = 200.0

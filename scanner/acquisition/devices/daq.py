@@ -4,14 +4,14 @@
 Server (``daq.server = "grpc://host:port"``, ``nidaqmx.GrpcSessionOptions``). Each recording is one DAQmx
 task named ``texplorer-<step>``: continuous sampling into a DAQmx buffer of ``daq.buffer_s`` seconds, read
 ``daq.reads_per_second`` times per second by an ``AnalogMultiChannelReader`` into arrays the recorder
-preallocates. A buffer overrun raises :class:`~scanner.devices.protocols.AcquisitionError`: the step
+preallocates. A buffer overrun raises :class:`~scanner.acquisition.devices.protocols.AcquisitionError`: the step
 fails, it never gets a silent gap.
 
 :class:`PlaybackDaq` is the simulated and the replay DAQ: it plays the volts of a
-:class:`~scanner.devices.sources.SignalSource`, in real time or at once.
+:class:`~scanner.acquisition.devices.sources.SignalSource`, in real time or at once.
 
 ``nidaqmx`` (and ``grpcio`` for a remote server) are imported only when a real DAQ is opened; a missing
-package or NI-DAQmx driver is a one-line :class:`~scanner.devices.protocols.DeviceUnavailable`.
+package or NI-DAQmx driver is a one-line :class:`~scanner.acquisition.devices.protocols.DeviceUnavailable`.
 """
 
 from __future__ import annotations
@@ -22,9 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from scanner.config import MAX_HEAT_S, Calibration, DaqConfig
-from scanner.devices.protocols import AcquisitionError, DeviceError, DeviceUnavailable
-from scanner.devices.sources import Pacer, SignalSource
+from scanner.acquisition.config import MAX_HEAT_S, Calibration, DaqConfig
+from scanner.acquisition.devices.protocols import AcquisitionError, DeviceError, DeviceUnavailable
+from scanner.acquisition.devices.sources import Pacer, SignalSource
 
 OVERRUN_ERRORS = {-200279: "samples no longer available", -200361: "onboard FIFO overflow",
                   -200010: "input FIFO overflow", -200283: "acquisition stopped to prevent an overflow"}

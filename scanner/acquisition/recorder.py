@@ -21,13 +21,13 @@ fold
 
 The DAQ is read block by block into one array preallocated for the whole step. A lost sample is never
 hidden: a DAQ overrun, a lost serial connection or 1 s of serial silence raise
-:class:`~scanner.devices.protocols.AcquisitionError` (the step fails and can be redone); samples the board's
+:class:`~scanner.acquisition.devices.protocols.AcquisitionError` (the step fails and can be redone); samples the board's
 counter shows missing are interpolated and reported as a problem.
 
 Peltier safety (:func:`heat`): the host never asks for more than 5 s (the board refuses more anyway), and the
 element is switched off when heating ends, is cancelled (abort), is interrupted (Ctrl-C), or fails
 (a lost connection, an exception from the level callback). A DAQ-driven Peltier also has a watchdog timer
-thread (:class:`~scanner.devices.daq.DaqPeltier`); a board-driven one is switched off by the board itself.
+thread (:class:`~scanner.acquisition.devices.daq.DaqPeltier`); a board-driven one is switched off by the board itself.
 """
 
 from __future__ import annotations
@@ -41,10 +41,10 @@ from datetime import UTC, datetime
 
 import numpy as np
 
-from scanner.config import CHANNEL_ROLES, DAQ_ROLES, MAX_HEAT_S, Config, ConfigError
-from scanner.devices import Devices
-from scanner.devices.board import collect, field_change
-from scanner.devices.protocols import AcquisitionError, AudioCapture, Peltier
+from scanner.acquisition.config import CHANNEL_ROLES, DAQ_ROLES, MAX_HEAT_S, Config, ConfigError
+from scanner.acquisition.devices import Devices
+from scanner.acquisition.devices.board import collect, field_change
+from scanner.acquisition.devices.protocols import AcquisitionError, AudioCapture, Peltier
 from scanner.preprocess import check_clipped, check_contact, check_slide
 from scanner.scan import CHANNELS, Scan, ScanMeta, Trace
 

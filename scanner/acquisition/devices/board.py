@@ -17,7 +17,7 @@ host -> board          board -> host                               meaning
 (:func:`checksum`). :class:`SerialBoard` is the ``pyserial`` driver: a reader thread splits the byte stream
 into lines, drops and counts lines with a bad checksum, resynchronises on garbage (a frame start inside a
 damaged line is kept), detects gaps from the board's millisecond counter, raises
-:class:`~scanner.devices.protocols.BoardTimeout` after 1 s of silence and reconnects by port name when the
+:class:`~scanner.acquisition.devices.protocols.BoardTimeout` after 1 s of silence and reconnects by port name when the
 connection is lost (sending ``HEAT 0`` and ``STOP`` first thing after reconnecting). :class:`PlaybackBoard`
 is the simulated and replay board; :class:`BoardModel` is what its sensors read (shared with the emulator).
 """
@@ -39,8 +39,8 @@ try:
 except ImportError:  # Windows
     _TermiosError = OSError
 
-from scanner.config import MAX_HEAT_S, BoardConfig
-from scanner.devices.protocols import (
+from scanner.acquisition.config import MAX_HEAT_S, BoardConfig
+from scanner.acquisition.devices.protocols import (
     AcquisitionError,
     BoardSample,
     BoardStats,
@@ -49,7 +49,7 @@ from scanner.devices.protocols import (
     DeviceError,
     DeviceUnavailable,
 )
-from scanner.devices.sources import Pacer, SignalSource
+from scanner.acquisition.devices.sources import Pacer, SignalSource
 from taxonomy.errors import TexplorerError
 
 BOARD_ID = "TEXPLORER-SB"

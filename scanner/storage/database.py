@@ -45,7 +45,8 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path, PurePosixPath
 
-from scanner.files import (
+from scanner.scan import IMAGES, Scan, ScanMeta, check_sample_id
+from scanner.storage.files import (
     atomic_write_bytes,
     fsync_dir,
     is_abandoned,
@@ -53,9 +54,8 @@ from scanner.files import (
     sha256_file,
     temp_path_for,
 )
-from scanner.matfile import ScanFormatError, load_scan, photo_file_name, save_scan, scan_files
-from scanner.scan import IMAGES, Scan, ScanMeta, check_sample_id
-from scanner.stored import StoredScan
+from scanner.storage.matfile import ScanFormatError, load_scan, photo_file_name, save_scan, scan_files
+from scanner.storage.stored import StoredScan
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import parse_prefix
 from taxonomy.table import Taxonomy, load_taxonomy
@@ -66,7 +66,7 @@ TAXONOMY = "taxonomy.csv"
 PENDING = ".pending"
 QUARANTINE = "quarantine"
 STAGING_PREFIX = ".import"
-"""Import stages a bundle in ``<root>/.import.tmp-<hex>/`` (:func:`scanner.files.owned_folder`)."""
+"""Import stages a bundle in ``<root>/.import.tmp-<hex>/`` (:func:`scanner.storage.files.owned_folder`)."""
 CATALOG_SCHEMA = 1
 PHOTO_SUFFIXES = tuple(f"_{short}.png" for short in IMAGES.values())
 _CORRUPTION = ("malformed", "not a database", "encrypted", "corrupt")
@@ -566,7 +566,7 @@ class Database:
     @_catalog
     def stored_scans(self, records: Iterable[ScanRecord]) -> list[StoredScan]:
         """A loader of each record's scan that carries the catalogued size and SHA-256 of its files, so a
-        cluster worker loads exactly these bytes or none (:mod:`scanner.stored`); here it is ``load_scan``."""
+        cluster worker loads exactly these bytes or none (:mod:`scanner.storage.stored`); here it is ``load_scan``."""
         catalogued: dict[str, dict[str, tuple[int, str]]] = {}
         for scan_id, path, size, sha256 in self._conn.execute("SELECT scan_id, path, size, sha256 FROM files"):
             catalogued.setdefault(scan_id, {})[PurePosixPath(path).name] = (size, sha256)
@@ -645,7 +645,7 @@ class Database:
         return sorted(found - catalogued)
 
     def _abandoned_staging(self) -> list[Path]:
-        """Import staging folders whose importer is no longer running (:func:`scanner.files.is_abandoned`)."""
+        """Import staging folders whose importer is no longer running (:func:`scanner.storage.files.is_abandoned`)."""
         return sorted(p for p in self.root.glob(f"{STAGING_PREFIX}.tmp-*")
                       if p.is_dir() and is_temp_file(p) and is_abandoned(p))
 

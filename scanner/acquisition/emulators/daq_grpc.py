@@ -4,7 +4,7 @@
 :class:`DaqServicer` implements the part of the ``nidaqmx_grpc.NiDAQmx`` service (the stubs that ship with
 ``nidaqmx[grpc]``) that the scanner uses: tasks, analog voltage inputs with a continuous sample clock,
 ``ReadAnalogF64`` in both fill modes, a digital output line, device identification and error strings. The
-analog inputs carry the volts of a :class:`~scanner.devices.sources.SignalSource` wired by the channel map
+analog inputs carry the volts of a :class:`~scanner.acquisition.devices.sources.SignalSource` wired by the channel map
 of SPEC 5, produced in real time from the moment the task starts: sample k of a task exists ``k / rate`` s
 after ``StartTask``. Whoever reads too slowly overruns the task's buffer and gets DAQmx error -200279,
 as from real hardware; :meth:`DaqServicer.inject_overrun` forces that on the next read.
@@ -33,8 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from scanner.config import DAQ_ROLES, DEFAULT_CHANNEL_MAP, Calibration
-from scanner.devices.sources import SignalSource, rest_volts
+from scanner.acquisition.config import DAQ_ROLES, DEFAULT_CHANNEL_MAP, Calibration
+from scanner.acquisition.devices.sources import SignalSource, rest_volts
 from scanner.simulation import STEPS
 from taxonomy.errors import TexplorerError
 

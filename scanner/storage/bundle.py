@@ -19,7 +19,7 @@ their SHA-256 checked against the catalog on the way.
 Import works in two phases. **Verify** touches nothing the database uses: every file of the bundle is
 copied into a staging folder ``<db>/.import.tmp-<hex>/bundle`` (on the database's file system, so the files
 can later be moved, not copied; the folder holds a SQLite lock while the import runs,
-:func:`scanner.files.owned_folder`) while its size and SHA-256 are checked against the manifest; the
+:func:`scanner.storage.files.owned_folder`) while its size and SHA-256 are checked against the manifest; the
 manifest is checked against ``manifest.json.sha256`` and its schema; every scan is loaded and validated
 (with the limits of :func:`scanner.load_scan`, photos included) and must match its manifest entry and
 path; the taxonomy must parse. Any problem refuses the whole bundle with the list of problems. Member names
@@ -28,7 +28,7 @@ that are absolute, contain ``..``, backslashes or drive letters, that put a file
 scans already stored with the same content, reports a scan id stored with other content, a sample stored
 under another label and a taxonomy code named differently here as conflicts (nothing is overwritten),
 appends the codes of new materials to the database's taxonomy extension ``<db>/taxonomy.csv`` and catalogs
-all new scans in one transaction (:meth:`scanner.database.Database.add_written`: rows first, then the files
+all new scans in one transaction (:meth:`scanner.storage.database.Database.add_written`: rows first, then the files
 are moved into place). If that fails, the moved files are moved back and the taxonomy codes taken back: the
 database is as it was. A process killed during import leaves the catalog as it was; at worst the staging
 folder, moved files of the uncommitted batch and the new taxonomy codes remain, and ``texplorer db check``
@@ -59,10 +59,10 @@ from typing import IO, Any, Protocol
 
 import scipy.io
 
-from scanner.database import STAGING_PREFIX, Database, FileEntry, ScanRecord, content_hash
-from scanner.files import atomic_write_bytes, fsync_dir, owned_folder, temp_path_for
-from scanner.matfile import ScanFormatError, load_scan, photo_file_name
 from scanner.scan import IMAGES, SCHEMA_VERSION, ScanMeta
+from scanner.storage.database import STAGING_PREFIX, Database, FileEntry, ScanRecord, content_hash
+from scanner.storage.files import atomic_write_bytes, fsync_dir, owned_folder, temp_path_for
+from scanner.storage.matfile import ScanFormatError, load_scan, photo_file_name
 from scanner.version import __version__
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import Label
@@ -83,7 +83,7 @@ REQUIRED_FILES = (README, *LOADERS, FEATURES_CSV, FEATURES_MAT, TAXONOMY_CSV)
 MAX_MANIFEST_BYTES = 64 << 20
 """A manifest larger than this is refused unread (about 300,000 scans' worth)."""
 
-_DATA = Path(__file__).with_name("data")
+_DATA = Path(__file__).parents[1] / "data"
 _STORED = (".mat", ".png", ".jpg", ".jpeg", ".zip")
 """Already compressed: kept as they are inside a zip bundle, everything else is deflated."""
 _CHUNK = 1 << 20

@@ -2,7 +2,7 @@
 one that gets the files' bytes from this machine.
 
 A :class:`StoredScan` is what ``features.extract_many`` calls to load a scan. In a process of this machine
-it reads the ``.mat`` file and its photos as :func:`scanner.matfile.load_scan` always does. A Dask worker
+it reads the ``.mat`` file and its photos as :func:`scanner.storage.matfile.load_scan` always does. A Dask worker
 (``features.cluster``) first tries :meth:`StoredScan.load_seen`: the files at the same path as this machine
 names them (an absolute path on storage mounted alike everywhere, or a path relative to the directory the
 worker was started in), accepted only with the size and SHA-256 the catalog recorded, so a worker that has
@@ -22,9 +22,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from scanner.matfile import MAX_SCAN_BYTES, load_scan, photo_names
 from scanner.photo import max_file_bytes
 from scanner.scan import Scan
+from scanner.storage.matfile import MAX_SCAN_BYTES, load_scan, photo_names
 from taxonomy.errors import TexplorerError
 
 Catalogued = Mapping[str, tuple[int, str]]
@@ -62,7 +62,7 @@ def _sent(path: Path, limit: int) -> SentFile:
 @dataclass(frozen=True)
 class ShippedScan:
     """A stored scan's files as read on the client (file name -> :class:`SentFile`), loaded when called;
-    a :class:`scanner.matfile.FileView` that answers as this machine's file system did."""
+    a :class:`scanner.storage.matfile.FileView` that answers as this machine's file system did."""
 
     path: Path
     files: Mapping[str, SentFile]
@@ -141,7 +141,7 @@ class StoredScan:
 
 @dataclass(frozen=True)
 class SeenFiles:
-    """This machine's files as a :class:`scanner.matfile.FileView` that accepts only catalogued ones."""
+    """This machine's files as a :class:`scanner.storage.matfile.FileView` that accepts only catalogued ones."""
 
     catalogued: Catalogued
 

@@ -1,5 +1,5 @@
-"""Scanner devices (SPEC 5): the interfaces (:mod:`~scanner.devices.protocols`) and, per device, a real, a
-simulated and a replay implementation, chosen by the configuration (:mod:`scanner.config`).
+"""Scanner devices (SPEC 5): the interfaces (:mod:`~scanner.acquisition.devices.protocols`) and, per device, a real, a
+simulated and a replay implementation, chosen by the configuration (:mod:`scanner.acquisition.config`).
 
 ======================  ========================  ==============================  =========================
 device                  real                      simulated                       replay
@@ -21,12 +21,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from scanner.config import Config, ConfigError
-from scanner.devices.audio import PlaybackMicrophone, SoundDeviceMicrophone
-from scanner.devices.board import BoardPeltier, PlaybackBoard, SerialBoard
-from scanner.devices.camera import OpenCvCamera, PlaybackCamera
-from scanner.devices.daq import DaqPeltier, NidaqmxDaq, PlaybackDaq
-from scanner.devices.protocols import (
+from scanner.acquisition.config import Config, ConfigError
+from scanner.acquisition.devices.audio import PlaybackMicrophone, SoundDeviceMicrophone
+from scanner.acquisition.devices.board import BoardPeltier, PlaybackBoard, SerialBoard
+from scanner.acquisition.devices.camera import OpenCvCamera, PlaybackCamera
+from scanner.acquisition.devices.daq import DaqPeltier, NidaqmxDaq, PlaybackDaq
+from scanner.acquisition.devices.protocols import (
     AcquisitionError,
     BoardTimeout,
     Camera,
@@ -38,7 +38,7 @@ from scanner.devices.protocols import (
     Peltier,
     SensorBoard,
 )
-from scanner.devices.sources import Pacer, SignalSource, Specimen, StoredScan, simulated_sample
+from scanner.acquisition.devices.sources import Pacer, SignalSource, Specimen, StoredScan, simulated_sample
 
 __all__ = [
     "AcquisitionError", "BoardTimeout", "ConnectionLost", "DeviceError", "DeviceUnavailable", "Devices",

@@ -16,7 +16,7 @@ In MATLAB or Octave: ``s = load('granite-01-001.mat'); plot(s.v_ts); s.meta.fs.v
 In Python: ``scipy.io.loadmat(path, simplify_cells=True)``.
 
 Reading is bounded whatever the bytes: the file and its inflated variables at most :data:`MAX_SCAN_BYTES`
-(:mod:`scanner.mat5` checks sizes before scipy allocates), a channel at most
+(:mod:`scanner.storage.mat5` checks sizes before scipy allocates), a channel at most
 ``scanner.scan.MAX_CHANNEL_SECONDS`` (checked before its float64 copy), a photo within the pixel limit of
 :mod:`scanner.photo` (checked from its header before decoding). Every meta field has a range
 (``scanner.scan.ScanMeta``: ``scan_index`` 1..9999, ``t_amb`` in the MLX90614's -40..85 degC, mass and
@@ -37,9 +37,7 @@ import numpy as np
 import scipy.io
 from scipy.io.matlab import mat_struct
 
-from scanner import mat5, photo
-from scanner.files import atomic_write_bytes, atomic_writer
-from scanner.mat5 import MatFileError, read_mat
+from scanner import photo
 from scanner.photo import PhotoError, encode_png, read_photo
 from scanner.scan import (
     CHANNELS,
@@ -52,6 +50,9 @@ from scanner.scan import (
     ScanMeta,
     Trace,
 )
+from scanner.storage import mat5
+from scanner.storage.files import atomic_write_bytes, atomic_writer
+from scanner.storage.mat5 import MatFileError, read_mat
 from taxonomy.errors import TexplorerError
 
 REQUIRED_META = ("label", "operator", "sample_id", "scan_index", "session_id", "started",
@@ -178,7 +179,7 @@ def _to_python(value: Any) -> Any:
 
 class FileView(Protocol):
     """Where :func:`load_scan` finds a scan's files other than this machine's file system (a cluster worker
-    loading what the client sent, see :mod:`scanner.stored`). Each method answers for a path as
+    loading what the client sent, see :mod:`scanner.storage.stored`). Each method answers for a path as
     ``Path.is_file``, ``os.stat(path).st_size`` and ``Path.read_bytes`` do, raising the same ``OSError``s,
     so every problem is reported as a local load reports it; a size beyond a limit is refused unread."""
 

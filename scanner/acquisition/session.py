@@ -47,13 +47,13 @@ from typing import Any
 
 import numpy as np
 
-from scanner.config import Config
-from scanner.devices import Devices, open_devices
-from scanner.devices.camera import decode_photo
-from scanner.devices.protocols import DeviceError
-from scanner.devices.sources import Specimen
+from scanner.acquisition.config import Config
+from scanner.acquisition.devices import Devices, open_devices
+from scanner.acquisition.devices.camera import decode_photo
+from scanner.acquisition.devices.protocols import DeviceError
+from scanner.acquisition.devices.sources import Specimen
+from scanner.acquisition.recorder import Level, Recorder, StepResult, build_scan
 from scanner.photo import PhotoError, check_size
-from scanner.recorder import Level, Recorder, StepResult, build_scan
 from scanner.scan import (
     CHANNELS,
     IMAGES,
@@ -217,7 +217,7 @@ class Session:
         """Open the configured devices and start a session.
 
         The configuration chooses the devices; simulated ones observe the library material with ``label``
-        as the piece ``sample_id`` (:func:`scanner.devices.sources.simulated_sample`), seeded by the scan
+        as the piece ``sample_id`` (:func:`scanner.acquisition.devices.sources.simulated_sample`), seeded by the scan
         index this scan will get in ``db``, so repeated scans of a sample differ like real ones.
         """
         try:

@@ -3,8 +3,8 @@
 Both sources answer the same questions (:class:`SignalSource`): the DAQ volts while the operator performs a
 step, the microphone's samples, the MLX90614 cooling curve after heating, the MAG3110 field change as the
 unit is placed, the photos and the room's ambient temperature. The playback devices
-(:mod:`scanner.devices.daq`, ``board``, ``audio``, ``camera``) and the emulators
-(:mod:`scanner.emulators`) turn these into what each device reports, so "simulated" and "replay" differ
+(:mod:`scanner.acquisition.devices.daq`, ``board``, ``audio``, ``camera``) and the emulators
+(:mod:`scanner.acquisition.emulators`) turn these into what each device reports, so "simulated" and "replay" differ
 only in their source.
 
 :class:`SimulatedSample` gets its physics from :mod:`scanner.simulation` (one function per procedure step).
@@ -27,8 +27,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from scanner.config import CHANNEL_ROLES, DAQ_ROLES, Calibration, Config, ConfigError
-from scanner.matfile import load_scan
+from scanner.acquisition.config import CHANNEL_ROLES, DAQ_ROLES, Calibration, Config, ConfigError
 from scanner.scan import CHANNELS, Scan
 from scanner.simulation import (
     STEP_FUNCTIONS,
@@ -40,6 +39,7 @@ from scanner.simulation import (
     sample_of,
     scan_seed,
 )
+from scanner.storage.matfile import load_scan
 
 STEP_SECONDS = 5.0
 """Length of a simulated tap, slide, friction, press or fold (SPEC 4)."""
@@ -168,8 +168,8 @@ class SimulatedSample:
         return STEP_FUNCTIONS[step](self.material, rng, self.operator)
 
     def daq_volts(self, step: str, calibration: Calibration, device: str = "daq") -> np.ndarray:
-        """(n, 8) volts on :data:`~scanner.config.DAQ_ROLES` while the operator performs one take of ``step``
-        (5 s, 1 s for the static touch; steps without DAQ channels give 5 s at rest)."""
+        """(n, 8) volts on :data:`~scanner.acquisition.config.DAQ_ROLES` while the operator performs one take of
+        ``step`` (5 s, 1 s for the static touch; steps without DAQ channels give 5 s at rest)."""
         arrays = self.take(step, device) if step in STEP_FUNCTIONS else {}
         return volts_of({k: v for k, v in arrays.items() if k in CHANNEL_ROLES}, calibration)
 

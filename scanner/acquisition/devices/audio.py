@@ -3,7 +3,7 @@
 :class:`SoundDeviceMicrophone` uses ``sounddevice`` (PortAudio): the stream's callback copies each block
 into a queue as 16-bit samples scaled to full scale, and counts blocks whose status reports an input
 overflow (samples lost); the count stays with the recording
-(:class:`~scanner.devices.protocols.AudioCapture`). ``start`` returns when the first block has arrived,
+(:class:`~scanner.acquisition.devices.protocols.AudioCapture`). ``start`` returns when the first block has arrived,
 with the estimated time of its first sample, so the recorder can measure the audio/DAQ start offset.
 :class:`PlaybackMicrophone` is the simulated and replay microphone.
 
@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from scanner.config import MicrophoneConfig
-from scanner.devices.protocols import AcquisitionError, AudioCapture, DeviceError, DeviceUnavailable
-from scanner.devices.sources import Pacer, SignalSource
+from scanner.acquisition.config import MicrophoneConfig
+from scanner.acquisition.devices.protocols import AcquisitionError, AudioCapture, DeviceError, DeviceUnavailable
+from scanner.acquisition.devices.sources import Pacer, SignalSource
 
 FIRST_BLOCK_TIMEOUT_S = 2.0
 FULL_SCALE = 32768.0

@@ -2,8 +2,8 @@
 and the Peltier element.
 
 Each interface has a real, a simulated and a replay implementation that satisfy the same
-``typing.Protocol``; the configuration (:mod:`scanner.config`), not ``if`` statements in the recorder,
-chooses between them (:func:`scanner.devices.open_devices`). Every ``start`` takes the procedure step the
+``typing.Protocol``; the configuration (:mod:`scanner.acquisition.config`), not ``if`` statements in the recorder,
+chooses between them (:func:`scanner.acquisition.devices.open_devices`). Every ``start`` takes the procedure step the
 operator is about to perform: a real device ignores it (or uses it to name its task), a simulated one plays
 that step of the simulated sample, a replay one plays that step of the stored scan.
 
@@ -47,7 +47,7 @@ class Daq(Protocol):
     """Analog inputs sampled continuously at ``rate`` Hz and the Peltier's digital output line.
 
     ``read_into`` fills a preallocated (channels, block) float64 array with the next ``block`` samples per
-    channel, in volts, in the order of :data:`scanner.config.DAQ_ROLES`; it blocks until they are there and
+    channel, in volts, in the order of :data:`scanner.acquisition.config.DAQ_ROLES`; it blocks until they are there and
     raises :class:`AcquisitionError` on a buffer overrun.
     """
 

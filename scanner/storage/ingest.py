@@ -40,10 +40,10 @@ import numpy as np
 import scipy.io
 from scipy.io import wavfile
 
-from scanner.files import atomic_write_bytes, fsync_dir
-from scanner.mat5 import MatFileError, read_mat
 from scanner.photo import PhotoError, check_pixels, image_size, max_file_bytes
 from scanner.scan import ROLES, Recording, ScanError, Trace
+from scanner.storage.files import atomic_write_bytes, fsync_dir
+from scanner.storage.mat5 import MatFileError, read_mat
 from taxonomy.errors import TexplorerError
 
 RECORDINGS = "recordings"

@@ -1,0 +1,252 @@
+"""The result of classifying: one type for the project's evaluation and for the related methods.
+
+A :class:`Result` is one classifier on one feature set at one classification level, scored over the
+splits of a protocol: accuracy and macro F1 per split, the confusion matrix summed over the splits, and
+notes (what scikit-learn or the split reported while fitting, rows or columns left out).
+:func:`taxonomy.evaluation.evaluate` returns one per (classifier, feature set, level, set size), with the
+out-of-fold predictions and the features each fold selected; :func:`taxonomy.methods.compare` one per
+configuration of each related method, with the time per classification and the figure its paper reports.
+The text table of the evaluation (:func:`taxonomy.report.format_table`), the comparison table
+(:func:`format_comparison`), the HTML reports and the figures all read this one type.
+
+The metric ``r_C`` (Strese et al. 2020, eq. 32) is defined here too, as a result's property needs it.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from taxonomy import labels
+from taxonomy.errors import TexplorerError
+from taxonomy.labels import LabelError
+
+OWN_METHOD = "texplorer"
+"""The ``method`` of the project's own evaluation (the paper's scale -> FQ selection -> classifier pipeline)."""
+
+
+class EvaluationError(TexplorerError, ValueError):
+    """An evaluation that cannot run as asked; the message says why."""
+
+
+def one_line(message: str) -> str:
+    """A message whole on one line: its lines joined, runs of white space made one space."""
+    return " ".join(str(message).split())
+
+
+def warning_notes(caught: Sequence[warnings.WarningMessage], source: str = "") -> tuple[str, ...]:
+    """Each warning once, as one line: who raised it (``source``), its category and its whole text."""
+    return tuple(dict.fromkeys(f"{source}{w.category.__name__}: {one_line(str(w.message))}" for w in caught))
+
+
+def size_name(n_features: int | None) -> str:
+    """``X10`` for a selected set size, ``all`` for every feature without selection."""
+    return "all" if n_features is None else f"X{n_features}"
+
+
+# -- r_C ---------------------------------------------------------------------------------------------
+
+def major_class(code: str) -> str:
+    """The major class C of a class code at any level (:func:`taxonomy.labels.major_class`), as an
+    :class:`EvaluationError` for a class without one."""
+    try:
+        return labels.major_class(code)
+    except LabelError as exc:
+        raise EvaluationError(str(exc)) from None
+
+
+def r_c(confusion: np.ndarray, classes: Sequence[str]) -> float:
+    """Share of misclassifications whose predicted major class differs from the true one (paper eq. 32).
+
+    ``r_C = sum over misclassified n of (1 - delta(yhat_C,n, y_C,n)) / N_miss``, read from a confusion
+    matrix (rows true, columns predicted, in the order of ``classes``).
+
+    NaN where the metric is undefined (reports show "-"): when nothing is misclassified (no N_miss), and
+    at the coarse level, where the classes are the major classes themselves: every misclassification
+    changes C by definition, so the ratio would be 1 whatever the classifier does and says nothing.
+    """
+    confusion = np.asarray(confusion)
+    if confusion.shape != (len(classes), len(classes)):
+        raise EvaluationError(f"confusion matrix of shape {confusion.shape} for {len(classes)} classes")
+    majors = np.array([major_class(c) for c in classes])
+    if all(major == code for major, code in zip(majors, classes, strict=True)):
+        return float("nan")
+    wrong = ~np.eye(len(classes), dtype=bool)
+    errors = confusion[wrong].sum()
+    if errors == 0:
+        return float("nan")
+    other_major = majors[:, None] != majors[None, :]
+    return float(confusion[other_major].sum() / errors)
+
+
+def format_r_c(value: float) -> str:
+    """r_C with two decimals, or "-" where it is undefined (NaN, see :func:`r_c`)."""
+    return "-" if np.isnan(value) else f"{value:.2f}"
+
+
+def _split_std(values: np.ndarray) -> float:
+    return float(np.std(values, ddof=1)) if len(values) > 1 else 0.0
+
+
+# -- the result --------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class Result:
+    """One classifier on one feature set at one level, scored over the splits of a protocol.
+
+    What ran: ``method`` (:data:`OWN_METHOD` for the project's evaluation, else the related method's
+    name), ``feature_set`` (``all``, a modality, ``fishel3``, ...), ``classifier``, ``level``,
+    ``protocol`` (where scaling and selection were fitted: ``nested``, inside the training rows of each
+    split, as every related method does, or ``paper``, once on all rows), ``splitting`` (how the rows
+    were split: ``5 grouped folds``, ``the set's train/test split``, ``10-fold CV``, ``5 x holdout
+    1/6``, ...), ``motions`` (a related method's motions), ``n_features`` (the selected set size; None:
+    every feature, unselected) and ``seed``.
+
+    Scores: ``accuracy`` and ``f1`` (macro, over the classes in each split's true or predicted labels) hold
+    one value per split; ``confusion`` sums all splits (rows true, columns predicted, in the order of
+    ``classes``); ``notes`` what scikit-learn or the split reported while fitting (e.g. an MLP that did
+    not converge) and what was left out; ``taxonomy`` that the classes are taxonomy codes (else ``r_c``
+    is NaN); ``n_samples`` the rows classified.
+
+    The evaluation's own: ``grouped`` (the folds keep the scans of a sample together), ``given_split``
+    (the set's own train/test split was used: one "fold"), ``columns`` (the feature columns evaluated),
+    ``dropped`` (those left out because they hold NaN), ``selected`` (the names each fold's selector kept,
+    best FQ first), and per row of the feature space ``y_true``, ``y_pred`` (out-of-fold predictions) and
+    ``fold`` (the split that tested it; -1 for a training row of the set's own split).
+
+    A related method's own: ``feature_seconds`` and ``classify_seconds``, the time per classification
+    (feature extraction and the classifier itself), ``paper``, the figure its paper reports for this
+    configuration where it reports one, and ``detail``.
+    """
+
+    method: str
+    feature_set: str
+    classifier: str
+    level: str
+    protocol: str
+    splitting: str
+    classes: tuple[str, ...]
+    accuracy: np.ndarray
+    f1: np.ndarray
+    confusion: np.ndarray
+    n_samples: int
+    seed: int
+    notes: tuple[str, ...] = field(default=())
+    taxonomy: bool = True
+    motions: str = ""
+    n_features: int | None = None
+    grouped: bool = False
+    given_split: bool = False
+    columns: tuple[str, ...] = ()
+    dropped: tuple[str, ...] = ()
+    selected: tuple[tuple[str, ...], ...] = ()
+    y_true: np.ndarray | None = None
+    y_pred: np.ndarray | None = None
+    fold: np.ndarray | None = None
+    feature_seconds: float = math.nan
+    classify_seconds: float = math.nan
+    paper: str = ""
+    detail: str = ""
+
+    @property
+    def folds(self) -> int:
+        """The number of splits scored."""
+        return len(self.accuracy)
+
+    @property
+    def accuracy_mean(self) -> float:
+        return float(np.mean(self.accuracy))
+
+    @property
+    def accuracy_std(self) -> float:
+        """Sample standard deviation over splits (ddof = 1, MATLAB's ``std``, as the paper's +- values)."""
+        return _split_std(self.accuracy)
+
+    @property
+    def f1_mean(self) -> float:
+        return float(np.mean(self.f1))
+
+    @property
+    def f1_std(self) -> float:
+        return _split_std(self.f1)
+
+    @property
+    def r_c(self) -> float:
+        """Paper eq. (32) over all splits' misclassifications; NaN where undefined (no misclassification, the
+        coarse level, or classes that are not taxonomy codes), see :func:`r_c`."""
+        return r_c(self.confusion, self.classes) if self.taxonomy else float("nan")
+
+    @property
+    def chance(self) -> float:
+        """Accuracy of always answering the most frequent class."""
+        counts = self.confusion.sum(axis=1)
+        return float(counts.max() / counts.sum()) if counts.sum() else math.nan
+
+    def summary(self) -> str:
+        """One line: ``rf fine X10 all (nested): accuracy 90.2 % +- 1.2 %, F1 0.90 +- 0.01, r_C 0.05 ...``."""
+        return (f"{self.classifier} {self.level} {size_name(self.n_features)} {self.feature_set} "
+                f"({self.protocol}): accuracy {100 * self.accuracy_mean:.1f} % +- {100 * self.accuracy_std:.1f} %, "
+                f"F1 {self.f1_mean:.2f} +- {self.f1_std:.2f}, r_C {format_r_c(self.r_c)} "
+                f"({self.splitting}, {len(self.classes)} classes, seed {self.seed})")
+
+    def cells(self) -> tuple[str, ...]:
+        """The row of the comparison table, in :data:`COLUMNS` order."""
+        return (self.method, self.feature_set, self.classifier, self.motions,
+                f"{self.level} ({len(self.classes)})", self.splitting,
+                f"{100 * self.accuracy_mean:5.1f} +- {100 * self.accuracy_std:4.1f}", f"{self.f1_mean:4.2f}",
+                f"{1e3 * self.feature_seconds:8.3f}", f"{1e6 * self.classify_seconds:9.1f}", self.paper)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready values (lists, numbers, strings; an undefined r_C or time becomes None)."""
+        def number(value: float) -> float | None:
+            return None if math.isnan(value) else value
+
+        return {
+            "method": self.method, "classifier": self.classifier, "level": self.level,
+            "n_features": self.n_features, "protocol": self.protocol, "feature_set": self.feature_set,
+            "splitting": self.splitting, "folds": self.folds, "seed": self.seed, "grouped": self.grouped,
+            "given_split": self.given_split, "motions": self.motions, "n_samples": self.n_samples,
+            "accuracy": self.accuracy.tolist(), "f1": self.f1.tolist(),
+            "accuracy_mean": self.accuracy_mean, "accuracy_std": self.accuracy_std,
+            "f1_mean": self.f1_mean, "f1_std": self.f1_std, "r_c": number(self.r_c),
+            "classes": list(self.classes), "confusion": self.confusion.tolist(),
+            "selected": [list(s) for s in self.selected], "columns": list(self.columns),
+            "dropped": list(self.dropped), "notes": list(self.notes),
+            "feature_seconds": number(self.feature_seconds), "classify_seconds": number(self.classify_seconds),
+            "paper": self.paper, "detail": self.detail,
+        }
+
+
+# -- the comparison table ----------------------------------------------------------------------------
+
+COLUMNS = ("method", "features", "classifier", "motions", "level (classes)", "protocol", "accuracy %",
+           "macro F1", "features ms", "classify us", "paper")
+"""Columns of the comparison table (times per classification)."""
+
+
+def format_comparison(results: Sequence[Result]) -> str:
+    """The comparison table as text: one row per result, then the notes."""
+    if not results:
+        return "no method applies to this dataset"
+    rows = [COLUMNS, *(r.cells() for r in results)]
+    widths = [max(len(row[k]) for row in rows) for k in range(len(COLUMNS))]
+    lines = ["  ".join(cell.ljust(width) for cell, width in zip(row, widths, strict=True)).rstrip()
+             for row in rows]
+    lines.insert(1, "  ".join("-" * width for width in widths))
+    return "\n".join(lines + [f"note: {note}" for note in result_notes(results)])
+
+
+def result_notes(results: Sequence[Result]) -> list[str]:
+    """Every note once, naming the method (and feature set) that raised it."""
+    return list(dict.fromkeys(f"{r.method} {r.feature_set}: {note}" for r in results for note in r.notes))
+
+
+def best_per_method(results: Sequence[Result]) -> Iterator[Result]:
+    """The most accurate result of every method (first on ties), in method order."""
+    for method in dict.fromkeys(r.method for r in results):
+        yield max((r for r in results if r.method == method), key=lambda r: r.accuracy_mean)
