@@ -11,13 +11,13 @@ Each set is a function ``recording -> dict[name, float]`` listed in :data:`FEATU
 crossings, ...) are public so they can be checked on signals with known answers.
 
 - ``fishel3`` (Strese et al. 2020, Fig. 18, after Fishel and Loeb): traction, roughness, fineness; on scans.
-- ``xie11`` (seed 000, Xie et al. 2019): 11 features of the area, variance and sum sequences of a pressure
+- ``xie11`` (Xie et al. 2019): 11 features of the area, variance and sum sequences of a pressure
   array; the sequences are standardised per column across the training samples (:class:`XieFeatures`).
-- ``huang7`` (seed 001, Huang and Wu 2021): mean FFT magnitude in seven 20 Hz bands from 0 to 140 Hz.
-- ``chathuranga4`` (seed 002, Chathuranga et al. 2015): Frobenius norm of the 3x3 covariance and the three
+- ``huang7`` (Huang and Wu 2021): mean FFT magnitude in seven 20 Hz bands from 0 to 140 Hz.
+- ``chathuranga4`` (Chathuranga et al. 2015): Frobenius norm of the 3x3 covariance and the three
   means of a 3-axis signal; with its baselines ``chathuranga_period`` (spatial period V / f_p) and
   ``chathuranga_net`` (friction coefficient, x variance, x kurtosis).
-- seed 004 (BioTac evaluation): ``xu3``, ``chu``, ``mean23``, ``dallaire``, ``chitta``, ``temperature``.
+- Hoelscher et al. 2015 (BioTac evaluation): ``xu3``, ``chu``, ``mean23``, ``dallaire``, ``chitta``, ``temperature``.
 """
 
 from __future__ import annotations
@@ -122,7 +122,7 @@ def fishel3(scan: Scan) -> dict[str, float]:
             "fishel3.fineness": mico(v, scan["v_ts"].fs)}
 
 
-# -- xie11 (seed 000) --------------------------------------------------------------------------------
+# -- xie11 (Xie et al. 2019) -------------------------------------------------------------------------
 
 XIE_SECONDS = 1.0
 """Xie et al. classify a 1 s slide: 100 tactile images at 100 Hz (section 3.3)."""
@@ -235,7 +235,7 @@ class XieFeatures(TransformerMixin, BaseEstimator):
         return np.array([xie11_from_vector(row) for row in standard]).reshape(len(standard), len(XIE_NAMES))
 
 
-# -- huang7 (seed 001) -------------------------------------------------------------------------------
+# -- huang7 (Huang and Wu 2021) ----------------------------------------------------------------------
 
 HUANG_BAND_HZ = 20.0
 HUANG_BANDS = 7
@@ -266,7 +266,7 @@ def huang7(recording: Recording) -> dict[str, float]:
             for b in range(HUANG_BANDS)}
 
 
-# -- chathuranga4 and its baselines (seed 002) -------------------------------------------------------
+# -- chathuranga4 and its baselines (Chathuranga et al. 2015) ----------------------------------------
 
 def _xyz(x: np.ndarray) -> np.ndarray:
     values = np.asarray(x, dtype=np.float64)
@@ -350,7 +350,7 @@ def chathuranga_net(recording: Recording) -> dict[str, float]:
     return {"chathuranga_net.friction": mu, "chathuranga_net.var_x": var_x, "chathuranga_net.kurt_x": kurt_x}
 
 
-# -- seed 004: xu3 -----------------------------------------------------------------------------------
+# -- Hoelscher et al. 2015: xu3 -----------------------------------------------------------------------------------
 
 XU_ELECTRODE = 17
 """Column of electrode E18 (Xu et al.'s compliance electrode; 0-based)."""
@@ -384,7 +384,7 @@ def compliance_electrode(electrodes: np.ndarray) -> np.ndarray:
 
 
 def xu3(recording: Recording) -> dict[str, float]:
-    """Xu et al.'s three physical features as seed 004 adapts them (section III-B).
+    """Xu et al.'s three physical features as Hoelscher et al. 2015 adapt them (section III-B).
 
     ``ln(max - min)`` of electrode 18 (compliance; the joint angle is not measured), ``ln(var)`` of the
     vibration band-passed 20-500 Hz (texture) and ``max - min`` of the heat flow (thermal conductivity).
@@ -399,7 +399,7 @@ def xu3(recording: Recording) -> dict[str, float]:
             "xu3.thermal": float(np.ptp(heat_flow))}
 
 
-# -- seed 004: chu -----------------------------------------------------------------------------------
+# -- Hoelscher et al. 2015: chu -----------------------------------------------------------------------------------
 
 HANNING_SECONDS = 0.1
 """Length of the Hanning window smoothing PDC in the Chu features (interpretation: 0.1 s, odd samples)."""
@@ -527,7 +527,7 @@ CHU_NAMES = ("pdc_max", "pdc_mean", "pdc_change", "esd_area", "esd_centroid", "e
 
 
 def chu(recording: Recording) -> dict[str, float]:
-    """Chu et al.'s temporal BioTac features as seed 004 uses them (section III-B), 22 values.
+    """Chu et al.'s temporal BioTac features as Hoelscher et al. 2015 use them (section III-B), 22 values.
 
     PDC: maximum, mean and greatest change of the Hanning-smoothed signal (:func:`pressure_statistics`);
     vibration: area, centroid, variance, skewness and kurtosis of its energy spectral density; heat flow:
@@ -543,7 +543,7 @@ def chu(recording: Recording) -> dict[str, float]:
     return {f"chu.{name}": float(value) for name, value in zip(CHU_NAMES, values, strict=True)}
 
 
-# -- seed 004: mean23 --------------------------------------------------------------------------------
+# -- Hoelscher et al. 2015: mean23 --------------------------------------------------------------------------------
 
 MEAN_ROLES = ("pressure_dc", "vibration", "temperature", "heat_flow", "electrodes")
 
@@ -551,7 +551,7 @@ MEAN_ROLES = ("pressure_dc", "vibration", "temperature", "heat_flow", "electrode
 def mean23(recording: Recording) -> dict[str, float]:
     """The mean of every channel: PDC, vibration, temperature, heat flow and each electrode (23 on a BioTac).
 
-    Seed 004 then reduces them to 8 dimensions by PCA fitted on the training samples (the method does that).
+    Hoelscher et al. 2015 then reduce them to 8 dimensions by PCA fitted on the training samples (the method does that).
     """
     _check_roles(recording, "mean23", MEAN_ROLES)
     values = {f"mean23.{role}": float(np.mean(one_axis(_trace(recording, role).data)))
@@ -561,7 +561,7 @@ def mean23(recording: Recording) -> dict[str, float]:
     return values
 
 
-# -- seed 004: dallaire ------------------------------------------------------------------------------
+# -- Hoelscher et al. 2015: dallaire ------------------------------------------------------------------------------
 
 THRESHOLDS = 20
 
@@ -593,7 +593,7 @@ def upper_spectrum_sum(x: np.ndarray) -> float:
 
 
 def dallaire(recording: Recording) -> dict[str, float]:
-    """Dallaire et al.'s vibration features as seed 004 computes them on the BioTac PAC signal.
+    """Dallaire et al.'s vibration features as Hoelscher et al. 2015 compute them on the BioTac PAC signal.
 
     Variance, skewness ``m3 / m2^1.5``, Pearson kurtosis ``m4 / m2^2``, unnormalised fifth central moment
     ``m5``, total variation ``sum |diff(x)|``, threshold side changes (:func:`threshold_crossings`) and the
@@ -610,7 +610,7 @@ def dallaire(recording: Recording) -> dict[str, float]:
             "dallaire.upper_spectrum": upper_spectrum_sum(x)}
 
 
-# -- seed 004: chitta --------------------------------------------------------------------------------
+# -- Hoelscher et al. 2015: chitta --------------------------------------------------------------------------------
 
 CHITTA_CUTOFF_HZ = 5.0
 """Cut-off of the first-order Butterworth filter on the electrodes (interpretation: high-pass at 5 Hz)."""
@@ -619,7 +619,7 @@ CHITTA_CUTOFF_HZ = 5.0
 def electrode_norm(electrodes: np.ndarray, fs: float, cutoff: float = CHITTA_CUTOFF_HZ) -> np.ndarray:
     """Euclidean norm over the electrodes of their first-order Butterworth high-pass (Chitta et al.).
 
-    Interpretation: Chitta et al. look at the high-frequency part of gripper pressure cells; seed 004 names
+    Interpretation: Chitta et al. look at the high-frequency part of gripper pressure cells; Hoelscher et al. 2015 name
     only "a first-order Butterworth filter". The filter runs causally, as online, from the steady state of
     the first sample (``sosfilt_zi``), so constant electrodes give exactly 0.
     """
@@ -643,10 +643,10 @@ def chitta(recording: Recording) -> dict[str, float]:
     return {"chitta.mean": float(np.mean(norm)), "chitta.variance": float(np.var(norm))}
 
 
-# -- seed 004: temperature ---------------------------------------------------------------------------
+# -- Hoelscher et al. 2015: temperature ---------------------------------------------------------------------------
 
 SETTLE_SECONDS = 6.0
-"""Seed 004 reads the temperature features after 6 s of contact (Fig. 5a)."""
+"""Hoelscher et al. 2015 read the temperature features after 6 s of contact (Fig. 5a)."""
 
 
 def settled(x: np.ndarray, fs: float, seconds: float = SETTLE_SECONDS) -> np.ndarray:
@@ -664,8 +664,8 @@ def change_after_peak(x: np.ndarray) -> float:
 
 
 def temperature(recording: Recording) -> dict[str, float]:
-    """Seed 004's temperature features: means of heat flow and temperature after the first 6 s, and the
-    heat-flow change after its peak."""
+    """The temperature features of Hoelscher et al. 2015: means of heat flow and temperature after the first
+    6 s, and the heat-flow change after its peak."""
     _check_roles(recording, "temperature", ("heat_flow", "temperature"))
     tac, tdc = _trace(recording, "heat_flow"), _trace(recording, "temperature")
     return {"temperature.tac_mean": float(np.mean(settled(tac.data, tac.fs))),

@@ -249,7 +249,7 @@ def test_fishel_on_scans():
 def test_compare_skips_a_method_the_data_cannot_feed():
     short = [Recording(f"r{i}", {"e": Trace(np.ones((20, 4)), 100.0, "-")}, {"electrodes": "e"},
                        label=f"c{i % 2}") for i in range(6)]
-    # 20 rows at 100 Hz: Xie needs 1 s, so it cannot run; seed 004's electrode features can.
+    # 20 rows at 100 Hz: Xie needs 1 s, so it cannot run; Hoelscher et al.'s electrode features can.
     with pytest.warns(methods.MethodSkipped, match="method xie skipped: xie_sequences works on none of 6"):
         results = compare(short, repeats=1)
     assert {r.method for r in results} == {"hoelscher"} and {r.feature_set for r in results} == {"chitta"}

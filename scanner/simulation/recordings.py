@@ -8,15 +8,15 @@ seeded by (seed, kind, object, trial, motion), so one recording does not depend 
 =============  ===============================================================================================
 kind           sensor and protocol
 =============  ===============================================================================================
-``biotac``     BioTac-like finger (seed 004, Huang): PAC vibration at 2200 Hz delivered as 22 samples per
-               100 Hz row, PDC pressure, TDC temperature, TAC heat flow, 19 electrodes at 100 Hz; objects of
-               eight material classes, five motions per trial (15 s static contact, four 4 s slides at
-               2.5 cm/s). Label: the object; level ``material``: its class.
-``array``      44 x 44 pressure array (Tekscan 5101, seed 000) dragged 1 s at 2.5 mm/s under 200 g, 100 Hz,
+``biotac``     BioTac-like finger (Hoelscher et al. 2015; Huang and Wu 2021): PAC vibration at 2200 Hz
+               delivered as 22 samples per 100 Hz row, PDC pressure, TDC temperature, TAC heat flow, 19
+               electrodes at 100 Hz; objects of eight material classes, five motions per trial (15 s static
+               contact, four 4 s slides at 2.5 cm/s). Label: the object; level ``material``: its class.
+``array``      44 x 44 pressure array (Tekscan 5101, Xie et al. 2019) dragged 1 s at 2.5 mm/s under 200 g, 100 Hz,
                intensities 0..255; Xie's 12 materials. Label: the material; level ``property``:
                soft/rigid x rough/smooth.
-``soft3axis``  soft 3-axis magnetic tactile sensor at 1 kHz with a 3-axis force sensor (seed 002); three 1 s
-               palpations per trial at 10-20 mm/s and 0.1-0.2 N. Label: the material.
+``soft3axis``  soft 3-axis magnetic tactile sensor at 1 kHz with a 3-axis force sensor (Chathuranga et al.
+               2015); three 1 s palpations per trial at 10-20 mm/s and 0.1-0.2 N. Label: the material.
 =============  ===============================================================================================
 
 The models are simple physics with the structure the methods rely on (texture vibration at speed / spatial
@@ -73,7 +73,7 @@ ELECTRODES = 19
 SLIDE_SPEED_MM_S = 25.0
 BIOTAC_MOTIONS = MappingProxyType({"static": 15.0, "slide_backward": 4.0, "slide_left": 4.0,
                                    "slide_forward": 4.0, "slide_right": 4.0})
-"""Seed 004's five motions and their durations in s: 15 s static contact, 10 cm slides at 2.5 cm/s."""
+"""The five motions of Hoelscher et al. 2015 and their durations in s: 15 s static contact, 10 cm slides at 2.5 cm/s."""
 
 
 @dataclass(frozen=True)
@@ -99,7 +99,7 @@ BIOTAC_CLASSES: Mapping[str, BiotacMaterial] = MappingProxyType({
     "metal": BiotacMaterial(0.98, 4.0, 0.50, 0.30, 1.00),
     "fabric": BiotacMaterial(0.30, 20.0, 0.80, 0.60, 0.11, 0.30),
 })
-"""Seed 004's eight material classes (Fig. 3)."""
+"""The eight material classes of Hoelscher et al. 2015 (Fig. 3)."""
 
 
 @dataclass(frozen=True)

@@ -11,19 +11,19 @@ method         features, classifiers and protocol
 =============  =========================================================================================
 ``fishel``     ``fishel3`` on scans (Strese et al. 2020, Fig. 18) with the project's six classifiers,
                5-fold CV grouped by sample, coarse, medium and fine levels.
-``xie``        ``xie11`` (seed 000): sequences standardised on the training rows -> 11 features ->
+``xie``        ``xie11`` (Xie et al. 2019): sequences standardised on the training rows -> 11 features ->
                standardised -> PCA -> linear SVM (L2 penalty, squared hinge, C = 1), RBF SVM (C = 1),
                kNN (k = 10 at the label level, 5 at coarser levels), LDA (SVD), Gaussian NB, random forest
                (10 trees), MLP 100-50-25-8; the PCA dimension (1..11) is swept with the linear SVM by an
                inner 5-fold CV on the training folds; 5-fold CV; every level of the dataset (Xie's
                property and material levels).
-``huang``      ``huang7`` (seed 001): RBF SVM (C = 30, gamma = 0.1), random forest (100 trees, depth not
+``huang``      ``huang7`` (Huang and Wu 2021): RBF SVM (C = 30, gamma = 0.1), random forest (100 trees, depth not
                limited), kNN (k = 5); 10-fold CV.
-``chathuranga``  ``chathuranga4`` (seed 002): pairwise RBF SVMs (sigma = 1) keeping the top 50 % of the
+``chathuranga``  ``chathuranga4`` (Chathuranga et al. 2015): pairwise RBF SVMs (sigma = 1) keeping the top 50 % of the
                candidates after each of three palpations; baselines: nearest spatial period V / f_p and a
                two-layer net (10 sigmoid units) on friction coefficient, x variance and x kurtosis of
                one palpation; repeated holdout of 1/6 of the trials (the paper: 20 of 120 per class).
-``hoelscher``  seed 004 (Hoelscher, Peters and Hermans 2015, BioTac): ``xu3``, ``chu``, ``mean23`` (PCA to
+``hoelscher``  Hoelscher, Peters and Hermans 2015 (BioTac): ``xu3``, ``chu``, ``mean23`` (PCA to
                8), ``dallaire``, ``chitta``, ``temperature``, each standardised on the training rows, with
                naive Bayes, a full-covariance Gaussian, linear and RBF SVMs (grid search on a 20 %
                validation split of the training rows) and a random forest (100 trees, depth 3); every

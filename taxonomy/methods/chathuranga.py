@@ -1,4 +1,4 @@
-"""``chathuranga``: Chathuranga et al.'s pairwise SVM elimination over three palpations (seed 002) and its
+"""``chathuranga``: Chathuranga et al.'s pairwise SVM elimination over three palpations (2015) and its
 baselines, repeated holdout of 1/6 of the trials."""
 
 from __future__ import annotations

@@ -137,7 +137,7 @@ def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Se
     seed : int
         Seed of every split and classifier.
     repeats : int
-        Repetitions of the repeated protocols (seed 004's one-per-object splits; Chathuranga's holdouts use
+        Repetitions of the repeated protocols (Hoelscher et al.'s one-per-object splits; Chathuranga's holdouts use
         half as many, at least two).
     progress : callable
         Wraps the iteration over the methods (e.g. a tqdm bar).

@@ -16,7 +16,7 @@ from taxonomy.labels import Label
 
 SEED = 0
 REPEATS = 10
-"""Default repetitions of the repeated protocols (seed 004 used 100 leave-one-per-object-out splits)."""
+"""Default repetitions of the repeated protocols (Hoelscher et al. 2015 used 100 leave-one-per-object-out splits)."""
 
 TIMED_ROWS = 5
 """Test rows of the first split whose single-row classification time is measured (the splits' models are

@@ -1,4 +1,4 @@
-"""``hoelscher``: Hoelscher, Peters and Hermans' BioTac features and classifiers (seed 004), every single
+"""``hoelscher``: Hoelscher, Peters and Hermans' BioTac features and classifiers (2015), every single
 motion and the motions combined, repeated leave-one-trial-per-object-out splits."""
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ from taxonomy.results import Result
 HOELSCHER_SETS = ("xu3", "chu", "mean23", "dallaire", "chitta", "temperature")
 HOELSCHER_CLASSIFIERS = ("nb", "gaussian", "linear-svm", "rbf-svm", "rf")
 MEAN_DIMENSIONS = 8
-"""Seed 004 reduces the 23 channel means to 8 principal components (~98 % of their variance)."""
+"""Hoelscher et al. 2015 reduce the 23 channel means to 8 principal components (~98 % of their variance)."""
 
 
 class ValidationSplit:
@@ -72,8 +72,8 @@ def _validated(svm: SVC, grid: Mapping[str, Sequence[float]], seed: int) -> Grid
 
 
 class ShrunkGaussian(ClassifierMixin, BaseEstimator):
-    """Seed 004's "Gaussian classifier": a full-covariance Gaussian per class, Bayes' rule with the class
-    frequencies as priors.
+    """The "Gaussian classifier" of Hoelscher et al. 2015: a full-covariance Gaussian per class, Bayes' rule
+    with the class frequencies as priors.
 
     Interpretation: each class covariance ``S`` (maximum likelihood) is shrunk to ``(1 - r) S + r I`` with
     ``r = shrinkage``, because a class has fewer training rows (9 in the paper) than a covariance needs;
@@ -114,7 +114,7 @@ class ShrunkGaussian(ClassifierMixin, BaseEstimator):
 
 
 def hoelscher_classifier(name: str, seed: int) -> BaseEstimator:
-    """Seed 004's classifiers (section III-C)."""
+    """The classifiers of Hoelscher et al. 2015 (section III-C)."""
     return {
         "nb": GaussianNB,
         "gaussian": ShrunkGaussian,
@@ -136,7 +136,7 @@ COMBINATIONS = ("concatenation", "voting", "probabilities")
 
 
 class MotionCombination(ClassifierMixin, BaseEstimator):
-    """Seed 004's combination of the motions of one trial (section IV-B).
+    """The combination of the motions of Hoelscher et al. 2015 of one trial (section IV-B).
 
     A row holds the features of ``blocks`` motions side by side, in a fixed motion order.
     ``concatenation``: each block through its own fitted ``features`` step, side by side into one
@@ -280,7 +280,7 @@ def _combined(dataset: Dataset, cache: FeatureCache, mode: str, classifier: str,
 
 def run_hoelscher(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
                   client: Client | None = None) -> list[Result]:
-    """Seed 004: every applicable feature set x classifier per motion, then motion combinations, the
+    """Hoelscher et al. 2015: every applicable feature set x classifier per motion, then motion combinations, the
     material-class level and held-out objects with the mean features."""
     sets = [s for s in HOELSCHER_SETS if every(dataset, s)]
     results, problems = [], []
@@ -291,7 +291,7 @@ def run_hoelscher(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int
             except MethodError as exc:
                 problems.append(str(exc))
     if not results:
-        raise MethodError(problems[0] if problems else "no seed-004 feature set applies")
+        raise MethodError(problems[0] if problems else "no feature set of Hoelscher et al. 2015 applies")
     if "mean23" not in sets:
         return results
     label = dataset.label_level

@@ -1,4 +1,4 @@
-"""``huang``: Huang and Wu's seven band means of the vibration (seed 001), RBF SVM, random forest and kNN,
+"""``huang``: Huang and Wu's seven band means of the vibration (Huang and Wu 2021), RBF SVM, random forest and kNN,
 10-fold CV."""
 
 from __future__ import annotations

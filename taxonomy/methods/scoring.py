@@ -44,7 +44,8 @@ def holdout_splits(y: np.ndarray, repeats: int, test_size: float, seed: int) -> 
 
 
 def one_per_object_splits(objects: Sequence[str], repeats: int, seed: int) -> list[Split]:
-    """Seed 004's protocol: each split tests one randomly chosen row of every object, trains on the rest.
+    """The protocol of Hoelscher et al. 2015: each split tests one randomly chosen row of every object and
+    trains on the rest.
 
     Objects with a single row are always in training.
     """

@@ -1,4 +1,4 @@
-"""``xie``: Xie et al.'s 11 features of a pressure array (seed 000), a PCA swept inside the training folds
+"""``xie``: Xie et al.'s 11 features of a pressure array (Xie et al. 2019), a PCA swept inside the training folds
 and seven classifiers, 5-fold CV."""
 
 from __future__ import annotations
