@@ -1,4 +1,4 @@
-"""Acquisition benchmark against the emulators (issue 7): the host reads the DAQ through nidaqmx over gRPC,
+"""Acquisition benchmark against the emulators: the host reads the DAQ through nidaqmx over gRPC,
 the sensor board through pyserial on a pseudo-terminal and a 44.1 kHz microphone, like the recorder does.
 
 1. Nominal load for ``--seconds`` (default 60): 8 x 3 kHz DAQ + 44.1 kHz audio + the board's 20 Hz T and
