@@ -448,13 +448,23 @@ def _kept_peak_mean(spectrum: RealSpectrum) -> float:
     m, n = spectrum.shape
     threshold = PEAK_FRACTION * spectrum.peak
     total, count = spectrum.peak_sum(PEAK_FRACTION)
-    dy = np.arange(max(-GAUSS_HALF, -(m // 2)), min(GAUSS_HALF, m - m // 2))
-    dx = np.arange(max(-GAUSS_HALF, -(n // 2)), min(GAUSS_HALF, n - n // 2))
+    dy, dx, gauss = _centre_gaussian(m, n)
     window = spectrum.at(dy, dx)
-    gauss = np.exp(-(dy[:, None] ** 2 + dx[None, :] ** 2) / (2.0 * GAUSS_SIGMA**2))
     # X * G' = X - X * G, and G' = 1 outside the window.
     total -= np.sum(np.where(window >= threshold, window * gauss, 0.0))
     return float(total / count / math.sqrt(m * n))
+
+
+@lru_cache(maxsize=8)
+def _centre_gaussian(m: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The offsets -100..99 around the centre of an m x n spectrum that lie in it, and the Gaussian ``G``
+    of MaRG (eq. 11) on them (made once per photo size; read-only)."""
+    dy = np.arange(max(-GAUSS_HALF, -(m // 2)), min(GAUSS_HALF, m - m // 2))
+    dx = np.arange(max(-GAUSS_HALF, -(n // 2)), min(GAUSS_HALF, n - n // 2))
+    gauss = np.exp(-(dy[:, None] ** 2 + dx[None, :] ** 2) / (2.0 * GAUSS_SIGMA**2))
+    for array in (dy, dx, gauss):
+        array.flags.writeable = False
+    return dy, dx, gauss
 
 
 def marg(v: np.ndarray, gray: np.ndarray, *, contrast: float | None = None) -> float:
@@ -483,10 +493,14 @@ def wavelet_detail(v: np.ndarray, level: int, wavelet: str = WAVELET, levels: in
     values = _samples(v, "v")
     if not 1 <= level <= levels:
         raise ValueError(f"detail level must be in 1..{levels}, got {level}")
-    coefficients = pywt.wavedec(values, wavelet, level=levels, mode="symmetric")
+    return _detail_of(pywt.wavedec(values, wavelet, level=levels, mode="symmetric"), level, wavelet, values.size)
+
+
+def _detail_of(coefficients: list[np.ndarray], level: int, wavelet: str, size: int) -> np.ndarray:
+    """The level-``level`` detail reconstructed from a ``pywt.wavedec`` decomposition (see :func:`wavelet_detail`)."""
     only = [np.zeros_like(c) for c in coefficients]
     only[-level] = coefficients[-level]
-    return pywt.waverec(only, wavelet, mode="symmetric")[:values.size]
+    return pywt.waverec(only, wavelet, mode="symmetric")[:size]
 
 
 def miro(v: np.ndarray) -> float:
@@ -496,8 +510,10 @@ def miro(v: np.ndarray) -> float:
     Interpretation of eq. 13-14 (SPEC 7.1): the bars are means, so d removes from D1 the share of D5 scaled to
     D1's level; MiRO grows with the signal's amplitude and does not change when D5 alone is scaled.
     """
-    d1 = np.abs(wavelet_detail(v, 1))
-    d5 = np.abs(wavelet_detail(v, 5))
+    values = _samples(v, "v")
+    coefficients = pywt.wavedec(values, WAVELET, level=5, mode="symmetric")  # one decomposition for both
+    d1 = np.abs(_detail_of(coefficients, 1, WAVELET, values.size))
+    d5 = np.abs(_detail_of(coefficients, 5, WAVELET, values.size))
     mean_d5 = np.mean(d5)
     d = d1 if mean_d5 == 0 else d1 - (np.mean(d1) / mean_d5) * d5
     return float(np.log10(1.0 + np.mean(np.abs(d))))

@@ -137,6 +137,15 @@ def _exact_samples(seconds: float | Fraction, fs: float, what: str) -> int:
     return int(count)
 
 
+@lru_cache(maxsize=64)
+def _window_samples(start: int, fs: float, audio_fs: float, seconds: float) -> tuple[int, int, int]:
+    """Audio start, vibration length and audio length of a window in whole samples; ValueError if one is
+    not whole."""
+    return (_exact_samples(Fraction(start) / Fraction(fs), audio_fs, "audio start"),
+            _exact_samples(seconds, fs, "window length"),
+            _exact_samples(seconds, audio_fs, "audio window length"))
+
+
 @dataclass(frozen=True)
 class SlideWindow:
     """The 1 s slide window shared by the vibration, IR and audio of one slide (SPEC 6).
@@ -161,24 +170,23 @@ class SlideWindow:
         if isinstance(self.start, bool) or int(self.start) != self.start or self.start < 0:
             raise ValueError(f"window start must be a non-negative sample index, got {self.start!r}")
         object.__setattr__(self, "start", int(self.start))
-        _exact_samples(Fraction(self.start) / Fraction(self.fs), self.audio_fs, "audio start")
-        _exact_samples(self.seconds, self.fs, "window length")
-        _exact_samples(self.seconds, self.audio_fs, "audio window length")
+        # Checked and kept once: exact fractions cost more than everything else a window does.
+        object.__setattr__(self, "_samples", _window_samples(self.start, self.fs, self.audio_fs, self.seconds))
 
     @property
     def length(self) -> int:
         """Samples of vibration (and IR) in the window: 3000."""
-        return _exact_samples(self.seconds, self.fs, "window length")
+        return self._samples[1]
 
     @property
     def audio_start(self) -> int:
         """First audio sample: ``start x audio_fs / fs``, exact."""
-        return _exact_samples(Fraction(self.start) / Fraction(self.fs), self.audio_fs, "audio start")
+        return self._samples[0]
 
     @property
     def audio_length(self) -> int:
         """Samples of audio in the window: 44100."""
-        return _exact_samples(self.seconds, self.audio_fs, "audio window length")
+        return self._samples[2]
 
     @property
     def vibration(self) -> slice:
