@@ -323,9 +323,9 @@ def _sosfiltfilt(sos: np.ndarray, zi: np.ndarray, padlen: int, x: np.ndarray) ->
     forward = np.concatenate((2 * columns[:1] - columns[padlen:0:-1], columns,
                               2 * columns[-1:] - columns[-2:-(padlen + 2):-1]))
     _sosfilt_rows(sos, forward, zi[:, :, None] * forward[0])
-    backward = forward[::-1].copy()
+    backward = forward[::-1]  # filtered in place, last sample first
     _sosfilt_rows(sos, backward, zi[:, :, None] * backward[0])
-    return backward[::-1][padlen:-padlen].reshape(x.shape)
+    return forward[padlen:-padlen].reshape(x.shape)
 
 
 @numba.njit(cache=True)
