@@ -233,11 +233,17 @@ def _flux_terms(spectra: np.ndarray, total: np.ndarray, total_eps: np.ndarray) -
     row sums: the divisions, difference and square of the array formula, in one pass."""
     terms = np.empty_like(spectra)
     for i in range(spectra.shape[0]):
-        before = max(i - 1, 0)
-        for k in range(spectra.shape[1]):
-            current = spectra[i, k] / total[i] if total[i] > 0 else 0.0
-            difference = current - spectra[before, k] / total_eps[before]
-            terms[i, k] = difference * difference
+        current, prior, out = spectra[i], spectra[max(i - 1, 0)], terms[i]
+        scale, prior_scale = total[i], total_eps[max(i - 1, 0)]
+        # One loop per case, without a test inside: vectorised.
+        if scale > 0:
+            for k in range(out.size):
+                difference = current[k] / scale - prior[k] / prior_scale
+                out[k] = difference * difference
+        else:
+            for k in range(out.size):
+                difference = 0.0 - prior[k] / prior_scale
+                out[k] = difference * difference
     return terms
 
 
