@@ -294,6 +294,8 @@ def gaussian_weights(sigma: float, order: int, truncate: float = 4.0) -> np.ndar
 @numba.njit(cache=True)
 def _reflect(index: int, n: int) -> int:
     """Index into a length-n axis under scipy.ndimage's "reflect" mode (d c b a | a b c d | d c b a)."""
+    if 0 <= index < n:
+        return index  # no division for the indices inside
     folded = index % (2 * n)
     return 2 * n - 1 - folded if folded >= n else folded
 
