@@ -332,11 +332,14 @@ def _harmonic_of_autocorrelation(autocorr: np.ndarray, frame_energy: np.ndarray,
     f0 = np.zeros(rows)
     heads = np.empty(max_lag)
     gamma = np.zeros(max_lag)
+    masked = np.empty(max_lag + 1)
     for row in range(rows):
         energy = frame_energy[row]
         # FFT round-off (~1e-15 R(0)) would otherwise decide the sign tests and, divided by the eps of an
         # all-zero head, the whole Gamma of a nearly silent frame; exact arithmetic gives 0 there.
-        masked = np.where(np.abs(autocorr[row]) <= AUTOCORR_TOL * energy, 0.0, autocorr[row])
+        tolerance = AUTOCORR_TOL * energy
+        for m in range(max_lag + 1):
+            masked[m] = 0.0 if abs(autocorr[row, m]) <= tolerance else autocorr[row, m]
         first_zero = _first_downward_crossing(masked)
         exact_signs = energy < EXACT_SIGNS_BELOW
         if not exact_signs:
@@ -413,8 +416,9 @@ def _autocorrelation(framed: np.ndarray, max_lag: int) -> np.ndarray:
     ``cv2.dft`` on the rows and ``cv2.mulSpectrums`` for ``|X|^2``: half the time of ``scipy.fft`` here.
     """
     rows, n = framed.shape
-    padded = np.zeros((rows, cv2.getOptimalDFTSize(n + max_lag)))
+    padded = np.empty((rows, cv2.getOptimalDFTSize(n + max_lag)))
     padded[:, :n] = framed
+    padded[:, n:] = 0.0
     # All in the one padded array: a second array of this size costs more in fresh pages than it saves.
     spectra = cv2.dft(padded, dst=padded, flags=cv2.DFT_ROWS)
     power = cv2.mulSpectrums(spectra, spectra, cv2.DFT_ROWS, spectra, conjB=True)
