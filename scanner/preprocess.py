@@ -322,18 +322,20 @@ def _sosfiltfilt(sos: np.ndarray, zi: np.ndarray, padlen: int, x: np.ndarray) ->
     # scipy's odd extension: the ends mirrored through the end samples
     forward = np.concatenate((2 * columns[:1] - columns[padlen:0:-1], columns,
                               2 * columns[-1:] - columns[-2:-(padlen + 2):-1]))
-    _sosfilt_rows(sos, forward, zi[:, :, None] * forward[0])
-    backward = forward[::-1]  # filtered in place, last sample first
-    _sosfilt_rows(sos, backward, zi[:, :, None] * backward[0])
+    _sosfilt_rows(sos, forward, zi[:, :, None] * forward[0], False)
+    _sosfilt_rows(sos, forward, zi[:, :, None] * forward[-1], True)  # in place, last sample first
     return forward[padlen:-padlen].reshape(x.shape)
 
 
 @numba.njit(cache=True)
-def _sosfilt_rows(sos: np.ndarray, x: np.ndarray, state: np.ndarray) -> None:
-    """``scipy.signal.sosfilt`` along axis 0 of ``x`` (samples, signals) in place, from the filter state
-    ``state`` (sections, 2, signals), updated: the transposed direct form II of scipy's ``_sosfilt``,
-    the same operations in the same order, only one sample of every signal at a time."""
-    for k in range(x.shape[0]):
+def _sosfilt_rows(sos: np.ndarray, x: np.ndarray, state: np.ndarray, backwards: bool) -> None:
+    """``scipy.signal.sosfilt`` along axis 0 of ``x`` (samples, signals) in place, from the last sample to the
+    first if ``backwards``, from the filter state ``state`` (sections, 2, signals), updated: the transposed
+    direct form II of scipy's ``_sosfilt``, the same operations in the same order, only one sample of every
+    signal at a time."""
+    n = x.shape[0]
+    for step in range(n):
+        k = n - 1 - step if backwards else step
         for i in range(x.shape[1]):
             current = x[k, i]
             for s in range(sos.shape[0]):
