@@ -281,8 +281,7 @@ def _first_exceeding(power: np.ndarray, thresholds: np.ndarray) -> np.ndarray:
     return first
 
 
-def harmonic(framed: np.ndarray, fs: float, squares: np.ndarray | None = None,
-             frame_energy: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def harmonic(framed: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
     """Harmonic ratio and fundamental frequency in Hz per frame (``feature_harmonic.m``).
 
     With ``R(m)`` the autocorrelation at lag ``m``, ``m0`` the first lag ``m >= 2`` where ``R`` crosses
@@ -290,8 +289,7 @@ def harmonic(framed: np.ndarray, fs: float, squares: np.ndarray | None = None,
     autocorrelation is ``Gamma(m) = R(m) / (sqrt(R(0) sum_{n<N-m} x(n)^2) + eps)`` for ``m0 <= m <= M``
     and 0 below ``m0``. If ``Gamma`` is noise-like (its zero-crossing rate, ``zcr``, exceeds 0.15) both
     values are 0 (unvoiced). Otherwise ``HR = max Gamma`` at lag ``T0`` (first maximum) and
-    ``f0 = fs / T0``, set to 0 when it exceeds 5000 Hz or ``HR < 0.1``. ``squares`` is ``framed**2`` when
-    the caller has it already.
+    ``f0 = fs / T0``, set to 0 when it exceeds 5000 Hz or ``HR < 0.1``.
 
     ``R`` is computed by FFT, as MATLAB's ``xcorr`` does, for the lags up to ``M`` only: a crossing after
     ``M`` leaves ``Gamma`` all 0 wherever it is, and an FFT of ``N + M`` samples (instead of ``2N - 1``)
@@ -299,13 +297,25 @@ def harmonic(framed: np.ndarray, fs: float, squares: np.ndarray | None = None,
     ``1e-12 R(0)`` of zero are set to 0, so that nearly silent frames get the exact-arithmetic result on
     every machine instead of one decided by round-off.
     """
-    n = framed.shape[1]
-    max_lag = min(matlab_round(0.016 * fs), n - 1)
-    squares = framed**2 if squares is None else squares
-    frame_energy = squares.sum(axis=1) if frame_energy is None else frame_energy
-    shared = n - max_lag - 1
-    return _harmonic_of_autocorrelation(_autocorrelation(framed, max_lag), frame_energy, squares,
-                                        squares[:, :shared].sum(axis=1), float(fs))
+    squares = framed**2
+    return _harmonic(framed, fs, squares.sum(axis=1), squares[:, :_shared_head(framed.shape[1], fs)].sum(axis=1))
+
+
+def _max_lag(n: int, fs: float) -> int:
+    """``M = min(round(0.016 fs), N-1)``, the largest lag of :func:`harmonic`."""
+    return min(matlab_round(0.016 * fs), n - 1)
+
+
+def _shared_head(n: int, fs: float) -> int:
+    """``N - M - 1``: the samples at the start of a frame that every head energy of :func:`harmonic` sums."""
+    return n - _max_lag(n, fs) - 1
+
+
+def _harmonic(framed: np.ndarray, fs: float, frame_energy: np.ndarray,
+              shared_energy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`harmonic` given ``sum x^2`` of each frame and of its first :func:`_shared_head` samples."""
+    autocorr = _autocorrelation(framed, _max_lag(framed.shape[1], fs))
+    return _harmonic_of_autocorrelation(autocorr, frame_energy, framed, shared_energy, float(fs))
 
 
 EXACT_SIGNS_BELOW = 1e150
@@ -315,7 +325,7 @@ from rounding to 0."""
 
 
 @numba.njit(cache=True)
-def _harmonic_of_autocorrelation(autocorr: np.ndarray, frame_energy: np.ndarray, squares: np.ndarray,
+def _harmonic_of_autocorrelation(autocorr: np.ndarray, frame_energy: np.ndarray, framed: np.ndarray,
                                  shared_energy: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
     """:func:`harmonic` of each row from its autocorrelation ``R(0..M)``, ``R(0)`` as ``sum x^2``
     (``frame_energy``) and ``shared_energy = sum_{n < N-M-1} x(n)^2``, the part of every head energy
@@ -326,7 +336,7 @@ def _harmonic_of_autocorrelation(autocorr: np.ndarray, frame_energy: np.ndarray,
     bit. Only fewer of them: below :data:`EXACT_SIGNS_BELOW` the voicing test needs only the signs of
     ``R``, an unvoiced frame needs no ``Gamma`` at all, and the maximum only the positive ones.
     """
-    rows, n = squares.shape
+    rows = framed.shape[0]
     max_lag = autocorr.shape[1] - 1
     ratio = np.zeros(rows)
     f0 = np.zeros(rows)
@@ -343,7 +353,7 @@ def _harmonic_of_autocorrelation(autocorr: np.ndarray, frame_energy: np.ndarray,
         first_zero = _first_downward_crossing(masked)
         exact_signs = energy < EXACT_SIGNS_BELOW
         if not exact_signs:
-            _head_energies(squares[row], shared_energy[row], heads)
+            _head_energies(framed[row], shared_energy[row], heads)
             _gamma(masked, energy, heads, first_zero, gamma, False)
         # Gamma is 0 below m0 and counts no crossing there.
         changes = 0
@@ -356,7 +366,7 @@ def _harmonic_of_autocorrelation(autocorr: np.ndarray, frame_energy: np.ndarray,
         if changes / (2.0 * max_lag) > 0.15:
             continue
         if exact_signs:
-            _head_energies(squares[row], shared_energy[row], heads)
+            _head_energies(framed[row], shared_energy[row], heads)
             _gamma(masked, energy, heads, first_zero, gamma, True)
         best, best_lag = _first_maximum(gamma)
         gamma[:] = 0.0
@@ -377,13 +387,13 @@ def _first_downward_crossing(autocorr: np.ndarray) -> int:
 
 
 @numba.njit(cache=True)
-def _head_energies(squares: np.ndarray, shared: float, heads: np.ndarray) -> None:
+def _head_energies(frame: np.ndarray, shared: float, heads: np.ndarray) -> None:
     """``heads[m-1] = sum_{n < N-m} x(n)^2`` for m = 1 .. M: ``shared`` (the sum of the first ``N-M-1``
     squares) plus the running sum of the squares after them, as ``np.cumsum`` adds them."""
-    n, max_lag = squares.size, heads.size
+    n, max_lag = frame.size, heads.size
     running = 0.0
     for k in range(max_lag):
-        value = squares[n - max_lag - 1 + k]
+        value = frame[n - max_lag - 1 + k] * frame[n - max_lag - 1 + k]
         running = value if k == 0 else running + value
         heads[max_lag - 1 - k] = running + shared
 
@@ -421,9 +431,27 @@ def _autocorrelation(framed: np.ndarray, max_lag: int) -> np.ndarray:
     padded[:, n:] = 0.0
     # All in the one padded array: a second array of this size costs more in fresh pages than it saves.
     spectra = cv2.dft(padded, dst=padded, flags=cv2.DFT_ROWS)
-    power = cv2.mulSpectrums(spectra, spectra, cv2.DFT_ROWS, spectra, conjB=True)
-    autocorr = cv2.dft(power, dst=power, flags=cv2.DFT_ROWS | cv2.DFT_INVERSE | cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE)
+    _power_in_place(spectra)
+    autocorr = cv2.dft(spectra, dst=spectra, flags=cv2.DFT_ROWS | cv2.DFT_INVERSE | cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE)
     return autocorr[:, :max_lag + 1]
+
+
+def _power_in_place(packed: np.ndarray) -> None:
+    """``|X|^2`` of rows of ``cv2.dft`` spectra packed as CCS (Re0, Re1, Im1, ..., [Re(L/2)]), in place.
+
+    ``Re^2 + Im^2`` into the real parts and 0 into the imaginary ones: the operations, in their order, of
+    ``cv2.mulSpectrums(X, X, DFT_ROWS, conjB=True)``, which would copy its aliased input first.
+    """
+    length = packed.shape[1]
+    pairs = (length - 1) // 2
+    real, imaginary = packed[:, 1:2 * pairs:2], packed[:, 2:2 * pairs + 1:2]
+    real *= real
+    imaginary *= imaginary
+    real += imaginary
+    imaginary[...] = 0.0
+    packed[:, 0] *= packed[:, 0]
+    if length % 2 == 0:
+        packed[:, -1] *= packed[:, -1]
 
 
 @lru_cache(maxsize=8)
@@ -584,13 +612,17 @@ def frame_features(signal: np.ndarray, fs: float = 44100.0) -> np.ndarray:
     # features are done: fewer arrays alive at once means fewer fresh pages to fault in.
     squares = framed**2
     frame_energy = squares.sum(axis=1)  # energy, energy entropy and R(0) of the harmonic features
+    shared_energy = squares[:, :_shared_head(n, fs)].sum(axis=1)
     table[:, 1] = frame_energy / n
     table[:, 2] = _block_entropy_of_squares(squares, N_BLOCKS, frame_energy)
-    table[:, 8], table[:, 9] = harmonic(framed, fs, squares, frame_energy)
     del squares
+    table[:, 8], table[:, 9] = _harmonic(framed, fs, frame_energy, shared_energy)
     magnitudes = _magnitudes(framed)  # the transform of the spectrum and of the chroma
     table[:, 10 + N_MFCC:] = _chroma(framed, magnitudes, fs, peak)
-    spectra = _spectrum(magnitudes, n)
+    if magnitudes.shape[1] == (n + 1) // 2:  # odd N: the spectrum keeps every bin
+        spectra = np.divide(magnitudes, n, out=magnitudes)
+    else:
+        spectra = _spectrum(magnitudes, n)
     del magnitudes
     power = spectra**2
     power_total = power.sum(axis=1)  # spectral entropy and roll-off

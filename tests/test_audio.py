@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 import pytest
 
@@ -306,6 +307,18 @@ def test_harmonic_kernel_equals_the_array_formula_bit_for_bit(fs):
             ratio, f0 = audio.harmonic(framed, fs)
         np.testing.assert_array_equal(ratio, expected[0])
         np.testing.assert_array_equal(f0, expected[1])
+
+
+@pytest.mark.parametrize("length", [2, 3, 4, 27, 36, 2916])
+def test_power_spectrum_in_place_equals_mul_spectrums(length):
+    # The CCS packing has a lone last real part for even lengths only.
+    rng = np.random.default_rng(length)
+    rows = np.zeros((5, length))
+    rows[:, :max(1, 3 * length // 4)] = rng.standard_normal((5, max(1, 3 * length // 4))) * 1e5
+    packed = cv2.dft(rows, flags=cv2.DFT_ROWS)
+    expected = cv2.mulSpectrums(packed, packed, cv2.DFT_ROWS, conjB=True)
+    audio._power_in_place(packed)
+    np.testing.assert_array_equal(packed, expected)
 
 
 def test_rolloff_equals_the_cumulative_sum_formula_bit_for_bit():
