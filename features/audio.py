@@ -23,6 +23,7 @@ import math
 from functools import lru_cache
 
 import cv2
+import numba
 import numpy as np
 from scipy import fft as sp_fft
 
@@ -92,7 +93,9 @@ def frames(signal: np.ndarray, fs: float = 44100.0) -> np.ndarray:
     """
     x = _checked_signal(signal, fs)
     window, step = window_and_step(fs)
-    framed = np.lib.stride_tricks.sliding_window_view(x, window)[::step]
+    n_frames = (x.size - window) // step + 1
+    framed = np.lib.stride_tricks.as_strided(x, (n_frames, window), (step * x.strides[0], x.strides[0]),
+                                             writeable=False)
     return framed * _hamming(window)
 
 
@@ -124,20 +127,26 @@ def zcr(framed: np.ndarray) -> np.ndarray:
     Because the sample before the frame counts as 0, a frame with a non-zero first sample gets an extra
     ``1/(2N)``; a sample that is exactly 0 counts as half a crossing on each side.
     """
-    # Signs as int8 and integer sums: the same counts as in floats, without float temporaries.
-    signs = (framed > 0).view(np.int8) - (framed < 0).view(np.int8)
-    changes = np.abs(np.diff(signs, axis=1)).sum(axis=1, dtype=np.int64) + np.abs(signs[:, 0])
-    return changes / (2.0 * framed.shape[1])
+    return _sign_changes(framed) / (2.0 * framed.shape[1])
+
+
+@numba.njit(cache=True)
+def _sign_changes(rows: np.ndarray) -> np.ndarray:
+    """Per row, ``sum_n |sgn x(n) - sgn x(n-1)|`` with ``x(-1) = 0``, counted in integers (exact)."""
+    changes = np.zeros(rows.shape[0], dtype=np.int64)
+    for row in range(rows.shape[0]):
+        values = rows[row]
+        # Each pair read afresh, so that no sign is carried from one step to the next (vectorised).
+        count = abs(int(values[0] > 0) - int(values[0] < 0))
+        for k in range(1, values.size):
+            count += abs(int(values[k] > 0) - int(values[k] < 0) - int(values[k - 1] > 0) + int(values[k - 1] < 0))
+        changes[row] = count
+    return changes
 
 
 def energy(framed: np.ndarray) -> np.ndarray:
     """Short-term energy ``E = 1/N sum_n x(n)^2`` (``feature_energy.m``)."""
     return np.mean(framed**2, axis=1)
-
-
-def _energies(squares: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``energy`` and ``energy_entropy`` from the frames' squared samples, computed once for both."""
-    return np.mean(squares, axis=1), _block_entropy_of_squares(squares, N_BLOCKS)
 
 
 def _block_entropy(values: np.ndarray, n_blocks: int) -> np.ndarray:
@@ -149,12 +158,12 @@ def _block_entropy(values: np.ndarray, n_blocks: int) -> np.ndarray:
     return _block_entropy_of_squares(values**2, n_blocks)
 
 
-def _block_entropy_of_squares(squares: np.ndarray, n_blocks: int) -> np.ndarray:
-    """:func:`_block_entropy` of the values whose squares are given."""
+def _block_entropy_of_squares(squares: np.ndarray, n_blocks: int, total: np.ndarray | None = None) -> np.ndarray:
+    """:func:`_block_entropy` of the values whose squares are given; ``total`` is their row sum if known."""
     length = squares.shape[1] // n_blocks
-    total = np.sum(squares, axis=1, keepdims=True)
+    total = np.sum(squares, axis=1) if total is None else total
     blocks = squares[:, : length * n_blocks].reshape(squares.shape[0], n_blocks, length)
-    shares = np.sum(blocks, axis=2) / (total + EPS)
+    shares = np.sum(blocks, axis=2) / (total[:, None] + EPS)
     return -np.sum(shares * np.log2(shares + EPS), axis=1)
 
 
@@ -176,12 +185,28 @@ def spectral_centroid_spread(spectra: np.ndarray, fs: float) -> tuple[np.ndarray
     """
     n_bins = spectra.shape[1]
     m = fs / (2.0 * n_bins) * np.arange(1, n_bins + 1)
-    peak = spectra.max(axis=1, keepdims=True)
-    x = np.divide(spectra, peak, out=np.zeros_like(spectra), where=peak > 0)
+    x = _scaled_to_peak(spectra, spectra.max(axis=1))
     weight = x.sum(axis=1) + EPS
     centroid = (x @ m) / weight
-    spread = np.sqrt(np.sum((m - centroid[:, None]) ** 2 * x, axis=1) / weight)
+    _weigh_squared_deviations(x, m, centroid)
+    spread = np.sqrt(np.sum(x, axis=1) / weight)
     return centroid / (fs / 2.0), spread / (fs / 2.0)
+
+
+@numba.njit(cache=True)
+def _weigh_squared_deviations(x: np.ndarray, m: np.ndarray, centre: np.ndarray) -> None:
+    """``x[i, k] = (m[k] - centre[i])^2 x[i, k]`` in place: the operations of the array expression, in one pass."""
+    for i in range(x.shape[0]):
+        for k in range(x.shape[1]):
+            deviation = m[k] - centre[i]
+            x[i, k] = deviation * deviation * x[i, k]
+
+
+def _scaled_to_peak(rows: np.ndarray, peak: np.ndarray) -> np.ndarray:
+    """Each row divided by its ``peak``; rows whose peak is not positive become 0."""
+    if np.all(peak > 0):
+        return rows / peak[:, None]
+    return np.divide(rows, peak[:, None], out=np.zeros_like(rows), where=peak[:, None] > 0)
 
 
 def spectral_entropy(spectra: np.ndarray, n_blocks: int = N_BLOCKS) -> np.ndarray:
@@ -199,11 +224,27 @@ def spectral_flux(spectra: np.ndarray) -> np.ndarray:
     The first frame is compared with itself, as ``stFeatureExtraction.m`` does, so its flux is ~0. An
     all-zero current spectrum contributes 0 in place of the toolbox's 0/0.
     """
-    previous = np.concatenate([spectra[:1], spectra[:-1]])
-    total = spectra.sum(axis=1, keepdims=True)
-    current = np.divide(spectra, total, out=np.zeros_like(spectra), where=total > 0)
-    prior = previous / np.sum(previous + EPS, axis=1, keepdims=True)
-    return np.sum((current - prior) ** 2, axis=1)
+    return np.sum(_flux_terms(spectra, spectra.sum(axis=1), np.sum(spectra + EPS, axis=1)), axis=1)
+
+
+@numba.njit(cache=True)
+def _flux_terms(spectra: np.ndarray, total: np.ndarray, total_eps: np.ndarray) -> np.ndarray:
+    """The terms ``(X_i(k)/sum X_i - X_{i-1}(k)/sum(X_{i-1} + eps))^2`` of :func:`spectral_flux`, given the
+    row sums: the divisions, difference and square of the array formula, in one pass."""
+    terms = np.empty_like(spectra)
+    for i in range(spectra.shape[0]):
+        current, prior, out = spectra[i], spectra[max(i - 1, 0)], terms[i]
+        scale, prior_scale = total[i], total_eps[max(i - 1, 0)]
+        # One loop per case, without a test inside: vectorised.
+        if scale > 0:
+            for k in range(out.size):
+                difference = current[k] / scale - prior[k] / prior_scale
+                out[k] = difference * difference
+        else:
+            for k in range(out.size):
+                difference = 0.0 - prior[k] / prior_scale
+                out[k] = difference * difference
+    return terms
 
 
 def spectral_rolloff(spectra: np.ndarray, c: float = ROLLOFF_C) -> np.ndarray:
@@ -216,15 +257,31 @@ def spectral_rolloff(spectra: np.ndarray, c: float = ROLLOFF_C) -> np.ndarray:
     return _rolloff_of_power(spectra**2, c)
 
 
-def _rolloff_of_power(power: np.ndarray, c: float = ROLLOFF_C) -> np.ndarray:
-    """:func:`spectral_rolloff` of the spectra whose squares are ``power``."""
-    cumulative = np.cumsum(power, axis=1)
-    exceeded = cumulative > c * power.sum(axis=1, keepdims=True)
-    first = np.where(exceeded.any(axis=1), exceeded.argmax(axis=1), power.shape[1] - 1)
-    return first / power.shape[1]
+def _rolloff_of_power(power: np.ndarray, c: float = ROLLOFF_C, total: np.ndarray | None = None) -> np.ndarray:
+    """:func:`spectral_rolloff` of the spectra whose squares are ``power`` (row sums ``total`` if known)."""
+    total = power.sum(axis=1) if total is None else total
+    return _first_exceeding(power, c * total) / power.shape[1]
 
 
-def harmonic(framed: np.ndarray, fs: float, squares: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+@numba.njit(cache=True)
+def _first_exceeding(power: np.ndarray, thresholds: np.ndarray) -> np.ndarray:
+    """Per row, the first index whose running sum exceeds its threshold, else the last index.
+
+    The running sum adds the values one by one from the first, as ``np.cumsum`` does, and stops there.
+    """
+    rows, bins = power.shape
+    first = np.full(rows, bins - 1)
+    for row in range(rows):
+        cumulative = 0.0
+        for k in range(bins):
+            cumulative = power[row, k] if k == 0 else cumulative + power[row, k]
+            if cumulative > thresholds[row]:
+                first[row] = k
+                break
+    return first
+
+
+def harmonic(framed: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
     """Harmonic ratio and fundamental frequency in Hz per frame (``feature_harmonic.m``).
 
     With ``R(m)`` the autocorrelation at lag ``m``, ``m0`` the first lag ``m >= 2`` where ``R`` crosses
@@ -232,8 +289,7 @@ def harmonic(framed: np.ndarray, fs: float, squares: np.ndarray | None = None) -
     autocorrelation is ``Gamma(m) = R(m) / (sqrt(R(0) sum_{n<N-m} x(n)^2) + eps)`` for ``m0 <= m <= M``
     and 0 below ``m0``. If ``Gamma`` is noise-like (its zero-crossing rate, ``zcr``, exceeds 0.15) both
     values are 0 (unvoiced). Otherwise ``HR = max Gamma`` at lag ``T0`` (first maximum) and
-    ``f0 = fs / T0``, set to 0 when it exceeds 5000 Hz or ``HR < 0.1``. ``squares`` is ``framed**2`` when
-    the caller has it already.
+    ``f0 = fs / T0``, set to 0 when it exceeds 5000 Hz or ``HR < 0.1``.
 
     ``R`` is computed by FFT, as MATLAB's ``xcorr`` does, for the lags up to ``M`` only: a crossing after
     ``M`` leaves ``Gamma`` all 0 wherever it is, and an FFT of ``N + M`` samples (instead of ``2N - 1``)
@@ -241,37 +297,127 @@ def harmonic(framed: np.ndarray, fs: float, squares: np.ndarray | None = None) -
     ``1e-12 R(0)`` of zero are set to 0, so that nearly silent frames get the exact-arithmetic result on
     every machine instead of one decided by round-off.
     """
-    n = framed.shape[1]
-    max_lag = min(matlab_round(0.016 * fs), n - 1)
-    autocorr = _autocorrelation(framed, max_lag)
-    squares = framed**2 if squares is None else squares
-    frame_energy = squares.sum(axis=1, keepdims=True)
-    # FFT round-off (~1e-15 R(0)) would otherwise decide the sign tests and, divided by the eps of an
-    # all-zero head, the whole Gamma of a nearly silent frame; exact arithmetic gives 0 there.
-    autocorr[np.abs(autocorr) <= AUTOCORR_TOL * frame_energy] = 0.0
-    first_zero = _first_downward_crossing(autocorr)
-    lags = np.arange(1, max_lag + 1)
-    head_energy = _head_energies(squares, max_lag)
-    denominator = np.sqrt(frame_energy * head_energy) + EPS
-    gamma = np.where(lags >= first_zero[:, None], autocorr[:, 1:max_lag + 1] / denominator, 0.0)
-    voiced = zcr(gamma) <= 0.15
-    ratio = np.where(voiced, gamma.max(axis=1), 0.0)
-    f0 = fs / (gamma.argmax(axis=1) + 1.0)
-    f0 = np.where(voiced & (f0 <= 5000.0) & (ratio >= 0.1), f0, 0.0)
+    squares = framed**2
+    return _harmonic(framed, fs, squares.sum(axis=1), squares[:, :_shared_head(framed.shape[1], fs)].sum(axis=1))
+
+
+def _max_lag(n: int, fs: float) -> int:
+    """``M = min(round(0.016 fs), N-1)``, the largest lag of :func:`harmonic`."""
+    return min(matlab_round(0.016 * fs), n - 1)
+
+
+def _shared_head(n: int, fs: float) -> int:
+    """``N - M - 1``: the samples at the start of a frame that every head energy of :func:`harmonic` sums."""
+    return n - _max_lag(n, fs) - 1
+
+
+def _harmonic(framed: np.ndarray, fs: float, frame_energy: np.ndarray,
+              shared_energy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`harmonic` given ``sum x^2`` of each frame and of its first :func:`_shared_head` samples."""
+    autocorr = _autocorrelation(framed, _max_lag(framed.shape[1], fs))
+    return _harmonic_of_autocorrelation(autocorr, frame_energy, framed, shared_energy, float(fs))
+
+
+EXACT_SIGNS_BELOW = 1e150
+"""Frame energies ``R(0)`` below which ``Gamma(m)`` has the sign of ``R(m)``: its denominator
+``sqrt(R(0) sum x^2) + eps`` is then finite and at least eps, and ``|R(m)| > 1e-12 R(0)`` keeps the quotient
+from rounding to 0."""
+
+
+@numba.njit(cache=True)
+def _harmonic_of_autocorrelation(autocorr: np.ndarray, frame_energy: np.ndarray, framed: np.ndarray,
+                                 shared_energy: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`harmonic` of each row from its autocorrelation ``R(0..M)``, ``R(0)`` as ``sum x^2``
+    (``frame_energy``) and ``shared_energy = sum_{n < N-M-1} x(n)^2``, the part of every head energy
+    ``sum_{n < N-m} x(n)^2`` that all lags share.
+
+    The IEEE operations of the array formulation, in the same order (the head energies are that shared
+    sum plus a running sum, the rest element by element), so every value is that of the formula bit for
+    bit. Only fewer of them: below :data:`EXACT_SIGNS_BELOW` the voicing test needs only the signs of
+    ``R``, an unvoiced frame needs no ``Gamma`` at all, and the maximum only the positive ones.
+    """
+    rows = framed.shape[0]
+    max_lag = autocorr.shape[1] - 1
+    ratio = np.zeros(rows)
+    f0 = np.zeros(rows)
+    heads = np.empty(max_lag)
+    gamma = np.zeros(max_lag)
+    masked = np.empty(max_lag + 1)
+    for row in range(rows):
+        energy = frame_energy[row]
+        # FFT round-off (~1e-15 R(0)) would otherwise decide the sign tests and, divided by the eps of an
+        # all-zero head, the whole Gamma of a nearly silent frame; exact arithmetic gives 0 there.
+        tolerance = AUTOCORR_TOL * energy
+        for m in range(max_lag + 1):
+            masked[m] = 0.0 if abs(autocorr[row, m]) <= tolerance else autocorr[row, m]
+        first_zero = _first_downward_crossing(masked)
+        exact_signs = energy < EXACT_SIGNS_BELOW
+        if not exact_signs:
+            _head_energies(framed[row], shared_energy[row], heads)
+            _gamma(masked, energy, heads, first_zero, gamma, False)
+        # Gamma is 0 below m0 and counts no crossing there.
+        changes = 0
+        before = 0
+        for m in range(first_zero, max_lag + 1):
+            value = masked[m] if exact_signs else gamma[m - 1]
+            sign = int(value > 0) - int(value < 0)
+            changes += abs(sign - before)
+            before = sign
+        if changes / (2.0 * max_lag) > 0.15:
+            continue
+        if exact_signs:
+            _head_energies(framed[row], shared_energy[row], heads)
+            _gamma(masked, energy, heads, first_zero, gamma, True)
+        best, best_lag = _first_maximum(gamma)
+        gamma[:] = 0.0
+        ratio[row] = best
+        frequency = fs / (best_lag + 1.0)
+        if frequency <= 5000.0 and best >= 0.1:
+            f0[row] = frequency
     return ratio, f0
 
 
-def _head_energies(squares: np.ndarray, max_lag: int) -> np.ndarray:
-    """``sum_{n < N-m} x(n)^2`` for m = 1 .. max_lag, per row of squares ``x(n)^2``.
+@numba.njit(cache=True)
+def _first_downward_crossing(autocorr: np.ndarray) -> int:
+    """The first lag ``m >= 2`` with ``R(m) < 0 <= R(m-1)``; the number of lags given if none."""
+    for m in range(2, autocorr.size):
+        if autocorr[m] < 0 <= autocorr[m - 1]:
+            return m
+    return autocorr.size
 
-    One sum of the samples every head holds, then a running sum over the rest only: the terms are not
-    negative, so the order of the additions changes nothing beyond rounding.
-    """
-    n = squares.shape[1]
-    shared = n - max_lag - 1
-    heads = np.cumsum(squares[:, shared:n - 1], axis=1)
-    heads += squares[:, :shared].sum(axis=1, keepdims=True)
-    return heads[:, ::-1]
+
+@numba.njit(cache=True)
+def _head_energies(frame: np.ndarray, shared: float, heads: np.ndarray) -> None:
+    """``heads[m-1] = sum_{n < N-m} x(n)^2`` for m = 1 .. M: ``shared`` (the sum of the first ``N-M-1``
+    squares) plus the running sum of the squares after them, as ``np.cumsum`` adds them."""
+    n, max_lag = frame.size, heads.size
+    running = 0.0
+    for k in range(max_lag):
+        value = frame[n - max_lag - 1 + k] * frame[n - max_lag - 1 + k]
+        running = value if k == 0 else running + value
+        heads[max_lag - 1 - k] = running + shared
+
+
+@numba.njit(cache=True)
+def _gamma(autocorr: np.ndarray, energy: float, heads: np.ndarray, first_zero: int, gamma: np.ndarray,
+           positive_only: bool) -> None:
+    """``Gamma(m) = R(m) / (sqrt(R(0) heads(m)) + eps)`` into ``gamma[m-1]`` for ``m >= m0`` (all of them, or
+    only where ``R(m) > 0``, the only candidates for a maximum over values that include 0)."""
+    for m in range(first_zero, autocorr.size):
+        if autocorr[m] > 0 or not positive_only:
+            gamma[m - 1] = autocorr[m] / (math.sqrt(energy * heads[m - 1]) + EPS)
+
+
+@numba.njit(cache=True)
+def _first_maximum(values: np.ndarray) -> tuple[float, int]:
+    """``(max, argmax)`` as numpy gives them: the first maximum, or the first NaN if there is one."""
+    best, where = values[0], 0
+    for k in range(values.size):
+        if values[k] != values[k]:
+            return values[k], k
+        if values[k] > best:
+            best, where = values[k], k
+    return best, where
 
 
 def _autocorrelation(framed: np.ndarray, max_lag: int) -> np.ndarray:
@@ -280,18 +426,32 @@ def _autocorrelation(framed: np.ndarray, max_lag: int) -> np.ndarray:
     ``cv2.dft`` on the rows and ``cv2.mulSpectrums`` for ``|X|^2``: half the time of ``scipy.fft`` here.
     """
     rows, n = framed.shape
-    padded = np.zeros((rows, cv2.getOptimalDFTSize(n + max_lag)))
+    padded = np.empty((rows, cv2.getOptimalDFTSize(n + max_lag)))
     padded[:, :n] = framed
+    padded[:, n:] = 0.0
+    # All in the one padded array: a second array of this size costs more in fresh pages than it saves.
     spectra = cv2.dft(padded, dst=padded, flags=cv2.DFT_ROWS)
-    power = cv2.mulSpectrums(spectra, spectra, cv2.DFT_ROWS, conjB=True)
-    autocorr = cv2.dft(power, dst=power, flags=cv2.DFT_ROWS | cv2.DFT_INVERSE | cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE)
+    _power_in_place(spectra)
+    autocorr = cv2.dft(spectra, dst=spectra, flags=cv2.DFT_ROWS | cv2.DFT_INVERSE | cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE)
     return autocorr[:, :max_lag + 1]
 
 
-def _first_downward_crossing(autocorr: np.ndarray) -> np.ndarray:
-    """Per row, the first lag ``m >= 2`` with ``R(m) < 0 <= R(m-1)``; the number of lags given if none."""
-    crossing = (autocorr[:, 2:] < 0) & (autocorr[:, 1:-1] >= 0)
-    return np.where(crossing.any(axis=1), crossing.argmax(axis=1) + 2, autocorr.shape[1])
+def _power_in_place(packed: np.ndarray) -> None:
+    """``|X|^2`` of rows of ``cv2.dft`` spectra packed as CCS (Re0, Re1, Im1, ..., [Re(L/2)]), in place.
+
+    ``Re^2 + Im^2`` into the real parts and 0 into the imaginary ones: the operations, in their order, of
+    ``cv2.mulSpectrums(X, X, DFT_ROWS, conjB=True)``, which would copy its aliased input first.
+    """
+    length = packed.shape[1]
+    pairs = (length - 1) // 2
+    real, imaginary = packed[:, 1:2 * pairs:2], packed[:, 2:2 * pairs + 1:2]
+    real *= real
+    imaginary *= imaginary
+    real += imaginary
+    imaginary[...] = 0.0
+    packed[:, 0] *= packed[:, 0]
+    if length % 2 == 0:
+        packed[:, -1] *= packed[:, -1]
 
 
 @lru_cache(maxsize=8)
@@ -336,8 +496,24 @@ def mfcc(spectra: np.ndarray, fs: float) -> np.ndarray:
     of the 40 filter outputs, first 13 coefficients. A silent spectrum gives ``c_0 = sqrt(40) log10(eps)``
     and zeros elsewhere.
     """
-    bank = mfcc_filter_bank(spectra.shape[1], float(fs))
-    return np.log10(spectra @ bank.T + EPS) @ _dct_matrix().T
+    support, bank = _mfcc_bank_support(spectra.shape[1], float(fs))
+    return np.log10(spectra[:, :support] @ bank + EPS) @ _dct_matrix().T
+
+
+@lru_cache(maxsize=8)
+def _mfcc_bank_support(n_bins: int, fs: float) -> tuple[int, np.ndarray]:
+    """The bins the filters of :func:`mfcc_filter_bank` cover (the first ``support``, a sixth of them) and
+    the bank on them, transposed (read-only).
+
+    The bins above are 0 in every filter, so a finite spectrum's filter outputs are sums of the same
+    products without them; only the BLAS may group those sums differently for the shorter rows (a
+    difference of rounding, about 1e-16 of the output; none with 38 frames here)."""
+    bank = mfcc_filter_bank(n_bins, fs)
+    covered = np.flatnonzero(np.any(bank != 0, axis=0))
+    support = int(covered[-1]) + 1 if covered.size else 0
+    transposed = np.ascontiguousarray(bank[:, :support].T)
+    transposed.flags.writeable = False
+    return support, transposed
 
 
 @lru_cache(maxsize=8)
@@ -375,9 +551,9 @@ def chroma(framed: np.ndarray, fs: float) -> np.ndarray:
     return _chroma(framed, _magnitudes(framed), fs)
 
 
-def _chroma(framed: np.ndarray, magnitudes: np.ndarray, fs: float) -> np.ndarray:
+def _chroma(framed: np.ndarray, magnitudes: np.ndarray, fs: float, peak: np.ndarray | None = None) -> np.ndarray:
     band, membership = _chroma_band(framed.shape[1], float(fs))
-    peak = np.abs(framed).max(axis=1, keepdims=True)
+    peak = (_peak_magnitudes(framed) if peak is None else peak)[:, None]
     # Zeroed bins are never peaks, so only the band is looked at, between two zero bins.
     padded = np.zeros((framed.shape[0], band.stop - band.start + 2))
     magnitude = padded[:, 1:-1]
@@ -386,6 +562,23 @@ def _chroma(framed: np.ndarray, magnitudes: np.ndarray, fs: float) -> np.ndarray
     sums = (magnitude * is_peak) @ membership
     counts = is_peak.astype(np.float64) @ membership
     return sums / (counts + 1.0)
+
+
+def _peak_magnitudes(framed: np.ndarray) -> np.ndarray:
+    """``max |x|`` of each row, from its maximum and minimum (no array of absolute values)."""
+    return np.maximum(framed.max(axis=1), -framed.min(axis=1))
+
+
+def _silent(framed: np.ndarray, peak: np.ndarray) -> np.ndarray:
+    """The rows with ``sum |x| <= eps`` (silent frames, ``stFeatureExtraction.m``), given their ``max |x|``.
+
+    A rounded sum of non-negative terms is at least its largest term, so only rows whose peak is at most
+    eps can be silent; those are summed as the toolbox does.
+    """
+    silent = peak <= EPS
+    if silent.any():
+        silent[silent] = np.sum(np.abs(framed[silent]), axis=1) <= EPS
+    return silent
 
 
 @lru_cache(maxsize=8)
@@ -411,27 +604,35 @@ def frame_features(signal: np.ndarray, fs: float = 44100.0) -> np.ndarray:
         For bad input, see ``frames``.
     """
     framed = frames(signal, fs)
-    squares = framed**2  # shared by the energies and the harmonic features, as the power by two spectral ones
-    magnitudes = _magnitudes(framed)
-    spectra = _spectrum(magnitudes, framed.shape[1])
+    n = framed.shape[1]
+    table = np.empty((framed.shape[0], len(NAMES)))
+    peak = _peak_magnitudes(framed)
+    table[:, 0] = zcr(framed)
+    # What several features share is computed once, and each large intermediate is let go as soon as its
+    # features are done: fewer arrays alive at once means fewer fresh pages to fault in.
+    squares = framed**2
+    frame_energy = squares.sum(axis=1)  # energy, energy entropy and R(0) of the harmonic features
+    shared_energy = squares[:, :_shared_head(n, fs)].sum(axis=1)
+    table[:, 1] = frame_energy / n
+    table[:, 2] = _block_entropy_of_squares(squares, N_BLOCKS, frame_energy)
+    del squares
+    table[:, 8], table[:, 9] = _harmonic(framed, fs, frame_energy, shared_energy)
+    magnitudes = _magnitudes(framed)  # the transform of the spectrum and of the chroma
+    table[:, 10 + N_MFCC:] = _chroma(framed, magnitudes, fs, peak)
+    if magnitudes.shape[1] == (n + 1) // 2:  # odd N: the spectrum keeps every bin
+        spectra = np.divide(magnitudes, n, out=magnitudes)
+    else:
+        spectra = _spectrum(magnitudes, n)
+    del magnitudes
     power = spectra**2
-    centroid, spread = spectral_centroid_spread(spectra, fs)
-    ratio, f0 = harmonic(framed, fs, squares)
-    table = np.column_stack([
-        zcr(framed),
-        *_energies(squares),
-        centroid,
-        spread,
-        _block_entropy_of_squares(power, N_BLOCKS),
-        spectral_flux(spectra),
-        _rolloff_of_power(power),
-        ratio,
-        f0,
-        mfcc(spectra, fs),
-        _chroma(framed, magnitudes, fs),
-    ])
-    silent = np.sum(np.abs(framed), axis=1) <= EPS
-    table[silent] = 0.0
+    power_total = power.sum(axis=1)  # spectral entropy and roll-off
+    table[:, 5] = _block_entropy_of_squares(power, N_BLOCKS, power_total)
+    table[:, 7] = _rolloff_of_power(power, ROLLOFF_C, power_total)
+    del power
+    table[:, 3], table[:, 4] = spectral_centroid_spread(spectra, fs)
+    table[:, 6] = spectral_flux(spectra)
+    table[:, 10:10 + N_MFCC] = mfcc(spectra, fs)
+    table[_silent(framed, peak)] = 0.0
     return table
 
 

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import cv2
 import numpy as np
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController, threadpool_limits
 from tqdm import tqdm
 
 from features import cluster, tactum
@@ -66,7 +66,7 @@ def extract(scan: Scan) -> dict[str, float]:
     counts and between a process of this machine and a Dask worker (which starts with one BLAS thread).
     """
     values: dict[str, float] = {}
-    with threadpool_limits(limits=1):
+    with _thread_pools().limit(limits=1):
         prepared = PreparedScan(without_short_channels(scan))
         for family in REGISTRY:
             computed = family.compute(prepared)
@@ -75,6 +75,14 @@ def extract(scan: Scan) -> dict[str, float]:
                 raise RuntimeError(f"the {family.name} family returned names out of its fixed column order")
             values.update(computed)
     return values
+
+
+@functools.cache
+def _thread_pools() -> ThreadpoolController:
+    """The thread pools (BLAS, OpenMP) loaded in this process, found once: looking them up walks every
+    loaded library, which took longer than the rest of extracting a small scan. Every library the feature
+    code calls into (numpy, scipy, OpenCV) is loaded by importing this package, so none is missed."""
+    return ThreadpoolController()
 
 
 # -- many scans ----------------------------------------------------------------------------------------

@@ -15,8 +15,10 @@ import math
 import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import cv2
+import numba
 import numpy as np
 import pywt
 
@@ -289,54 +291,102 @@ def gaussian_weights(sigma: float, order: int, truncate: float = 4.0) -> np.ndar
     return (polynomial * phi)[::-1]
 
 
-def _reflect(index: np.ndarray, n: int) -> np.ndarray:
-    """Indices into a length-n axis under scipy.ndimage's "reflect" mode (d c b a | a b c d | d c b a)."""
-    folded = np.mod(index, 2 * n)
-    return np.where(folded >= n, 2 * n - 1 - folded, folded)
+@numba.njit(cache=True)
+def _reflect(index: int, n: int) -> int:
+    """Index into a length-n axis under scipy.ndimage's "reflect" mode (d c b a | a b c d | d c b a)."""
+    if 0 <= index < n:
+        return index  # no division for the indices inside
+    folded = index % (2 * n)
+    return 2 * n - 1 - folded if folded >= n else folded
 
 
-def _patches(gray: np.ndarray, corners: np.ndarray, radius: int) -> np.ndarray:
-    """(n, 2r+1, 2r+1) neighbourhoods of the corners, padded exactly as whole-image filtering pads.
+@lru_cache(maxsize=8)
+def _folded_weights(sigmas: tuple[float, ...]) -> np.ndarray:
+    """The weights of :func:`gaussian_weights` of orders 0, 1, 2 for each sigma at the offsets 0..R from the
+    centre (R the largest radius, 0 past a sigma's own), shape ``(3, len(sigmas), R + 1)``, read-only.
 
-    A neighbourhood inside the image is copied as a block; only those crossing the border are gathered
-    through reflected indices (a gather costs several times a block copy).
+    The weights are symmetric (orders 0, 2) or antisymmetric (order 1) about the centre, exactly: a
+    weighted sum over a neighbourhood is the sum of these half weights over its folded quarter
+    (:func:`_doh_at`). The centre weights of orders 0 and 2 are halved (exactly), since the fold counts
+    the centre row and column twice.
+    """
+    largest = max(_radius(sigma) for sigma in sigmas)
+    weights = np.zeros((3, len(sigmas), largest + 1))
+    for k, sigma in enumerate(sigmas):
+        radius = _radius(sigma)
+        for order in (0, 1, 2):
+            weights[order, k, :radius + 1] = gaussian_weights(sigma, order)[radius:]
+    weights[[0, 2], :, 0] *= 0.5
+    weights.flags.writeable = False
+    return weights
+
+
+@numba.njit(cache=True)
+def _doh_at(gray: np.ndarray, corners: np.ndarray, weights: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """``Lxx Lyy - Lxy^2`` at each corner for each scale of ``weights`` (:func:`_folded_weights`), shape
+    ``(n_corners, n_scales)``; ``L..`` as :func:`gaussian_weights` filtering with reflected borders.
+
+    Each corner's (2R+1)^2 neighbourhood is folded once into its quarter: the sums ``q+`` of the four
+    pixels at offsets (+-dy, +-dx) and the alternating sums ``q-`` (+ - - +). The symmetric weights of
+    ``Lxx`` and ``Lyy`` then see ``q+`` only and the antisymmetric ``Lxy`` ``q-`` only, so every scale
+    reads a quarter of its neighbourhood; the axis-0 sums come first, as in ``gaussian_filter``. The
+    additions are grouped differently from a sum over the whole neighbourhood: the values agree to
+    rounding (about 1e-16 of the sum of the magnitudes of the terms).
     """
     h, w = gray.shape
-    size = 2 * radius + 1
-    patches = np.empty((corners.shape[0], size, size), dtype=gray.dtype)
-    offsets = np.arange(-radius, radius + 1)
-    for patch, (row, col) in zip(patches, corners, strict=True):
-        if radius <= row < h - radius and radius <= col < w - radius:
-            patch[...] = gray[row - radius:row + radius + 1, col - radius:col + radius + 1]
-        else:
-            patch[...] = gray[_reflect(row + offsets, h)[:, None], _reflect(col + offsets, w)[None, :]]
-    return patches
+    largest = weights.shape[2] - 1
+    responses = np.empty((corners.shape[0], weights.shape[1]))
+    rows_plus, rows_minus = np.empty(largest + 1, np.intp), np.empty(largest + 1, np.intp)
+    cols_plus, cols_minus = np.empty(largest + 1, np.intp), np.empty(largest + 1, np.intp)
+    even = np.empty((largest + 1, largest + 1))
+    odd = np.empty((largest + 1, largest + 1))
+    along0 = np.empty((3, largest + 1))
+    for corner in range(corners.shape[0]):
+        row, col = corners[corner, 0], corners[corner, 1]
+        for d in range(largest + 1):
+            rows_plus[d], rows_minus[d] = _reflect(row + d, h), _reflect(row - d, h)
+            cols_plus[d], cols_minus[d] = _reflect(col + d, w), _reflect(col - d, w)
+        for dy in range(largest + 1):
+            above, below = gray[rows_plus[dy]], gray[rows_minus[dy]]
+            for dx in range(largest + 1):
+                a, b = above[cols_plus[dx]], below[cols_plus[dx]]
+                c, d = above[cols_minus[dx]], below[cols_minus[dx]]
+                even[dy, dx] = (a + b) + (c + d)
+                odd[dy, dx] = (a - b) - (c - d)
+        for k in range(weights.shape[1]):
+            radius = radii[k]
+            along0[:, :radius + 1] = 0.0
+            for dy in range(radius + 1):
+                w0, w1, w2 = weights[0, k, dy], weights[1, k, dy], weights[2, k, dy]
+                for dx in range(radius + 1):
+                    along0[0, dx] += w0 * even[dy, dx]
+                    along0[1, dx] += w1 * odd[dy, dx]
+                    along0[2, dx] += w2 * even[dy, dx]
+            l_xx = l_xy = l_yy = 0.0
+            for dx in range(radius + 1):
+                l_xx += along0[0, dx] * weights[2, k, dx]
+                l_xy += along0[1, dx] * weights[1, k, dx]
+                l_yy += along0[2, dx] * weights[0, k, dx]
+            responses[corner, k] = l_xx * l_yy - l_xy * l_xy
+    return responses
 
 
-def _doh(patches: np.ndarray, sigma: float) -> np.ndarray:
-    """``sigma^4 (Lxx Lyy - Lxy^2)`` at the centres of odd square patches at least 2r+1 wide."""
-    centre = patches.shape[1] // 2
-    radius = _radius(sigma)
-    local = patches[:, centre - radius:centre + radius + 1, centre - radius:centre + radius + 1]
-    w0, w1, w2 = (gaussian_weights(sigma, order) for order in (0, 1, 2))
-    # Axis 0 first, then axis 1: gaussian_filter's order, so the rounding stays close to whole-image values.
-    rows = np.matmul(np.stack([w0, w1, w2]), local)
-    l_yy = rows[:, 2, :] @ w0
-    l_xx = rows[:, 0, :] @ w2
-    l_xy = rows[:, 1, :] @ w1
-    return sigma**4 * (l_xx * l_yy - l_xy**2)
+def _scale_responses(gray: np.ndarray, corners: np.ndarray, sigmas: tuple[float, ...]) -> np.ndarray:
+    """``sigma^4 (Lxx Lyy - Lxy^2)`` at the corners, one column per sigma."""
+    image = np.asarray(gray, dtype=np.float64)
+    points = np.asarray(corners, dtype=np.intp).reshape(-1, 2)
+    radii = np.array([_radius(sigma) for sigma in sigmas], dtype=np.intp)
+    return np.array(sigmas) ** 4 * _doh_at(image, points, _folded_weights(sigmas), radii)
 
 
 def hessian_response(gray: np.ndarray, corners: np.ndarray, sigma: float) -> np.ndarray:
     """Scale-normalised determinant of Hessian ``sigma^4 (Lxx Lyy - Lxy^2)`` at the given pixels.
 
     ``L..`` are ``scipy.ndimage.gaussian_filter(gray, sigma, order=..., mode="reflect", truncate=4.0)``,
-    evaluated only at ``corners`` (integer (row, column) pairs) from reflect-padded neighbourhoods, so the
+    evaluated only at ``corners`` (integer (row, column) pairs) from their reflected neighbourhoods, so the
     values equal whole-image filtering (to rounding) at a fraction of its cost.
     """
-    image = np.asarray(gray, dtype=np.float64)
-    points = np.asarray(corners, dtype=np.intp).reshape(-1, 2)
-    return _doh(_patches(image, points, _radius(sigma)), sigma)
+    return _scale_responses(gray, corners, (float(sigma),))[:, 0]
 
 
 def corner_scales(gray: np.ndarray, corners: np.ndarray) -> np.ndarray:
@@ -345,12 +395,7 @@ def corner_scales(gray: np.ndarray, corners: np.ndarray) -> np.ndarray:
     The determinant-of-Hessian detector that SURF approximates (paper eq. 8, ``detectSURFFeatures``;
     SPEC 7.1); the first maximum on ties.
     """
-    image = np.asarray(gray, dtype=np.float64)
-    points = np.asarray(corners, dtype=np.intp).reshape(-1, 2)
-    if points.shape[0] == 0:
-        return np.empty(0)
-    patches = _patches(image, points, _radius(DOH_SCALES[-1]))
-    responses = np.stack([_doh(patches, sigma) for sigma in DOH_SCALES], axis=1)
+    responses = _scale_responses(gray, corners, tuple(DOH_SCALES.tolist()))
     return DOH_SCALES[np.argmax(np.abs(responses), axis=1)]
 
 
@@ -405,13 +450,23 @@ def _kept_peak_mean(spectrum: RealSpectrum) -> float:
     m, n = spectrum.shape
     threshold = PEAK_FRACTION * spectrum.peak
     total, count = spectrum.peak_sum(PEAK_FRACTION)
-    dy = np.arange(max(-GAUSS_HALF, -(m // 2)), min(GAUSS_HALF, m - m // 2))
-    dx = np.arange(max(-GAUSS_HALF, -(n // 2)), min(GAUSS_HALF, n - n // 2))
+    dy, dx, gauss = _centre_gaussian(m, n)
     window = spectrum.at(dy, dx)
-    gauss = np.exp(-(dy[:, None] ** 2 + dx[None, :] ** 2) / (2.0 * GAUSS_SIGMA**2))
     # X * G' = X - X * G, and G' = 1 outside the window.
     total -= np.sum(np.where(window >= threshold, window * gauss, 0.0))
     return float(total / count / math.sqrt(m * n))
+
+
+@lru_cache(maxsize=8)
+def _centre_gaussian(m: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The offsets -100..99 around the centre of an m x n spectrum that lie in it, and the Gaussian ``G``
+    of MaRG (eq. 11) on them (made once per photo size; read-only)."""
+    dy = np.arange(max(-GAUSS_HALF, -(m // 2)), min(GAUSS_HALF, m - m // 2))
+    dx = np.arange(max(-GAUSS_HALF, -(n // 2)), min(GAUSS_HALF, n - n // 2))
+    gauss = np.exp(-(dy[:, None] ** 2 + dx[None, :] ** 2) / (2.0 * GAUSS_SIGMA**2))
+    for array in (dy, dx, gauss):
+        array.flags.writeable = False
+    return dy, dx, gauss
 
 
 def marg(v: np.ndarray, gray: np.ndarray, *, contrast: float | None = None) -> float:
@@ -440,10 +495,14 @@ def wavelet_detail(v: np.ndarray, level: int, wavelet: str = WAVELET, levels: in
     values = _samples(v, "v")
     if not 1 <= level <= levels:
         raise ValueError(f"detail level must be in 1..{levels}, got {level}")
-    coefficients = pywt.wavedec(values, wavelet, level=levels, mode="symmetric")
+    return _detail_of(pywt.wavedec(values, wavelet, level=levels, mode="symmetric"), level, wavelet, values.size)
+
+
+def _detail_of(coefficients: list[np.ndarray], level: int, wavelet: str, size: int) -> np.ndarray:
+    """The level-``level`` detail reconstructed from a ``pywt.wavedec`` decomposition (see :func:`wavelet_detail`)."""
     only = [np.zeros_like(c) for c in coefficients]
     only[-level] = coefficients[-level]
-    return pywt.waverec(only, wavelet, mode="symmetric")[:values.size]
+    return pywt.waverec(only, wavelet, mode="symmetric")[:size]
 
 
 def miro(v: np.ndarray) -> float:
@@ -453,8 +512,10 @@ def miro(v: np.ndarray) -> float:
     Interpretation of eq. 13-14 (SPEC 7.1): the bars are means, so d removes from D1 the share of D5 scaled to
     D1's level; MiRO grows with the signal's amplitude and does not change when D5 alone is scaled.
     """
-    d1 = np.abs(wavelet_detail(v, 1))
-    d5 = np.abs(wavelet_detail(v, 5))
+    values = _samples(v, "v")
+    coefficients = pywt.wavedec(values, WAVELET, level=5, mode="symmetric")  # one decomposition for both
+    d1 = np.abs(_detail_of(coefficients, 1, WAVELET, values.size))
+    d5 = np.abs(_detail_of(coefficients, 5, WAVELET, values.size))
     mean_d5 = np.mean(d5)
     d = d1 if mean_d5 == 0 else d1 - (np.mean(d1) / mean_d5) * d5
     return float(np.log10(1.0 + np.mean(np.abs(d))))

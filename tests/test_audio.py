@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 import pytest
 
@@ -254,6 +255,120 @@ def test_zcr_and_chroma_equal_their_float_formulas_on_random_frames():
     sums = np.stack([(magnitude * is_peak)[:, classes == c].sum(axis=1) for c in range(12)], axis=1)
     counts = np.stack([is_peak[:, classes == c].sum(axis=1) for c in range(12)], axis=1)
     np.testing.assert_allclose(audio.chroma(framed, FS), sums / (counts + 1.0), rtol=1e-12)
+
+
+# --- the one-pass kernels against the array formulas ---------------------------------------------------
+
+
+def _array_harmonic(framed: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """``audio.harmonic`` as whole-array operations: every Gamma of every frame, masks, crossings and the
+    zero-crossing rate of Gamma as in the formula (the straightforward form of the one-pass kernel)."""
+    n = framed.shape[1]
+    max_lag = min(audio.matlab_round(0.016 * fs), n - 1)
+    autocorr = audio._autocorrelation(framed, max_lag).copy()
+    squares = framed**2
+    frame_energy = squares.sum(axis=1, keepdims=True)
+    autocorr[np.abs(autocorr) <= audio.AUTOCORR_TOL * frame_energy] = 0.0
+    crossing = (autocorr[:, 2:] < 0) & (autocorr[:, 1:-1] >= 0)
+    first_zero = np.where(crossing.any(axis=1), crossing.argmax(axis=1) + 2, autocorr.shape[1])
+    shared = n - max_lag - 1
+    heads = np.cumsum(squares[:, shared:n - 1], axis=1)
+    heads += squares[:, :shared].sum(axis=1, keepdims=True)
+    denominator = np.sqrt(frame_energy * heads[:, ::-1]) + audio.EPS
+    lags = np.arange(1, max_lag + 1)
+    gamma = np.where(lags >= first_zero[:, None], autocorr[:, 1:] / denominator, 0.0)
+    signs = (gamma > 0).astype(np.int64) - (gamma < 0)
+    zcr = (np.abs(np.diff(signs, axis=1)).sum(axis=1) + np.abs(signs[:, 0])) / (2.0 * max_lag)
+    voiced = zcr <= 0.15
+    ratio = np.where(voiced, gamma.max(axis=1), 0.0)
+    f0 = fs / (gamma.argmax(axis=1) + 1.0)
+    return ratio, np.where(voiced & (f0 <= 5000.0) & (ratio >= 0.1), f0, 0.0)
+
+
+def _kernel_test_signals(fs: float) -> list[np.ndarray]:
+    rng = np.random.default_rng(int(fs) + 7)
+    t = np.arange(int(fs)) / fs
+    return [rng.standard_normal(t.size), sum(np.sin(2 * np.pi * h * 180.0 * t) / h for h in range(1, 6)),
+            np.sin(2 * np.pi * 97 * t) + 0.3 * rng.standard_normal(t.size),
+            np.where(t < 0.4, 1e-200 * rng.standard_normal(t.size), np.sign(np.sin(2 * np.pi * 140 * t))),
+            1e-160 * rng.standard_normal(t.size),   # squares underflow: tolerance 0, subnormal R
+            1e76 * np.sin(2 * np.pi * 210 * t),      # R(0) > 1e150: Gamma's denominator overflows
+            1e155 * rng.standard_normal(t.size)]     # squares overflow: R(0) and R infinite or NaN
+
+
+@pytest.mark.parametrize("fs", [44100.0, 8000.0, 400.0])
+def test_harmonic_kernel_equals_the_array_formula_bit_for_bit(fs):
+    # The same IEEE operations in the same order (the voicing from the signs of R, Gamma only where it
+    # can be the maximum): equal, not close.
+    for signal in _kernel_test_signals(fs):
+        framed = audio.frames(signal, fs)
+        with np.errstate(over="ignore", invalid="ignore"):
+            expected = _array_harmonic(framed, fs)
+            ratio, f0 = audio.harmonic(framed, fs)
+        np.testing.assert_array_equal(ratio, expected[0])
+        np.testing.assert_array_equal(f0, expected[1])
+
+
+@pytest.mark.parametrize("length", [2, 3, 4, 27, 36, 2916])
+def test_power_spectrum_in_place_equals_mul_spectrums(length):
+    # The CCS packing has a lone last real part for even lengths only.
+    rng = np.random.default_rng(length)
+    rows = np.zeros((5, length))
+    rows[:, :max(1, 3 * length // 4)] = rng.standard_normal((5, max(1, 3 * length // 4))) * 1e5
+    packed = cv2.dft(rows, flags=cv2.DFT_ROWS)
+    expected = cv2.mulSpectrums(packed, packed, cv2.DFT_ROWS, conjB=True)
+    audio._power_in_place(packed)
+    np.testing.assert_array_equal(packed, expected)
+
+
+def test_rolloff_equals_the_cumulative_sum_formula_bit_for_bit():
+    rng = np.random.default_rng(11)
+    spectra = np.abs(rng.standard_normal((40, 300))) * rng.uniform(0, 1, (40, 1)) ** 8
+    spectra[3] = 0.0
+    spectra[5, 100:] = 0.0
+    power = spectra**2
+    cumulative = np.cumsum(power, axis=1)
+    exceeded = cumulative > 0.9 * power.sum(axis=1, keepdims=True)
+    expected = np.where(exceeded.any(axis=1), exceeded.argmax(axis=1), 299) / 300
+    np.testing.assert_array_equal(audio.spectral_rolloff(spectra), expected)
+
+
+def test_flux_and_centroid_equal_their_array_formulas_bit_for_bit():
+    rng = np.random.default_rng(12)
+    spectra = np.abs(rng.standard_normal((30, 257))) * rng.uniform(0, 2, (30, 1))
+    spectra[[0, 7, 8]] = 0.0
+    previous = np.concatenate([spectra[:1], spectra[:-1]])
+    total = spectra.sum(axis=1, keepdims=True)
+    current = np.divide(spectra, total, out=np.zeros_like(spectra), where=total > 0)
+    prior = previous / np.sum(previous + audio.EPS, axis=1, keepdims=True)
+    np.testing.assert_array_equal(audio.spectral_flux(spectra), np.sum((current - prior) ** 2, axis=1))
+    m = 16000.0 / (2.0 * 257) * np.arange(1, 258)
+    peak = spectra.max(axis=1, keepdims=True)
+    x = np.divide(spectra, peak, out=np.zeros_like(spectra), where=peak > 0)
+    weight = x.sum(axis=1) + audio.EPS
+    centroid = (x @ m) / weight
+    spread = np.sqrt(np.sum((m - centroid[:, None]) ** 2 * x, axis=1) / weight)
+    got = audio.spectral_centroid_spread(spectra, 16000.0)
+    np.testing.assert_array_equal(got[0], centroid / 8000.0)
+    np.testing.assert_array_equal(got[1], spread / 8000.0)
+
+
+@pytest.mark.parametrize("fs", [44100.0, 8000.0])
+def test_frame_matrix_equals_the_features_computed_one_by_one(fs):
+    # frame_features shares sums, peaks and transforms between the features; computed one at a time
+    # from the frames the values are the same bit for bit, silent rows included.
+    for signal in _kernel_test_signals(fs)[:4]:
+        signal = np.where(np.arange(signal.size) < signal.size // 3, 0.0, signal)
+        framed = audio.frames(signal, fs)
+        spectra = audio.spectrum(framed)
+        ratio, f0 = audio.harmonic(framed, fs)
+        expected = np.column_stack([
+            audio.zcr(framed), audio.energy(framed), audio.energy_entropy(framed),
+            *audio.spectral_centroid_spread(spectra, fs), audio.spectral_entropy(spectra),
+            audio.spectral_flux(spectra), audio.spectral_rolloff(spectra), ratio, f0,
+            audio.mfcc(spectra, fs), audio.chroma(framed, fs)])
+        expected[np.sum(np.abs(framed), axis=1) <= audio.EPS] = 0.0
+        np.testing.assert_array_equal(audio.frame_features(signal, fs), expected)
 
 
 # --- MFCC ---------------------------------------------------------------------------------------------

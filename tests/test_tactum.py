@@ -227,6 +227,65 @@ def test_hessian_response_equals_whole_image_filtering_up_to_the_border(shape):
                                    rtol=1e-9, atol=1e-9 * np.abs(whole).max())
 
 
+def _reflected(index: np.ndarray, n: int) -> np.ndarray:
+    folded = np.mod(index, 2 * n)
+    return np.where(folded >= n, 2 * n - 1 - folded, folded)
+
+
+def _neighbourhood_doh(gray: np.ndarray, corners: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """``tactum.hessian_response`` the straightforward way -- each corner's whole (2r+1)^2 neighbourhood
+    gathered through reflected indices, weighted along axis 0, then axis 1 -- and a bound on how far a
+    sum of the same products grouped otherwise can round away from it.
+
+    Summing n terms one way rounds by at most (n - 1) u times the sum of their magnitudes (u = eps/2):
+    here 2(2r+1) + 2 additions and products along the longest path, and the folded quarter (3 additions,
+    then r+1 and r+1 terms) about 2r + 7; together below (4r + 8) eps. A product ab is then off by at
+    most |a| db + |b| da + da db.
+    """
+    radius = tactum._radius(sigma)
+    offsets = np.arange(-radius, radius + 1)
+    h, w = gray.shape
+    w0, w1, w2 = (tactum.gaussian_weights(sigma, order) for order in (0, 1, 2))
+    rounding = (4 * radius + 8) * np.finfo(np.float64).eps
+    values, bounds = [], []
+    for row, col in corners:
+        patch = gray[_reflected(row + offsets, h)[:, None], _reflected(col + offsets, w)[None, :]]
+        l_yy, l_xx, l_xy = (w2 @ patch) @ w0, (w0 @ patch) @ w2, (w1 @ patch) @ w1
+        d_yy, d_xx, d_xy = (rounding * (np.abs(a) @ np.abs(patch) @ np.abs(b))
+                            for a, b in ((w2, w0), (w0, w2), (w1, w1)))
+        values.append(sigma**4 * (l_xx * l_yy - l_xy**2))
+        bounds.append(sigma**4 * (abs(l_xx) * d_yy + abs(l_yy) * d_xx + d_xx * d_yy + 2 * abs(l_xy) * d_xy + d_xy**2))
+    return np.array(values), np.array(bounds)
+
+
+@pytest.mark.parametrize("shape", [(40, 50), (140, 97), (312, 312)])
+def test_folded_corner_responses_equal_the_whole_neighbourhood_sums(shape):
+    # (40, 50) is smaller than the largest neighbourhood (131 px): its borders reflect several times.
+    rng = np.random.default_rng(shape[0])
+    gray = gaussian_filter(rng.uniform(0, 255, shape), 1.5)
+    corners = np.column_stack([rng.integers(0, shape[0], 40), rng.integers(0, shape[1], 40)])
+    corners[:3] = [[0, 0], [shape[0] - 1, shape[1] - 1], [shape[0] // 2, shape[1] // 2]]
+    expected, bounds = zip(*(_neighbourhood_doh(gray, corners, sigma) for sigma in tactum.DOH_SCALES), strict=True)
+    expected, bounds = np.stack(expected, axis=1), np.stack(bounds, axis=1)
+    for k, sigma in enumerate(tactum.DOH_SCALES):
+        assert np.all(np.abs(tactum.hessian_response(gray, corners, sigma) - expected[:, k]) <= bounds[:, k])
+    # The scale is the same wherever the largest response leads the next by more than both bounds.
+    magnitude = np.abs(expected)
+    best = np.argmax(magnitude, axis=1)
+    rest = np.where(np.arange(len(tactum.DOH_SCALES)) == best[:, None], -np.inf, magnitude - bounds)
+    decided = magnitude[np.arange(len(best)), best] - bounds[np.arange(len(best)), best] > rest.max(axis=1)
+    assert decided.mean() > 0.9
+    np.testing.assert_array_equal(tactum.corner_scales(gray, corners)[decided], tactum.DOH_SCALES[best[decided]])
+
+
+def test_gaussian_weights_are_exactly_symmetric_or_antisymmetric():
+    # The folded neighbourhood sums rely on it: w(-d) = w(d) for orders 0 and 2, -w(d) for order 1.
+    for sigma in tactum.DOH_SCALES:
+        for order, sign in ((0, 1.0), (1, -1.0), (2, 1.0)):
+            weights = tactum.gaussian_weights(sigma, order)
+            np.testing.assert_array_equal(weights, sign * weights[::-1])
+
+
 @pytest.mark.parametrize("k", [4, 8, 11])
 def test_corner_scale_of_a_gaussian_blob_is_its_width(k):
     # At the centre of exp(-r^2 / 2 s^2), sigma^4 det H = (sigma^2 s^2 / (s^2 + sigma^2)^2)^2, largest at
