@@ -254,19 +254,36 @@ def _spaced_strongest(index: np.ndarray, value: np.ndarray, width: int) -> tuple
     """The strongest candidates, each at least ``minDistance`` px (Euclidean) from every stronger one kept,
     until ``maxCorners``: ``goodFeaturesToTrack``'s greedy pass (its grid only speeds up the same test).
     Also whether ``maxCorners`` were reached."""
-    limit, reach2 = HARRIS["maxCorners"], float(HARRIS["minDistance"]) ** 2
+    limit, reach2 = HARRIS["maxCorners"], HARRIS["minDistance"] ** 2
     kept = np.empty((limit, 2), dtype=np.intp)
     n = 0
     for ordered in _strongest_first(index, value):
-        for row, col in zip(*np.divmod(ordered, width), strict=True):
-            near = kept[:n] - (row, col)
-            if n and np.min(np.einsum("ij,ij->i", near, near)) < reach2:
-                continue
-            kept[n] = row, col
-            n += 1
-            if n == limit:
-                return kept, True
+        rows, cols = np.divmod(ordered, width)
+        n = _keep_spaced(rows, cols, kept, n, reach2)
+        if n == limit:
+            return kept, True
     return kept[:n], False
+
+
+@numba.njit(cache=True, nogil=True)
+def _keep_spaced(rows: np.ndarray, cols: np.ndarray, kept: np.ndarray, n: int, reach2: int) -> int:
+    """The greedy pass of :func:`_spaced_strongest` over one batch of ordered candidates: each is kept if its
+    squared distance to every corner kept so far is at least ``reach2`` (integers, so exact), until ``kept``
+    is full. Returns the number kept."""
+    for candidate in range(rows.shape[0]):
+        if n == kept.shape[0]:
+            break
+        row, col = rows[candidate], cols[candidate]
+        spaced = True
+        for other in range(n):
+            dr, dc = kept[other, 0] - row, kept[other, 1] - col
+            if dr * dr + dc * dc < reach2:
+                spaced = False
+                break
+        if spaced:
+            kept[n, 0], kept[n, 1] = row, col
+            n += 1
+    return n
 
 
 def _radius(sigma: float, truncate: float = 4.0) -> int:
