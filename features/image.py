@@ -906,16 +906,19 @@ def _lbp_offsets() -> tuple[np.ndarray, np.ndarray]:
     return np.round(-_LBP_RADIUS * np.sin(angles), 5), np.round(_LBP_RADIUS * np.cos(angles), 5)
 
 
+@functools.cache
 def _uniform_labels() -> np.ndarray:
     """Label of each 8-bit code (bit p = neighbour p >= centre) under scikit-image's "uniform" method.
 
     A code with at most two 0/1 changes between consecutive neighbours 0..7 (not wrapping around) is
-    labelled by its number of ones, any other code 9 (Ojala et al. 2002, LBP^riu2).
+    labelled by its number of ones, any other code 9 (Ojala et al. 2002, LBP^riu2). Made once (read-only).
     """
     codes = np.arange(256)
     bits = (codes[:, None] >> np.arange(_LBP_POINTS)) & 1
     changes = np.abs(np.diff(bits, axis=1)).sum(axis=1)
-    return np.where(changes <= 2, bits.sum(axis=1), _LBP_POINTS + 1)
+    labels = np.where(changes <= 2, bits.sum(axis=1), _LBP_POINTS + 1)
+    labels.flags.writeable = False
+    return labels
 
 
 def _interpolation_weights(n: int, offset: float) -> tuple[np.ndarray, np.ndarray]:
