@@ -181,10 +181,12 @@ def many(folder: Path, materials: list[str], scans: int) -> None:
 
 
 def main() -> None:
-    per_scan()
+    # extract_many first: per_scan ends by making this process keep the memory it frees (as_a_worker), and
+    # a pool forked from a process holding a gigabyte starts more slowly.
     with tempfile.TemporaryDirectory() as tmp:
         many(Path(tmp), ["polyurethane-foam", "mild-steel-brushed", "granite-polished", "oak-planed",
                          "sandpaper-p80", "float-glass"], 2)
+    per_scan()
 
 
 if __name__ == "__main__":

@@ -66,7 +66,7 @@ def extract(scan: Scan) -> dict[str, float]:
     counts and between a process of this machine and a Dask worker (which starts with one BLAS thread).
     """
     values: dict[str, float] = {}
-    with _thread_pools().limit(limits=1):
+    with _one_blas_thread():
         prepared = PreparedScan(without_short_channels(scan))
         for family in REGISTRY:
             computed = family.compute(prepared)
@@ -83,6 +83,20 @@ def _thread_pools() -> ThreadpoolController:
     loaded library, which took longer than the rest of extracting a small scan. Every library the feature
     code calls into (numpy, scipy, OpenCV) is loaded by importing this package, so none is missed."""
     return ThreadpoolController()
+
+
+def _one_blas_thread() -> contextlib.AbstractContextManager:
+    """BLAS and OpenMP limited to one thread while a scan is extracted, unless they already are.
+
+    Setting a limit is not free where it is already 1: in a worker forked by :func:`extract_many` (whose
+    parent limits the pools before forking), OpenBLAS rebuilds its thread pool on the first call that
+    sets it, and the new threads spin for about 0.1 s on the cores the workers need (a scan's first
+    extraction took 5 times as long).
+    """
+    pools = _thread_pools()
+    if all(controller.num_threads == 1 for controller in pools.lib_controllers):
+        return contextlib.nullcontext()
+    return pools.limit(limits=1)
 
 
 # -- many scans ----------------------------------------------------------------------------------------
