@@ -243,8 +243,11 @@ class Exports:
             except FileNotFoundError:  # deleted as abandoned a moment ago
                 raise ExportError("this export was abandoned and deleted; start it again") from None
             path.unlink()
+            # The bundle was the folder's last file (the job is done writing): removed now, so nothing is
+            # left behind once the download starts; the thread, woken to end, finds it gone.
+            shutil.rmtree(job.folder, ignore_errors=True)
             job.phase, job.path = "downloaded", None
-            job.cancel.set()  # the thread removes the empty folder
+            job.cancel.set()
             return handle, path.name, job.size
 
     @staticmethod
