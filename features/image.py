@@ -56,7 +56,9 @@ HUE_MIN_VALUE = 51
 
 CANNY_THRESHOLDS = (100, 200)
 DFT_FRACTIONS = (0.80, 0.85)
-TAMURA_KMAX = 5
+TAMURA_KMAX = kernels.TAMURA_KERNEL_KMAX
+"""Tamura coarseness's largest window, 2^5 px (Tamura et al. 1978; SPEC 7.2): the compiled kernel that
+``compute`` runs is written out for exactly this value, so it is defined there."""
 
 MIN_SIDE_PX = 2
 """Smallest side of the cropped image any feature is defined on: a GLCM needs a pair of neighbours."""
@@ -811,8 +813,8 @@ def _tamura_coarseness_of_photo(gray: np.ndarray, high: float) -> float:
     """
     # The tolerance in the kernel's unit, 1 / (1000 * 4^kmax) gray levels; for integers E >= M - tol is
     # E >= M - floor(tol).
-    tolerance = math.floor(1e-9 * high * 1000 * 4**kernels.TAMURA_KERNEL_KMAX)
-    margin = 2**kernels.TAMURA_KERNEL_KMAX
+    tolerance = math.floor(1e-9 * high * 1000 * 4**TAMURA_KMAX)
+    margin = 2**TAMURA_KMAX
     h, w = gray.shape
     return kernels.tamura_coarseness_total(gray, tolerance) / ((h - 2 * margin + 1) * (w - 2 * margin + 1))
 

@@ -244,7 +244,8 @@ def _lerp_row(row: np.ndarray, right0: np.ndarray, right1: np.ndarray, left0: np
 
 
 TAMURA_KERNEL_KMAX = 5
-"""The window sizes :func:`tamura_coarseness_total` is written for: 2^1 .. 2^5, the paper's."""
+"""The window sizes :func:`tamura_coarseness_total` is written for: 2^1 .. 2^5, the paper's
+(``features.image.TAMURA_KMAX`` is this value)."""
 
 
 @numba.njit(**_JIT)

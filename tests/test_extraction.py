@@ -3,9 +3,11 @@ parallel extraction in input order, per-scan failures, and the feature cache."""
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import functools
 import math
+import os
 import subprocess
 import sys
 import warnings
@@ -15,7 +17,7 @@ import pytest
 
 import features
 from features import NAMES, ScanSource, extract, extract_many, image
-from features.extraction import code_version, source_of
+from features.extraction import _one_thread_each, code_version, source_of
 from scanner.scan import CHANNELS, IMAGES, Scan, Trace
 from scanner.simulation import synthetic_scan
 
@@ -208,3 +210,19 @@ def test_workers_keep_the_memory_they_free_for_the_next_scan():
         assert kept == ("True" if mode == "keep" else "None")
     assert held["default"] < 16
     assert held["keep"] > 120
+
+
+def _threads_after_extracting(scan: Scan) -> int:
+    extract(scan)
+    return len(os.listdir("/proc/self/task"))
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="counts threads in /proc")
+def test_a_forked_worker_extracts_without_starting_thread_pools():
+    # extract_many forks its workers with BLAS at one thread. Setting that limit again in a worker made
+    # OpenBLAS start its pool there, threads that spun on the cores the workers need; a worker must
+    # extract on its one thread.
+    scan = synthetic_scan("oak-planed", seed=2)
+    extract(scan)
+    with _one_thread_each(), concurrent.futures.ProcessPoolExecutor(max_workers=1) as pool:
+        assert pool.submit(_threads_after_extracting, scan).result() == 1

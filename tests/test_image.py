@@ -603,6 +603,18 @@ def test_compute_gives_the_float64_tamura_coarseness(kind):
     assert image.compute(photo)["tamura_coarseness"] == image.tamura_coarseness(gray)
 
 
+@pytest.mark.parametrize("shape", [(64, 64), (65, 200), (200, 65), (301, 257)])
+def test_the_compiled_tamura_coarseness_of_a_photo_is_the_float64_one(shape):
+    # The kernel streams a ring of 64 rows of window sums: images of exactly the largest windows, of
+    # a few rows more, and of several turns of the ring, each against the float64 definition path.
+    rng = np.random.default_rng(shape[0] * shape[1])
+    for photo in (rng.integers(0, 256, (*shape, 3)).astype(np.uint8),
+                  np.kron(rng.integers(0, 256, (shape[0] // 8 + 1, shape[1] // 8 + 1, 3)),
+                          np.ones((8, 8, 1)))[:shape[0], :shape[1]].astype(np.uint8)):
+        gray = grayscale(photo)
+        assert image._tamura_coarseness_of_photo(gray, float(gray.max())) == image.tamura_coarseness(gray)
+
+
 def test_tamura_coarseness_needs_room_for_the_largest_window():
     with pytest.raises(ValueError, match="smaller than the 64x64 px"):
         image.tamura_coarseness(np.zeros((63, 100)))
