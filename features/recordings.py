@@ -61,7 +61,7 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from features import audio, cluster, image, other, tactum
-from features.extraction import keep_freed_memory
+from features.memory import keep_freed_memory
 from features.registry import ROLE_REGISTRY, RoleFamily
 from features.space import FeatureSpace
 from scanner.preprocess import BAND_HZ, dft321
@@ -428,7 +428,7 @@ def _map(function: Callable, jobs: Sequence, workers: int | None, progress: bool
             results[i] = function(job)
             bar.update(1)
     else:
-        # Workers keep the memory they free, as extract_many's do (features.extraction.keep_freed_memory).
+        # Workers keep the memory they free, as extract_many's do (features.memory.keep_freed_memory).
         with concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=keep_freed_memory) as pool:
             futures = {pool.submit(function, job): i for i, job in enumerate(jobs)}
             for future in concurrent.futures.as_completed(futures):

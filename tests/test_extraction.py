@@ -4,6 +4,7 @@ parallel extraction in input order, per-scan failures, and the feature cache."""
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import dataclasses
 import functools
 import math
@@ -17,6 +18,7 @@ import pytest
 
 import features
 from features import NAMES, ScanSource, extract, extract_many, image
+from features import extraction
 from features.extraction import _one_thread_each, code_version, source_of
 from scanner.scan import CHANNELS, IMAGES, Scan, Trace
 from scanner.simulation import synthetic_scan
@@ -183,7 +185,7 @@ def test_a_photo_too_small_for_tamura_coarseness_keeps_the_other_image_features(
 _RESIDENT_AFTER_FREEING = """
 import sys
 import numpy as np
-from features.extraction import keep_freed_memory
+from features.memory import keep_freed_memory
 
 def resident_mb():
     with open("/proc/self/status") as status:
@@ -210,6 +212,69 @@ def test_workers_keep_the_memory_they_free_for_the_next_scan():
         assert kept == ("True" if mode == "keep" else "None")
     assert held["default"] < 16
     assert held["keep"] > 120
+
+
+_RESIDENT_IN_AND_AFTER_A_BLOCK = """
+import numpy as np
+from features.memory import reusing_freed_memory
+
+def resident_mb():
+    with open("/proc/self/status") as status:
+        return int(next(line for line in status if line.startswith("VmRSS:")).split()[1]) / 1024
+
+before = resident_mb()
+with reusing_freed_memory():
+    with reusing_freed_memory():  # nested (or in another thread): the outer block's end gives it back
+        block = np.ones(2**24)  # 128 MB
+        del block
+    inner = resident_mb() - before
+    block = np.ones(2**24)
+    del block
+    outer = resident_mb() - before
+after = resident_mb() - before
+block = np.ones(2**24)
+del block
+print(inner, outer, after, resident_mb() - before)
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's mallopt is Linux-only")
+def test_a_block_reuses_freed_memory_and_gives_it_back_at_its_end():
+    # Inside reusing_freed_memory (extract of a scan with large photos) a freed 128 MB block stays for the
+    # next allocation; when the last block ends the memory goes back, and later large blocks are again
+    # returned when freed (the process does not keep its peak, unlike a worker with keep_freed_memory).
+    run = subprocess.run([sys.executable, "-c", _RESIDENT_IN_AND_AFTER_A_BLOCK], capture_output=True, text=True,
+                         check=True, timeout=120)
+    inner, outer, after, later = map(float, run.stdout.split())
+    assert inner > 120 and outer > 120
+    assert after < 16 and later < 16
+
+
+def test_large_photos_are_extracted_reusing_freed_memory(monkeypatch):
+    # The decision is the photos' size; values are the same either way (only where memory comes from
+    # changes), checked here bit for bit on a scan whose photos reach the size once the limit is lowered.
+    scan = synthetic_scan("oak-planed", seed=2)
+    plain = extract(scan)
+    blocks = []
+    original = extraction.reusing_freed_memory
+
+    @contextlib.contextmanager
+    def counted():
+        blocks.append(1)
+        with original():
+            yield
+
+    monkeypatch.setattr(extraction, "reusing_freed_memory", counted)
+    assert _same_bits(extract(scan), plain)
+    assert blocks == []
+    monkeypatch.setattr(extraction, "REUSE_FROM_PIXELS", min(p.shape[0] * p.shape[1] for p in scan.images.values()))
+    assert _same_bits(extract(scan), plain)
+    assert blocks == [1]
+
+
+def _same_bits(a: dict[str, float], b: dict[str, float]) -> bool:
+    return list(a) == list(b) and np.array_equal(np.array(list(a.values())), np.array(list(b.values())),
+                                                 equal_nan=True)
 
 
 def _threads_after_extracting(scan: Scan) -> int:
