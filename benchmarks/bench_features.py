@@ -37,8 +37,8 @@ from pathlib import Path  # noqa: E402
 import cv2  # noqa: E402
 
 from features import extract, extract_many, image, other, tactum  # noqa: E402
-from features.memory import keep_freed_memory  # noqa: E402
 from features.families import audio_features  # noqa: E402
+from features.memory import keep_freed_memory  # noqa: E402
 from scanner.preprocess import crop_image, grayscale  # noqa: E402
 from scanner.scan import IMAGES, Scan  # noqa: E402
 from scanner.simulation import synthetic_scan  # noqa: E402

@@ -17,8 +17,7 @@ import numpy as np
 import pytest
 
 import features
-from features import NAMES, ScanSource, extract, extract_many, image
-from features import extraction
+from features import NAMES, ScanSource, extract, extract_many, extraction, image
 from features.extraction import _one_thread_each, code_version, source_of
 from scanner.scan import CHANNELS, IMAGES, Scan, Trace
 from scanner.simulation import synthetic_scan
