@@ -68,6 +68,10 @@ def keep_freed_memory() -> bool:
     faulted in again; the worker holds its peak resident memory until the batch ends.
     :func:`reusing_freed_memory` does nothing in such a process.
 
+    The free memory the process has at the call is given back first (``malloc_trim``): in a forked worker
+    that is the parent's free heap, whose pages it shares with the parent, so that reusing them would copy
+    each one (a worker's first 512 px scan: 66 ms instead of 70).
+
     Returns
     -------
     bool
