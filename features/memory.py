@@ -58,6 +58,7 @@ def _glibc() -> ctypes.CDLL | None:
 
 
 def _set(libc: ctypes.CDLL, settings: dict[int, int]) -> bool:
+    """Apply every setting (a list, not a generator: one refused does not skip the others); all took?"""
     return all([bool(libc.mallopt(parameter, value)) for parameter, value in settings.items()])
 
 

@@ -11,6 +11,7 @@ import math
 import os
 import subprocess
 import sys
+import time
 import warnings
 
 import numpy as np
@@ -274,6 +275,24 @@ def test_large_photos_are_extracted_reusing_freed_memory(monkeypatch):
 def _same_bits(a: dict[str, float], b: dict[str, float]) -> bool:
     return list(a) == list(b) and np.array_equal(np.array(list(a.values())), np.array(list(b.values())),
                                                  equal_nan=True)
+
+
+def _slow_mark(path: str) -> str:
+    time.sleep(0.2)
+    with open(path, "w"):
+        pass
+    return path
+
+
+def test_leaving_a_parallel_run_early_drops_the_tasks_not_started(tmp_path):
+    # extract_many closes the results when its caller leaves early (Ctrl-C): the tasks not yet started
+    # must not run on in the background (the pool is shut down without waiting, so they are cancelled).
+    marks = [str(tmp_path / f"{i}") for i in range(20)]
+    results = extraction._run(_slow_mark, marks, range(len(marks)), 2, lambda n: None)
+    next(results)
+    results.close()
+    time.sleep(1.0)  # long enough for every queued task to finish had it run on
+    assert len(list(tmp_path.iterdir())) <= 6  # the first, the one running beside it, the queued ones
 
 
 def _threads_after_extracting(scan: Scan) -> int:
