@@ -344,6 +344,8 @@ def _harmonic_of_autocorrelation(autocorr: np.ndarray, frame_energy: np.ndarray,
     gamma = np.zeros(max_lag)
     masked = np.empty(max_lag + 1)
     for row in range(rows):
+        # A loud row fills all of Gamma, a quiet voiced one only its positive lags: start every row from 0.
+        gamma[:] = 0.0
         energy = frame_energy[row]
         # FFT round-off (~1e-15 R(0)) would otherwise decide the sign tests and, divided by the eps of an
         # all-zero head, the whole Gamma of a nearly silent frame; exact arithmetic gives 0 there.
@@ -369,7 +371,6 @@ def _harmonic_of_autocorrelation(autocorr: np.ndarray, frame_energy: np.ndarray,
             _head_energies(framed[row], shared_energy[row], heads)
             _gamma(masked, energy, heads, first_zero, gamma, True)
         best, best_lag = _first_maximum(gamma)
-        gamma[:] = 0.0
         ratio[row] = best
         frequency = fs / (best_lag + 1.0)
         if frequency <= 5000.0 and best >= 0.1:
@@ -423,7 +424,8 @@ def _first_maximum(values: np.ndarray) -> tuple[float, int]:
 def _autocorrelation(framed: np.ndarray, max_lag: int) -> np.ndarray:
     """``R(m) = sum_n x(n) x(n+m)`` of each row for m = 0 .. max_lag, by FFT without wrap-around.
 
-    ``cv2.dft`` on the rows and ``cv2.mulSpectrums`` for ``|X|^2``: half the time of ``scipy.fft`` here.
+    ``cv2.dft`` on the rows and :func:`_power_in_place` for ``|X|^2`` (``cv2.mulSpectrums``'s values): half
+    the time of ``scipy.fft`` here.
     """
     rows, n = framed.shape
     padded = np.empty((rows, cv2.getOptimalDFTSize(n + max_lag)))

@@ -68,6 +68,7 @@ def image_features(scan: Scan, disp: image.PreparedPhoto | None = None) -> dict[
 def audio_features(scan: Scan, prepared: PreparedScan | None = None) -> dict[str, float]:
     """35 features of the finger and of the tool audio in the 1 s slide window (SPEC 6, 7.3)."""
     values: dict[str, float] = {}
+    prepared = prepared or PreparedScan(scan)
     for which, (vibration, sound) in AUDIO_SIGNALS.items():
         names = [f"audio.{which}.{name}" for name in audio.NAMES]
         v, a = scan.get(vibration), scan.get(sound)
@@ -78,7 +79,7 @@ def audio_features(scan: Scan, prepared: PreparedScan | None = None) -> dict[str
             values.update(_nan(names))
             continue
         try:
-            window = (prepared or PreparedScan(scan)).slide_window(vibration, audio_samples=a.n, audio_fs=a.fs)
+            window = prepared.slide_window(vibration, audio_samples=a.n, audio_fs=a.fs)
         except QualityError as problem:
             warnings.warn(f"scan {scan.scan_id}: {vibration}: {problem}; audio.{which} features are NaN",
                           stacklevel=2)

@@ -253,7 +253,7 @@ def tamura_coarseness_total(gray: np.ndarray, tolerance: int) -> int:
     """Sum over the output pixels of Tamura's best window size ``S_best`` for kmax = 5, in one pass.
 
     The image is read as ``t = rint(1000 gray)`` (int32, exact for gray images of 8-bit photos, see
-    ``features.image._thousandths``), so every window sum is an exact integer. Level k holds the sums of
+    ``features.image._tamura_coarseness_of_photo``), so every window sum is an exact integer. Level k holds the sums of
     the 2^k x 2^k windows by their top-left pixel, each the sum of four windows of level k - 1; the rows
     of each level live in a ring of 64 rows, made as the photo's rows arrive. At output pixel (r, c),
     ``E_k = max(|S_k(r - h, c) - S_k(r - h, c - 2^k)|, |S_k(r, c - h) - S_k(r - 2^k, c - h)|)`` with

@@ -35,7 +35,7 @@ TACTUM_PHOTO_SIDE = 2 * IMAGE_BORDER_PX + 2 * 2**image.TAMURA_KMAX
 
 def prepared_disp(scan: Scan) -> image.PreparedPhoto | None:
     """``I_disp`` prepared once for TacTUM (MaCo, MaRG) and its image features, which share its gray image,
-    Tamura contrast and spectrum; None if the photo is missing or too small for image features."""
+    Tamura contrast and spectrum; None if the photo is missing or smaller than :data:`TACTUM_PHOTO_SIDE`."""
     photo = scan.images.get("I_disp")
     if photo is None or min(photo.shape[:2]) < TACTUM_PHOTO_SIDE:
         return None

@@ -293,7 +293,10 @@ def _kernel_test_signals(fs: float) -> list[np.ndarray]:
             np.where(t < 0.4, 1e-200 * rng.standard_normal(t.size), np.sign(np.sin(2 * np.pi * 140 * t))),
             1e-160 * rng.standard_normal(t.size),   # squares underflow: tolerance 0, subnormal R
             1e76 * np.sin(2 * np.pi * 210 * t),      # R(0) > 1e150: Gamma's denominator overflows
-            1e155 * rng.standard_normal(t.size)]     # squares overflow: R(0) and R infinite or NaN
+            1e155 * rng.standard_normal(t.size),    # squares overflow: R(0) and R infinite or NaN
+            # Frames of both kinds in one matrix: a loud unvoiced frame (whole Gamma) before quiet voiced
+            # ones (Gamma at its positive lags only) must leave nothing behind for them.
+            np.where(t < 0.05, 1e74 * np.sin(2 * np.pi * min(8000.0, fs / 2.5) * t), np.sin(2 * np.pi * 200 * t))]
 
 
 @pytest.mark.parametrize("fs", [44100.0, 8000.0, 400.0])
