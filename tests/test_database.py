@@ -579,3 +579,34 @@ def test_label_prefix_stops_at_the_class_boundary(tmp_path):
     assert [r.sample_id for r in db.records(label="C6S1")] == ["a"]
     assert [r.sample_id for r in db.records(label="C6S1M1P2X1")] == ["a"]
     assert [r.sample_id for r in db.records(label="C60")] == ["b"]
+
+
+class _InterruptedAfterBegin:
+    """A catalog connection where Ctrl-C arrives the moment a transaction has begun."""
+
+    def __init__(self, conn: sqlite3.Connection):
+        self.conn = conn
+
+    def execute(self, sql: str, *args):
+        cursor = self.conn.execute(sql, *args)
+        if sql.startswith("BEGIN"):
+            raise KeyboardInterrupt
+        return cursor
+
+    @property
+    def in_transaction(self) -> bool:
+        return self.conn.in_transaction
+
+
+def test_ctrl_c_just_after_a_transaction_begins_leaves_the_catalog_writable(tmp_path):
+    # The interrupt lands between BEGIN and the body: the transaction must be rolled back, or every later
+    # write on the connection fails with "cannot start a transaction within a transaction".
+    db = Database(tmp_path / "db")
+    conn = db._conn
+    db._local.conn = _InterruptedAfterBegin(conn)
+    with pytest.raises(KeyboardInterrupt):
+        db.store_features("a" * 64, "v1", {"x": 1.0})
+    db._local.conn = conn
+    assert not conn.in_transaction
+    db.store_features("a" * 64, "v1", {"x": 2.0})
+    assert db.cached_features("a" * 64, "v1") == {"x": 2.0}

@@ -316,14 +316,17 @@ class Database:
     def _transaction(self) -> Iterator[sqlite3.Connection]:
         """A write transaction that holds SQLite's write lock from its first statement."""
         conn = self._conn
-        conn.execute("BEGIN IMMEDIATE")
         try:
+            # BEGIN inside the try: a Ctrl-C arriving just after it must roll back too, or the connection
+            # stays in the transaction and every later write fails ("cannot start a transaction within a
+            # transaction").
+            conn.execute("BEGIN IMMEDIATE")
             yield conn
+            conn.execute("COMMIT")
         except BaseException:
             if conn.in_transaction:  # SQLite may have rolled back already (a full disk, an I/O error)
                 conn.execute("ROLLBACK")
             raise
-        conn.execute("COMMIT")
 
     # -- writing -----------------------------------------------------------------------------------
 
