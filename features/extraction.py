@@ -221,6 +221,18 @@ def _one_thread_each() -> Iterator[None]:
         cv2.setNumThreads(threads)
 
 
+def _drop_tasks_not_started(futures: Iterable[concurrent.futures.Future]) -> None:
+    """Cancel every task a pool has not handed to a worker yet (the caller left early: Ctrl-C).
+
+    Done here, not by ``shutdown(cancel_futures=True)``: the pool's own thread does that cancelling, and
+    only if the executor object still exists when it wakes. A generator that is closed drops its pool at
+    once, so under load the thread found it gone and ran every queued task (and at interpreter exit, the
+    process waited for them all). A future already handed over (running or in the call queue) refuses.
+    """
+    for future in futures:
+        future.cancel()
+
+
 def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,
          tick: Callable[[int], object]) -> Iterable[tuple[int, tuple]]:
     """``(index, fn(item))`` for every item, in this process or a process pool (completion order)."""
@@ -234,13 +246,15 @@ def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,
     # in: restarted at once, they would spin-wait on the cores the workers need.
     with _one_thread_each():
         pool = concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=keep_freed_memory)
+        futures: dict[concurrent.futures.Future, int] = {}
         try:
-            futures = {pool.submit(fn, item): index for index, item in zip(indices, items, strict=True)}
+            for index, item in zip(indices, items, strict=True):
+                futures[pool.submit(fn, item)] = index
             for future in concurrent.futures.as_completed(futures):
                 tick(1)
                 yield futures[future], future.result()
         finally:
-            # Tasks not started are dropped (the caller left early: Ctrl-C). The workers end by themselves,
-            # and the pool's thread collects them: waiting here for each to tear down its address space
-            # took 8 ms of a 12-scan batch.
-            pool.shutdown(wait=False, cancel_futures=True)
+            _drop_tasks_not_started(futures)
+            # The workers end by themselves, and the pool's thread collects them: waiting here for each to
+            # tear down its address space took 8 ms of a 12-scan batch.
+            pool.shutdown(wait=False)

@@ -277,22 +277,38 @@ def _same_bits(a: dict[str, float], b: dict[str, float]) -> bool:
                                                  equal_nan=True)
 
 
-def _slow_mark(path: str) -> str:
-    time.sleep(0.2)
+GATE_SECONDS = 3.0
+
+
+def _gated_mark(path: str) -> str:
+    """Mark the task as started; every task but the first then waits for the gate (at most GATE_SECONDS)."""
     with open(path, "w"):
         pass
+    if os.path.basename(path) != "0":
+        gate = os.path.join(os.path.dirname(os.path.dirname(path)), "gate")
+        deadline = time.monotonic() + GATE_SECONDS
+        while not os.path.exists(gate) and time.monotonic() < deadline:
+            time.sleep(0.005)
     return path
 
 
 def test_leaving_a_parallel_run_early_drops_the_tasks_not_started(tmp_path):
     # extract_many closes the results when its caller leaves early (Ctrl-C): the tasks not yet started
     # must not run on in the background (the pool is shut down without waiting, so they are cancelled).
-    marks = [str(tmp_path / f"{i}") for i in range(20)]
-    results = extraction._run(_slow_mark, marks, range(len(marks)), 2, lambda n: None)
-    next(results)
+    # Only task 0 can finish before the gate opens, so what has been handed to the workers when the run is
+    # left does not depend on how busy the machine is: the two workers' tasks and the pool's call queue
+    # (max_workers + 1 = 3 tasks, already marked running) at most, 6 with the first. With a waiting
+    # shutdown all 20 run (close() returns only after ten rounds of GATE_SECONDS); so they do, on a busy
+    # machine, when the cancelling is left to shutdown(cancel_futures=True): the pool's thread skips it
+    # once the closed generator has dropped the executor.
+    (tmp_path / "marks").mkdir()
+    marks = [str(tmp_path / "marks" / f"{i}") for i in range(20)]
+    results = extraction._run(_gated_mark, marks, range(len(marks)), 2, lambda n: None)
+    assert next(results) == (0, marks[0])
     results.close()
-    time.sleep(1.0)  # long enough for every queued task to finish had it run on
-    assert len(list(tmp_path.iterdir())) <= 6  # the first, the one running beside it, the queued ones
+    (tmp_path / "gate").touch()
+    time.sleep(1.0)  # lets the tasks already handed over start (a task is marked when it starts)
+    assert len(list((tmp_path / "marks").iterdir())) <= 6
 
 
 def _threads_after_extracting(scan: Scan) -> int:
