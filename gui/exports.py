@@ -34,6 +34,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import IO, Any
 
+from features import WorkerPool
 from scanner.storage.bundle import BundleError
 from scanner.storage.database import Database, ScanRecord
 from scanner.workflows import export_database, extract_database
@@ -170,12 +171,14 @@ class ExportJob:
             raise _Cancelled
 
     def _warm_feature_cache(self, abandon_after_s: float) -> None:
-        """Features of every exported scan into the cache, so the exporter only reads them."""
-        for start in range(0, len(self.records), FEATURE_CHUNK):
-            self._check(abandon_after_s)
-            extract_database(self.db, records=self.records[start:start + FEATURE_CHUNK], workers=self.workers,
-                             progress=False)
-            self.done = min(start + FEATURE_CHUNK, len(self.records))
+        """Features of every exported scan into the cache, so the exporter only reads them. The chunks
+        share one set of worker processes: forking them per chunk cost each chunk their start-up."""
+        with WorkerPool(self.workers) as pool:
+            for start in range(0, len(self.records), FEATURE_CHUNK):
+                self._check(abandon_after_s)
+                extract_database(self.db, records=self.records[start:start + FEATURE_CHUNK], pool=pool,
+                                 progress=False)
+                self.done = min(start + FEATURE_CHUNK, len(self.records))
 
     def _count(self, records: Iterable[ScanRecord], abandon_after_s: float) -> Iterator[ScanRecord]:
         """The exporter's progress callback: hands on every scan, counts it, stops when cancelled."""

@@ -21,7 +21,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from features import FeatureSpace, ScanSource, code_version, extract, extract_many
+from features import FeatureSpace, ScanSource, WorkerPool, code_version, extract, extract_many
 from scanner.scan import Scan
 from scanner.storage.bundle import ExportReport, Progress, export_bundle
 from scanner.storage.database import Database, DatabaseError, ScanRecord
@@ -48,11 +48,12 @@ def database_sources(db: Database, records: Iterable[ScanRecord]) -> list[ScanSo
 
 def extract_database(db: Database, *, label: str | None = None, records: Sequence[ScanRecord] | None = None,
                      workers: int | None = None, progress: bool = True, client: Client | None = None,
-                     ship_data: bool = False) -> FeatureSpace:
+                     ship_data: bool = False, pool: WorkerPool | None = None) -> FeatureSpace:
     """The features of every scan of ``db`` (or of ``label``, a label or class prefix, or of ``records``),
     read from the database's feature cache where the scan and the feature code are unchanged; extracted in
-    ``workers`` processes here, or on the Dask cluster of ``client`` (``ship_data``: send the files to the
-    workers; see :func:`features.extract_many`). The catalog and the cache are read and written here only.
+    ``workers`` processes here (or those of ``pool``, kept across a job's batches), or on the Dask cluster
+    of ``client`` (``ship_data``: send the files to the workers; see :func:`features.extract_many`). The
+    catalog and the cache are read and written here only.
 
     Raises
     ------
@@ -64,7 +65,7 @@ def extract_database(db: Database, *, label: str | None = None, records: Sequenc
     if not records:
         raise DatabaseError(f"{db.root}: no scans{f' with label {label}' if label else ''} to extract")
     return extract_many(database_sources(db, records), workers=workers, cache=db, progress=progress, client=client,
-                        ship_data=ship_data)
+                        ship_data=ship_data, pool=pool)
 
 
 def stored_features(db: Database, record: ScanRecord) -> tuple[dict[str, float], str | None]:

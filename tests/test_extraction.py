@@ -13,6 +13,7 @@ import subprocess
 import sys
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -309,6 +310,85 @@ def test_leaving_a_parallel_run_early_drops_the_tasks_not_started(tmp_path):
     (tmp_path / "gate").touch()
     time.sleep(1.0)  # lets the tasks already handed over start (a task is marked when it starts)
     assert len(list((tmp_path / "marks").iterdir())) <= 6
+
+
+def _pid(item: object) -> int:
+    """The worker's process id; ``"die"`` ends the worker as the kernel would (out of memory), and a folder
+    waits there until another worker has come too (at most 20 s), so that a batch of two uses both."""
+    if item == "die":
+        os._exit(3)
+    if isinstance(item, str):
+        Path(item, str(os.getpid())).touch()
+        deadline = time.monotonic() + 20
+        while len(os.listdir(item)) < 2 and time.monotonic() < deadline:
+            time.sleep(0.005)
+    return os.getpid()
+
+
+def _meeting(tmp_path: Path) -> list[str]:
+    """A batch of two tasks that meet in a new folder."""
+    folder = tmp_path / f"meet-{len(list(tmp_path.glob('meet-*')))}"
+    folder.mkdir()
+    return [str(folder)] * 2
+
+
+def _ended(pid: int, within_s: float = 20.0) -> bool:
+    """Whether process ``pid`` is gone (collected by its parent) within ``within_s`` seconds."""
+    deadline = time.monotonic() + within_s
+    while os.path.exists(f"/proc/{pid}") and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return not os.path.exists(f"/proc/{pid}")
+
+
+def _pids_of(pool: extraction.WorkerPool, items: list) -> set[int]:
+    return {pid for _, pid in extraction._run(_pid, items, range(len(items)), pool.size, lambda n: None, pool)}
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="looks processes up in /proc")
+def test_a_worker_pool_keeps_its_processes_across_calls_and_ends_them_when_closed(tmp_path):
+    pool = extraction.WorkerPool(2)
+    with pool:
+        assert pool._executor is None  # nothing forked before a batch needs it
+        first = _pids_of(pool, _meeting(tmp_path))
+        second = _pids_of(pool, _meeting(tmp_path))
+        assert first == second and len(first) == 2 and os.getpid() not in first
+    assert pool._executor is None and all(_ended(pid) for pid in first)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="looks processes up in /proc")
+def test_a_dead_worker_fails_its_batch_and_the_next_batch_starts_new_workers(tmp_path):
+    with extraction.WorkerPool(2) as pool:
+        before = _pids_of(pool, _meeting(tmp_path))
+        with pytest.raises(concurrent.futures.BrokenExecutor):
+            _pids_of(pool, ["die"])
+        after = _pids_of(pool, _meeting(tmp_path))
+    assert len(after) == 2 and not after & before
+
+
+def test_leaving_a_batch_early_leaves_the_kept_pool_usable(tmp_path):
+    (tmp_path / "marks").mkdir()
+    marks = [str(tmp_path / "marks" / f"{i}") for i in range(20)]
+    with extraction.WorkerPool(2) as pool:
+        results = extraction._run(_gated_mark, marks, range(len(marks)), 2, lambda n: None, pool)
+        assert next(results) == (0, marks[0])
+        results.close()
+        (tmp_path / "gate").touch()
+        assert len(_pids_of(pool, _meeting(tmp_path))) == 2  # runs after the tasks already handed over
+    assert len(list((tmp_path / "marks").iterdir())) <= 6
+
+
+def test_extract_many_with_a_kept_pool_equals_one_worker():
+    scans = [foam(), synthetic_scan("float-glass", seed=3, image_size=SIZE, sample_id="glass-01"),
+             synthetic_scan("oak-planed", seed=4, image_size=SIZE, sample_id="oak-01")]
+    alone = extract_many(scans, workers=1, progress=False)
+    with extraction.WorkerPool(2) as pool:
+        for _ in range(2):
+            kept = extract_many(scans, pool=pool, progress=False)
+            np.testing.assert_array_equal(kept.X, alone.X)
+            assert kept.scan_ids == alone.scan_ids
+        assert extract_many(scans, workers=2, pool=pool, progress=False).scan_ids == alone.scan_ids
+        with pytest.raises(ValueError, match="workers=3 with a pool of 2 workers"):
+            extract_many(scans, workers=3, pool=pool, progress=False)
 
 
 def _threads_after_extracting(scan: Scan) -> int:

@@ -833,6 +833,47 @@ def test_abandoned_export_and_server_stop_delete_the_bundle(tmp_path, exporter):
     assert job.phase == "cancelled" and not list((tmp_path / "tmp").iterdir())
 
 
+def test_export_chunks_share_one_set_of_worker_processes(tmp_path, monkeypatch):
+    """The export extracts its uncached scans chunk by chunk (progress and cancellation between); the chunks
+    use the same two worker processes, forked once, not a pool each."""
+    import time
+
+    from conftest import make_scan
+
+    from features import code_version
+    from gui import exports
+    from gui.exports import Exports
+    from scanner.storage.database import Database
+
+    db = Database(tmp_path / "db")
+    for index in range(1, 5):
+        db.add(make_scan(index, sample_id="granite-01", scan_index=index, image_shape=(64, 64)))
+    original, workers_seen = exports.extract_database, []
+
+    def extract_noting_the_workers(db, *, records, pool, **kwargs):
+        space = original(db, records=records, pool=pool, **kwargs)
+        workers_seen.append((pool, frozenset(pool._executor._processes)))
+        return space
+
+    monkeypatch.setattr(exports, "FEATURE_CHUNK", 2)
+    monkeypatch.setattr(exports, "extract_database", extract_noting_the_workers)
+    (tmp_path / "tmp").mkdir()
+    jobs = Exports(db, tmp_path / "tmp", workers=2)
+    try:
+        job = jobs.start()
+        deadline = time.monotonic() + 120
+        while job.phase in exports.RUNNING and time.monotonic() < deadline:
+            job.touch()
+            time.sleep(0.02)
+        assert job.phase == "done", job.status()
+    finally:
+        jobs.shutdown()
+    (pool, first), (same_pool, second) = workers_seen
+    assert pool is same_pool and first == second and len(first) == 2
+    assert pool._executor is None  # closed with the job
+    assert len(db.records()) == 4 and all(db.cached_features(r.content_hash, code_version()) for r in db.records())
+
+
 def test_export_needs_free_space(exporter, tmp_path, monkeypatch):
     import shutil
     from collections import namedtuple
