@@ -13,13 +13,11 @@ import functools
 import os
 import sys
 import warnings
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
-import cv2
 import numpy as np
-from threadpoolctl import ThreadpoolController
 from tqdm import tqdm
 
 from features import cluster, tactum
@@ -27,6 +25,7 @@ from features.memory import keep_freed_memory, reusing_freed_memory
 from features.prepared import PreparedScan
 from features.registry import REGISTRY
 from features.space import FeatureSpace
+from features.threads import one_blas_thread, one_thread_each
 from scanner.scan import Scan
 from scanner.storage.stored import NotOnThisMachine
 
@@ -75,7 +74,7 @@ def extract(scan: Scan) -> dict[str, float]:
     """
     values: dict[str, float] = {}
     large = any(photo.shape[0] * photo.shape[1] >= REUSE_FROM_PIXELS for photo in scan.images.values())
-    with reusing_freed_memory() if large else contextlib.nullcontext(), _one_blas_thread():
+    with reusing_freed_memory() if large else contextlib.nullcontext(), one_blas_thread():
         prepared = PreparedScan(without_short_channels(scan))
         for family in REGISTRY:
             computed = family.compute(prepared)
@@ -84,28 +83,6 @@ def extract(scan: Scan) -> dict[str, float]:
                 raise RuntimeError(f"the {family.name} family returned names out of its fixed column order")
             values.update(computed)
     return values
-
-
-@functools.cache
-def _thread_pools() -> ThreadpoolController:
-    """The thread pools (BLAS, OpenMP) loaded in this process, found once: looking them up walks every
-    loaded library, which took longer than the rest of extracting a small scan. Every library the feature
-    code calls into (numpy, scipy, OpenCV) is loaded by importing this package, so none is missed."""
-    return ThreadpoolController()
-
-
-def _one_blas_thread() -> contextlib.AbstractContextManager:
-    """BLAS and OpenMP limited to one thread while a scan is extracted, unless they already are.
-
-    Setting a limit is not free where it is already 1: in a worker forked by :func:`extract_many` (whose
-    parent limits the pools before forking), OpenBLAS rebuilds its thread pool on the first call that
-    sets it, and the new threads spin for about 0.1 s on the cores the workers need (a scan's first
-    extraction took 5 times as long).
-    """
-    pools = _thread_pools()
-    if all(controller.num_threads == 1 for controller in pools.lib_controllers):
-        return contextlib.nullcontext()
-    return pools.limit(limits=1)
 
 
 # -- many scans ----------------------------------------------------------------------------------------
@@ -208,22 +185,6 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     )
 
 
-@contextlib.contextmanager
-def _one_thread_each() -> Iterator[None]:
-    """OpenCV, BLAS and OpenMP on one thread while worker processes are forked, so that each worker
-    inherits that: the workers already keep every core busy, and each one's own thread pools (OpenCV's as
-    many threads as cores, BLAS's for long dot products) would put several threads on a core. Set in the
-    parent because a forked child must not reconfigure OpenCV's inherited thread pool (it can hang).
-    """
-    threads = cv2.getNumThreads()
-    cv2.setNumThreads(1)
-    try:
-        with _thread_pools().limit(limits=1):
-            yield
-    finally:
-        cv2.setNumThreads(threads)
-
-
 def _drop_tasks_not_started(futures: Iterable[concurrent.futures.Future]) -> None:
     """Cancel every task a pool has not handed to a worker yet (the caller left early: Ctrl-C).
 
@@ -292,7 +253,7 @@ def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,
     workers_here = WorkerPool(workers) if pool is None else pool
     # OpenCV's threads are restored only once every result is in: restarted at once, they would spin-wait
     # on the cores the workers need. The workers forked in here inherit the one-thread setting.
-    with _one_thread_each():
+    with one_thread_each():
         futures: dict[concurrent.futures.Future, int] = {}
         try:
             for index, item in zip(indices, items, strict=True):

@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import functools
+import os
 import sys
 import threading
 from collections.abc import Iterator
@@ -41,6 +42,19 @@ rather than at the 128 KiB start, where every array above 128 KiB would be fault
 
 _lock = threading.Lock()
 _state = {"for_good": False, "blocks": 0}
+
+
+def _start_afresh_in_child() -> None:
+    """A forked child has only the forking thread: the lock, held at the fork by another thread that was
+    giving memory back (``malloc_trim`` can take milliseconds), would stay held, and the worker's
+    :func:`keep_freed_memory` wait for ever. The parent's blocks are not the child's."""
+    global _lock
+    _lock = threading.Lock()
+    _state["blocks"] = 0
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_start_afresh_in_child)
 
 
 @functools.cache

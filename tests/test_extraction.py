@@ -20,7 +20,7 @@ import pytest
 
 import features
 from features import NAMES, ScanSource, extract, extract_many, extraction, image
-from features.extraction import _one_thread_each, code_version, source_of
+from features.extraction import code_version, source_of
 from scanner.scan import CHANNELS, IMAGES, Scan, Trace
 from scanner.simulation import synthetic_scan
 
@@ -389,19 +389,3 @@ def test_extract_many_with_a_kept_pool_equals_one_worker():
         assert extract_many(scans, workers=2, pool=pool, progress=False).scan_ids == alone.scan_ids
         with pytest.raises(ValueError, match="workers=3 with a pool of 2 workers"):
             extract_many(scans, workers=3, pool=pool, progress=False)
-
-
-def _threads_after_extracting(scan: Scan) -> int:
-    extract(scan)
-    return len(os.listdir("/proc/self/task"))
-
-
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="counts threads in /proc")
-def test_a_forked_worker_extracts_without_starting_thread_pools():
-    # extract_many forks its workers with BLAS at one thread. Setting that limit again in a worker made
-    # OpenBLAS start its pool there, threads that spun on the cores the workers need; a worker must
-    # extract on its one thread.
-    scan = synthetic_scan("oak-planed", seed=2)
-    extract(scan)
-    with _one_thread_each(), concurrent.futures.ProcessPoolExecutor(max_workers=1) as pool:
-        assert pool.submit(_threads_after_extracting, scan).result() == 1

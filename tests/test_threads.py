@@ -1,0 +1,166 @@
+"""The thread limits of extraction (features.threads): counted across the threads that extract at once, and
+safe to fork from while other threads take them (also features.memory's settings)."""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+
+import cv2
+import pytest
+
+from features import memory, threads
+from features.threads import one_blas_thread, one_thread_each, thread_pools
+
+
+def _blas_threads() -> set[int]:
+    """The threads of every process-wide pool: OpenBLAS's. OpenMP's limit (and OpenBLAS's on the OpenMP
+    layer) is per thread, so another thread's limit does not show in this one; no feature calls OpenMP."""
+    return {controller.num_threads for controller in thread_pools().lib_controllers
+            if controller.internal_api == "openblas" and controller.threading_layer != "openmp"}
+
+
+@pytest.fixture
+def two_threads_each():
+    """BLAS, OpenMP and OpenCV on two threads (also on a one-core machine), as found before the test after."""
+    if not _blas_threads():
+        pytest.skip("no OpenBLAS with a process-wide thread pool is loaded")
+    opencv = cv2.getNumThreads()
+    cv2.setNumThreads(2)
+    with thread_pools().limit(limits=2):
+        yield
+    cv2.setNumThreads(opencv)
+
+
+def _inside_until(block, entered: threading.Event, leave: threading.Event) -> threading.Thread:
+    def run() -> None:
+        with block():
+            entered.set()
+            leave.wait(20)
+
+    thread = threading.Thread(target=run)
+    thread.start()
+    assert entered.wait(20)
+    return thread
+
+
+@pytest.mark.parametrize("block", [one_blas_thread, one_thread_each])
+def test_a_thread_that_ends_its_block_leaves_the_limit_to_a_thread_still_inside(two_threads_each, block):
+    # The web app extracts an export's batches in one thread and the operator's end-of-scan prediction in
+    # another. With a limit per caller, the first to end restored two threads under the other one: its
+    # remaining BLAS products ran on two threads (other last bits), or it forked workers with full pools.
+    entered, leave = threading.Event(), threading.Event()
+    other = _inside_until(block, entered, leave)
+    try:
+        with block():
+            assert _blas_threads() == {1}
+            leave.set()
+            other.join(20)
+            assert not other.is_alive()
+            assert _blas_threads() == {1}
+            if block is one_thread_each:
+                assert cv2.getNumThreads() == 1
+    finally:
+        leave.set()
+        other.join(20)
+    assert _blas_threads() == {2} and cv2.getNumThreads() == 2
+
+
+def test_blocks_nest_and_restore_what_they_found(two_threads_each):
+    with one_thread_each():
+        with one_blas_thread():
+            assert _blas_threads() == {1} and cv2.getNumThreads() == 1
+        assert _blas_threads() == {1} and cv2.getNumThreads() == 1
+    assert _blas_threads() == {2} and cv2.getNumThreads() == 2
+    assert threads._blas["users"] == 0 and threads._cv2["users"] == 0
+
+
+def _take_a_limit() -> None:
+    with one_blas_thread():
+        pass
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="forks")
+@pytest.mark.parametrize(("module", "what_a_worker_does"), [(threads, _take_a_limit),
+                                                            (memory, memory.keep_freed_memory)])
+def test_a_child_forked_while_another_thread_holds_the_lock_does_not_wait_for_it(module, what_a_worker_does):
+    # extract_many forks from the thread that runs it while another thread may hold one of these locks
+    # (taking a thread limit; giving memory back after a 12 MP prediction, which takes milliseconds). The
+    # child has only the forking thread, so a lock held at the fork would never be released there.
+    with module._lock:
+        pid = os.fork()
+        if pid == 0:
+            try:
+                what_a_worker_does()
+            finally:
+                os._exit(0)
+    deadline = time.monotonic() + 20
+    while (done := os.waitpid(pid, os.WNOHANG)) == (0, 0) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    if done == (0, 0):
+        os.kill(pid, 9)
+        os.waitpid(pid, 0)
+    assert done != (0, 0) and os.waitstatus_to_exitcode(done[1]) == 0, "the child waited for the lock"
+
+
+@pytest.fixture
+def a_thread_holding_openblas():
+    """A live thread that set BLAS and OpenMP to two threads outside a ``with`` block (as a server's thread
+    may have): with threadpoolctl >= 3.8 it keeps control of OpenBLAS's pool while it lives, and other
+    threads' limits were silently ignored."""
+    if not _blas_threads():
+        pytest.skip("no OpenBLAS with a process-wide thread pool is loaded")
+    holding, leave = threading.Event(), threading.Event()
+
+    def hold() -> None:
+        limiter = thread_pools().limit(limits=2)
+        holding.set()
+        leave.wait(60)
+        limiter.restore_original_limits()
+        threads._release_openblas_control()
+
+    opencv = cv2.getNumThreads()
+    cv2.setNumThreads(2)
+    thread = threading.Thread(target=hold, daemon=True)
+    thread.start()
+    assert holding.wait(20)
+    yield
+    leave.set()
+    thread.join(20)
+    cv2.setNumThreads(opencv)
+
+
+def test_the_limit_holds_while_another_thread_controls_openblas(a_thread_holding_openblas):
+    with one_blas_thread():
+        assert _blas_threads() == {1}
+    assert _blas_threads() == {2}
+
+
+def _threads_after_extracting(scan) -> list[str]:
+    from features import extract
+
+    extract(scan)
+    names = []
+    for task in os.listdir("/proc/self/task"):
+        with open(f"/proc/self/task/{task}/comm") as comm:
+            names.append(comm.read().strip())
+    return names
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="counts threads in /proc")
+@pytest.mark.parametrize("beside", [None, "a_thread_holding_openblas"])
+def test_a_forked_worker_extracts_on_its_one_thread(request, beside):
+    # extract_many forks its workers with BLAS at one thread. A worker that found BLAS on more and set the
+    # limit itself started OpenBLAS's pool there, threads that spun on the cores the workers need. Seen in
+    # the test suite when another thread controlled OpenBLAS (threadpoolctl >= 3.8), so the parent's limit
+    # was silently ignored.
+    import concurrent.futures
+
+    from scanner.simulation import synthetic_scan
+
+    if beside:
+        request.getfixturevalue(beside)
+    scan = synthetic_scan("oak-planed", seed=2)
+    with one_thread_each(), concurrent.futures.ProcessPoolExecutor(max_workers=1) as pool:
+        assert len(pool.submit(_threads_after_extracting, scan).result()) == 1
