@@ -202,10 +202,10 @@ class WorkerPool:
     (the web app's export warms the feature cache 16 scans at a time, checking for cancellation between)
     pays the workers' start-up once, not once per batch.
 
-    That start-up is about 8 ms forking two workers and, in each one's first scan, some 5,700 page faults
+    That start-up is about 8 ms forking two workers and, in each one's first scan, some 6,000 page faults
     (its heap is new, and every page it shares with this process is copied when written): about 12 ms on
-    the 2-core development VM. With a pool per call, 12 scans on 2 workers take 1.82x less time than on 1;
-    with this pool kept across calls, 1.9x or more (README, ``make bench``).
+    the 2-core test machine. With a pool per call, 2 workers extract 12 scans 1.8-1.9 times as fast as 1;
+    with this pool kept across calls, 1.9-2.0 times (README, ``make bench``).
 
     The processes are forked by the first batch that needs them, so a job whose scans are all cached forks
     none, and they end when the pool is closed (``with WorkerPool(2) as pool: ...``). They run the code
