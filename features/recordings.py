@@ -57,13 +57,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import signal
-from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from features import audio, cluster, image, other, tactum
 from features.memory import keep_freed_memory
 from features.registry import ROLE_REGISTRY, RoleFamily
 from features.space import FeatureSpace
+from features.threads import one_blas_thread
 from scanner.preprocess import BAND_HZ, dft321
 from scanner.scan import IMAGE_ROLES, Recording, Trace
 from taxonomy.errors import TexplorerError
@@ -347,7 +347,7 @@ def set_levels(recordings: Sequence[Recording]) -> tuple[str, dict[str, list[str
 def _extract_one(job: tuple[Recording, Windowing, int, tuple[str, ...]]) -> tuple[list[dict[str, float]], list[str]]:
     recording, windowing, border, applied = job
     # One BLAS thread, as features.extract: the same bits here, in a pool and on a Dask worker.
-    with warnings.catch_warnings(record=True) as caught, threadpool_limits(limits=1):
+    with warnings.catch_warnings(record=True) as caught, one_blas_thread():
         warnings.simplefilter("always")
         rows = recording_rows(recording, windowing, border, [f for f in applied if f in families(recording)])
     messages = (str(w.message) for w in caught)

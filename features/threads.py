@@ -2,9 +2,10 @@
 
 Extraction limits them in two scopes:
 
-- :func:`one_blas_thread` while one scan is extracted in this process: a BLAS product's summation order
-  depends on its thread count, so the last bits of a few features (Tamura contrast, MaCo, MaRG) would
-  otherwise differ between machines with other core counts, and from a Dask worker's;
+- :func:`one_blas_thread` while one scan is extracted in this process (also a recording's windows, and
+  an evaluation's fits, whose folds run side by side): a BLAS product's summation order depends on its
+  thread count, so the last bits of a few features (Tamura contrast, MaCo, MaRG) would otherwise differ
+  between machines with other core counts, and from a Dask worker's;
 - :func:`one_thread_each` while worker processes are forked and run (OpenCV too): each worker inherits
   one thread per pool, as the workers already keep every core busy.
 

@@ -45,13 +45,13 @@ from sklearn.neural_network import MLPClassifier
 from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import MinMaxScaler
 from sklearn.svm import SVC
-from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from features import cluster
 from features.registry import REGISTRY
 from features.selection import FQSelector, KeepAll
 from features.space import FeatureSpace
+from features.threads import one_blas_thread
 from taxonomy.results import OWN_METHOD, EvaluationError, Result, warning_notes
 
 if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
@@ -372,7 +372,7 @@ def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseE
         pipelines = [_without_probabilities(make_pipeline(c, cell.n_features, seed)) for c in classifiers]
         shared = None
         if protocol == "paper":
-            with threadpool_limits(limits=1):
+            with one_blas_thread():
                 shared = clone(pipelines[0][:-1]).fit(subset.X, y)
     return _Prepared(cell, subset.X, y, subset.columns, dropped, splits, grouped, own,
                      space.label_level is None, pipelines, shared, warning_notes(caught))
@@ -403,7 +403,7 @@ def _fold(prepared: _Prepared, fold: int,
     """
     train, test = prepared.splits[fold]
     X, y = prepared.X, prepared.y
-    with warnings.catch_warnings(record=True) as caught, threadpool_limits(limits=1):
+    with warnings.catch_warnings(record=True) as caught, one_blas_thread():
         # Small dense matrices: BLAS threads cost more than they gain, and folds run side by side.
         warnings.simplefilter("always")
         shared = prepared.shared
@@ -413,7 +413,7 @@ def _fold(prepared: _Prepared, fold: int,
     messages = warning_notes(caught)
     predictions = []
     for pipeline in prepared.pipelines:
-        with warnings.catch_warnings(record=True) as caught, threadpool_limits(limits=1):
+        with warnings.catch_warnings(record=True) as caught, one_blas_thread():
             warnings.simplefilter("always")
             classifier = clone(pipeline[-1])
             predictions.append(classifier.fit(X_train, y[train]).predict(X_test))

@@ -14,9 +14,9 @@ from sklearn.base import BaseEstimator
 from sklearn.metrics import confusion_matrix, f1_score
 from sklearn.model_selection import StratifiedKFold, StratifiedShuffleSplit
 from sklearn.pipeline import Pipeline
-from threadpoolctl import threadpool_limits
 
 from features import cluster
+from features.threads import one_blas_thread
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -113,7 +113,7 @@ def _fit_split(make: Maker, X: np.ndarray, y: np.ndarray, k: int, train: np.ndar
     """Split k: predictions of the test rows, the warnings of fitting, and for k = 0 the single-row times."""
     feature: list[float] = []
     classify: list[float] = []
-    with warnings.catch_warnings(record=True) as caught, threadpool_limits(limits=1):
+    with warnings.catch_warnings(record=True) as caught, one_blas_thread():
         warnings.simplefilter("always")
         model = make(k, y[train]).fit(X[train], y[train])
         predicted = model.predict(X[test])
