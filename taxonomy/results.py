@@ -111,7 +111,8 @@ class Result:
     one value per split; ``confusion`` sums all splits (rows true, columns predicted, in the order of
     ``classes``); ``notes`` what scikit-learn or the split reported while fitting (e.g. an MLP that did
     not converge) and what was left out; ``taxonomy`` that the classes are taxonomy codes (else ``r_c``
-    is NaN); ``n_samples`` the rows classified.
+    is NaN); ``n_samples`` the rows of the set used, training and test (with a set's own split, the
+    training rows too; the rows classified are those of ``confusion``).
 
     The evaluation's own: ``grouped`` (the folds keep the scans of a sample together), ``given_split``
     (the set's own train/test split was used: one "fold"), ``columns`` (the feature columns evaluated),

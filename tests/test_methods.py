@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import pickle
 from dataclasses import replace
 
@@ -349,3 +350,21 @@ def test_xie_features_keep_the_estimator_contract_on_sequence_vectors():
                          expected_failed_checks=_expected_failures)
 def test_scikit_learn_estimator_checks(estimator, check):
     check(estimator)
+
+
+@pytest.mark.parametrize(("classes", "defined"), [(("C6S1M1P2X1", "C7S1M1P8X1", "C6S2M1P1X1"), True),
+                                                  (("C6S1", "C7S1", "C6S2"), True),
+                                                  (("foam", "steel", "oak"), False),
+                                                  (("c6", "C7", "C6S2"), False)])
+def test_a_methods_r_c_is_defined_where_its_classes_are_taxonomy_codes(classes, defined):
+    # r_C was set by hand for one method (fishel), so huang and hoelscher on scans had none.
+    from taxonomy.methods.scoring import Scores, scored
+
+    confusion = np.array([[3, 1, 0], [0, 4, 0], [2, 0, 2]])  # one miss stays in C6, two change C
+    scores = Scores(np.array([0.75]), np.array([0.7]), classes, confusion, 0.0, 0.0, ())
+    result = scored(scores, 12, 0.0, method="huang", feature_set="f", classifier="rf", motions="m",
+                    level="fine", splitting="s", seed=0)
+    if defined:
+        assert result.r_c == pytest.approx(1 / 3)
+    else:
+        assert math.isnan(result.r_c)

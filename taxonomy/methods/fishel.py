@@ -46,7 +46,7 @@ def run_fishel(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
             results.append(scored(score(make, X, y, splits, client), len(rows), seconds,
                                   [*notes, *warning_notes(caught)], method="fishel", feature_set="fishel3",
                                   classifier=name, motions="tool slide + friction", level=level,
-                                  splitting=splitting, seed=seed, taxonomy=True))
+                                  splitting=splitting, seed=seed))
     return results
 
 

@@ -20,6 +20,8 @@ from features.threads import one_blas_thread
 
 if TYPE_CHECKING:
     from distributed import Client
+from taxonomy import labels
+from taxonomy.labels import LabelError
 from taxonomy.methods.datasets import TIMED_ROWS, Extracted, MethodError
 from taxonomy.results import Result, warning_notes
 
@@ -149,20 +151,30 @@ def score(make: Maker, X: np.ndarray, y: np.ndarray, splits: Sequence[Split],
 
 def scored(scores: Scores, n_samples: int, extraction_seconds: float, notes: Sequence[str] = (), *, method: str,
            feature_set: str, classifier: str, motions: str, level: str, splitting: str, seed: int, paper: str = "",
-           detail: str = "", taxonomy: bool = False) -> Result:
+           detail: str = "") -> Result:
     """The :class:`Result` of one configuration of a related method from its :func:`score`.
 
     ``extraction_seconds`` is the extraction time of the recordings one classification needs (added to any
     feature step inside the fitted model); ``notes`` come first, the warnings of fitting after them.
-    ``taxonomy``: the classes are taxonomy codes (``r_C`` is defined). Every method fits its scaling and
-    features inside the training rows of each split, so the protocol is ``nested``.
+    ``r_C`` is defined where every class is a taxonomy code (any method on scans of this project's
+    database, at any level). Every method fits its scaling and features inside the training rows of each
+    split, so the protocol is ``nested``.
     """
     return Result(method=method, feature_set=feature_set, classifier=classifier, level=level, protocol="nested",
                   splitting=splitting, classes=scores.classes, accuracy=scores.accuracy, f1=scores.f1,
                   confusion=scores.confusion, n_samples=n_samples, seed=seed,
-                  notes=tuple(dict.fromkeys([*notes, *scores.notes])), taxonomy=taxonomy, motions=motions,
+                  notes=tuple(dict.fromkeys([*notes, *scores.notes])), taxonomy=_taxonomy_codes(scores.classes),
+                  motions=motions,
                   feature_seconds=extraction_seconds + scores.feature_seconds,
                   classify_seconds=scores.classify_seconds, paper=paper, detail=detail)
+
+
+def _taxonomy_codes(classes: Sequence[str]) -> bool:
+    """Whether every class is a taxonomy code or class prefix in its canonical form (``C6``, ``C6S1``, ...)."""
+    try:
+        return all(labels.parse_prefix(c) == c for c in classes)
+    except LabelError:
+        return False
 
 
 def usable_rows(extracted: Extracted, rows: Sequence[int]) -> tuple[np.ndarray, np.ndarray, list[str]]:
