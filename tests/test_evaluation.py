@@ -260,8 +260,12 @@ def test_bad_arguments_are_named(kwargs, error, message):
 
 def test_report_serialises_and_summarises():
     report = evaluate(labelled_space(), "knn", level="coarse", n_features=3, folds=3)
-    data = json.loads(json.dumps(report.to_dict()))
+    data = json.loads(json.dumps(report.to_dict(), allow_nan=False))  # strict JSON: no NaN left in
     assert data["accuracy"] == report.accuracy.tolist() and data["classifier"] == "knn"
+    assert data["method"] == "texplorer" and data["splitting"] == report.splitting and data["folds"] == 3
+    assert data["r_c"] is None and data["feature_seconds"] is None  # undefined at the coarse level; not timed
+    assert data["confusion"] == report.confusion.tolist() and len(data["selected"]) == 3
+    assert data["n_samples"] == len(report.y_true) and data["notes"] == list(report.notes)
     line = report.summary()
     assert line.startswith("knn coarse X3 all (nested): accuracy ") and "r_C" in line
 
