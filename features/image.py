@@ -235,14 +235,15 @@ class PreparedPhoto:
 
     @functools.cached_property
     def mean(self) -> float:
-        """Mean gray value (:func:`_mean`; made with :attr:`gray`)."""
-        gray = self.gray
-        return self.__dict__["mean"] if "mean" in self.__dict__ else _mean(gray)
+        """Mean gray value (:func:`_mean`'s order; made with :attr:`gray`)."""
+        _ = self.gray
+        return self.__dict__["mean"]
 
     @functools.cached_property
     def extremes(self) -> tuple[float, float]:
-        """Smallest and largest gray value."""
-        return float(self.gray.min()), float(self.gray.max())
+        """Smallest and largest gray value (made with :attr:`gray`)."""
+        _ = self.gray
+        return self.__dict__["extremes"]
 
     @functools.cached_property
     def contrast(self) -> float:

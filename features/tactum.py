@@ -22,6 +22,7 @@ import numba
 import numpy as np
 import pywt
 
+from features import kernels
 from features.image import PreparedPhoto, RealSpectrum, tamura_contrast
 from features.prepared import PreparedScan
 from scanner.preprocess import (
@@ -265,7 +266,7 @@ def _spaced_strongest(index: np.ndarray, value: np.ndarray, width: int) -> tuple
     return kept[:n], False
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**kernels.JIT)
 def _keep_spaced(rows: np.ndarray, cols: np.ndarray, kept: np.ndarray, n: int, reach2: int) -> int:
     """The greedy pass of :func:`_spaced_strongest` over one batch of ordered candidates: each is kept if its
     squared distance to every corner kept so far is at least ``reach2`` (integers, so exact), until ``kept``
@@ -308,7 +309,7 @@ def gaussian_weights(sigma: float, order: int, truncate: float = 4.0) -> np.ndar
     return (polynomial * phi)[::-1]
 
 
-@numba.njit(cache=True)
+@numba.njit(**kernels.JIT)
 def _reflect(index: int, n: int) -> int:
     """Index into a length-n axis under scipy.ndimage's "reflect" mode (d c b a | a b c d | d c b a)."""
     if 0 <= index < n:
@@ -338,7 +339,7 @@ def _folded_weights(sigmas: tuple[float, ...]) -> np.ndarray:
     return weights
 
 
-@numba.njit(cache=True)
+@numba.njit(**kernels.JIT)
 def _doh_at(gray: np.ndarray, corners: np.ndarray, weights: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """``Lxx Lyy - Lxy^2`` at each corner for each scale of ``weights`` (:func:`_folded_weights`), shape
     ``(n_corners, n_scales)``; ``L..`` as :func:`gaussian_weights` filtering with reflected borders.
