@@ -10,10 +10,11 @@ import concurrent.futures
 import contextlib
 import dataclasses
 import functools
+import multiprocessing
 import os
 import sys
 import warnings
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Hashable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
@@ -161,7 +162,8 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
                leave=False)
     workers = max(1, min((pool.size if pool else workers) or os.cpu_count() or 1, len(todo) or 1))
     if client is None:
-        results = _run(_extract_source, [sources[i] for i in todo], todo, workers, bar.update, pool)
+        kept = pool.serving((version, names)) if pool is not None else None
+        results = _run(_extract_source, [sources[i] for i in todo], todo, workers, bar.update, kept)
     else:
         results = cluster.extract(client, _extract_source, [sources[i] for i in todo], todo, bar.update,
                                   version=code_version, ship_data=ship_data)
@@ -202,21 +204,23 @@ class WorkerPool:
     (the web app's export warms the feature cache 16 scans at a time, checking for cancellation between)
     pays the workers' start-up once, not once per batch.
 
-    That start-up is about 8 ms forking two workers and, in each one's first scan, some 6,000 page faults
-    (its heap is new, and every page it shares with this process is copied when written): about 12 ms on
-    the 2-core test machine. With a pool per call, 2 workers extract 12 scans 1.8-1.9 times as fast as 1;
-    with this pool kept across calls, 1.9-2.0 times (README, ``make bench``).
+    That start-up is forking the workers and, in each one's first scan, some 6,000 page faults (its heap
+    is new, and every page it shares with this process is copied when written); README and ``make bench``
+    give the measured speed-ups with a pool per call and kept.
 
     The processes are forked by the first batch that needs them, so a job whose scans are all cached forks
     none, and they end when the pool is closed (``with WorkerPool(2) as pool: ...``). They run the code
-    of the moment they were forked: keep a pool for one job, not for the life of a process. A worker that
-    dies (killed, out of memory) fails the batch it was in, as a pool of that batch's own would; the next
-    batch starts new workers. One batch at a time: a pool is not shared between threads.
+    of the moment they were forked: keep a pool for one job, not for the life of a process;
+    :func:`extract_many` ends them and forks new ones when the feature code or its columns changed
+    (:meth:`serving`). A worker that dies (killed, out of memory) fails the batch it was in, as a pool of
+    that batch's own would; the next batch starts new workers, also after one died between batches. One
+    batch at a time: a pool is not shared between threads.
     """
 
     def __init__(self, workers: int | None = None) -> None:
         self.size = max(1, workers or os.cpu_count() or 1)
         self._executor: concurrent.futures.ProcessPoolExecutor | None = None
+        self._key: Hashable = None
 
     def __enter__(self) -> WorkerPool:
         return self
@@ -232,11 +236,35 @@ class WorkerPool:
             self._executor.shutdown(wait=False)
             self._executor = None
 
+    def serving(self, key: Hashable) -> WorkerPool:
+        """This pool for work of ``key`` (:func:`extract_many`'s: the feature code's version and column
+        names). Workers forked for another key are ended first: they would run the code of before (a family
+        registered since), and their rows would be stored under the new key."""
+        if key != self._key:
+            self.close()
+            self._key = key
+        return self
+
     def _submit(self, fn: Callable, item: object) -> concurrent.futures.Future:
         if self._executor is None:  # the first submission forks every worker
-            self._executor = concurrent.futures.ProcessPoolExecutor(max_workers=self.size,
-                                                                    initializer=keep_freed_memory)
-        return self._executor.submit(fn, item)
+            self._executor = _forked_pool(self.size)
+        try:
+            return self._executor.submit(fn, item)
+        except concurrent.futures.BrokenExecutor:  # a worker died between batches (killed while idle)
+            self.close()
+            self._executor = _forked_pool(self.size)
+            return self._executor.submit(fn, item)
+
+
+_FORK = multiprocessing.get_context("fork") if "fork" in multiprocessing.get_all_start_methods() else None
+"""Workers are forked where the system can (Linux: Python 3.14 makes forkserver the default): they inherit
+the one-thread limits set while forking (:func:`features.threads.one_thread_each`) and the loaded code."""
+
+
+def _forked_pool(workers: int) -> concurrent.futures.ProcessPoolExecutor:
+    """``workers`` processes that keep the memory they free (:func:`keep_freed_memory`), forked where possible."""
+    return concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=_FORK,
+                                                  initializer=keep_freed_memory)
 
 
 def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,

@@ -44,7 +44,6 @@ never split one recording's windows. Photos are not windowed.
 
 from __future__ import annotations
 
-import concurrent.futures
 import contextlib
 import math
 import os
@@ -59,8 +58,7 @@ import numpy as np
 from scipy import signal
 from tqdm import tqdm
 
-from features import audio, cluster, image, other, tactum
-from features.memory import keep_freed_memory
+from features import audio, cluster, extraction, image, other, tactum
 from features.registry import ROLE_REGISTRY, RoleFamily
 from features.space import FeatureSpace
 from features.threads import one_blas_thread
@@ -423,17 +421,12 @@ def _map(function: Callable, jobs: Sequence, workers: int | None, progress: bool
                                             name="texplorer-recording", tick=bar.update)) as done:
             for i, result in done:
                 results[i] = result
-    elif workers == 1:
-        for i, job in enumerate(jobs):
-            results[i] = function(job)
-            bar.update(1)
     else:
-        # Workers keep the memory they free, as extract_many's do (features.memory.keep_freed_memory).
-        with concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=keep_freed_memory) as pool:
-            futures = {pool.submit(function, job): i for i, job in enumerate(jobs)}
-            for future in concurrent.futures.as_completed(futures):
-                results[futures[future]] = future.result()
-                bar.update(1)
+        # In this process, or extract_many's workers: forked with one thread each, keeping the memory they
+        # free; leaving early (Ctrl-C) drops the jobs not started.
+        with contextlib.closing(extraction._run(function, jobs, range(len(jobs)), workers, bar.update)) as done:
+            for i, result in done:
+                results[i] = result
     bar.close()
     return results
 

@@ -365,6 +365,40 @@ def test_a_dead_worker_fails_its_batch_and_the_next_batch_starts_new_workers(tmp
     assert len(after) == 2 and not after & before
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="looks processes up in /proc")
+def test_a_worker_that_died_between_batches_costs_the_next_batch_nothing(tmp_path):
+    # Killed while idle (out of memory between two chunks of an export): the pool is broken before the
+    # next batch submits anything, which then runs on new workers instead of failing.
+    import signal
+
+    with extraction.WorkerPool(2) as pool:
+        before = _pids_of(pool, _meeting(tmp_path))
+        victim = min(before)
+        os.kill(victim, signal.SIGKILL)
+        deadline = time.monotonic() + 20
+        while not pool._executor._broken and time.monotonic() < deadline:  # the pool notices the death
+            time.sleep(0.02)
+        after = _pids_of(pool, _meeting(tmp_path))
+    assert len(after) == 2 and not after & before
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="looks processes up in /proc")
+def test_a_kept_pool_serving_other_code_forks_new_workers(tmp_path):
+    # extract_many serves a pool its code version and column names: workers forked before a family was
+    # registered would compute the old columns, stored under the new version.
+    with extraction.WorkerPool(2) as pool:
+        first = _pids_of(pool.serving(("v1", ("a",))), _meeting(tmp_path))
+        again = _pids_of(pool.serving(("v1", ("a",))), _meeting(tmp_path))
+        other = _pids_of(pool.serving(("v2", ("a", "b"))), _meeting(tmp_path))
+    assert first == again and not other & first and len(other) == 2
+
+
+def test_extract_many_serves_the_kept_pool_its_code_version_and_columns():
+    with extraction.WorkerPool(2) as pool:
+        extract_many([foam(), foam()], pool=pool, progress=False)
+        assert pool._key == (code_version(), features.REGISTRY.names)
+
+
 def test_leaving_a_batch_early_leaves_the_kept_pool_usable(tmp_path):
     (tmp_path / "marks").mkdir()
     marks = [str(tmp_path / "marks" / f"{i}") for i in range(20)]
