@@ -22,7 +22,9 @@ silently ignores the others, so a long-lived thread that once limited BLAS (a we
 other thread's limit a no-op. Each change here therefore releases that control before and after itself.
 
 OpenMP's limit (and that of an OpenBLAS built on OpenMP) is per thread, so it holds in the first user's
-thread only; no feature calls into OpenMP (scikit-learn loads it), and the wheels' OpenBLAS uses pthreads.
+thread only and is restored in the last user's (where the first user's thread keeps one OpenMP thread);
+no feature calls into OpenMP (scikit-learn's fits do, in an evaluation's worker processes, each on its
+own), and the wheels' OpenBLAS uses pthreads.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
+import sys
 import threading
 from collections.abc import Callable, Iterator
 
@@ -57,11 +60,16 @@ if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_start_afresh_in_child)
 
 
-@functools.cache
 def thread_pools() -> ThreadpoolController:
-    """The thread pools (BLAS, OpenMP) loaded in this process, found once: looking them up walks every
-    loaded library, which took longer than the rest of extracting a small scan. Every library the feature
-    code calls into (numpy, scipy, OpenCV) is loaded by importing :mod:`features`, so none is missed."""
+    """The thread pools (BLAS, OpenMP) loaded in this process, found again only when modules were imported
+    since: looking them up walks every loaded library, which took longer than the rest of extracting a
+    small scan, and a new pool comes with an import (scikit-learn's OpenMP with ``taxonomy.evaluation``,
+    after :mod:`features` had found numpy's, scipy's and OpenCV's)."""
+    return _thread_pools(len(sys.modules))
+
+
+@functools.lru_cache(maxsize=1)
+def _thread_pools(modules: int) -> ThreadpoolController:
     return ThreadpoolController()
 
 

@@ -4,6 +4,7 @@ safe to fork from while other threads take them (also features.memory's settings
 from __future__ import annotations
 
 import os
+import sys
 import threading
 import time
 
@@ -164,3 +165,14 @@ def test_a_forked_worker_extracts_on_its_one_thread(request, beside):
     scan = synthetic_scan("oak-planed", seed=2)
     with one_thread_each(), concurrent.futures.ProcessPoolExecutor(max_workers=1) as pool:
         assert len(pool.submit(_threads_after_extracting, scan).result()) == 1
+
+
+def test_the_pools_are_found_again_after_an_import(monkeypatch):
+    # taxonomy.evaluation imports scikit-learn, whose OpenMP pool was missed by a controller found once
+    # when features was imported, so the fits' limit did not cover it.
+    import types
+
+    assert thread_pools() is thread_pools()
+    before = thread_pools()
+    monkeypatch.setitem(sys.modules, "a_module_imported_since", types.ModuleType("a_module_imported_since"))
+    assert thread_pools() is not before
