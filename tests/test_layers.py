@@ -42,10 +42,26 @@ def _layer_modules() -> set[str]:
     return names
 
 
+def _inside(module: str, layers: set[str]) -> bool:
+    return any(module == layer or module.startswith(layer + ".") for layer in layers)
+
+
 def test_every_module_sits_in_a_layer(graph):
     layers = _layer_modules()
-    outside = sorted(module for module in graph.modules if module not in PACKAGES
-                     and not any(module == layer or module.startswith(layer + ".") for layer in layers))
+    outside = sorted(module for module in graph.modules if module not in PACKAGES and not _inside(module, layers))
+    assert outside == []
+
+
+def test_every_module_of_a_container_sits_in_one_of_its_layers(graph):
+    # A package named as one layer elsewhere (scanner.storage) would let any new module inside it pass
+    # the test above; its own contract must name it.
+    outside = []
+    for contract in CONFIG["contracts"]:
+        for container in contract.get("containers", []):
+            layers = {f"{container}.{part.strip()}" for layer in contract["layers"]
+                      for part in layer.replace("|", ":").split(":")}
+            outside += [module for module in graph.modules
+                        if module.startswith(container + ".") and not _inside(module, layers)]
     assert outside == []
 
 
