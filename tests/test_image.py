@@ -617,6 +617,17 @@ def test_the_compiled_tamura_coarseness_of_a_photo_is_the_float64_one(shape):
         assert image._tamura_coarseness_of_photo(gray, float(gray.max())) == image.tamura_coarseness(gray)
 
 
+def test_the_compiled_tamura_coarseness_holds_at_the_largest_window_differences():
+    # Black and white 32 px blocks: window sums and their differences reach 4^5 * 255000, the most the
+    # kernel's int32 arithmetic must hold (2^31 / 8); a wrap-around would change the chosen windows.
+    rng = np.random.default_rng(8)
+    for block in (32, 16, 1):
+        levels = rng.integers(0, 2, (300 // block + 1, 330 // block + 1, 1)) * 255
+        photo = np.kron(levels, np.ones((block, block, 3)))[:300, :330].astype(np.uint8)
+        gray = grayscale(photo)
+        assert image._tamura_coarseness_of_photo(gray, float(gray.max())) == image.tamura_coarseness(gray)
+
+
 def test_tamura_coarseness_needs_room_for_the_largest_window():
     with pytest.raises(ValueError, match="smaller than the 64x64 px"):
         image.tamura_coarseness(np.zeros((63, 100)))

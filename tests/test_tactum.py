@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import platform
 import warnings
 
 import cv2
@@ -199,6 +200,50 @@ def test_harris_corners_of_large_images_from_the_strongest_responses_or_from_all
         found = tactum._corners_above(response, threshold, tactum._strong_cut(response))
         assert (found is not None) == decided
         np.testing.assert_array_equal(tactum.harris_corners(gray), _good_features_to_track(gray))
+
+
+def _known_harris_loops() -> tuple[int, int]:
+    loops = tactum._harris_loops()
+    # Every x86-64 build of OpenCV has one of the known layouts: there, falling back would be a defect.
+    assert loops is not None or platform.machine().lower() not in ("x86_64", "amd64")
+    if loops is None:
+        pytest.skip("this OpenCV's calcHarris matches none of the known loop layouts, so harris_response "
+                    "calls cornerHarris")
+    return loops
+
+
+@pytest.mark.parametrize("kind", ["noise", "few levels", "blurred", "step", "lattice"])
+def test_the_harris_response_is_that_of_corner_harris_bit_for_bit(kind):
+    # Shapes with every remainder of the pixel count modulo 8 (the vector loops' tails), single rows and
+    # columns, bands of 64 rows cut at several places; values of three magnitudes.
+    loops = _known_harris_loops()
+    rng = np.random.default_rng(len(kind) + 40)
+    for h, w in [(1, 1), (1, 37), (29, 1), (2, 2), (3, 5), (31, 33), (64, 9), (65, 11), (129, 130), (200, 301)]:
+        for scale in (1 / 255, 1.0, 40.0):
+            gray = (_harris_test_image(kind, h, w, rng) * scale).astype(np.float32)
+            expected = cv2.cornerHarris(gray, 3, 3, 0.04)
+            np.testing.assert_array_equal(tactum._harris_response(gray, loops).view(np.uint32),
+                                          expected.view(np.uint32))
+            np.testing.assert_array_equal(tactum.harris_response(gray), expected)
+
+
+def test_the_harris_response_of_a_photo_is_that_of_corner_harris():
+    photo = np.kron(np.random.default_rng(3).integers(0, 256, (40, 52, 3)), np.ones((13, 11, 1))).astype(np.uint8)
+    gray = PreparedPhoto(gaussian_filter(photo, (1.5, 1.5, 0)).astype(np.uint8)).gray32
+    response = tactum._harris_response(gray, _known_harris_loops())
+    np.testing.assert_array_equal(response, cv2.cornerHarris(gray, 3, 3, 0.04))
+
+
+def test_the_harris_loop_layout_is_the_one_layout_that_reproduces_corner_harris():
+    # The probes tell the layouts apart: the one found reproduces cornerHarris on them, every other
+    # layout misses on some probe, so a wrong layout can never be taken for the right one.
+    loops = _known_harris_loops()
+    rng = np.random.default_rng(20201)
+    probes = [(rng.random((31, 33)) * scale).astype(np.float32) for scale in (1.0, 255.0, 1e4) for _ in range(4)]
+    for layout in tactum._HARRIS_LOOPS:
+        same = all(np.array_equal(tactum._harris_response(probe, layout), cv2.cornerHarris(probe, 3, 3, 0.04))
+                   for probe in probes)
+        assert same == (layout == loops), layout
 
 
 def test_candidates_in_batches_come_in_the_order_of_one_full_sort():
