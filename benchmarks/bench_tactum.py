@@ -5,6 +5,9 @@ ratios against references in the same process: one whole-image ``scipy.ndimage.g
 sigma 2 of the same cropped gray photo, and one ``cv2.dft`` of it (MaRG's spectrum, which
 ``features.extract`` shares with the image features' ``dft_80`` and ``dft_85``, takes about 60 % of it).
 Ratios, not absolute times, compare across machines. Target: the 15 features in <= 1.5 s on one core.
+
+Also MaCo's Harris response as ``features.tactum.harris_response`` makes it (OpenCV's steps in bands and
+planes, bit for bit ``cv2.cornerHarris``) against ``cv2.cornerHarris`` itself, with each one's page faults.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_variable] = "1"
 
 import math  # noqa: E402
+import resource  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
 from collections.abc import Callable  # noqa: E402
@@ -115,7 +119,7 @@ def stages(scan: Scan) -> dict[str, Callable[[], object]]:
         "input: crop + gray image of I_disp": lambda: PreparedPhoto(scan.images["I_disp"]).gray,
         "input: Tamura contrast (features.image)": lambda: tamura_contrast(gray),
         "matx": lambda: tactum.matx(v, f_frt, r_w),
-        "maco: Harris corners (cv2)": lambda: tactum.harris_corners(gray),
+        "maco: Harris corners": lambda: tactum.harris_corners(gray),
         "maco: DoH scales at the corners": lambda: tactum.corner_scales(gray, corners),
         "marg (half-size DFT + kept peaks)": lambda: tactum.marg(v, gray, contrast=contrast),
         "miro": lambda: tactum.miro(v),
@@ -145,6 +149,27 @@ def main() -> None:
     for name, seconds in sorted(times.items(), key=lambda item: -item[1]):
         print(f"    {name:44s} {seconds * 1e3:8.1f} ms  {seconds / total:6.1%}")
     print(f"    {'(compute minus the stages)':44s} {(total - math.fsum(times.values())) * 1e3:8.1f} ms")
+    harris_response_against_opencv(PreparedPhoto(scan.images["I_disp"]).gray32)
+
+
+def harris_response_against_opencv(gray32: np.ndarray) -> None:
+    """``tactum.harris_response`` against ``cv2.cornerHarris`` on the same float32 gray photo: best of 5
+    interleaved rounds, page faults of the last, and whether the values are the same bit for bit."""
+    runs = {"cv2.cornerHarris": lambda: cv2.cornerHarris(gray32, 3, 3, 0.04),
+            "tactum.harris_response": lambda: tactum.harris_response(gray32)}
+    times = best_times(runs)
+    faults = {}
+    for name, run in runs.items():
+        before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+        run()
+        faults[name] = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
+    same = np.array_equal(runs["cv2.cornerHarris"](), runs["tactum.harris_response"]())
+    layout = tactum._harris_loops()
+    print(f"  MaCo's Harris response ({'bit for bit the same' if same else 'VALUES DIFFER'}; calcHarris "
+          f"vector loops {layout if layout else 'not reproduced: cornerHarris is called'}):")
+    for name in runs:
+        print(f"    {name:44s} {times[name] * 1e3:8.1f} ms  {times[name] / times['cv2.cornerHarris']:5.2f}x  "
+              f"{faults[name]:6d} page faults")
 
 
 if __name__ == "__main__":
