@@ -213,10 +213,11 @@ def harris_response(gray32: np.ndarray) -> np.ndarray:
 
     Where that does not reproduce ``cornerHarris`` on this machine (:func:`_harris_loops`), it is called.
     """
+    image = np.ascontiguousarray(gray32, dtype=np.float32)
     loops = _harris_loops()
     if loops is None:
-        return cv2.cornerHarris(gray32, HARRIS["blockSize"], _HARRIS_APERTURE, HARRIS["k"])
-    return _harris_response(gray32, loops)
+        return cv2.cornerHarris(image, HARRIS["blockSize"], _HARRIS_APERTURE, HARRIS["k"])
+    return _harris_response(image, loops)
 
 
 _HARRIS_BAND_ROWS = 64
@@ -227,9 +228,9 @@ _HARRIS_SCALE = 1.0 / ((1 << (_HARRIS_APERTURE - 1)) * HARRIS["blockSize"])
 """``cornerHarris``'s derivative scale for float images, 1 / (2^(ksize - 1) blockSize) = 1/12."""
 
 
-def _harris_response(gray32: np.ndarray, loops: tuple[int, int]) -> np.ndarray:
-    """:func:`harris_response` for a ``calcHarris`` whose two vector loops take ``loops`` pixels at a time."""
-    image = np.ascontiguousarray(gray32, dtype=np.float32)
+def _harris_response(image: np.ndarray, loops: tuple[int, int]) -> np.ndarray:
+    """:func:`harris_response` of a C-contiguous float32 image for a ``calcHarris`` whose two vector loops
+    take ``loops`` pixels at a time."""
     h, w = image.shape
     planes = np.empty((3, h, w), np.float32)  # numpy's memory: large blocks are faulted in as huge pages
     for start, stop in _bands(h, _HARRIS_BAND_ROWS):

@@ -232,6 +232,10 @@ def test_the_harris_response_of_a_photo_is_that_of_corner_harris():
     gray = PreparedPhoto(gaussian_filter(photo, (1.5, 1.5, 0)).astype(np.uint8)).gray32
     response = tactum._harris_response(gray, _known_harris_loops())
     np.testing.assert_array_equal(response, cv2.cornerHarris(gray, 3, 3, 0.04))
+    # Another dtype or a strided view is taken as its float32 copy, as cornerHarris would need it.
+    view = gray.astype(np.float64)[::2, 1::3]
+    expected = cv2.cornerHarris(np.ascontiguousarray(view, dtype=np.float32), 3, 3, 0.04)
+    np.testing.assert_array_equal(tactum.harris_response(view), expected)
 
 
 def test_the_harris_loop_layout_is_the_one_layout_that_reproduces_corner_harris():
