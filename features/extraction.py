@@ -22,7 +22,7 @@ import numpy as np
 from tqdm import tqdm
 
 from features import cluster, tactum
-from features.memory import keep_freed_memory, reusing_freed_memory
+from features.memory import give_back_free_memory, keep_freed_memory, reusing_freed_memory
 from features.prepared import PreparedScan
 from features.registry import REGISTRY
 from features.space import FeatureSpace
@@ -262,7 +262,9 @@ the one-thread limits set while forking (:func:`features.threads.one_thread_each
 
 
 def _forked_pool(workers: int) -> concurrent.futures.ProcessPoolExecutor:
-    """``workers`` processes that keep the memory they free (:func:`keep_freed_memory`), forked where possible."""
+    """``workers`` processes that keep the memory they free (:func:`keep_freed_memory`), forked where possible,
+    after this process gave its free memory back (:func:`give_back_free_memory`: a lighter fork)."""
+    give_back_free_memory()
     return concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=_FORK,
                                                   initializer=keep_freed_memory)
 

@@ -215,6 +215,40 @@ def test_workers_keep_the_memory_they_free_for_the_next_scan():
     assert held["keep"] > 120
 
 
+_RESIDENT_AFTER_GIVING_BACK = """
+import numpy as np
+from features.memory import give_back_free_memory, keep_freed_memory
+
+def resident_mb():
+    with open("/proc/self/status") as status:
+        return int(next(line for line in status if line.startswith("VmRSS:")).split()[1]) / 1024
+
+keep_freed_memory()
+before = resident_mb()
+block = np.ones(2**24)  # 128 MB
+del block
+held = resident_mb() - before
+print(held, give_back_free_memory(), resident_mb() - before)
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc_trim is Linux-only")
+def test_free_memory_is_given_back_before_workers_are_forked(monkeypatch):
+    # A process that keeps its freed memory holds a freed 128 MB block until it gives it back; extract_many
+    # does that once before forking its workers (a lighter fork), and not when it runs in this process.
+    run = subprocess.run([sys.executable, "-c", _RESIDENT_AFTER_GIVING_BACK], capture_output=True, text=True,
+                         check=True, timeout=120)
+    held, gave, after = run.stdout.split()
+    assert float(held) > 120 and gave == "True" and float(after) < 16
+    calls = []
+    monkeypatch.setattr(extraction, "give_back_free_memory", lambda: calls.append(1))
+    scans = [synthetic_scan("oak-planed", seed=seed) for seed in (1, 2)]
+    extract_many(scans, workers=1, progress=False)
+    assert calls == []
+    extract_many(scans, workers=2, progress=False)
+    assert calls == [1]
+
+
 _RESIDENT_IN_AND_AFTER_A_BLOCK = """
 import numpy as np
 from features.memory import reusing_freed_memory
