@@ -196,7 +196,7 @@ def _harris_corners(gray32: np.ndarray) -> np.ndarray:
 
 
 def harris_response(gray32: np.ndarray) -> np.ndarray:
-    """``cv2.cornerHarris(gray32, 3, 3, 0.04)``, bit for bit, with half its memory in 60 % of its time.
+    """``cv2.cornerHarris(gray32, 3, 3, 0.04)``, bit for bit, with half its memory in about 55 % of its time.
 
     ``cornerHarris`` makes the Sobel derivatives ``Dx``, ``Dy`` of the whole image (scale 1/12), the three
     products ``Dx^2, Dx Dy, Dy^2`` as one 3-channel image, their unnormalised 3 x 3 box sums, and
@@ -209,7 +209,8 @@ def harris_response(gray32: np.ndarray) -> np.ndarray:
     - each plane's box sums by ``cv2.boxFilter`` over the whole plane, in place: the box filter keeps
       running column sums from the top of the image, so it must see the whole plane, and one channel of
       a 3-channel box filter is the box filter of that channel;
-    - ``R`` by :func:`_harris_of_box_sums`, into the first plane (see there for OpenCV's two roundings).
+    - ``R`` by :func:`_harris_of_box_sums`, into the first plane (see there for ``calcHarris``'s three
+      roundings).
 
     Where that does not reproduce ``cornerHarris`` on this machine (:func:`_harris_loops`), it is called.
     """
