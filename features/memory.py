@@ -108,7 +108,7 @@ def give_back_free_memory() -> bool:
     :func:`~features.extract_many` calls it before forking its workers: a fork copies the page table of
     every resident page, free ones included, and each worker would then give the same pages back itself
     (:func:`keep_freed_memory`), or copy them on first use. 12 scans of 512 px from a database on 2
-    workers forked for the call: 0.412-0.423 s instead of 0.431-0.435 s. Blocks of
+    workers forked for the call, alternating in one process: 0.423-0.442 s instead of 0.448-0.456 s. Blocks of
     :func:`reusing_freed_memory` running in other threads lose nothing: the memory they hold is in use.
 
     Returns

@@ -297,6 +297,13 @@ _HARRIS_LOOPS = ((8, 4), (0, 4), (8, 0), (0, 0))
 on x86-64 with AVX, the narrow one alone on other SIMD machines, none without SIMD."""
 
 
+def _harris_probes() -> list[np.ndarray]:
+    """The fixed probes :func:`_harris_loops` tells the loop layouts apart on: twelve random float32 images
+    of 31 x 33 px, four each of values up to 1, 255 and 1e4."""
+    rng = np.random.default_rng(20201)
+    return [(rng.random((31, 33)) * scale).astype(np.float32) for scale in (1.0, 255.0, 1e4) for _ in range(4)]
+
+
 @lru_cache(maxsize=1)
 def _harris_loops() -> tuple[int, int] | None:
     """The vector loops of this OpenCV's ``calcHarris`` (see :func:`_harris_of_box_sums`), or None if
@@ -307,8 +314,7 @@ def _harris_loops() -> tuple[int, int] | None:
     AVX vector, of which 3 fill no 128-bit one; values of three magnitudes, four probes each, so that the
     three formulas differ on some pixel of every part.
     """
-    rng = np.random.default_rng(20201)
-    probes = [(rng.random((31, 33)) * scale).astype(np.float32) for scale in (1.0, 255.0, 1e4) for _ in range(4)]
+    probes = _harris_probes()
     expected = [cv2.cornerHarris(probe, HARRIS["blockSize"], _HARRIS_APERTURE, HARRIS["k"]) for probe in probes]
     matching = [loops for loops in _HARRIS_LOOPS
                 if all(np.array_equal(_harris_response(probe, loops), values)

@@ -17,13 +17,13 @@ from sklearn.pipeline import Pipeline
 
 from features import cluster
 from features.threads import one_blas_thread
-
-if TYPE_CHECKING:
-    from distributed import Client
 from taxonomy import labels
 from taxonomy.labels import LabelError
 from taxonomy.methods.datasets import TIMED_ROWS, Extracted, MethodError
 from taxonomy.results import Result, warning_notes
+
+if TYPE_CHECKING:
+    from distributed import Client
 
 Split = tuple[np.ndarray, np.ndarray]
 
