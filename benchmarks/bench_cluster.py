@@ -163,7 +163,7 @@ def main() -> None:
             cluster_name = f"LocalCluster ({WORKERS} workers)"
             runs = best_of({
                 "serial (1 process)": lambda: timed(lambda: extract_many(sources, workers=1, progress=False)),
-                f"local pool ({WORKERS} processes)": lambda: timed(
+                f"local pool ({WORKERS} processes, kept)": lambda: timed(
                     lambda: extract_many(sources, workers=WORKERS, progress=False)),
                 cluster_name: lambda: timed_on(client, lambda: extract_many(sources, client=client, progress=False)),
                 "  same, files shipped": lambda: timed_on(client, lambda: extract_many(

@@ -2,15 +2,23 @@
 
 ``extract(scan)`` gives the features of every registered family (:mod:`features.registry`; the paper's 193,
 :mod:`features.families`, in SPEC order); ``extract_many(scans, workers=None)`` builds a
-:class:`FeatureSpace` in parallel (a :class:`WorkerPool` keeps its processes across the calls of a job
-that extracts in batches). Submodules: ``tactum``, ``image``, ``audio``, ``other``, ``related``,
-``selection``, ``space``.
+:class:`FeatureSpace` in parallel, on workers kept for its next call (``release_workers()`` ends them; a
+:class:`WorkerPool` keeps its own across the calls of a job that extracts in batches). Submodules:
+``tactum``, ``image``, ``audio``, ``other``, ``related``, ``selection``, ``space``.
 """
 
-from features.extraction import FeatureCache, ScanSource, WorkerPool, code_version, extract, extract_many
+from features.extraction import (
+    FeatureCache,
+    ScanSource,
+    WorkerPool,
+    code_version,
+    extract,
+    extract_many,
+    release_workers,
+)
 from features.families import NAMES, SOLVER_RTOL
 from features.registry import REGISTRY, Family
 from features.space import FeatureSpace, FeatureSpaceError
 
 __all__ = ["NAMES", "REGISTRY", "SOLVER_RTOL", "Family", "FeatureCache", "FeatureSpace", "FeatureSpaceError",
-           "ScanSource", "WorkerPool", "code_version", "extract", "extract_many"]
+           "ScanSource", "WorkerPool", "code_version", "extract", "extract_many", "release_workers"]

@@ -13,8 +13,9 @@ import functools
 import multiprocessing
 import os
 import sys
+import threading
 import warnings
-from collections.abc import Callable, Hashable, Iterable, Sequence
+from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
@@ -133,8 +134,9 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
                  ship_data: bool = False, pool: WorkerPool | None = None) -> FeatureSpace:
     """Features of many scans as a :class:`FeatureSpace`, rows in input order.
 
-    ``workers`` processes (default: the number of cores; 1 = in this process), or those of ``pool``, kept
-    across the calls of a job that extracts in batches (:class:`WorkerPool`). A scan that fails is
+    ``workers`` processes (default: the number of cores; 1 = in this process), kept for the next call
+    (:data:`KEEP_WORKERS_S`; :func:`release_workers` ends them at once), or those of ``pool``, kept across
+    the calls of a job that extracts in batches (:class:`WorkerPool`). A scan that fails is
     reported in ``FeatureSpace.failed`` with its id and the reason, the others are kept. With a
     ``cache``, sources with a ``cache_key`` (the scan's content hash) are looked up first and stored after,
     keyed by :func:`code_version` too, so a second run over unchanged scans only reads the cache.
@@ -160,15 +162,20 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
             todo.append(i)
     bar = tqdm(total=len(todo), desc="features", unit="scan", file=sys.stderr, disable=None if progress else True,
                leave=False)
-    workers = max(1, min((pool.size if pool else workers) or os.cpu_count() or 1, len(todo) or 1))
-    if client is None:
-        kept = pool.serving((version, names)) if pool is not None else None
-        results = _run(_extract_source, [sources[i] for i in todo], todo, workers, bar.update, kept)
-    else:
-        results = cluster.extract(client, _extract_source, [sources[i] for i in todo], todo, bar.update,
-                                  version=code_version, ship_data=ship_data)
-    with contextlib.closing(results):  # leaving early (Ctrl-C) ends the workers' tasks now, not at exit
-        for i, (row, error) in results:
+    size = (pool.size if pool else workers) or os.cpu_count() or 1
+    workers = max(1, min(size, len(todo) or 1))
+    with contextlib.ExitStack() as stack:
+        if client is not None:
+            results = cluster.extract(client, _extract_source, [sources[i] for i in todo], todo, bar.update,
+                                      version=code_version, ship_data=ship_data)
+        else:
+            if pool is not None:
+                pool = pool.serving((version, names))
+            elif workers > 1:  # this function's own, kept between calls (None: another thread's call has them)
+                pool = stack.enter_context(_KEPT.lent(size, (version, names, _working_directory())))
+            results = _run(_extract_source, [sources[i] for i in todo], todo, workers, bar.update, pool)
+        # leaving early (Ctrl-C) ends the workers' tasks now, not at exit
+        for i, (row, error) in stack.enter_context(contextlib.closing(results)):
             if error is not None:
                 errors[i] = error
                 continue
@@ -202,11 +209,13 @@ def _drop_tasks_not_started(futures: Iterable[concurrent.futures.Future]) -> Non
 class WorkerPool:
     """Worker processes kept across several :func:`extract_many` calls: a job that extracts in batches
     (the web app's export warms the feature cache 16 scans at a time, checking for cancellation between)
-    pays the workers' start-up once, not once per batch.
+    pays the workers' start-up once, not once per batch. :func:`extract_many` keeps its own workers for
+    its next call as well (:class:`_KeptWorkers`), for :data:`KEEP_WORKERS_S`; a job's pool is its own
+    until the job closes it, whatever the job's pauses and whatever other threads extract meanwhile.
 
     That start-up is forking the workers and, in each one's first scan, some 6,000 page faults (its heap
     is new, and every page it shares with this process is copied when written); README and ``make bench``
-    give the measured speed-ups with a pool per call and kept.
+    give the measured speed-ups on a process's first call and on calls that find the workers kept.
 
     The processes are forked by the first batch that needs them, so a job whose scans are all cached forks
     none, and they end when the pool is closed (``with WorkerPool(2) as pool: ...``). They run the code
@@ -254,6 +263,99 @@ class WorkerPool:
             self.close()
             self._executor = _forked_pool(self.size)
             return self._executor.submit(fn, item)
+
+
+KEEP_WORKERS_S = 60.0
+"""How long :func:`extract_many`'s own workers wait for its next call before they end."""
+
+
+class _KeptWorkers:
+    """:func:`extract_many`'s own workers, kept between its calls as a :class:`WorkerPool` is kept between a
+    job's batches: forking two workers and their first scans (page faults, cold caches) cost some 30 ms, 5 %
+    of 12 small scans, which every call without a pool paid again (README, ``make bench``).
+
+    They end :data:`KEEP_WORKERS_S` after the call that last used them (a timer thread), when
+    :func:`release_workers` is called, and at exit; they are forked anew for a call that asks for another
+    number, or whose feature code, columns or working directory (a scan's relative paths) are not those they
+    were forked with. What else a process changes after forking them (a function replaced at run time, an
+    environment variable) they do not see: :func:`release_workers` then. One call uses them at a time: a
+    call made while another thread's has them forks its own, as does a call in a process forked from this
+    one (whose lock and pool are the parent's)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._pid = os.getpid()
+        self._pool: WorkerPool | None = None
+        self._timer: threading.Timer | None = None
+
+    @contextlib.contextmanager
+    def lent(self, size: int, key: Hashable) -> Iterator[WorkerPool | None]:
+        """The kept workers, ``size`` of them serving ``key``, for one call; None when they are taken."""
+        if os.getpid() != self._pid or not self._lock.acquire(blocking=False):
+            yield None
+            return
+        try:
+            self._stop_timer()
+            if self._pool is not None and self._pool.size != size:
+                self._pool.close()
+                self._pool = None
+            if self._pool is None:
+                self._pool = WorkerPool(size)
+            yield self._pool.serving(key)
+        finally:
+            self._timer = threading.Timer(KEEP_WORKERS_S, self._expire)
+            self._timer.daemon = True  # the process exits without waiting for it
+            self._timer.start()
+            self._lock.release()
+
+    def release(self) -> None:
+        """End the workers now (after the call that has them, if one does)."""
+        if os.getpid() != self._pid:
+            return
+        with self._lock:
+            self._stop_timer()
+            self._close()
+
+    def _stop_timer(self) -> None:
+        """Cancel the timer and wait for its thread to end: a thread alive while workers are forked is
+        copied into them as a lock it might hold."""
+        if self._timer is not None:
+            self._timer.cancel()
+            if self._timer is not threading.current_thread():
+                self._timer.join()
+            self._timer = None
+
+    def _expire(self) -> None:
+        if self._lock.acquire(blocking=False):  # else a call has them, and starts a new timer when it ends
+            try:
+                self._timer = None
+                self._close()
+            finally:
+                self._lock.release()
+
+    def _close(self) -> None:
+        if self._pool is not None:
+            self._pool.close()
+            self._pool = None
+
+
+_KEPT = _KeptWorkers()
+
+
+def _working_directory() -> str | None:
+    """This process's working directory, None where it was removed (its scans' relative paths are then
+    found nowhere, by kept workers or new ones)."""
+    try:
+        return os.getcwd()
+    except OSError:
+        return None
+
+
+def release_workers() -> None:
+    """End the workers :func:`extract_many` keeps for its next call, now rather than
+    :data:`KEEP_WORKERS_S` after its last: they hold the memory of the largest scan they extracted, and run
+    the code of the moment they were forked."""
+    _KEPT.release()
 
 
 _FORK = multiprocessing.get_context("fork") if "fork" in multiprocessing.get_all_start_methods() else None

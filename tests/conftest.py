@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import struct
+import sys
 import zlib
 
 import numpy as np
@@ -39,6 +40,16 @@ def make_scan(seed: int = 0, *, seconds: float = 0.2, images: bool = True, drop:
         photos = {v: rng.integers(0, 256, (h, w, 3), dtype=np.uint8) for v in ("I_disp", "I_macro", "I_illu")}
     raw_volts = {"v_ts": Trace(rng.uniform(0, 3.3, traces["v_ts"].data.shape), 3000.0, "V")} if raw else {}
     return Scan(make_meta(**meta), traces, photos, raw_volts)
+
+
+@pytest.fixture(autouse=True)
+def _no_workers_kept_between_tests():
+    """``extract_many`` keeps its workers for its next call: a test must not extract with workers forked by
+    another, which run that test's code and patches (not imported here if no test has)."""
+    yield
+    extraction = sys.modules.get("features.extraction")
+    if extraction is not None:
+        extraction.release_workers()
 
 
 @pytest.fixture

@@ -8,6 +8,7 @@ import contextlib
 import dataclasses
 import functools
 import math
+import multiprocessing
 import os
 import subprocess
 import sys
@@ -457,3 +458,121 @@ def test_extract_many_with_a_kept_pool_equals_one_worker():
         assert extract_many(scans, workers=2, pool=pool, progress=False).scan_ids == alone.scan_ids
         with pytest.raises(ValueError, match="workers=3 with a pool of 2 workers"):
             extract_many(scans, workers=3, pool=pool, progress=False)
+
+
+# -- extract_many's own workers, kept for its next call ------------------------------------------------------
+
+def _noting_loader(folder: str, scan: Scan, gate: str | None = None) -> Scan:
+    """A ``ScanSource.load`` that notes the process loading the scan (a file named by its id in ``folder``) and
+    waits (at most 20 s) until two processes have, so that two scans use both workers; with ``gate``, until
+    that file exists too."""
+    Path(folder, str(os.getpid())).touch()
+    deadline = time.monotonic() + 20
+    while (len(os.listdir(folder)) < 2 or (gate and not os.path.exists(gate))) and time.monotonic() < deadline:
+        time.sleep(0.005)
+    return scan
+
+
+def _noted(folder: Path, scans: list[Scan], gate: Path | None = None) -> list[ScanSource]:
+    folder.mkdir()
+    return [ScanSource(f"scan-{i}", scan.meta.label, scan.meta.sample_id,
+                       functools.partial(_noting_loader, str(folder), scan, gate and str(gate)))
+            for i, scan in enumerate(scans)]
+
+
+def _loaders(folder: Path) -> set[int]:
+    return {int(path.name) for path in folder.iterdir()}
+
+
+@functools.cache
+def _small_scans() -> tuple[Scan, ...]:
+    return tuple(synthetic_scan(material, seed=seed, image_size=(96, 96), sample_id=f"{material}-{seed}")
+                 for material in ("oak-planed", "float-glass") for seed in (1, 2))
+
+
+def _workers_of_a_call(tmp_path: Path, workers: int = 2) -> set[int]:
+    folder = tmp_path / f"call-{len(list(tmp_path.glob('call-*')))}"
+    space = extract_many(_noted(folder, list(_small_scans())), workers=workers, progress=False)
+    assert len(space) == len(_small_scans()) and not space.failed
+    return _loaders(folder)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="looks processes up in /proc")
+def test_extract_many_keeps_its_workers_for_its_next_call_until_they_are_released(tmp_path):
+    scans = list(_small_scans())
+    alone = extract_many(scans, workers=1, progress=False)
+    first = _workers_of_a_call(tmp_path)
+    again = extract_many(_noted(tmp_path / "again", scans), workers=2, progress=False)
+    assert _loaders(tmp_path / "again") == first and len(first) == 2 and os.getpid() not in first
+    np.testing.assert_array_equal(again.X, alone.X)
+    assert list(again.scan_ids) == [f"scan-{i}" for i in range(len(scans))]
+    features.release_workers()
+    assert all(_ended(pid) for pid in first)
+    after = _workers_of_a_call(tmp_path)
+    assert len(after) == 2 and not after & first
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="looks processes up in /proc")
+def test_kept_workers_end_by_themselves_when_no_call_comes(tmp_path, monkeypatch):
+    monkeypatch.setattr(extraction, "KEEP_WORKERS_S", 0.2)
+    kept = _workers_of_a_call(tmp_path)
+    assert all(_ended(pid) for pid in kept)
+    assert extraction._KEPT._pool is None
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="looks processes up in /proc")
+def test_kept_workers_are_forked_anew_for_other_code_another_number_or_another_directory(tmp_path, monkeypatch):
+    # Workers forked before a family was registered would compute the old columns under the new version; a
+    # scan's relative paths would be found from the old directory.
+    calls = [_workers_of_a_call(tmp_path)]
+    monkeypatch.setattr(extraction, "code_version", lambda: "other code")
+    calls.append(_workers_of_a_call(tmp_path))
+    monkeypatch.chdir(tmp_path)
+    calls.append(_workers_of_a_call(tmp_path))
+    calls.append(_workers_of_a_call(tmp_path, workers=3))
+    calls.append(_workers_of_a_call(tmp_path, workers=3))
+    assert calls[3] == calls[4]
+    for before, after in zip(calls[:3], calls[1:4], strict=True):
+        assert len(after) >= 2 and not after & before and all(_ended(pid) for pid in before)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="looks processes up in /proc")
+def test_a_call_made_while_another_threads_has_the_kept_workers_forks_its_own(tmp_path):
+    # The web app extracts in several threads at once; one call at a time uses the kept workers.
+    import threading
+
+    scans = list(_small_scans())
+    held = _noted(tmp_path / "held", scans[:2], gate=tmp_path / "gate")
+    done: list = []
+    thread = threading.Thread(target=lambda: done.append(extract_many(held, workers=2, progress=False)))
+    thread.start()
+    try:
+        deadline = time.monotonic() + 20
+        while len(os.listdir(tmp_path / "held")) < 2 and time.monotonic() < deadline:  # both kept workers busy
+            time.sleep(0.005)
+        own = extract_many(_noted(tmp_path / "own", scans), workers=2, progress=False)
+    finally:
+        (tmp_path / "gate").touch()
+        thread.join(30)
+    assert len(_loaders(tmp_path / "own")) == 2 and not _loaders(tmp_path / "own") & _loaders(tmp_path / "held")
+    alone = extract_many(scans, workers=1, progress=False)
+    np.testing.assert_array_equal(own.X, alone.X)
+    np.testing.assert_array_equal(done[0].X, alone.X[:2])
+
+
+def _lent_in_a_child(answers) -> None:
+    with extraction._KEPT.lent(2, "key") as pool:
+        answers.put(pool is None)
+
+
+@pytest.mark.skipif("fork" not in multiprocessing.get_all_start_methods(), reason="needs fork")
+def test_a_forked_process_does_not_use_its_parents_kept_workers(tmp_path):
+    _workers_of_a_call(tmp_path)
+    context = multiprocessing.get_context("fork")
+    answers = context.Queue()
+    child = context.Process(target=_lent_in_a_child, args=(answers,))
+    child.start()
+    try:
+        assert answers.get(timeout=20) is True
+    finally:
+        child.join(20)
