@@ -169,10 +169,11 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
             results = cluster.extract(client, _extract_source, [sources[i] for i in todo], todo, bar.update,
                                       version=code_version, ship_data=ship_data)
         else:
+            key = (version, names, _working_directory())
             if pool is not None:
-                pool = pool.serving((version, names))
+                pool = pool.serving(key)
             elif workers > 1:  # this function's own, kept between calls (None: another thread's call has them)
-                pool = stack.enter_context(_KEPT.lent(size, (version, names, _working_directory())))
+                pool = stack.enter_context(_KEPT.lent(size, key))
             results = _run(_extract_source, [sources[i] for i in todo], todo, workers, bar.update, pool)
         # leaving early (Ctrl-C) ends the workers' tasks now, not at exit
         for i, (row, error) in stack.enter_context(contextlib.closing(results)):
@@ -220,10 +221,11 @@ class WorkerPool:
     The processes are forked by the first batch that needs them, so a job whose scans are all cached forks
     none, and they end when the pool is closed (``with WorkerPool(2) as pool: ...``). They run the code
     of the moment they were forked: keep a pool for one job, not for the life of a process;
-    :func:`extract_many` ends them and forks new ones when the feature code or its columns changed
-    (:meth:`serving`). A worker that dies (killed, out of memory) fails the batch it was in, as a pool of
-    that batch's own would; the next batch starts new workers, also after one died between batches. One
-    batch at a time: a pool is not shared between threads.
+    :func:`extract_many` ends them and forks new ones when the feature code, its columns or the working
+    directory (a scan's relative paths) changed (:meth:`serving`). A worker that dies (killed, out of
+    memory) fails the batch it was in, as a pool of that batch's own would; the next batch starts new
+    workers, also after one died between batches. One batch at a time: a pool is not shared between
+    threads.
     """
 
     def __init__(self, workers: int | None = None) -> None:
@@ -246,9 +248,9 @@ class WorkerPool:
             self._executor = None
 
     def serving(self, key: Hashable) -> WorkerPool:
-        """This pool for work of ``key`` (:func:`extract_many`'s: the feature code's version and column
-        names). Workers forked for another key are ended first: they would run the code of before (a family
-        registered since), and their rows would be stored under the new key."""
+        """This pool for work of ``key`` (:func:`extract_many`'s: the feature code's version, the column
+        names and the working directory). Workers forked for another key are ended first: they would run
+        the code of before (a family registered since), and their rows would be stored under the new key."""
         if key != self._key:
             self.close()
             self._key = key
@@ -298,10 +300,8 @@ class _KeptWorkers:
             return
         try:
             self._stop_timer()
-            if self._pool is not None and self._pool.size != size:
-                self._pool.close()
-                self._pool = None
-            if self._pool is None:
+            if self._pool is None or self._pool.size != size:
+                self._close()
                 self._pool = WorkerPool(size)
             yield self._pool.serving(key)
         finally:
@@ -323,8 +323,7 @@ class _KeptWorkers:
         copied into them as a lock it might hold."""
         if self._timer is not None:
             self._timer.cancel()
-            if self._timer is not threading.current_thread():
-                self._timer.join()
+            self._timer.join()
             self._timer = None
 
     def _expire(self) -> None:

@@ -84,10 +84,11 @@ _TAMURA_TILE = (256, 256)
 """Output rows and columns per Tamura tile; a tile also reads 2^kmax - 1 more rows and columns either side."""
 
 
-def _bands(n_rows: int, rows_per_band: int) -> Iterator[tuple[int, int]]:
-    """Consecutive ``[start, stop)`` row ranges covering ``n_rows`` rows."""
-    for start in range(0, n_rows, rows_per_band):
-        yield start, min(start + rows_per_band, n_rows)
+def spans(n: int, per_span: int) -> Iterator[tuple[int, int]]:
+    """Consecutive ``[start, stop)`` ranges of ``per_span`` indices (the last may be shorter) covering
+    ``range(n)``: the bands of rows (and tiles' columns) in which photos and TacTUM's planes are processed."""
+    for start in range(0, n, per_span):
+        yield start, min(start + per_span, n)
 
 
 def _rows_per_band(width: int, elements: int | None = None) -> int:
@@ -345,7 +346,7 @@ def color(rgb: np.ndarray) -> float:
     rgb = _check_rgb(rgb)
     counts = np.zeros(180, np.int64)
     lower, upper = (0, HUE_MIN_SATURATION, HUE_MIN_VALUE), (255, 255, 255)
-    for start, stop in _bands(rgb.shape[0], _rows_per_band(rgb.shape[1], _BYTE_BAND_ELEMENTS)):
+    for start, stop in spans(rgb.shape[0], _rows_per_band(rgb.shape[1], _BYTE_BAND_ELEMENTS)):
         hsv = cv2.cvtColor(rgb[start:stop], cv2.COLOR_RGB2HSV)
         mask = cv2.inRange(hsv, lower, upper)
         counts += cv2.calcHist([hsv], [0], mask, [180], [0, 180]).ravel().astype(np.int64)
@@ -550,7 +551,7 @@ def quantize(gray: np.ndarray, levels: int = GLCM_LEVELS) -> np.ndarray:
 def _quantize(image: np.ndarray, levels: int) -> np.ndarray:
     out = np.empty(image.shape, np.uint8)
     scratch = np.empty((_rows_per_band(image.shape[1]), image.shape[1]))
-    for start, stop in _bands(image.shape[0], scratch.shape[0]):
+    for start, stop in spans(image.shape[0], scratch.shape[0]):
         scaled = np.multiply(image[start:stop], levels / 256, out=scratch[:stop - start])
         # Truncating the clipped, non-negative value is the floor of the formula.
         out[start:stop] = np.clip(scaled, 0, levels - 1, out=scaled)
@@ -610,7 +611,7 @@ def _histogram(images: list[np.ndarray], levels: int) -> np.ndarray:
     dims = len(images)
     counts = np.zeros((levels,) * dims, np.int64)
     rows, cols = images[0].shape
-    for start, stop in _bands(rows, _rows_per_band(cols, _BYTE_BAND_ELEMENTS)):
+    for start, stop in spans(rows, _rows_per_band(cols, _BYTE_BAND_ELEMENTS)):
         band = [image[start:stop] for image in images]
         bins = cv2.calcHist(band, list(range(dims)), None, [levels] * dims, [0, levels] * dims)
         counts += bins.astype(np.int64)
@@ -835,8 +836,8 @@ def _tamura_coarseness(image: np.ndarray, kmax: int, tolerance: float) -> float:
     prefix_buffers = np.empty((kmax, tile_rows, tile_cols), dtype)
     hit_buffer = np.empty((tile_rows, tile_cols), np.uint8)
     total = 0
-    for row, row_stop in _bands(out_rows, tile_rows):
-        for col, col_stop in _bands(out_cols, tile_cols):
+    for row, row_stop in spans(out_rows, tile_rows):
+        for col, col_stop in spans(out_cols, tile_cols):
             n, m = row_stop - row, col_stop - col
             # Tile-local (i, j) is image pixel (row + i, col + j); output pixels are i = margin .. margin+n-1,
             # j = margin .. margin+m-1. Level k holds the window sum with its top-left corner at (i, j).

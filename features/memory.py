@@ -8,7 +8,7 @@ huge pages for its large arrays, which take 512 small pages each, but OpenCV's o
 at a time). Two settings let freed memory serve the next allocation instead:
 
 - :func:`keep_freed_memory`, for good: a process that extracts scan after scan (:func:`~features.extract_many`'s
-  workers, which live for one batch) then holds its peak resident memory until it ends;
+  workers, kept for its next call or a job's batches) then holds its peak resident memory until it ends;
 - :func:`reusing_freed_memory`, for one block: the photos and TacTUM of one scan reuse each other's
   temporaries, and at the end the free memory goes back to the system (``malloc_trim``), for a process that
   goes on doing other things (the CLI, the web app's end-of-scan prediction).
@@ -81,7 +81,7 @@ def keep_freed_memory() -> bool:
     """Let this process reuse the memory it frees instead of returning it to the system, until it ends.
 
     For :func:`~features.extract_many`'s workers: a scan's temporaries serve the next scan instead of being
-    faulted in again; the worker holds its peak resident memory until the batch ends.
+    faulted in again; the worker holds its peak resident memory until it ends.
     :func:`reusing_freed_memory` does nothing in such a process.
 
     The free memory the process has at the call is given back first (``malloc_trim``): in a forked worker

@@ -23,7 +23,7 @@ import numpy as np
 import pywt
 
 from features import kernels
-from features.image import PreparedPhoto, RealSpectrum, _bands, tamura_contrast
+from features.image import PreparedPhoto, RealSpectrum, spans, tamura_contrast
 from features.prepared import PreparedScan
 from scanner.preprocess import (
     QualityError,
@@ -234,7 +234,7 @@ def _harris_response(image: np.ndarray, loops: tuple[int, int]) -> np.ndarray:
     take ``loops`` pixels at a time."""
     h, w = image.shape
     planes = np.empty((3, h, w), np.float32)  # numpy's memory: large blocks are faulted in as huge pages
-    for start, stop in _bands(h, _HARRIS_BAND_ROWS):
+    for start, stop in spans(h, _HARRIS_BAND_ROWS):
         above, below = max(start - 1, 0), min(stop + 1, h)
         band = image[above:below]
         inner = slice(start - above, start - above + stop - start)

@@ -428,10 +428,10 @@ def test_a_kept_pool_serving_other_code_forks_new_workers(tmp_path):
     assert first == again and not other & first and len(other) == 2
 
 
-def test_extract_many_serves_the_kept_pool_its_code_version_and_columns():
+def test_extract_many_serves_the_kept_pool_its_code_version_columns_and_directory():
     with extraction.WorkerPool(2) as pool:
         extract_many([foam(), foam()], pool=pool, progress=False)
-        assert pool._key == (code_version(), features.REGISTRY.names)
+        assert pool._key == (code_version(), features.REGISTRY.names, os.getcwd())
 
 
 def test_leaving_a_batch_early_leaves_the_kept_pool_usable(tmp_path):
@@ -530,8 +530,9 @@ def test_kept_workers_are_forked_anew_for_other_code_another_number_or_another_d
     monkeypatch.chdir(tmp_path)
     calls.append(_workers_of_a_call(tmp_path))
     calls.append(_workers_of_a_call(tmp_path, workers=3))
+    three = set(extraction._KEPT._pool._executor._processes)
     calls.append(_workers_of_a_call(tmp_path, workers=3))
-    assert calls[3] == calls[4]
+    assert len(three) == 3 and set(extraction._KEPT._pool._executor._processes) == three and calls[4] <= three
     for before, after in zip(calls[:3], calls[1:4], strict=True):
         assert len(after) >= 2 and not after & before and all(_ended(pid) for pid in before)
 
