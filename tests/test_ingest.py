@@ -113,7 +113,7 @@ def test_array_files_announcing_more_than_the_limit_are_refused_from_their_heade
     with pytest.raises(IngestError, match=r"huge.npy: its arrays take 8000000 MB, more than the 1074 MB"):
         ingest.read_file(tmp_path / "huge.npy", spec)
     (tmp_path / "bomb.mat").write_bytes(inflation_bomb(64 << 20))  # 64 MB of zeros in 64 kB
-    monkeypatch.setattr(ingest, "MAX_ARRAY_BYTES", 16 << 20)
+    monkeypatch.setattr(ingest.readers, "MAX_ARRAY_BYTES", 16 << 20)
     with pytest.raises(IngestError, match="bomb.mat: not a readable MAT file .its variables inflate beyond"):
         ingest.read_file(tmp_path / "bomb.mat", spec)
     np.savez(tmp_path / "ok.npz", v=np.arange(4.0))  # within the limit: read

@@ -1,0 +1,270 @@
+"""Recordings assembled from a folder of files as a mapping describes them: names, labels,
+train/test split, image patches, and a report of every file that could not be used.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import os
+import re
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from scanner.scan import Recording, ScanError, Trace
+from scanner.storage.ingest.alignment import align
+from scanner.storage.ingest.mapping import FileMap, IngestError, IngestMapping
+from scanner.storage.ingest.readers import Note, Stream, read_streams
+
+
+@dataclass
+class IngestReport:
+    """The recordings made and the problems met: ``skipped`` holds one line per bad file or recording,
+    ``notes`` what was done to usable data (:func:`summarise_notes` condenses them)."""
+
+    recordings: list[Recording] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    notes: list[Note] = field(default_factory=list)
+    files: int = 0
+
+
+def stem_of(path: Path, spec: FileMap) -> str:
+    """The recording stem of a file: its name without ``suffix`` (default: without the extension)."""
+    if spec.suffix is not None:
+        return path.name[:-len(spec.suffix)] if spec.suffix and path.name.endswith(spec.suffix) else path.name
+    return path.stem
+
+
+def _matched(root: Path, mapping: IngestMapping) -> dict[Path, list[tuple[Path, FileMap]]]:
+    """Files of every [[files]] entry, grouped by recording key: the folder plus the stem."""
+    groups: dict[Path, list[tuple[Path, FileMap]]] = {}
+    for spec in mapping.files:
+        for path in sorted(p for p in root.glob(spec.glob) if p.is_file()):
+            if spec.suffix and not path.name.endswith(spec.suffix):
+                continue
+            groups.setdefault(path.parent / stem_of(path, spec), []).append((path, spec))
+    return groups
+
+
+def recording_names(keys: Sequence[Path], root: Path) -> dict[Path, str]:
+    """A distinct, stable name for every recording key (folder + stem), derived from its path.
+
+    The stem where no other recording has it; otherwise the folders below ``root`` and the stem joined by
+    ``_`` (``train/cork/r01`` -> ``train_cork_r01``); a name still shared, or longer than 64 characters,
+    ends in 8 hex digits of the SHA-256 of the relative path.
+    """
+    stems: dict[str, int] = {}
+    for key in keys:
+        stems[safe_name(key.name)] = stems.get(safe_name(key.name), 0) + 1
+    names = {}
+    for key in keys:
+        relative = key.relative_to(root)
+        long = re.sub(r"[^A-Za-z0-9._-]", "_", "_".join(relative.parts)).lstrip("._-") or "recording"
+        names[key] = safe_name(key.name) if stems[safe_name(key.name)] == 1 else long
+    shared: dict[str, int] = {}
+    for name in names.values():
+        shared[name] = shared.get(name, 0) + 1
+    for key, name in names.items():
+        if shared[name] > 1 or len(name) > 64:
+            digest = hashlib.sha256(key.relative_to(root).as_posix().encode()).hexdigest()[:8]
+            names[key] = f"{name[:55]}-{digest}"
+    return names
+
+
+def _label_table(root: Path, mapping: IngestMapping) -> dict[str, dict[str, str]]:
+    if mapping.label_from != "csv" or mapping.label_csv is None:
+        return {}
+    path = Path(mapping.label_csv)
+    path = path if path.is_absolute() else root / path
+    try:
+        rows = list(csv.DictReader(io.StringIO(path.read_text(encoding="utf-8-sig"))))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise IngestError(f"{path}: cannot read the label table ({exc})") from None
+    needed = [mapping.label_key, mapping.label_column, *mapping.label_levels]
+    missing = [c for c in needed if rows and c not in rows[0]]
+    if not rows or missing:
+        raise IngestError(f"{path}: the label table needs the column(s) {', '.join(missing or needed)}")
+    return {row[mapping.label_key].strip(): {k: (v or "").strip() for k, v in row.items() if k}
+            for row in rows}
+
+
+def _label(key: Path, root: Path, mapping: IngestMapping, table: Mapping[str, Mapping[str, str]],
+           groups: Mapping[str, str]) -> tuple[str, dict[str, str]]:
+    """The label and coarser levels of a recording; an IngestError if there is none."""
+    if mapping.label_from == "pattern":
+        return groups["label"], {}
+    if mapping.label_from == "csv":
+        row = table.get(key.name)
+        if row is None or not row.get(mapping.label_column):
+            raise IngestError(f"no label for {key.name!r} in {mapping.label_csv}")
+        return row[mapping.label_column], {level: row[level] for level in mapping.label_levels}
+    relative = key.relative_to(root).parts[:-1]
+    if len(relative) < mapping.label_depth:
+        raise IngestError(f"{key.name}: no folder {mapping.label_depth} level(s) up to take the label from")
+    return relative[-mapping.label_depth], {}
+
+
+def _split_part(value: str, mapping: IngestMapping) -> str | None:
+    lowered = value.lower()
+    return next((part for part, names in mapping.split_names.items() if lowered in names), None)
+
+
+def split_of(key: Path, root: Path, mapping: IngestMapping, groups: Mapping[str, str]) -> str | None:
+    """``train`` or ``test`` from a folder of the recording's path or the pattern's ``split`` group; None
+    if the mapping has no split (or, by default, no folder names one). IngestError if the mapping asks for a
+    split the recording does not have."""
+    if mapping.split_from == "none":
+        return None
+    if mapping.split_from == "pattern":
+        value = groups.get("split", "")
+        part = _split_part(value, mapping)
+        if part is None:
+            names = mapping.split_names
+            raise IngestError(f"{key.name}: split {value!r} is neither train ({', '.join(names['train'])}) "
+                              f"nor test ({', '.join(names['test'])})")
+        return part
+    parts = [p for p in (_split_part(folder, mapping) for folder in key.relative_to(root).parts[:-1]) if p]
+    if len(set(parts)) > 1:
+        raise IngestError(f"{key.relative_to(root)}: folders name both a training and a test part")
+    if not parts and mapping.split_from == "folder":
+        raise IngestError(f"{key.relative_to(root)}: no train or test folder in the path")
+    return parts[0] if parts else None
+
+
+def safe_name(text: str) -> str:
+    """A recording name usable as a file name: other characters become '_' (1-64 characters)."""
+    name = re.sub(r"[^A-Za-z0-9._-]", "_", text).lstrip("._-")[:64]
+    return name or "recording"
+
+
+def patches(image: np.ndarray, grid: tuple[int, int]) -> list[tuple[int, int, np.ndarray]]:
+    """``(row, column, patch)`` of a rows x columns grid of equal patches, centred: the image's last
+    ``h mod rows`` rows and ``w mod columns`` columns are split between the two sides and left out."""
+    rows, columns = grid
+    h, w = image.shape[:2]
+    ph, pw = h // rows, w // columns
+    if ph < 1 or pw < 1:
+        raise IngestError(f"an image of {w}x{h} px cannot be cut into {rows}x{columns} patches")
+    top, left = (h - rows * ph) // 2, (w - columns * pw) // 2
+    return [(r, c, image[top + r * ph:top + (r + 1) * ph, left + c * pw:left + (c + 1) * pw])
+            for r in range(rows) for c in range(columns)]
+
+
+@dataclass(frozen=True)
+class _Parts:
+    """Everything read for one recording key."""
+
+    streams: dict[str, Stream]
+    images: dict[str, np.ndarray]
+    roles: dict[str, str]
+    files: dict[str, str]
+    grid: tuple[int, int] | None
+
+
+def _read_parts(key: Path, files: list[tuple[Path, FileMap]], root: Path, mapping: IngestMapping,
+                report: IngestReport) -> _Parts | None:
+    streams: dict[str, Stream] = {}
+    images: dict[str, np.ndarray] = {}
+    roles: dict[str, str] = {}
+    origin: dict[str, str] = {}
+    grid = None
+    for path, spec in files:
+        try:
+            read, pictures, notes = read_streams(path, spec, mapping.missing)
+        except IngestError as exc:
+            report.skipped.append(str(exc))
+            report.skipped.append(f"{key.relative_to(root)}: recording skipped, {path.name} is unusable")
+            return None
+        report.notes.extend(notes)
+        streams.update(read)
+        images.update(pictures)
+        origin.update(dict.fromkeys([*read, *pictures], path.name))
+        roles.update({c.role or ("photo" if c.name in pictures else ""): c.name for c in spec.channels
+                      if c.role or c.name in pictures})
+        grid = spec.grid or grid
+    return _Parts(streams, images, roles, origin, grid)
+
+
+def _recordings(key: Path, name: str, files: list[tuple[Path, FileMap]], root: Path, mapping: IngestMapping,
+                table: Mapping[str, Mapping[str, str]], report: IngestReport) -> list[Recording]:
+    """The recording of one key (one per patch when its image is cut into a grid)."""
+    groups: dict[str, str] = {}
+    if mapping.pattern is not None:
+        match = mapping.pattern.search(key.name)
+        if match is None:
+            report.skipped.extend(f"{path}: name does not match groups.pattern" for path, _ in files)
+            return []
+        groups = {k: v for k, v in match.groupdict().items() if v is not None}
+    parts = _read_parts(key, files, root, mapping, report)
+    if parts is None:
+        return []
+    try:
+        aligned = align(parts.streams, parts.files, mapping.missing)
+        label, levels = _label(key, root, mapping, table, groups)
+        split = split_of(key, root, mapping, groups)
+        meta = {**mapping.meta, "label_level": mapping.label_level, "levels": levels,
+                "source": [str(path.relative_to(root)) for path, _ in files]}
+        if split is not None:
+            meta["split"] = split
+        if aligned.info:
+            meta["time_base"] = aligned.info
+        group = {k: v for k, v in groups.items() if k not in ("label", "split")}
+        if parts.grid is None:
+            recordings = [Recording(name, aligned.traces, parts.roles, label, group, meta, parts.images)]
+        else:
+            recordings = _patched(name, parts, aligned.traces, label, group, meta)
+    except (IngestError, ScanError) as exc:
+        report.skipped.append(f"{key.relative_to(root)}: recording skipped: {exc}")
+        return []
+    report.notes.extend(aligned.notes)
+    return recordings
+
+
+def _patched(name: str, parts: _Parts, traces: Mapping[str, Trace], label: str, group: Mapping[str, str],
+             meta: Mapping[str, Any]) -> list[Recording]:
+    """One recording per patch of the grid, sharing the group ``photo`` (and the sampled channels)."""
+    assert parts.grid is not None
+    (image_name, image), = parts.images.items()  # an image file is one channel
+    return [Recording(f"{name}_r{r}c{c}", traces, parts.roles, label, {**group, "photo": name},
+                      {**meta, "patch": [r, c], "grid": list(parts.grid)}, {image_name: patch})
+            for r, c, patch in patches(image, parts.grid)]
+
+
+def ingest(path: str | os.PathLike[str], mapping: IngestMapping,
+           progress: Callable[[Iterable[Any]], Iterable[Any]] = iter) -> IngestReport:
+    """Recordings from the files under ``path`` as ``mapping`` describes them.
+
+    Files with the same stem in the same folder form one recording; its timestamped streams are put on a
+    common time base (:func:`align`). A file that cannot be read as mapped (wrong format, missing column,
+    bad token, no rate, ...) is reported in ``skipped`` with its name and reason, and its recording is
+    skipped; the import goes on with the others. Names come from the paths (:func:`recording_names`);
+    an image file with a ``grid`` gives one recording per patch. ``progress`` wraps the iteration over
+    the recordings (e.g. a tqdm bar).
+
+    Raises
+    ------
+    IngestError
+        If ``path`` is not a folder or the label table cannot be read (nothing could be labelled).
+    """
+    root = Path(path)
+    if not root.is_dir():
+        raise IngestError(f"{root}: not a folder")
+    table = _label_table(root, mapping)
+    report = IngestReport()
+    matched = _matched(root, mapping)
+    names = recording_names(list(matched), root)
+    for key, files in progress(list(matched.items())):
+        report.files += len(files)
+        report.recordings += _recordings(key, names[key], files, root, mapping, table, report)
+    splits = {r.meta.get("split") for r in report.recordings}
+    if mapping.split_from == "auto" and splits != {"train", "test"}:
+        # Folders named train or test hold only some recordings, or one part: not a split of the set.
+        report.recordings = [replace(r, meta={k: v for k, v in r.meta.items() if k != "split"})
+                             for r in report.recordings]
+    return report
+

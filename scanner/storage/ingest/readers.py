@@ -1,0 +1,410 @@
+"""File readers of an import: CSV/TSV tables, WAV, NPY, NPZ, MATLAB v5 ``.mat`` and images, each
+turned into timestamped streams and notes of what was done to the data.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import zipfile
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+from scipy.io import wavfile
+
+from scanner.photo import PhotoError, check_pixels, image_size, max_file_bytes
+from scanner.scan import ScanError, Trace
+from scanner.storage.ingest.mapping import FORMATS, TIME_UNITS, ChannelMap, FileMap, IngestError, format_of
+from scanner.storage.mat5 import MatFileError, read_mat
+
+NAN_TOKENS = ("nan", "-nan", "+nan", "", "na", "n/a", "null", "none")
+"""Tokens read as a missing sample (case-insensitive, surrounding spaces ignored)."""
+MAX_ARRAY_BYTES = 1 << 30
+"""An NPY, NPZ or MAT file may hold at most this many bytes of arrays (once inflated): checked before
+they are read, so a small file cannot make an import take unbounded memory."""
+RATE_TOLERANCE = 0.05
+"""Time steps may vary by this fraction of their median before the import notes it."""
+
+
+def _number(token: str, where: str) -> float:
+    text = token.strip()
+    if text.lower() in NAN_TOKENS:
+        return math.nan
+    try:
+        return float(text)
+    except ValueError:
+        raise IngestError(f"{where}: {token!r} is not a number") from None
+
+
+def _split_lines(text: str, delimiter: str | None, comment: str | None) -> list[tuple[int, list[str]]]:
+    rows = []
+    lines = text.splitlines()
+    reader: Iterable[list[str]]
+    if delimiter == "whitespace":
+        reader = (line.split() for line in lines)
+    else:
+        reader = csv.reader(lines, delimiter=delimiter or ",")
+    for number, row in enumerate(reader, start=1):
+        if not row or all(not cell.strip() for cell in row):
+            continue
+        if comment and row[0].lstrip().startswith(comment):
+            continue
+        rows.append((number, row))
+    return rows
+
+
+def read_table(path: Path, delimiter: str | None, header: bool, comment: str | None = "#",
+               skip_rows: int = 0) -> tuple[list[str], np.ndarray]:
+    """Column names and values (rows, columns, NaN for missing tokens) of a CSV/TSV file.
+
+    Trailing delimiters (an empty last field on every line) are dropped; a row with a different number of
+    fields than the header is an error naming the line.
+    """
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise IngestError(f"{path}: cannot read ({exc})") from None
+    rows = _split_lines(text, delimiter, comment)[skip_rows:]
+    if not rows:
+        raise IngestError(f"{path}: no data")
+    names: list[str]
+    if header:
+        names = [cell.strip() for cell in rows[0][1]]
+        rows = rows[1:]
+        while names and not names[-1]:
+            names.pop()
+    else:
+        # Without a header an empty last field can only be read as a trailing delimiter.
+        names = [str(k) for k in range(len(_trimmed(rows[0][1], 0)))]
+    if not rows:
+        raise IngestError(f"{path}: a header but no data rows")
+    values = np.empty((len(rows), len(names)))
+    for r, (line, cells) in enumerate(rows):
+        cells = _trimmed(cells, len(names))
+        if len(cells) != len(names):
+            raise IngestError(f"{path}: line {line}: {len(cells)} fields, expected {len(names)}")
+        values[r] = [_number(cell, f"{path}: line {line}, column {names[c]}") for c, cell in enumerate(cells)]
+    return names, values
+
+
+def _trimmed(cells: list[str], width: int) -> list[str]:
+    """Drop empty fields left by trailing delimiters beyond ``width``."""
+    while len(cells) > width and not cells[-1].strip():
+        cells = cells[:-1]
+    return cells
+
+
+def _select(names: Sequence[str], spec: Sequence[str | int], path: Path, channel: str) -> list[int]:
+    """Column indices of a channel: names, 0-based indices, or inclusive ``first:last`` ranges of names."""
+    index = {name: k for k, name in enumerate(names)}
+    picked: list[int] = []
+    for item in spec:
+        if isinstance(item, int):
+            if not 0 <= item < len(names):
+                raise IngestError(f"{path}: channel {channel}: column index {item} is outside "
+                                  f"0..{len(names) - 1}")
+            picked.append(item)
+        elif ":" in item and item not in index:
+            first, last = (part.strip() for part in item.split(":", 1))
+            if first not in index or last not in index or index[first] > index[last]:
+                raise IngestError(f"{path}: channel {channel}: column range {item!r} "
+                                  "does not match the header")
+            picked.extend(range(index[first], index[last] + 1))
+        elif item in index:
+            picked.append(index[item])
+        else:
+            shown = ", ".join(names[:12]) + (" ..." if len(names) > 12 else "")
+            raise IngestError(f"{path}: channel {channel}: no column {item!r} (columns: {shown})")
+    return picked
+
+
+@dataclass(frozen=True)
+class Note:
+    """Something the import did to one file's data, kept so that many alike can be summarised.
+
+    ``kind`` groups alike notes (``missing``, ``irregular``, ``gap``), ``amount`` ranks them (the worst
+    first), ``text`` is the full line.
+    """
+
+    kind: str
+    file: str
+    amount: float
+    text: str
+
+    def __str__(self) -> str:
+        return self.text
+
+
+NOTE_KINDS = {"missing": "missing samples interpolated", "irregular": "irregular time steps resampled",
+              "gap": "gaps in the timestamps bridged", "aligned": "streams cut to their common time span"}
+
+
+def summarise_notes(notes: Sequence[Note], first: int = 3) -> list[str]:
+    """One line per kind of note: how many files, the worst case and the first few names."""
+    lines = []
+    for kind in dict.fromkeys(note.kind for note in notes):
+        alike = [note for note in notes if note.kind == kind]
+        files = list(dict.fromkeys(note.file for note in alike))
+        worst = max(alike, key=lambda note: note.amount)
+        shown = ", ".join(files[:first]) + (f" and {len(files) - first} more" if len(files) > first else "")
+        lines.append(f"{NOTE_KINDS.get(kind, kind)} in {len(files)} file(s) ({shown}); worst: {worst.text}")
+    return lines
+
+
+def seconds_of(times: np.ndarray, unit: str, path: Path) -> np.ndarray:
+    """A timestamp column in seconds; IngestError unless it has two finite values and increases."""
+    t = np.asarray(times, dtype=np.float64) * TIME_UNITS[unit]
+    if t.size < 2 or not np.all(np.isfinite(t)):
+        raise IngestError(f"{path}: the time column needs at least two finite timestamps")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        row = int(np.flatnonzero(steps <= 0)[0]) + 2
+        raise IngestError(f"{path}: the time column does not increase at data row {row}")
+    return t
+
+
+def rate_from_times(times: np.ndarray, unit: str, path: Path) -> tuple[float, str | None]:
+    """Sample rate from a timestamp column: 1 / median step, and a note if steps vary by > 5 %."""
+    steps = np.diff(seconds_of(times, unit, path))
+    step = float(np.median(steps))
+    spread = float(np.max(np.abs(steps - step)) / step)
+    note = f"{path.name}: time steps vary by up to {100 * spread:.0f} %" if spread > RATE_TOLERANCE else None
+    return 1.0 / step, note
+
+
+def _fill(values: np.ndarray, missing: str, where: str) -> tuple[np.ndarray, int]:
+    """Missing samples filled by linear interpolation along the samples (the ends by the nearest value)."""
+    bad = ~np.isfinite(values)
+    count = int(bad.sum())
+    if not count:
+        return values, 0
+    if missing == "error":
+        raise IngestError(f"{where}: {count} missing sample(s)")
+    flat = values.reshape(values.shape[0], -1).copy()
+    samples = np.arange(flat.shape[0])
+    for column in range(flat.shape[1]):
+        good = np.isfinite(flat[:, column])
+        if not good.any():
+            raise IngestError(f"{where}: every sample of a column is missing")
+        flat[:, column] = np.interp(samples, samples[good], flat[good, column])
+    return flat.reshape(values.shape), count
+
+
+@dataclass
+class _Read:
+    """What one file contributes: channels (raw arrays, rates and, from a time column, each sample's time
+    in seconds) and images."""
+
+    arrays: dict[str, tuple[np.ndarray, float, ChannelMap, np.ndarray | None]] = field(default_factory=dict)
+    images: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+def _table_file(path: Path, spec: FileMap, fmt: str) -> _Read:
+    delimiter = spec.delimiter or ("\t" if fmt == "tsv" else ",")
+    names, values = read_table(path, delimiter, spec.header, spec.comment, spec.skip_rows)
+    read = _Read()
+    times = None
+    if spec.time_column is not None:
+        times = seconds_of(values[:, _select(names, [spec.time_column], path, "time")[0]], spec.time_unit, path)
+        rate = spec.rate or 1.0 / float(np.median(np.diff(times)))
+    elif spec.rate is not None:
+        rate = spec.rate
+    else:
+        raise IngestError(f"{path}: give the file's rate or a time_column in the mapping")
+    for channel in spec.channels:
+        if not channel.columns:
+            raise IngestError(f"{path}: channel {channel.name} needs columns")
+        data = values[:, _select(names, channel.columns, path, channel.name)]
+        if channel.spread:
+            # The k-th of c samples in a row was taken k / (c rate) after the row's timestamp.
+            spread = None if times is None else (times[:, None] + np.arange(data.shape[1]) / (rate * data.shape[1]))
+            read.arrays[channel.name] = (data.reshape(-1), rate * data.shape[1], channel,
+                                         None if spread is None else spread.reshape(-1))
+        else:
+            read.arrays[channel.name] = (data[:, 0] if data.shape[1] == 1 else data, rate, channel, times)
+    return read
+
+
+def _wav_file(path: Path, spec: FileMap) -> _Read:
+    try:
+        rate, data = wavfile.read(path)
+    except (OSError, ValueError) as exc:
+        raise IngestError(f"{path}: not a readable WAV file ({exc})") from None
+    if data.dtype.kind in "iu":
+        info = np.iinfo(data.dtype)
+        data = (data.astype(np.float64) - (info.max + 1 + info.min) / 2) / ((info.max - info.min + 1) / 2)
+    data = np.asarray(data, dtype=np.float64)
+    data = data[:, None] if data.ndim == 1 else data
+    read = _Read()
+    for channel in spec.channels:
+        picked = list(channel.columns) or list(range(data.shape[1]))
+        if not all(isinstance(k, int) and 0 <= k < data.shape[1] for k in picked):
+            raise IngestError(f"{path}: channel {channel.name}: audio channels {picked} are not in "
+                              f"0..{data.shape[1] - 1}")
+        part = data[:, picked]
+        read.arrays[channel.name] = (part[:, 0] if part.shape[1] == 1 else part, float(rate), channel, None)
+    return read
+
+
+def _check_sizes(path: Path, fmt: str) -> None:
+    """Refuse, from headers alone, an array file whose data would take more than :data:`MAX_ARRAY_BYTES`.
+
+    A few bytes of NPY header or a zip directory can announce terabytes; numpy would allocate them first.
+    """
+    if fmt == "npy":
+        with open(path, "rb") as handle:
+            version = np.lib.format.read_magic(handle)
+            read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+            shape, _, dtype = read(handle)
+        size = math.prod(shape) * dtype.itemsize
+    else:
+        with zipfile.ZipFile(path) as archive:
+            size = sum(info.file_size for info in archive.infolist())
+    if size > MAX_ARRAY_BYTES:
+        raise IngestError(f"{path}: its arrays take {size / 1e6:.0f} MB, more than the "
+                          f"{MAX_ARRAY_BYTES / 1e6:.0f} MB one file may hold")
+
+
+def _variables(path: Path, fmt: str) -> dict[str, np.ndarray]:
+    try:
+        if fmt == "mat":
+            variables = read_mat(path, MAX_ARRAY_BYTES, squeeze_me=False)
+            return {k: v for k, v in variables.items() if not k.startswith("__")}
+        _check_sizes(path, fmt)
+        if fmt == "npy":
+            return {"": np.load(path, allow_pickle=False)}
+        with np.load(path, allow_pickle=False) as archive:
+            return {key: archive[key] for key in archive.files}
+    except IngestError:
+        raise
+    except MatFileError as exc:
+        if "7.3" in str(exc):
+            raise IngestError(f"{path}: MATLAB v7.3 (HDF5) files are not read; save with -v7") from None
+        raise IngestError(f"{path}: not a readable MAT file ({exc})") from None
+    except Exception as exc:  # numpy raises many types for foreign or damaged files
+        reason = f"{type(exc).__name__}: {exc}"
+        raise IngestError(f"{path}: not a readable {fmt.upper()} file ({reason})") from None
+
+
+def _array_file(path: Path, spec: FileMap, fmt: str) -> _Read:
+    variables = _variables(path, fmt)
+    rate = spec.rate
+    if spec.rate_variable is not None:
+        if spec.rate_variable not in variables or np.asarray(variables[spec.rate_variable]).size != 1:
+            raise IngestError(f"{path}: no scalar rate variable {spec.rate_variable!r}")
+        rate = float(np.asarray(variables[spec.rate_variable]).ravel()[0])
+    if rate is None or not rate > 0:
+        raise IngestError(f"{path}: give the rate or a rate_variable in the mapping")
+    read = _Read()
+    for channel in spec.channels:
+        key = "" if fmt == "npy" else (channel.variable or channel.name)
+        if key not in variables:
+            raise IngestError(f"{path}: no variable {key!r} for channel {channel.name} "
+                              f"(variables: {', '.join(sorted(variables)) or 'none'})")
+        data = np.asarray(variables[key])
+        if data.dtype.kind not in "fiub":
+            raise IngestError(f"{path}: variable {key or 'array'} is {data.dtype}, not numeric")
+        data = data.astype(np.float64)
+        if fmt == "mat" and data.ndim == 2 and 1 in data.shape:
+            data = data.reshape(-1)  # MATLAB stores vectors as n x 1 or 1 x n
+        if channel.columns:
+            columns = channel.columns
+            if data.ndim != 2 or not all(isinstance(k, int) and 0 <= k < data.shape[1] for k in columns):
+                raise IngestError(f"{path}: channel {channel.name}: columns {list(columns)} do not index "
+                                  f"the columns of an array of shape {data.shape}")
+            data = data[:, list(columns)]
+        if channel.spread:
+            read.arrays[channel.name] = (data.reshape(-1), rate * int(np.prod(data.shape[1:])), channel, None)
+        else:
+            read.arrays[channel.name] = (data, rate, channel, None)
+    return read
+
+
+def read_image(path: Path) -> np.ndarray:
+    """An image file (PNG, JPEG, BMP, TIFF) as RGB uint8 (h, w, 3).
+
+    Gray images are repeated into three channels, an alpha channel is dropped, 16-bit images are scaled to
+    8 bits (``round(v / 257)``); a header announcing more pixels than the photo limit of
+    :mod:`scanner.photo` is refused before decoding, and so is any other kind of file. A multi-page TIFF
+    gives its first page (the one whose size its first directory gives).
+    """
+    try:
+        if path.stat().st_size > max_file_bytes(bytes_per_pixel=8):
+            raise PhotoError("the file is larger than an image within the pixel limit can be")
+        data = path.read_bytes()
+        if image_size(data) is None:
+            raise PhotoError("not a PNG, JPEG, BMP or TIFF file")
+        check_pixels(data, name=path.name)
+    except (OSError, PhotoError) as exc:
+        raise IngestError(f"{path}: cannot read the image ({exc})") from None
+    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+    if image is None or image.size == 0:
+        raise IngestError(f"{path}: not a readable image file")
+    if image.dtype == np.uint16:
+        image = np.rint(image / 257.0).astype(np.uint8)
+    elif image.dtype != np.uint8:
+        raise IngestError(f"{path}: {image.dtype} pixels are not read; save the image with 8 or 16 bits")
+    if image.ndim == 2 or image.shape[2] == 1:
+        return np.repeat(image.reshape(image.shape[0], image.shape[1], 1), 3, axis=2)
+    return cv2.cvtColor(image, cv2.COLOR_BGRA2RGB if image.shape[2] == 4 else cv2.COLOR_BGR2RGB)
+
+
+def _image_file(path: Path, spec: FileMap) -> _Read:
+    read = _Read()
+    read.images[spec.channels[0].name] = read_image(path)
+    return read
+
+
+def file_format(path: Path, spec: FileMap) -> str:
+    """The file's format: the mapping's ``format``, else its extension."""
+    fmt = spec.format or format_of(path.name)
+    if fmt not in FORMATS:
+        raise IngestError(f"{path}: unknown format {path.suffix.lstrip('.')!r}; "
+                          f"give format = one of {', '.join(FORMATS)}")
+    return fmt
+
+
+@dataclass(frozen=True)
+class Stream:
+    """One channel as read: samples (scaled, missing ones filled), rate, unit and, from a time column,
+    the time of every sample in seconds."""
+
+    data: np.ndarray
+    rate: float
+    unit: str
+    times: np.ndarray | None = None
+
+
+def read_streams(path: Path, spec: FileMap,
+                 missing: str = "interpolate") -> tuple[dict[str, Stream], dict[str, np.ndarray], list[Note]]:
+    """The channels and images of one file, and notes on what was done to them."""
+    fmt = file_format(path, spec)
+    readers: dict[str, Callable[[], _Read]] = {
+        "csv": lambda: _table_file(path, spec, fmt), "tsv": lambda: _table_file(path, spec, fmt),
+        "wav": lambda: _wav_file(path, spec), "image": lambda: _image_file(path, spec)}
+    read = readers.get(fmt, lambda: _array_file(path, spec, fmt))()
+    streams, notes = {}, []
+    for name, (data, rate, channel, times) in read.arrays.items():
+        data, filled = _fill(data * channel.scale, missing, f"{path}: channel {name}")
+        if filled:
+            notes.append(Note("missing", path.name, filled, f"{path.name}: channel {name}: {filled} missing "
+                              "sample(s) interpolated"))
+        streams[name] = Stream(data, rate, channel.unit, times)
+    return streams, read.images, notes
+
+
+def read_file(path: Path, spec: FileMap, missing: str = "interpolate") -> tuple[dict[str, Trace], list[str]]:
+    """The channels of one file as traces (scaled, missing samples filled, timestamps only setting the
+    rate), and notes on what was done; :func:`align` puts timestamped streams on a common time base."""
+    streams, _, notes = read_streams(path, spec, missing)
+    traces = {}
+    for name, stream in streams.items():
+        try:
+            traces[name] = Trace(stream.data, stream.rate, stream.unit)
+        except ScanError as exc:
+            raise IngestError(f"{path}: channel {name}: {exc}") from None
+    return traces, [str(note) for note in notes]
+

@@ -1,0 +1,145 @@
+"""Imported recordings stored in a database as ``recordings/<set>/<recording>.mat`` (MATLAB v5, one
+variable per channel plus a ``meta`` struct), written to a temporary folder first and renamed into
+place, so a set is either complete or absent.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import secrets
+import shutil
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.io
+
+from scanner.scan import Recording, Trace
+from scanner.storage.files import atomic_write_bytes, fsync_dir
+from scanner.storage.ingest.mapping import _NAME, _SET, IngestError
+
+RECORDINGS = "recordings"
+"""Folder of imported recording sets inside a database."""
+
+
+def _struct(mapping: Mapping[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in mapping.items() if _NAME.match(k)}
+
+
+def recording_variables(recording: Recording) -> dict[str, Any]:
+    """The MATLAB variables of a recording: one per channel and ``meta`` (name, label, label level, fs,
+    units, roles, group, levels, ndim per channel, and all of ``Recording.meta`` as JSON text, which is what
+    :func:`read_recording` restores it from)."""
+    bad = [name for name in [*recording.channels, *recording.images] if not _NAME.match(name) or name == "meta"]
+    if bad:
+        raise IngestError(f"recording {recording.name}: channel name(s) {', '.join(bad)} "
+                          "are not MATLAB names")
+    meta = {
+        "name": recording.name, "label": recording.label or "",
+        "label_level": str(recording.meta.get("label_level", "label")),
+        "fs": {n: t.fs for n, t in recording.channels.items()},
+        "units": {n: t.unit for n, t in recording.channels.items()},
+        "ndim": {n: float(t.data.ndim) for n, t in recording.channels.items()},
+        "images": {n: np.array(image.shape, dtype=np.float64) for n, image in recording.images.items()},
+        "roles": dict(recording.roles), "group": _struct(recording.group),
+        "levels": _struct(recording.meta.get("levels", {})), "split": str(recording.meta.get("split", "")),
+        "meta_json": json.dumps(dict(recording.meta), default=str),
+    }
+    return {**{n: t.data for n, t in recording.channels.items()}, **recording.images, "meta": meta}
+
+
+def encode_recording(recording: Recording) -> bytes:
+    buffer = io.BytesIO()
+    scipy.io.savemat(buffer, recording_variables(recording), long_field_names=True, do_compression=True,
+                     oned_as="column")
+    return buffer.getvalue()
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, scipy.io.matlab.mat_struct):
+        return {name: _plain(getattr(value, name)) for name in value._fieldnames}
+    if isinstance(value, np.ndarray) and value.dtype.kind == "U":
+        return "".join(value.ravel().tolist())
+    if isinstance(value, np.ndarray) and value.size == 1 and value.dtype.kind in "fiu":
+        return float(value.ravel()[0])
+    return value
+
+
+def read_recording(path: str | os.PathLike[str]) -> Recording:
+    """A recording written by :func:`store_recordings`."""
+    path = Path(path)
+    try:
+        data = scipy.io.loadmat(path, squeeze_me=True, struct_as_record=False)
+        meta = {k: _plain(v) for k, v in _plain(data["meta"]).items()}
+        channels = {}
+        for name, fs in dict(meta.get("fs") or {}).items():
+            array = np.asarray(data[name], dtype=np.float64)
+            ndim = int(meta["ndim"][name])
+            shape = array.shape if array.ndim == ndim else ((array.size,) if ndim == 1 else (array.size, 1))
+            channels[name] = Trace(array.reshape(shape), float(fs), str(meta["units"][name]))
+        images = {name: np.asarray(data[name], dtype=np.uint8).reshape(np.asarray(shape, dtype=int).tolist())
+                  for name, shape in dict(meta.get("images") or {}).items()}
+        group = meta.get("group") or {}
+        roles = meta.get("roles") or {}
+        extra = json.loads(meta.get("meta_json") or "{}")
+        return Recording(str(meta["name"]), channels, dict(roles), str(meta["label"]) or None,
+                         {k: str(v) for k, v in dict(group).items()}, extra, images)
+    except IngestError:
+        raise
+    except Exception as exc:  # scipy and the data model raise many types for foreign files
+        raise IngestError(f"{path}: not a readable recording file ({type(exc).__name__}: {exc})") from None
+
+
+def set_folder(db_root: str | os.PathLike[str], name: str) -> Path:
+    if not _SET.match(name):
+        raise IngestError(f"set name {name!r} must be 1-64 letters, digits, '.', '_' or '-'")
+    return Path(db_root) / RECORDINGS / name
+
+
+def store_recordings(db_root: str | os.PathLike[str], name: str, recordings: Sequence[Recording],
+                     replace: bool = False) -> Path:
+    """Write a set of recordings to ``<db_root>/recordings/<name>/<recording>.mat``; returns the folder.
+
+    The files go to a temporary folder first, which is renamed into place only when all are written, so a
+    crash leaves the previous set (or none), never part of one. An existing set is refused unless
+    ``replace``.
+    """
+    target = set_folder(db_root, name)
+    if target.exists() and not replace:
+        raise IngestError(f"{target}: the set {name!r} exists; choose another name or replace it")
+    if not recordings:
+        raise IngestError(f"set {name!r}: no recordings to store")
+    temp = target.with_name(f".{name}.tmp-{secrets.token_hex(4)}")
+    temp.mkdir(parents=True)
+    try:
+        for recording in recordings:
+            atomic_write_bytes(temp / f"{recording.name}.mat", encode_recording(recording))
+        old = target.with_name(f".{name}.old-{secrets.token_hex(4)}")
+        if target.exists():
+            os.replace(target, old)
+        os.replace(temp, target)
+        fsync_dir(target.parent)
+    except BaseException:
+        shutil.rmtree(temp, ignore_errors=True)
+        raise
+    shutil.rmtree(old, ignore_errors=True)
+    return target
+
+
+def load_recordings(folder: str | os.PathLike[str]) -> list[Recording]:
+    """Every recording of a stored set (a folder of recording ``.mat`` files), in name order."""
+    folder = Path(folder)
+    files = sorted(folder.glob("*.mat")) if folder.is_dir() else []
+    if not files:
+        raise IngestError(f"{folder}: no recording files here")
+    return [read_recording(path) for path in files]
+
+
+def recording_sets(db_root: str | os.PathLike[str]) -> list[str]:
+    """Names of the recording sets stored in a database."""
+    folder = Path(db_root) / RECORDINGS
+    return sorted(p.name for p in folder.iterdir() if p.is_dir() and not p.name.startswith(".")) \
+        if folder.is_dir() else []
