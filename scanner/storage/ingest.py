@@ -1,4 +1,4 @@
-"""Import of other labs' recordings (SPEC 3 "Generic recordings"): files + a TOML mapping -> Recordings.
+"""Import of other labs' recordings (docs/ingest.md): files + a TOML mapping -> Recordings.
 
 A small TOML mapping file says which files belong together, how to read them and which column or variable
 plays which channel role; :func:`ingest` applies it to a folder and returns the :class:`scanner.Recording`
