@@ -1,4 +1,4 @@
-"""Export, import and replay benchmark (SPEC 11).
+"""Export, import and replay benchmark (docs/export.md).
 
 - export of a 120-scan simulated database (24 materials x 5 scans, 256 x 256 photos to keep generation
   short) as a folder and as a zip, in MB/s of bundle, against a plain copy of the same ``scans/`` folder

@@ -1,4 +1,4 @@
-"""Feature extraction benchmark (SPEC 7, 8): all 193 features per scan, parallel and cached extraction.
+"""Feature extraction benchmark (docs/features.md): all 193 features per scan, parallel and cached extraction.
 
 - per-scan time of ``features.extract`` with 512 x 512 and 3024 x 4032 photos on one core, as wall and CPU
   time, and as a ratio against a same-process reference (one ``cv2.dft`` of a cropped gray photo: the

@@ -22,7 +22,7 @@ from scanner.storage.matfile import load_scan, save_scan  # noqa: E402
 
 
 def bench_mat(folder: Path) -> None:
-    scan = make_scan(seconds=5.0, images=False)  # full-length traces: 5 s at SPEC rates, no photos
+    scan = make_scan(seconds=5.0, images=False)  # full-length traces: 5 s at the scanner's rates, no photos
     arrays = {name: trace.data for name, trace in scan.traces.items()}
     megabytes = sum(a.nbytes for a in arrays.values()) / 1e6
 

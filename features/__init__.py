@@ -1,7 +1,7 @@
-"""texplorer features: pure functions from a scan to named feature values, and the feature space (SPEC 7, 8).
+"""texplorer features: pure functions from a scan to named feature values, and the feature space (docs/features.md).
 
 ``extract(scan)`` gives the features of every registered family (:mod:`features.registry`; the paper's 193,
-:mod:`features.families`, in SPEC order); ``extract_many(scans, workers=None)`` builds a
+:mod:`features.families`, in the order of docs/features.md); ``extract_many(scans, workers=None)`` builds a
 :class:`FeatureSpace` in parallel, on workers kept for its next call (``release_workers()`` ends them; a
 :class:`WorkerPool` keeps its own across the calls of a job that extracts in batches). Submodules:
 ``tactum``, ``image``, ``audio``, ``other``, ``related``, ``selection``, ``space``.

@@ -1,4 +1,4 @@
-"""Audio features, 35 per signal (SPEC section 7.3; paper section IV-D).
+"""Audio features, 35 per signal (docs/features.md#audio; paper section IV-D).
 
 The paper computes "35 well-known audio features" with the MATLAB toolbox of Giannakopoulos & Pikrakis
 (*Introduction to Audio Analysis: A MATLAB Approach*, 2014; repository
@@ -12,7 +12,7 @@ samples with MATLAB rounding (half away from zero: 2205 and 1103 at 44.1 kHz, 38
 is multiplied by a symmetric Hamming window; its spectrum is ``|fft(frame)| / N`` over the first
 ``ceil(N/2)`` bins (``getDFT.m``); a frame with ``sum(|frame|) <= eps`` is silent and contributes zeros to
 every feature. Each feature of ``compute`` is the mean over the frames. Deliberate differences from the
-toolbox (SPEC 7.3): the columns are in ``NAMES`` order (the toolbox puts the MFCCs before the harmonic
+toolbox (docs/features.md#audio): the columns are in ``NAMES`` order (the toolbox puts the MFCCs before the harmonic
 ratio and F0), and the toolbox's 3-point median filter on its last feature row (meant for F0, it hits the
 12th chroma value) is not applied.
 """
@@ -646,7 +646,7 @@ def compute(signal: np.ndarray, fs: float = 44100.0) -> dict[str, float]:
     Parameters
     ----------
     signal : np.ndarray
-        1-D audio samples (full scale), normally the 1 s slide window of 44100 samples (SPEC 6).
+        1-D audio samples (full scale), normally the 1 s slide window of 44100 samples (docs/features.md#preprocessing).
     fs : float
         Sampling rate in Hz.
 

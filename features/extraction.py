@@ -1,4 +1,4 @@
-"""The features of a scan (SPEC section 7) and their parallel, cached extraction into a feature space.
+"""The features of a scan (docs/features.md) and their parallel, cached extraction into a feature space.
 
 The features are those of the registered families (:mod:`features.registry`), in their order; the paper's
 193 (:mod:`features.families`) are registered when this package is imported.
@@ -45,7 +45,7 @@ def without_short_channels(scan: Scan) -> Scan:
     """``scan`` without the channels too short for their features (``Scan.short_channels``), with a warning.
 
     Their features are then NaN like those of a missing channel: a single sample has no spread, no
-    relaxation and no cooling curve, and computing them anyway gives silent zeros (SPEC 7).
+    relaxation and no cooling curve, and computing them anyway gives silent zeros (docs/features.md).
     """
     short = scan.short_channels()
     if not short:
@@ -63,7 +63,7 @@ largest mapping threshold, so without :func:`reusing_freed_memory` each is fault
 
 
 def extract(scan: Scan) -> dict[str, float]:
-    """The named features of a scan (SPEC section 7): every registered family's, in order; NaN where a
+    """The named features of a scan (docs/features.md): every registered family's, in order; NaN where a
     value is undefined. The scan is prepared once (:class:`~features.prepared.PreparedScan`) for all of them;
     channels too short for their features count as missing (:func:`without_short_channels`).
 

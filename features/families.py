@@ -1,4 +1,4 @@
-"""The paper's feature families (Strese et al. 2020, section IV; SPEC 7), registered in extraction order.
+"""The paper's feature families (Strese et al. 2020, section IV; docs/features.md), registered in extraction order.
 
 =========  ==================================================  ==========================================
 family     columns                                             module
@@ -8,7 +8,7 @@ family     columns                                             module
            ``image.illu``
 ``audio``  35 per slide: ``audio.finger`` (``a_fs``),          :mod:`features.audio`
            ``audio.tool`` (``a_ts``), in the 1 s slide window
-``other``  15 more (SPEC 7.4)                                  :mod:`features.other`
+``other``  15 more (docs/features.md#other)                                  :mod:`features.other`
 =========  ==================================================  ==========================================
 
 A new family is registered the same way (``REGISTRY.register(Family(...))``, see ``docs/extending.md``).
@@ -38,7 +38,7 @@ def _nan(names: Iterable[str]) -> dict[str, float]:
 
 
 def image_features(scan: Scan, disp: image.PreparedPhoto | None = None) -> dict[str, float]:
-    """31 features for each photo (SPEC 7.2); NaN with a warning for a missing or too small photo.
+    """31 features for each photo (docs/features.md#image); NaN with a warning for a missing or too small photo.
 
     ``disp`` is ``I_disp`` already prepared (:func:`prepared_disp`); the other photos are prepared here.
     Each photo releases its memory once its features are computed (``disp`` too) and the next photo's
@@ -66,7 +66,7 @@ def image_features(scan: Scan, disp: image.PreparedPhoto | None = None) -> dict[
 
 
 def audio_features(scan: Scan, prepared: PreparedScan | None = None) -> dict[str, float]:
-    """35 features of the finger and of the tool audio in the 1 s slide window (SPEC 6, 7.3)."""
+    """35 features of the finger and of the tool audio in the 1 s slide window (docs/features.md#audio)."""
     values: dict[str, float] = {}
     prepared = prepared or PreparedScan(scan)
     for which, (vibration, sound) in AUDIO_SIGNALS.items():
@@ -116,8 +116,8 @@ AUDIO = REGISTRY.register(Family(
 OTHER = REGISTRY.register(Family("other", "other", other.NAMES, _other, solver_rtol=other.SOLVER_RTOL))
 
 NAMES: tuple[str, ...] = REGISTRY.names
-"""The paper's 193 feature names in SPEC order: 15 TacTUM, 93 image (disp, macro, illu x 31), 70 audio
-(finger, tool x 35), 15 other."""
+"""The paper's 193 feature names in the order of docs/features.md: 15 TacTUM, 93 image (disp, macro, illu x 31), 70
+audio (finger, tool x 35), 15 other."""
 
 SOLVER_RTOL: dict[str, float] = REGISTRY.solver_rtol
 """Relative tolerance of each of these features computed by an iterative fit (the others are closed-form)."""

@@ -1,7 +1,8 @@
-"""Image features, 31 per photo (SPEC section 7.2), computed on the cropped photo (SPEC 6).
+"""Image features, 31 per photo (docs/features.md#image), computed on the cropped photo
+(docs/features.md#preprocessing).
 
 The paper (Strese et al. 2020, section IV-C) lists colour, brightness, edginess, two DFT peak means,
-14 Haralick features, Tamura coarseness and contrast, and 10 rotation-invariant LBP bins; SPEC 7.2 fixes
+14 Haralick features, Tamura coarseness and contrast, and 10 rotation-invariant LBP bins; docs/features.md#image fixes
 every definition. ``compute`` returns the 31 values under ``NAMES``; the caller prefixes them with
 ``image.disp.``, ``image.macro.`` or ``image.illu.``. It works on a :class:`PreparedPhoto`: the crop, its
 gray image, statistics and spectrum, each made once, which ``features.extract`` shares with TacTUM for
@@ -44,7 +45,7 @@ NAMES: tuple[str, ...] = (
     "tamura_coarseness", "tamura_contrast",
     *(f"lbp_{i}" for i in range(LBP_BINS)),
 )
-"""The 31 feature names of one photo, in column order (SPEC 7.2)."""
+"""The 31 feature names of one photo, in column order (docs/features.md#image)."""
 
 GLCM_LEVELS = 32
 GLCM_OFFSETS: tuple[tuple[int, int], ...] = ((0, 1), (-1, 1), (-1, 0), (-1, -1))
@@ -57,7 +58,7 @@ HUE_MIN_VALUE = 51
 CANNY_THRESHOLDS = (100, 200)
 DFT_FRACTIONS = (0.80, 0.85)
 TAMURA_KMAX = kernels.TAMURA_KERNEL_KMAX
-"""Tamura coarseness's largest window, 2^5 px (Tamura et al. 1978; SPEC 7.2): the compiled kernel that
+"""Tamura coarseness's largest window, 2^5 px (Tamura et al. 1978; docs/features.md#image): the compiled kernel that
 ``compute`` runs is written out for exactly this value, so it is defined there."""
 
 MIN_SIDE_PX = 2
@@ -66,8 +67,8 @@ MIN_SIDE_PX = 2
 FEATURE_MIN_SIDE_PX: dict[str, int] = {
     "tamura_coarseness": 2 * 2**TAMURA_KMAX, **{f"lbp_{i}": 3 for i in range(LBP_BINS)},
 }
-"""Features that need a larger cropped image (SPEC 7.2): Tamura coarseness two of its largest windows side by
-side, LBP a pixel with all eight neighbours. Below that they are NaN (:class:`ImageSizeWarning`)."""
+"""Features that need a larger cropped image (docs/features.md#image): Tamura coarseness two of its largest windows
+side by side, LBP a pixel with all eight neighbours. Below that they are NaN (:class:`ImageSizeWarning`)."""
 
 
 class ImageSizeWarning(UserWarning):
@@ -133,7 +134,7 @@ class PreparedPhoto:
     Parameters
     ----------
     rgb : (h, w, 3) uint8 array
-        The full photo, kept as ``source``; ``photo`` is its crop (SPEC 6), a view.
+        The full photo, kept as ``source``; ``photo`` is its crop (docs/features.md#preprocessing), a view.
     keep_gray : bool
         False lets :attr:`spectrum` take over the memory of :attr:`gray` (for a photo whose gray image is
         not needed after its spectrum): fresh memory is slow to fault in, and a 12-megapixel gray image
@@ -142,8 +143,8 @@ class PreparedPhoto:
         Memory for :attr:`gray`, from :meth:`release` of a photo of the same size; ignored if it does not
         fit (C-contiguous float64 of the cropped photo's height and width). Its values are overwritten.
     border : int
-        Pixels cropped from every side: the scanner's photos keep the paper's 100 px (SPEC 6); photos and
-        patches of an imported set are usually taken whole (0).
+        Pixels cropped from every side: the scanner's photos keep the paper's 100 px (docs/features.md#preprocessing);
+        photos and patches of an imported set are usually taken whole (0).
 
     Raises
     ------
@@ -266,12 +267,12 @@ class PreparedPhoto:
 
 def compute(rgb: np.ndarray, *, prepared: PreparedPhoto | None = None,
             border: int = IMAGE_BORDER_PX) -> dict[str, float]:
-    """The 31 image features of one photo (SPEC 7.2) under the names of ``NAMES``.
+    """The 31 image features of one photo (docs/features.md#image) under the names of ``NAMES``.
 
     Parameters
     ----------
     rgb : (h, w, 3) uint8 array
-        The full photo; ``border`` px are cropped from every side first (SPEC 6).
+        The full photo; ``border`` px are cropped from every side first (docs/features.md#preprocessing).
     prepared : PreparedPhoto, optional
         ``PreparedPhoto(rgb, border=border)`` when the caller shares it with other features; the values
         are the same. Its own border is used.
@@ -327,7 +328,7 @@ def _too_small(photo: PreparedPhoto) -> list[str]:
 
 
 def color(rgb: np.ndarray) -> float:
-    """Dominant hue in degrees, the centre of the fullest 10-degree hue bin (paper: I_col; SPEC 7.2).
+    """Dominant hue in degrees, the centre of the fullest 10-degree hue bin (paper: I_col; docs/features.md#image).
 
     ``cv2.cvtColor(rgb, COLOR_RGB2HSV)`` gives the hue in 2-degree steps (0..179, so 0..358 degrees);
     over the pixels with ``S / 255 >= 0.2`` and ``V / 255 >= 0.2`` a 36-bin histogram with bins
@@ -357,7 +358,7 @@ def color(rgb: np.ndarray) -> float:
 
 
 def brightness(gray: np.ndarray) -> float:
-    """Mean gray value / 255 (paper: I_br; SPEC 7.2), in [0, 1] for a gray image in 0..255."""
+    """Mean gray value / 255 (paper: I_br; docs/features.md#image), in [0, 1] for a gray image in 0..255."""
     return _mean(_check_gray(gray)) / 255.0
 
 
@@ -368,12 +369,12 @@ def _mean(image: np.ndarray) -> float:
 
 
 def edginess(gray_u8: np.ndarray) -> float:
-    """Fraction of pixels marked by ``cv2.Canny(gray_u8, 100, 200)`` (paper: I_edg; SPEC 7.2).
+    """Fraction of pixels marked by ``cv2.Canny(gray_u8, 100, 200)`` (paper: I_edg; docs/features.md#image).
 
     Parameters
     ----------
     gray_u8 : (h, w) uint8 array
-        The 8-bit gray image of SPEC 6 (``scanner.preprocess.gray_uint8``).
+        The 8-bit gray image of docs/features.md#preprocessing (``scanner.preprocess.gray_uint8``).
     """
     image = np.asarray(gray_u8)
     if image.dtype != np.uint8 or image.ndim != 2 or image.size == 0:
@@ -505,7 +506,8 @@ def _hermitian_columns(rows: np.ndarray, m: int, n: int) -> np.ndarray:
 
 
 def dft_peak_means(gray: np.ndarray, fractions: Sequence[float] = DFT_FRACTIONS) -> tuple[float, ...]:
-    """Mean of the strongest real DFT coefficients (paper: I_dft1, I_dft2; SPEC 7.2 ``dft_80``, ``dft_85``).
+    """Mean of the strongest real DFT coefficients (paper: I_dft1, I_dft2; docs/features.md#image ``dft_80``,
+    ``dft_85``).
 
     With ``X = Re(fft2(I - mean(I))) / sqrt(M N)``, for each fraction f the mean of the values
     ``X >= f * max(X)``. Only the half spectrum is computed (:class:`RealSpectrum`); the other half's real
@@ -539,7 +541,7 @@ def _dft_peak_means(spectrum: RealSpectrum, fractions: Sequence[float]) -> tuple
 
 
 def quantize(gray: np.ndarray, levels: int = GLCM_LEVELS) -> np.ndarray:
-    """Gray levels for the GLCM: ``q = min(floor(gray * levels / 256), levels - 1)`` as uint8 (SPEC 7.2).
+    """Gray levels for the GLCM: ``q = min(floor(gray * levels / 256), levels - 1)`` as uint8 (docs/features.md#image).
 
     0-based (0 .. levels-1); Haralick's formulas use ``q + 1``. Values below 0 map to 0.
     """
@@ -570,7 +572,7 @@ def _pair_views(q: np.ndarray, offset: tuple[int, int]) -> tuple[np.ndarray, np.
 
 
 def glcm(q: np.ndarray, offset: tuple[int, int] = (0, 1), levels: int = GLCM_LEVELS) -> np.ndarray:
-    """Symmetric, normalised gray-level co-occurrence matrix (Haralick et al. 1973, eq. 1; SPEC 7.2).
+    """Symmetric, normalised gray-level co-occurrence matrix (Haralick et al. 1973, eq. 1; docs/features.md#image).
 
     ``P[i, j]`` is the share of pixel pairs (reference, neighbour at ``offset`` = (rows, columns)) with
     levels (i, j) or (j, i): the pairs are counted in both orders and the counts divided by their sum.
@@ -674,7 +676,7 @@ def _maximal_correlations(p: np.ndarray, px: np.ndarray, py: np.ndarray) -> np.n
 
 
 def haralick_from_glcm(p: np.ndarray) -> np.ndarray:
-    """Haralick et al. 1973's 14 texture features f1..f14 of one normalised GLCM (SPEC 7.2).
+    """Haralick et al. 1973's 14 texture features f1..f14 of one normalised GLCM (docs/features.md#image).
 
     Gray levels are 1-based (i, j = 1 .. Ng), logarithms natural, ``p_x``/``p_y`` the marginals,
     ``p_{x+y}(k)`` (k = 2 .. 2 Ng) and ``p_{x-y}(k)`` (k = 0 .. Ng-1) the sum and |difference|
@@ -755,7 +757,7 @@ def _haralick_features(p: np.ndarray) -> np.ndarray:
 
 
 def haralick(gray: np.ndarray) -> np.ndarray:
-    """The 14 Haralick features of a gray image, averaged over 0, 45, 90 and 135 degrees (SPEC 7.2).
+    """The 14 Haralick features of a gray image, averaged over 0, 45, 90 and 135 degrees (docs/features.md#image).
 
     32 levels (``quantize``), distance 1, symmetric normalised GLCMs (``glcm``), each feature computed
     per direction (``haralick_from_glcm``) and then averaged. f3 and f12 are NaN for a constant image.
@@ -778,7 +780,7 @@ def _haralick_from_counts(directions: list[np.ndarray]) -> np.ndarray:
 
 
 def tamura_coarseness(gray: np.ndarray, kmax: int = TAMURA_KMAX) -> float:
-    """Tamura coarseness F_crs (Tamura et al. 1978, eqs. 1-4; SPEC 7.2), mean best window size in px.
+    """Tamura coarseness F_crs (Tamura et al. 1978, eqs. 1-4; docs/features.md#image), mean best window size in px.
 
     For k = 1..kmax, with ``A_k`` the mean over a 2^k x 2^k window: at pixel (r, c) the horizontal
     difference compares the windows on columns [c-2^k, c-1] and [c, c+2^k-1] (rows
@@ -878,7 +880,7 @@ def _tamura_coarseness(image: np.ndarray, kmax: int, tolerance: float) -> float:
 def tamura_contrast(gray: np.ndarray) -> float:
     """Tamura contrast ``sigma / kurt^(1/4)`` with ``kurt = mu4 / sigma^4`` (Tamura et al. 1978, eq. 5).
 
-    Population moments over all pixels; 0 for a constant image (SPEC 7.2), tested as min == max because
+    Population moments over all pixels; 0 for a constant image (docs/features.md#image), tested as min == max because
     ``x - mean(x)`` of a constant need not be exactly 0.
     """
     values = np.asarray(gray, dtype=np.float64)
@@ -933,7 +935,8 @@ def _interpolation_weights(n: int, offset: float) -> tuple[np.ndarray, np.ndarra
 
 
 def lbp_histogram(gray: np.ndarray) -> np.ndarray:
-    """Normalised histogram of rotation-invariant uniform LBP codes, P = 8, R = 1 (SPEC 7.2, ``lbp_0..9``).
+    """Normalised histogram of rotation-invariant uniform LBP codes, P = 8, R = 1 (docs/features.md#image,
+    ``lbp_0..9``).
 
     The codes are those of ``skimage.feature.local_binary_pattern(gray, 8, 1, method="uniform")``,
     reproduced bit for bit in one pass (:func:`features.kernels.lbp_code_counts`): neighbours on the axes

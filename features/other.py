@@ -1,9 +1,11 @@
-"""The 15 "other" features: density, metal, magnetism, IR reflectance, cooling, vibration and tap (SPEC 7.4).
+"""The 15 "other" features: density, metal, magnetism, IR reflectance, cooling, vibration and tap
+(docs/features.md#other).
 
 The paper's Table III of these features is an image that did not survive, so this set is the project's own
-(SPEC 7.4). Each feature (or family) is a pure function of arrays; :func:`compute` gathers the inputs of
-one :class:`scanner.Scan`, preprocessed as in SPEC 6, and returns the 15 values in :data:`NAMES` order.
-A value that is undefined (0/0, a missing channel or meta value, a failed fit, a stored slide that fails
+(docs/features.md#other). Each feature (or family) is a pure function of arrays; :func:`compute` gathers the inputs of
+one :class:`scanner.Scan`, preprocessed as in docs/features.md#preprocessing, and returns the 15 values in
+:data:`NAMES` order. A value that is undefined (0/0, a missing channel or meta value, a failed fit, a stored slide that
+fails
 its quality check) is NaN, never 0 or inf.
 
 Notation: ``v`` is the tool-slide signal (``v_ts`` band-limited, 1 s window, DFT321), ``v_f`` the same for
@@ -31,7 +33,7 @@ NAMES = (
     "other.finger_vib_energy", "other.finger_vib_centroid", "other.tap_peak", "other.tap_centroid",
     "other.tap_decay",
 )
-"""The other feature names, in feature-space order (SPEC 7.4)."""
+"""The other feature names, in feature-space order (docs/features.md#other)."""
 
 VIBRATION_FS = 3000.0
 """Sample rate of the accelerometer and IR channels, Hz."""
@@ -40,13 +42,13 @@ T_COOL_FS = 20.0
 """Sample rate of the MLX90614 object temperature ``t_cool``, Hz."""
 
 TAP_SAMPLES = 150
-"""Samples of the tap response analysed from the tap peak on: 50 ms at 3000 Hz (SPEC 7.4)."""
+"""Samples of the tap response analysed from the tap peak on: 50 ms at 3000 Hz (docs/features.md#other)."""
 
 TAP_MIN_SAMPLES = 30
-"""Fewer tap-response samples than this (10 ms) leave the tap centroid and decay undefined (SPEC 7.4)."""
+"""Fewer tap-response samples than this (10 ms) leave the tap centroid and decay undefined (docs/features.md#other)."""
 
 TAP_TAU0 = 0.01
-"""Starting guess of the tap decay time constant, s (SPEC 7.4)."""
+"""Starting guess of the tap decay time constant, s (docs/features.md#other)."""
 TAP_FIT_TOL = 1.49012e-08
 """``xtol`` and ``ftol`` of the tap-decay fit: ``curve_fit``'s (MINPACK ``lmdif``) defaults, sqrt(eps)."""
 COOLING_FIT_TOL = 1e-14
@@ -87,7 +89,7 @@ def _axes(a: np.ndarray, name: str) -> np.ndarray:
 # --- density, metal, magnetism ------------------------------------------------------------------------
 
 def density(mass_g: float, volume_cm3: float) -> float:
-    """Density ``mass / volume`` in g/cm^3 (SPEC 7.4); NaN if either was not measured (NaN).
+    """Density ``mass / volume`` in g/cm^3 (docs/features.md#other); NaN if either was not measured (NaN).
 
     Examples
     --------
@@ -102,7 +104,7 @@ def density(mass_g: float, volume_cm3: float) -> float:
 
 
 def metal(m: np.ndarray) -> float:
-    """1 if the sample conducts, ``mean(m) > 0``, else 0 (SPEC 7.4); ``m`` is the electrode in {-1, +1}.
+    """1 if the sample conducts, ``mean(m) > 0``, else 0 (docs/features.md#other); ``m`` is the electrode in {-1, +1}.
 
     A tie (as many +1 as -1 samples) is not conductive: the electrodes did not close for most of the time.
     """
@@ -110,12 +112,13 @@ def metal(m: np.ndarray) -> float:
 
 
 def magnet_mean(dB: np.ndarray) -> float:
-    """Mean change of the magnetic field magnitude against the calibration, ``mean(dB)`` in uT (SPEC 7.4)."""
+    """Mean change of the magnetic field magnitude against the calibration, ``mean(dB)`` in uT
+    (docs/features.md#other)."""
     return float(np.mean(_samples(dB, "dB")))
 
 
 def magnet_peak(dB: np.ndarray) -> float:
-    """The ``dB`` sample of largest magnitude, with its sign, in uT (SPEC 7.4); the first one on ties.
+    """The ``dB`` sample of largest magnitude, with its sign, in uT (docs/features.md#other); the first one on ties.
 
     A ferromagnetic sample pulls the field strongly in either direction depending on the pole facing the
     sensor, so the sign is kept and the magnitude decides.
@@ -132,7 +135,7 @@ def magnet_peak(dB: np.ndarray) -> float:
 # --- IR reflectance -----------------------------------------------------------------------------------
 
 def reflect_static(r_ts: np.ndarray, start: int) -> float:
-    """Mean IR reflectance of the tool slide while the unit rests, ``mean(r_ts[:start])`` in V (SPEC 7.4).
+    """Mean IR reflectance of the tool slide while the unit rests, ``mean(r_ts[:start])`` in V (docs/features.md#other).
 
     ``start`` is the slide start of ``v_ts`` (:func:`scanner.preprocess.slide_start`); NaN if it is 0
     (no resting samples).
@@ -144,14 +147,14 @@ def reflect_static(r_ts: np.ndarray, start: int) -> float:
 
 
 def reflect_mean(r_window: np.ndarray) -> float:
-    """Mean IR reflectance in the 1 s slide window of the tool slide, in V (SPEC 7.4)."""
+    """Mean IR reflectance in the 1 s slide window of the tool slide, in V (docs/features.md#other)."""
     return float(np.mean(_samples(r_window, "r_window")))
 
 
 # --- cooling ------------------------------------------------------------------------------------------
 
 def cooling_rate(t_cool: np.ndarray, t_amb: float, fs: float = T_COOL_FS) -> float:
-    """Rate r (1/s) of the least-squares fit ``T(t) = t_amb + (T_max - t_amb) exp(-r t)`` (SPEC 7.4).
+    """Rate r (1/s) of the least-squares fit ``T(t) = t_amb + (T_max - t_amb) exp(-r t)`` (docs/features.md#other).
 
     Fitted from the maximum of ``t_cool`` on (the first maximum on ties), with T_max the measured maximum,
     t = 0 at it, only r free and residuals in degC (``scipy.optimize.least_squares``, Levenberg-Marquardt,
@@ -207,12 +210,12 @@ def _log_linear_rate(above: np.ndarray, excess: float, t: np.ndarray) -> float:
 # --- slide vibration ----------------------------------------------------------------------------------
 
 def vib_std(v: np.ndarray) -> float:
-    """Standard deviation (population) of the slide signal, ``std(v)`` in g (SPEC 7.4)."""
+    """Standard deviation (population) of the slide signal, ``std(v)`` in g (docs/features.md#other)."""
     return float(np.std(_samples(v, "v")))
 
 
 def vib_kurtosis(v: np.ndarray) -> float:
-    """Pearson kurtosis (not excess) of the slide signal, ``mu4 / sigma^4`` (SPEC 7.4).
+    """Pearson kurtosis (not excess) of the slide signal, ``mu4 / sigma^4`` (docs/features.md#other).
 
     3 for Gaussian noise, 1.5 for a sine; NaN for a constant signal (0/0).
 
@@ -228,12 +231,13 @@ def vib_kurtosis(v: np.ndarray) -> float:
 
 
 def vib_energy(v: np.ndarray) -> float:
-    """Mean power of a slide signal, ``mean(v^2)`` in g^2 (SPEC 7.4): vib_energy and finger_vib_energy."""
+    """Mean power of a slide signal, ``mean(v^2)`` in g^2 (docs/features.md#other): vib_energy and finger_vib_energy."""
     return float(np.mean(_samples(v, "v") ** 2))
 
 
 def vib_centroid(v: np.ndarray, fs: float = VIBRATION_FS) -> float:
-    """Spectral centroid of a slide signal in Hz, as ``tactum.mico`` (SPEC 7.1 item 5).
+    """Spectral centroid of a slide signal in Hz, as ``tactum.mico`` (Strese et al. 2020, eq. 15;
+    docs/features.md#mico).
 
     ``finger_vib_centroid`` is that of ``v_f``. NaN for an all-zero signal.
     """
@@ -257,7 +261,7 @@ def _energy_of_axes(array: np.ndarray) -> np.ndarray:
 
 
 def tap_peak(a: np.ndarray) -> float:
-    """Tap peak ``sqrt(energy[p])`` in g, p = argmax of :func:`tap_energy` (SPEC 7.4)."""
+    """Tap peak ``sqrt(energy[p])`` in g, p = argmax of :func:`tap_energy` (docs/features.md#other)."""
     return float(np.sqrt(np.max(tap_energy(a))))
 
 
@@ -266,7 +270,7 @@ def tap_response(a: np.ndarray, length: int = TAP_SAMPLES,
     """DFT321 of the ``length`` samples from the tap peak p on (fewer if the recording ends sooner).
 
     ``a`` is the band-limited tool tap (n, 3); p = argmax of :func:`tap_energy`, the first on ties.
-    None if fewer than ``min_length`` samples remain from p on (SPEC 7.4).
+    None if fewer than ``min_length`` samples remain from p on (docs/features.md#other).
     """
     array = _axes(a, "v_tt")
     return _tap_response(array, _energy_of_axes(array), length, min_length)
@@ -280,7 +284,7 @@ def _tap_response(array: np.ndarray, energy: np.ndarray, length: int = TAP_SAMPL
 
 
 def tap_centroid(y: np.ndarray, fs: float = VIBRATION_FS) -> float:
-    """Spectral centroid of the tap response y in Hz (SPEC 7.4, the centroid of SPEC 7.1 item 5)."""
+    """Spectral centroid of the tap response y in Hz (Strese et al. 2020, eq. 15; docs/features.md#other)."""
     return spectral_centroid(_samples(y, "y"), fs)
 
 
@@ -293,7 +297,7 @@ def tap_decay(y: np.ndarray, fs: float = VIBRATION_FS) -> float:
 
     ``scipy.optimize.curve_fit`` (Levenberg-Marquardt with its default tolerances, :data:`TAP_FIT_TOL`;
     reproducible to :data:`SOLVER_RTOL`) with p0 = (max envelope, 0.01 s), t = 0 at the first sample of y
-    (SPEC 7.4). NaN if the envelope is all zero, if the fit raises, or if tau is non-finite or not
+    (docs/features.md#other). NaN if the envelope is all zero, if the fit raises, or if tau is non-finite or not
     positive.
     """
     envelope = np.abs(signal.hilbert(_samples(y, "y")))
@@ -302,7 +306,7 @@ def tap_decay(y: np.ndarray, fs: float = VIBRATION_FS) -> float:
     t = np.arange(envelope.size) / fs
     try:
         with warnings.catch_warnings(), np.errstate(all="ignore"):
-            # An undetermined covariance says nothing about tau itself; SPEC 7.4 rejects only bad taus.
+            # An undetermined covariance says nothing about tau itself; docs/features.md#other rejects only bad taus.
             warnings.simplefilter("ignore", optimize.OptimizeWarning)
             (_, tau), _ = optimize.curve_fit(_decay, t, envelope, p0=(float(envelope.max()), TAP_TAU0),
                                               xtol=TAP_FIT_TOL, ftol=TAP_FIT_TOL)
@@ -313,7 +317,7 @@ def tap_decay(y: np.ndarray, fs: float = VIBRATION_FS) -> float:
 
 
 def tap_features(a: np.ndarray, fs: float = VIBRATION_FS) -> tuple[float, float, float]:
-    """``(tap_peak, tap_centroid, tap_decay)`` of the band-limited tool tap ``a`` (n, 3) (SPEC 7.4).
+    """``(tap_peak, tap_centroid, tap_decay)`` of the band-limited tool tap ``a`` (n, 3) (docs/features.md#other).
 
     Centroid and decay are NaN if fewer than 30 samples follow the tap peak (see :func:`tap_response`).
     """
@@ -363,8 +367,9 @@ def _magnet(prepared: PreparedScan) -> tuple[float, ...]:
 
 
 def _reflectance(prepared: PreparedScan) -> tuple[float, ...]:
-    """``reflect_static`` from the IR samples before the slide start, even if the slide window fails (SPEC
-    7.4; an IR record ending before the start gives the mean of all its samples), and ``reflect_mean``."""
+    """``reflect_static`` from the IR samples before the slide start, even if the slide window fails
+    (docs/features.md#other; an IR record ending before the start gives the mean of all its samples), and
+    ``reflect_mean``."""
     scan = prepared.scan
     _trace(scan, "v_ts")
     r_ts = _trace(scan, "r_ts")
@@ -433,10 +438,10 @@ _GROUPS: tuple[tuple[tuple[str, ...], Callable[[PreparedScan], tuple[float, ...]
 
 
 def compute(scan: Scan, *, prepared: PreparedScan | None = None) -> dict[str, float]:
-    """The 15 other features of a scan, in :data:`NAMES` order (SPEC 7.4).
+    """The 15 other features of a scan, in :data:`NAMES` order (docs/features.md#other).
 
-    Inputs are preprocessed as in SPEC 6: ``v`` and ``v_f`` (band limit, slide window, DFT321), the IR
-    of ``r_ts`` at the slide start and in the slide window of ``v_ts``, the band-limited ``v_tt``. The
+    Inputs are preprocessed as in docs/features.md#preprocessing: ``v`` and ``v_f`` (band limit, slide window, DFT321),
+    the IR of ``r_ts`` at the slide start and in the slide window of ``v_ts``, the band-limited ``v_tt``. The
     features of a group whose input is missing (a channel, ``meta.mass_g``, ``meta.volume_cm3`` or
     ``meta.t_amb``) or fails its slide check are NaN, with one :class:`MissingDataWarning` naming the
     input and the features it made NaN.

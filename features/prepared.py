@@ -45,7 +45,8 @@ def prepared_disp(scan: Scan) -> image.PreparedPhoto | None:
 class PreparedScan:
     """A scan and the intermediates its feature families share, each computed on first use: the slide start
     and window of a slide channel, its band-limited vibration and its slide signal (band limit, window,
-    DFT321; SPEC 6), and the prepared ``I_disp``. Values equal those computed alone, bit for bit."""
+    DFT321; docs/features.md#preprocessing), and the prepared ``I_disp``. Values equal those computed alone, bit for
+    bit."""
 
     def __init__(self, scan: Scan) -> None:
         self.scan = scan

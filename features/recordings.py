@@ -1,4 +1,4 @@
-"""The project's own feature families on any recording, by channel role (SPEC 3 "Generic recordings").
+"""The project's own feature families on any recording, by channel role (docs/ingest.md).
 
 A lab's recordings (a folder of tool-slide sounds, texture photos, accelerometer or force-sensor CSVs,
 imported with ``texplorer ingest``) get the same features as the scanner's, wherever the role they need
@@ -8,20 +8,20 @@ exists. Column names are ``<family>.<role>.<feature>``, so the family prefix is 
 =================  =====================  =================================================================
 family             role                   features
 =================  =====================  =================================================================
-``audio``          ``audio``              the 35 audio features of SPEC 7.3 (``features.audio``), on any
+``audio``          ``audio``              the 35 audio features of docs/features.md#audio (``features.audio``), on any
                                           rate whose 50 ms frame holds at least 20 samples (>= 400 Hz)
 ``audio``          ``vibration``          the same 35, where the vibration is sampled at >= 1 kHz
                                           (:data:`VIBRATION_AUDIO_MIN_FS`)
-``image``          ``photo``              the 31 image features of SPEC 7.2 (``features.image``); the
+``image``          ``photo``              the 31 image features of docs/features.md#image (``features.image``); the
                                           border crop is a parameter (0 for imported photos and patches)
-``tactum``/        ``vibration``          the vibration-based features of SPEC 7.1 and 7.4 on ``v``:
+``tactum``/        ``vibration``          the vibration-based features (docs/features.md) on ``v``:
 ``other``                                 ``tactum.vibration.miro``, ``.mico``, ``other.vibration.vib_std``,
                                           ``.vib_kurtosis``, ``.vib_energy``
 ``tactum``         ``force_xyz``          TacTUM's friction features FST and FRS (eqs. 16, 17) with the
                                           normal force z and the tangential force ``|(x, y)|``
 =================  =====================  =================================================================
 
-``v`` of a recording is its vibration as SPEC 6 makes the scanner's: each axis band-limited (4th-order
+``v`` of a recording is its vibration as the preprocessing makes the scanner's: each axis band-limited (4th-order
 Butterworth, zero phase) over the whole recording, then cut to the window, then the axes combined by
 DFT321. The band is 10-1000 Hz as in the paper where the rate allows (fs > 2222 Hz); below, its upper
 edge is lowered to 0.45 fs, so a 1 kHz accelerometer keeps 10-450 Hz.
@@ -116,7 +116,7 @@ class Windowing:
 # -- one signal --------------------------------------------------------------------------------------
 
 def audio_features(x: np.ndarray, fs: float) -> dict[str, float]:
-    """The 35 audio features of a whole signal (SPEC 7.3): each the mean over all its 50 ms frames.
+    """The 35 audio features of a whole signal (docs/features.md#audio): each the mean over all its 50 ms frames.
 
     Equal to ``features.audio.compute(x, fs)``; the frames are computed :data:`AUDIO_CHUNK_FRAMES` at a
     time, each chunk starting one frame early so the spectral flux sees its true previous frame, so a long
@@ -138,7 +138,8 @@ def audio_features(x: np.ndarray, fs: float) -> dict[str, float]:
 
 
 def vibration_band(fs: float) -> tuple[float, float]:
-    """The band of ``v``: SPEC 6's 10-1000 Hz, the upper edge lowered to 0.45 fs where fs cannot carry it."""
+    """The band of ``v``: the 10-1000 Hz of docs/features.md#preprocessing, the upper edge lowered to 0.45 fs where fs
+    cannot carry it."""
     return BAND_HZ[0], min(BAND_HZ[1], 0.45 * fs)
 
 
@@ -148,7 +149,8 @@ def _band_filter(fs: float) -> np.ndarray:
 
 
 def band_limited(v: np.ndarray, fs: float) -> np.ndarray:
-    """Each axis of a vibration band-limited over the whole recording (:func:`vibration_band`, SPEC 6).
+    """Each axis of a vibration band-limited over the whole recording (:func:`vibration_band`,
+    docs/features.md#preprocessing).
 
     Raises
     ------
@@ -168,7 +170,7 @@ def band_limited(v: np.ndarray, fs: float) -> np.ndarray:
 
 
 def vibration_features(v: np.ndarray, fs: float) -> dict[str, float]:
-    """MiRO, MiCo (paper eqs. 13-15), std, Pearson kurtosis and mean power (SPEC 7.4) of a slide signal
+    """MiRO, MiCo (paper eqs. 13-15), std, Pearson kurtosis and mean power (docs/features.md#other) of a slide signal
     ``v`` (band-limited, windowed, axes combined)."""
     return dict(zip(VIBRATION_NAMES, (tactum.miro(v), tactum.mico(v, fs), other.vib_std(v),
                                       other.vib_kurtosis(v), other.vib_energy(v)), strict=True))

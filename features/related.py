@@ -1,6 +1,6 @@
-"""Feature sets of the related work (SPEC 7.5), one per seed method, on scans or generic recordings.
+"""Feature sets of the related work (docs/features.md#related), one per seed method, on scans or generic recordings.
 
-Every set reads its inputs by channel **role** (SPEC 3: ``vibration``, ``pressure_dc``, ``temperature``,
+Every set reads its inputs by channel **role** (docs/database.md: ``vibration``, ``pressure_dc``, ``temperature``,
 ``heat_flow``, ``electrodes`` (n, k), ``taxels`` (n, h, w), ``force_xyz`` (n, 3), ``audio``), so the same
 code runs on a BioTac recording, a pressure-array slide, a soft 3-axis sensor or a scan converted by
 :func:`scan_recording`. A recording without a role a set needs raises :class:`MissingRoleError`, whose
@@ -74,7 +74,7 @@ def _signal(x: np.ndarray, name: str, min_samples: int = 1) -> np.ndarray:
 
 
 def one_axis(x: np.ndarray) -> np.ndarray:
-    """A vibration as one signal: 1-D as it is, several axes combined by DFT321 (SPEC 6)."""
+    """A vibration as one signal: 1-D as it is, several axes combined by DFT321 (docs/features.md#preprocessing)."""
     values = np.asarray(x, dtype=np.float64)
     return values if values.ndim == 1 else dft321(values)
 
@@ -97,7 +97,7 @@ def fishel3(scan: Scan) -> dict[str, float]:
     """Traction, roughness and fineness of a scan, as the paper adapts Fishel and Loeb's features (Fig. 18).
 
     ``traction = tactum.frs`` (sliding resistance, eq. 17), ``roughness = log10(mean(v^2))`` of the slide
-    signal ``v`` (``v_ts`` band-passed 10-1000 Hz, 1 s window, DFT321; SPEC 6) and ``fineness =
+    signal ``v`` (``v_ts`` band-passed 10-1000 Hz, 1 s window, DFT321; docs/features.md#preprocessing) and ``fineness =
     tactum.mico`` (its spectral centroid, eq. 15). A stored slide whose check fails gives NaN roughness
     and fineness, as for the TacTUM features.
 
@@ -131,7 +131,7 @@ XIE_WAVELET = "db3"
 XIE_LEVEL = 4
 XIE_NAMES = ("mean_sa", "mean_sv", "mean_ss", "l1_ca4", "l1_cd4", "l1_cd3", "l1_cd2", "l1_cd1",
              "abs_energy", "cid", "std_ss")
-"""The 11 features of Xie et al., Table 3, in SPEC 7.5 order."""
+"""The 11 features of Xie et al., Table 3, in docs/features.md#related order."""
 
 
 def xie_sequences(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -364,7 +364,8 @@ def _bandpass(fs: float, low: float, high: float) -> np.ndarray:
 
 
 def band_pass(x: np.ndarray, fs: float, low: float, high: float) -> np.ndarray:
-    """Zero-phase 4th-order Butterworth band-pass (``sosfiltfilt``), the filter type of SPEC 6."""
+    """Zero-phase 4th-order Butterworth band-pass (``sosfiltfilt``), the filter type of the preprocessing
+    (docs/features.md)."""
     values = _signal(x, "vibration", 2)
     if fs <= 2 * high:
         raise RelatedFeatureError(f"a {high:g} Hz band edge needs a sample rate above {2 * high:g} Hz, "
@@ -722,7 +723,8 @@ object temperature."""
 
 
 def slide_vibration(v_ts: Trace) -> Trace:
-    """The tool-slide signal ``v`` of SPEC 6 (``v_ts`` band-limited 10-1000 Hz, 1 s window, DFT321).
+    """The tool-slide signal ``v`` (docs/features.md#preprocessing: ``v_ts`` band-limited 10-1000 Hz, 1 s window,
+    DFT321).
 
     When the slide check fails, the band-limited DFT321 of the whole recording, so the scan still has a
     vibration (the other roles' methods would otherwise lose the whole database over one bad slide).

@@ -1,4 +1,4 @@
-"""Feature quality (FQ) and the FQ + Spearman selector (SPEC section 8; Strese et al. 2020, section V-A).
+"""Feature quality (FQ) and the FQ + Spearman selector (docs/evaluation.md; Strese et al. 2020, section V-A).
 
 Feature quality, eq. (31): ``FQ = 100 % * (1 - mean p)``, where p are the p-values of all pairwise
 comparisons of the classes' mean Kruskal-Wallis ranks, as MATLAB's ``multcompare`` computes them from

@@ -1,4 +1,4 @@
-"""The feature space X0 (SPEC section 8): rows = scans, named feature columns, label and group columns.
+"""The feature space X0 (docs/evaluation.md): rows = scans, named feature columns, label and group columns.
 
 Rows may also be the recordings of an imported set, labelled with the set's own class names
 (``label_level`` names their level, e.g. ``material``), with coarser ``levels`` where the set defines them

@@ -1,9 +1,9 @@
-"""The 15 TacTUM features (Strese et al. 2020, section IV-A; SPEC 7.1).
+"""The 15 TacTUM features (Strese et al. 2020, section IV-A; docs/features.md#tactum).
 
 Each feature is a pure function of arrays, named as in the paper; :func:`compute` gathers the inputs of one
-:class:`scanner.Scan` (preprocessed as in SPEC 6) and returns the 15 values in :data:`NAMES` order.
-A value that is undefined (0/0, x/0, a missing channel, a stored slide that fails its quality check) is
-NaN, never 0 or inf, except where SPEC 7.1 says 0 (the compliance features of a rigid sample).
+:class:`scanner.Scan` (preprocessed as in docs/features.md#preprocessing) and returns the 15 values in :data:`NAMES`
+order. A value that is undefined (0/0, x/0, a missing channel, a stored slide that fails its quality check) is
+NaN, never 0 or inf, except where docs/features.md#tactum says 0 (the compliance features of a rigid sample).
 
 Notation: ``v`` is the tool-slide signal (``v_ts`` band-limited, 1 s window, DFT321), ``va = |v|``,
 ``mean`` and ``std`` are population statistics, ``MA100`` is MATLAB's ``movmean(x, 100)``.
@@ -36,7 +36,7 @@ NAMES = (
     "tactum.fst", "tactum.frs", "tactum.atk", "tactum.ccp", "tactum.cdf",
     "tactum.cdp", "tactum.crx", "tactum.cyd", "tactum.tco", "tactum.tpr",
 )
-"""The TacTUM feature names, in feature-space order (SPEC 7.1)."""
+"""The TacTUM feature names, in feature-space order (docs/features.md#tactum)."""
 
 MATX_WEIGHTS = (3.0, 2.0, 4.0)
 """Weights of VS, FV and RV in MaTX (paper eq. 7, from the paper's feature optimisation)."""
@@ -45,7 +45,7 @@ MOVING_MEAN = 100
 """Window of the moving mean in MaTX (paper eq. 2, 5, 6)."""
 
 DOH_SCALES = 1.2 * 2.0 ** (np.arange(16) / 4.0)
-"""Scale ladder of the determinant-of-Hessian detector in MaCo: 1.2 * 2^(k/4), k = 0..15 (SPEC 7.1)."""
+"""Scale ladder of the determinant-of-Hessian detector in MaCo: 1.2 * 2^(k/4), k = 0..15 (docs/features.md#tactum)."""
 
 TOP_SCALES = 10
 """Number of largest corner scales averaged in MaCo (paper eq. 8, n = 10)."""
@@ -75,7 +75,7 @@ RIGID_STD_DEG = 1.0
 """A sample is rigid if the flex angle while folding varies by less than this (paper section IV-A4)."""
 
 PEAK_SECONDS = 5.0
-"""TPR looks for the heating peak in the first 5 s of ``t_cool`` (SPEC 7.1, item 15)."""
+"""TPR looks for the heating peak in the first 5 s of ``t_cool`` (docs/features.md#tactum, item 15)."""
 
 
 class MissingDataWarning(UserWarning):
@@ -124,7 +124,7 @@ def vs(va: np.ndarray) -> float:
     """Vibrotactile spikiness, paper eq. 2-4: ``log10(1 + mean(va_D))``.
 
     ``va_th = std(va) + mean(va) + MA100(va)`` (eq. 2), ``va_D = va * (va > va_th)`` (eq. 3).
-    Interpretation (SPEC 7.1): the bar over ``va_D`` in eq. 4 that did not survive is a mean.
+    Interpretation (docs/features.md#tactum): the bar over ``va_D`` in eq. 4 that did not survive is a mean.
 
     Parameters
     ----------
@@ -157,7 +157,7 @@ def matx(v: np.ndarray, f_frt: np.ndarray, r_window: np.ndarray) -> float:
 # --- 2. MaCo -------------------------------------------------------------------------------------------
 
 HARRIS = {"maxCorners": 100, "qualityLevel": 0.01, "minDistance": 10, "blockSize": 3, "k": 0.04}
-"""``cv2.goodFeaturesToTrack`` parameters of MaCo's Harris corners (SPEC 7.1)."""
+"""``cv2.goodFeaturesToTrack`` parameters of MaCo's Harris corners (docs/features.md#tactum)."""
 
 _HARRIS_APERTURE = 3
 """Sobel aperture ``goodFeaturesToTrack`` gives ``cornerHarris`` (its ``gradientSize`` default)."""
@@ -167,7 +167,7 @@ def harris_corners(gray: np.ndarray) -> np.ndarray:
     """Up to 100 Harris corners of a gray image as integer (row, column) pixels (paper section IV-A1b).
 
     ``cv2.goodFeaturesToTrack(gray.astype(float32), maxCorners=100, qualityLevel=0.01, minDistance=10,
-    blockSize=3, useHarrisDetector=True, k=0.04)``, rounded to the nearest pixel (SPEC 7.1); the corners
+    blockSize=3, useHarrisDetector=True, k=0.04)``, rounded to the nearest pixel (docs/features.md#tactum); the corners
     are the same, in the same order, from :func:`_harris_corners`.
     """
     return _harris_corners(np.asarray(gray, dtype=np.float32))
@@ -538,7 +538,7 @@ def corner_scales(gray: np.ndarray, corners: np.ndarray) -> np.ndarray:
     """Scale of each corner: the sigma of :data:`DOH_SCALES` maximising ``|sigma^4 (Lxx Lyy - Lxy^2)|``.
 
     The determinant-of-Hessian detector that SURF approximates (paper eq. 8, ``detectSURFFeatures``;
-    SPEC 7.1); the first maximum on ties.
+    docs/features.md#tactum); the first maximum on ties.
     """
     responses = _scale_responses(gray, corners, tuple(DOH_SCALES.tolist()))
     return DOH_SCALES[np.argmax(np.abs(responses), axis=1)]
@@ -558,8 +558,8 @@ def top_scales_mean(scales: np.ndarray, n: int = TOP_SCALES) -> float:
 def maco(v: np.ndarray, gray: np.ndarray, *, contrast: float | None = None) -> float:
     """Macrotexture coarseness, paper eq. 8: ``mean(va) * C(I_disp) * mean(top-10 corner scales)``.
 
-    ``C`` is the Tamura contrast of the gray photo (SPEC 7.2); pass it as ``contrast`` when it is already
-    known. The photo is the cropped ``I_disp`` (SPEC 6: image features use the cropped photo).
+    ``C`` is the Tamura contrast of the gray photo (docs/features.md#image); pass it as ``contrast`` when it is already
+    known. The photo is the cropped ``I_disp`` (docs/features.md#preprocessing: image features use the cropped photo).
     """
     if contrast is None:
         contrast = tamura_contrast(gray)
@@ -573,13 +573,13 @@ def _maco(v: np.ndarray, contrast: float, scales: np.ndarray) -> float:
 # --- 3. MaRG -------------------------------------------------------------------------------------------
 
 def kept_peak_mean(gray: np.ndarray) -> float:
-    """Mean of the filtered spectrum over its kept peaks, paper eq. 9-11 (SPEC 7.1, item 3).
+    """Mean of the filtered spectrum over its kept peaks, paper eq. 9-11 (docs/features.md#tactum, item 3).
 
     ``X = Re(fft2(I - mean(I))) / sqrt(M N)`` centred at (M//2, N//2); the kept peaks are the elements with
     ``X >= 0.75 max(X)``; each is weighted by ``G' = 1 - G``, G a Gaussian of sigma 25 bins normalised to
     peak 1 on the offsets -100..99 around the centre, and ``G' = 1`` outside that window.
-    Interpretations (SPEC): the mean is removed, else the DC term is the only peak; the average runs over
-    the kept peaks, else the zeros of the removed elements drown them.
+    Interpretations (docs/features.md#marg): the mean is removed, else the DC term is the only peak; the average runs
+    over the kept peaks, else the zeros of the removed elements drown them.
 
     The spectrum is the half spectrum of :class:`features.image.RealSpectrum`, shared with the image
     features' ``dft_80`` and ``dft_85``.
@@ -654,8 +654,8 @@ def miro(v: np.ndarray) -> float:
     """Microtexture roughness, paper eq. 13-14: ``log10(1 + mean(|d|))``, ``d = D1 - (mean D1 / mean D5) D5``.
 
     ``Dk = |level-k detail of v|`` (db8, :func:`wavelet_detail`); ``d = D1`` if ``mean(D5) = 0``.
-    Interpretation of eq. 13-14 (SPEC 7.1): the bars are means, so d removes from D1 the share of D5 scaled to
-    D1's level; MiRO grows with the signal's amplitude and does not change when D5 alone is scaled.
+    Interpretation of eq. 13-14 (docs/features.md#tactum): the bars are means, so d removes from D1 the share of D5
+    scaled to D1's level; MiRO grows with the signal's amplitude and does not change when D5 alone is scaled.
     """
     values = _samples(v, "v")
     coefficients = pywt.wavedec(values, WAVELET, level=5, mode="symmetric")  # one decomposition for both
@@ -710,7 +710,8 @@ def fst(f_frn: np.ndarray, f_frt: np.ndarray, lag: int = SLOPE_LAG) -> float:
 
 
 def sliding_segment(f_frn: np.ndarray, f_frt: np.ndarray, lag: int = SLOPE_LAG) -> tuple[int, int]:
-    """First and last (inclusive) sample of the sliding phase (paper section IV-A3, SPEC 7.1 item 7).
+    """First and last (inclusive) sample of the sliding phase (Strese et al. 2020, section IV-A3, eq. 17;
+    docs/features.md#frs).
 
     Start: the first index of the largest friction slope plus 30 (the end of the stiction window).
     End: the last sample where ``f_frn`` exceeds 5 % of its maximum.
@@ -759,7 +760,8 @@ def cyd(value: float) -> float:
 # --- 9-12. Compliance ----------------------------------------------------------------------------------
 
 def is_rigid(alpha_f: np.ndarray | None, skipped: bool) -> bool | None:
-    """Whether a sample counts as rigid for the compliance features (paper section IV-A4, SPEC 7.1 item 9).
+    """Whether a sample counts as rigid for the compliance features (Strese et al. 2020, section IV-A4, eqs. 19-20;
+    docs/features.md#ccp).
 
     With a stored flex angle: ``std(alpha_f) < 1 deg`` (the skip flag is then ignored). Without one:
     rigid if the fold step was skipped as rigid (``meta.rigid``), else unknown (None).
@@ -819,7 +821,7 @@ def tco(t_cool: np.ndarray, t_amb: float) -> float:
 def tpr(t_cool: np.ndarray, t_amb: float, fs: float = 20.0) -> float:
     """Thermal persistence, paper eq. 30: ``sqrt((t_max,5s - t_amb)^2 + (t_cool[-1] - t_amb)^2)``.
 
-    ``t_max,5s = max(t_cool[first 5 s])`` (SPEC 7.1 item 15).
+    ``t_max,5s = max(t_cool[first 5 s])`` (Strese et al. 2020, eq. 30; docs/features.md#tpr).
 
     ``t_cool`` sampled at ``fs`` (20 Hz) with t = 0 at its first sample; the first 5 s are t < 5 s.
     """
@@ -898,7 +900,8 @@ def _gather(prepared: PreparedScan, disp: PreparedPhoto | None) -> _Inputs:
 
 
 def _compliance(inputs: _Inputs, skipped: bool) -> dict[str, tuple[Callable[..., float], tuple[str, ...]]]:
-    """CCP, CDF, CDP, CRX as (function, input keys), after the rigidity decision of SPEC 7.1 item 9."""
+    """CCP, CDF, CDP, CRX as (function, input keys), after the rigidity decision of Strese et al. 2020, eqs. 19-20;
+    docs/features.md#ccp."""
     rigid = is_rigid(inputs.get("alpha_f"), skipped)
     zero = (lambda: 0.0, ())
     if rigid and inputs.get("alpha_f") is None:
@@ -935,10 +938,10 @@ def _recipes(inputs: _Inputs, scan: Scan) -> dict[str, tuple[Callable[..., float
 
 
 def compute(scan: Scan, *, disp: PreparedPhoto | None = None, prepared: PreparedScan | None = None) -> dict[str, float]:
-    """The 15 TacTUM features of a scan, in :data:`NAMES` order (SPEC 7.1).
+    """The 15 TacTUM features of a scan, in :data:`NAMES` order (docs/features.md#tactum).
 
-    Inputs are preprocessed as in SPEC 6: ``v`` from ``v_ts`` (band limit, slide window, DFT321), the IR
-    window of ``r_ts`` at the same samples, ``f_frt`` without its friction offset, the cropped gray
+    Inputs are preprocessed as in docs/features.md#preprocessing: ``v`` from ``v_ts`` (band limit, slide window,
+    DFT321), the IR window of ``r_ts`` at the same samples, ``f_frt`` without its friction offset, the cropped gray
     ``I_disp``. A feature whose input is absent is NaN, and one :class:`MissingDataWarning` per absent
     channel (or failed slide check) names it and the features it made NaN.
 

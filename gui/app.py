@@ -1,4 +1,4 @@
-"""The operator's web application (SPEC 10): a small server-rendered Flask app, no front-end build step.
+"""The operator's web application (docs/operator.md): a small server-rendered Flask app, no front-end build step.
 
 Flask because it is small, well kept and ships what this needs and nothing more: Jinja2 templates with
 auto-escaping, Werkzeug's multipart parser with request size limits, a signed session cookie

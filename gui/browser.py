@@ -1,4 +1,4 @@
-"""The database browser (SPEC 10): materials, samples, scans, one scan's traces, photos and feature values,
+"""The database browser (docs/operator.md): materials, samples, scans, one scan's traces, photos and feature values,
 the export of the feature table, and export bundles built in the background (:mod:`gui.exports`).
 
 Pages read the catalog (``scanner.storage.database.Database``); a scan page loads the scan's ``.mat`` file. The
@@ -162,7 +162,7 @@ def photo(scan_id: str, variable: str) -> Response:
 
 @blueprint.get("/export/features.csv")
 def export_features() -> Response:
-    """The feature space of every scan (SPEC 8) as CSV, from the database's feature cache."""
+    """The feature space of every scan (docs/evaluation.md) as CSV, from the database's feature cache."""
     ctx = context()
     try:
         space = extract_database(ctx.db, workers=ctx.settings.workers)

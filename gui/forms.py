@@ -1,4 +1,4 @@
-"""Server-side validation of the operator's input (SPEC 4 and 10): the start form and the TU4 form.
+"""Server-side validation of the operator's input (docs/operator.md): the start form and the TU4 form.
 
 Every field is checked and every problem is reported at once, as ``{field: reason}``, so the page can show
 each reason next to its field. The rules are those of the data model where it has them (label: the

@@ -1,4 +1,4 @@
-"""The operator's pages (SPEC 4 and 10): start a scan, the guided steps, the operator form, the summary.
+"""The operator's pages (docs/operator.md): start a scan, the guided steps, the operator form, the summary.
 
 Every page is a view of the running :class:`scanner.acquisition.session.Session` (through :mod:`gui.operation`); every
 action is one session call: ``Session.open``, ``start_step``, ``cancel_step``, ``redo``, ``skip``,

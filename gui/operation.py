@@ -5,7 +5,7 @@ The scanner is one device, so the app runs at most one :class:`scanner.acquisiti
 the operator form as typed, a change counter that keys the summary's cached plot and prediction, and the
 time the browser last asked for the recording's status.
 
-Peltier safety (SPEC 5: the Peltier is switched off if the browser disconnects during heating):
+Peltier safety (docs/devices.md: the Peltier is switched off if the browser disconnects during heating):
 while a step records, the page polls its status several times a second. :class:`Operations` runs a
 watchdog thread that cancels the recording (``Session.cancel_step``: the recorder switches the Peltier off
 on that exit path) when the step is heating and the browser has been silent for ``heartbeat_timeout_s``:

@@ -1,4 +1,4 @@
-"""Photo uploads (SPEC 4 step 9, SPEC 10): size-limited, checked before decoding, staged under random names.
+"""Photo uploads (docs/operator.md#procedure, step 9): size-limited, checked before decoding, staged under random names.
 
 An uploaded file is trusted for nothing: its name and declared type are ignored. Before the session decodes
 it (``Session.set_photo`` -> ``scanner.acquisition.devices.camera.decode_photo``: PNG or JPEG by content, OpenCV),

@@ -1,4 +1,4 @@
-"""Request safety for the web application: CSRF tokens, trusted hosts, security headers (SPEC 10).
+"""Request safety for the web application: CSRF tokens, trusted hosts, security headers (docs/operator.md).
 
 Trusted hosts: bound to the loopback interface, the app answers only requests whose ``Host`` header names a
 loopback host (``127.0.0.1``, ``localhost``, ``[::1]``, any port), so a web page elsewhere cannot reach it

@@ -1,4 +1,5 @@
-"""Photo files (SPEC 3: PNG or JPEG beside the ``.mat``): one size limit, read from the header before decoding.
+"""Photo files (docs/database.md: PNG or JPEG beside the ``.mat``): one size limit, read from the header before
+decoding.
 
 Every way a photo enters goes through :func:`decode`: :func:`scanner.load_scan` (and with it import, replay,
 rebuild and feature extraction), web uploads and uploaded files in a session

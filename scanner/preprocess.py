@@ -1,7 +1,7 @@
-"""Preprocessing of raw scanner signals (SPEC section 6): pure functions, no state, no I/O.
+"""Preprocessing of raw scanner signals (docs/features.md#preprocessing): pure functions, no state, no I/O.
 
-Slide signals go band limit -> 1 s window -> DFT321, in that order (SPEC 6): filtering the whole recording
-first keeps the filter transients out of the window. The quality checks used by the guided session live
+Slide signals go band limit -> 1 s window -> DFT321, in that order (docs/features.md#preprocessing): filtering the
+whole recording first keeps the filter transients out of the window. The quality checks used by the guided session live
 here too, because they are decided on the same preprocessed signals.
 
 Quality checks come in two forms. ``check_*`` functions return a list of human-readable problems (empty
@@ -24,7 +24,7 @@ from scanner.scan import Trace
 from taxonomy.errors import TexplorerError
 
 IMAGE_BORDER_PX = 100
-"""Pixels cropped from every border of a photo before any image feature (SPEC 6)."""
+"""Pixels cropped from every border of a photo before any image feature (docs/features.md#preprocessing)."""
 
 VIBRATION_FS = 3000.0
 """Sample rate of the DAQ channels (accelerometer, IR, FSR, flex, metal), Hz."""
@@ -33,10 +33,10 @@ AUDIO_FS = 44100.0
 """Sample rate of the microphone, Hz."""
 
 BAND_HZ = (10.0, 1000.0)
-"""Pass band of the slide vibration signals (SPEC 6)."""
+"""Pass band of the slide vibration signals (docs/features.md#preprocessing)."""
 
 WINDOW_SECONDS = 1.0
-"""Length of the slide window cut from each slide recording (SPEC 6)."""
+"""Length of the slide window cut from each slide recording (docs/features.md#preprocessing)."""
 
 NO_SLIDE = "no slide detected"
 SHORT_WINDOW = "window shorter than 1 s"
@@ -49,7 +49,7 @@ class QualityError(TexplorerError, ValueError):
 
 
 def crop_image(image: np.ndarray, border: int = IMAGE_BORDER_PX) -> np.ndarray:
-    """Remove ``border`` pixels from every side of an (h, w[, 3]) image (SPEC 6, "Images").
+    """Remove ``border`` pixels from every side of an (h, w[, 3]) image (docs/features.md#preprocessing).
 
     The scanner's photo unit TU3 vignettes at the borders; cropping keeps only the evenly lit centre.
     """
@@ -60,7 +60,8 @@ def crop_image(image: np.ndarray, border: int = IMAGE_BORDER_PX) -> np.ndarray:
 
 
 def grayscale(rgb: np.ndarray) -> np.ndarray:
-    """Luma ``0.299 R + 0.587 G + 0.114 B`` as float64 in 0..255, not rounded (SPEC 6, ITU-R BT.601)."""
+    """Luma ``0.299 R + 0.587 G + 0.114 B`` as float64 in 0..255, not rounded (ITU-R BT.601;
+    docs/features.md#preprocessing)."""
     rgb = np.asarray(rgb)
     if rgb.ndim != 3 or rgb.shape[2] != 3:
         raise ValueError(f"expected an RGB image of shape (h, w, 3), got {rgb.shape}")
@@ -75,7 +76,7 @@ def grayscale(rgb: np.ndarray) -> np.ndarray:
 
 
 def gray_uint8(gray: np.ndarray) -> np.ndarray:
-    """8-bit version of a float gray image: ``floor(gray + 0.5)`` clipped to 0..255 (SPEC 6)."""
+    """8-bit version of a float gray image: ``floor(gray + 0.5)`` clipped to 0..255 (docs/features.md#preprocessing)."""
     return np.clip(np.floor(np.asarray(gray, dtype=np.float64) + 0.5), 0, 255).astype(np.uint8)
 
 
@@ -91,7 +92,7 @@ def _axes(v: np.ndarray) -> np.ndarray:
 
 def slide_start(v: np.ndarray, *, fs: float = VIBRATION_FS, frame: int = 30, noise_frames: int = 25,
                 factor: float = 10.0) -> int | None:
-    """Sample index where a slide starts in a resting-then-sliding vibration recording (SPEC 6).
+    """Sample index where a slide starts in a resting-then-sliding vibration recording (docs/features.md#preprocessing).
 
     Each axis loses its mean over the first 0.25 s (gravity and offset). The frame energy is the sum of the
     squared samples over a ``frame``-sample frame (10 ms) and over all axes; the noise level is the mean
@@ -148,7 +149,7 @@ def _window_samples(start: int, fs: float, audio_fs: float, seconds: float) -> t
 
 @dataclass(frozen=True)
 class SlideWindow:
-    """The 1 s slide window shared by the vibration, IR and audio of one slide (SPEC 6).
+    """The 1 s slide window shared by the vibration, IR and audio of one slide (docs/features.md#preprocessing).
 
     ``start`` is the vibration sample index from :func:`slide_start`. IR is sampled with the vibration, so
     it uses the same samples; audio starts at ``start * audio_fs / fs``, which must be a whole sample
@@ -207,7 +208,7 @@ class SlideWindow:
 def slide_window(v: np.ndarray, *, fs: float = VIBRATION_FS, audio_samples: int | None = None,
                  ir_samples: int | None = None, audio_fs: float = AUDIO_FS, frame: int = 30,
                  noise_frames: int = 25, factor: float = 10.0) -> SlideWindow:
-    """The 1 s window after the slide start of a vibration recording (SPEC 6).
+    """The 1 s window after the slide start of a vibration recording (docs/features.md#preprocessing).
 
     ``audio_samples`` and ``ir_samples``, when given, are the lengths of the parallel audio and IR
     recordings, which must hold the whole window too.
@@ -292,7 +293,7 @@ def _bandpass(fs: float) -> tuple[np.ndarray, np.ndarray, int]:
 
 
 def band_limit(v: np.ndarray, fs: float = VIBRATION_FS) -> np.ndarray:
-    """Each axis band-limited to 10-1000 Hz, zero phase (SPEC 6).
+    """Each axis band-limited to 10-1000 Hz, zero phase (docs/features.md#preprocessing).
 
     ``scipy.signal.butter(4, [10, 1000], btype="bandpass", fs=fs, output="sos")`` applied forward and
     backward with ``sosfiltfilt`` along the samples of the *whole* recording.
@@ -353,7 +354,8 @@ def dft321(a: np.ndarray) -> np.ndarray:
     With ``A_x, A_y, A_z`` the FFTs of the axes, bin k of the result has magnitude
     ``sqrt(|A_x|^2 + |A_y|^2 + |A_z|^2)`` and the phase of ``A_x + A_y + A_z`` for k = 0..N//2; the
     other bins are the complex conjugate mirror and the result is the real part of the inverse FFT
-    (SPEC 6). It preserves energy, ``sum(y^2) == sum over axes of sum(a^2)``, for even and odd N.
+    (docs/features.md#preprocessing). It preserves energy, ``sum(y^2) == sum over axes of sum(a^2)``, for even and odd
+    N.
 
     Parameters
     ----------
@@ -378,7 +380,7 @@ def dft321(a: np.ndarray) -> np.ndarray:
 def slide_signal(trace: Trace, window: SlideWindow | None = None) -> np.ndarray:
     """The slide signal ``v`` (from ``v_ts``) or ``v_f`` (from ``v_fs``): band limit, window, DFT321.
 
-    SPEC 6, in that order. ``window`` defaults to the one detected on ``trace`` itself.
+    docs/features.md#preprocessing, in that order. ``window`` defaults to the one detected on ``trace`` itself.
 
     Raises
     ------
@@ -399,13 +401,13 @@ FSR_PER_V = 1.33
 """Paper eq. 1: the exponent per volt (1/V)."""
 ACCEL_ZERO_V = 1.65
 ACCEL_V_PER_G = 0.330
-"""ADXL335 zero-g output and sensitivity at 3.3 V supply (SPEC 5), the defaults of a calibration."""
+"""ADXL335 zero-g output and sensitivity at 3.3 V supply (docs/devices.md), the defaults of a calibration."""
 
 
 def fsr_newtons(volts: np.ndarray) -> np.ndarray:
     """FSR force from its voltage, paper eq. 1: ``f = 9.81 m/s^2 * 0.01 kg * exp(1.33 V^-1 * f')``.
 
-    Interpretation (SPEC 5) of the garbled equation: an exponential fit of the FSR divider output, so
+    Interpretation (docs/devices.md) of the garbled equation: an exponential fit of the FSR divider output, so
     0 V reads 0.0981 N (the 10 g reference mass).
     """
     return FSR_REFERENCE_N * np.exp(FSR_PER_V * np.asarray(volts, dtype=np.float64))
@@ -418,7 +420,7 @@ def fsr_volts(force_n: np.ndarray) -> np.ndarray:
 
 
 def flex_degrees(volts: np.ndarray, v0: float, deg0: float, v1: float, deg1: float) -> np.ndarray:
-    """Flex sensor angle by a two-point calibration: the line through (v0, deg0) and (v1, deg1) (SPEC 5)."""
+    """Flex sensor angle by a two-point calibration: the line through (v0, deg0) and (v1, deg1) (docs/devices.md)."""
     if v0 == v1:
         raise ValueError(f"flex calibration needs two different voltages, got {v0} V twice")
     slope = (deg1 - deg0) / (v1 - v0)
@@ -426,19 +428,19 @@ def flex_degrees(volts: np.ndarray, v0: float, deg0: float, v1: float, deg1: flo
 
 
 def metal_sign(volts: np.ndarray, threshold: float = 2.5) -> np.ndarray:
-    """Metal electrode: +1 (conductive, the electrodes are shorted) below ``threshold`` V, else -1 (SPEC 5)."""
+    """Metal electrode: +1 (conductive, the electrodes are shorted) below ``threshold`` V, else -1 (docs/devices.md)."""
     return np.where(np.asarray(volts, dtype=np.float64) < threshold, 1.0, -1.0)
 
 
 def accel_g(volts: np.ndarray, zero: float = ACCEL_ZERO_V, sensitivity: float = ACCEL_V_PER_G) -> np.ndarray:
-    """ADXL335 acceleration in g: ``(volts - zero) / sensitivity`` (zero-g 1.65 V, 0.330 V/g; SPEC 5)."""
+    """ADXL335 acceleration in g: ``(volts - zero) / sensitivity`` (zero-g 1.65 V, 0.330 V/g; docs/devices.md)."""
     if not sensitivity > 0:
         raise ValueError(f"accelerometer sensitivity must be positive V/g, got {sensitivity}")
     return (np.asarray(volts, dtype=np.float64) - zero) / sensitivity
 
 
 def remove_friction_offset(f_frt: np.ndarray, fs: float = VIBRATION_FS) -> np.ndarray:
-    """``f_frt`` minus its mean over the first 0.1 s (300 samples at 3000 Hz), SPEC 6.
+    """``f_frt`` minus its mean over the first 0.1 s (300 samples at 3000 Hz), docs/features.md#preprocessing.
 
     The tangential FSR is preloaded by the casing; the unit does not touch the sample at first, so that
     mean is the zero of the friction force. A recording shorter than 0.1 s uses all of it.

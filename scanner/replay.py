@@ -1,7 +1,7 @@
-"""Replay of stored scans: the regression suite and the replay device's pacing (SPEC sections 5 and 11).
+"""Replay of stored scans: the regression suite and the replay device's pacing (docs/devices.md; docs/export.md).
 
 :func:`replay` runs stored ``.mat`` scans through preprocessing and the features (``features.extract``,
-which does the preprocessing of SPEC 6 itself); :func:`predictions` adds a saved model's top classes;
+which does the preprocessing itself); :func:`predictions` adds a saved model's top classes;
 :func:`compare` checks the feature values against an expected feature table (the CSV of
 ``FeatureSpace.to_csv``) with a relative and an absolute tolerance. ``tests/regression/`` holds a few
 simulated scans and their expected values, so every change of a feature's numbers shows up in CI and must
@@ -9,7 +9,7 @@ be made on purpose by regenerating the table::
 
     texplorer replay tests/regression/scans --write-expected tests/regression/expected_features.csv
 
-:func:`paced_steps` plays a stored scan back step by step in real time, as the replay device of SPEC 5
+:func:`paced_steps` plays a stored scan back step by step in real time, as the replay device of docs/devices.md
 delivers it to a guided session or a demo.
 """
 
@@ -46,7 +46,7 @@ DEFAULT_ATOL = 1e-12
 
 STEPS = ("finger_tap", "finger_slide", "tool_tap", "tool_slide", "static", "thermal", "friction", "press",
          "fold", "photos")
-"""Recorded steps of the scanning procedure in the order of SPEC 4 (the photos come last)."""
+"""Recorded steps of the scanning procedure in the order of docs/operator.md#procedure (the photos come last)."""
 
 
 class ReplayError(TexplorerError, ValueError):
@@ -280,7 +280,7 @@ def paced_steps(scan: Scan, speed: float = 1.0, *, chunk_s: float | None = None,
                 sleep: Callable[[float], None] = time.sleep) -> Iterator[tuple[str, dict[str, np.ndarray]]]:
     """Play ``scan`` back as the scanner recorded it: ``(step, {channel: samples})`` in real time.
 
-    Steps come in the order of SPEC 4 (:data:`STEPS`); steps the scan lacks are left out. A step's arrays
+    Steps come in the procedure's order (:data:`STEPS`); steps the scan lacks are left out. A step's arrays
     are yielded once its duration (its longest channel, ``n / fs``) has passed, divided by ``speed``
     (2.0 = twice as fast, ``math.inf`` = no waiting). With ``chunk_s``, each step comes as consecutive
     chunks of ``chunk_s`` seconds of recording instead, each yielded when its last sample would have been

@@ -1,6 +1,6 @@
 """The data model: a sampled ``Trace``, a generic ``Recording`` and one ``Scan`` of a material sample.
 
-SPEC section 3. Every object validates itself on construction, so a ``Scan`` that exists is a scan the
+docs/database.md. Every object validates itself on construction, so a ``Scan`` that exists is a scan the
 rest of the pipeline can trust: every channel has the shape, rate and unit of the table below and only
 finite samples. Missing channels are allowed (features that need them become NaN); wrong ones are not.
 """
@@ -39,8 +39,8 @@ MAX_META_KEYS = 64
 MAX_TEXT = {"software_version": 64, "notes": 4000, "device": 256}
 """Longest text of ``meta.software_version``, ``meta.notes`` and each ``meta.device`` value."""
 MAX_CHANNEL_SECONDS = 120.0
-"""Longest recording of one channel: every step of the procedure takes seconds (SPEC 4), and the limit keeps
-a scan (and the memory its features need) bounded."""
+"""Longest recording of one channel: every step of the procedure takes seconds (docs/operator.md#procedure), and the
+limit keeps a scan (and the memory its features need) bounded."""
 
 
 class ScanError(TexplorerError, ValueError):
@@ -65,7 +65,7 @@ class ChannelSpec:
     step: str
     description: str
     min_n: int = 1
-    """Samples the channel's features need (SPEC 6, 7); a shorter channel is "too short", see
+    """Samples the channel's features need (docs/features.md); a shorter channel is "too short", see
     :meth:`Scan.short_channels`."""
 
     @property
@@ -92,12 +92,14 @@ CHANNELS: Mapping[str, ChannelSpec] = MappingProxyType({
     "m": ChannelSpec(3000.0, "-", 0, "static", "metal electrode, +1 conductive, -1 not"),
     "dB": ChannelSpec(80.0, "uT", 0, "static", "change of magnetic field magnitude"),
 })
-"""The scan channels of SPEC section 3, in file order.
+"""The scan channels of docs/database.md, in file order.
 
-``min_n``: the 1 s slide window (3000 vibration, 44100 audio samples; SPEC 6), 30 samples after the tap
-peak (SPEC 7.4), the 0.1 s friction offset plus one 10 ms slope lag (SPEC 6, 7.1 items 6-7), two samples
-for a spread or a relaxation (a single sample has zero spread: a silent 0, SPEC 7), three for the cooling
-fit. The IR channels need one sample: ``reflect_static`` uses whatever precedes the slide start.
+``min_n``: the 1 s slide window (3000 vibration, 44100 audio samples; docs/features.md#preprocessing), 30 samples after
+the tap
+peak (docs/features.md#other), the 0.1 s friction offset plus one 10 ms slope lag (docs/features.md#preprocessing,
+docs/features.md#frs), two samples
+for a spread or a relaxation (a single sample has zero spread: a silent 0, docs/features.md), three for the cooling fit.
+The IR channels need one sample: ``reflect_static`` uses whatever precedes the slide start.
 """
 
 IMAGES: Mapping[str, str] = MappingProxyType({
@@ -105,13 +107,14 @@ IMAGES: Mapping[str, str] = MappingProxyType({
     "I_macro": "macro",
     "I_illu": "illu",
 })
-"""Photo variables -> short name used in file names and feature names (SPEC 3, 7.2)."""
+"""Photo variables -> short name used in file names and feature names (docs/database.md; docs/features.md#image)."""
 
 ROLES = frozenset({
     "vibration", "pressure_dc", "temperature", "heat_flow", "electrodes", "taxels", "force_xyz", "audio",
     "photo",
 })
-"""Channel roles read by the feature sets (SPEC 3, 7.5); ``photo`` names an image of the recording."""
+"""Channel roles read by the feature sets (docs/database.md; docs/features.md#related); ``photo`` names an image of the
+recording."""
 
 IMAGE_ROLES = frozenset({"photo"})
 """Roles played by images (RGB uint8 (h, w, 3)) instead of sampled channels."""
@@ -246,7 +249,7 @@ def check_sample_id(sample_id: str) -> str:
 
 @dataclass(frozen=True)
 class ScanMeta(_Picklable):
-    """The ``meta`` struct of SPEC section 3 (``fs``, ``units`` and ``raw_volts`` derive from the traces).
+    """The ``meta`` struct of docs/database.md (``fs``, ``units`` and ``raw_volts`` derive from the traces).
 
     Unknown numeric values (ambient temperature not read, mass not weighed, tack not judged) are NaN.
     """
@@ -353,7 +356,7 @@ def _is_iso8601(text: str) -> bool:
 
 @dataclass(frozen=True)
 class Scan(_Picklable):
-    """One pass of all exploratory procedures over one material sample (SPEC section 3).
+    """One pass of all exploratory procedures over one material sample (docs/database.md).
 
     ``traces`` maps channel names of :data:`CHANNELS` to :class:`Trace`; ``images`` maps ``I_disp``,
     ``I_macro``, ``I_illu`` to RGB ``uint8`` arrays of shape (h, w, 3); ``raw`` keeps the DAQ volts of a
@@ -408,7 +411,7 @@ class Scan(_Picklable):
         return self.traces.get(name)
 
     def missing_channels(self) -> list[str]:
-        """Channels of SPEC 3 this scan does not have (fold channels count as present when rigid)."""
+        """Channels of docs/database.md this scan does not have (fold channels count as present when rigid)."""
         absent = [name for name in CHANNELS if name not in self.traces]
         if self.meta.rigid:
             absent = [name for name in absent if name not in ("f_fold", "alpha_f")]
@@ -424,7 +427,8 @@ class Scan(_Picklable):
 
     @property
     def fold_despite_rigid(self) -> bool:
-        """``meta.rigid`` = 1 while a fold is stored: the stored fold wins (SPEC 3, 7.1 item 10)."""
+        """``meta.rigid`` = 1 while a fold is stored: the stored fold wins (Strese et al. 2020, eq. 21;
+        docs/features.md#cdf)."""
         return self.meta.rigid and bool({"f_fold", "alpha_f"} & set(self.traces))
 
 
@@ -469,12 +473,12 @@ def _check_image(name: str, image: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Recording(_Picklable):
-    """A generic recording from another sensor or dataset (SPEC 3 "Generic recordings").
+    """A generic recording from another sensor or dataset (docs/ingest.md).
 
     ``channels`` are named traces at their own rates; ``images`` named RGB photos (uint8, (h, w, 3)), e.g.
     a texture photo or one patch of it; ``roles`` map a role of :data:`ROLES` to a channel name (an image
-    name for ``photo``), which is how the feature sets (SPEC 7.5) find their inputs; ``label`` is the class
-    (any string; a taxonomy label where known), ``group`` the object/sample ids used for grouped splits.
+    name for ``photo``), which is how the feature sets (docs/features.md#related) find their inputs; ``label`` is the
+    class (any string; a taxonomy label where known), ``group`` the object/sample ids used for grouped splits.
     """
 
     name: str

@@ -1,4 +1,4 @@
-"""texplorer taxonomy: C/S/M/P/X material labels, the taxonomy table and classification levels (SPEC 9).
+"""texplorer taxonomy: C/S/M/P/X material labels, the taxonomy table and classification levels (docs/taxonomy.md).
 
 This package's surface is the ground layer that every other layer builds on: labels, the taxonomy table
 and the project's base error. The learning modules are imported by their own names, since they build on

@@ -1,4 +1,4 @@
-"""Classifiers, cross-validation and metrics of the material classification (SPEC 8; paper section V-B/C).
+"""Classifiers, cross-validation and metrics of the material classification (docs/evaluation.md; paper section V-B/C).
 
 Every classifier is a scikit-learn ``Pipeline``: min-max scaling to [0, 1] -> ``FQSelector`` (the n best
 features by FQ with |Spearman rho| < 0.5) -> classifier. Two protocols:

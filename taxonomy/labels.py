@@ -1,4 +1,4 @@
-"""Material labels of the C/S/M/P/X taxonomy (SPEC section 9; Strese et al. 2020, section II-A).
+"""Material labels of the C/S/M/P/X taxonomy (docs/taxonomy.md; Strese et al. 2020, section II-A).
 
 A label such as ``C6S1M1P2X1`` names a major class ``C`` (C6 stone), a sub-class ``S`` of that class
 (S1 igneous), a material ``M`` of that sub-class (M1 granite), a processing shape ``P`` (P2 polished) and an

@@ -1,4 +1,4 @@
-"""Trained classification models: train on a whole feature space, store safely, predict a scan (SPEC 8).
+"""Trained classification models: train on a whole feature space, store safely, predict a scan (docs/evaluation.md).
 
 A model file is a skops archive (``skops.io``), a format that rebuilds objects from a declared schema and
 never executes code on load. It holds one dict::

@@ -1,4 +1,4 @@
-"""Plots for researchers (SPEC 8 "Reports and plots"): PNG files drawn with matplotlib's Agg canvas.
+"""Plots for researchers (docs/evaluation.md#reports): PNG files drawn with matplotlib's Agg canvas.
 
 Figures are built on ``matplotlib.figure.Figure`` with an Agg canvas, never through ``pyplot``, so plotting
 works headless and does not touch global backend state.

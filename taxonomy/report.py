@@ -1,4 +1,4 @@
-"""Evaluation reports (SPEC 8): a text table for the terminal and a self-contained HTML page with plots.
+"""Evaluation reports (docs/evaluation.md): a text table for the terminal and a self-contained HTML page with plots.
 
 ``format_table(reports)`` prints one block per set size and protocol: a row per classifier and feature
 set, a column per level, each cell ``accuracy % (mean +- std over folds)  macro F1  r_C``.
@@ -234,7 +234,7 @@ def _figure_html(caption: str, path: Path) -> str:
             f"<figcaption>{e(caption)} ({e(path.name)}; select the figure for full size)</figcaption></figure>")
 
 
-# -- comparison of the related methods (SPEC 7.5) ---------------------------------------------------------
+# -- comparison of the related methods (docs/features.md#related) ------------------------------------------
 
 
 def write_comparison(folder: str | os.PathLike[str], results: Sequence[Result], title: str,

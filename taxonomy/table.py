@@ -1,4 +1,4 @@
-"""The taxonomy table: names behind the C/S/M/P/X codes (SPEC section 9; Strese et al. 2020, Tables I and VI).
+"""The taxonomy table: names behind the C/S/M/P/X codes (docs/taxonomy.md; Strese et al. 2020, Tables I and VI).
 
 The table is a UTF-8 CSV file with the header ``kind,code,name,description``. ``kind`` is one of C, S, M, P,
 X; ``code`` is the hierarchical code of that kind (``C6``, ``C6S1``, ``C6S1M1``, ``P2``, ``X1``). The package

@@ -25,7 +25,7 @@ def make_meta(**overrides) -> ScanMeta:
 
 def make_scan(seed: int = 0, *, seconds: float = 0.2, images: bool = True, drop: tuple[str, ...] = (),
               raw: bool = False, image_shape: tuple[int, int] = (240, 320), **meta) -> Scan:
-    """A scan with random but valid data on every channel of SPEC 3 (short, so tests stay fast)."""
+    """A scan with random but valid data on every channel of docs/database.md (short, so tests stay fast)."""
     rng = np.random.default_rng(seed)
     traces = {}
     for name, spec in CHANNELS.items():

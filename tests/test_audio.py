@@ -1,4 +1,4 @@
-"""Audio features (SPEC 7.3): closed-form answers on synthetic frames, spectra and signals.
+"""Audio features (docs/features.md#audio): closed-form answers on synthetic frames, spectra and signals.
 
 Numbers used below, at fs = 44100 Hz: window N = 2205, step 1103, K = ceil(N/2) = 1103 spectrum bins,
 DFT bin spacing fs/N = 20 Hz exactly, so a tone at 20 k0 Hz sits on bin k0. The symmetric Hamming window

@@ -1,4 +1,4 @@
-"""Export bundles and their import (SPEC 11): round trip, damage, hostile bundles, merging, crashes."""
+"""Export bundles and their import (docs/export.md): round trip, damage, hostile bundles, merging, crashes."""
 
 from __future__ import annotations
 

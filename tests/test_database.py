@@ -1,4 +1,4 @@
-"""The scan database (SPEC 3): catalog + files, check, rebuild, concurrency and crash safety."""
+"""The scan database (docs/database.md): catalog + files, check, rebuild, concurrency and crash safety."""
 
 from __future__ import annotations
 

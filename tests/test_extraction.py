@@ -1,4 +1,4 @@
-"""features.extract and extract_many (SPEC 7, 8): 193 names in order, NaN exactly where data is missing,
+"""features.extract and extract_many (docs/features.md): 193 names in order, NaN exactly where data is missing,
 parallel extraction in input order, per-scan failures, and the feature cache."""
 
 from __future__ import annotations

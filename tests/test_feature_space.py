@@ -1,4 +1,4 @@
-"""FeatureSpace (SPEC 8): consistent shape, labels at three levels, exact CSV and .mat round trips."""
+"""FeatureSpace (docs/evaluation.md): consistent shape, labels at three levels, exact CSV and .mat round trips."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Hostile and damaged scan files: refused with a ScanFormatError, within bounded memory and time (SPEC 3, 12).
+"""Hostile and damaged scan files: refused with a ScanFormatError, within bounded memory and time (docs/database.md).
 
 The corpus (``tests/hostile_scans.py``) is made from a regression scan: byte flips, truncations, removed
 and renamed variables, wrong types, shapes and dtypes, NaN/Inf, dimensions that announce gigabytes, a

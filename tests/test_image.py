@@ -1,4 +1,5 @@
-"""Image features (SPEC 7.2): closed-form answers on synthetic images, plus the libraries SPEC names."""
+"""Image features (docs/features.md#image): closed-form answers on synthetic images, plus the libraries the definitions
+name."""
 
 from __future__ import annotations
 
@@ -559,7 +560,7 @@ def test_tamura_coarseness_of_a_constant_image_is_the_smallest_window():
 
 
 def tamura_coarseness_by_definition(gray: np.ndarray, kmax: int = 5) -> float:
-    """SPEC 7.2 read literally: explicit window means per pixel."""
+    """docs/features.md#image read literally: explicit window means per pixel."""
     h, w = gray.shape
     margin, tolerance = 2**kmax, 1e-9 * gray.max()
     best = []
@@ -676,7 +677,7 @@ def test_lbp_matches_scikit_image_exactly(shape, kind):
     else:
         gray = np.cumsum(np.cumsum(rng.uniform(0, 1, shape), axis=0), axis=1)
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # skimage warns about float images; SPEC asks for float64
+        warnings.simplefilter("ignore")  # skimage warns about float images; the definition asks for float64
         codes = local_binary_pattern(gray, 8, 1, method="uniform")[1:-1, 1:-1]
     expected = np.bincount(codes.astype(int).ravel(), minlength=10) / codes.size
     np.testing.assert_array_equal(image.lbp_histogram(gray), expected)

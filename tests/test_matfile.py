@@ -1,4 +1,4 @@
-"""The .mat scan format (SPEC 3): lossless round trip, readable without project code, clear errors."""
+"""The .mat scan format (docs/database.md): lossless round trip, readable without project code, clear errors."""
 
 from __future__ import annotations
 
@@ -190,7 +190,7 @@ def test_a_rigid_flag_with_a_stored_fold_loads_with_a_warning_and_the_stored_fol
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         values = tactum.compute(loaded)
-    # SPEC 7.1 items 9-12: with alpha_f stored the flag is ignored; std(alpha_f) >= 1 deg is not rigid.
+    # docs/features.md#tactum, items 9-12: with alpha_f stored the flag is ignored; std(alpha_f) >= 1 deg is not rigid.
     assert values["tactum.cdf"] == pytest.approx(np.std(folding.data), rel=1e-12)
     assert values["tactum.ccp"] == pytest.approx(np.max(scan["f_press"].data) / 4.0, rel=1e-12)
     assert values["tactum.crx"] == pytest.approx(np.max(scan["f_press"].data) - scan["f_press"].data[-1])

@@ -1,4 +1,5 @@
-"""The related methods (SPEC 7.5): simulated sensors, classifiers and protocols, compare() end to end."""
+"""The related methods (docs/features.md#related): simulated sensors, classifiers and protocols, compare() end to
+end."""
 
 from __future__ import annotations
 

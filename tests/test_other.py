@@ -1,4 +1,4 @@
-"""Tests of the 15 other features (SPEC 7.4) with answers known in closed form."""
+"""Tests of the 15 other features (docs/features.md#other) with answers known in closed form."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ FS = 3000.0
 START = 1500
 """Slide start of the synthetic slides: 0.5 s of rest, a multiple of the 30-sample frame."""
 
-SPEC_NAMES = [
+DOCUMENTED_NAMES = [
     "density", "metal", "magnet_mean", "magnet_peak", "reflect_static", "reflect_mean", "cooling_rate",
     "vib_std", "vib_kurtosis", "vib_energy", "finger_vib_energy", "finger_vib_centroid", "tap_peak",
     "tap_centroid", "tap_decay",
@@ -77,7 +77,7 @@ def good_scan(drop: tuple[str, ...] = (), **meta) -> Scan:
 # --- names and the scan ---------------------------------------------------------------------------------
 
 def test_names_are_the_spec_list_in_order():
-    assert other.NAMES == tuple(f"other.{name}" for name in SPEC_NAMES)
+    assert other.NAMES == tuple(f"other.{name}" for name in DOCUMENTED_NAMES)
 
 
 def test_compute_on_a_known_scan():
@@ -346,7 +346,7 @@ def test_vibration_centroid_of_a_tone_is_its_frequency():
 # --- tool tap -------------------------------------------------------------------------------------------
 
 def tap(freq: float = 300.0, tau: float = 0.01, axes=(3.0, 4.0, 12.0), n: int = 3000, onset: int = 1000):
-    """A band-limited tap as SPEC 7.4 sees it: a decaying cosine on three in-phase axes."""
+    """A band-limited tap as docs/features.md#other sees it: a decaying cosine on three in-phase axes."""
     return np.outer(decaying(freq, tau, n, onset), axes)
 
 
@@ -429,7 +429,7 @@ def test_tap_decay_of_a_zero_envelope_is_nan():
 
 
 def test_tap_decay_of_a_growing_response_is_nan():
-    # A rising envelope fits only a negative tau, which SPEC 7.4 rejects.
+    # A rising envelope fits only a negative tau, which docs/features.md#other rejects.
     t = np.arange(150) / FS
     assert math.isnan(other.tap_decay(np.exp(t / 0.01) * np.cos(2 * np.pi * 300.0 * t), FS))
 

@@ -1,4 +1,4 @@
-"""Preprocessing of raw scanner signals (SPEC 6): expected values derived by hand."""
+"""Preprocessing of raw scanner signals (docs/features.md#preprocessing): expected values derived by hand."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Related-work feature sets (SPEC 7.5) on inputs whose answers are known in closed form."""
+"""Related-work feature sets (docs/features.md#related) on inputs whose answers are known in closed form."""
 
 from __future__ import annotations
 

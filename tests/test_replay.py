@@ -1,4 +1,4 @@
-"""Replay (SPEC 11): the regression suite of stored scans, tolerance checks, the CLI, real-time pacing."""
+"""Replay (docs/export.md): the regression suite of stored scans, tolerance checks, the CLI, real-time pacing."""
 
 from __future__ import annotations
 

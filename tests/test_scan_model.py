@@ -1,4 +1,4 @@
-"""The data model validates itself on construction (SPEC 3)."""
+"""The data model validates itself on construction (docs/database.md)."""
 
 from __future__ import annotations
 

@@ -34,7 +34,7 @@ def loop_ranks(values: list[float]) -> list[float]:
 
 
 def loop_fq(column: list[float], y: list[str]) -> float:
-    """SPEC 8 written out literally: one class pair at a time, scipy's studentized range per pair."""
+    """docs/evaluation.md written out literally: one class pair at a time, scipy's studentized range per pair."""
     n = len(column)
     ranks = loop_ranks(column)
     ties = [column.count(value) for value in set(column)]

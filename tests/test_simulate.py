@@ -41,7 +41,7 @@ def operator(seed: int = 0, **changes) -> sim.OperatorDraw:
 
 
 def slide_start(v: np.ndarray, factor: float = 10.0) -> int | None:
-    """SPEC 6 slide-start detector, written out independently of the code under test."""
+    """docs/features.md#preprocessing slide-start detector, written out independently of the code under test."""
     x = v - v[:750].mean(axis=0)
     frames = x.shape[0] // 30
     energy = (x[: frames * 30] ** 2).reshape(frames, 30, 3).sum(axis=(1, 2))
@@ -444,7 +444,7 @@ def test_friction_slide_has_stiction_kinetic_ratio_and_release(library):
     out = sim.friction_slide(oak, np.random.default_rng(3), draw)
     normal, tangential = out["f_frn"], out["f_frt"] - out["f_frt"][:300].mean()
     end = int(np.nonzero(normal > 0.05 * normal.max())[0][-1])
-    assert end < normal.size - 600  # released at least 0.2 s before the end (SPEC 7.1.7 finds an end)
+    assert end < normal.size - 600  # released at least 0.2 s before the end (so FRS finds an end)
     assert normal[-300:].max() < 0.15  # the FSR floor of eq. (1), 0.098 N, plus noise
     sliding = slice(int(2.0 * 3000), int(3.5 * 3000))
     ratio = tangential[sliding].mean() / normal[sliding].mean()

@@ -1,4 +1,4 @@
-"""The 15 TacTUM features (SPEC 7.1) on inputs whose answers are known in closed form."""
+"""The 15 TacTUM features (docs/features.md#tactum) on inputs whose answers are known in closed form."""
 
 from __future__ import annotations
 
@@ -152,7 +152,7 @@ def test_harris_corners_of_a_square():
 
 
 def _good_features_to_track(gray: np.ndarray) -> np.ndarray:
-    """SPEC 7.1's definition of MaCo's corners, OpenCV's detector called as the specification says."""
+    """docs/features.md#tactum's definition of MaCo's corners, OpenCV's detector called as the specification says."""
     points = cv2.goodFeaturesToTrack(gray.astype(np.float32), maxCorners=100, qualityLevel=0.01, minDistance=10,
                                      blockSize=3, useHarrisDetector=True, k=0.04)
     if points is None:
@@ -386,7 +386,7 @@ def test_marg_of_a_cosine_grating(axis, frequency, weight):
 
 
 def spec_kept_peak_mean(gray: np.ndarray) -> float:
-    """SPEC 7.1 item 3 written out: full fft2, fftshift, G' element by element."""
+    """Strese et al. 2020, eqs. 9-12; docs/features.md#marg written out: full fft2, fftshift, G' element by element."""
     m, n = gray.shape
     x = np.fft.fftshift(np.fft.fft2(gray - gray.mean()).real / math.sqrt(m * n))
     g_prime = np.ones((m, n))

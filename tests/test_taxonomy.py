@@ -1,4 +1,4 @@
-"""Labels, the shipped taxonomy table and lab extensions (SPEC section 9)."""
+"""Labels, the shipped taxonomy table and lab extensions (docs/taxonomy.md)."""
 
 from __future__ import annotations
 

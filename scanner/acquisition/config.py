@@ -1,11 +1,11 @@
 """The scanner's configuration: which device implementation to use, device names, channel map, calibration
-and step durations (SPEC section 5). One TOML file; every key is optional and defaults to the simulated
+and step durations (docs/devices.md). One TOML file; every key is optional and defaults to the simulated
 scanner, so ``texplorer scan`` runs on a laptop with nothing plugged in.
 
 A documented example with every key is ``docs/texplorer.example.toml``. Loading validates everything and
 raises :class:`ConfigError` naming the file and the key (``texplorer.toml: daq.rate_hz: must be > 0``).
 
-The calibration converts DAQ volts to the units of SPEC 3 (and back, for the simulated and replay devices,
+The calibration converts DAQ volts to the units of docs/database.md (and back, for the simulated and replay devices,
 which produce volts where a real device gives volts):
 
 =================  ====================================================  ==========================
@@ -46,11 +46,11 @@ from scanner.scan import MAX_CHANNEL_SECONDS
 from taxonomy.errors import TexplorerError
 
 DAQ_ROLES = ("accel_x", "accel_y", "accel_z", "ir", "fsr_normal", "fsr_tangential", "flex", "metal")
-"""What is wired to the DAQ's analog inputs (SPEC 5)."""
+"""What is wired to the DAQ's analog inputs (docs/devices.md)."""
 
 DEFAULT_CHANNEL_MAP: Mapping[str, str] = MappingProxyType(
     {role: f"ai{i}" for i, role in enumerate(DAQ_ROLES)})
-"""SPEC 5: ai0-ai2 accelerometer x/y/z, ai3 IR, ai4 FSR normal, ai5 FSR tangential, ai6 flex, ai7 metal."""
+"""docs/devices.md: ai0-ai2 accelerometer x/y/z, ai3 IR, ai4 FSR normal, ai5 FSR tangential, ai6 flex, ai7 metal."""
 
 CHANNEL_ROLES: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "v_ft": ("accel_x", "accel_y", "accel_z"), "v_fs": ("accel_x", "accel_y", "accel_z"),
@@ -62,7 +62,7 @@ CHANNEL_ROLES: Mapping[str, tuple[str, ...]] = MappingProxyType({
 """Scan channels recorded on the DAQ and the DAQ roles they are computed from (the step is in CHANNELS)."""
 
 MAX_HEAT_S = 5.0
-"""The Peltier element never heats longer than this (SPEC 5); the board refuses longer HEAT commands."""
+"""The Peltier element never heats longer than this (docs/devices.md); the board refuses longer HEAT commands."""
 
 IMPLEMENTATIONS: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "daq": ("simulated", "nidaqmx", "replay"),
@@ -87,7 +87,7 @@ class ConfigError(TexplorerError, ValueError):
 
 @dataclass(frozen=True)
 class Calibration:
-    """Sensor calibration (SPEC 5): ADXL335 zero and sensitivity per axis, flex two-point line, metal
+    """Sensor calibration (docs/devices.md): ADXL335 zero and sensitivity per axis, flex two-point line, metal
     threshold. FSR volts follow the fixed paper eq. (1)."""
 
     accel_zero_v: tuple[float, float, float] = (ACCEL_ZERO_V,) * 3
@@ -145,8 +145,8 @@ class Calibration:
 
 @dataclass(frozen=True)
 class StepDurations:
-    """Recording length of every step in seconds (SPEC 4); ``heat`` is the Peltier time of the thermal
-    step (at most 5 s), ``thermal`` the cooling record after it."""
+    """Recording length of every step in seconds (docs/operator.md#procedure); ``heat`` is the Peltier time of the
+    thermal step (at most 5 s), ``thermal`` the cooling record after it."""
 
     finger_tap: float = 5.0
     finger_slide: float = 5.0

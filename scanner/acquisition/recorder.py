@@ -1,7 +1,8 @@
-"""Recording the procedure steps of SPEC 4 from the devices, and assembling a :class:`~scanner.scan.Scan`.
+"""Recording the procedure steps (docs/operator.md#procedure) from the devices, and assembling a
+:class:`~scanner.scan.Scan`.
 
 :meth:`Recorder.record` records one step and returns a :class:`StepResult`: the step's scan channels in the
-units of SPEC 3, the DAQ volts they came from, the quality problems the operator should see, and
+units of docs/database.md, the DAQ volts they came from, the quality problems the operator should see, and
 diagnostics. How each step is recorded:
 
 =================  ==========================================================================================
@@ -9,7 +10,7 @@ step               devices
 =================  ==========================================================================================
 taps               DAQ (accelerometer)
 slides             DAQ task set up, microphone started, then the DAQ; the measured start offset is removed
-                   so the audio and the vibration start at the same instant (SPEC 5), then both are cut to
+                   so the audio and the vibration start at the same instant (docs/devices.md), then both are cut to
                    the step's duration
 static             ``CAL M`` with the unit in the air, then the DAQ (metal electrode) and the board's ``M``
                    stream (80 Hz) together
@@ -91,7 +92,7 @@ _Recorded = tuple[dict[str, Trace], dict[str, Trace], tuple[str, ...], dict[str,
 
 @dataclass(frozen=True)
 class StepResult:
-    """One recorded step: scan channels (SPEC 3 units), their DAQ volts, quality problems, diagnostics."""
+    """One recorded step: scan channels (docs/database.md units), their DAQ volts, quality problems, diagnostics."""
 
     step: str
     traces: Mapping[str, Trace]
@@ -221,7 +222,7 @@ class Recorder:
         return Level(step, "recording", elapsed, seconds, "vibration", rms, "g", fraction)
 
     def _channels(self, step: str, volts: np.ndarray) -> tuple[dict[str, Trace], dict[str, Trace]]:
-        """The scan channels of ``step`` in SPEC 3 units and their raw volts."""
+        """The scan channels of ``step`` in docs/database.md units and their raw volts."""
         traces, raw = {}, {}
         for name, roles in CHANNEL_ROLES.items():
             if CHANNELS[name].step != step:
@@ -255,7 +256,7 @@ class Recorder:
 
     def _align(self, capture: AudioCapture, daq_started: float,
                seconds: float) -> tuple[np.ndarray, float, list[str]]:
-        """Cut the audio to start with the DAQ's first sample and last ``seconds`` (SPEC 5)."""
+        """Cut the audio to start with the DAQ's first sample and last ``seconds`` (docs/devices.md)."""
         rate = self.devices.microphone.rate
         offset = capture.first_sample_time - daq_started
         skip = int(round(-offset * rate))

@@ -1,4 +1,5 @@
-"""The guided scanning session (SPEC 4) as a state machine that knows nothing about its user interface.
+"""The guided scanning session (docs/operator.md#procedure) as a state machine that knows nothing about its user
+interface.
 
 The terminal (``texplorer scan``) and the web page (``texplorer serve``) are thin layers over the same
 :class:`Session`::
@@ -12,7 +13,7 @@ The terminal (``texplorer scan``) and the web page (``texplorer serve``) are thi
     session.set_values(atk=0.0, cyd=0.25, mass_g=512.0, volume_cm3=190.0, volume_method="water")
     scan_id = session.save(db)                      # or session.abort(): the database is untouched
 
-Steps, in the order of SPEC 4 (durations from the configuration):
+Steps, in the order of docs/operator.md#procedure (durations from the configuration):
 
 ========  ==============  ==========================================================================
 step      kind            channels
@@ -90,7 +91,7 @@ class SessionState(enum.StrEnum):
 
 @dataclass(frozen=True)
 class StepInfo:
-    """One step of SPEC 4 as a user interface shows it."""
+    """One step of docs/operator.md#procedure as a user interface shows it."""
 
     id: str
     number: int
@@ -140,7 +141,7 @@ _STEPS = (
 
 
 def procedure(config: Config) -> tuple[StepInfo, ...]:
-    """The steps of SPEC 4 with the configured durations."""
+    """The steps of docs/operator.md#procedure with the configured durations."""
     steps = []
     # Numbered by position, so every step has its own number: the static touch and the heating and cooling
     # are one part of the procedure but two steps here, each recorded and redone on its own.

@@ -1,4 +1,4 @@
-"""The ``texplorer`` command line (SPEC section 2).
+"""The ``texplorer`` command line (docs/extending.md).
 
 Every subcommand that uses a database takes ``--db PATH`` (default ``$TEXPLORER_DB``, else
 ``./texplorer-data``). Errors are one line on stderr and a non-zero exit; ``--debug`` shows the traceback.

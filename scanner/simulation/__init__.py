@@ -1,8 +1,8 @@
-"""The simulated Texplorer2: physically plausible scans from a material library (SPEC 5 "Simulated scanner").
+"""The simulated Texplorer2: physically plausible scans from a material library (docs/devices.md#simulator).
 
 The material library is data (``scanner/data/materials.toml``, one table per material); this package turns a
-material, a seed and a per-scan operator draw into every channel of SPEC 3 at its true rate, following the
-scanning procedure of SPEC 4 one step at a time. Each simulated sensor has its own module:
+material, a seed and a per-scan operator draw into every channel of docs/database.md at its true rate, following the
+scanning procedure of docs/operator.md#procedure one step at a time. Each simulated sensor has its own module:
 
 ======================  ==================  ============================================================
 step                    module              what is synthesised

@@ -59,12 +59,12 @@ def _tap_train(material: Material, rng: Rng, operator: OperatorDraw, tip: Tip) -
 
 
 def finger_tap(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
-    """TU1 finger tap: ``v_ft`` (SPEC 4 step 1)."""
+    """TU1 finger tap: ``v_ft`` (docs/operator.md#procedure step 1)."""
     return {"v_ft": adxl335(_tap_train(material, rng, operator, FINGER), rng)}
 
 
 def tool_tap(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
-    """TU1 tool tap: ``v_tt`` (SPEC 4 step 3)."""
+    """TU1 tool tap: ``v_tt`` (docs/operator.md#procedure step 3)."""
     return {"v_tt": adxl335(_tap_train(material, rng, operator, TOOL), rng)}
 
 

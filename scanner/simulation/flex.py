@@ -11,7 +11,7 @@ from scanner.simulation.variability import OperatorDraw
 
 FLEX_V_PER_DEG = 0.01
 def fold(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
-    """TU2 fold: ``f_fold`` in N and ``alpha_f`` in deg (SPEC 4 step 8, paper Fig. 13).
+    """TU2 fold: ``f_fold`` in N and ``alpha_f`` in deg (docs/operator.md#procedure step 8, paper Fig. 13).
 
     Foldable: one or two folds of ``fold_angle_deg * fold_extent``, each smooth over 0.4-1.0 s, held, then
     released (a sample that stays deformed, yielding > 0, springs back only partly); the force is the grip

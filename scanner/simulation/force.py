@@ -39,13 +39,14 @@ FINGER_CONTACT = Tip("finger-fsr", radius_mm=6.0, min_contact_mm=1.0, frequency_
 """The TU2 friction contact (finger on the FSR with a PLA hemisphere): only its geometry matters."""
 
 def friction_slide(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
-    """TU2 friction slide: normal ``f_frn`` and tangential ``f_frt`` in N (SPEC 4 step 6, paper Fig. 11).
+    """TU2 friction slide: normal ``f_frn`` and tangential ``f_frt`` in N (docs/operator.md#procedure step 6, paper
+    Fig. 11).
 
     The unit rests, the operator presses (normal force rising to ``friction_normal_n``), then pushes: the
     tangential force follows the push until it reaches ``mu_s f_n`` (stiction), drops to ``mu_k f_n`` within
     ~20 ms and slides with fluctuations from the macro profile (the slope under the finger) and micro
     stick-slip, until both forces are released well before the end. The operator's finger adds a constant
-    offset on the tangential FSR (removed by SPEC 6's friction offset).
+    offset on the tangential FSR (removed by docs/features.md#preprocessing's friction offset).
     """
     fric, t = _finger_friction(material.friction, operator), times(STEP_S, FS_DAQ)
     on, off, press_time = operator.friction_start_s, rng.uniform(3.6, 4.3), rng.uniform(0.25, 0.5)
@@ -85,7 +86,8 @@ def _sliding_fluctuation(material: Material, rng: Rng, operator: OperatorDraw,
 
 
 def press(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
-    """TU2 press: ``f_press`` in N with the indentation fixed at 4.0 mm by the casing (SPEC 4 step 7).
+    """TU2 press: ``f_press`` in N with the indentation fixed at 4.0 mm by the casing (docs/operator.md#procedure step
+    7).
 
     A deformable sample reaches the stop and reads ``k * 4.0 mm``, then relaxes by ``relaxation`` with time
     constant ``relaxation_time_s`` while held to the end. A sample stiffer than the operator's force can

@@ -98,7 +98,7 @@ class Appearance:
 
 @dataclass(frozen=True)
 class Material:
-    """One material of the library (SPEC 5): every property the simulated scanner draws on."""
+    """One material of the library (docs/devices.md): every property the simulated scanner draws on."""
 
     slug: str
     label: str

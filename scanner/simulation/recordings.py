@@ -1,4 +1,4 @@
-"""Simulated recordings of the related methods' sensors (SPEC 3 "Generic recordings", 7.5).
+"""Simulated recordings of the related methods' sensors (docs/ingest.md; docs/features.md#related).
 
 So the related methods run, and can be compared, without anybody's data, each seed paper's sensor has a
 simulated twin producing :class:`scanner.Recording` objects with channel roles, a label, group ids and

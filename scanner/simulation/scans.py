@@ -38,7 +38,7 @@ def synthetic_scan(material: Material | str, *, seed: int, scan_index: int = 1, 
                    fold_skip_probability: float = 0.5) -> Scan:
     """One simulated scan of ``material`` (a :class:`Material` or a slug of the default library).
 
-    Every channel of SPEC 3 at its true rate and shape, the three photos at ``image_size`` (h, w) and the
+    Every channel of docs/database.md at its true rate and shape, the three photos at ``image_size`` (h, w) and the
     meta data. Bit-identical for the same arguments: the seed feeds an ``np.random.SeedSequence`` whose
     children drive the operator draw and each procedure step. A rigid sample's fold step is skipped
     (``meta.rigid``, no fold channels) with ``fold_skip_probability``.

@@ -15,7 +15,7 @@ FS_AUDIO = CHANNELS["a_ts"].fs
 FS_THERMAL = CHANNELS["t_cool"].fs
 FS_MAGNET = CHANNELS["dB"].fs
 STEP_S = 5.0
-"""Length of every tap, slide, friction, press and fold recording (SPEC 4)."""
+"""Length of every tap, slide, friction, press and fold recording (docs/operator.md#procedure)."""
 STATIC_S = 1.0
 Rng = np.random.Generator
 Arrays = dict[str, np.ndarray]

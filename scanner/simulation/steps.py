@@ -25,9 +25,9 @@ from scanner.simulation.variability import OperatorDraw
 
 STEPS = ("finger_tap", "finger_slide", "tool_tap", "tool_slide", "static", "thermal", "friction", "press",
          "fold", "photos", "tu4")
-"""Procedure steps in the order of SPEC 4; each has a step function in :data:`STEP_FUNCTIONS`."""
+"""Procedure steps in the order of docs/operator.md#procedure; each has a step function in :data:`STEP_FUNCTIONS`."""
 def static_touch(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
-    """TU2 static touch, 1 s: metal electrodes ``m`` and magnetometer ``dB`` (SPEC 4 step 5)."""
+    """TU2 static touch, 1 s: metal electrodes ``m`` and magnetometer ``dB`` (docs/operator.md#procedure step 5)."""
     return {"m": electrodes(material, rng), "dB": magnetometer(material, rng)}
 STEP_FUNCTIONS: Mapping[str, Callable[[Material, np.random.Generator, OperatorDraw], dict[str, Any]]] = {
     "finger_tap": finger_tap, "finger_slide": finger_slide, "tool_tap": tool_tap, "tool_slide": tool_slide,

@@ -13,7 +13,8 @@ def _mlx90614(temperature: np.ndarray, rng: Rng) -> np.ndarray:
     """Object temperature with 0.02 degC noise, quantised to the MLX90614's 0.02 degC steps."""
     return quantise(temperature + rng.normal(0.0, 0.02, temperature.shape), 0.02)
 def thermal(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
-    """TU2 thermal: ``t_cool``, 10 s at 20 Hz after heating the Peltier element for 3 s (SPEC 4 step 5).
+    """TU2 thermal: ``t_cool``, 10 s at 20 Hz after heating the Peltier element for 3 s (docs/operator.md#procedure
+    step 5).
 
     The heated spot cools as ``t_amb + dT exp(-r t)`` (paper eq. 26); ``dT`` is the library's heat rise,
     corrected for how long the operator takes to move the MLX90614 over the spot (``heat_delay_s`` against

@@ -14,7 +14,7 @@ from scanner.simulation.signals import Rng, quantise
 
 @dataclass(frozen=True)
 class OperatorDraw:
-    """What one operator does differently in one scan (SPEC 5): speeds, forces, timing, judgement, camera.
+    """What one operator does differently in one scan (docs/devices.md): speeds, forces, timing, judgement, camera.
 
     Speeds are in mm/s within the 20-240 mm/s range of hand-held exploration (Culbertson et al., paper
     section III-D); ``*_start_s`` is when the unit starts moving after resting still.

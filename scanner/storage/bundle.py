@@ -1,4 +1,4 @@
-"""Export bundles for other labs, and their import into a database (SPEC section 11).
+"""Export bundles for other labs, and their import into a database (docs/export.md).
 
 A bundle is a folder, or a ``.zip`` file holding the same tree at its root::
 
@@ -8,7 +8,7 @@ A bundle is a folder, or a ``.zip`` file holding the same tree at its root::
     manifest.json              format and schema versions, software version, creation time, filters, counts,
                                calibrations used, the scans, and the SHA-256 and size of every other file
     manifest.json.sha256       SHA-256 of manifest.json (``sha256sum`` format), so the manifest is checked too
-    features.csv, features.mat the feature space of the exported scans (SPEC 8, ``features.space``)
+    features.csv, features.mat the feature space of the exported scans (docs/evaluation.md, ``features.space``)
     taxonomy.csv               the exporting database's taxonomy: shipped table plus its extensions
     scans/<label>/<sample>/<scan_id>.mat, <scan_id>_disp.png, ...   the files exactly as in the database
 

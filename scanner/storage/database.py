@@ -1,4 +1,4 @@
-"""The scan database: a folder of ``.mat`` files and photos plus a SQLite catalog (SPEC section 3).
+"""The scan database: a folder of ``.mat`` files and photos plus a SQLite catalog (docs/database.md).
 
 Layout::
 

@@ -1,4 +1,4 @@
-"""The ``.mat`` scan format (SPEC section 3): one MATLAB v5 file per scan, photos as PNG beside it.
+"""The ``.mat`` scan format (docs/database.md): one MATLAB v5 file per scan, photos as PNG beside it.
 
 Layout of ``<scan>.mat`` (``scipy.io.savemat``, ``long_field_names=True``, ``do_compression=True``):
 
@@ -75,7 +75,7 @@ class ScanFormatError(TexplorerError, ValueError):
 
 
 class ScanFormatWarning(UserWarning):
-    """A scan file loads, but something in it is inconsistent and was resolved as SPEC 3 says."""
+    """A scan file loads, but something in it is inconsistent and was resolved as docs/database.md says."""
 
 
 def photo_file_name(mat_path: Path, variable: str) -> str:
@@ -380,8 +380,9 @@ def load_scan(path: str | os.PathLike[str], *, images: bool = True, files: FileV
     ``scanner.scan``), a wrong or missing rate, an unknown schema version, or a photo that is unreadable or
     beyond the pixel limit (checked from its header before decoding). No other exception comes out of it
     for any content of the files. Missing optional channels are fine. A file with ``meta.rigid`` = 1 that
-    stores the fold loads with a :class:`ScanFormatWarning`: the stored fold wins (SPEC 7.1 item 10).
-    ``images=False`` skips the photos. ``files`` reads the ``.mat`` and its photos from elsewhere than this
+    stores the fold loads with a :class:`ScanFormatWarning`: the stored fold wins (Strese et al. 2020, eq. 21;
+    docs/features.md#cdf). ``images=False`` skips the photos. ``files`` reads the ``.mat`` and its photos from elsewhere
+    than this
     machine's file system (:class:`FileView`); errors still name ``path``.
     """
     mat_path = Path(path)

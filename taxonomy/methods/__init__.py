@@ -1,4 +1,5 @@
-"""The related methods on the same footing: each seed paper's features, classifiers and protocol (SPEC 7.5).
+"""The related methods on the same footing: each seed paper's features, classifiers and protocol
+(docs/features.md#related).
 
 :func:`compare` runs every method that applies to a :class:`Dataset` (our scans, imported recordings or a
 simulated sensor) and returns one :class:`taxonomy.results.Result` per (method, feature set, classifier,

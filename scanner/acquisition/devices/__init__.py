@@ -1,5 +1,5 @@
-"""Scanner devices (SPEC 5): the interfaces (:mod:`~scanner.acquisition.devices.protocols`) and, per device, a real, a
-simulated and a replay implementation, chosen by the configuration (:mod:`scanner.acquisition.config`).
+"""Scanner devices (docs/devices.md): the interfaces (:mod:`~scanner.acquisition.devices.protocols`) and, per device, a
+real, a simulated and a replay implementation, chosen by the configuration (:mod:`scanner.acquisition.config`).
 
 ======================  ========================  ==============================  =========================
 device                  real                      simulated                       replay

@@ -1,4 +1,4 @@
-"""The microphone (SPEC 5): 44100 Hz mono, recorded together with the DAQ during the TU1 slides.
+"""The microphone (docs/devices.md): 44100 Hz mono, recorded together with the DAQ during the TU1 slides.
 
 :class:`SoundDeviceMicrophone` uses ``sounddevice`` (PortAudio): the stream's callback copies each block
 into a queue as 16-bit samples scaled to full scale, and counts blocks whose status reports an input

@@ -1,4 +1,4 @@
-"""The serial sensor board (SPEC 5): MLX90614 thermometer, MAG3110 magnetometer and the Peltier relay on an
+"""The serial sensor board (docs/devices.md): MLX90614 thermometer, MAG3110 magnetometer and the Peltier relay on an
 Arduino-class board, 115200 baud 8N1, newline-terminated ASCII.
 
 =====================  ==========================================  ====================================
@@ -74,7 +74,7 @@ class LineError(TexplorerError, ValueError):
 
 
 def checksum(body: str) -> str:
-    """Two upper-case hex digits: the XOR of the character codes of ``body`` (SPEC 5).
+    """Two upper-case hex digits: the XOR of the character codes of ``body`` (docs/devices.md).
 
     >>> checksum("T,1000,25.00,21.50")
     '78'
@@ -150,7 +150,7 @@ def field_change(b: np.ndarray) -> np.ndarray:
 
     Interpretation: after ``CAL M`` (unit in the air) a reading is the field change the sample causes. Its
     magnitude is the change; its sign is that of the z component, normal to the surface, where ferro- and
-    paramagnetic samples raise the field and diamagnetic ones lower it (SPEC 3 ``dB`` is signed).
+    paramagnetic samples raise the field and diamagnetic ones lower it (docs/database.md ``dB`` is signed).
     """
     b = np.asarray(b, dtype=np.float64).reshape(-1, 3)
     return np.where(b[:, 2] < 0, -1.0, 1.0) * np.sqrt(np.sum(b**2, axis=1))

@@ -1,4 +1,4 @@
-"""The TU3 camera (SPEC 5): OpenCV ``VideoCapture`` on a camera index, a stream URL or a video file, or an
+"""The TU3 camera (docs/devices.md): OpenCV ``VideoCapture`` on a camera index, a stream URL or a video file, or an
 uploaded photo file (PNG or JPEG; HEIC photos must be converted to PNG first).
 
 :class:`OpenCvCamera` lets the exposure settle for ``camera.warmup_frames`` frames and keeps the next one; the

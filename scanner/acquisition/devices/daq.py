@@ -1,4 +1,4 @@
-"""The DAQ (SPEC 5): eight analog inputs sampled continuously at 3 kHz and the Peltier's digital line.
+"""The DAQ (docs/devices.md): eight analog inputs sampled continuously at 3 kHz and the Peltier's digital line.
 
 :class:`NidaqmxDaq` is the NI USB-6002 through ``nidaqmx``, on this computer or on a remote NI gRPC Device
 Server (``daq.server = "grpc://host:port"``, ``nidaqmx.GrpcSessionOptions``). Each recording is one DAQmx

@@ -1,4 +1,4 @@
-"""The device interfaces (SPEC 5): what the recorder needs from a DAQ, a sensor board, a microphone, a camera
+"""The device interfaces (docs/devices.md): what the recorder needs from a DAQ, a sensor board, a microphone, a camera
 and the Peltier element.
 
 Each interface has a real, a simulated and a replay implementation that satisfy the same
@@ -97,7 +97,7 @@ class BoardStats:
 
 @runtime_checkable
 class SensorBoard(Protocol):
-    """The serial sensor board (SPEC 5): MLX90614 temperatures, MAG3110 field, Peltier relay."""
+    """The serial sensor board (docs/devices.md): MLX90614 temperatures, MAG3110 field, Peltier relay."""
 
     stats: BoardStats
 

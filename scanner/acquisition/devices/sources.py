@@ -42,7 +42,7 @@ from scanner.simulation import (
 from scanner.storage.matfile import load_scan
 
 STEP_SECONDS = 5.0
-"""Length of a simulated tap, slide, friction, press or fold (SPEC 4)."""
+"""Length of a simulated tap, slide, friction, press or fold (docs/operator.md#procedure)."""
 REST_G = (0.0, 0.0, 1.0)
 """A unit resting level reads 1 g on z."""
 REST_IR_V = 0.1

@@ -1,4 +1,4 @@
-"""Emulated scanner hardware for tests and for trying the app without hardware (SPEC 5 "Tests").
+"""Emulated scanner hardware for tests and for trying the app without hardware (docs/devices.md#emulators).
 
 - :mod:`scanner.acquisition.emulators.daq_grpc`: an NI gRPC Device Server for the DAQ, served in process to the real
   ``nidaqmx`` client (``texplorer emulate daq``).

@@ -1,4 +1,4 @@
-"""The serial sensor board on a pseudo-terminal, speaking the protocol of SPEC 5 (see
+"""The serial sensor board on a pseudo-terminal, speaking the protocol of docs/devices.md (see
 :mod:`scanner.acquisition.devices.board`), with faults a test (or a person trying the app) can inject.
 
 The host opens :attr:`BoardEmulator.path` with ``pyserial`` like any serial port. The path is a symbolic

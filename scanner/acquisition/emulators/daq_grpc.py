@@ -1,11 +1,11 @@
 """An NI gRPC Device Server for the DAQ, in process: the real ``nidaqmx`` client talks to it over
-``nidaqmx.GrpcSessionOptions`` exactly as to a remote NI USB-6002 (SPEC 5 "Tests").
+``nidaqmx.GrpcSessionOptions`` exactly as to a remote NI USB-6002 (docs/devices.md#emulators).
 
 :class:`DaqServicer` implements the part of the ``nidaqmx_grpc.NiDAQmx`` service (the stubs that ship with
 ``nidaqmx[grpc]``) that the scanner uses: tasks, analog voltage inputs with a continuous sample clock,
 ``ReadAnalogF64`` in both fill modes, a digital output line, device identification and error strings. The
 analog inputs carry the volts of a :class:`~scanner.acquisition.devices.sources.SignalSource` wired by the channel map
-of SPEC 5, produced in real time from the moment the task starts: sample k of a task exists ``k / rate`` s
+of docs/devices.md, produced in real time from the moment the task starts: sample k of a task exists ``k / rate`` s
 after ``StartTask``. Whoever reads too slowly overruns the task's buffer and gets DAQmx error -200279,
 as from real hardware; :meth:`DaqServicer.inject_overrun` forces that on the next read.
 
@@ -111,7 +111,7 @@ class DaqServicer(pb_grpc.NiDAQmxServicer):
     calibration : Calibration
         Converts the source's physical signals to volts.
     channel_map : mapping role -> "aiN"
-        How the sensors are wired (SPEC 5 default).
+        How the sensors are wired (docs/devices.md default).
     """
 
     def __init__(self, source: SignalSource | None = None, calibration: Calibration | None = None, *,
