@@ -22,8 +22,8 @@ from sklearn.base import BaseEstimator
 
 from features import related
 from scanner.simulation.recordings import array_recordings, biotac_recordings, soft3axis_recordings
-from taxonomy import methods
-from taxonomy.methods import Dataset
+from taxonomy import related as methods
+from taxonomy.related import Dataset
 
 SAMPLES = 40
 """Samples timed one at a time per measurement (the median is reported)."""

@@ -20,7 +20,7 @@ from timing import median_time
 
 from features.selection import feature_quality
 from features.space import FeatureSpace
-from taxonomy.evaluation import evaluate_grid
+from taxonomy.learning.evaluation import evaluate_grid
 
 MATERIALS = 184
 SCANS = 5

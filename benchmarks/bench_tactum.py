@@ -6,7 +6,7 @@ sigma 2 of the same cropped gray photo, and one ``cv2.dft`` of it (MaRG's spectr
 ``features.extract`` shares with the image features' ``dft_80`` and ``dft_85``, takes about 60 % of it).
 Ratios, not absolute times, compare across machines. Target: the 15 features in <= 1.5 s on one core.
 
-Also MaCo's Harris response as ``features.tactum.harris_response`` makes it (OpenCV's steps in bands and
+Also MaCo's Harris response as ``features.corners.harris_response`` makes it (OpenCV's steps in bands and
 planes, bit for bit ``cv2.cornerHarris``) against ``cv2.cornerHarris`` itself, with each one's page faults.
 """
 
@@ -27,7 +27,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.ndimage import gaussian_filter  # noqa: E402
 
-from features import tactum  # noqa: E402
+from features import corners, tactum  # noqa: E402
 from features.image import PreparedPhoto, tamura_contrast  # noqa: E402
 from scanner.preprocess import (  # noqa: E402
     crop_image,
@@ -107,7 +107,7 @@ def stages(scan: Scan) -> dict[str, Callable[[], object]]:
     r_w = scan["r_ts"].data[window.ir]
     gray = grayscale(crop_image(scan.images["I_disp"]))
     contrast = tamura_contrast(gray)
-    corners = tactum.harris_corners(gray)
+    found = corners.harris_corners(gray)
     f_frn, f_frt = scan["f_frn"].data, remove_friction_offset(scan["f_frt"].data)
     f_press, f_fold, alpha_f = scan["f_press"].data, scan["f_fold"].data, scan["alpha_f"].data
     t_cool = scan["t_cool"].data
@@ -119,8 +119,8 @@ def stages(scan: Scan) -> dict[str, Callable[[], object]]:
         "input: crop + gray image of I_disp": lambda: PreparedPhoto(scan.images["I_disp"]).gray,
         "input: Tamura contrast (features.image)": lambda: tamura_contrast(gray),
         "matx": lambda: tactum.matx(v, f_frt, r_w),
-        "maco: Harris corners": lambda: tactum.harris_corners(gray),
-        "maco: DoH scales at the corners": lambda: tactum.corner_scales(gray, corners),
+        "maco: Harris corners": lambda: corners.harris_corners(gray),
+        "maco: DoH scales at the corners": lambda: corners.corner_scales(gray, found),
         "marg (half-size DFT + kept peaks)": lambda: tactum.marg(v, gray, contrast=contrast),
         "miro": lambda: tactum.miro(v),
         "mico": lambda: tactum.mico(v),
@@ -153,18 +153,18 @@ def main() -> None:
 
 
 def harris_response_against_opencv(gray32: np.ndarray) -> None:
-    """``tactum.harris_response`` against ``cv2.cornerHarris`` on the same float32 gray photo: best of 5
+    """``corners.harris_response`` against ``cv2.cornerHarris`` on the same float32 gray photo: best of 5
     interleaved rounds, page faults of the last, and whether the values are the same bit for bit."""
     runs = {"cv2.cornerHarris": lambda: cv2.cornerHarris(gray32, 3, 3, 0.04),
-            "tactum.harris_response": lambda: tactum.harris_response(gray32)}
+            "corners.harris_response": lambda: corners.harris_response(gray32)}
     times = best_times(runs)
     faults = {}
     for name, run in runs.items():
         before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
         run()
         faults[name] = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
-    same = np.array_equal(runs["cv2.cornerHarris"](), runs["tactum.harris_response"]())
-    layout = tactum._harris_loops()
+    same = np.array_equal(runs["cv2.cornerHarris"](), runs["corners.harris_response"]())
+    layout = corners._harris_loops()
     print(f"  MaCo's Harris response ({'bit for bit the same' if same else 'VALUES DIFFER'}; calcHarris "
           f"vector loops {layout if layout else 'not reproduced: cornerHarris is called'}):")
     for name in runs:

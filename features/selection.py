@@ -379,7 +379,7 @@ def select_features(space: _LabelledSpace, level: str = "fine", n_features: int 
     """Fit :class:`FQSelector` on every row of ``space`` at classification ``level`` (coarse/medium/fine).
 
     This is the paper's exploratory view (Table IV): the selection a model trained on the whole space
-    would use. Cross-validated scores must come from ``taxonomy.evaluation.evaluate`` instead.
+    would use. Cross-validated scores must come from ``taxonomy.learning.evaluation.evaluate`` instead.
     """
     y = space.y(level)
     selector = FQSelector(n_features=n_features, max_corr=max_corr).fit(space.X, y)

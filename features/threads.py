@@ -63,7 +63,7 @@ if hasattr(os, "register_at_fork"):
 def thread_pools() -> ThreadpoolController:
     """The thread pools (BLAS, OpenMP) loaded in this process, found again only when modules were imported
     since: looking them up walks every loaded library, which took longer than the rest of extracting a
-    small scan, and a new pool comes with an import (scikit-learn's OpenMP with ``taxonomy.evaluation``,
+    small scan, and a new pool comes with an import (scikit-learn's OpenMP with ``taxonomy.learning.evaluation``,
     after :mod:`features` had found numpy's, scipy's and OpenCV's)."""
     return _thread_pools(len(sys.modules))
 

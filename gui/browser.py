@@ -2,7 +2,7 @@
 the export of the feature table, and export bundles built in the background (:mod:`gui.exports`).
 
 Pages read the catalog (``scanner.storage.database.Database``); a scan page loads the scan's ``.mat`` file. The
-trace figure is ``taxonomy.plots.plot_scan``, drawn once per scan content and kept in the app's cache
+trace figure is ``taxonomy.reports.plots.plot_scan``, drawn once per scan content and kept in the app's cache
 folder. Feature values come from ``features.extract_many`` with the database as cache, so a scan is only
 extracted the first time it is shown (or never, after ``texplorer features``).
 """
@@ -30,7 +30,7 @@ from scanner.scan import CHANNELS, IMAGES
 from scanner.storage.database import DatabaseError, ScanRecord
 from scanner.storage.files import temp_path_for
 from scanner.workflows import extract_database, stored_features
-from taxonomy.plots import plot_scan
+from taxonomy.reports.plots import plot_scan
 from taxonomy.table import Taxonomy
 
 blueprint = Blueprint("database", __name__)

@@ -16,7 +16,7 @@ from gui.operation import Operations
 from gui.photos import DEFAULT_MAX_BYTES, DEFAULT_MAX_PIXELS, PhotoStore
 from scanner.acquisition.config import Config
 from scanner.storage.database import Database
-from taxonomy.models import TrainedModel, load_model
+from taxonomy.learning.models import TrainedModel, load_model
 
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
 DEMO_MODEL = Path("models") / "rf-fine-X10.skops"

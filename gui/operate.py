@@ -40,8 +40,8 @@ from scanner.acquisition.session import VOLUME_METHODS, Session, SessionError, S
 from scanner.scan import IMAGES
 from scanner.storage.database import DatabaseError
 from scanner.workflows import predict_values
-from taxonomy.models import ModelError
-from taxonomy.plots import plot_scan, plot_step
+from taxonomy.learning.models import ModelError
+from taxonomy.reports.plots import plot_scan, plot_step
 
 blueprint = Blueprint("operate", __name__)
 
@@ -484,7 +484,7 @@ def _send_png(data: bytes) -> Response:
 
 @blueprint.get("/session/step/<step_id>/traces.png")
 def step_traces(step_id: str) -> Response:
-    """The traces of a recorded step, drawn in memory by ``taxonomy.plots.plot_step`` (cached per change)."""
+    """The traces of a recorded step, drawn in memory by ``taxonomy.reports.plots.plot_step`` (cached per change)."""
     op = operation()
     info = _record_step(op.session, step_id)
     result = op.session.result(step_id)

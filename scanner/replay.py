@@ -32,7 +32,7 @@ from scanner.storage.files import is_temp_file
 from scanner.storage.matfile import load_scan
 from scanner.storage.stored import StoredScan
 from taxonomy.errors import TexplorerError
-from taxonomy.models import ModelError, TrainedModel, predict_top
+from taxonomy.learning.models import ModelError, TrainedModel, predict_top
 
 if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
     from distributed import Client

@@ -26,7 +26,7 @@ from scanner.scan import Scan
 from scanner.storage.bundle import ExportReport, Progress, export_bundle
 from scanner.storage.database import Database, DatabaseError, ScanRecord
 from taxonomy.labels import LabelError
-from taxonomy.models import TrainedModel, predict_top
+from taxonomy.learning.models import TrainedModel, predict_top
 from taxonomy.table import Taxonomy, UnknownLabelError
 
 if TYPE_CHECKING:
@@ -103,7 +103,7 @@ class Prediction:
 
 
 def name_predictions(top: Iterable[tuple[str, float]], taxonomy: Taxonomy) -> list[Prediction]:
-    """``[(label, probability), ...]`` (:func:`taxonomy.models.predict_top`) with each label's names."""
+    """``[(label, probability), ...]`` (:func:`taxonomy.learning.models.predict_top`) with each label's names."""
     return [Prediction(label, probability, _names(label, taxonomy)) for label, probability in top]
 
 
@@ -119,7 +119,7 @@ def predict_scan(model: TrainedModel, scan: Scan, k: int, taxonomy: Taxonomy) ->
 
     Raises
     ------
-    taxonomy.models.ModelError
+    taxonomy.learning.models.ModelError
         A feature the model needs is missing or undefined for this scan.
     """
     return predict_values(model, extract(scan), k, taxonomy)

@@ -4,10 +4,10 @@ This package's surface is the ground layer that every other layer builds on: lab
 and the project's base error. The learning modules are imported by their own names, since they build on
 the features, which build on the scan model, which needs the labels:
 
-- :mod:`taxonomy.evaluation`: classifiers, cross-validation and metrics (``evaluate``, ``evaluate_grid``);
-- :mod:`taxonomy.models`: trained models (``train_model``, ``predict_top``);
-- :mod:`taxonomy.methods`: the related papers' methods (``compare``);
-- :mod:`taxonomy.report`, :mod:`taxonomy.plots`: tables, HTML reports and figures.
+- :mod:`taxonomy.learning.evaluation`: classifiers, cross-validation and metrics (``evaluate``, ``evaluate_grid``);
+- :mod:`taxonomy.learning.models`: trained models (``train_model``, ``predict_top``);
+- :mod:`taxonomy.related`: the related papers' methods (``compare``);
+- :mod:`taxonomy.reports.report`, :mod:`taxonomy.reports.plots`: tables, HTML reports and figures.
 """
 
 from taxonomy.errors import TexplorerError

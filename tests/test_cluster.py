@@ -32,8 +32,8 @@ from features.cluster import ClusterError, DataShipped, connect, local_workers, 
 from scanner.simulation import recordings as sim  # noqa: E402
 from scanner.simulation.database import synthetic_database  # noqa: E402
 from scanner.storage.database import Database  # noqa: E402
-from taxonomy.evaluation import evaluate, evaluate_grid  # noqa: E402
-from taxonomy.methods import Dataset, compare  # noqa: E402
+from taxonomy.learning.evaluation import evaluate, evaluate_grid  # noqa: E402
+from taxonomy.related import Dataset, compare  # noqa: E402
 
 # A hung cluster fails the test instead of hanging CI; all tests of this file share one xdist worker.
 pytestmark = [pytest.mark.timeout(300), pytest.mark.xdist_group("dask"), pytest.mark.slow]

@@ -1,4 +1,4 @@
-"""Cross-validation, metrics and reports of ``taxonomy.evaluation`` on small synthetic feature spaces."""
+"""Cross-validation, metrics and reports of ``taxonomy.learning.evaluation`` on small synthetic feature spaces."""
 
 from __future__ import annotations
 
@@ -17,8 +17,8 @@ from sklearn.preprocessing import MinMaxScaler
 
 from features.selection import FQSelector
 from features.space import FeatureSpace, FeatureSpaceError
-from taxonomy import evaluation
-from taxonomy.evaluation import (
+from taxonomy.learning import evaluation
+from taxonomy.learning.evaluation import (
     CLASSIFIERS,
     EvaluationError,
     cv_splits,
@@ -26,8 +26,8 @@ from taxonomy.evaluation import (
     evaluate_grid,
     make_pipeline,
 )
-from taxonomy.report import cell_text, format_table, write_report
-from taxonomy.results import major_class, one_line, r_c
+from taxonomy.learning.results import major_class, one_line, r_c
+from taxonomy.reports.report import cell_text, format_table, write_report
 
 MODALITIES = ("tactum", "image", "audio", "other")
 
@@ -303,7 +303,7 @@ def test_text_table_shows_the_report_numbers():
 
 
 def test_figure_labels_name_each_class_and_keep_its_code():
-    from taxonomy.plots import class_labels
+    from taxonomy.reports.plots import class_labels
 
     assert class_labels(["C6S1M1P2X1", "C6S1", "C6", "C99S1M1P1X1", "c3"]) \
         == ["granite, polished (C6S1M1P2X1)", "igneous stone (C6S1)", "stone (C6)", "C99S1M1P1X1", "c3"]
@@ -330,7 +330,7 @@ def test_html_report_is_one_offline_folder(tmp_path):
 
 
 def test_levels_of_one_space_share_the_split_policy():
-    from taxonomy.evaluation import cv_splits
+    from taxonomy.learning.evaluation import cv_splits
 
     fine = np.repeat(["C1S1M1P1X1", "C1S1M2P1X1", "C2S1M1P1X1", "C2S1M2P1X1"], 5)
     coarse = np.array([label[:2] for label in fine])

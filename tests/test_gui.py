@@ -472,7 +472,7 @@ def scanner_channels():
 def density_model(path):
     """A random forest on density alone: granite (2.6-2.8 g/cm^3) against oak (0.6-0.8 g/cm^3)."""
     from features.space import FeatureSpace
-    from taxonomy.models import save_model, train_model
+    from taxonomy.learning.models import save_model, train_model
 
     density = np.concatenate([np.linspace(2.6, 2.8, 6), np.linspace(0.6, 0.8, 6)])
     labels = ["C6S1M1P2X1"] * 6 + ["C1S1M1P4X1"] * 6

@@ -20,9 +20,9 @@ from sklearn.utils.estimator_checks import parametrize_with_checks
 from features import related
 from scanner.scan import Recording, Trace
 from scanner.simulation import recordings as sim
-from taxonomy import methods
-from taxonomy.methods import Dataset, MethodError, compare
-from taxonomy.results import format_comparison, warning_notes
+from taxonomy import related as methods
+from taxonomy.learning.results import format_comparison, warning_notes
+from taxonomy.related import Dataset, MethodError, compare
 
 # -- simulated sensors -------------------------------------------------------------------------------
 
@@ -359,7 +359,7 @@ def test_scikit_learn_estimator_checks(estimator, check):
                                                   (("c6", "C7", "C6S2"), False)])
 def test_a_methods_r_c_is_defined_where_its_classes_are_taxonomy_codes(classes, defined):
     # r_C was set by hand for one method (fishel), so huang and hoelscher on scans had none.
-    from taxonomy.methods.scoring import Scores, scored
+    from taxonomy.related.scoring import Scores, scored
 
     confusion = np.array([[3, 1, 0], [0, 4, 0], [2, 0, 2]])  # one miss stays in C6, two change C
     scores = Scores(np.array([0.75]), np.array([0.7]), classes, confusion, 0.0, 0.0, ())

@@ -16,8 +16,8 @@ from sklearn.preprocessing import FunctionTransformer, MinMaxScaler
 
 from features.selection import FQSelector
 from features.space import FeatureSpace
-from taxonomy.evaluation import CLASSIFIERS
-from taxonomy.models import (
+from taxonomy.learning.evaluation import CLASSIFIERS
+from taxonomy.learning.models import (
     MODEL_FORMAT,
     ModelError,
     TrainedModel,

@@ -24,8 +24,8 @@ from features import FeatureSpace
 from features.recordings import Windowing, feature_space
 from scanner.cli import main
 from scanner.storage.ingest import load_recordings, set_folder
-from taxonomy.evaluation import evaluate_grid
-from taxonomy.report import cell_text
+from taxonomy.learning.evaluation import evaluate_grid
+from taxonomy.reports.report import cell_text
 
 
 def cli(capsys, *argv: str) -> str:

@@ -17,7 +17,7 @@ from features.registry import ROLE_REGISTRY, RegistryError, RoleFamily
 from gui.browser import group_features
 from scanner import cli
 from scanner.scan import Recording, Trace
-from taxonomy.evaluation import default_feature_sets, evaluate
+from taxonomy.learning.evaluation import default_feature_sets, evaluate
 
 TOY = ("toy.peak_v_ts", "toy.samples_v_ts")
 

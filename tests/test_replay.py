@@ -110,7 +110,7 @@ def test_scan_paths_searches_folders_and_skips_temporary_files(tmp_path):
 
 
 def test_predictions_of_a_model_trained_on_the_regression_scans():
-    from taxonomy.models import train_model
+    from taxonomy.learning.models import train_model
 
     expected = FeatureSpace.from_csv(EXPECTED)
     model = train_model(expected, level="coarse", n_features=3, classifier="rf")

@@ -524,7 +524,7 @@ def test_perforated_photo_shows_the_hole_pitch(library):
 # -- the scan plot -----------------------------------------------------------------------------------------
 
 def test_plot_scan_writes_one_page_png_also_without_fold_channels(tmp_path, foam_and_steel):
-    from taxonomy.plots import plot_scan
+    from taxonomy.reports.plots import plot_scan
 
     skipped = sim.synthetic_scan("float-glass", seed=2, image_size=SMALL, fold_skip_probability=1.0)
     for name, scan in (("foam", foam_and_steel[0]), ("glass", skipped)):
@@ -541,7 +541,7 @@ def test_plot_step_draws_one_steps_channels_800_px_wide(foam_and_steel):
 
     from scanner.acquisition.config import Config
     from scanner.acquisition.session import procedure
-    from taxonomy.plots import plot_step
+    from taxonomy.reports.plots import plot_step
 
     scan = foam_and_steel[0]
     recorded = [step.id for step in procedure(Config()) if step.kind == "record"]

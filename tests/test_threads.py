@@ -168,7 +168,7 @@ def test_a_forked_worker_extracts_on_its_one_thread(request, beside):
 
 
 def test_the_pools_are_found_again_after_an_import(monkeypatch):
-    # taxonomy.evaluation imports scikit-learn, whose OpenMP pool was missed by a controller found once
+    # taxonomy.learning.evaluation imports scikit-learn, whose OpenMP pool was missed by a controller found once
     # when features was imported, so the fits' limit did not cover it.
     import types
 

@@ -18,7 +18,7 @@ from scanner.scan import IMAGES, JUDGED_SCALE
 from scanner.storage.database import DatabaseError, is_database
 from scanner.workflows import format_predictions, predict_scan
 from taxonomy.errors import TexplorerError
-from taxonomy.models import load_model
+from taxonomy.learning.models import load_model
 
 try:  # pseudo-terminals: POSIX only
     from scanner.acquisition.emulators.board import BoardEmulator, FaultPlan

@@ -29,11 +29,11 @@ from scanner.cli.common import (
 from scanner.storage.ingest import load_recordings, set_folder
 from scanner.storage.matfile import load_scan
 from scanner.workflows import extract_database, format_predictions, predict_scan
-from taxonomy.evaluation import CLASSIFIERS, default_feature_sets, evaluate_grid
 from taxonomy.labels import LEVELS
-from taxonomy.models import load_model, save_model, train_model
-from taxonomy.report import format_table, write_report
-from taxonomy.results import one_line
+from taxonomy.learning.evaluation import CLASSIFIERS, default_feature_sets, evaluate_grid
+from taxonomy.learning.models import load_model, save_model, train_model
+from taxonomy.learning.results import one_line
+from taxonomy.reports.report import format_table, write_report
 from taxonomy.table import load_taxonomy
 
 

@@ -18,7 +18,7 @@ from features.cluster import ClusterError, connect, describe
 from scanner.storage.database import Database
 from scanner.workflows import extract_database
 from taxonomy.errors import TexplorerError
-from taxonomy.evaluation import CLASSIFIERS
+from taxonomy.learning.evaluation import CLASSIFIERS
 
 DEFAULT_DB = "texplorer-data"
 

@@ -10,7 +10,7 @@ from scanner.cli.analysis import report_space, run_evaluation
 from scanner.cli.common import add_cluster_options, add_db_option, add_evaluation_options, cluster
 from scanner.simulation.database import synthetic_database
 from scanner.workflows import extract_database
-from taxonomy.models import save_model, train_model
+from taxonomy.learning.models import save_model, train_model
 
 DEMO_SAMPLES = 2
 

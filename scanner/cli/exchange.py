@@ -26,7 +26,7 @@ from scanner.storage.bundle import BundleError, import_bundle
 from scanner.storage.matfile import load_scan
 from scanner.workflows import export_database
 from taxonomy.labels import Label
-from taxonomy.models import load_model
+from taxonomy.learning.models import load_model
 
 EXIT_MISMATCH = 4
 """``replay --expect`` found feature values outside the tolerance, or missing scans or features."""

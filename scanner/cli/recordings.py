@@ -22,9 +22,9 @@ from scanner.storage.ingest import (
     summarise_notes,
     with_grid,
 )
-from taxonomy.methods import METHODS, Dataset, MethodError, compare_methods
-from taxonomy.report import write_comparison
-from taxonomy.results import format_comparison
+from taxonomy.learning.results import format_comparison
+from taxonomy.related import METHODS, Dataset, MethodError, compare_methods
+from taxonomy.reports.report import write_comparison
 
 
 def ingest_mapping(args: argparse.Namespace):
@@ -59,7 +59,7 @@ def cmd_ingest(args: argparse.Namespace) -> int:
 
 
 COMPARE_METHODS = tuple(METHODS)
-"""``taxonomy.methods.METHODS``, named here so the parser does not import scikit-learn."""
+"""``taxonomy.related.METHODS``, named here so the parser does not import scikit-learn."""
 
 
 COMPARE_REPEATS = 10

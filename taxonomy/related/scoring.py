@@ -1,4 +1,5 @@
-"""The splits of the methods' protocols, scoring a method on them, and its :class:`~taxonomy.results.Result`."""
+"""The splits of the methods' protocols, scoring a method on them, and its
+:class:`~taxonomy.learning.results.Result`."""
 
 from __future__ import annotations
 
@@ -19,8 +20,8 @@ from features import cluster
 from features.threads import one_blas_thread
 from taxonomy import labels
 from taxonomy.labels import LabelError
-from taxonomy.methods.datasets import TIMED_ROWS, Extracted, MethodError
-from taxonomy.results import Result, warning_notes
+from taxonomy.learning.results import Result, warning_notes
+from taxonomy.related.datasets import TIMED_ROWS, Extracted, MethodError
 
 if TYPE_CHECKING:
     from distributed import Client

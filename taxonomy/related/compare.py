@@ -11,13 +11,13 @@ from scanner.scan import Recording, Scan
 
 if TYPE_CHECKING:
     from distributed import Client
-from taxonomy.methods.chathuranga import run_chathuranga
-from taxonomy.methods.datasets import REPEATS, SEED, Dataset, FeatureCache, MethodError, MethodSkipped, every
-from taxonomy.methods.fishel import run_fishel
-from taxonomy.methods.hoelscher import HOELSCHER_SETS, run_hoelscher
-from taxonomy.methods.huang import run_huang
-from taxonomy.methods.xie import run_xie
-from taxonomy.results import Result
+from taxonomy.learning.results import Result
+from taxonomy.related.chathuranga import run_chathuranga
+from taxonomy.related.datasets import REPEATS, SEED, Dataset, FeatureCache, MethodError, MethodSkipped, every
+from taxonomy.related.fishel import run_fishel
+from taxonomy.related.hoelscher import HOELSCHER_SETS, run_hoelscher
+from taxonomy.related.huang import run_huang
+from taxonomy.related.xie import run_xie
 
 
 @dataclass(frozen=True)
@@ -148,7 +148,7 @@ def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Se
     Returns
     -------
     list of Result
-        In method order; see :func:`taxonomy.results.format_comparison` for the table.
+        In method order; see :func:`taxonomy.learning.results.format_comparison` for the table.
     """
     data = _as_dataset(dataset)
     names = applicable(data) if methods is None else list(methods)

@@ -26,7 +26,8 @@ from features.selection import Selection, select_features
 from features.space import FeatureSpace
 from scanner.storage.files import atomic_write_bytes
 from taxonomy.labels import LEVELS
-from taxonomy.plots import (
+from taxonomy.learning.results import COLUMNS, Result, best_per_method, format_r_c, major_class, result_notes, size_name
+from taxonomy.reports.plots import (
     plot_confusion,
     plot_feature_boxes,
     plot_fq_ranking,
@@ -34,7 +35,6 @@ from taxonomy.plots import (
     plot_scores,
     plot_spearman,
 )
-from taxonomy.results import COLUMNS, Result, best_per_method, format_r_c, major_class, result_notes, size_name
 
 CELL_LEGEND = ("accuracy % (mean +- std over folds), macro F1, r_C (paper eq. 32; - where undefined: no "
                "misclassification, or the coarse level, where every misclassification leaves the major class)")
@@ -49,7 +49,7 @@ PAGE_STYLE = ("body{font-family:sans-serif;margin:2em;max-width:1200px}table{bor
 def cell_text(report: Result) -> str:
     """``"90.2 +- 1.2  0.90  0.05"``: accuracy in percent, macro F1 and r_C.
 
-    r_C is NaN where it is undefined (``taxonomy.results.r_c``: no misclassification, or the coarse
+    r_C is NaN where it is undefined (``taxonomy.learning.results.r_c``: no misclassification, or the coarse
     level) and shown as ``-`` then, never as a number.
     """
     return (f"{100 * report.accuracy_mean:5.1f} +- {100 * report.accuracy_std:4.1f}  {report.f1_mean:4.2f}  "
@@ -115,7 +115,7 @@ def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: S
     space : features.space.FeatureSpace
         The feature space the reports were computed on (for FQ, Spearman, PCA and box plots).
     reports : list of Result
-        From ``taxonomy.evaluation.evaluate`` / ``evaluate_grid``; may be empty.
+        From ``taxonomy.learning.evaluation.evaluate`` / ``evaluate_grid``; may be empty.
     level, n_features : str, int
         Level and set size of the FQ ranking and Spearman heat map (selection on all rows).
     feature : str, optional
@@ -242,7 +242,7 @@ def write_comparison(folder: str | os.PathLike[str], results: Sequence[Result], 
     """Write the related-methods comparison as ``index.html`` (same page format as :func:`write_report`).
 
     The page holds what became of every method (``outcome``: ran, or why not), the comparison table
-    (:data:`taxonomy.results.COLUMNS`, times per classification), the notes naming their method, an
+    (:data:`taxonomy.learning.results.COLUMNS`, times per classification), the notes naming their method, an
     accuracy chart of every result and the confusion matrix of each method's best result; the PNGs are
     written beside it and embedded in it. Returns the path of ``index.html``.
     """

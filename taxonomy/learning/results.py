@@ -3,10 +3,10 @@
 A :class:`Result` is one classifier on one feature set at one classification level, scored over the
 splits of a protocol: accuracy and macro F1 per split, the confusion matrix summed over the splits, and
 notes (what scikit-learn or the split reported while fitting, rows or columns left out).
-:func:`taxonomy.evaluation.evaluate` returns one per (classifier, feature set, level, set size), with the
-out-of-fold predictions and the features each fold selected; :func:`taxonomy.methods.compare` one per
+:func:`taxonomy.learning.evaluation.evaluate` returns one per (classifier, feature set, level, set size), with the
+out-of-fold predictions and the features each fold selected; :func:`taxonomy.related.compare` one per
 configuration of each related method, with the time per classification and the figure its paper reports.
-The text table of the evaluation (:func:`taxonomy.report.format_table`), the comparison table
+The text table of the evaluation (:func:`taxonomy.reports.report.format_table`), the comparison table
 (:func:`format_comparison`), the HTML reports and the figures all read this one type.
 
 The metric ``r_C`` (Strese et al. 2020, eq. 32) is defined here too, as a result's property needs it.

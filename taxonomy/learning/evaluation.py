@@ -52,7 +52,7 @@ from features.registry import REGISTRY
 from features.selection import FQSelector, KeepAll
 from features.space import FeatureSpace
 from features.threads import one_blas_thread
-from taxonomy.results import OWN_METHOD, EvaluationError, Result, warning_notes
+from taxonomy.learning.results import OWN_METHOD, EvaluationError, Result, warning_notes
 
 if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
     from distributed import Client

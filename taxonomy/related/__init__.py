@@ -2,8 +2,8 @@
 (docs/features.md#related).
 
 :func:`compare` runs every method that applies to a :class:`Dataset` (our scans, imported recordings or a
-simulated sensor) and returns one :class:`taxonomy.results.Result` per (method, feature set, classifier,
-motions, level), the type the project's own evaluation returns too (:func:`taxonomy.results.format_comparison`
+simulated sensor) and returns one :class:`taxonomy.learning.results.Result` per (method, feature set, classifier,
+motions, level), the type the project's own evaluation returns too (:func:`taxonomy.learning.results.format_comparison`
 prints them as a table): accuracy and macro F1 over the splits of the method's published protocol, and the time per
 classification split into feature extraction and the classifier itself.
 
@@ -43,14 +43,14 @@ Timing: ``feature_seconds`` is the extraction time of the recordings one classif
 while extracting, plus any feature step inside the fitted pipeline), ``classify_seconds`` the median time
 to classify one row with the fitted model (rows timed one at a time, as a deployed classifier sees them).
 """
-from taxonomy.methods.chathuranga import (
+from taxonomy.related.chathuranga import (
     CHATHURANGA_PAPER,
     NearestSpatialPeriod,
     PairwiseEliminationSVM,
     palpation_table,
     run_chathuranga,
 )
-from taxonomy.methods.compare import (
+from taxonomy.related.compare import (
     METHOD_ROLES,
     METHODS,
     Comparison,
@@ -61,7 +61,7 @@ from taxonomy.methods.compare import (
     every,
     not_applicable,
 )
-from taxonomy.methods.datasets import (
+from taxonomy.related.datasets import (
     REPEATS,
     SEED,
     TIMED_ROWS,
@@ -75,8 +75,8 @@ from taxonomy.methods.datasets import (
     object_of,
     trial_of,
 )
-from taxonomy.methods.fishel import run_fishel
-from taxonomy.methods.hoelscher import (
+from taxonomy.related.fishel import run_fishel
+from taxonomy.related.hoelscher import (
     COMBINATIONS,
     HOELSCHER_CLASSIFIERS,
     HOELSCHER_PAPER,
@@ -90,8 +90,8 @@ from taxonomy.methods.hoelscher import (
     hoelscher_features,
     run_hoelscher,
 )
-from taxonomy.methods.huang import HUANG_PAPER, huang_classifier, run_huang
-from taxonomy.methods.scoring import (
+from taxonomy.related.huang import HUANG_PAPER, huang_classifier, run_huang
+from taxonomy.related.scoring import (
     Maker,
     Scores,
     Split,
@@ -103,7 +103,7 @@ from taxonomy.methods.scoring import (
     scored,
     usable_rows,
 )
-from taxonomy.methods.xie import (
+from taxonomy.related.xie import (
     XIE_CLASSIFIERS,
     XIE_MAX_DIMENSIONS,
     XIE_PAPER,

@@ -11,13 +11,13 @@ from sklearn.base import BaseEstimator
 from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import MinMaxScaler
 
-from taxonomy.evaluation import classifier_estimators, cv_splits
+from taxonomy.learning.evaluation import classifier_estimators, cv_splits
 
 if TYPE_CHECKING:
     from distributed import Client
-from taxonomy.methods.datasets import Dataset, FeatureCache, object_of
-from taxonomy.methods.scoring import score, scored, usable_rows
-from taxonomy.results import Result, warning_notes
+from taxonomy.learning.results import Result, warning_notes
+from taxonomy.related.datasets import Dataset, FeatureCache, object_of
+from taxonomy.related.scoring import score, scored, usable_rows
 
 
 def run_fishel(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
@@ -28,7 +28,8 @@ def run_fishel(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
     rows, columns, notes = usable_rows(extracted, range(len(dataset)))
     X = extracted.X[np.ix_(rows, columns)]
     groups = [object_of(dataset.recordings[i]) for i in rows]
-    # The fine labels decide the grouping, so every level is split alike (as taxonomy.evaluation.evaluate does).
+    # The fine labels decide the grouping, so every level is split alike (as
+    # taxonomy.learning.evaluation.evaluate does).
     fine = dataset.y(dataset.label_level, rows)
     folds = max(2, min(5, int(np.unique(fine, return_counts=True)[1].min())))
     results = []

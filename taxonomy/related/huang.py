@@ -15,9 +15,9 @@ from sklearn.svm import SVC
 
 if TYPE_CHECKING:
     from distributed import Client
-from taxonomy.methods.datasets import Dataset, FeatureCache, slides_first
-from taxonomy.methods.scoring import kfold_splits, score, scored, usable_rows
-from taxonomy.results import Result
+from taxonomy.learning.results import Result
+from taxonomy.related.datasets import Dataset, FeatureCache, slides_first
+from taxonomy.related.scoring import kfold_splits, score, scored, usable_rows
 
 HUANG_PAPER = {"svm": "95 +- 2.3 %, 0.47 s features", "rf": "94 +- 2.2 %, 0.47 s features",
                "knn": "94 +- 2.2 %, 0.47 s features"}

@@ -20,9 +20,9 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 if TYPE_CHECKING:
     from distributed import Client
-from taxonomy.methods.datasets import Dataset, Extracted, FeatureCache, MethodError, MethodSkipped, motion_of, trial_of
-from taxonomy.methods.scoring import holdout_splits, score, scored
-from taxonomy.results import Result
+from taxonomy.learning.results import Result
+from taxonomy.related.datasets import Dataset, Extracted, FeatureCache, MethodError, MethodSkipped, motion_of, trial_of
+from taxonomy.related.scoring import holdout_splits, score, scored
 
 
 class PairwiseEliminationSVM(ClassifierMixin, BaseEstimator):

@@ -21,9 +21,9 @@ from features import related
 
 if TYPE_CHECKING:
     from distributed import Client
-from taxonomy.methods.datasets import Dataset, FeatureCache, slides_first
-from taxonomy.methods.scoring import kfold_splits, score, scored, usable_rows
-from taxonomy.results import Result
+from taxonomy.learning.results import Result
+from taxonomy.related.datasets import Dataset, FeatureCache, slides_first
+from taxonomy.related.scoring import kfold_splits, score, scored, usable_rows
 
 XIE_CLASSIFIERS = ("linear-svm", "rbf-svm", "knn", "lda", "nb", "rf", "mlp")
 XIE_PAPER = {

@@ -21,7 +21,8 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 if TYPE_CHECKING:
     from distributed import Client
-from taxonomy.methods.datasets import (
+from taxonomy.learning.results import Result
+from taxonomy.related.datasets import (
     SEED,
     Dataset,
     Extracted,
@@ -33,7 +34,7 @@ from taxonomy.methods.datasets import (
     object_of,
     trial_of,
 )
-from taxonomy.methods.scoring import (
+from taxonomy.related.scoring import (
     Scores,
     Split,
     leave_object_out_splits,
@@ -42,7 +43,6 @@ from taxonomy.methods.scoring import (
     scored,
     usable_rows,
 )
-from taxonomy.results import Result
 
 HOELSCHER_SETS = ("xu3", "chu", "mean23", "dallaire", "chitta", "temperature")
 HOELSCHER_CLASSIFIERS = ("nb", "gaussian", "linear-svm", "rbf-svm", "rf")

@@ -18,7 +18,7 @@ import scipy.stats
 
 from scanner.scan import Scan, Trace
 from taxonomy.labels import LabelError, major_class
-from taxonomy.results import Result
+from taxonomy.learning.results import Result
 from taxonomy.table import Taxonomy, load_taxonomy
 
 if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn (_new_figure)

@@ -36,7 +36,8 @@ from features.space import FeatureSpace
 from scanner.storage.files import atomic_write_bytes
 from scanner.version import __version__
 from taxonomy.errors import TexplorerError
-from taxonomy.evaluation import (
+from taxonomy.labels import LEVELS, check_level
+from taxonomy.learning.evaluation import (
     CLASSIFIERS,
     SEED,
     FeatureSet,
@@ -45,7 +46,6 @@ from taxonomy.evaluation import (
     make_pipeline,
     resolve_feature_set,
 )
-from taxonomy.labels import LEVELS, check_level
 from taxonomy.table import Taxonomy
 
 MODEL_FORMAT = "texplorer-model"
@@ -108,8 +108,9 @@ def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, 
                 seed: int = SEED, feature_set: FeatureSet = None) -> TrainedModel:
     """Fit ``scale -> select n_features -> classifier`` on every row of ``space`` at ``level``.
 
-    Columns that hold NaN in any row are left out, as in ``taxonomy.evaluation.evaluate`` (listed in ``dropped``).
-    Cross-validated scores of the same settings come from ``taxonomy.evaluation.evaluate``.
+    Columns that hold NaN in any row are left out, as in ``taxonomy.learning.evaluation.evaluate`` (listed in
+    ``dropped``).
+    Cross-validated scores of the same settings come from ``taxonomy.learning.evaluation.evaluate``.
     """
     check_level(level)
     if classifier not in CLASSIFIERS:
