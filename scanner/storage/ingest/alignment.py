@@ -125,5 +125,7 @@ def _on_common_grid(name: str, stream: Stream, start: float, stop: float, file: 
                               f"{100 * spread:.0f} %; resampled to {stream.rate:.6g} Hz"))
     info = {"resampled": first is None, "gaps": int(gap_start.size), "bridged_samples": bridged,
             "longest_gap_s": float(gap_length.max()) if gap_length.size else 0.0}
+    if stream.clock is not None:
+        info["clock"] = stream.clock
     return data, notes, info
 

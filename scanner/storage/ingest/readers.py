@@ -7,9 +7,10 @@ from __future__ import annotations
 import csv
 import math
 import zipfile
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Collection, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -17,6 +18,7 @@ from scipy.io import wavfile
 
 from scanner.photo import PhotoError, check_pixels, image_size, max_file_bytes
 from scanner.scan import ScanError, Trace
+from scanner.storage.ingest.clock import Clock, on_slots, regular_clock
 from scanner.storage.ingest.mapping import FORMATS, TIME_UNITS, ChannelMap, FileMap, IngestError, format_of
 from scanner.storage.mat5 import MatFileError, read_mat
 
@@ -57,11 +59,15 @@ def _split_lines(text: str, delimiter: str | None, comment: str | None) -> list[
 
 
 def read_table(path: Path, delimiter: str | None, header: bool, comment: str | None = "#",
-               skip_rows: int = 0) -> tuple[list[str], np.ndarray]:
+               skip_rows: int = 0,
+               needed: Callable[[list[str]], Collection[int]] | None = None,
+               ignored: dict[str, str] | None = None) -> tuple[list[str], np.ndarray]:
     """Column names and values (rows, columns, NaN for missing tokens) of a CSV/TSV file.
 
     Trailing delimiters (an empty last field on every line) are dropped; a row with a different number of
-    fields than the header is an error naming the line.
+    fields than the header is an error naming the line. ``needed`` (the column names -> the indices to
+    read) leaves every other column unread, NaN: a text column the mapping does not use is no error, and
+    is put in ``ignored`` (its name -> its first value) for a note.
     """
     try:
         text = path.read_text(encoding="utf-8-sig")
@@ -81,13 +87,25 @@ def read_table(path: Path, delimiter: str | None, header: bool, comment: str | N
         names = [str(k) for k in range(len(_trimmed(rows[0][1], 0)))]
     if not rows:
         raise IngestError(f"{path}: a header but no data rows")
-    values = np.empty((len(rows), len(names)))
+    read = sorted(set(range(len(names)) if needed is None else needed(names)))
+    values = np.full((len(rows), len(names)), np.nan)
     for r, (line, cells) in enumerate(rows):
         cells = _trimmed(cells, len(names))
         if len(cells) != len(names):
             raise IngestError(f"{path}: line {line}: {len(cells)} fields, expected {len(names)}")
-        values[r] = [_number(cell, f"{path}: line {line}, column {names[c]}") for c, cell in enumerate(cells)]
+        values[r, read] = [_number(cells[c], f"{path}: line {line}, column {names[c]}") for c in read]
+    if ignored is not None and header:
+        ignored.update({names[c]: cell.strip() for c, cell in enumerate(_trimmed(rows[0][1], len(names)))
+                        if c not in read and c < len(names) and not _is_number(cell)})
     return names, values
+
+
+def _is_number(token: str) -> bool:
+    try:
+        _number(token, "")
+    except IngestError:
+        return False
+    return True
 
 
 def _trimmed(cells: list[str], width: int) -> list[str]:
@@ -139,7 +157,9 @@ class Note:
 
 
 NOTE_KINDS = {"missing": "missing samples interpolated", "irregular": "irregular time steps resampled",
-              "gap": "gaps in the timestamps bridged", "aligned": "streams cut to their common time span"}
+              "gap": "gaps in the timestamps bridged", "aligned": "streams cut to their common time span",
+              "clock": "jittered timestamps of a regular clock kept as regular streams",
+              "text": "text columns not in the mapping ignored"}
 
 
 def summarise_notes(notes: Sequence[Note], first: int = 3) -> list[str]:
@@ -196,20 +216,45 @@ def _fill(values: np.ndarray, missing: str, where: str) -> tuple[np.ndarray, int
 @dataclass
 class _Read:
     """What one file contributes: channels (raw arrays, rates and, from a time column, each sample's time
-    in seconds) and images."""
+    in seconds), images, notes, and the regular clock found under its timestamps."""
 
     arrays: dict[str, tuple[np.ndarray, float, ChannelMap, np.ndarray | None]] = field(default_factory=dict)
     images: dict[str, np.ndarray] = field(default_factory=dict)
+    notes: list[Note] = field(default_factory=list)
+    clock: dict[str, Any] | None = None
+
+
+NOMINAL_RATE = 0.01
+"""A mapping's ``rate`` is the nominal rate of a regular clock found under the timestamps when the two
+agree to this fraction; otherwise the stream is resampled to it."""
 
 
 def _table_file(path: Path, spec: FileMap, fmt: str) -> _Read:
     delimiter = spec.delimiter or ("\t" if fmt == "tsv" else ",")
-    names, values = read_table(path, delimiter, spec.header, spec.comment, spec.skip_rows)
+
+    def needed(names: list[str]) -> list[int]:
+        time = [] if spec.time_column is None else _select(names, [spec.time_column], path, "time")
+        return time + [k for channel in spec.channels for k in _select(names, channel.columns, path, channel.name)]
+
+    ignored: dict[str, str] = {}
+    names, values = read_table(path, delimiter, spec.header, spec.comment, spec.skip_rows, needed, ignored)
     read = _Read()
+    if ignored:
+        shown = ", ".join(f"{name} ({value!r})" for name, value in list(ignored.items())[:3])
+        read.notes.append(Note("text", path.name, len(ignored), f"{path.name}: text column(s) not in the "
+                               f"mapping ignored: {shown}{' ...' if len(ignored) > 3 else ''}"))
     times = None
     if spec.time_column is not None:
         times = seconds_of(values[:, _select(names, [spec.time_column], path, "time")[0]], spec.time_unit, path)
         rate = spec.rate or 1.0 / float(np.median(np.diff(times)))
+        clock = regular_clock(times)
+        if clock is not None:
+            values, times, rate = _regular(values, clock, spec.rate)
+            read.clock = _clock_info(clock, rate)
+            if clock.dropped or clock.duplicated or clock.jitter_max > 1e-3 * clock.period:
+                read.notes.append(Note("clock", path.name, clock.jitter_rms / clock.period,
+                                       f"{path.name}: timestamps are {clock.describe()}: kept as a regular "
+                                       f"stream at {rate:.6g} Hz"))
     elif spec.rate is not None:
         rate = spec.rate
     else:
@@ -226,6 +271,21 @@ def _table_file(path: Path, spec: FileMap, fmt: str) -> _Read:
         else:
             read.arrays[channel.name] = (data[:, 0] if data.shape[1] == 1 else data, rate, channel, times)
     return read
+
+
+def _regular(values: np.ndarray, clock: Clock, given: float | None) -> tuple[np.ndarray, np.ndarray, float]:
+    """Rows in their clock slots, the slots' times and the rate: the mapping's where it is the clock's
+    nominal rate (:data:`NOMINAL_RATE`), else the fitted one; a differing given rate keeps the fitted times,
+    so the stream is then resampled to it."""
+    rows = on_slots(values, clock)
+    if given is not None and abs(given * clock.period - 1.0) <= NOMINAL_RATE:
+        return rows, clock.start + np.arange(clock.length) / given, given
+    return rows, clock.times, given or 1.0 / clock.period
+
+
+def _clock_info(clock: Clock, rate: float) -> dict[str, Any]:
+    return {"rate_hz": rate, "fitted_rate_hz": 1.0 / clock.period, "jitter_rms_s": clock.jitter_rms,
+            "jitter_max_s": clock.jitter_max, "dropped": clock.dropped, "duplicated": clock.duplicated}
 
 
 def _wav_file(path: Path, spec: FileMap) -> _Read:
@@ -376,6 +436,7 @@ class Stream:
     rate: float
     unit: str
     times: np.ndarray | None = None
+    clock: dict[str, Any] | None = None
 
 
 def read_streams(path: Path, spec: FileMap,
@@ -386,13 +447,13 @@ def read_streams(path: Path, spec: FileMap,
         "csv": lambda: _table_file(path, spec, fmt), "tsv": lambda: _table_file(path, spec, fmt),
         "wav": lambda: _wav_file(path, spec), "image": lambda: _image_file(path, spec)}
     read = readers.get(fmt, lambda: _array_file(path, spec, fmt))()
-    streams, notes = {}, []
+    streams, notes = {}, list(read.notes)
     for name, (data, rate, channel, times) in read.arrays.items():
         data, filled = _fill(data * channel.scale, missing, f"{path}: channel {name}")
         if filled:
             notes.append(Note("missing", path.name, filled, f"{path.name}: channel {name}: {filled} missing "
                               "sample(s) interpolated"))
-        streams[name] = Stream(data, rate, channel.unit, times)
+        streams[name] = Stream(data, rate, channel.unit, times, read.clock)
     return streams, read.images, notes
 
 
