@@ -63,7 +63,7 @@ from features.registry import ROLE_REGISTRY, RoleFamily
 from features.space import FeatureSpace
 from features.threads import one_blas_thread
 from scanner.preprocess import BAND_HZ, dft321
-from scanner.scan import IMAGE_ROLES, Recording, Trace
+from scanner.scan import IMAGE_ROLES, Recording, Trace, is_generic
 from taxonomy.errors import TexplorerError
 
 if TYPE_CHECKING:
@@ -187,6 +187,112 @@ def friction_features(xyz: np.ndarray, fs: float) -> dict[str, float]:
     return dict(zip(FRICTION_NAMES, (tactum.fst(f_frn, f_frt, lag), tactum.frs(f_frn, f_frt, lag)), strict=True))
 
 
+SIGNAL_STATS = ("mean", "std", "rms", "skewness", "kurtosis", "p05", "p95")
+SIGNAL_BANDS = 7
+SIGNAL_SHAPE = ("centroid", "spread", "flatness", "rolloff", "peak")
+SIGNAL_NAMES = (*SIGNAL_STATS, *(f"band{k}" for k in range(SIGNAL_BANDS)), *SIGNAL_SHAPE)
+"""The features of one column of a generic channel (:func:`signal_features`)."""
+
+SIGNAL_MIN_SAMPLES = 16
+"""Fewest samples of a window the generic features are computed on."""
+
+WELCH_SEGMENT = 256
+"""Samples per segment of the Welch spectrum of a generic channel (fewer in a shorter window)."""
+
+ROLLOFF = 0.85
+"""The spectral roll-off is the frequency below which this share of the power lies."""
+
+
+def signal_bands(fs: float) -> np.ndarray:
+    """Edges (Hz) of the rate-aware band plan of a generic channel: ``0`` and ``fs / 2^k`` for k = 7 .. 1,
+    seven bands of an octave each but the lowest: a 100 Hz IMU gets 0-0.78-1.56-3.1-6.25-12.5-25-50 Hz,
+    a 3 kHz accelerometer 0-23-47-94-188-375-750-1500 Hz."""
+    return np.concatenate(([0.0], fs / 2.0 ** np.arange(SIGNAL_BANDS, 0, -1)))
+
+
+def signal_features(x: np.ndarray, fs: float) -> list[float]:
+    """The features of one column of a generic channel (docs/features.md#generic-signals), in
+    :data:`SIGNAL_NAMES` order.
+
+    Statistics of the samples: mean, standard deviation, RMS, skewness, Pearson kurtosis (3 for a normal
+    distribution), 5th and 95th percentiles. Band energies: the share of the power (Welch spectrum of the
+    signal minus its mean, Hann segments of :data:`WELCH_SEGMENT` samples, half overlapping) in each band of
+    :func:`signal_bands`, so they sum to 1 and describe the spectrum's shape while the standard deviation
+    carries its level. Spectral shape (Peeters 2004, "A large set of audio features for sound description"):
+    centroid and spread (Hz), flatness (geometric over arithmetic mean of the power, 1 for white noise),
+    the 85 % roll-off (Hz) and the frequency of the largest power (Hz). A constant signal has no spectrum:
+    its band energies and shape are NaN.
+
+    Raises
+    ------
+    RecordingFeatureError
+        If the window has fewer than :data:`SIGNAL_MIN_SAMPLES` samples.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    if x.size < SIGNAL_MIN_SAMPLES:
+        raise RecordingFeatureError(f"a window of {x.size} samples is too short for the generic features "
+                                    f"(needs {SIGNAL_MIN_SAMPLES})")
+    mean, std = float(x.mean()), float(x.std())
+    centred = x - mean
+    moments = [math.nan, math.nan] if std == 0 else [float(np.mean(centred ** 3) / std ** 3),
+                                                     float(np.mean(centred ** 4) / std ** 4)]
+    stats = [mean, std, float(np.sqrt(np.mean(x ** 2))), *moments, *np.percentile(x, [5, 95]).tolist()]
+    frequencies, power = signal.welch(centred, fs, window="hann", nperseg=min(WELCH_SEGMENT, x.size))
+    total = float(power.sum())
+    if not total > 0:
+        return stats + [math.nan] * (SIGNAL_BANDS + len(SIGNAL_SHAPE))
+    share = power / total
+    edges = signal_bands(fs)
+    band = np.clip(np.searchsorted(edges, frequencies, side="right") - 1, 0, SIGNAL_BANDS - 1)
+    bands = np.bincount(band, weights=share, minlength=SIGNAL_BANDS).tolist()
+    centroid = float(np.sum(frequencies * share))
+    spread = float(np.sqrt(np.sum((frequencies - centroid) ** 2 * share)))
+    positive = power[power > 0]
+    flatness = float(np.exp(np.mean(np.log(positive))) / np.mean(power)) if positive.size == power.size else 0.0
+    rolloff = float(frequencies[min(int(np.searchsorted(np.cumsum(share), ROLLOFF)), frequencies.size - 1)])
+    return stats + bands + [centroid, spread, flatness, rolloff, float(frequencies[int(np.argmax(power))])]
+
+
+def generic_columns(role: str, width: int) -> tuple[str, ...]:
+    """Columns of the generic family on a channel of ``width`` columns: ``signal.<role>.<feature>``, with
+    ``c<k>_`` before the feature for each column of a multi-column channel."""
+    if width == 1:
+        return tuple(f"signal.{role}.{name}" for name in SIGNAL_NAMES)
+    return tuple(f"signal.{role}.c{k}_{name}" for k in range(width) for name in SIGNAL_NAMES)
+
+
+def _generic(window: np.ndarray, fs: float) -> list[float]:
+    columns = window.reshape(window.shape[0], -1)
+    return [value for k in range(columns.shape[1]) for value in signal_features(columns[:, k], fs)]
+
+
+def _below_vibration_audio(fs: float) -> bool:
+    return fs < VIBRATION_AUDIO_MIN_FS
+
+
+@lru_cache(maxsize=256)
+def generic_family(role: str, width: int) -> RoleFamily:
+    """The generic family of a channel playing ``role`` with ``width`` columns (docs/features.md#generic-
+    signals): on every generic channel (``signal_<channel>``) and on a vibration sampled below
+    :data:`VIBRATION_AUDIO_MIN_FS`, where the audio features do not apply. Not registered: its columns
+    follow the channel's width, so a set's families are made for the channels it has."""
+    name = f"signal.{role}" if width == 1 else f"signal.{role}:{width}"
+    return RoleFamily(name, role, generic_columns(role, width), _generic,
+                      applies=_below_vibration_audio if role == "vibration" else (lambda fs: True))
+
+
+def _family(name: str) -> RoleFamily:
+    """A registered family, or the generic family a name of :func:`generic_family` stands for."""
+    if name in ROLE_REGISTRY.modalities:
+        return ROLE_REGISTRY[name]
+    role, _, width = name.removeprefix("signal.").partition(":")
+    return generic_family(role, int(width or 1))
+
+
+def _width(trace: Trace) -> int:
+    return 1 if trace.data.ndim == 1 else int(np.prod(trace.data.shape[1:]))
+
+
 # -- the families, registered ------------------------------------------------------------------------
 
 def _audio_rate_ok(fs: float) -> bool:
@@ -236,7 +342,8 @@ FRICTION = ROLE_REGISTRY.register(RoleFamily("friction", "force_xyz", FRICTION_N
 
 
 def families(recording: Recording) -> list[str]:
-    """The registered families (``audio.audio``, ``image.photo``, ...) that apply to a recording, in order."""
+    """The families that apply to a recording: the registered ones (``audio.audio``, ``image.photo``, ...)
+    in order, then the generic family of each generic channel and of a vibration below 1 kHz."""
     found = []
     for family in ROLE_REGISTRY:
         if family.role in IMAGE_ROLES:
@@ -246,12 +353,18 @@ def families(recording: Recording) -> list[str]:
             applies = trace is not None and family.applies(trace.fs)
         if applies:
             found.append(family.name)
+    for role in sorted(recording.roles):
+        trace = recording.role(role)
+        if trace is not None and (is_generic(role) or role == "vibration"):
+            family = generic_family(role, _width(trace))
+            if family.applies(trace.fs):
+                found.append(family.name)
     return found
 
 
 def family_names(family: str) -> tuple[str, ...]:
     """The columns of one family."""
-    return ROLE_REGISTRY[family].columns
+    return _family(family).columns
 
 
 # -- one recording -----------------------------------------------------------------------------------
@@ -273,7 +386,7 @@ def _sampled_features(recording: Recording, applied: Sequence[str], start: float
                       prepared: Mapping[str, np.ndarray]) -> dict[str, float]:
     values: dict[str, float] = {}
     for name in applied:
-        family = ROLE_REGISTRY[name]
+        family = _family(name)
         fs = recording.role(family.role).fs
         try:
             window = _cut(prepared[name], fs, start, stop)
@@ -296,7 +409,7 @@ def recording_rows(recording: Recording, windowing: Windowing = Windowing(), bor
     fixed: dict[str, float] = {}
     prepared: dict[str, np.ndarray] = {}
     for name in applied:
-        family = ROLE_REGISTRY[name]
+        family = _family(name)
         try:
             if family.role in IMAGE_ROLES:
                 fixed.update(zip(family.columns, family.compute(recording.image(family.role), border), strict=True))
@@ -309,7 +422,7 @@ def recording_rows(recording: Recording, windowing: Windowing = Windowing(), bor
             fixed.update(dict.fromkeys(family.columns, math.nan))
     if not prepared:
         return [fixed]
-    duration = min(recording.role(ROLE_REGISTRY[name].role).duration for name in prepared)
+    duration = min(recording.role(_family(name).role).duration for name in prepared)
     rows = [_sampled_features(recording, list(prepared), start, stop, prepared)
             for start, stop in _windows(duration, windowing)]
     if windowing.combine != "rows" and len(rows) > 1:
@@ -349,7 +462,7 @@ def _extract_one(job: tuple[Recording, Windowing, int, tuple[str, ...]]) -> tupl
     # One BLAS thread, as features.extract: the same bits here, in a pool and on a Dask worker.
     with warnings.catch_warnings(record=True) as caught, one_blas_thread():
         warnings.simplefilter("always")
-        rows = recording_rows(recording, windowing, border, [f for f in applied if f in families(recording)])
+        rows = recording_rows(recording, windowing, border, _own(recording, applied))
     messages = (str(w.message) for w in caught)
     return rows, list(dict.fromkeys(m if m.startswith("recording ") else f"recording {recording.name!r}: {m}"
                                     for m in messages))
@@ -379,8 +492,8 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     unlabelled = next((r.name for r in recordings if not r.label), None)
     if unlabelled is not None:
         raise RecordingFeatureError(f"recording {unlabelled!r} has no label")
-    present = {f for r in recordings for f in families(r)}
-    applied = tuple(f for f in ROLE_REGISTRY.modalities if f in present)
+    found = [families(r) for r in recordings]
+    applied = _applied({f for names in found for f in names})
     if not applied:
         roles = sorted({role for r in recordings for role in r.roles})
         needed = list(dict.fromkeys(family.role for family in ROLE_REGISTRY))
@@ -390,6 +503,7 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     columns = tuple(name for family in applied for name in family_names(family))
     jobs = [(r, windowing, border, applied) for r in recordings]
     results = _map(_extract_one, jobs, workers, progress, client)
+    missing = lacking(recordings, found, applied)
     label_level, levels = set_levels(recordings)
     X, ids, labels, groups, level_rows, split, notes = [], [], [], [], {k: [] for k in levels}, [], []
     has_split = all(r.meta.get("split") in ("train", "test") for r in recordings)
@@ -406,7 +520,46 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
                 split.append(recording.meta["split"])
     space = FeatureSpace(np.array(X, dtype=np.float64).reshape(len(X), len(columns)), columns, ids, labels,
                          groups, (), label_level, level_rows, split)
-    return space, list(dict.fromkeys(notes))
+    return space, missing + list(dict.fromkeys(notes))
+
+
+def _applied(present: set[str]) -> tuple[str, ...]:
+    """The families of a set: the registered ones present, in registry order, then one generic family per
+    generic role, as wide as its widest channel (a narrower one fills the columns it has)."""
+    widest: dict[str, int] = {}
+    for name in present - set(ROLE_REGISTRY.modalities):
+        family = _family(name)
+        widest[family.role] = max(widest.get(family.role, 0), len(family.columns) // len(SIGNAL_NAMES))
+    return (*(f for f in ROLE_REGISTRY.modalities if f in present),
+            *(generic_family(role, width).name for role, width in sorted(widest.items())))
+
+
+def _has(own: Sequence[str], name: str) -> bool:
+    """Whether families ``own`` (a recording's) cover ``name``: by name, or a generic family by its role."""
+    if name in ROLE_REGISTRY.modalities:
+        return name in own
+    role = _family(name).role
+    return any(f not in ROLE_REGISTRY.modalities and _family(f).role == role for f in own)
+
+
+def _own(recording: Recording, applied: Sequence[str]) -> list[str]:
+    """The families of a recording that cover one of ``applied``."""
+    return [f for f in families(recording) if any(_has([f], name) for name in applied)]
+
+
+def lacking(recordings: Sequence[Recording], found: Sequence[Sequence[str]], applied: Sequence[str],
+            first: int = 3) -> list[str]:
+    """One line per family that some recordings of the set lack (their columns are NaN there): the role it
+    needs, how many lack it and the first few names."""
+    lines = []
+    for name in applied:
+        family = _family(name)
+        without = [r.name for r, own in zip(recordings, found, strict=True) if not _has(own, name)]
+        if without:
+            shown = ", ".join(without[:first]) + (f" and {len(without) - first} more" if len(without) > first else "")
+            lines.append(f"{len(without)} of {len(recordings)} recording(s) lack the role {family.role} (at a "
+                         f"rate {name} applies to): its {len(family.columns)} column(s) are NaN there ({shown})")
+    return lines
 
 
 def _map(function: Callable, jobs: Sequence, workers: int | None, progress: bool,

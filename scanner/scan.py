@@ -111,10 +111,26 @@ IMAGES: Mapping[str, str] = MappingProxyType({
 
 ROLES = frozenset({
     "vibration", "pressure_dc", "temperature", "heat_flow", "electrodes", "taxels", "force_xyz", "audio",
-    "photo",
+    "photo", "signal",
 })
 """Channel roles read by the feature sets (docs/database.md; docs/features.md#related); ``photo`` names an image of the
-recording."""
+recording; ``signal`` is any other numeric sensor channel (a gyroscope, a motor current, a wheel speed), which
+a recording may have several of (:func:`role_key`)."""
+
+GENERIC_ROLE = "signal"
+"""The role of any numeric channel that plays none of the others; its key in ``Recording.roles`` names the
+channel (:func:`role_key`)."""
+
+
+def role_key(role: str, channel: str) -> str:
+    """The key of ``channel`` playing ``role`` in ``Recording.roles``: the role, or for the generic role
+    ``signal_<channel>`` (a recording may have any number of generic channels)."""
+    return f"{GENERIC_ROLE}_{channel}" if role == GENERIC_ROLE else role
+
+
+def is_generic(role: str) -> bool:
+    """Whether a ``Recording.roles`` key is a generic channel's (``signal_<channel>``)."""
+    return role.startswith(GENERIC_ROLE + "_") and _FIELD.fullmatch(role) is not None
 
 IMAGE_ROLES = frozenset({"photo"})
 """Roles played by images (RGB uint8 (h, w, 3)) instead of sampled channels."""
@@ -499,7 +515,7 @@ class Recording(_Picklable):
                 raise ScanError(f"recording {self.name!r}: channel {channel!r} must be a Trace")
         images = {name: _checked_image(self.name, name, image) for name, image in self.images.items()}
         for role, channel in self.roles.items():
-            if role not in ROLES:
+            if role not in ROLES - {GENERIC_ROLE} and not is_generic(role):
                 raise ScanError(f"recording {self.name!r}: unknown role {role!r} (known: {', '.join(sorted(ROLES))})")
             if role in IMAGE_ROLES:
                 if channel not in images:
@@ -540,7 +556,7 @@ _ROLE_NDIM = {"electrodes": 2, "taxels": 3, "force_xyz": 2}
 
 def _check_role_shape(name: str, role: str, trace: Trace) -> None:
     ndim = _ROLE_NDIM.get(role, 1)
-    if role in ("vibration", "audio") and trace.data.ndim == 2:
+    if (role in ("vibration", "audio") or is_generic(role)) and trace.data.ndim == 2:
         return  # multi-axis vibration/audio is combined by the feature set (DFT321 or mean)
     if trace.data.ndim != ndim:
         raise ScanError(f"recording {name!r}: role {role!r} needs a {ndim}-D channel, got shape {trace.data.shape}")

@@ -267,7 +267,8 @@ def test_photos_of_every_kind_become_rgb_and_a_grid_cuts_them_into_patches(tmp_p
     assert np.array_equal(patches[4].image(), rgb[20:40, 21:41]) and patches[4].meta["patch"] == [1, 1]
     folder = ingest.store_recordings(tmp_path / "db", "patches", cut.recordings)
     back = {r.name: r for r in ingest.load_recordings(folder)}
-    assert np.array_equal(back["a_r1c1"].image(), rgb[20:40, 21:41]) and back["a_r1c1"].group == {"photo": "a"}
+    assert np.array_equal(back["a_r1c1"].image(), rgb[20:40, 21:41])
+    assert back["a_r1c1"].group == {"photo": "a", "row": "1", "column": "1"}
 
 
 def test_images_beyond_the_photo_limit_or_of_other_kinds_are_refused_before_decoding(tmp_path):

@@ -24,7 +24,8 @@ def test_the_vibration_band_follows_the_rate():
     assert recordings.vibration_band(3000.0) == (10.0, 1000.0)
     assert recordings.vibration_band(1000.0) == (10.0, 450.0)
     quiet = Recording("slow", {"v": Trace(np.ones(100), 20.0, "g")}, {"vibration": "v"}, "x")
-    assert recordings.families(quiet) == []  # 0.45 x 20 Hz is below the 10 Hz lower edge
+    # 0.45 x 20 Hz is below the 10 Hz lower edge: only the generic family of a slow vibration applies.
+    assert recordings.families(quiet) == ["signal.vibration"]
 
 
 def test_friction_of_a_constant_coefficient_is_that_coefficient():

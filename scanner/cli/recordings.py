@@ -21,6 +21,7 @@ from scanner.storage.ingest import (
     store_recordings,
     summarise_notes,
     with_grid,
+    with_label_pattern,
 )
 from taxonomy.learning.results import format_comparison
 from taxonomy.related import METHODS, Dataset, MethodError, compare_methods
@@ -29,11 +30,14 @@ from taxonomy.reports.report import write_comparison
 
 def ingest_mapping(args: argparse.Namespace):
     """The mapping file's mapping, or for a plain folder the default one (WAV as audio, images as photo,
-    labels from folders); ``--grid`` cuts every image into patches."""
+    labels from folders); ``--grid`` cuts every image into patches, ``--label-pattern`` takes the labels
+    from the file names."""
     if args.mapping is None:
         mapping = default_mapping(args.name or safe_name(args.path.resolve().name))
     else:
         mapping = load_mapping(args.mapping)
+    if args.label_pattern:
+        mapping = with_label_pattern(mapping, args.label_pattern)
     return with_grid(mapping, parse_grid(args.grid, "--grid")) if args.grid else mapping
 
 
@@ -123,7 +127,12 @@ def register(commands: argparse._SubParsersAction) -> None:
     ingesting.add_argument("--name", help="set name (default: the mapping's name, else its file name; "
                            "without a mapping, the folder's name)")
     ingesting.add_argument("--grid", metavar="RxC", help="cut every image into R x C patches (one recording "
-                           "each, sharing the group 'photo', so folds keep a photo's patches together)")
+                           "each, sharing the group 'photo', so folds keep a photo's patches together; each "
+                           "patch's 'row' and 'column' are groups too, for evaluate --group-by row)")
+    ingesting.add_argument("--label-pattern", metavar="REGEX",
+                           help="labels from the file names: the (?P<label>...) group of REGEX searched in each "
+                           "file's stem, e.g. '^(?P<label>[a-z]+)_' for cork_01.png (other named groups become "
+                           "group ids); for a flat folder of files")
     ingesting.add_argument("--verbose", action="store_true", help="print every note, not a summary per kind")
     ingesting.add_argument("--replace", action="store_true", help="replace an existing set of that name")
     ingesting.set_defaults(handler=cmd_ingest)

@@ -40,6 +40,7 @@ from scanner.storage.ingest.mapping import (
     parse_grid,
     parse_mapping,
     with_grid,
+    with_label_pattern,
 )
 from scanner.storage.ingest.readers import (
     MAX_ARRAY_BYTES,
@@ -71,7 +72,8 @@ from scanner.storage.ingest.sets import (
 __all__ = [
     "FORMATS", "IMAGE_EXTENSIONS", "TIME_UNITS", "MISSING", "SPLIT_NAMES", "IngestError", "ChannelMap", "FileMap",
     "IngestMapping", "DEFAULT_CHANNELS", "format_of", "parse_grid", "parse_mapping", "default_mapping",
-    "with_grid", "load_mapping", "NAN_TOKENS", "MAX_ARRAY_BYTES", "RATE_TOLERANCE", "read_table", "Note",
+    "with_grid", "with_label_pattern", "load_mapping", "NAN_TOKENS", "MAX_ARRAY_BYTES", "RATE_TOLERANCE",
+    "read_table", "Note",
     "NOTE_KINDS", "summarise_notes", "seconds_of", "rate_from_times", "read_image", "file_format", "Stream",
     "read_streams", "read_file", "GAP_STEPS", "gaps", "Aligned", "align", "IngestReport", "stem_of",
     "recording_names", "split_of", "safe_name", "patches", "ingest", "RECORDINGS", "recording_variables",

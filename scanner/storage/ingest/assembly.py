@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from scanner.scan import Recording, ScanError, Trace
+from scanner.scan import Recording, ScanError, Trace, role_key
 from scanner.storage.ingest.alignment import align
 from scanner.storage.ingest.mapping import FileMap, IngestError, IngestMapping
 from scanner.storage.ingest.readers import Note, Stream, read_streams
@@ -33,21 +33,33 @@ class IngestReport:
     files: int = 0
 
 
-def stem_of(path: Path, spec: FileMap) -> str:
-    """The recording stem of a file: its name without ``suffix`` (default: without the extension)."""
+def stem_of(path: Path, spec: FileMap) -> str | None:
+    """The recording stem of a file: the ``stem`` group of ``stem_pattern`` searched in its name (None if
+    it does not match), else its name without ``suffix`` (default: without the extension)."""
+    if spec.stem_pattern is not None:
+        match = spec.stem_pattern.search(path.name)
+        return match["stem"] if match and match["stem"] else None
     if spec.suffix is not None:
         return path.name[:-len(spec.suffix)] if spec.suffix and path.name.endswith(spec.suffix) else path.name
     return path.stem
 
 
-def _matched(root: Path, mapping: IngestMapping) -> dict[Path, list[tuple[Path, FileMap]]]:
-    """Files of every [[files]] entry, grouped by recording key: the folder plus the stem."""
+def _matched(root: Path, mapping: IngestMapping,
+             report: IngestReport | None = None) -> dict[Path, list[tuple[Path, FileMap]]]:
+    """Files of every [[files]] entry, grouped by recording key: the folder plus the stem. A file whose
+    name the entry's ``stem_pattern`` does not match is reported in ``report.skipped``."""
     groups: dict[Path, list[tuple[Path, FileMap]]] = {}
     for spec in mapping.files:
         for path in sorted(p for p in root.glob(spec.glob) if p.is_file()):
             if spec.suffix and not path.name.endswith(spec.suffix):
                 continue
-            groups.setdefault(path.parent / stem_of(path, spec), []).append((path, spec))
+            stem = stem_of(path, spec)
+            if stem is None:  # only with a stem_pattern
+                if report is not None:
+                    pattern = spec.stem_pattern.pattern if spec.stem_pattern else ""
+                    report.skipped.append(f"{path}: name does not match stem_pattern {pattern!r}")
+                continue
+            groups.setdefault(path.parent / stem, []).append((path, spec))
     return groups
 
 
@@ -105,7 +117,9 @@ def _label(key: Path, root: Path, mapping: IngestMapping, table: Mapping[str, Ma
         return row[mapping.label_column], {level: row[level] for level in mapping.label_levels}
     relative = key.relative_to(root).parts[:-1]
     if len(relative) < mapping.label_depth:
-        raise IngestError(f"{key.name}: no folder {mapping.label_depth} level(s) up to take the label from")
+        raise IngestError(f"{key.name}: no folder {mapping.label_depth} level(s) up to take the label from "
+                          "(put each class in a folder of its own, or take the labels from the file names "
+                          "with --label-pattern '(?P<label>...)')")
     return relative[-mapping.label_depth], {}
 
 
@@ -184,7 +198,7 @@ def _read_parts(key: Path, files: list[tuple[Path, FileMap]], root: Path, mappin
         streams.update(read)
         images.update(pictures)
         origin.update(dict.fromkeys([*read, *pictures], path.name))
-        roles.update({c.role or ("photo" if c.name in pictures else ""): c.name for c in spec.channels
+        roles.update({role_key(c.role, c.name) if c.role else "photo": c.name for c in spec.channels
                       if c.role or c.name in pictures})
         grid = spec.grid or grid
     return _Parts(streams, images, roles, origin, grid)
@@ -230,7 +244,8 @@ def _patched(name: str, parts: _Parts, traces: Mapping[str, Trace], label: str, 
     """One recording per patch of the grid, sharing the group ``photo`` (and the sampled channels)."""
     assert parts.grid is not None
     (image_name, image), = parts.images.items()  # an image file is one channel
-    return [Recording(f"{name}_r{r}c{c}", traces, parts.roles, label, {**group, "photo": name},
+    return [Recording(f"{name}_r{r}c{c}", traces, parts.roles, label,
+                      {**group, "photo": name, "row": str(r), "column": str(c)},
                       {**meta, "patch": [r, c], "grid": list(parts.grid)}, {image_name: patch})
             for r, c, patch in patches(image, parts.grid)]
 
@@ -256,7 +271,7 @@ def ingest(path: str | os.PathLike[str], mapping: IngestMapping,
         raise IngestError(f"{root}: not a folder")
     table = _label_table(root, mapping)
     report = IngestReport()
-    matched = _matched(root, mapping)
+    matched = _matched(root, mapping, report)
     names = recording_names(list(matched), root)
     for key, files in progress(list(matched.items())):
         report.files += len(files)

@@ -47,8 +47,9 @@ class ChannelMap:
 
 @dataclass(frozen=True)
 class FileMap:
-    """A kind of file: which files (``glob``), the part of the name after the recording stem (``suffix``),
-    how to read them and the channels they hold."""
+    """A kind of file: which files (``glob``), the part of the name after the recording stem (``suffix``)
+    or a pattern whose ``stem`` group is the stem (``stem_pattern``), how to read them and the channels they
+    hold."""
 
     glob: str
     suffix: str | None
@@ -63,6 +64,7 @@ class FileMap:
     time_unit: str = "s"
     rate_variable: str | None = None
     grid: tuple[int, int] | None = None
+    stem_pattern: re.Pattern[str] | None = None
 
 
 @dataclass(frozen=True)
@@ -133,7 +135,7 @@ def _channel(table: Mapping[str, Any], where: str) -> ChannelMap:
 
 
 _FILE_KEYS = {"glob", "suffix", "format", "channels", "delimiter", "header", "comment", "skip_rows", "rate",
-              "time_column", "time_unit", "rate_variable", "grid"}
+              "time_column", "time_unit", "rate_variable", "grid", "stem_pattern"}
 
 DEFAULT_CHANNELS = {"wav": ChannelMap("audio", "audio", unit="FS"), "image": ChannelMap("photo", "photo")}
 """The channel of a WAV or image file whose mapping lists none."""
@@ -194,11 +196,28 @@ def _file(table: Mapping[str, Any], where: str) -> FileMap:
     skip = _get(table, "skip_rows", int, where, 0)
     if skip < 0:
         raise _fail(where, f"skip_rows must be >= 0, got {skip}")
+    stem_pattern = _stem_pattern(_get(table, "stem_pattern", str, where), where)
+    if stem_pattern is not None and table.get("suffix") is not None:
+        raise _fail(where, "give suffix or stem_pattern, not both")
     return FileMap(glob, _get(table, "suffix", str, where), fmt, maps,
                    _get(table, "delimiter", str, where), bool(_get(table, "header", bool, where, True)),
                    _get(table, "comment", str, where, "#") or None, skip,
                    None if rate is None else float(rate), _get(table, "time_column", (str, int), where),
-                   time_unit, _get(table, "rate_variable", str, where), grid)
+                   time_unit, _get(table, "rate_variable", str, where), grid, stem_pattern)
+
+
+def _stem_pattern(text: str | None, where: str) -> re.Pattern[str] | None:
+    """``stem_pattern``: a regular expression searched in the file name whose group ``stem`` is the stem."""
+    if text is None:
+        return None
+    try:
+        pattern = re.compile(text)
+    except re.error as exc:
+        raise _fail(where, f"stem_pattern is not a regular expression ({exc})") from None
+    if "stem" not in pattern.groupindex:
+        raise _fail(where, f"stem_pattern {text!r} needs a (?P<stem>...) group: the part files of one "
+                           "recording share")
+    return pattern
 
 
 def _labels(table: Any, where: str) -> dict[str, Any]:
@@ -300,6 +319,21 @@ def with_grid(mapping: IngestMapping, grid: tuple[int, int]) -> IngestMapping:
     """The mapping with every image entry cut into a ``grid`` of patches."""
     files = tuple(replace(f, grid=grid) if (f.format or format_of(f.glob)) == "image" else f for f in mapping.files)
     return replace(mapping, files=files)
+
+
+def with_label_pattern(mapping: IngestMapping, text: str) -> IngestMapping:
+    """The mapping with labels from the ``label`` group of ``text`` searched in each recording's stem (its
+    other named groups become group ids), for a flat folder whose file names carry the class."""
+    if mapping.pattern is not None:
+        raise _fail("--label-pattern", "the mapping has a groups.pattern; put the (?P<label>...) group there "
+                                       "and set labels.from = 'pattern'")
+    try:
+        pattern = re.compile(text)
+    except re.error as exc:
+        raise _fail("--label-pattern", f"not a regular expression ({exc})") from None
+    if "label" not in pattern.groupindex:
+        raise _fail("--label-pattern", f"{text!r} needs a (?P<label>...) group, e.g. '^(?P<label>[a-z]+)_'")
+    return replace(mapping, pattern=pattern, label_from="pattern")
 
 
 def load_mapping(path: str | os.PathLike[str]) -> IngestMapping:
