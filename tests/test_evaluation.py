@@ -97,15 +97,15 @@ def test_singleton_groups_are_plain_stratified_folds():
     y = np.repeat(["C1S1M1P1X1", "C2S1M1P1X1"], 5)
     splits, grouped = cv_splits(y, [f"s{i}" for i in range(10)], folds=5, seed=3)
     expected = StratifiedKFold(5, shuffle=True, random_state=3).split(np.zeros(10), y)
-    assert not grouped
+    assert grouped  # each group one row: no group can be in training and test at once
     for (train, test), (train_ref, test_ref) in zip(splits, expected, strict=True):
         np.testing.assert_array_equal(test, test_ref)
         np.testing.assert_array_equal(train, train_ref)
 
 
-def test_a_class_with_a_single_sample_falls_back_to_ungrouped_folds_with_a_warning():
+def test_every_class_with_a_single_sample_falls_back_to_ungrouped_folds_with_a_warning():
     space = labelled_space(samples=1, scans=5)
-    with pytest.warns(UserWarning, match="8 of 8 classes have a single sample"):
+    with pytest.warns(UserWarning, match="every one of the 8 classes has a single sample"):
         splits, grouped = cv_splits(space.y("fine"), space.groups, folds=5)
     assert not grouped and len(splits) == 5
 

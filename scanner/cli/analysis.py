@@ -82,7 +82,7 @@ def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
     started = time.perf_counter()
     reports = evaluate_grid(space, classifiers, levels, sizes, sets, folds=args.folds, seed=args.seed,
                             protocol=args.protocol, workers=args.workers, progress=True, use_split=use_split,
-                            client=client)
+                            client=client, single_group=getattr(args, "single_group", "train"))
     print(format_table(reports))
     splitting = reports[0].splitting if reports else f"{args.folds} folds"
     print(f"{len(reports)} evaluations ({args.protocol} protocol, {splitting}) "
@@ -219,6 +219,9 @@ def register(commands: argparse._SubParsersAction) -> None:
     add_evaluation_options(evaluate, report_default=None)
     evaluate.add_argument("--ignore-split", action="store_true", help="sets: cross-validate over every "
                           "recording even if the set has its own train/test split")
+    evaluate.add_argument("--single-group", choices=("train", "drop"), default="train",
+                          help="a class with a single sample (group) cannot be tested in grouped folds: keep it "
+                          "in training only (default) or leave it out; the other classes' folds stay grouped")
     evaluate.set_defaults(handler=cmd_evaluate)
 
     train = commands.add_parser("train", help="train a classifier on all scans and save it (skops)",

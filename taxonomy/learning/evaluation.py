@@ -136,49 +136,71 @@ def classifier_name(classifier: str | BaseEstimator) -> str:
 # -- splits ------------------------------------------------------------------------------------------
 
 
+SINGLE_GROUP = ("train", "drop")
+"""What grouped folds do with a class that has a single group (:func:`cv_splits`)."""
+
+
 def cv_splits(y: Sequence[str], groups: Sequence[str], folds: int = 5, seed: int = SEED,
-              grouping_labels: Sequence[str] | None = None) -> tuple[list[tuple[np.ndarray, np.ndarray]], bool]:
+              grouping_labels: Sequence[str] | None = None,
+              single_group: str = "train") -> tuple[list[tuple[np.ndarray, np.ndarray]], bool]:
     """Stratified folds, grouped by sample where a sample was scanned several times.
 
-    Returns the (train, test) row indices of every fold and whether the folds are grouped.
+    Returns the (train, test) row indices of every fold and whether the folds are grouped (no group in the
+    training and the test part of one fold).
     ``grouping_labels`` (default ``y``) are the classes that decide whether grouping is possible;
     :func:`evaluate` passes the full (fine) labels, so the coarse, medium and fine results of one feature
     space are split the same way and stay comparable (otherwise coarse folds would be grouped, testing on
     unseen materials, while fine folds, with one sample per material, could not be).
 
     - Every group a single row: ``StratifiedKFold(folds, shuffle=True, random_state=seed)``.
-    - Groups with several rows, every class with at least two groups, and at least ``folds`` groups:
-      ``StratifiedGroupKFold`` with the same arguments; all scans of a sample stay in one fold. A class with
-      fewer groups than folds then appears in the test rows of fewer folds, and always in training.
-    - Otherwise some class has a single sample: grouping would put all its rows in one test fold and
-      none in training, so it could never be predicted. The split then falls back to the ungrouped
-      ``StratifiedKFold`` of the paper (scans of one sample in both training and test) with a warning
-      naming how many classes have one sample.
+    - Groups with several rows: ``StratifiedGroupKFold`` with the same arguments on the rows of the classes
+      with at least two groups; all scans of a sample stay in one fold. A class with fewer groups than
+      folds then appears in the test rows of fewer folds, and always in training.
+    - A class with a single group could never be tested without its group in training too. It never turns
+      grouping off for the others: the folds are made without it, and its rows are added to every
+      training part (``single_group = "train"``) or left out (``"drop"``), with a warning naming the
+      classes, so the other classes' folds are the same with or without it.
+    - Only when every class has a single group, or there are fewer groups than folds, no grouped split
+      exists: the split falls back to the ungrouped ``StratifiedKFold`` of the paper (scans of one sample in
+      both training and test) with a warning saying why.
     """
     y = np.asarray(y)
     groups = np.asarray(groups)
     if isinstance(folds, bool) or not isinstance(folds, int | np.integer) or folds < 2:
         raise EvaluationError(f"folds must be an integer >= 2, got {folds!r}")
+    if single_group not in SINGLE_GROUP:
+        raise EvaluationError(f"single_group must be one of {', '.join(SINGLE_GROUP)}, got {single_group!r}")
     classes, counts = np.unique(y, return_counts=True)
     if len(y) < folds or counts.max() < folds:
         raise EvaluationError(f"{folds} folds need a class with at least {folds} rows "
                               f"(largest class has {counts.max() if counts.size else 0})")
-    unique_groups = np.unique(groups)
-    grouped = unique_groups.size < groups.size
-    if grouped:
-        deciding = y if grouping_labels is None else np.asarray(grouping_labels)
-        deciding_classes = np.unique(deciding)
-        groups_per_class = np.array([np.unique(groups[deciding == c]).size for c in deciding_classes])
-        single = int((groups_per_class < 2).sum())
-        if single or unique_groups.size < folds:
-            warnings.warn(f"{single} of {deciding_classes.size} classes have a single sample (group); folds are "
-                          "not grouped, so scans of one sample are in both training and test folds", stacklevel=2)
-            grouped = False
-    if grouped:
-        splitter = StratifiedGroupKFold(n_splits=folds, shuffle=True, random_state=seed)
-        return [(train, test) for train, test in splitter.split(np.zeros(len(y)), y, groups)], True
+    if np.unique(groups).size == groups.size:  # grouped by construction: no group can be on both sides
+        return _stratified(y, np.arange(len(y)), folds, seed), True
+    deciding = y if grouping_labels is None else np.asarray(grouping_labels)
+    deciding_classes = np.unique(deciding)
+    single = [c for c in deciding_classes if np.unique(groups[deciding == c]).size < 2]
+    testable = np.flatnonzero(~np.isin(deciding, single))
+    if testable.size == 0 or np.unique(groups[testable]).size < folds:
+        reason = (f"every one of the {deciding_classes.size} classes has a single sample (group)" if not testable.size
+                  else f"{np.unique(groups[testable]).size} groups of classes with two or more are fewer than "
+                       f"{folds} folds")
+        warnings.warn(f"{reason}; folds are not grouped, so scans of one sample are in both training and test "
+                      "folds", stacklevel=2)
+        return _stratified(y, np.arange(len(y)), folds, seed), False
+    if single:
+        shown = ", ".join(map(str, single[:5])) + (f" and {len(single) - 5} more" if len(single) > 5 else "")
+        fate = "kept in training only" if single_group == "train" else "left out"
+        warnings.warn(f"{len(single)} of {deciding_classes.size} classes have a single sample (group) and are "
+                      f"{fate}; the folds of the others stay grouped: {shown}", stacklevel=2)
+    splitter = StratifiedGroupKFold(n_splits=folds, shuffle=True, random_state=seed)
+    extra = np.flatnonzero(np.isin(deciding, single)) if single_group == "train" else np.array([], dtype=int)
+    return [(np.sort(np.concatenate([testable[train], extra])), testable[test])
+            for train, test in splitter.split(np.zeros(testable.size), y[testable], groups[testable])], True
+
+
+def _stratified(y: np.ndarray, rows: np.ndarray, folds: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
     splitter = StratifiedKFold(n_splits=folds, shuffle=True, random_state=seed)
-    return [(train, test) for train, test in splitter.split(np.zeros(len(y)), y)], False
+    return [(rows[train], rows[test]) for train, test in splitter.split(np.zeros(rows.size), y[rows])]
 
 
 def given_split(split: Sequence[str]) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -205,20 +227,41 @@ def resolve_feature_set(space: FeatureSpace, feature_set: FeatureSet) -> tuple[F
 
 
 def drop_nan_columns(space: FeatureSpace) -> tuple[FeatureSpace, tuple[str, ...]]:
-    """Columns with NaN get FQ 0 and no classifier takes NaN, so they are left out before splitting."""
+    """Rows and columns with NaN left out before splitting: no classifier takes NaN.
+
+    A row that is NaN in every column (a recording lacking every role the families need) is left out with
+    a warning naming how many and the first few; then a column with NaN in any row is left out (it gets FQ
+    0 anyway) and listed in the result; when that would leave no column, the rows with NaN are left out
+    instead, with a warning.
+    """
+    empty = np.isnan(space.X).all(axis=1)
+    if empty.all():
+        raise EvaluationError(f"every one of the {space.X.shape[0]} rows holds only NaN: no feature could be "
+                              "computed")
+    if empty.any():
+        space = _without_rows(space, empty, "have no feature value (every column NaN)")
     has_nan = np.isnan(space.X).any(axis=0)
     dropped = tuple(c for c, bad in zip(space.columns, has_nan, strict=True) if bad)
     if not dropped:
         return space, ()
     kept = [c for c, bad in zip(space.columns, has_nan, strict=True) if not bad]
     if not kept:
-        raise EvaluationError(f"every one of the {len(dropped)} feature columns holds NaN")
+        return _without_rows(space, np.isnan(space.X).any(axis=1), "hold NaN in some column"), ()
     return space.subset(kept), dropped
+
+
+def _without_rows(space: FeatureSpace, bad: np.ndarray, why: str, first: int = 3) -> FeatureSpace:
+    """``space`` without the rows ``bad``, with a warning naming how many and the first few."""
+    names = [space.scan_ids[i] for i in np.flatnonzero(bad)]
+    shown = ", ".join(names[:first]) + (f" and {len(names) - first} more" if len(names) > first else "")
+    warnings.warn(f"{len(names)} of {len(space.scan_ids)} row(s) {why} and are left out: {shown}", stacklevel=3)
+    return space.rows(np.flatnonzero(~bad))
 
 
 def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level: str = "fine",
              n_features: int | None = 10, folds: int = 5, seed: int = SEED, protocol: str = "nested",
-             feature_set: FeatureSet = None, use_split: bool = True, client: Client | None = None) -> Result:
+             feature_set: FeatureSet = None, use_split: bool = True, client: Client | None = None,
+             single_group: str = "train") -> Result:
     """Cross-validate one classifier pipeline on ``space`` at classification ``level`` (paper section V-C).
 
     Parameters
@@ -245,6 +288,9 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
     client : distributed.Client, optional
         Fit the folds on this Dask cluster (:mod:`features.cluster`) instead of in this process; the
         report is the same.
+    single_group : str
+        ``"train"`` or ``"drop"``: a class with a single sample (group) is kept in training only, or left
+        out, while the folds of the others stay grouped (:func:`cv_splits`).
 
     Returns
     -------
@@ -254,14 +300,15 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
     """
     cell = _Cell(space.check_level(level), _set_name(feature_set), feature_set, n_features)
     return _run(space, [classifier], [cell], folds, seed, protocol, workers=1, progress=False,
-                use_split=use_split, client=client)[0]
+                use_split=use_split, client=client, single_group=single_group)[0]
 
 
 def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator] = tuple(CLASSIFIERS),
                   levels: Iterable[str] | None = None, set_sizes: Iterable[int | None] = (3, 10),
                   feature_sets: Mapping[str, FeatureSet] | None = None, folds: int = 5, seed: int = SEED,
                   protocol: str = "nested", workers: int | None = None,
-                  progress: bool = False, use_split: bool = True, client: Client | None = None) -> list[Result]:
+                  progress: bool = False, use_split: bool = True, client: Client | None = None,
+                  single_group: str = "train") -> list[Result]:
     """Every classifier x feature set x level x set size (the paper's Figs. 16-18), folds in parallel.
 
     ``levels`` default to every level of the space (``space.level_names``); a set size None is ``all``.
@@ -279,7 +326,8 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
     sets = dict(feature_sets) if feature_sets is not None else _present_feature_sets(space)
     cells = [_Cell(level, name, feature_set, size)
              for name, feature_set in sets.items() for level in levels for size in set_sizes]
-    reports = _run(space, classifiers, cells, folds, seed, protocol, workers, progress, use_split, client)
+    reports = _run(space, classifiers, cells, folds, seed, protocol, workers, progress, use_split, client,
+                   single_group)
     per_cell = len(classifiers)
     return [reports[c * per_cell + k] for k in range(per_cell) for c in range(len(cells))]
 
@@ -327,11 +375,11 @@ class _Prepared:
 
 def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells: Sequence[_Cell], folds: int,
          seed: int, protocol: str, workers: int | None, progress: bool, use_split: bool = True,
-         client: Client | None = None) -> list[Result]:
+         client: Client | None = None, single_group: str = "train") -> list[Result]:
     """Results of every classifier in every cell, in that order (cells outer, classifiers inner)."""
     if protocol not in PROTOCOLS:
         raise EvaluationError(f"unknown protocol {protocol!r} (expected one of {', '.join(PROTOCOLS)})")
-    prepared = [_prepare(space, cell, classifiers, folds, seed, protocol, use_split) for cell in cells]
+    prepared = [_prepare(space, cell, classifiers, folds, seed, protocol, use_split, single_group) for cell in cells]
     jobs = sorted(((c, f) for c, p in enumerate(prepared) for f in range(len(p.splits))),
                   key=lambda job: -space.level_names.index(cells[job[0]].level))
     # disable=None hides the bar when stderr is not a terminal (logs, CI).
@@ -357,7 +405,7 @@ def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells:
 
 
 def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseEstimator], folds: int,
-             seed: int, protocol: str, use_split: bool = True) -> _Prepared:
+             seed: int, protocol: str, use_split: bool = True, single_group: str = "train") -> _Prepared:
     space.check_level(cell.level)
     own = use_split and bool(space.split)
     with warnings.catch_warnings(record=True) as caught:
@@ -368,7 +416,8 @@ def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseE
         if own:
             splits, grouped = given_split(subset.split), False
         else:
-            splits, grouped = cv_splits(y, subset.groups, folds, seed, grouping_labels=subset.label_text)
+            splits, grouped = cv_splits(y, subset.groups, folds, seed, grouping_labels=subset.label_text,
+                                        single_group=single_group)
         pipelines = [_without_probabilities(make_pipeline(c, cell.n_features, seed)) for c in classifiers]
         shared = None
         if protocol == "paper":
