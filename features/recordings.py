@@ -19,6 +19,8 @@ family             role                   features
                                           ``.vib_kurtosis``, ``.vib_energy``
 ``tactum``         ``force_xyz``          TacTUM's friction features FST and FRS (eqs. 16, 17) with the
                                           normal force z and the tangential force ``|(x, y)|``
+``generic``        ``signal_<channel>``,  statistics, band energies on a rate-aware band plan and the
+                   ``vibration`` < 1 kHz  spectral shape of every column (:func:`signal_features`)
 =================  =====================  =================================================================
 
 ``v`` of a recording is its vibration as the preprocessing makes the scanner's: each axis band-limited (4th-order
@@ -254,11 +256,11 @@ def signal_features(x: np.ndarray, fs: float) -> list[float]:
 
 
 def generic_columns(role: str, width: int) -> tuple[str, ...]:
-    """Columns of the generic family on a channel of ``width`` columns: ``signal.<role>.<feature>``, with
+    """Columns of the generic family on a channel of ``width`` columns: ``generic.<role>.<feature>``, with
     ``c<k>_`` before the feature for each column of a multi-column channel."""
     if width == 1:
-        return tuple(f"signal.{role}.{name}" for name in SIGNAL_NAMES)
-    return tuple(f"signal.{role}.c{k}_{name}" for k in range(width) for name in SIGNAL_NAMES)
+        return tuple(f"generic.{role}.{name}" for name in SIGNAL_NAMES)
+    return tuple(f"generic.{role}.c{k}_{name}" for k in range(width) for name in SIGNAL_NAMES)
 
 
 def _generic(window: np.ndarray, fs: float) -> list[float]:
@@ -276,7 +278,7 @@ def generic_family(role: str, width: int) -> RoleFamily:
     signals): on every generic channel (``signal_<channel>``) and on a vibration sampled below
     :data:`VIBRATION_AUDIO_MIN_FS`, where the audio features do not apply. Not registered: its columns
     follow the channel's width, so a set's families are made for the channels it has."""
-    name = f"signal.{role}" if width == 1 else f"signal.{role}:{width}"
+    name = f"generic.{role}" if width == 1 else f"generic.{role}:{width}"
     return RoleFamily(name, role, generic_columns(role, width), _generic,
                       applies=_below_vibration_audio if role == "vibration" else (lambda fs: True))
 
@@ -285,7 +287,7 @@ def _family(name: str) -> RoleFamily:
     """A registered family, or the generic family a name of :func:`generic_family` stands for."""
     if name in ROLE_REGISTRY.modalities:
         return ROLE_REGISTRY[name]
-    role, _, width = name.removeprefix("signal.").partition(":")
+    role, _, width = name.removeprefix("generic.").partition(":")
     return generic_family(role, int(width or 1))
 
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from taxonomy.evaluation import cv_splits, evaluate
 
 from features import FeatureSpace
-from taxonomy.evaluation import cv_splits, evaluate
 
 
 def space_with(single: bool, seed: int = 0) -> FeatureSpace:
@@ -23,7 +23,7 @@ def space_with(single: bool, seed: int = 0) -> FeatureSpace:
             labels += [name] * 4
             groups += [f"{name}{g}"] * 4
     X = np.vstack(rows)
-    return FeatureSpace(X, tuple(f"signal.x.f{j}" for j in range(6)), tuple(f"r{i}" for i in range(len(X))),
+    return FeatureSpace(X, tuple(f"generic.x.f{j}" for j in range(6)), tuple(f"r{i}" for i in range(len(X))),
                         labels, groups, (), "label")
 
 

@@ -25,7 +25,7 @@ def test_the_vibration_band_follows_the_rate():
     assert recordings.vibration_band(1000.0) == (10.0, 450.0)
     quiet = Recording("slow", {"v": Trace(np.ones(100), 20.0, "g")}, {"vibration": "v"}, "x")
     # 0.45 x 20 Hz is below the 10 Hz lower edge: only the generic family of a slow vibration applies.
-    assert recordings.families(quiet) == ["signal.vibration"]
+    assert recordings.families(quiet) == ["generic.vibration"]
 
 
 def test_friction_of_a_constant_coefficient_is_that_coefficient():

@@ -1,0 +1,151 @@
+"""Other labs' files as they come: prefix-paired files, unmapped text columns, any sensor channel, labels
+in file names, patch rows and columns."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from features.recordings import SIGNAL_NAMES, families, feature_space, signal_bands, signal_features
+from scanner.scan import Recording, Trace
+from scanner.storage import ingest
+from scanner.storage.ingest import IngestError
+from taxonomy.learning.evaluation import evaluate
+
+TERRAIN = """
+[groups]
+pattern = '^(?P<run>\\d+)$'
+[[files]]
+glob = "**/imu_*.csv"
+stem_pattern = '^imu_(?P<stem>\\d+)\\.csv$'
+rate = 100.0
+  [[files.channels]]
+  name = "gyro"
+  role = "signal"
+  columns = ["gx", "gy", "gz"]
+  unit = "rad/s"
+[[files]]
+glob = "**/pro_*.csv"
+stem_pattern = '^pro_(?P<stem>\\d+)\\.csv$'
+rate = 50.0
+  [[files.channels]]
+  name = "current"
+  role = "signal"
+  columns = "i_motor"
+  unit = "A"
+"""
+
+
+def band_noise(rng: np.random.Generator, rows: int, low: bool) -> np.ndarray:
+    """Unit-variance noise whose power lies below (``low``) or above a quarter of the rate."""
+    spectrum = np.fft.rfft(rng.normal(size=rows))
+    keep = np.arange(spectrum.size) < spectrum.size // 2
+    spectrum[~keep if low else keep] = 0
+    x = np.fft.irfft(spectrum, rows)
+    return x / x.std()
+
+
+def write_terrain(root, runs: int = 4) -> None:
+    rng = np.random.default_rng(0)
+    for terrain, low in (("grass", True), ("gravel", False)):
+        folder = root / terrain
+        folder.mkdir(parents=True)
+        for run in range(runs):
+            stem = f"{run + 10 * low:02d}"
+            gyro = np.stack([band_noise(rng, 400, low) for _ in range(3)], axis=1)
+            (folder / f"imu_{stem}.csv").write_text("gx,gy,gz,terrain\n" + "".join(
+                f"{a!r},{b!r},{c!r},{terrain.upper()}\n" for a, b, c in gyro.tolist()))
+            current = 2.0 + 0.1 * band_noise(rng, 200, not low)
+            (folder / f"pro_{stem}.csv").write_text("i_motor\n" + "".join(f"{a!r}\n" for a in current.tolist()))
+
+
+def test_files_paired_by_a_pattern_with_text_columns_ignored(tmp_path):
+    write_terrain(tmp_path)
+    report = ingest.ingest(tmp_path, ingest.parse_mapping(TERRAIN, "terrain"))
+    assert report.skipped == [] and len(report.recordings) == 8
+    by = {r.name: r for r in report.recordings}
+    first = by["00"]
+    assert first.label == "gravel" and by["10"].label == "grass"
+    assert dict(first.roles) == {"signal_gyro": "gyro", "signal_current": "current"}
+    assert first.channels["gyro"].data.shape == (400, 3) and first.channels["current"].fs == 50.0
+    notes = [str(n) for n in report.notes]
+    assert "imu_00.csv: text column(s) not in the mapping ignored: terrain ('GRAVEL')" in notes
+
+
+def test_a_stem_pattern_needs_its_group_and_names_files_it_does_not_match(tmp_path):
+    with pytest.raises(IngestError, match=r"needs a \(\?P<stem>...\) group"):
+        ingest.parse_mapping(TERRAIN.replace("(?P<stem>", "("), "terrain")
+    write_terrain(tmp_path, runs=1)
+    (tmp_path / "grass" / "imu_notes.csv").write_text("gx,gy,gz\n1,2,3\n")
+    report = ingest.ingest(tmp_path, ingest.parse_mapping(TERRAIN, "terrain"))
+    assert any("imu_notes.csv: name does not match stem_pattern" in line for line in report.skipped)
+
+
+def test_generic_features_of_a_pure_tone_sit_in_its_band():
+    fs, f0 = 100.0, 20.0
+    t = np.arange(4096) / fs
+    values = dict(zip(SIGNAL_NAMES, signal_features(3.0 + np.sin(2 * np.pi * f0 * t), fs), strict=True))
+    edges = signal_bands(fs)  # 0, 0.78, 1.56, 3.1, 6.25, 12.5, 25, 50 Hz
+    band = int(np.searchsorted(edges, f0, side="right")) - 1
+    assert band == 5 and values[f"band{band}"] > 0.999  # Hann leakage outside the band is < 1e-3
+    assert values["mean"] == pytest.approx(3.0, abs=1e-3) and values["std"] == pytest.approx(2 ** -0.5, rel=1e-3)
+    # Welch bins are fs / 256 = 0.39 Hz apart: the peak, centroid and roll-off are within a bin of f0.
+    for name in ("peak", "centroid", "rolloff"):
+        assert values[name] == pytest.approx(f0, abs=fs / 256)
+    assert values["kurtosis"] == pytest.approx(1.5, rel=1e-2)  # a sine's Pearson kurtosis is 3/2
+
+
+def test_white_noise_spreads_its_power_over_the_band_plan_by_bandwidth():
+    fs = 200.0
+    x = np.random.default_rng(1).normal(size=200_000)
+    values = dict(zip(SIGNAL_NAMES, signal_features(x, fs), strict=True))
+    widths = np.diff(signal_bands(fs)) / (fs / 2)  # a flat spectrum: the share of each band is its width
+    shares = np.array([values[f"band{k}"] for k in range(7)])
+    assert shares == pytest.approx(widths, abs=0.01) and values["flatness"] > 0.95
+
+
+def test_a_generic_channel_separates_classes_only_through_its_band_energies(tmp_path):
+    write_terrain(tmp_path, runs=6)
+    recordings = ingest.ingest(tmp_path, ingest.parse_mapping(TERRAIN, "terrain")).recordings
+    assert families(recordings[0]) == ["generic.signal_current", "generic.signal_gyro:3"]
+    space, notes = feature_space(recordings, group_by="run")
+    assert notes == [] and space.X.shape == (12, len(SIGNAL_NAMES) * 4)
+    bands = [c for c in space.columns if "_band" in c or c.endswith(tuple(f"band{k}" for k in range(7)))]
+    # Both classes have unit variance and mean 0 on the gyro: only the spectrum tells them apart.
+    result = evaluate(space, "lda", level="label", n_features=None, folds=3, seed=0, feature_set=bands)
+    assert result.grouped and float(np.mean(result.accuracy)) == 1.0
+    shuffled = [Recording(r.name, r.channels, r.roles, ("a", "b")[i % 2], r.group, r.meta)
+                for i, r in enumerate(recordings)]
+    control, _ = feature_space(shuffled, group_by="run")
+    chance = evaluate(control, "lda", level="label", n_features=None, folds=3, seed=0, feature_set=bands)
+    assert float(np.mean(chance.accuracy)) < 0.85
+
+
+def test_recordings_lacking_a_role_are_listed():
+    rng = np.random.default_rng(2)
+    full = [Recording(f"r{k}", {"g": Trace(rng.normal(size=300), 100.0, "-"),
+                                "f": Trace(rng.normal(size=(300, 3)), 100.0, "N")},
+                      {"signal_g": "g", "force_xyz": "f"}, "x") for k in range(3)]
+    bare = Recording("r9", {"g": Trace(rng.normal(size=300), 100.0, "-")}, {"signal_g": "g"}, "x")
+    space, notes = feature_space([*full, bare])
+    assert notes == ["1 of 4 recording(s) lack the role force_xyz (at a rate friction applies to): its 2 "
+                     "column(s) are NaN there (r9)"]
+    assert np.isnan(space.X[3, :2]).all() and not np.isnan(space.X[:3]).any()
+
+
+def test_a_flat_folder_of_photos_labelled_by_file_name_cut_into_rows(tmp_path):
+    rng = np.random.default_rng(3)
+    for name in ("cork_01", "cork_02", "felt_01"):
+        cv2.imwrite(str(tmp_path / f"{name}.png"), rng.integers(0, 255, size=(40, 60, 3), dtype=np.uint8))
+    plain = ingest.ingest(tmp_path, ingest.with_grid(ingest.default_mapping("flat"), (2, 3)))
+    assert plain.recordings == [] and "--label-pattern" in plain.skipped[0]
+    mapping = ingest.with_label_pattern(ingest.default_mapping("flat"), r"^(?P<label>[a-z]+)_(?P<photo_no>\d+)")
+    report = ingest.ingest(tmp_path, ingest.with_grid(mapping, (2, 3)))
+    assert len(report.recordings) == 18 and {r.label for r in report.recordings} == {"cork", "felt"}
+    patch = next(r for r in report.recordings if r.name == "cork_02_r1c2")
+    assert dict(patch.group) == {"photo_no": "02", "photo": "cork_02", "row": "1", "column": "2"}
+    space, _ = feature_space(report.recordings, group_by="row")
+    assert sorted(set(space.groups)) == ["0", "1"]  # hold out a row of patches of every photo
+    with pytest.raises(IngestError, match="needs a"):
+        ingest.with_label_pattern(ingest.default_mapping("flat"), "^[a-z]+")
