@@ -360,7 +360,7 @@ def test_timestamped_streams_are_aligned_and_gaps_reported_not_silently_filled(t
     notes = [str(n) for n in report.notes]
     assert "r1_force.csv: channel force: 1 gap(s) in the timestamps, 9 sample(s) missing; the longest 0.05 s " \
         "at t = 0.295 s (bridged linearly)" in notes
-    assert any(n.startswith("r1_force.csv: channel(s) force cut to the span 0.1-1.1 s") for n in notes)
+    assert any(n.startswith("r1_force.csv: channel(s) force cut to the span (1 s from t = 0.1 s)") for n in notes)
     info = recording.meta["time_base"]
     assert info["start_s"] == pytest.approx(0.10) and info["channels"]["force"]["bridged_samples"] == 9
     refused = ingest.ingest(tmp_path / "lab", two_stream_mapping("error"))
@@ -374,3 +374,9 @@ def test_notes_are_summarised_per_kind_with_the_worst_first_names():
         "irregular time steps resampled in 5 file(s) (f1.csv, f2.csv, f3.csv and 2 more); worst: f5.csv: "
         "time steps vary by up to 5 %",
         "missing samples interpolated in 1 file(s) (g.csv); worst: g.csv: 2 missing sample(s)"]
+
+
+def test_unix_timestamps_print_as_dates():
+    assert ingest.alignment.moment(1581070496.25) == "2020-02-07 10:14:56.250 UTC"
+    assert ingest.alignment.span(1581070496.25, 1581070498.25) == "2 s from 2020-02-07 10:14:56.250 UTC"
+    assert ingest.alignment.moment(0.295) == "t = 0.295 s"

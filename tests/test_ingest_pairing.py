@@ -149,3 +149,11 @@ def test_a_flat_folder_of_photos_labelled_by_file_name_cut_into_rows(tmp_path):
     assert sorted(set(space.groups)) == ["0", "1"]  # hold out a row of patches of every photo
     with pytest.raises(IngestError, match="needs a"):
         ingest.with_label_pattern(ingest.default_mapping("flat"), "^[a-z]+")
+
+
+def test_ingest_lists_recordings_lacking_a_role_the_others_have(tmp_path):
+    write_terrain(tmp_path, runs=3)
+    (tmp_path / "grass" / "pro_11.csv").unlink()  # run 11's motor log is missing
+    report = ingest.ingest(tmp_path, ingest.parse_mapping(TERRAIN, "terrain"))
+    assert len(report.recordings) == 6 and report.skipped == []
+    assert "1 of 6 recording(s) lack the role signal_current that the others have: 11" in map(str, report.notes)

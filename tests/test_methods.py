@@ -195,7 +195,7 @@ def test_chathuranga_end_to_end(soft):
     by = {r.classifier: r for r in results}
     assert list(by) == ["pairwise-svm", "spatial-period", "neural-net"]
     assert by["pairwise-svm"].accuracy_mean > 0.7 and by["pairwise-svm"].motions == "3 palpation(s)"
-    assert by["pairwise-svm"].n_samples == 48 and len(by["pairwise-svm"].accuracy) == 2
+    assert by["pairwise-svm"].n_samples == 48 and len(by["pairwise-svm"].accuracy) == 4  # repeats=4 holdouts
     assert all(r.accuracy_mean > 0.4 for r in results)  # chance: 0.25
     assert 0 < by["pairwise-svm"].classify_seconds < 0.1 and by["pairwise-svm"].paper == "89 %, 280 us"
     table = format_comparison(results)
@@ -295,6 +295,8 @@ def test_cli_compare_prints_the_table_and_writes_the_report(tmp_path, capsys):
                              "lack taxels or electrodes (roles present: force_xyz)")
     assert out[4].startswith("chathuranga  ran (3 results)")
     assert out[6].split()[:3] == ["method", "features", "classifier"] and out[8].startswith("chathuranga")
+    # --repeats 2 repeats chathuranga's holdout twice (it ran half as many, at least 2, unsaid).
+    assert "--repeats 2: chathuranga repeated 2 times" in out and any("2 x holdout 1/6" in line for line in out)
     page = (report / "index.html").read_text()
     assert "<th>classify us</th>" in page and "pairwise-svm" in page and "<td>not run: needs the role" in page
     assert page.count("data:image/png;base64,") == 2  # the accuracy chart and one confusion matrix

@@ -92,6 +92,17 @@ def comparison_dataset(spec: str, db: Path, seed: int):
     raise UsageError(f"dataset {spec!r} is none of: {DATASET_HELP}")
 
 
+def repeats_note(results, repeats: int) -> str:
+    """What ``--repeats`` did: the methods whose protocol it repeats, and those with a fixed protocol."""
+    repeated = sorted({r.method for r in results if " x " in r.splitting})
+    fixed = sorted({f"{r.method} ({r.splitting})" for r in results if " x " not in r.splitting})
+    parts = [f"--repeats {repeats}: {', '.join(repeated)} repeated {repeats} times" if repeated else
+             f"--repeats {repeats}: no method here has a repeated protocol"]
+    if fixed:
+        parts.append(f"{', '.join(fixed)} keep their published protocol")
+    return "; ".join(parts)
+
+
 def cmd_compare(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     dataset = comparison_dataset(args.dataset, args.db, args.seed)
@@ -106,6 +117,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
                if args.dataset.startswith("set:") else "")
         raise MethodError(f"no method could run on {args.dataset} (see above){own}")
     print(format_comparison(results))
+    print(repeats_note(results, args.repeats))
     slug = "".join(ch if ch.isalnum() or ch in "-_" else "-" for ch in args.dataset).strip("-") or "dataset"
     folder = args.report or (args.db / "reports" if args.db.is_dir() else Path(".")) / f"compare-{slug}"
     print(f"{len(results)} result(s) in {time.perf_counter() - started:.1f} s; report: "

@@ -167,7 +167,7 @@ def run_chathuranga(dataset: Dataset, cache: FeatureCache, seed: int, repeats: i
     count = min(3, min(per_trial.values()))
     _, X, first = palpation_table(dataset, c4, count)
     y = dataset.y(dataset.label_level, first)
-    splits = holdout_splits(y, max(repeats // 2, 2), 1 / 6, seed)
+    splits = holdout_splits(y, repeats, 1 / 6, seed)
     splitting = f"{len(splits)} x holdout 1/6"
     level = dataset.label_level
     seconds = float(np.nanmedian(c4.seconds[first])) * count

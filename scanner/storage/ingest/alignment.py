@@ -4,6 +4,7 @@ streams cut to their common time span.
 
 from __future__ import annotations
 
+import datetime
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -17,6 +18,23 @@ from scanner.storage.ingest.readers import RATE_TOLERANCE, Note, Stream
 
 GAP_STEPS = 1.5
 """A time step longer than this many sample periods is a gap: at least one sample is missing."""
+
+
+EPOCH_AFTER_S = 1e8
+"""Timestamps beyond this many seconds (March 1973 as Unix time) are taken as Unix times in notes."""
+
+
+def moment(t: float) -> str:
+    """A timestamp for a note: a UTC date and time for a Unix time, else seconds (``t = 0.295 s``)."""
+    if abs(t) >= EPOCH_AFTER_S:
+        stamp = datetime.datetime.fromtimestamp(t, datetime.UTC)
+        return stamp.strftime("%Y-%m-%d %H:%M:%S.") + f"{stamp.microsecond // 1000:03d} UTC"
+    return f"t = {t:.6g} s"
+
+
+def span(start: float, stop: float) -> str:
+    """A time span for a note: its start and its length."""
+    return f"{stop - start:.6g} s from {moment(start)}"
 
 
 def _on_grid(times: np.ndarray, grid: np.ndarray, step: float) -> int | None:
@@ -72,7 +90,7 @@ def align(streams: Mapping[str, Stream], files: Mapping[str, str], missing: str 
         start = max(float(s.times[0]) for s in timed.values())
         stop = min(float(s.times[-1]) + 1.0 / s.rate for s in timed.values())
         if stop <= start:
-            spans = ", ".join(f"{n} {s.times[0]:.6g}-{s.times[-1]:.6g} s" for n, s in timed.items())
+            spans = ", ".join(f"{n} {span(s.times[0], s.times[-1])}" for n, s in timed.items())
             raise IngestError(f"the timestamped streams do not overlap in time ({spans})")
         info = {"start_s": start, "seconds": stop - start, "channels": {}}
     for name, stream in streams.items():
@@ -89,7 +107,7 @@ def align(streams: Mapping[str, Stream], files: Mapping[str, str], missing: str 
         cut = [n for n, s in timed.items() if s.times[0] < start - 0.5 / s.rate or s.times[-1] > stop - 0.5 / s.rate]
         if cut:
             notes.append(Note("aligned", files[cut[0]], len(cut), f"{files[cut[0]]}: channel(s) {', '.join(cut)} "
-                              f"cut to the span {start:.6g}-{stop:.6g} s that {', '.join(timed)} share"))
+                              f"cut to the span ({span(start, stop)}) that {', '.join(timed)} share"))
     return Aligned(traces, notes, info)
 
 
@@ -108,7 +126,7 @@ def _on_common_grid(name: str, stream: Stream, start: float, stop: float, file: 
     if gap_start.size:
         longest = int(np.argmax(gap_length))
         text = (f"{file}: channel {name}: {gap_start.size} gap(s) in the timestamps, {bridged} sample(s) "
-                f"missing; the longest {gap_length[longest]:.4g} s at t = {gap_start[longest]:.6g} s")
+                f"missing; the longest {gap_length[longest]:.4g} s at {moment(gap_start[longest])}")
         if missing == "error":
             raise IngestError(text)
         notes.append(Note("gap", file, float(gap_length[longest]), text + " (bridged linearly)"))

@@ -250,6 +250,20 @@ def _patched(name: str, parts: _Parts, traces: Mapping[str, Trace], label: str, 
             for r, c, patch in patches(image, parts.grid)]
 
 
+def lacking_roles(recordings: Sequence[Recording], first: int = 3) -> list[Note]:
+    """A note per role that some recordings have and others lack (a file of the recording missing, say):
+    how many lack it and the first few; the feature families that need the role are NaN there."""
+    notes = []
+    roles = dict.fromkeys(role for r in recordings for role in r.roles)
+    for role in roles:
+        without = [r.name for r in recordings if role not in r.roles]
+        if without:
+            shown = ", ".join(without[:first]) + (f" and {len(without) - first} more" if len(without) > first else "")
+            notes.append(Note("roles", without[0], len(without), f"{len(without)} of {len(recordings)} "
+                              f"recording(s) lack the role {role} that the others have: {shown}"))
+    return notes
+
+
 def ingest(path: str | os.PathLike[str], mapping: IngestMapping,
            progress: Callable[[Iterable[Any]], Iterable[Any]] = iter) -> IngestReport:
     """Recordings from the files under ``path`` as ``mapping`` describes them.
@@ -276,6 +290,7 @@ def ingest(path: str | os.PathLike[str], mapping: IngestMapping,
     for key, files in progress(list(matched.items())):
         report.files += len(files)
         report.recordings += _recordings(key, names[key], files, root, mapping, table, report)
+    report.notes.extend(lacking_roles(report.recordings))
     splits = {r.meta.get("split") for r in report.recordings}
     if mapping.split_from == "auto" and splits != {"train", "test"}:
         # Folders named train or test hold only some recordings, or one part: not a split of the set.

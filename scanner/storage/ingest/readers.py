@@ -159,7 +159,8 @@ class Note:
 NOTE_KINDS = {"missing": "missing samples interpolated", "irregular": "irregular time steps resampled",
               "gap": "gaps in the timestamps bridged", "aligned": "streams cut to their common time span",
               "clock": "jittered timestamps of a regular clock kept as regular streams",
-              "text": "text columns not in the mapping ignored"}
+              "text": "text columns not in the mapping ignored",
+              "roles": "recordings lacking a role the others have"}
 
 
 def summarise_notes(notes: Sequence[Note], first: int = 3) -> list[str]:
