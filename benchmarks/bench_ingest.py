@@ -17,8 +17,8 @@ from timing import best_time
 
 from scanner.storage import ingest
 
-RECORDINGS = 200
-SECONDS = 30
+RECORDINGS = 100
+SECONDS = 10
 
 TIMED = """
 [[files]]

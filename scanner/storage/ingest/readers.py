@@ -31,14 +31,14 @@ RATE_TOLERANCE = 0.05
 """Time steps may vary by this fraction of their median before the import notes it."""
 
 
-def _number(token: str, where: str) -> float:
-    text = token.strip()
-    if text.lower() in NAN_TOKENS:
-        return math.nan
+def _number(token: str) -> float:
+    """A table cell's value: a number (spaces around it allowed) or a token of :data:`NAN_TOKENS`."""
     try:
-        return float(text)
+        return float(token)  # the common case: a number, or nan
     except ValueError:
-        raise IngestError(f"{where}: {token!r} is not a number") from None
+        if token.strip().lower() in NAN_TOKENS:
+            return math.nan
+        raise
 
 
 def _split_lines(text: str, delimiter: str | None, comment: str | None) -> list[tuple[int, list[str]]]:
@@ -88,12 +88,18 @@ def read_table(path: Path, delimiter: str | None, header: bool, comment: str | N
     if not rows:
         raise IngestError(f"{path}: a header but no data rows")
     read = sorted(set(range(len(names)) if needed is None else needed(names)))
-    values = np.full((len(rows), len(names)), np.nan)
-    for r, (line, cells) in enumerate(rows):
+    parsed = []
+    for line, cells in rows:
         cells = _trimmed(cells, len(names))
         if len(cells) != len(names):
             raise IngestError(f"{path}: line {line}: {len(cells)} fields, expected {len(names)}")
-        values[r, read] = [_number(cells[c], f"{path}: line {line}, column {names[c]}") for c in read]
+        try:
+            parsed.append([_number(cells[c]) for c in read])
+        except ValueError:
+            c = next(c for c in read if not _is_number(cells[c]))
+            raise IngestError(f"{path}: line {line}, column {names[c]}: {cells[c]!r} is not a number") from None
+    values = np.full((len(rows), len(names)), np.nan)
+    values[:, read] = np.array(parsed, dtype=np.float64).reshape(len(rows), len(read))
     if ignored is not None and header:
         ignored.update({names[c]: cell.strip() for c, cell in enumerate(_trimmed(rows[0][1], len(names)))
                         if c not in read and c < len(names) and not _is_number(cell)})
@@ -102,8 +108,8 @@ def read_table(path: Path, delimiter: str | None, header: bool, comment: str | N
 
 def _is_number(token: str) -> bool:
     try:
-        _number(token, "")
-    except IngestError:
+        _number(token)
+    except ValueError:
         return False
     return True
 
