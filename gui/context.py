@@ -12,7 +12,7 @@ from pathlib import Path
 from flask import current_app
 
 from gui.exports import Exports
-from gui.operation import Operations
+from gui.live_session import Operations
 from gui.photos import DEFAULT_MAX_BYTES, DEFAULT_MAX_PIXELS, PhotoStore
 from scanner.acquisition.config import Config
 from scanner.storage.database import Database

@@ -1,11 +1,11 @@
 """The operator's pages (docs/operator.md): start a scan, the guided steps, the operator form, the summary.
 
-Every page is a view of the running :class:`scanner.acquisition.session.Session` (through :mod:`gui.operation`); every
-action is one session call: ``Session.open``, ``start_step``, ``cancel_step``, ``redo``, ``skip``,
-``set_photo``, ``capture_photo``, ``set_values``, ``t_amb``, ``save`` and ``abort``. Input is validated by
-:mod:`gui.forms` first so that each reason appears beside its field; the session checks again and its
-refusals are shown too. The database is written once, by ``Session.save``; an abort or an error before it
-leaves the database as it was.
+Every page is a view of the running :class:`scanner.acquisition.session.Session` (through
+:mod:`gui.live_session`); every action is one session call: ``Session.open``, ``start_step``, ``cancel_step``,
+``redo``, ``skip``, ``set_photo``, ``capture_photo``, ``set_values``, ``t_amb``, ``save`` and ``abort``. Input
+is validated by :mod:`gui.forms` first so that each reason appears beside its field; the session checks again
+and its refusals are shown too. The database is written once, by ``Session.save``; an abort or an error before
+it leaves the database as it was.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from gui.forms import (
     validate_operator,
     validate_start,
 )
-from gui.operation import Operation, SessionBusy
+from gui.live_session import Operation, SessionBusy
 from gui.photos import UploadError, check_size, check_upload, file_size
 from scanner.acquisition.config import ConfigError
 from scanner.acquisition.devices.protocols import DeviceError

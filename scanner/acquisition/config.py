@@ -32,8 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from scanner.photo import PhotoError, check_size
-from scanner.preprocess import (
+from scanner.calibration import (
     ACCEL_V_PER_G,
     ACCEL_ZERO_V,
     accel_g,
@@ -42,6 +41,7 @@ from scanner.preprocess import (
     fsr_volts,
     metal_sign,
 )
+from scanner.photo import PhotoError, check_size
 from scanner.scan import MAX_CHANNEL_SECONDS
 from taxonomy.errors import TexplorerError
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from scanner.preprocess import fsr_newtons, fsr_volts
+from scanner.calibration import fsr_newtons, fsr_volts
 from scanner.simulation.materials import Friction, Material
 from scanner.simulation.signals import (
     DAQ_LSB_V,
