@@ -22,12 +22,13 @@ from __future__ import annotations
 import math
 from functools import lru_cache
 
-import cv2
-import numba
 import numpy as np
-from scipy import fft as sp_fft
 
 from features import kernels
+from scanner.lazy import jit, library
+
+cv2 = library("cv2")
+sp_fft = library("scipy.fft")
 
 EPS = float(np.finfo(np.float64).eps)
 """MATLAB's ``eps`` (2^-52): the toolbox's guard against division by zero and ``log(0)``."""
@@ -132,7 +133,7 @@ def zcr(framed: np.ndarray) -> np.ndarray:
     return _sign_changes(framed) / (2.0 * framed.shape[1])
 
 
-@numba.njit(**kernels.JIT)
+@jit(**kernels.JIT)
 def _sign_changes(rows: np.ndarray) -> np.ndarray:
     """Per row, ``sum_n |sgn x(n) - sgn x(n-1)|`` with ``x(-1) = 0``, counted in integers (exact)."""
     changes = np.zeros(rows.shape[0], dtype=np.int64)
@@ -195,7 +196,7 @@ def spectral_centroid_spread(spectra: np.ndarray, fs: float) -> tuple[np.ndarray
     return centroid / (fs / 2.0), spread / (fs / 2.0)
 
 
-@numba.njit(**kernels.JIT)
+@jit(**kernels.JIT)
 def _weigh_squared_deviations(x: np.ndarray, m: np.ndarray, centre: np.ndarray) -> None:
     """``x[i, k] = (m[k] - centre[i])^2 x[i, k]`` in place: the operations of the array expression, in one pass."""
     for i in range(x.shape[0]):
@@ -229,7 +230,7 @@ def spectral_flux(spectra: np.ndarray) -> np.ndarray:
     return np.sum(_flux_terms(spectra, spectra.sum(axis=1), np.sum(spectra + EPS, axis=1)), axis=1)
 
 
-@numba.njit(**kernels.JIT)
+@jit(**kernels.JIT)
 def _flux_terms(spectra: np.ndarray, total: np.ndarray, total_eps: np.ndarray) -> np.ndarray:
     """The terms ``(X_i(k)/sum X_i - X_{i-1}(k)/sum(X_{i-1} + eps))^2`` of :func:`spectral_flux`, given the
     row sums: the divisions, difference and square of the array formula, in one pass."""
@@ -265,7 +266,7 @@ def _rolloff_of_power(power: np.ndarray, c: float = ROLLOFF_C, total: np.ndarray
     return _first_exceeding(power, c * total) / power.shape[1]
 
 
-@numba.njit(**kernels.JIT)
+@jit(**kernels.JIT)
 def _first_exceeding(power: np.ndarray, thresholds: np.ndarray) -> np.ndarray:
     """Per row, the first index whose running sum exceeds its threshold, else the last index.
 
@@ -326,7 +327,7 @@ EXACT_SIGNS_BELOW = 1e150
 from rounding to 0."""
 
 
-@numba.njit(**kernels.JIT)
+@jit(**kernels.JIT)
 def _harmonic_of_autocorrelation(autocorr: np.ndarray, frame_energy: np.ndarray, framed: np.ndarray,
                                  shared_energy: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
     """:func:`harmonic` of each row from its autocorrelation ``R(0..M)``, ``R(0)`` as ``sum x^2``
@@ -380,7 +381,7 @@ def _harmonic_of_autocorrelation(autocorr: np.ndarray, frame_energy: np.ndarray,
     return ratio, f0
 
 
-@numba.njit(**kernels.JIT)
+@jit(**kernels.JIT)
 def _first_downward_crossing(autocorr: np.ndarray) -> int:
     """The first lag ``m >= 2`` with ``R(m) < 0 <= R(m-1)``; the number of lags given if none."""
     for m in range(2, autocorr.size):
@@ -389,7 +390,7 @@ def _first_downward_crossing(autocorr: np.ndarray) -> int:
     return autocorr.size
 
 
-@numba.njit(**kernels.JIT)
+@jit(**kernels.JIT)
 def _head_energies(frame: np.ndarray, shared: float, heads: np.ndarray) -> None:
     """``heads[m-1] = sum_{n < N-m} x(n)^2`` for m = 1 .. M: ``shared`` (the sum of the first ``N-M-1``
     squares) plus the running sum of the squares after them, as ``np.cumsum`` adds them."""
@@ -401,7 +402,7 @@ def _head_energies(frame: np.ndarray, shared: float, heads: np.ndarray) -> None:
         heads[max_lag - 1 - k] = running + shared
 
 
-@numba.njit(**kernels.JIT)
+@jit(**kernels.JIT)
 def _gamma(autocorr: np.ndarray, energy: float, heads: np.ndarray, first_zero: int, gamma: np.ndarray,
            positive_only: bool) -> None:
     """``Gamma(m) = R(m) / (sqrt(R(0) heads(m)) + eps)`` into ``gamma[m-1]`` for ``m >= m0`` (all of them, or
@@ -411,7 +412,7 @@ def _gamma(autocorr: np.ndarray, energy: float, heads: np.ndarray, first_zero: i
             gamma[m - 1] = autocorr[m] / (math.sqrt(energy * heads[m - 1]) + EPS)
 
 
-@numba.njit(**kernels.JIT)
+@jit(**kernels.JIT)
 def _first_maximum(values: np.ndarray) -> tuple[float, int]:
     """``(max, argmax)`` as numpy gives them: the first maximum, or the first NaN if there is one."""
     best, where = values[0], 0

@@ -11,12 +11,13 @@ from __future__ import annotations
 from collections.abc import Iterator
 from functools import lru_cache
 
-import cv2
-import numba
 import numpy as np
 
 from features import kernels
 from features.image import spans
+from scanner.lazy import jit, library
+
+cv2 = library("cv2")
 
 DOH_SCALES = 1.2 * 2.0 ** (np.arange(16) / 4.0)
 """Scale ladder of the determinant-of-Hessian detector in MaCo: 1.2 * 2^(k/4), k = 0..15 (Strese et al. 2020,
@@ -124,7 +125,7 @@ def _loop_ends(n_pixels: int, loops: tuple[int, int]) -> tuple[int, int]:
     return wide_end, narrow_end
 
 
-@numba.njit(**kernels.JIT)
+@jit(**kernels.JIT)
 def _gradient_products(dx: np.ndarray, dy: np.ndarray, planes: np.ndarray) -> None:
     """``planes[0..2] = Dx^2, Dx Dy, Dy^2`` (float32 products, as ``cornerHarris`` makes them)."""
     for i in range(dx.shape[0]):
@@ -135,7 +136,7 @@ def _gradient_products(dx: np.ndarray, dy: np.ndarray, planes: np.ndarray) -> No
             planes[2, i, j] = y * y
 
 
-@numba.njit(**kernels.JIT)
+@jit(**kernels.JIT)
 def _harris_of_box_sums(planes: np.ndarray, k32: np.float32, k: float, wide_end: int, narrow_end: int) -> None:
     """``R = (a c - b^2) - k (a + c)^2`` from the box sums ``a, b, c = planes[0..2]``, into ``planes[0]``.
 
@@ -260,7 +261,7 @@ def _spaced_strongest(index: np.ndarray, value: np.ndarray, width: int) -> tuple
     return kept[:n], False
 
 
-@numba.njit(**kernels.JIT)
+@jit(**kernels.JIT)
 def _keep_spaced(rows: np.ndarray, cols: np.ndarray, kept: np.ndarray, n: int, reach2: int) -> int:
     """The greedy pass of :func:`_spaced_strongest` over one batch of ordered candidates: each is kept if its
     squared distance to every corner kept so far is at least ``reach2`` (integers, so exact), until ``kept``
@@ -303,7 +304,7 @@ def gaussian_weights(sigma: float, order: int, truncate: float = 4.0) -> np.ndar
     return (polynomial * phi)[::-1]
 
 
-@numba.njit(**kernels.JIT)
+@jit(**kernels.JIT)
 def _reflect(index: int, n: int) -> int:
     """Index into a length-n axis under scipy.ndimage's "reflect" mode (d c b a | a b c d | d c b a)."""
     if 0 <= index < n:
@@ -333,7 +334,7 @@ def _folded_weights(sigmas: tuple[float, ...]) -> np.ndarray:
     return weights
 
 
-@numba.njit(**kernels.JIT)
+@jit(**kernels.JIT)
 def _doh_at(gray: np.ndarray, corners: np.ndarray, weights: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """``Lxx Lyy - Lxy^2`` at each corner for each scale of ``weights`` (:func:`_folded_weights`), shape
     ``(n_corners, n_scales)``; ``L..`` as :func:`gaussian_weights` filtering with reflected borders.

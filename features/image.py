@@ -23,11 +23,13 @@ import math
 import warnings
 from collections.abc import Iterator, Sequence
 
-import cv2
 import numpy as np
 
 from features import kernels
+from scanner.lazy import library
 from scanner.preprocess import IMAGE_BORDER_PX, crop_image
+
+cv2 = library("cv2")
 
 HARALICK_NAMES = (
     "angular_second_moment", "contrast", "correlation", "sum_of_squares", "inverse_difference_moment",

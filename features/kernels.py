@@ -19,8 +19,9 @@ so only the first run on a machine compiles (about a second per kernel).
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+
+from scanner.lazy import jit
 
 JIT = {"cache": True, "nogil": True, "boundscheck": False}
 """The options of every compiled kernel of the feature code: cached machine code; no GIL held, as extractions
@@ -35,7 +36,7 @@ it in as a constant."""
 GRAY_PRODUCTS.flags.writeable = False
 
 
-@numba.njit(**JIT)
+@jit(**JIT)
 def gray_images(rgb: np.ndarray, gray: np.ndarray, gray_u8: np.ndarray, gray32: np.ndarray, levels: int,
                 triples: np.ndarray, diagonal: np.ndarray, edges: np.ndarray) -> tuple[float, float, float]:
     """The gray image of an 8-bit RGB photo and what is made from it, in one pass over its pixels.
@@ -108,7 +109,7 @@ def gray_images(rgb: np.ndarray, gray: np.ndarray, gray_u8: np.ndarray, gray32: 
     return low, high, total
 
 
-@numba.njit(**JIT)
+@jit(**JIT)
 def pixel_sum(image: np.ndarray) -> float:
     """The sum of a 2-D float64 image: each row in four interleaved partial sums, then the rows in order.
 
@@ -123,7 +124,7 @@ def pixel_sum(image: np.ndarray) -> float:
     return total
 
 
-@numba.njit(**JIT, inline="always")
+@jit(**JIT, inline="always")
 def _row_sum(row: np.ndarray) -> float:
     """Sum of a row in four partial sums (columns c mod 4), so that the additions need not wait for each other."""
     s0 = s1 = s2 = s3 = 0.0
@@ -139,7 +140,7 @@ def _row_sum(row: np.ndarray) -> float:
     return (s0 + s1) + (s2 + s3)
 
 
-@numba.njit(**JIT)
+@jit(**JIT)
 def central_moment_sums(gray: np.ndarray, mean: float) -> tuple[float, float]:
     """``sum (x - mean)^2`` and ``sum (x - mean)^4`` over a 2-D image, in one pass.
 
@@ -175,7 +176,7 @@ def central_moment_sums(gray: np.ndarray, mean: float) -> tuple[float, float]:
     return second, fourth
 
 
-@numba.njit(**JIT)
+@jit(**JIT)
 def centred_point_symmetric_rows(image: np.ndarray, mean: float, out: np.ndarray) -> None:
     """Rows 0 .. M//2 of ``out`` become ``((x(m, n) - mean) + (x(-m, -n) - mean)) / 2`` (indices modulo M, N).
 
@@ -198,7 +199,7 @@ def centred_point_symmetric_rows(image: np.ndarray, mean: float, out: np.ndarray
             target[col] = ((here[col] - mean) + (source[n - col] - mean)) * 0.5
 
 
-@numba.njit(**JIT)
+@jit(**JIT)
 def lbp_code_counts(image: np.ndarray, right: tuple[np.ndarray, np.ndarray], left: tuple[np.ndarray, np.ndarray],
                     up: tuple[np.ndarray, np.ndarray], down: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """Counts of the 256 LBP codes (P = 8, R = 1) over the pixels at least 1 px from the border.
@@ -245,7 +246,7 @@ def lbp_code_counts(image: np.ndarray, right: tuple[np.ndarray, np.ndarray], lef
     return counts.sum(axis=0)
 
 
-@numba.njit(**JIT, inline="always")
+@jit(**JIT, inline="always")
 def _lerp_row(row: np.ndarray, right0: np.ndarray, right1: np.ndarray, left0: np.ndarray, left1: np.ndarray,
               towards_right: np.ndarray, towards_left: np.ndarray) -> None:
     """A row interpolated towards its right and its left neighbour column (interior columns)."""
@@ -264,7 +265,7 @@ TAMURA_KERNEL_KMAX = 5
 (``features.image.TAMURA_KMAX`` is this value)."""
 
 
-@numba.njit(**JIT)
+@jit(**JIT)
 def tamura_coarseness_total(gray: np.ndarray, tolerance: int) -> int:
     """Sum over the output pixels of Tamura's best window size ``S_best`` for kmax = 5, in one pass.
 
@@ -311,14 +312,14 @@ def tamura_coarseness_total(gray: np.ndarray, tolerance: int) -> int:
     return total
 
 
-@numba.njit(**JIT, inline="always")
+@jit(**JIT, inline="always")
 def _window_sums(top: np.ndarray, bottom: np.ndarray, half: int, out: np.ndarray) -> None:
     """Row of level k from rows i and i + h of level k - 1: four windows of side h make one of side 2h."""
     for j in range(out.shape[0] - 2 * half + 1):
         out[j] = _I32(_I32(top[j] + bottom[j]) + _I32(top[j + half] + bottom[j + half]))
 
 
-@numba.njit(**JIT, inline="always")
+@jit(**JIT, inline="always")
 def _best_sizes(levels: np.ndarray, r: int, w: int, tolerance: int) -> int:
     """Sum of ``S_best`` over output row r (columns 32 .. w - 32), see :func:`tamura_coarseness_total`."""
     m1, c1, t1 = levels[1, (r - 1) & 63], levels[1, r & 63], levels[1, (r - 2) & 63]

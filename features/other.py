@@ -19,13 +19,16 @@ import warnings
 from collections.abc import Callable
 
 import numpy as np
-from scipy import optimize, signal
 
 from features.prepared import PreparedScan
 from features.tactum import MissingDataWarning, spectral_centroid
+from scanner.lazy import library
 from scanner.preprocess import NO_SLIDE, QualityError, dft321
 from scanner.scan import Scan, Trace
 from taxonomy.errors import TexplorerError
+
+optimize = library("scipy.optimize")
+signal = library("scipy.signal")
 
 NAMES = (
     "other.density", "other.metal", "other.magnet_mean", "other.magnet_peak", "other.reflect_static",

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import scipy.io
+import scipy  # scipy.io loads at its first use (scipy's submodules load when first read)
 
 from features.registry import REGISTRY
 from scanner.storage.files import atomic_write_bytes

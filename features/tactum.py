@@ -18,16 +18,18 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
-import pywt
 
 from features.corners import corner_scales, harris_corners
 from features.image import PreparedPhoto, RealSpectrum, tamura_contrast
 from features.prepared import PreparedScan
+from scanner.lazy import library
 from scanner.preprocess import (
     QualityError,
     remove_friction_offset,
 )
 from scanner.scan import JUDGED_SCALE, Scan
+
+pywt = library("pywt")
 
 NAMES = (
     "tactum.matx", "tactum.maco", "tactum.marg", "tactum.miro", "tactum.mico",

@@ -36,9 +36,12 @@ import sys
 import threading
 from collections.abc import Callable, Iterator
 
-import cv2
 import threadpoolctl
 from threadpoolctl import ThreadpoolController
+
+from scanner.lazy import library
+
+cv2 = library("cv2")
 
 _lock = threading.Lock()
 _blas = {"users": 0, "limiter": None}

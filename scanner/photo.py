@@ -21,10 +21,12 @@ import os
 import struct
 from pathlib import Path
 
-import cv2
 import numpy as np
 
+from scanner.lazy import library
 from taxonomy.errors import TexplorerError
+
+cv2 = library("cv2")
 
 MAX_PIXELS_ENV = "TEXPLORER_MAX_PHOTO_PIXELS"
 DEFAULT_MAX_PIXELS = 25_000_000
@@ -40,10 +42,14 @@ TIFF_SIGNATURES = {b"II*\x00": ("<", False), b"MM\x00*": (">", False), b"II+\x00
 """Byte order and BigTIFF of the four TIFF signatures."""
 _JPEG_FRAME_MARKERS = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
 """Start-of-frame markers SOF0-SOF15; C4 (Huffman tables), C8 (reserved) and CC (arithmetic) are not."""
-_IMREAD_RGB = getattr(cv2, "IMREAD_COLOR_RGB", 0)
-"""OpenCV >= 4.11 decodes straight to RGB, the same values as ``IMREAD_COLOR`` with the channels reversed
-(PNG: libpng's output order; JPEG: libjpeg's colour space): a 12-megapixel PNG in 213 ms instead of 227,
-without a second full-size image. Older versions decode to BGR and convert."""
+
+
+def _imread_rgb() -> int:
+    """OpenCV >= 4.11 decodes straight to RGB (``IMREAD_COLOR_RGB``; 0 before), the same values as
+    ``IMREAD_COLOR`` with the channels reversed (PNG: libpng's output order; JPEG: libjpeg's colour space):
+    a 12-megapixel PNG in 213 ms instead of 227, without a second full-size image. Older versions decode
+    to BGR and convert."""
+    return getattr(cv2, "IMREAD_COLOR_RGB", 0)
 
 
 class PhotoError(TexplorerError, ValueError):
@@ -181,10 +187,11 @@ def decode(data: bytes, name: str = "the photo", limit: int | None = None) -> np
     if not (data.startswith(PNG_SIGNATURE) or data.startswith(JPEG_SIGNATURE)):
         raise PhotoError(f"{name}: not a PNG or JPEG file")
     check_pixels(data, limit, name)
-    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), _IMREAD_RGB or cv2.IMREAD_COLOR)
+    rgb = _imread_rgb()
+    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), rgb or cv2.IMREAD_COLOR)
     if image is None:
         raise PhotoError(f"{name}: the file is damaged and cannot be decoded")
-    return image if _IMREAD_RGB else cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+    return image if rgb else cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
 
 
 def max_file_bytes(limit: int | None = None, bytes_per_pixel: int = 4) -> int:

@@ -16,12 +16,13 @@ from dataclasses import dataclass
 from fractions import Fraction
 from functools import lru_cache
 
-import numba
 import numpy as np
-from scipy import signal
 
+from scanner.lazy import jit, library
 from scanner.scan import Trace
 from taxonomy.errors import TexplorerError
+
+signal = library("scipy.signal")
 
 IMAGE_BORDER_PX = 100
 """Pixels cropped from every border of a photo before any image feature (docs/features.md#preprocessing)."""
@@ -329,7 +330,7 @@ def _sosfiltfilt(sos: np.ndarray, zi: np.ndarray, padlen: int, x: np.ndarray) ->
     return forward[padlen:-padlen].reshape(x.shape)
 
 
-@numba.njit(cache=True, nogil=True)  # nogil: extractions run in several threads (the web app)
+@jit(cache=True, nogil=True)  # nogil: extractions run in several threads (the web app)
 def _sosfilt_rows(sos: np.ndarray, x: np.ndarray, state: np.ndarray, backwards: bool) -> None:
     """``scipy.signal.sosfilt`` along axis 0 of ``x`` (samples, signals) in place, from the last sample to the
     first if ``backwards``, from the filter state ``state`` (sections, 2, signals), updated: the transposed

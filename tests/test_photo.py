@@ -44,7 +44,8 @@ def test_a_photo_decodes_to_the_values_of_opencvs_colour_decoding_in_rgb_order(d
     reference): bit for bit the same image, for every PNG and JPEG form a lab's photos may come in."""
     if straight_to_rgb and not hasattr(cv2, "IMREAD_COLOR_RGB"):
         pytest.skip(f"OpenCV {cv2.__version__} has no IMREAD_COLOR_RGB")
-    monkeypatch.setattr(photo, "_IMREAD_RGB", cv2.IMREAD_COLOR_RGB if straight_to_rgb else 0)
+    flag = cv2.IMREAD_COLOR_RGB if straight_to_rgb else 0
+    monkeypatch.setattr(photo, "_imread_rgb", lambda: flag)
     expected = cv2.cvtColor(cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
     decoded = photo.decode(data, limit=10_000)
     assert decoded.dtype == np.uint8 and decoded.shape == (37, 53, 3)

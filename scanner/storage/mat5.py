@@ -20,7 +20,7 @@ import zlib
 from pathlib import Path
 from typing import Any, BinaryIO
 
-import scipy.io
+import scipy  # scipy.io loads at its first use (scipy's submodules load when first read)
 
 from taxonomy.errors import TexplorerError
 

@@ -34,8 +34,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
-import scipy.io
-from scipy.io.matlab import mat_struct
+import scipy  # scipy.io loads at its first use (scipy's submodules load when first read)
 
 from scanner import photo
 from scanner.photo import PhotoError, encode_png, read_photo
@@ -163,7 +162,7 @@ def save_scan(scan: Scan, path: str | os.PathLike[str]) -> list[Path]:
 
 def _to_python(value: Any) -> Any:
     """MATLAB values from ``loadmat(squeeze_me=False, struct_as_record=False)`` as plain Python."""
-    if isinstance(value, mat_struct):
+    if isinstance(value, scipy.io.matlab.mat_struct):
         return {name: _to_python(getattr(value, name)) for name in value._fieldnames}
     if isinstance(value, np.ndarray):
         if value.dtype.kind == "U":

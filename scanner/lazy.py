@@ -1,0 +1,130 @@
+"""Heavy libraries loaded when first used, so that importing the project, and starting the CLI, costs little
+more than numpy: a command loads OpenCV, numba or scipy's signal tools only if it computes with them.
+
+- :func:`library` stands for a library module at a module's top (``cv2 = library("cv2")``) and imports it
+  at the first attribute read (``cv2.imdecode``).
+- :func:`jit` is ``numba.njit(**options)`` applied when a compiled function is first called: numba and
+  LLVM load then, and every kernel that :func:`jit` holds is compiled at once, so that one kernel calling
+  another (by name, or as ``module.kernel``) finds numba's dispatcher, as with ``numba.njit`` at import.
+
+Only third-party libraries are deferred: the project's own modules import each other at their top
+(docs/extending.md), where the layer contracts see them.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+import sys
+import threading
+import types
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+PROJECT_PACKAGES = ("scanner", "features", "taxonomy", "gui", "texplorer")
+"""Top-level packages of the project, whose modules are never deferred."""
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+class _Library(types.ModuleType):
+    """A library module imported at its first attribute read; its names are then copied in, so that later
+    reads cost what a module's do."""
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("__"):  # copy, pickle and doctest probe dunders; they do not need the library
+            raise AttributeError(name)
+        module = importlib.import_module(self.__name__)
+        self.__dict__.update(vars(module))
+        return getattr(module, name)
+
+
+def library(name: str) -> types.ModuleType:
+    """The module ``name`` if it is already imported, else a stand-in that imports it at its first use.
+
+    Parameters
+    ----------
+    name : str
+        Dotted name of a third-party module (``"cv2"``, ``"scipy.signal"``).
+
+    Returns
+    -------
+    types.ModuleType
+        The module, or a module object that imports it when an attribute is read.
+
+    Raises
+    ------
+    ValueError
+        If ``name`` is a module of the project: those are imported at a module's top.
+    """
+    if name.split(".")[0] in PROJECT_PACKAGES:
+        raise ValueError(f"{name}: project modules are imported at the top of a module, not deferred")
+    return sys.modules.get(name) or _Library(name)
+
+
+class _Kernel:
+    """A function :func:`jit` compiles at the first call of any deferred kernel."""
+
+    def __init__(self, function: Callable[..., Any], options: dict[str, Any]) -> None:
+        functools.update_wrapper(self, function)
+        self.py_func = function
+        self.options = options
+        self.dispatcher: Any = None
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        if self.dispatcher is None:
+            _compile_pending()
+        return self.dispatcher(*args, **kwargs)
+
+    def __getattr__(self, name: str) -> Any:  # numba's own attributes (signatures, inspect_types, ...)
+        if name.startswith("__") or name == "dispatcher":
+            raise AttributeError(name)
+        if self.dispatcher is None:
+            _compile_pending()
+        return getattr(self.dispatcher, name)
+
+
+_pending: list[_Kernel] = []
+_lock = threading.Lock()
+
+
+def jit(**options: Any) -> Callable[[F], F]:
+    """``numba.njit(**options)``, applied at the first call of a deferred kernel instead of at import.
+
+    Parameters
+    ----------
+    **options
+        numba.njit's options (``cache``, ``nogil``, ``inline``, ...).
+
+    Returns
+    -------
+    Callable
+        A decorator; the function it returns calls the compiled kernel.
+    """
+    def decorate(function: F) -> F:
+        kernel = _Kernel(function, options)
+        with _lock:
+            _pending.append(kernel)
+        return kernel  # type: ignore[return-value]
+    return decorate
+
+
+def _compile_pending() -> None:
+    """Make numba's dispatcher of every deferred kernel and put it in place of the stand-in, in every module
+    that defines or imported one, before any of them compiles: numba reads a kernel's callees from its
+    module's globals when it compiles it."""
+    import numba
+
+    with _lock:
+        kernels = list(_pending)
+        _pending.clear()
+        for kernel in kernels:
+            kernel.dispatcher = numba.njit(**kernel.options)(kernel.py_func)
+        replaced = {id(kernel): kernel.dispatcher for kernel in kernels}
+        for name, module in list(sys.modules.items()):
+            if module is None or name.split(".")[0] not in PROJECT_PACKAGES:
+                continue
+            namespace = vars(module)
+            for key, value in list(namespace.items()):
+                if id(value) in replaced and isinstance(value, _Kernel):
+                    namespace[key] = replaced[id(value)]
