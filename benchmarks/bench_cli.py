@@ -50,12 +50,16 @@ def build_database(root: Path) -> None:
 
 
 def main() -> None:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(Path(__file__).resolve().parents[1]),
-                                                                      os.environ.get("PYTHONPATH")]))}
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--db", type=Path, help="database for 'db list' (default: a simulated one, built first)")
     given = parser.parse_args().db
     with tempfile.TemporaryDirectory() as tmp:
+        # Bytecode caches as a user's installation has them (in a folder of their own, so the tree stays as it
+        # is), written by the warm-up runs even where the environment asks Python not to write them.
+        env = {**os.environ, "PYTHONPYCACHEPREFIX": str(Path(tmp) / "pycache"),
+               "PYTHONPATH": os.pathsep.join(filter(None, [str(Path(__file__).resolve().parents[1]),
+                                                          os.environ.get("PYTHONPATH")]))}
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
         db = given or Path(tmp) / "db"
         if given is None:
             build_database(db)

@@ -1,5 +1,8 @@
-"""``texplorer serve``: the operator's web application, a command group the web application adds to
-the CLI (through the ``texplorer.commands`` entry point: the CLI, a layer below, does not import it)."""
+"""The operator's web application: guided scans, operator form, database browser.
+
+``texplorer serve``, a command group the web application adds to the CLI (through the ``texplorer.commands``
+entry point: the CLI, a layer below, does not import it). The first paragraph above is the command's line in
+``texplorer --help``, read without importing this module or Flask."""
 
 from __future__ import annotations
 
@@ -8,7 +11,7 @@ from pathlib import Path
 
 from gui.app import Settings, serve
 from scanner.acquisition.config import load_config
-from scanner.cli.common import UsageError, add_db_option
+from scanner.cli.base import UsageError, add_db_option
 from scanner.photo import max_pixels
 
 

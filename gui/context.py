@@ -16,11 +16,10 @@ from gui.live_session import Operations
 from gui.photos import DEFAULT_MAX_BYTES, DEFAULT_MAX_PIXELS, PhotoStore
 from scanner.acquisition.config import Config
 from scanner.storage.database import Database
+from scanner.workflows import default_model
 from taxonomy.learning.models import TrainedModel, load_model
 
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
-DEMO_MODEL = Path("models") / "rf-fine-X10.skops"
-"""Where ``texplorer demo`` saves its model; used when no ``--model`` is given and the file exists."""
 
 @dataclass(frozen=True)
 class Settings:
@@ -81,8 +80,7 @@ class Context:
         """``--model``, else the demo's model in the database folder if it exists, else None."""
         if self.settings.model is not None:
             return Path(self.settings.model)
-        demo = Path(self.settings.db) / DEMO_MODEL
-        return demo if demo.is_file() else None
+        return default_model(self.settings.db)
 
     @cached_property
     def model(self) -> TrainedModel | None:

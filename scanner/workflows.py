@@ -6,6 +6,8 @@
   :func:`stored_features` gives one stored scan's values.
 - **Export a database with its features**: :func:`export_database` writes an export bundle
   (:func:`scanner.storage.bundle.export_bundle`) whose feature tables come from the database's feature cache.
+- **The database's default model**: :func:`default_model`, where ``texplorer demo`` saved one; ``serve`` and
+  ``classify`` use it when no model is given.
 - **Predict a scan's top k with names**: :func:`predict_scan` extracts a scan's features and names the
   model's most probable labels with the taxonomy the caller gives (a database's own taxonomy, with its lab
   codes, where there is a database); :func:`name_predictions` names predictions made elsewhere.
@@ -19,6 +21,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from features import FeatureSpace, ScanSource, WorkerPool, code_version, extract, extract_many
@@ -89,6 +92,29 @@ def export_database(db: Database, out: str | os.PathLike[str], *, label: str | N
 
     return export_bundle(db, out, features, feature_code_version=code_version(), label=label, session=session,
                          progress=progress)
+
+
+# -- the database's default model -------------------------------------------------------------------
+
+DEFAULT_MODEL = Path("models") / "rf-fine-X10.skops"
+"""Where ``texplorer demo`` saves its model in the database folder (random forest, fine level, 10 features)."""
+
+
+def default_model(db_root: str | os.PathLike[str]) -> Path | None:
+    """The database's default model: ``<db_root>/models/rf-fine-X10.skops`` if that file exists, else None.
+
+    Parameters
+    ----------
+    db_root : str or os.PathLike
+        The database folder.
+
+    Returns
+    -------
+    pathlib.Path or None
+        The model file, or None if the database has none (``texplorer demo`` makes one).
+    """
+    path = Path(db_root) / DEFAULT_MODEL
+    return path if path.is_file() else None
 
 
 # -- predict a scan's top k with names ---------------------------------------------------------------

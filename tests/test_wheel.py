@@ -23,7 +23,7 @@ import pytest
 pytestmark = pytest.mark.xdist_group("wheel")
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("scanner", "features", "taxonomy", "gui")
+PACKAGES = ("scanner", "features", "taxonomy", "gui", "texplorer")
 
 
 def _run(argv: list[str | Path], cwd: Path, timeout: float = 600) -> subprocess.CompletedProcess:
@@ -98,6 +98,7 @@ def test_the_installed_wheel_runs_without_the_source_tree(wheel, tmp_path):
     texplorer = env_dir / "bin" / "texplorer"
     for argv in (["--help"], ["emulate", "board", "--help"], ["serve", "--help"]):
         assert "usage: texplorer" in _run([texplorer, *argv], cwd=work).stdout
+    assert _run([python, "-m", "texplorer", "--version"], cwd=work).stdout.startswith("texplorer ")
     out = _run([texplorer, "demo", "--db", "db", "--materials", "float-glass", "oak-planed", "--samples", "1",
                 "--scans", "2", "--image-size", "320", "--no-evaluation", "--workers", "1"], cwd=work).stdout
     assert "database db: 4 scans of 2 materials" in out and (work / "db" / "features.csv").is_file()

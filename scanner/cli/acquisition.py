@@ -13,7 +13,7 @@ from scanner.acquisition.config import load_config
 from scanner.acquisition.devices.protocols import DeviceError
 from scanner.acquisition.devices.sources import SimulatedSample
 from scanner.acquisition.session import VOLUME_METHODS, Session, SessionError, StepState
-from scanner.cli.common import EXIT_ERROR, add_db_option, open_db
+from scanner.cli.base import EXIT_ERROR, add_db_option, open_db
 from scanner.scan import IMAGES, JUDGED_SCALE
 from scanner.storage.database import DatabaseError, is_database
 from scanner.workflows import format_predictions, predict_scan

@@ -11,24 +11,29 @@ from pathlib import Path
 from features import REGISTRY
 from features.recordings import Windowing, describe_families, feature_space
 from features.selection import select_features
+from scanner.cli.base import EXIT_ERROR, UsageError, add_db_option, open_db
 from scanner.cli.common import (
     ALL,
     CLASSIFIER_NAMES,
-    EXIT_ERROR,
-    UsageError,
     add_cluster_options,
-    add_db_option,
     add_evaluation_options,
     add_space_options,
     choices,
     cluster,
-    open_db,
     set_sizes,
     space_for,
 )
 from scanner.storage.ingest import load_recordings, set_folder
 from scanner.storage.matfile import load_scan
-from scanner.workflows import extract_database, format_predictions, predict_scan
+from scanner.workflows import (
+    DEFAULT_MODEL,
+    default_model,
+    extract_database,
+    format_predictions,
+    predict_scan,
+    predict_values,
+    stored_features,
+)
 from taxonomy.labels import LEVELS
 from taxonomy.learning.evaluation import CLASSIFIERS, default_feature_sets, evaluate_grid
 from taxonomy.learning.models import load_model, save_model, train_model
@@ -177,16 +182,49 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_classify(args: argparse.Namespace) -> int:
-    model = load_model(args.model)
-    scan = load_scan(args.scan)
-    print(f"{scan.scan_id} ({scan.meta.label} recorded) with {model.describe()}")
-    print(format_predictions(predict_scan(model, scan, args.k, load_taxonomy())))
+    model = load_model(model_path(args))
+    if _is_scan_file(args.scan):
+        scan = load_scan(args.scan)
+        print(f"{scan.scan_id} ({scan.meta.label} recorded) with {model.describe()}")
+        print(format_predictions(predict_scan(model, scan, args.k, load_taxonomy())))
+        return 0
+    db = open_db(args)
+    record = db.record(args.scan)
+    values, failure = stored_features(db, record)  # from the feature cache when the scan was extracted before
+    if failure:
+        raise UsageError(f"{record.scan_id}: its features cannot be extracted: {failure}")
+    print(f"{record.scan_id} ({record.label} recorded) with {model.describe()}")
+    print(format_predictions(predict_values(model, values, args.k, db.taxonomy())))
     return 0
+
+
+def _is_scan_file(scan: str) -> bool:
+    """Whether ``classify``'s SCAN names a ``.mat`` file rather than a scan of the database (whose ids
+    ``db list`` shows)."""
+    return Path(scan).suffix.lower() == ".mat" or Path(scan).is_file()
+
+
+def model_path(args: argparse.Namespace) -> Path:
+    """``--model``, else the database's default model (:func:`scanner.workflows.default_model`), as
+    ``serve`` uses it.
+
+    Raises
+    ------
+    UsageError
+        No ``--model`` given and the database has no default model.
+    """
+    if args.model is not None:
+        return args.model
+    found = default_model(args.db)
+    if found is None:
+        raise UsageError(f"no --model given and {args.db / DEFAULT_MODEL} does not exist: train one with "
+                         "'texplorer train --out MODEL' or run 'texplorer demo'")
+    return found
 
 
 def register(commands: argparse._SubParsersAction) -> None:
     count = len(REGISTRY.names)
-    features = commands.add_parser("features", help=f"extract the {count} features of every scan into a feature table",
+    features = commands.add_parser("features", help="extract the features of every scan into a feature table",
                                    description=f"Extract the {count} features of every scan (cached in the database "
                                    "by scan content and feature-code version) and write features.csv.")
     add_db_option(features)
@@ -235,11 +273,14 @@ def register(commands: argparse._SubParsersAction) -> None:
     train.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     train.set_defaults(handler=cmd_train)
 
-    classify = commands.add_parser("classify", help="predict the material of a stored scan (.mat)",
-                                   description="Extract the features of SCAN.mat and print the most probable "
-                                   "labels with a trained model.")
-    classify.add_argument("scan", type=Path, help="scan file (.mat)")
-    classify.add_argument("--model", type=Path, required=True, help="model file written by 'texplorer train'")
+    classify = commands.add_parser("classify", help="predict the material of a stored scan (its id in the "
+                                   "database, or a .mat file)", description="Extract the features of a scan "
+                                   "(a scan id as 'texplorer db list' shows it, its features read from the "
+                                   "database's cache, or a .mat file) and print the most probable labels with a "
+                                   "trained model.")
+    classify.add_argument("scan", help="scan id in the database, or a scan file (.mat)")
+    add_db_option(classify)
+    classify.add_argument("--model", type=Path, help="model file written by 'texplorer train' (default: "
+                          "<db>/models/rf-fine-X10.skops, the model 'texplorer demo' made)")
     classify.add_argument("--k", type=int, default=3, help="how many labels to print (default 3)")
-    classify.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
     classify.set_defaults(handler=cmd_classify)

@@ -1,63 +1,20 @@
-"""What every command group shares: the database option, progress bars, exit codes, the feature space of
-``--features`` or the database, and the evaluation options."""
+"""What the analysis command groups share: the feature space of ``--features`` or the database, the cluster and
+the evaluation options (what every group shares, :mod:`scanner.cli.base`, loads nothing heavy)."""
 
 from __future__ import annotations
 
 import argparse
 import contextlib
-import os
 import sys
 import warnings
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
-
-from tqdm import tqdm
 
 from features import REGISTRY, FeatureSpace
 from features.cluster import ClusterError, connect, describe
-from scanner.storage.database import Database
+from scanner.cli.base import UsageError, add_db_option, open_db
 from scanner.workflows import extract_database
-from taxonomy.errors import TexplorerError
 from taxonomy.learning.evaluation import CLASSIFIERS
-
-DEFAULT_DB = "texplorer-data"
-
-
-EXIT_ERROR = 1
-
-
-EXIT_PROBLEMS = 3
-"""``db check`` found missing, changed or unknown files; ``db rebuild`` quarantined files; ``import`` had
-conflicts."""
-
-
-Handler = Callable[[argparse.Namespace], int]
-
-
-class UsageError(TexplorerError, ValueError):
-    """Options that do not fit together or a value out of range; the message names the option."""
-
-
-def default_db() -> Path:
-    return Path(os.environ.get("TEXPLORER_DB") or DEFAULT_DB)
-
-
-def progress(description: str) -> Callable[[Iterable], Iterable]:
-    """A tqdm progress bar on stderr (hidden when stderr is not a terminal)."""
-    return lambda items: tqdm(items, desc=description, unit="scan", file=sys.stderr, disable=None,
-                              leave=False)
-
-
-def open_db(args: argparse.Namespace, *, create: bool = False) -> Database:
-    return Database(args.db, create=create)
-
-
-def table_lines(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
-    """Left-aligned columns as wide as their longest entry (the last column is not padded)."""
-    widths = [max(len(str(cell)) for cell in column) for column in zip(header, *rows, strict=True)]
-    return [" ".join(f"{cell!s:<{width}}" for cell, width in zip(row, widths, strict=True)).rstrip()
-            for row in (header, *rows)]
-
 
 ALL = "all"
 
@@ -87,13 +44,6 @@ def set_sizes(values: Sequence[str] | None, default: Sequence[str]) -> list[int 
         else:
             raise UsageError(f"--n: {value!r} is neither a positive number of features nor 'all'")
     return list(dict.fromkeys(sizes))
-
-
-def add_db_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--db", type=Path, default=default_db(),
-                        help="database folder (default: $TEXPLORER_DB, else ./texplorer-data)")
-    parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
-                        help="show tracebacks on errors")
 
 
 CLASSIFIER_NAMES = tuple(CLASSIFIERS)

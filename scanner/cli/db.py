@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from scanner.cli.common import EXIT_PROBLEMS, add_db_option, open_db, progress, table_lines
+from scanner.cli.base import EXIT_PROBLEMS, add_db_option, open_db, progress, table_lines
 
 
 def cmd_db_list(args: argparse.Namespace) -> int:

@@ -7,9 +7,10 @@ import time
 
 from features import REGISTRY
 from scanner.cli.analysis import report_space, run_evaluation
-from scanner.cli.common import add_cluster_options, add_db_option, add_evaluation_options, cluster
+from scanner.cli.base import add_db_option
+from scanner.cli.common import add_cluster_options, add_evaluation_options, cluster
 from scanner.simulation.database import synthetic_database
-from scanner.workflows import extract_database
+from scanner.workflows import DEFAULT_MODEL, extract_database
 from taxonomy.learning.models import save_model, train_model
 
 DEMO_SAMPLES = 2
@@ -41,7 +42,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         run_evaluation(space, args, client)
 
     model = train_model(space, "fine", 10, "rf", args.seed)
-    path = save_model(model, db.root / "models" / "rf-fine-X10.skops")
+    path = save_model(model, db.root / DEFAULT_MODEL)
     print(f"model: {path} ({model.describe()})")
     return 0
 

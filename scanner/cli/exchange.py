@@ -9,7 +9,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from features import REGISTRY, SOLVER_RTOL, FeatureSpace
-from scanner.cli.common import EXIT_ERROR, EXIT_PROBLEMS, add_cluster_options, add_db_option, cluster, open_db, progress
+from scanner.cli.base import EXIT_ERROR, EXIT_PROBLEMS, add_db_option, open_db, progress
+from scanner.cli.common import add_cluster_options, cluster
 from scanner.replay import (
     DEFAULT_ATOL,
     DEFAULT_RTOL,

@@ -6,7 +6,8 @@ import argparse
 import time
 from pathlib import Path
 
-from scanner.cli.common import EXIT_PROBLEMS, UsageError, add_cluster_options, add_db_option, cluster, progress
+from scanner.cli.base import EXIT_PROBLEMS, UsageError, add_db_option, progress
+from scanner.cli.common import add_cluster_options, cluster
 from scanner.simulation.recordings import simulate_recordings
 from scanner.storage.database import Database, DatabaseError
 from scanner.storage.ingest import (
