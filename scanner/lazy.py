@@ -110,9 +110,9 @@ def jit(**options: Any) -> Callable[[F], F]:
 
 
 def _compile_pending() -> None:
-    """Make numba's dispatcher of every deferred kernel and put it in place of the stand-in, in every module
-    that defines or imported one, before any of them compiles: numba reads a kernel's callees from its
-    module's globals when it compiles it."""
+    """Make numba's dispatcher of every deferred kernel and put it in place of the stand-in, in the module
+    that defines it and in every project module that imported it, before any of them compiles: numba reads
+    a kernel's callees from its module's globals when it compiles it."""
     import numba
 
     with _lock:
@@ -121,8 +121,9 @@ def _compile_pending() -> None:
         for kernel in kernels:
             kernel.dispatcher = numba.njit(**kernel.options)(kernel.py_func)
         replaced = {id(kernel): kernel.dispatcher for kernel in kernels}
+        defining = {kernel.py_func.__module__ for kernel in kernels}
         for name, module in list(sys.modules.items()):
-            if module is None or name.split(".")[0] not in PROJECT_PACKAGES:
+            if module is None or (name.split(".")[0] not in PROJECT_PACKAGES and name not in defining):
                 continue
             namespace = vars(module)
             for key, value in list(namespace.items()):

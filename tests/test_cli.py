@@ -11,7 +11,7 @@ import sys
 import pytest
 from conftest import make_scan
 
-from scanner.cli import EXIT_PIPE, EXIT_PROBLEMS, build_parser, main
+from scanner.cli import COMMANDS, ENTRY_POINTS, EXIT_PIPE, EXIT_PROBLEMS, build_parser, main, plugin_summary
 from scanner.storage.database import Database
 
 
@@ -144,6 +144,30 @@ def test_help_texts_name_the_paper_not_internal_documents():
         assert not re.search(r"seed \d{3}|seed paper", text), parser.prog
 
 
+def _listed(parser: argparse.ArgumentParser) -> dict[str, str]:
+    """Each command of ``texplorer --help`` with its one-line help."""
+    (commands,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    return {action.dest: action.help for action in commands._choices_actions}
+
+
+def test_the_commands_listed_without_their_groups_are_those_the_groups_register():
+    from importlib.metadata import entry_points
+
+    registered, listed = _listed(build_parser()), _listed(build_parser([]))
+    plugins = {entry.name: entry for entry in entry_points(group=ENTRY_POINTS)}
+    assert "serve" in plugins and set(registered) == set(COMMANDS) | set(plugins)
+    assert registered == listed
+    assert listed == {**{name: summary for name, (_, summary) in COMMANDS.items()},
+                      **{name: plugin_summary(entry) for name, entry in plugins.items()}}
+
+
+def test_a_command_line_builds_only_its_own_group():
+    parser = build_parser(["db"])
+    (commands,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    assert commands.choices["db"].format_help().count("rebuild") >= 1
+    assert "--db" not in commands.choices["features"].format_help()  # listed, its options not loaded
+
+
 @pytest.mark.parametrize("argv", [["--help"], ["db", "--help"], ["db", "check", "--help"], ["demo", "--help"],
                                   ["features", "--help"]])
 def test_help_everywhere(argv, capsys):
@@ -191,6 +215,31 @@ def test_select_evaluate_train_classify(demo_db, tmp_path, capsys):
     assert main(["classify", str(scan), "--model", str(model), "--k", "2"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[1].split()[:2] == ["1.", "C3"]
+
+
+def test_classify_a_scan_id_with_the_databases_default_model(demo_db, capsys):
+    record = Database(demo_db, create=False).records(label="C3")[0]
+    capsys.readouterr()
+    assert main(["classify", record.scan_id, "--db", str(demo_db), "--k", "2"]) == 0
+    by_id = capsys.readouterr().out.splitlines()
+    assert by_id[0] == f"{record.scan_id} ({record.label} recorded) with " + by_id[0].split(" with ", 1)[1]
+    assert len(by_id) == 3 and by_id[1].startswith("1. ")
+    # the same scan as a file, the same default model: the same predictions
+    assert main(["classify", str(demo_db / record.path), "--db", str(demo_db), "--k", "2"]) == 0
+    assert capsys.readouterr().out.splitlines() == by_id
+
+
+def test_classify_without_a_model_says_where_it_looked(db_path, capsys):
+    assert main(["classify", "granite-01-001", "--db", str(db_path)]) == 1
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "no --model given" in err and "rf-fine-X10.skops" in err
+    assert "texplorer demo" in err
+
+
+def test_classify_an_unknown_scan_id_is_one_line(demo_db, capsys):
+    assert main(["classify", "no-such-scan", "--db", str(demo_db)]) == 1
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "no scan 'no-such-scan'" in err
 
 
 def test_classify_refuses_a_foreign_model(demo_db, tmp_path, capsys):

@@ -281,7 +281,8 @@ def test_notes_name_their_method_and_are_whole():
 
 
 def test_cli_compare_prints_the_table_and_writes_the_report(tmp_path, capsys):
-    from scanner.cli import COMPARE_METHODS, main
+    from scanner.cli import main
+    from scanner.cli.recordings import COMPARE_METHODS
 
     assert COMPARE_METHODS == tuple(methods.METHODS)
     report = tmp_path / "report"

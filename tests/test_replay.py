@@ -12,7 +12,8 @@ import pytest
 from conftest import make_scan
 
 from features import NAMES, SOLVER_RTOL, FeatureSpace
-from scanner.cli import EXIT_MISMATCH, main
+from scanner.cli import main
+from scanner.cli.exchange import EXIT_MISMATCH
 from scanner.replay import (
     STEPS,
     Difference,

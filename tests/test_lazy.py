@@ -1,0 +1,63 @@
+"""scanner.lazy: libraries imported at their first use, numba kernels compiled at their first call."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from scanner import lazy
+
+
+def test_a_library_stand_in_imports_the_library_at_its_first_attribute_read():
+    code = textwrap.dedent("""
+        import sys
+        from scanner.lazy import library
+        wave = library("wave")
+        print("wave" in sys.modules)
+        print(wave.WAVE_FORMAT_PCM == __import__("wave").WAVE_FORMAT_PCM, "wave" in sys.modules)
+    """)
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split() == ["False", "True", "True"]
+
+
+def test_an_imported_library_is_given_as_it_is():
+    assert lazy.library("numpy") is np
+
+
+@pytest.mark.parametrize("name", ["scanner.scan", "features", "texplorer"])
+def test_project_modules_are_not_deferred(name):
+    with pytest.raises(ValueError, match="imported at the top"):
+        lazy.library(name)
+
+
+def test_kernels_calling_kernels_compile_at_the_first_call():
+    # A fresh interpreter: the kernels of this module must be pending when the first one is called.
+    code = textwrap.dedent("""
+        import sys
+        import numpy as np
+        from scanner.lazy import jit
+
+        @jit(cache=False, inline="always")
+        def square(x):
+            return x * x
+
+        @jit(cache=False, nogil=True)
+        def sum_of_squares(values):
+            total = 0.0
+            for v in values:
+                total += square(v)
+            return total
+
+        print("numba" in sys.modules)
+        print(sum_of_squares(np.arange(4.0)), type(sum_of_squares).__module__.split(".")[0])
+        print(type(globals()["square"]).__module__.split(".")[0], square(3.0))
+    """)
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    # 0 + 1 + 4 + 9 = 14; the first call compiled the callee too and put numba's dispatchers in place
+    assert run.stdout.split() == ["False", "14.0", "numba", "numba", "9.0"]
