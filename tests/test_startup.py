@@ -23,7 +23,8 @@ HEAVY = ("numba", "sklearn", "flask", "cv2", "scipy.signal", "scipy.stats", "sci
 
 def _loaded_after(code: str) -> list[str]:
     """The :data:`HEAVY` libraries loaded in a fresh interpreter after running ``code``."""
-    probe = f"import json, sys\nsys.path.insert(0, {str(TESTS)!r})\n{code}\nprint(json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)))"
+    probe = (f"import json, sys\nsys.path.insert(0, {str(TESTS)!r})\n{code}\n"
+             f"print(json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)))")
     run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
     return json.loads(run.stdout.splitlines()[-1])
