@@ -52,7 +52,9 @@ def build_database(root: Path) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--db", type=Path, help="database for 'db list' (default: a simulated one, built first)")
-    given = parser.parse_args().db
+    parser.add_argument("--repeats", type=int, default=REPEATS, help=f"runs of each command (default {REPEATS})")
+    options = parser.parse_args()
+    given, repeats = options.db, options.repeats
     with tempfile.TemporaryDirectory() as tmp:
         # Bytecode caches as a user's installation has them (in a folder of their own, so the tree stays as it
         # is), written by the warm-up runs even where the environment asks Python not to write them.
@@ -74,11 +76,11 @@ def main() -> None:
         for argv in commands.values():  # warm the page cache and the bytecode caches
             cpu_seconds(argv, env)
         times: dict[str, list[float]] = {name: [] for name in commands}
-        for _ in range(REPEATS):
+        for _ in range(repeats):
             for name, argv in commands.items():
                 times[name].append(cpu_seconds(argv, env))
     reference = statistics.median(times[REFERENCE])
-    print(f"CPU time of a fresh process, median of {REPEATS} (target: texplorer commands <= {TARGET:g}x the "
+    print(f"CPU time of a fresh process, median of {repeats} (target: texplorer commands <= {TARGET:g}x the "
           "reference)")
     for name, values in times.items():
         median = statistics.median(values)

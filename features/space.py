@@ -19,6 +19,7 @@ Files:
 from __future__ import annotations
 
 import csv
+import html
 import io
 import math
 import os
@@ -30,6 +31,7 @@ import numpy as np
 import scipy  # scipy.io loads at its first use (scipy's submodules load when first read)
 
 from features.registry import REGISTRY
+from scanner.lazy import optional
 from scanner.storage.files import atomic_write_bytes
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import LEVELS, Label, check_level
@@ -121,6 +123,59 @@ class FeatureSpace:
 
     def __len__(self) -> int:
         return self.X.shape[0]
+
+    # -- notebooks ---------------------------------------------------------------------------------
+
+    def __repr__(self) -> str:
+        """One line: rows x features, groups, classes, failed scans (the values: :meth:`to_pandas`)."""
+        return f"FeatureSpace({self._shape_text()})"
+
+    def _shape_text(self) -> str:
+        level = self.label_level or "fine"
+        text = (f"{len(self)} rows x {len(self.columns)} features, {len(set(self.groups))} groups, "
+                f"{len(set(self.label_text))} classes at {level}")
+        if self.levels:
+            text += f" (coarser levels: {', '.join(self.levels)})"
+        if self.split:
+            text += f", split {self.split.count('train')} train / {self.split.count('test')} test"
+        return text + (f", {len(self.failed)} failed" if self.failed else "")
+
+    def _repr_html_(self, rows: int = 5, features: int = 6) -> str:
+        """The first ``rows`` rows and ``features`` features as an HTML table, under the :meth:`__repr__` line."""
+        shown = self.columns[:features]
+        header = ["scan", "label", "group", *shown] + (["..."] if len(self.columns) > features else [])
+        body = [[self.scan_ids[i], self.label_text[i], self.groups[i], *(f"{v:.4g}" for v in self.X[i, :features])]
+                + (["..."] if len(self.columns) > features else []) for i in range(min(rows, len(self)))]
+        if len(self) > rows:
+            body.append(["..."] * len(header))
+        return f"<p>FeatureSpace: {html.escape(self._shape_text())}</p>" + _html_table(header, body)
+
+    def to_pandas(self):
+        """The feature space as a ``pandas.DataFrame``: one row per scan, indexed by ``scan_id``.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The columns ``label`` and ``group`` (the sample: scans of one group stay in one fold), for a
+            recording set also its coarser levels (``level:<name>``) and ``split``, then one float column per
+            feature, named as :attr:`columns` (``frame[space.columns]`` is ``X``; NaN where undefined).
+
+        Raises
+        ------
+        ModuleNotFoundError
+            pandas is not installed (``pip install 'texplorer[pandas]'``).
+
+        Examples
+        --------
+        >>> frame = space.to_pandas()  # doctest: +SKIP
+        >>> frame.groupby("label")["other.density"].mean()  # doctest: +SKIP
+        """
+        pd = optional("pandas", "pandas", "FeatureSpace.to_pandas()")
+        names, values = self._label_columns()
+        described = {"label": self.label_text, "group": self.groups, **dict(zip(names, values, strict=True))}
+        frame = pd.DataFrame(described, index=pd.Index(self.scan_ids, name="scan_id"))
+        features = pd.DataFrame(self.X, index=frame.index, columns=list(self.columns))
+        return pd.concat([frame, features], axis=1)
 
     @property
     def labels(self) -> np.ndarray:
@@ -296,3 +351,11 @@ def _as_strings(value: object) -> tuple[str, ...]:
     if isinstance(value, str):
         return (value,)
     return tuple(str(v) for v in np.asarray(value, dtype=object).ravel())
+
+
+def _html_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    """A plain HTML table of text cells (escaped)."""
+    def row(cells: Sequence[str], tag: str) -> str:
+        return "<tr>" + "".join(f"<{tag}>{html.escape(str(cell))}</{tag}>" for cell in cells) + "</tr>"
+
+    return f"<table><thead>{row(header, 'th')}</thead><tbody>{''.join(row(r, 'td') for r in rows)}</tbody></table>"

@@ -129,3 +129,34 @@ def _compile_pending() -> None:
             for key, value in list(namespace.items()):
                 if id(value) in replaced and isinstance(value, _Kernel):
                     namespace[key] = replaced[id(value)]
+
+
+def optional(name: str, extra: str, purpose: str) -> types.ModuleType:
+    """Import the optional library ``name``, or say in one line which extra installs it.
+
+    Parameters
+    ----------
+    name : str
+        The library's module (``"pandas"``).
+    extra : str
+        The ``texplorer`` extra that installs it (``pip install 'texplorer[pandas]'``).
+    purpose : str
+        What needs it, for the message (``"FeatureSpace.to_pandas()"``).
+
+    Returns
+    -------
+    types.ModuleType
+        The imported module.
+
+    Raises
+    ------
+    ModuleNotFoundError
+        The library is not installed.
+    """
+    try:
+        return importlib.import_module(name)
+    except ModuleNotFoundError as missing:
+        if missing.name != name.split(".")[0] and missing.name != name:
+            raise  # the library is there but something it needs is not: its own message says what
+        raise ModuleNotFoundError(f"{purpose} needs {name}, which is not installed: "
+                                  f"pip install 'texplorer[{extra}]'", name=name) from None

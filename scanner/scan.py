@@ -7,6 +7,7 @@ finite samples. Missing channels are allowed (features that need them become NaN
 
 from __future__ import annotations
 
+import html
 import math
 import re
 from collections.abc import Mapping
@@ -440,6 +441,27 @@ class Scan(_Picklable):
         channels as missing, so they are NaN rather than computed from too little data.
         """
         return {name: CHANNELS[name].min_n for name, trace in self.traces.items() if trace.n < CHANNELS[name].min_n}
+
+    def __repr__(self) -> str:
+        """One line: id, label, sample, channels and photos (the values: ``scan.traces``, ``scan.images``)."""
+        return f"Scan({self._summary()})"
+
+    def _summary(self) -> str:
+        meta = self.meta
+        return (f"{meta.scan_id}, label {meta.label}, sample {meta.sample_id}, {len(self.traces)} channels, "
+                f"{len(self.images)} photos" + (f", {len(self.raw)} raw" if self.raw else ""))
+
+    def _repr_html_(self) -> str:
+        """The :meth:`__repr__` line and a table of the channels (samples, rate, duration, unit) and photos."""
+        rows = [(name, "x".join(map(str, trace.data.shape)), f"{trace.fs:g} Hz", f"{trace.duration:.2f} s",
+                 trace.unit) for name, trace in self.traces.items()]
+        rows += [(name, "x".join(map(str, image.shape)), "", "", "RGB") for name, image in self.images.items()]
+        cells = "".join("<tr>" + "".join(f"<td>{html.escape(cell)}</td>" for cell in row) + "</tr>" for row in rows)
+        meta = self.meta
+        return (f"<p>Scan {html.escape(self._summary())}; session {html.escape(meta.session_id)}, operator "
+                f"{html.escape(meta.operator)}, started {html.escape(meta.started)}</p><table><thead><tr><th>"
+                "channel</th><th>shape</th><th>rate</th><th>duration</th><th>unit</th></tr></thead>"
+                f"<tbody>{cells}</tbody></table>")
 
     @property
     def fold_despite_rigid(self) -> bool:

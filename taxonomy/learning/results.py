@@ -14,6 +14,7 @@ The metric ``r_C`` (Strese et al. 2020, eq. 32) is defined here too, as a result
 
 from __future__ import annotations
 
+import html
 import math
 import warnings
 from collections.abc import Iterator, Sequence
@@ -22,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from scanner.lazy import optional
 from taxonomy import labels
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import LabelError
@@ -194,6 +196,62 @@ class Result:
                 f"({self.protocol}): accuracy {100 * self.accuracy_mean:.1f} % +- {100 * self.accuracy_std:.1f} %, "
                 f"F1 {self.f1_mean:.2f} +- {self.f1_std:.2f}, r_C {format_r_c(self.r_c)} "
                 f"({self.splitting}, {len(self.classes)} classes, seed {self.seed})")
+
+    def __repr__(self) -> str:
+        """One line: :meth:`summary` with the method (the scores per split: :meth:`to_pandas`)."""
+        return f"Result({self.method}: {self.summary()})"
+
+    def _repr_html_(self) -> str:
+        """What ran and the scores, as an HTML table of two columns."""
+        rows = [("method", self.method), ("classifier", self.classifier), ("feature set", self.feature_set),
+                ("features", size_name(self.n_features)), ("level", f"{self.level} ({len(self.classes)} classes)"),
+                ("protocol", f"{self.protocol}, {self.splitting}"),
+                ("accuracy", f"{100 * self.accuracy_mean:.1f} % +- {100 * self.accuracy_std:.1f} %"),
+                ("macro F1", f"{self.f1_mean:.3f} +- {self.f1_std:.3f}"), ("r_C", format_r_c(self.r_c)),
+                ("samples", str(self.n_samples)), ("seed", str(self.seed)), *(("note", n) for n in self.notes)]
+        cells = "".join(f"<tr><th>{html.escape(key)}</th><td>{html.escape(value)}</td></tr>" for key, value in rows)
+        return f"<table><tbody>{cells}</tbody></table>"
+
+    def to_pandas(self, what: str = "splits"):
+        """The result as a ``pandas.DataFrame``.
+
+        Parameters
+        ----------
+        what : {"splits", "predictions", "confusion"}
+            ``splits``: one row per split (index ``split``) with its ``accuracy``, macro ``f1`` and, from the
+            project's evaluation, the feature names its selector kept (``selected``, best FQ first).
+            ``predictions``: one row per row of the feature space evaluated, the true label ``y_true``, the
+            out-of-fold prediction ``y_pred`` and the split that tested it (``fold``; -1 for a training row
+            of a set's own split); the project's evaluation only. ``confusion``: the confusion matrix summed
+            over the splits, rows the true class, columns the predicted one.
+
+        Returns
+        -------
+        pandas.DataFrame
+
+        Raises
+        ------
+        ModuleNotFoundError
+            pandas is not installed (``pip install 'texplorer[pandas]'``).
+        EvaluationError
+            ``what`` is none of the three, or ``predictions`` of a result that has none.
+        """
+        pd = optional("pandas", "pandas", "Result.to_pandas()")
+        if what == "splits":
+            frame = pd.DataFrame({"accuracy": self.accuracy, "f1": self.f1},
+                                 index=pd.RangeIndex(self.folds, name="split"))
+            if len(self.selected) == self.folds:
+                frame["selected"] = [list(names) for names in self.selected]
+            return frame
+        if what == "confusion":
+            return pd.DataFrame(self.confusion, index=pd.Index(self.classes, name="true"),
+                                columns=pd.Index(self.classes, name="predicted"))
+        if what == "predictions":
+            if self.y_true is None or self.y_pred is None:
+                raise EvaluationError(f"{self.method} keeps no out-of-fold predictions; use 'splits' or 'confusion'")
+            fold = self.fold if self.fold is not None else np.full(len(self.y_true), -1)
+            return pd.DataFrame({"y_true": self.y_true, "y_pred": self.y_pred, "fold": fold})
+        raise EvaluationError(f"to_pandas: {what!r} is none of 'splits', 'predictions', 'confusion'")
 
     def cells(self) -> tuple[str, ...]:
         """The row of the comparison table, in :data:`COLUMNS` order."""
