@@ -57,16 +57,18 @@ from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy import signal
 from tqdm import tqdm
 
 from features import audio, cluster, extraction, image, other, tactum
 from features.registry import ROLE_REGISTRY, RoleFamily
 from features.space import FeatureSpace
 from features.threads import one_blas_thread
+from scanner.lazy import library
 from scanner.preprocess import BAND_HZ, dft321
 from scanner.scan import IMAGE_ROLES, Recording, Trace, is_generic
 from taxonomy.errors import TexplorerError
+
+signal = library("scipy.signal")
 
 if TYPE_CHECKING:
     from distributed import Client
