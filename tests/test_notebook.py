@@ -9,7 +9,7 @@ import pytest
 from conftest import make_scan
 
 from features.space import FeatureSpace
-from taxonomy.results import EvaluationError, Result
+from taxonomy.learning.results import EvaluationError, Result
 
 pd = pytest.importorskip("pandas", reason="the pandas extra (pip install 'texplorer[pandas]') is not installed")
 
