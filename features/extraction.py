@@ -28,6 +28,7 @@ from features.prepared import PreparedScan
 from features.registry import REGISTRY
 from features.space import FeatureSpace
 from features.threads import one_blas_thread, one_thread_each
+from scanner.lazy import preload
 from scanner.scan import Scan
 from scanner.storage.stored import NotOnThisMachine
 
@@ -368,6 +369,7 @@ def _forked_pool(workers: int) -> concurrent.futures.ProcessPoolExecutor:
     """``workers`` processes that keep the memory they free (:func:`keep_freed_memory`), forked where possible,
     after this process gave its free memory back (:func:`give_back_free_memory`: a lighter fork)."""
     give_back_free_memory()
+    preload()  # the workers share the libraries the features compute with instead of each importing its own
     return concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=_FORK,
                                                   initializer=keep_freed_memory)
 

@@ -59,7 +59,25 @@ def library(name: str) -> types.ModuleType:
     """
     if name.split(".")[0] in PROJECT_PACKAGES:
         raise ValueError(f"{name}: project modules are imported at the top of a module, not deferred")
-    return sys.modules.get(name) or _Library(name)
+    module = sys.modules.get(name)
+    if module is None:
+        module = _Library(name)
+        _waiting.add(name)
+    return module
+
+
+_waiting: set[str] = set()
+"""Libraries that a stand-in of :func:`library` was made for."""
+
+
+def preload() -> None:
+    """Import every library a stand-in was made for, and numba if a kernel waits for it: before forking
+    worker processes, so that they share these modules instead of each importing its own (the kernels
+    themselves are compiled, or loaded from numba's cache, in each worker at their first call)."""
+    for name in sorted(_waiting):
+        importlib.import_module(name)
+    if _pending:
+        importlib.import_module("numba")
 
 
 class _Kernel:

@@ -61,3 +61,17 @@ def test_kernels_calling_kernels_compile_at_the_first_call():
     assert run.returncode == 0, run.stderr
     # 0 + 1 + 4 + 9 = 14; the first call compiled the callee too and put numba's dispatchers in place
     assert run.stdout.split() == ["False", "14.0", "numba", "numba", "9.0"]
+
+
+def test_preload_imports_the_libraries_waiting_behind_stand_ins():
+    code = textwrap.dedent("""
+        import sys
+        import features  # stand-ins for cv2, pywt, scipy.signal, ...; kernels waiting for numba
+        from scanner.lazy import preload
+        print(sorted(m for m in ("cv2", "numba", "pywt", "scipy.signal") if m in sys.modules))
+        preload()
+        print(sorted(m for m in ("cv2", "numba", "pywt", "scipy.signal") if m in sys.modules))
+    """)
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.splitlines() == ["[]", "['cv2', 'numba', 'pywt', 'scipy.signal']"]
