@@ -5,9 +5,10 @@ CPU time of ``python -c "import numpy"`` measured in the same run, interleaved w
 see the same load. Medians over several repeats. Target: each CLI command at most 3x the reference; a command
 that loads scikit-learn, Flask, numba or OpenCV up front is 10-25x.
 
-``db list`` reads the database given as ``--db PATH`` (``make demo``'s), else one with the demo's catalog (every
-material of the library, as many samples and scans as ``texplorer demo``; 64 px photos, which ``db list`` does
-not read) built into a temporary folder first.
+``db list`` reads the database given as ``--db PATH``, else ``make demo``'s (``$TEXPLORER_DB``, else
+``./texplorer-data``) if there is one, else one with the demo's catalog (every material of the library, as many
+samples and scans as ``texplorer demo``; 64 px photos, which ``db list`` does not read) built into a temporary
+folder first.
 """
 
 from __future__ import annotations
@@ -41,6 +42,15 @@ def texplorer(*args: str) -> list[str]:
     return [sys.executable, "-c", "import sys; from scanner.cli import main; sys.exit(main())", *args]
 
 
+def demo_database() -> Path | None:
+    """``make demo``'s database, if there is one."""
+    from scanner.cli.base import default_db
+    from scanner.storage.database import is_database
+
+    root = default_db()
+    return root if is_database(root) else None
+
+
 def build_database(root: Path) -> None:
     from scanner.cli.demo import DEMO_SAMPLES, DEMO_SCANS
     from scanner.simulation.database import synthetic_database
@@ -51,10 +61,11 @@ def build_database(root: Path) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--db", type=Path, help="database for 'db list' (default: a simulated one, built first)")
+    parser.add_argument("--db", type=Path, help="database for 'db list' (default: make demo's, else a simulated "
+                        "one, built first)")
     parser.add_argument("--repeats", type=int, default=REPEATS, help=f"runs of each command (default {REPEATS})")
     options = parser.parse_args()
-    given, repeats = options.db, options.repeats
+    given, repeats = options.db or demo_database(), options.repeats
     with tempfile.TemporaryDirectory() as tmp:
         # Bytecode caches as a user's installation has them (in a folder of their own, so the tree stays as it
         # is), written by the warm-up runs even where the environment asks Python not to write them.
