@@ -34,6 +34,13 @@ def quantity(value: float, spec: str = "%g", unit: str = "") -> str:
     return f"{spec % value} {unit}".rstrip()
 
 
+def when(started: str) -> str:
+    """Template filter: an ISO 8601 time as a person reads it in a table, ``2026-03-02 14:05`` (to the minute;
+    the full text stays in the page's ``<time datetime>``)."""
+    date, _, clock = started.partition("T")
+    return f"{date} {clock[:5]}".strip()
+
+
 def _error_page(error: HTTPException) -> tuple[str, int] | Response:
     if request_ctx.url_adapter is None:  # refused before routing (a malformed Host header): no page links
         text = f"{error.code} {error.name}: {error.description}\n"
@@ -57,6 +64,7 @@ def create_app(settings: Settings) -> Flask:
     )
     app.extensions["texplorer"] = Context(settings)
     app.jinja_env.filters["quantity"] = quantity
+    app.jinja_env.filters["when"] = when
     security.install(app, settings.trusted_hosts)
     app.register_error_handler(RequestEntityTooLarge, _too_large)
     app.register_error_handler(HTTPException, _error_page)

@@ -15,6 +15,7 @@ import os
 import tempfile
 from collections import defaultdict
 from collections.abc import Iterable
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,6 +31,7 @@ from scanner.scan import CHANNELS, IMAGES
 from scanner.storage.database import DatabaseError, ScanRecord
 from scanner.storage.files import temp_path_for
 from scanner.workflows import extract_database, stored_features
+from taxonomy.labels import Label, LabelError
 from taxonomy.reports.plots import plot_scan
 from taxonomy.table import Taxonomy
 
@@ -83,21 +85,77 @@ def overview() -> tuple[str, int]:
 
 @blueprint.get("/material/<label>")
 def material(label: str) -> str:
-    records = [r for r in context().db.records(label=label) if r.label == label]
+    try:
+        code = Label.parse(label[:64]).format()
+    except LabelError as exc:
+        abort(404, description=f"{exc}; the database page lists the materials it holds")
+    records = [r for r in context().db.records(label=code) if r.label == code]
     if not records:
-        abort(404, description=f"no scans of material {label!r} in the database")
+        abort(404, description=f"no scans of material {code} in the database")
     by_sample: dict[str, list[ScanRecord]] = defaultdict(list)
     for record in records:
         by_sample[record.sample_id].append(record)
-    description = describe(context().db.taxonomy(), label)
-    return render_template("db_material.html", label=label, description=description, samples=by_sample)
+    description = describe(context().db.taxonomy(), code)
+    return render_template("db_material.html", label=code, description=description, samples=by_sample)
+
+
+LabelMatch = Callable[[str], bool]
+
+
+def label_filter(text: str, taxonomy: Taxonomy) -> tuple[str | None, LabelMatch | None]:
+    """What the scans page's label field selects: ``(code prefix, None)`` for a label or class prefix
+    (``C6`` = every stone, as ``texplorer export --label``), ``(None, match)`` for part of a material, sub-class
+    or class name (``granite``, ``Oak``, ``stone``: the taxonomy picker's search), ``(None, None)`` when empty.
+
+    Raises
+    ------
+    ValueError
+        One line: the text is neither a prefix nor part of any name in the taxonomy.
+    """
+    text = text.strip()
+    if not text:
+        return None, None
+    try:
+        return parse_label_filter(text), None
+    except LabelError as exc:
+        reason = str(exc)
+    codes = {material.code for material in taxonomy.search(text)}
+    if not codes:
+        raise ValueError(f"{reason}; or part of a material name, e.g. granite")
+    return None, lambda label: _material_code(label) in codes
+
+
+def _material_code(label: str) -> str:
+    try:
+        return Label.parse(label).codes()[2]
+    except LabelError:  # a row written by hand into the catalog; it matches no name
+        return ""
+
+
+def starts_like(value: str, typed: str) -> bool:
+    """Whether ``value`` begins with ``typed``, ignoring case (``granite`` finds granite-01, ``ann`` Ann)."""
+    return value.casefold().startswith(typed.casefold())
+
+
+def scan_rows(records: Iterable[ScanRecord], match: LabelMatch | None, sample: str,
+              operator: str) -> list[ScanRecord]:
+    """The records a person's search selects: a material name, sample and operator prefixes, any case."""
+    return [record for record in records
+            if (match is None or match(record.label)) and starts_like(record.sample_id, sample)
+            and starts_like(record.operator, operator)]
 
 
 @blueprint.get("/scans")
-def scans() -> str:
+def scans() -> tuple[str, int]:
     filters = {key: request.args.get(key, "").strip()[:64] for key in ("label", "sample", "operator")}
-    records = context().db.records(**{k: v or None for k, v in filters.items()})
-    return render_template("db_scans.html", records=records, filters=filters)
+    db = context().db
+    try:
+        prefix, match = label_filter(filters["label"], db.taxonomy())
+    except ValueError as exc:
+        return render_template("db_scans.html", records=[], filters=filters,
+                               errors={"label": str(exc)}), 422
+    records = scan_rows(db.records(label=prefix), match, filters["sample"], filters["operator"])
+    return render_template("db_scans.html", records=records, filters=filters, errors={}), 200
 
 
 def feature_values(record: ScanRecord) -> tuple[dict[str, float], str | None]:
