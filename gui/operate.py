@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from flask import Blueprint, abort, flash, jsonify, redirect, render_template, request, send_file, url_for
+from flask import session as browser_session
 from werkzeug.wrappers import Response
 
 from features import extract
@@ -137,15 +138,30 @@ def render_start(form: dict[str, str], errors: dict[str, str], status: int = 200
                        config_source=config.source, devices=dict(config.devices))
 
 
+START_FIELDS = ("operator", "label", "sample_id")
+
+KEPT_FORM = "start_form"
+"""The browser session's key for the start form to show again: all of it after an abort (the same sample is
+scanned again), the operator after a save (the next sample is another)."""
+
+
+def keep_start_form(session: Session, fields: tuple[str, ...]) -> None:
+    """Fill the start form with ``fields`` of ``session`` the next time it is shown."""
+    values = {"operator": session.operator, "label": session.label, "sample_id": session.sample_id}
+    browser_session[KEPT_FORM] = {name: values[name] if name in fields else "" for name in START_FIELDS}
+
+
 @blueprint.get("/")
 def start() -> tuple[str, int]:
-    return render_start({"operator": "", "label": "", "sample_id": ""}, {})
+    kept = browser_session.get(KEPT_FORM)
+    form = {name: str(kept.get(name, ""))[:200] if isinstance(kept, dict) else "" for name in START_FIELDS}
+    return render_start(form, {})
 
 
 @blueprint.post("/")
 def begin() -> tuple[str, int] | Response:
     ctx = context()
-    form = {key: request.form.get(key, "")[:200] for key in ("operator", "label", "sample_id")}
+    form = {key: request.form.get(key, "")[:200] for key in START_FIELDS}
     try:
         values = validate_start(form, ctx.db.taxonomy(), sample_owner)
     except FormErrors as exc:
@@ -164,6 +180,7 @@ def begin() -> tuple[str, int] | Response:
         return render_start(form, {"label": session_error(exc)}, 422)
     except (SessionError, DeviceError) as exc:
         return render_start(form, {"form": f"the scanner could not start: {session_error(exc)}"}, 422)
+    browser_session.pop(KEPT_FORM, None)
     return redirect(url_for("operate.overview"))
 
 
@@ -220,13 +237,34 @@ def set_ambient() -> tuple[str, int] | Response:
     return redirect(url_for("operate.overview"))
 
 
+ABORT_CONFIRMATION = "discard"
+"""The value of the confirmation page's ``confirm`` field; an abort without it only asks."""
+
+
+@blueprint.get("/session/abort")
+def confirm_abort() -> tuple[str, int]:
+    """Ask before discarding the scan, naming what would be lost (one mis-tap must not cost a scan)."""
+    op = operation()
+    return render_page("abort.html", session=op.session, work=op.session.work(), back=request_back())
+
+
+def request_back() -> str:
+    """Where "Keep scanning" returns to: the page the operator came from, if it is one of this app's."""
+    back = request.values.get("back", "")[:200]
+    return back if back.startswith("/session") and "//" not in back else url_for("operate.overview")
+
+
 @blueprint.post("/session/abort")
-def abort_session() -> Response:
+def abort_session() -> tuple[str, int] | Response:
     ctx = context()
     op = ctx.operations.active
+    if op is not None and request.form.get("confirm") != ABORT_CONFIRMATION:
+        return confirm_abort()
     if op is not None:
+        keep_start_form(op.session, START_FIELDS)
         ctx.operations.end(op)
-    flash("The scan was aborted. Nothing was saved.", "good")
+    flash("The scan was aborted; nothing was saved. Operator, sample and label are filled in to start again.",
+          "good")
     return redirect(url_for("operate.start"))
 
 
@@ -521,6 +559,7 @@ def save() -> tuple[str, int] | Response:
     except (SessionError, DatabaseError, ValueError) as exc:
         flash(f"The scan was not saved: {session_error(exc)}", "bad")
         return redirect(url_for("operate.summary"))
+    keep_start_form(op.session, ("operator",))
     ctx.operations.end(op)
     flash(f"Scan {scan_id} was saved.", "good")
     return redirect(url_for("database.scan", scan_id=scan_id))

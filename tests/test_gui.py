@@ -364,7 +364,8 @@ def test_csrf_token_required_on_every_state_change(client, app):
     token = csrf(other)
     assert client.post("/session/abort", data={"csrf_token": token}, base_url=BASE).status_code == 400
     assert active(app) is not None and active(app).session.status("finger_tap").state == "pending"
-    header = client.post("/session/abort", headers={"X-CSRF-Token": csrf(client)}, base_url=BASE)
+    header = client.post("/session/abort", data={"confirm": "discard"}, headers={"X-CSRF-Token": csrf(client)},
+                         base_url=BASE)
     assert header.status_code == 302 and active(app) is None
 
 
@@ -556,9 +557,9 @@ def test_abort_saves_nothing_and_releases_the_devices(client, app):
     op = active(app)
     staged = app.extensions["texplorer"].photos.path(op.photos["I_disp"])
     assert staged.is_file()
-    answer = post(client, "/session/abort")
+    answer = post(client, "/session/abort", {"confirm": "discard"})
     assert answer.headers["Location"] == "/"
-    assert "The scan was aborted. Nothing was saved." in get(client, "/").text
+    assert "The scan was aborted; nothing was saved." in get(client, "/").text
     assert active(app) is None and op.session.state == "aborted" and op.session.devices is None
     assert not staged.exists() and len(database(app)) == 0
     assert get(client, "/session").headers["Location"] == "/"

@@ -4,6 +4,7 @@ agree, and the slow pages reuse work done earlier in the scan."""
 
 from __future__ import annotations
 
+import html
 import re
 from urllib.parse import quote, urlencode
 
@@ -11,6 +12,8 @@ import pytest
 from test_gui import (
     BASE,
     active,
+    app,
+    client,
     database,
     field_error,
     get,
@@ -113,7 +116,7 @@ def test_bad_label_filter_is_one_line_on_the_page(stocked_app, text):
 def test_material_page_of_a_bad_or_lower_case_label(stocked_app):
     client = stocked_app.test_client()
     answer = get(client, "/db/material/ZZZ")
-    assert answer.status_code == 404 and "'ZZZ' is not a label" in answer.text
+    assert answer.status_code == 404 and "'ZZZ' is not a label" in html.unescape(answer.text)
     assert get(client, "/db/material/c6s1m1p2x1").status_code == 200
     assert get(client, "/db/material/C1S1M1P1X1").status_code == 404
 
@@ -123,3 +126,65 @@ def test_scan_table_shows_times_to_the_minute(stocked_app):
     page = get(stocked_app.test_client(), "/db/scans").text
     date, clock = record.started.split("T")
     assert f'<time datetime="{record.started}">{date} {clock[:5]}</time>' in page
+
+
+# -- aborting -----------------------------------------------------------------------------------------------
+
+
+def test_abort_asks_first_naming_what_it_discards(client, app):
+    start_session(client, operator="Ann", sample_id="granite-07")
+    for step in ("finger_tap", "finger_slide"):
+        assert post(client, f"/session/step/{step}/record").status_code == 302
+        assert active(app).session.wait(30)
+    assert post(client, "/session/step/fold/skip").status_code == 302
+    post(client, "/session/form", {"capture": "I_disp"})
+    page = get(client, "/session/step/tool_tap").text
+    link = re.search(r'href="(/session/abort[^"]*)"', page).group(1)
+    assert "Abort the scan" in page and "/session/step/tool_tap/abort" not in page
+    # One tap on the abort button (or a POST without the confirmation) only asks.
+    for answer in (get(client, html.unescape(link)), post(client, "/session/abort")):
+        assert answer.status_code == 200
+        text = html.unescape(answer.text)
+        assert "Abort the scan of granite-07?" in text
+        assert "2 recorded steps: TU1 finger tap, TU1 finger slide" in text
+        assert "the fold's skip (rigid sample)" in text and "1 of 3 photos" in text
+    # "Keep scanning" goes back to where the tap came from
+    assert 'href="/session/step/tool_tap"' in get(client, html.unescape(link)).text
+    assert active(app) is not None and active(app).session.status("finger_tap").state == "recorded"
+
+    assert post(client, "/session/abort", {"confirm": "discard"}).headers["Location"] == "/"
+    assert active(app) is None and len(database(app)) == 0
+    start = get(client, "/").text
+    for name, value in (("operator", "Ann"), ("sample_id", "granite-07"), ("label", "C6S1M1P2X1")):
+        assert re.search(rf'id="{name}" name="{name}" type="text" value="{value}"', start), name
+
+
+def test_after_a_save_the_start_form_keeps_the_operator_only(client, app):
+    from test_gui import noise_photo, png_upload
+
+    start_session(client, operator="Ann", sample_id="granite-08")
+    record_all(client, app)
+    uploads = {name: png_upload(noise_photo(seed)) for seed, name in enumerate(("I_disp", "I_macro", "I_illu"))}
+    post(client, "/session/form", {"atk": "0", "cyd": "0", "mass_g": "500", "volume_cm3": "190",
+                                   "volume_method": "water", **uploads}, content_type="multipart/form-data")
+    assert post(client, "/session/save").status_code == 302
+    start = get(client, "/").text
+    assert 'id="operator" name="operator" type="text" value="Ann"' in start
+    assert 'id="sample_id" name="sample_id" type="text" value=""' in start
+
+
+def test_abort_without_a_scan_and_a_foreign_back_link(client, app):
+    assert get(client, "/session/abort").headers["Location"] == "/"  # nothing to abort: the start page
+    start_session(client)
+    page = get(client, "/session/abort?back=https://evil.example/").text
+    assert 'href="https://evil.example/"' not in page and 'href="/session"' in page
+
+
+def test_session_work_lists_nothing_for_a_new_scan():
+    from scanner.acquisition.session import Session
+    from test_gui import fast_config
+
+    with Session.open(fast_config(), label="C6S1M1P2X1", sample_id="g-1", operator="a") as session:
+        assert session.work() == []
+        session.set_values(mass_g=3.0, notes="x")
+        assert session.work() == ["the TU4 values: mass, notes"]

@@ -302,6 +302,29 @@ class Session:
                 missing += [f"photo {name}" for name in IMAGES if name not in self._photos]
         return missing + self._missing_values()
 
+    def work(self) -> list[str]:
+        """What an abort would discard, in the operator's words, one line per kind (empty: nothing yet).
+
+        ``["3 recorded steps: TU1 finger tap, TU1 finger slide, TU1 tool tap", "the fold's skip (rigid
+        sample)", "2 of 3 photos", "the TU4 values: mass, volume"]``
+        """
+        recorded = [step.title for step in self.steps
+                    if step.kind == "record" and self._steps[step.id].state is StepState.RECORDED]
+        lines = []
+        if recorded:
+            lines.append(f"{_count(len(recorded), 'recorded step')}: {', '.join(recorded)}")
+        if self.rigid:
+            lines.append("the fold's skip (rigid sample)")
+        if self._photos:
+            lines.append(f"{len(self._photos)} of {len(IMAGES)} photos")
+        values = self._values
+        entered = [words for name, words in (("mass_g", "mass"), ("volume_cm3", "volume"), ("atk", "tack"),
+                                             ("cyd", "yielding")) if not math.isnan(getattr(values, name))]
+        entered += ["notes"] if values.notes else []
+        if entered:
+            lines.append(f"the TU4 values: {', '.join(entered)}")
+        return lines
+
     def _missing_values(self) -> list[str]:
         values = self._values
         numbers = ("mass_g", "volume_cm3", "atk", "cyd")
@@ -540,6 +563,10 @@ class Session:
         devices, self.devices = self.devices, None
         if devices is not None:
             devices.close()
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
 def _number(name: str, value: Any) -> float:
