@@ -14,8 +14,7 @@ import math
 import os
 import tempfile
 from collections import defaultdict
-from collections.abc import Iterable
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any

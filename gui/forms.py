@@ -5,42 +5,38 @@ each reason next to its field. The rules are those of the data model where it ha
 taxonomy; sample id, operator: :class:`scanner.scan.ScanMeta`; judged values: ``JUDGED_SCALE``); the form
 adds only what a text field needs on top (numbers with an optional unit, required fields, lengths).
 
-The judged values use the paper's wording (Strese et al. 2020, eq. 18 adhesive tack ATK and eq. 24
-yielding CYD): five labelled choices on the scale {0, 0.25, 0.5, 0.75, 1}.
+Numbers, units, judged values and the ambient temperature are read by :mod:`scanner.acquisition.entries`,
+as the terminal scan reads them.
 """
 
 from __future__ import annotations
 
-import math
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
-from scanner.acquisition.session import T_AMB_RANGE, VOLUME_METHODS
-from scanner.scan import JUDGED_SCALE, ScanError, ScanMeta, check_sample_id
+from scanner.acquisition.entries import (
+    MASS_UNITS,
+    TACK_CHOICES,
+    VOLUME_METHOD_WORDS,
+    VOLUME_UNITS,
+    YIELDING_CHOICES,
+    parse_ambient,
+    parse_judged,
+    parse_quantity,
+    parse_volume_method,
+)
+from scanner.scan import ScanError, ScanMeta, check_sample_id
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import LabelError, parse_prefix
 from taxonomy.table import Taxonomy, UnknownLabelError
 
-TACK_CHOICES: tuple[tuple[float, str], ...] = tuple(zip(JUDGED_SCALE, (
-    "not adhesive", "slightly adhesive", "uncertain", "adhesive", "strongly adhesive"), strict=True))
-"""Adhesive tack ATK (paper eq. 18): value on the five-step scale and the paper's words for it."""
-
-YIELDING_CHOICES: tuple[tuple[float, str], ...] = tuple(zip(JUDGED_SCALE, (
-    "material recovers shape", "material likely recovers shape", "uncertain",
-    "material unlikely recovers shape", "material stays deformed"), strict=True))
-"""Yielding CYD (paper eq. 24): value on the five-step scale and the paper's words for it."""
-
-VOLUME_METHOD_WORDS: Mapping[str, str] = {
-    "water": "water displacement",
-    "micro-pearls": "micro-pearl displacement",
-    "known": "known volume (dimensions or supplier)",
-}
-"""Words shown for the volume methods the session accepts (``scanner.acquisition.session.VOLUME_METHODS``)."""
+__all__ = ["MASS_UNITS", "TACK_CHOICES", "VOLUME_METHOD_WORDS", "VOLUME_UNITS", "YIELDING_CHOICES", "FormErrors",
+           "OperatorValues", "StartValues", "parse_ambient", "parse_judged", "parse_label_filter", "parse_quantity",
+           "validate_operator", "validate_start"]
 
 NOTES_MAX_CHARS = 2000
 
-_NUMBER = r"[+-]?(?:\d+(?:[.,]\d*)?|[.,]\d+)(?:[eE][+-]?\d+)?"
 _CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 _VALID_META = {"label": "C1S1M1P1X1", "operator": "operator", "sample_id": "sample", "scan_index": 1,
                "session_id": "session", "started": "2000-01-01T00:00:00+00:00"}
@@ -85,52 +81,6 @@ def meta_field_error(field: str, value: object) -> str | None:
     return None
 
 
-def parse_quantity(text: str, units: tuple[str, ...], *, what: str) -> float:
-    """A positive finite number typed into a form, with an optional unit from ``units``.
-
-    Accepts a decimal comma (``"12,5 g"``) since lab operators type either; refuses other units, signs,
-    NaN and infinity with a one-line reason naming ``what`` and the expected unit.
-    """
-    unit_pattern = "|".join(re.escape(u) for u in units)
-    match = re.fullmatch(rf"\s*({_NUMBER})\s*({unit_pattern})?\s*", text or "", flags=re.IGNORECASE)
-    if not text or not text.strip():
-        raise ValueError(f"enter the {what} in {units[0]}")
-    if match is None:
-        raise ValueError(f"{text.strip()[:40]!r} is not a number in {units[0]}")
-    value = float(match.group(1).replace(",", "."))
-    if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"the {what} must be positive (in {units[0]}), got {match.group(1)}")
-    return value
-
-
-def parse_judged(text: str, choices: tuple[tuple[float, str], ...], *, what: str) -> float:
-    """One of the five judged values; anything else (missing, off the scale, not a number) is refused."""
-    words = ", ".join(f'"{word}"' for _, word in choices)
-    if not text:
-        raise ValueError(f"choose the {what}: one of {words}")
-    try:
-        value = float(text)
-    except ValueError:
-        raise ValueError(f"{text[:20]!r} is not one of the five {what} choices") from None
-    if value not in {v for v, _ in choices}:
-        raise ValueError(f"{text[:20]} is not on the five-step scale 0, 0.25, 0.5, 0.75, 1 ({words})")
-    return value
-
-
-def parse_ambient(text: str) -> float:
-    """The ambient temperature in degC, within the MLX90614's range (``scanner.acquisition.session.T_AMB_RANGE``)."""
-    match = re.fullmatch(rf"\s*({_NUMBER})\s*(?:°?C|degC)?\s*", text or "", flags=re.IGNORECASE)
-    if not text or not text.strip():
-        raise ValueError("enter the ambient temperature in degC")
-    if match is None:
-        raise ValueError(f"{text.strip()[:40]!r} is not a temperature in degC")
-    value = float(match.group(1).replace(",", "."))
-    low, high = T_AMB_RANGE
-    if not low <= value <= high:
-        raise ValueError(f"{value:g} degC is outside the sensor's range {low:g} to {high:g} degC")
-    return value
-
-
 def _label(taxonomy: Taxonomy, text: str) -> str:
     if not text or not text.strip():
         raise ValueError("enter a material label such as C6S1M1P2X1, or pick one with the search")
@@ -173,13 +123,6 @@ def _notes(text: str) -> str:
     return text
 
 
-def _volume_method(text: str) -> str:
-    if text not in VOLUME_METHODS:
-        words = ", ".join(VOLUME_METHOD_WORDS.get(method, method) for method in VOLUME_METHODS)
-        raise ValueError(f"choose how the volume was measured: {words}")
-    return text
-
-
 def _collect(checks: Mapping[str, Callable[[dict[str, object]], object]]) -> dict[str, object]:
     """Run every field check in order (a check sees the values accepted before it); raise FormErrors with
     all reasons if any fails."""
@@ -216,10 +159,9 @@ def validate_operator(form: Mapping[str, str]) -> OperatorValues:
     values = _collect({
         "atk": lambda _: parse_judged(form.get("atk", ""), TACK_CHOICES, what="adhesive tack"),
         "cyd": lambda _: parse_judged(form.get("cyd", ""), YIELDING_CHOICES, what="yielding"),
-        "mass_g": lambda _: parse_quantity(form.get("mass_g", ""), ("g",), what="mass"),
-        "volume_cm3": lambda _: parse_quantity(form.get("volume_cm3", ""), ("cm^3", "cm3", "ml"),
-                                               what="volume"),
-        "volume_method": lambda _: _volume_method(form.get("volume_method", "")),
+        "mass_g": lambda _: parse_quantity(form.get("mass_g", ""), MASS_UNITS, what="mass"),
+        "volume_cm3": lambda _: parse_quantity(form.get("volume_cm3", ""), VOLUME_UNITS, what="volume"),
+        "volume_method": lambda _: parse_volume_method(form.get("volume_method", "")),
         "notes": lambda _: _notes(form.get("notes", "")),
     })
     return OperatorValues(**values)

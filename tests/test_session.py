@@ -292,8 +292,9 @@ def test_texplorer_scan_aborted_saves_nothing(tmp_path, monkeypatch, capsys):
     config = fast_toml(tmp_path / "fast.toml")
     argv = ["scan", "--db", str(tmp_path / "db"), "--label", "C6S1M1P2X1", "--sample", "granite-01",
             "--operator", "ab", "--config", config]
-    code, out = run_cli(monkeypatch, capsys, argv, "\n\n\na\n")
+    code, out = run_cli(monkeypatch, capsys, argv, "\n\n\na\nyes\n")
     assert code == 1 and "scan aborted (aborted by the operator): nothing was saved" in out
+    assert "aborting discards: 1 recorded step: TU1 finger tap" in out
     assert not (tmp_path / "db").exists()
     code, out = run_cli(monkeypatch, capsys, argv, "\n\n")
     assert code == 1 and "scan aborted (input ended)" in out
@@ -312,13 +313,33 @@ def test_texplorer_scan_reprompts_bad_values(tmp_path, monkeypatch, capsys):
     config = fast_toml(tmp_path / "fast.toml")
     argv = ["scan", "--db", str(tmp_path / "db"), "--label", "C6S1M1P2X1", "--sample", "granite-01",
             "--operator", "ab", "--config", config]
-    text = answers().replace("\n512\n190\nwater\n0\n", "\nheavy\n512\n190\nsand\nwater\n0.3\n0\n")
+    text = answers().replace("\n512\n190\nwater\n0\n", "\nheavy\n5 kg\n512,5 g\n190 ml\nsand\nw\n0.3\n0\n")
     code, out = run_cli(monkeypatch, capsys, argv, text)
     assert code == 0, out
-    assert "mass_g: must be a number, got 'heavy'" not in out            # float() fails first
-    assert "could not convert string to float: 'heavy'" in out
-    assert "volume_method: 'sand' is not one of water, micro-pearls" in out
-    assert "atk: 0.3 is not on the five-step scale" in out
+    # One line each, the web form's words (scanner.acquisition.entries parses both)
+    assert "  'heavy' is not a number in g\n" in out and "  '5 kg' is not a number in g\n" in out
+    assert "could not convert" not in out
+    assert "  choose how the volume was measured: water (water displacement), micro-pearls" in out
+    assert "  0.3 is not on the five-step scale 0, 0.25, 0.5, 0.75, 1" in out
+    meta = Database(tmp_path / "db").get("granite-01-001").meta
+    assert (meta.mass_g, meta.volume_cm3, meta.volume_method) == (512.5, 190.0, "water")
+
+
+def test_texplorer_scan_abort_asks_first_and_says_how_to_start_again(tmp_path, monkeypatch, capsys):
+    config = fast_toml(tmp_path / "fast.toml")
+    argv = ["scan", "--db", str(tmp_path / "db"), "--label", "C6S1M1P2X1", "--sample", "granite-01",
+            "--operator", "Ann B", "--config", config]
+    # 'a' at the mass prompt, then Enter: the scan goes on and is saved; 'n' at the end asks too.
+    text = answers().replace("\n512\n", "\na\n\n512\n").replace("\ny\n", "\nn\n\ny\n")
+    code, out = run_cli(monkeypatch, capsys, argv, text)
+    assert code == 0 and "saved granite-01-001" in out, out
+    assert "aborting discards: 9 recorded steps: TU1 finger tap" in out and "3 of 3 photos" in out
+    assert "not saving discards: 9 recorded steps" in out
+    code, out = run_cli(monkeypatch, capsys, argv, "\n\n\na\nyes\n")
+    assert code == 1
+    again = out.split("to scan this sample again: ", 1)[1].splitlines()[0]
+    assert again == (f"texplorer scan --db {tmp_path / 'db'} --label C6S1M1P2X1 --sample granite-01 "
+                     f"--operator 'Ann B' --config {config}")
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="the board emulator needs pseudo-terminals")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 import textwrap
 import time
@@ -12,9 +13,19 @@ from pathlib import Path
 from scanner.acquisition.config import load_config
 from scanner.acquisition.devices.protocols import DeviceError
 from scanner.acquisition.devices.sources import SimulatedSample
+from scanner.acquisition.entries import (
+    MASS_UNITS,
+    TACK_CHOICES,
+    VOLUME_UNITS,
+    YIELDING_CHOICES,
+    parse_ambient,
+    parse_judged,
+    parse_quantity,
+    parse_volume_method,
+)
 from scanner.acquisition.session import VOLUME_METHODS, Session, SessionError, StepState
 from scanner.cli.base import EXIT_ERROR, add_db_option, open_db
-from scanner.scan import IMAGES, JUDGED_SCALE
+from scanner.scan import IMAGES
 from scanner.storage.database import DatabaseError, is_database
 from scanner.workflows import format_predictions, predict_scan
 from taxonomy.errors import TexplorerError
@@ -28,33 +39,48 @@ except ImportError as missing:
 
 
 ABORT = "a"
+CONFIRM = "yes"
 
 
 class _Aborted(TexplorerError):
     """The operator chose to abort the scan (or the input ended)."""
 
 
-def _ask(prompt: str) -> str:
-    """One answer from the operator; 'a' or the end of the input aborts."""
+def _read(prompt: str) -> str:
     try:
-        answer = input(prompt).strip()
+        return input(prompt).strip()
     except EOFError:
         print()
         raise _Aborted("input ended") from None
-    if answer.lower() == ABORT:
-        raise _Aborted("aborted by the operator")
-    return answer
 
 
-def _ask_value(session, prompt: str, name: str, convert: Callable[[str], object] = float,
-               optional: bool = False) -> None:
-    """Ask until the session accepts the value of ``name`` (its error is shown before asking again)."""
+def _confirm_discard(session: Session, doing: str) -> bool:
+    """Ask before discarding the scan, naming what would be lost; True if the operator typed 'yes'."""
+    work = session.work()
+    print(f"  {doing} discards: {'; '.join(work)}" if work else f"  {doing}: nothing is recorded yet")
+    return _read(f"  type '{CONFIRM}' to discard the scan, or Enter to go on: ").lower() == CONFIRM
+
+
+def _ask(session: Session, prompt: str) -> str:
+    """One answer from the operator; 'a' asks to confirm, then aborts; the end of the input aborts."""
     while True:
-        answer = _ask(prompt)
+        answer = _read(prompt)
+        if answer.lower() != ABORT:
+            return answer
+        if _confirm_discard(session, "aborting"):
+            raise _Aborted("aborted by the operator")
+
+
+def _ask_value(session: Session, prompt: str, name: str, parse: Callable[[str], object],
+               optional: bool = False) -> None:
+    """Ask until ``parse`` (the web form's parser) and the session accept the value of ``name``; the reason
+    for a refusal is one line before asking again."""
+    while True:
+        answer = _ask(session, prompt)
         if not answer and optional:
             return
         try:
-            session.set_values(**{name: convert(answer)})
+            session.set_values(**{name: parse(answer)})
             return
         except (SessionError, ValueError) as exc:
             print(f"  {exc}")
@@ -69,11 +95,11 @@ def _meter(reading) -> None:
           f"{reading.elapsed_s:5.1f}/{reading.duration_s:g} s", end="", file=sys.stderr, flush=True)
 
 
-def _record_step(session, step) -> None:
+def _record_step(session: Session, step) -> None:
     """Record (or skip) one step until the operator keeps it."""
     while True:
         options = "[Enter] record" + (", s skip (rigid sample)" if step.skippable else "") + ", a abort: "
-        if _ask(f"  {options}").lower() == "s" and step.skippable:
+        if _ask(session, f"  {options}").lower() == "s" and step.skippable:
             session.skip(step.id)
             print("  skipped: the sample is recorded as rigid")
             return
@@ -87,15 +113,15 @@ def _record_step(session, step) -> None:
         for problem in status.problems:
             print(f"  quality: {problem}")
         verdict = "check the problems above" if status.problems else "quality ok"
-        if _ask(f"  {verdict}. [Enter] keep, r redo, a abort: ").lower() != "r":
+        if _ask(session, f"  {verdict}. [Enter] keep, r redo, a abort: ").lower() != "r":
             return
         session.redo(step.id)
 
 
-def _take_photos(session) -> None:
+def _take_photos(session: Session) -> None:
     for name in IMAGES:
         while True:
-            answer = _ask(f"  {name}: [Enter] capture with the camera, or a PNG/JPEG file, a abort: ")
+            answer = _ask(session, f"  {name}: [Enter] capture with the camera, or a PNG/JPEG file, a abort: ")
             try:
                 if answer:
                     session.set_photo(name, Path(answer).expanduser().read_bytes())
@@ -106,25 +132,32 @@ def _take_photos(session) -> None:
                 print(f"  {exc}")
 
 
-def _tu4(session) -> None:
-    _ask_value(session, "  mass (g): ", "mass_g")
-    _ask_value(session, "  volume (cm^3): ", "volume_cm3")
-    _ask_value(session, f"  volume measured by ({'/'.join(VOLUME_METHODS)}): ", "volume_method", str)
-    scale = "/".join(f"{v:g}" for v in JUDGED_SCALE)
-    _ask_value(session, f"  adhesive tack ({scale}): ", "atk")
-    _ask_value(session, f"  yielding ({scale}): ", "cyd")
+def _scale(choices: tuple[tuple[float, str], ...]) -> str:
+    return ", ".join(f"{value:g} {words}" for value, words in choices)
+
+
+def _tu4(session: Session) -> None:
+    _ask_value(session, "  mass (g): ", "mass_g", lambda text: parse_quantity(text, MASS_UNITS, what="mass"))
+    _ask_value(session, "  volume (cm^3 or ml): ", "volume_cm3",
+               lambda text: parse_quantity(text, VOLUME_UNITS, what="volume"))
+    _ask_value(session, f"  volume measured by ({'/'.join(VOLUME_METHODS)}): ", "volume_method",
+               parse_volume_method)
+    print(f"  adhesive tack: {_scale(TACK_CHOICES)}")
+    _ask_value(session, "  adhesive tack: ", "atk", lambda text: parse_judged(text, TACK_CHOICES, what="adhesive tack"))
+    print(f"  yielding: {_scale(YIELDING_CHOICES)}")
+    _ask_value(session, "  yielding: ", "cyd", lambda text: parse_judged(text, YIELDING_CHOICES, what="yielding"))
     _ask_value(session, "  notes (optional): ", "notes", str, optional=True)
 
 
 def _guide(session, args: argparse.Namespace) -> str | None:
     """Walk the operator through every step; the saved scan id, or None if not saved."""
-    answer = _ask(f"ambient temperature {session.t_amb:.2f} degC: [Enter] keep, or type degC: ")
+    answer = _ask(session, f"ambient temperature {session.t_amb:.2f} degC: [Enter] keep, or type degC: ")
     while answer:
         try:
-            session.t_amb = float(answer)
+            session.t_amb = parse_ambient(answer)
             break
         except ValueError as exc:
-            answer = _ask(f"  {exc}; degC: ")
+            answer = _ask(session, f"  {exc}; degC: ")
     total = len(session.steps)
     for index, step in enumerate(session.steps, 1):
         duration = f" ({step.duration_s:g} s)" if step.duration_s else ""
@@ -136,14 +169,25 @@ def _guide(session, args: argparse.Namespace) -> str | None:
             _take_photos(session)
         else:
             _tu4(session)
-    if _ask("\nsave the scan? [Y/n] ").lower() in ("n", "no"):
-        return None
+    while _ask(session, "\nsave the scan? [Y/n] ").lower() in ("n", "no"):
+        if _confirm_discard(session, "not saving"):
+            return None
     while True:
         try:
             return session.save(open_db(args, create=True))
         except (DatabaseError, OSError) as exc:
             # The recording is still in the session: let the operator fix the disk or path and retry.
-            _ask(f"  not saved: {exc}\n  [Enter] retry, a abort: ")
+            _ask(session, f"  not saved: {exc}\n  [Enter] retry, a abort: ")
+
+
+def again(args: argparse.Namespace, session: Session) -> str:
+    """The command that starts this scan over, with the same database, label, sample and operator."""
+    words = ["texplorer", "scan", "--db", str(args.db), "--label", session.label, "--sample", session.sample_id,
+             "--operator", session.operator]
+    for option in ("config", "daq", "board", "model"):
+        if getattr(args, option, None):
+            words += [f"--{option}", str(getattr(args, option))]
+    return shlex.join(words)
 
 
 def cmd_scan(args: argparse.Namespace) -> int:
@@ -168,11 +212,13 @@ def cmd_scan(args: argparse.Namespace) -> int:
         scan_id = _guide(session, args)
     except _Aborted as reason:
         print(f"scan aborted ({reason}): nothing was saved")
+        print(f"to scan this sample again: {again(args, session)}")
         return EXIT_ERROR
     finally:
         session.abort()
     if scan_id is None:
         print("not saved")
+        print(f"to scan this sample again: {again(args, session)}")
         return EXIT_ERROR
     print(f"saved {scan_id} in {args.db}")
     if model is not None:
