@@ -23,6 +23,7 @@ from flask import Blueprint, abort, flash, jsonify, redirect, render_template, r
 from werkzeug.wrappers import Response
 
 from features import REGISTRY
+from gui import figures
 from gui.context import context
 from gui.exports import ExportBusy, ExportError, ExportJob
 from gui.forms import parse_label_filter
@@ -186,6 +187,7 @@ def scan(scan_id: str) -> str:
     photos = [(variable, IMAGES[variable]) for variable in IMAGES
               if any(entry.role == variable for entry in db.files(scan_id))]
     return render_template("db_scan.html", record=record, meta=stored.meta, traces=stored.traces,
+                           figures=figures.step_figures(stored.traces, stored.meta.rigid),
                            channels=CHANNELS, missing=stored.missing_channels(), files=db.files(scan_id),
                            photos=photos, features=group_features(values), failure=failure,
                            description=describe(db.taxonomy(), record.label))
@@ -206,6 +208,18 @@ def plot_file(record: ScanRecord) -> Path:
 @blueprint.get("/scan/<scan_id>/traces.png")
 def traces_png(scan_id: str) -> Response:
     return send_file(plot_file(_record(scan_id)), mimetype="image/png", max_age=3600)
+
+
+@blueprint.get("/scan/<scan_id>/traces/<step>.png")
+def step_png(scan_id: str, step: str) -> Response:
+    """One step's figure (``gui.figures``): kept at save for the web app's scans, else drawn once."""
+    record = _record(scan_id)
+    if step not in figures.RECORDED:
+        abort(404, description=f"there is no recording step {step[:40]!r}")
+    path = figures.cached_path(context().plot_dir, record.content_hash, step)
+    if not path.is_file():
+        path = figures.stored_figure(context().plot_dir, record.content_hash, context().db.get(scan_id), step)
+    return send_file(path, mimetype="image/png", max_age=3600)
 
 
 @blueprint.get("/scan/<scan_id>/photo/<variable>")

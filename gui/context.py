@@ -4,6 +4,7 @@ export job, the model), reached from a page through :func:`context`."""
 
 from __future__ import annotations
 
+import contextlib
 import secrets
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -87,6 +88,12 @@ class Context:
         """The trained model (loaded on first use), or None."""
         path = self.model_path
         return None if path is None else load_model(path)
+
+    def warm_up(self) -> None:
+        """Load the model while the operator scans, so the summary page does not wait for it (seconds, the
+        first time: scikit-learn and the model file). A model that cannot be loaded is reported there."""
+        with contextlib.suppress(Exception):
+            _ = self.model
 
     def shutdown(self) -> None:
         """Abort a running scan (Peltier off, devices released); cancel an export and delete its file."""

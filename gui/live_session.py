@@ -44,6 +44,9 @@ class Operation:
     last_seen: float = field(default_factory=time.monotonic)
     cancelled_by_watchdog: str = ""
     summary_cache: dict[str, Any] = field(default_factory=dict)
+    step_figures: dict[str, tuple[Any, str, bytes]] = field(default_factory=dict)
+    """Step -> (the recording it shows, what else it depends on, PNG): drawn once, kept across changes
+    (``gui.figures``)."""
 
     def touch(self) -> None:
         """The browser is still there."""

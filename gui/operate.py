@@ -10,9 +10,11 @@ it leaves the database as it was.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import math
 import os
+import threading
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +25,8 @@ from flask import session as browser_session
 from werkzeug.wrappers import Response
 
 from features import extract
+from features.extraction import code_version
+from gui import figures
 from gui.context import context
 from gui.forms import (
     TACK_CHOICES,
@@ -38,11 +42,11 @@ from gui.photos import UploadError, check_size, check_upload, file_size
 from scanner.acquisition.config import ConfigError
 from scanner.acquisition.devices.protocols import DeviceError
 from scanner.acquisition.session import VOLUME_METHODS, Session, SessionError, StepInfo, StepState
-from scanner.scan import IMAGES
-from scanner.storage.database import DatabaseError
+from scanner.scan import CHANNELS, IMAGES
+from scanner.storage.database import DatabaseError, ScanRecord
 from scanner.workflows import predict_values
 from taxonomy.learning.models import ModelError
-from taxonomy.reports.plots import plot_scan, plot_step
+from taxonomy.reports.plots import plot_scan
 
 blueprint = Blueprint("operate", __name__)
 
@@ -181,6 +185,7 @@ def begin() -> tuple[str, int] | Response:
     except (SessionError, DeviceError) as exc:
         return render_start(form, {"form": f"the scanner could not start: {session_error(exc)}"}, 422)
     browser_session.pop(KEPT_FORM, None)
+    threading.Thread(target=ctx.warm_up, name="warm-up", daemon=True).start()
     return redirect(url_for("operate.overview"))
 
 
@@ -288,6 +293,7 @@ def step(step_id: str) -> tuple[str, int]:
     op.touch()
     status = op.session.status(step_id)
     return render_page("step.html", step=info, status=status, current=step_id, next=next_url(op.session),
+                       channels=CHANNELS,
                        watchdog=op.cancelled_by_watchdog if status.state is StepState.FAILED else "")
 
 
@@ -353,7 +359,8 @@ def render_form(errors: dict[str, str], status: int = 200) -> tuple[str, int]:
     values = op.session.values
     form = {name: op.draft.get(name, _value_text(values.get(name))) for name in FORM_FIELDS}
     settings = context().settings
-    return render_page("form.html", status, form=form, errors=errors, current="photos",
+    numbers = [step.number for step in op.session.steps if step.kind in ("photos", "form")]
+    return render_page("form.html", status, form=form, errors=errors, current="photos", numbers=numbers,
                        tack=TACK_CHOICES, yielding=YIELDING_CHOICES,
                        methods=[(m, VOLUME_METHOD_WORDS.get(m, m)) for m in VOLUME_METHODS],
                        photos=[(name, PHOTO_TITLES[name], op.photos.get(name), op.photo_sources.get(name))
@@ -478,6 +485,7 @@ def summarise(op: Operation) -> Summary:
     summary = Summary(tactum, predictions, note, notes)
     op.summary_cache["summary"] = summary
     op.summary_cache["scan"] = scan
+    op.summary_cache["values"] = values
     return summary
 
 
@@ -497,6 +505,16 @@ def _predict(values: dict[str, float]) -> tuple[list[tuple[str, float, str]] | N
     return named, f"{model.classifier} at level {model.level}, trained on {model.n_rows} scans"
 
 
+def session_figures(session: Session) -> list[figures.StepFigure]:
+    """The summary's figures: every recorded step's, the note for a skipped fold."""
+    shown = []
+    for step in figures.RECORDED:
+        info, state = session.step(step), session.status(step).state
+        note = "skipped: rigid sample" if state is StepState.SKIPPED else ""
+        shown.append(figures.StepFigure(step, info.number, info.title, state is StepState.RECORDED, note))
+    return shown
+
+
 @blueprint.get("/session/summary")
 def summary() -> tuple[str, int] | Response:
     op = operation()
@@ -506,7 +524,8 @@ def summary() -> tuple[str, int] | Response:
     result = summarise(op)
     session = op.session
     return render_page("summary.html", current=None, missing=[], result=result, session=session,
-                       values=session.values, rigid=session.rigid,
+                       values=session.values, rigid=session.rigid, figures=session_figures(session),
+                       photos=[(name, PHOTO_TITLES[name], op.photos.get(name)) for name in IMAGES],
                        description=context().db.taxonomy().describe(session.label))
 
 
@@ -520,25 +539,45 @@ def _send_png(data: bytes) -> Response:
     return send_file(io.BytesIO(data), mimetype="image/png", max_age=0)
 
 
+def _figure_inputs(session: Session, step_id: str) -> str:
+    """What a step's figure shows besides its recording: the ambient temperature line of the cooling."""
+    return f"{session.t_amb!r}" if step_id == "thermal" else ""
+
+
+def current_figures(op: Operation) -> dict[str, bytes]:
+    """The step figures already drawn that still show the session's recordings."""
+    session = op.session
+    return {step: png for step, (result, inputs, png) in list(op.step_figures.items())
+            if result is session.result(step) and inputs == _figure_inputs(session, step)}
+
+
+def step_figure(op: Operation, step_id: str) -> bytes:
+    """The figure of a recorded step (``gui.figures``), drawn on its first view and reused by the summary
+    and the saved scan's page."""
+    session = op.session
+    kept = current_figures(op).get(step_id)
+    if kept is not None:
+        return kept
+    result = session.result(step_id)
+    png = figures.draw(result.traces, step_id, session.label, session.sample_id, t_amb=session.t_amb,
+                       rigid=session.rigid)
+    op.step_figures[step_id] = (result, _figure_inputs(session, step_id), png)
+    return png
+
+
 @blueprint.get("/session/step/<step_id>/traces.png")
 def step_traces(step_id: str) -> Response:
-    """The traces of a recorded step, drawn in memory by ``taxonomy.reports.plots.plot_step`` (cached per change)."""
+    """The traces of a recorded step, drawn by ``taxonomy.reports.plots.plot_step`` (once per recording)."""
     op = operation()
     info = _record_step(op.session, step_id)
-    result = op.session.result(step_id)
-    if result is None or op.session.status(step_id).state is not StepState.RECORDED:
+    if op.session.result(step_id) is None or op.session.status(step_id).state is not StepState.RECORDED:
         abort(404, description=f"step {info.number} has no recording yet")
-    key = ("step", step_id)
-    if key not in op.summary_cache:
-        session = op.session
-        title = f"Step {info.number}: {info.title}, {session.label} {session.sample_id} (not saved yet)"
-        op.summary_cache[key] = _png(lambda out: plot_step(result.traces, step_id, out, title,
-                                                           t_amb=session.t_amb))
-    return _send_png(op.summary_cache[key])
+    return _send_png(step_figure(op, step_id))
 
 
 @blueprint.get("/session/summary/traces.png")
 def summary_traces() -> Response:
+    """Every channel on one page (``taxonomy.plots.plot_scan``), for a large screen; drawn only when asked."""
     op = operation()
     if op.session.missing():
         abort(409, description="the scan is not complete yet")
@@ -550,6 +589,19 @@ def summary_traces() -> Response:
     return _send_png(op.summary_cache["plot"])
 
 
+def keep_for_the_scan_page(op: Operation, record: ScanRecord) -> None:
+    """Keep what the session already computed for the page the save leads to: the step figures (plot
+    cache) and the summary's feature values (the database's feature cache; the ``.mat`` round trip is exact,
+    so they are the values ``texplorer features`` would compute for the stored file)."""
+    ctx = context()
+    with contextlib.suppress(OSError):  # only caches: the scan's page computes what is missing
+        figures.keep(ctx.plot_dir, record.content_hash, current_figures(op))
+    scan, values = op.summary_cache.get("scan"), op.summary_cache.get("values")
+    if scan is not None and values is not None and scan.scan_id == record.scan_id:
+        with contextlib.suppress(DatabaseError):
+            ctx.db.store_features(record.content_hash, code_version(), values)
+
+
 @blueprint.post("/session/save")
 def save() -> tuple[str, int] | Response:
     ctx = context()
@@ -559,6 +611,7 @@ def save() -> tuple[str, int] | Response:
     except (SessionError, DatabaseError, ValueError) as exc:
         flash(f"The scan was not saved: {session_error(exc)}", "bad")
         return redirect(url_for("operate.summary"))
+    keep_for_the_scan_page(op, ctx.db.record(scan_id))
     keep_start_form(op.session, ("operator",))
     ctx.operations.end(op)
     flash(f"Scan {scan_id} was saved.", "good")

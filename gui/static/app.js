@@ -1,5 +1,6 @@
 // texplorer operator pages: progressive enhancement only. Every form also works without this script;
-// it adds the taxonomy picker, photo previews and the live level display while a step records.
+// it adds the taxonomy picker, photo previews, the live level display while a step records, and the busy
+// state of a sent form.
 "use strict";
 
 function debounce(fn, ms) {
@@ -206,7 +207,55 @@ function setupExport() {
   poll();
 }
 
+// -- busy state: a sent form says what it is doing and cannot be sent twice ------------------------------
+
+function setupBusy() {
+  const note = document.getElementById("busy-note");
+  const forms = [...document.querySelectorAll("form")];
+  for (const form of forms) {
+    form.addEventListener("submit", (event) => {
+      if (form.dataset.sending) {  // a second tap while the first is on its way
+        event.preventDefault();
+        return;
+      }
+      form.dataset.sending = "true";
+      const submitter = event.submitter;
+      const words = (submitter && submitter.dataset.busy) || form.dataset.busy || "Working…";
+      // Disabled only after the event: a disabled submit button would leave its name and value out of
+      // the request (the camera buttons say which photo to take that way).
+      setTimeout(() => {
+        for (const button of form.querySelectorAll("button")) button.disabled = true;
+        if (submitter) {
+          submitter.dataset.idle = submitter.textContent;
+          submitter.textContent = words;
+          submitter.classList.add("busy");
+        }
+        document.body.setAttribute("aria-busy", "true");
+        if (note) {
+          note.textContent = `${words} Please wait; the page changes by itself.`;
+          note.hidden = false;
+        }
+      }, 0);
+    });
+  }
+  // Back to a page kept by the browser: its forms can be sent again.
+  window.addEventListener("pageshow", (event) => {
+    if (!event.persisted) return;
+    for (const form of forms) {
+      delete form.dataset.sending;
+      for (const button of form.querySelectorAll("button")) {
+        button.disabled = false;
+        button.classList.remove("busy");
+        if (button.dataset.idle) button.textContent = button.dataset.idle;
+      }
+    }
+    document.body.removeAttribute("aria-busy");
+    if (note) note.hidden = true;
+  });
+}
+
 document.addEventListener("DOMContentLoaded", () => {
+  setupBusy();
   setupPicker(setupLabel());
   setupPreviews();
   setupRecording();

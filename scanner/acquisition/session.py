@@ -20,10 +20,10 @@ step      kind            channels
 ========  ==============  ==========================================================================
 1-4       record          TU1 finger tap, finger slide (+ audio, IR), tool tap, tool slide (+ audio, IR)
 5         record          TU2 static touch: metal electrode ``m``, magnetometer ``dB``
-5         record          TU2 thermal: the Peltier heats (at most 5 s), then ``t_cool`` while cooling
-6-8       record          TU2 friction slide, press, fold (skippable: rigid sample, ``meta.rigid`` = 1)
-9         photos          TU3 ``I_disp``, ``I_macro`` (4x lens), ``I_illu`` (flash)
-10        form            TU4 mass, volume (and how it was measured), judged tack and yielding
+6         record          TU2 thermal: the Peltier heats (at most 5 s), then ``t_cool`` while cooling
+7-9       record          TU2 friction slide, press, fold (skippable: rigid sample, ``meta.rigid`` = 1)
+10        photos          TU3 ``I_disp``, ``I_macro`` (4x lens), ``I_illu`` (flash)
+11        form            TU4 mass, volume (and how it was measured), judged tack and yielding
 ========  ==============  ==========================================================================
 
 Every state change is explicit and checked; a refused one raises :class:`SessionError` saying why.
@@ -138,6 +138,11 @@ _STEPS = (
     ("tu4", "TU4 mass, volume and judgement", "Weigh the sample, measure its volume by water or "
      "micro-pearl displacement, and judge its adhesive tack and yielding on the five-step scale."),
 )
+
+
+STEP_TITLES: dict[str, tuple[int, str]] = {step: (number, title)
+                                           for number, (step, title, _) in enumerate(_STEPS, start=1)}
+"""Step id -> (number, title), as :func:`procedure` numbers them, for pages that show a stored scan."""
 
 
 def procedure(config: Config) -> tuple[StepInfo, ...]:
