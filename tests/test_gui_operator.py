@@ -188,3 +188,83 @@ def test_session_work_lists_nothing_for_a_new_scan():
         assert session.work() == []
         session.set_values(mass_g=3.0, notes="x")
         assert session.work() == ["the TU4 values: mass, notes"]
+
+
+# -- work done once, step numbers, legend ---------------------------------------------------------------
+
+
+def complete_scan(client, app):
+    """Record every step (viewing each one's traces as the step page does), take three photos, fill the form."""
+    record_all(client, app)
+    for step in ("finger_tap", "finger_slide", "tool_tap", "tool_slide", "static", "thermal", "friction",
+                 "press", "fold"):
+        assert get(client, f"/session/step/{step}/traces.png?v=1").status_code == 200
+    for name in ("I_disp", "I_macro", "I_illu"):
+        post(client, "/session/form", {"capture": name})
+    answer = post(client, "/session/form", {"atk": "0", "cyd": "0.25", "mass_g": "512,5 g",
+                                            "volume_cm3": "190 ml", "volume_method": "water"})
+    assert answer.headers["Location"] == "/session/summary"
+
+
+def test_summary_and_saved_scan_reuse_the_step_figures_and_features(client, app, monkeypatch):
+    from features import extract
+    from features.extraction import code_version
+    from gui import figures
+
+    drawn = []
+    original = figures.plot_step
+    monkeypatch.setattr(figures, "plot_step", lambda traces, step, *args, **kwargs:
+                        drawn.append(step) or original(traces, step, *args, **kwargs))
+    start_session(client)
+    complete_scan(client, app)
+    assert len(drawn) == 9
+    summary = get(client, "/session/summary").text
+    images = re.findall(r'<img src="(/session/step/[^"]+)"', summary)
+    assert len(images) == 9 and all(get(client, html.unescape(url)).status_code == 200 for url in images)
+    assert len(drawn) == 9  # the summary drew nothing: the figures of the step pages
+    assert "traces.png" in summary and "/session/summary/traces.png" in summary  # the whole figure on request
+
+    scan_id = post(client, "/session/save").headers["Location"].rsplit("/", 1)[1]
+    db = database(app)
+    record = db.record(scan_id)
+    cached = db.cached_features(record.content_hash, code_version())
+    assert cached is not None
+    stored = extract(db.get(scan_id))
+    assert cached.keys() == stored.keys()
+    assert all(cached[k] == stored[k] or (cached[k] != cached[k] and stored[k] != stored[k]) for k in stored)
+    page = get(client, f"/db/scan/{scan_id}").text
+    images = re.findall(rf'<img src="(/db/scan/{scan_id}/traces/[^"]+)"', page)
+    assert len(images) == 9 and all(get(client, url).status_code == 200 for url in images)
+    assert len(drawn) == 9  # kept at save: the scan's page drew nothing either
+
+
+def test_stored_scans_without_kept_figures_draw_each_step_once(tmp_path):
+    from conftest import make_scan
+
+    app = make_app(tmp_path / "db")
+    try:
+        database(app).add(make_scan(0, sample_id="steel-01", rigid=True, drop=("f_fold", "alpha_f"),
+                                    image_shape=(64, 64)))
+        client = app.test_client()
+        page = get(client, "/db/scan/steel-01-001").text
+        assert "Step 9, TU2 fold: skipped: rigid sample." in page
+        images = re.findall(r'<img src="(/db/scan/steel-01-001/traces/[^"]+)"', page)
+        assert len(images) == 8
+        first = get(client, images[0])
+        assert first.status_code == 200 and first.data.startswith(b"\x89PNG")
+        assert get(client, "/db/scan/steel-01-001/traces/photos.png").status_code == 404
+    finally:
+        app.extensions["texplorer"].shutdown()
+
+
+def test_step_numbers_agree_and_the_legend_is_on_every_scan_page(client, app):
+    start_session(client)
+    chips = re.findall(r'aria-current="step">(\d+)\. ', get(client, "/session/form").text)
+    form = get(client, "/session/form").text
+    assert "<h1>Steps 10 and 11: photos, mass, volume and judgement</h1>" in form and chips == ["10"]
+    assert ">11. TU4 mass, volume and judgement</a>" in form
+    for url in ("/session", "/session/step/finger_slide", "/session/form"):
+        page = get(client, url).text
+        assert "What TU1–TU4 and the channel codes mean" in page, url
+    step = html.unescape(get(client, "/session/step/finger_slide").text)
+    assert "<code>a_fs</code> audio during the finger slide, full scale" in step
