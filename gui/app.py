@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import sys
+import threading
 from dataclasses import replace
 
 from flask import Flask, Response, render_template
@@ -85,6 +86,16 @@ def url_of(host: str, port: int) -> str:
     return f"http://[{shown}]:{port}/" if ":" in shown else f"http://{shown}:{port}/"
 
 
+def model_warning(settings: Settings) -> str | None:
+    """Why the summary page will show no prediction with the ``--model`` given (a missing file), or None."""
+    model = settings.model
+    if model is None or model.is_file():
+        return None
+    reason = "is a folder" if model.is_dir() else "does not exist"
+    return (f"--model {model} {reason}: the summary page shows no prediction until a model file is there "
+            "('texplorer train --out FILE' makes one)")
+
+
 def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None:
     """Run the app until Ctrl-C; warns on stderr when it listens beyond this computer."""
     from werkzeug.serving import make_server
@@ -93,7 +104,11 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None
         print(f"texplorer: warning: listening on {host}:{port}: anyone who can reach this computer on the "
               "network can use the scanner and the database", file=sys.stderr)
         settings = replace(settings, trusted_hosts=None)
+    warning = model_warning(settings)
+    if warning:
+        print(f"texplorer: warning: {warning}", file=sys.stderr)
     app = create_app(settings)
+    threading.Thread(target=app.extensions["texplorer"].warm_up, name="warm-up", daemon=True).start()
     server = make_server(host, port, app, threaded=True)
     print(f"texplorer: serving {settings.db} at {url_of(host, server.server_port)} (Ctrl-C stops)", file=sys.stderr)
     try:

@@ -12,6 +12,7 @@ import pytest
 from conftest import make_scan
 
 from scanner.cli import COMMANDS, ENTRY_POINTS, EXIT_PIPE, EXIT_PROBLEMS, build_parser, main, plugin_summary
+from scanner.cli.base import UsageError
 from scanner.storage.database import Database
 
 
@@ -248,3 +249,46 @@ def test_classify_refuses_a_foreign_model(demo_db, tmp_path, capsys):
     assert main(["classify", str(scan), "--model", str(tmp_path / "evil.skops")]) == 1
     err = capsys.readouterr().err
     assert err.startswith("texplorer: error: ") and "evil.skops" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_refused_import_leaves_no_database_folder(tmp_path, capsys):
+    damaged = tmp_path / "bundle.zip"
+    damaged.write_bytes(b"PK\x03\x04 not a bundle")
+    target = tmp_path / "new" / "db"
+    assert main(["import", "--db", str(target), str(damaged)]) == 1
+    assert "bundle.zip" in capsys.readouterr().err
+    assert not (tmp_path / "new").exists()
+    existing = tmp_path / "lab"
+    Database(existing).close()
+    before = sorted(p.relative_to(existing) for p in existing.rglob("*"))
+    assert main(["import", "--db", str(existing), str(damaged)]) == 1
+    assert sorted(p.relative_to(existing) for p in existing.rglob("*")) == before
+
+
+def test_progress_bars_count_what_they_go_through(monkeypatch):
+    import tqdm
+
+    from scanner.cli import base
+
+    made = {}
+    monkeypatch.setattr(tqdm, "tqdm", lambda items, **options: made.update(options) or items)
+    assert list(base.progress("comparing", unit="method")(["a"])) == ["a"]
+    assert made["unit"] == "method" and made["desc"] == "comparing"
+
+
+def test_demo_chooses_folds_that_fit_its_scans(tmp_path, capsys):
+    from scanner.cli.demo import fitting_folds
+
+    assert fitting_folds(5, 2, 2) == 4 and fitting_folds(5, 2, 3) == 5 and fitting_folds(3, 1, 2) == 2
+    with pytest.raises(UsageError, match="one scan per material; cross-validation needs two or more"):
+        fitting_folds(5, 1, 1)
+    root = tmp_path / "db"
+    assert main(["demo", "--db", str(root), "--samples", "1", "--scans", "1"]) == 1
+    assert "--samples 2 or --scans 2, or --no-evaluation" in capsys.readouterr().err and not root.exists()
+    code = main(["demo", "--db", str(root), "--samples", "2", "--scans", "2", "--image-size", "64", "--materials",
+                 "polyurethane-foam", "float-glass", "--classifier", "nb", "--level", "fine", "--n", "3",
+                 "--feature-set", "tactum", "--workers", "1"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert "texplorer: note: 4 folds instead of 5: each material has 2 x 2 = 4 scans" in captured.err
+    assert "4 folds" in captured.out

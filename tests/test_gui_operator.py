@@ -268,3 +268,19 @@ def test_step_numbers_agree_and_the_legend_is_on_every_scan_page(client, app):
         assert "What TU1–TU4 and the channel codes mean" in page, url
     step = html.unescape(get(client, "/session/step/finger_slide").text)
     assert "<code>a_fs</code> audio during the finger slide, full scale" in step
+
+
+# -- texplorer serve, import, compare, demo ----------------------------------------------------------------
+
+
+def test_texplorer_serve_warns_about_a_missing_model(tmp_path):
+    from test_gui import serve_process, served_url
+
+    process = serve_process(tmp_path, "--model", str(tmp_path / "no-such.skops"))
+    try:
+        _, lines = served_url(process)
+        assert f"texplorer: warning: --model {tmp_path / 'no-such.skops'} does not exist: the summary page " \
+               "shows no prediction until a model file is there ('texplorer train --out FILE' makes one)" in lines
+    finally:
+        process.kill()
+        process.wait(10)

@@ -5,9 +5,11 @@ and the classifiers (:mod:`scanner.cli.common` holds the options that need them)
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import shutil
 import sys
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 
 from scanner.storage.database import Database
@@ -35,16 +37,43 @@ def default_db() -> Path:
     return Path(os.environ.get("TEXPLORER_DB") or DEFAULT_DB)
 
 
-def progress(description: str) -> Callable[[Iterable], Iterable]:
-    """A tqdm progress bar on stderr (hidden when stderr is not a terminal)."""
+def progress(description: str, unit: str = "scan") -> Callable[[Iterable], Iterable]:
+    """A tqdm progress bar on stderr counting ``unit`` (hidden when stderr is not a terminal)."""
     from tqdm import tqdm  # loaded by the commands that show progress, not by every start
 
-    return lambda items: tqdm(items, desc=description, unit="scan", file=sys.stderr, disable=None,
+    return lambda items: tqdm(items, desc=description, unit=unit, file=sys.stderr, disable=None,
                               leave=False)
 
 
 def open_db(args: argparse.Namespace, *, create: bool = False) -> Database:
     return Database(args.db, create=create)
+
+
+def first_missing(path: Path) -> Path | None:
+    """The outermost folder of ``path`` that does not exist yet (``path`` itself, or one of its parents), or
+    None when ``path`` exists."""
+    path = Path(path).absolute()
+    missing = None
+    for folder in (path, *path.parents):
+        if folder.exists():
+            break
+        missing = folder
+    return missing
+
+
+@contextlib.contextmanager
+def created_db(args: argparse.Namespace) -> Iterator[Database]:
+    """The database of ``--db``, made if missing; made and the command then refused, it is removed again, so
+    a refused command leaves no empty database folder behind."""
+    made = first_missing(args.db)
+    db = open_db(args, create=True)
+    try:
+        yield db
+    except BaseException:
+        db.close()
+        if made is not None:
+            shutil.rmtree(made, ignore_errors=True)
+        raise
 
 
 def table_lines(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:

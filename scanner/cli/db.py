@@ -50,7 +50,7 @@ def cmd_db_check(args: argparse.Namespace) -> int:
     if args.repair:
         for path in db.repair():
             print(f"removed  {path}")
-    report = db.check(progress=progress("checking"))
+    report = db.check(progress=progress("checking", unit="file"))
     for label, paths in (("missing", report.missing), ("changed", report.changed), ("unknown", report.unknown),
                          ("leftover", report.leftovers)):
         for path in paths:

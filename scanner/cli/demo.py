@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 from features import REGISTRY
 from scanner.cli.analysis import report_space, run_evaluation
-from scanner.cli.base import add_db_option
+from scanner.cli.base import UsageError, add_db_option
 from scanner.cli.common import add_cluster_options, add_evaluation_options, cluster
 from scanner.simulation.database import synthetic_database
 from scanner.workflows import DEFAULT_MODEL, extract_database
@@ -19,7 +20,32 @@ DEMO_SAMPLES = 2
 DEMO_SCANS = 3
 
 
+def fitting_folds(folds: int, samples: int, scans: int) -> int:
+    """The cross-validation folds the demo's database allows: each material has ``samples * scans`` scans,
+    and stratified folds need a class with at least as many rows as folds (``taxonomy.evaluation.cv_splits``).
+
+    Raises
+    ------
+    UsageError
+        Fewer than two scans per material: nothing can be cross-validated.
+    """
+    per_material = samples * scans
+    if per_material < 2:
+        raise UsageError(f"--samples {samples} --scans {scans} make one scan per material; cross-validation "
+                         "needs two or more: use --samples 2 or --scans 2, or --no-evaluation")
+    return min(folds, per_material)
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
+    if args.samples < 1 or args.scans < 1:
+        raise UsageError(f"--samples and --scans must be at least 1, got {args.samples} and {args.scans}")
+    if not args.no_evaluation:
+        folds = fitting_folds(args.folds, args.samples, args.scans)
+        if folds < args.folds:
+            print(f"texplorer: note: {folds} folds instead of {args.folds}: each material has {args.samples} x "
+                  f"{args.scans} = {args.samples * args.scans} scans (more with --samples or --scans)",
+                  file=sys.stderr)
+            args.folds = folds
     started = time.perf_counter()
     db = synthetic_database(args.db, materials=args.materials, scans_per_material=args.scans, seed=args.seed,
                             image_size=(args.image_size, args.image_size), progress=True,

@@ -9,7 +9,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from features import REGISTRY, SOLVER_RTOL, FeatureSpace
-from scanner.cli.base import EXIT_ERROR, EXIT_PROBLEMS, add_db_option, open_db, progress
+from scanner.cli.base import EXIT_ERROR, EXIT_PROBLEMS, add_db_option, created_db, open_db, progress
 from scanner.cli.common import add_cluster_options, cluster
 from scanner.replay import (
     DEFAULT_ATOL,
@@ -44,13 +44,13 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_import(args: argparse.Namespace) -> int:
-    db = open_db(args, create=True)
-    try:
-        report = import_bundle(db, args.bundle, progress=progress("verifying"))
-    except BundleError as exc:
-        for problem in exc.problems:
-            print(f"problem  {problem}", file=sys.stderr)
-        raise
+    with created_db(args) as db:
+        try:
+            report = import_bundle(db, args.bundle, progress=progress("verifying"))
+        except BundleError as exc:
+            for problem in exc.problems:
+                print(f"problem  {problem}", file=sys.stderr)
+            raise
     for line in report.conflicts:
         print(f"conflict {line}")
     for label in report.unknown_labels:

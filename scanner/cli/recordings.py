@@ -44,7 +44,7 @@ def ingest_mapping(args: argparse.Namespace):
 
 def cmd_ingest(args: argparse.Namespace) -> int:
     mapping = ingest_mapping(args)
-    report = ingest(args.path, mapping, progress=progress("reading"))
+    report = ingest(args.path, mapping, progress=progress("reading", unit="recording"))
     for line in report.skipped:
         print(f"skipped  {line}")
     notes = [str(note) for note in report.notes] if args.verbose else summarise_notes(report.notes)
@@ -110,7 +110,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     print(dataset.summary())
     with cluster(args) as client:
         comparison = compare_methods(dataset, args.methods, seed=args.seed, repeats=args.repeats,
-                                     progress=progress("comparing"), client=client)
+                                     progress=progress("comparing", unit="method"), client=client)
     print(comparison.format_outcome())
     results = comparison.results
     if not results:
