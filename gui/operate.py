@@ -577,7 +577,7 @@ def step_traces(step_id: str) -> Response:
 
 @blueprint.get("/session/summary/traces.png")
 def summary_traces() -> Response:
-    """Every channel on one page (``taxonomy.plots.plot_scan``), for a large screen; drawn only when asked."""
+    """Every channel on one page (``taxonomy.reports.plots.plot_scan``), for a large screen; drawn only when asked."""
     op = operation()
     if op.session.missing():
         abort(409, description="the scan is not complete yet")

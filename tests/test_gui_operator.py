@@ -10,10 +10,7 @@ from urllib.parse import quote, urlencode
 
 import pytest
 from test_gui import (
-    BASE,
     active,
-    app,
-    client,
     database,
     field_error,
     get,
@@ -29,6 +26,18 @@ HOSTILE = ("ZZZ", "Z9", "granite", "c6", "C6S1M1P2X1", "C60", "../../etc/passwd"
 
 PARAMETERS = ("label", "sample", "operator", "session", "q", "v", "lable", "sampel", "opertor", "step", "page")
 """The query parameters the pages read, and misspellings of them."""
+
+
+@pytest.fixture
+def app(tmp_path):
+    app = make_app(tmp_path / "db", upload_limit=400_000)
+    yield app
+    app.extensions["texplorer"].shutdown()
+
+
+@pytest.fixture
+def client(app):
+    return app.test_client()
 
 
 @pytest.fixture
@@ -181,8 +190,9 @@ def test_abort_without_a_scan_and_a_foreign_back_link(client, app):
 
 
 def test_session_work_lists_nothing_for_a_new_scan():
-    from scanner.acquisition.session import Session
     from test_gui import fast_config
+
+    from scanner.acquisition.session import Session
 
     with Session.open(fast_config(), label="C6S1M1P2X1", sample_id="g-1", operator="a") as session:
         assert session.work() == []
