@@ -292,3 +292,21 @@ def test_demo_chooses_folds_that_fit_its_scans(tmp_path, capsys):
     assert code == 0, captured.err
     assert "texplorer: note: 4 folds instead of 5: each material has 2 x 2 = 4 scans" in captured.err
     assert "4 folds" in captured.out
+
+
+def test_features_of_a_label_leave_the_full_table_alone(tmp_path, capsys):
+    from features import FeatureSpace
+
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0, sample_id="granite-01", image_shape=(64, 64)))
+    db.add(make_scan(1, label="C7S1M1P8X1", sample_id="steel-01", image_shape=(64, 64)))
+    db.close()
+    assert main(["features", "--db", str(tmp_path / "db"), "--workers", "1"]) == 0
+    full = (tmp_path / "db" / "features.csv").read_bytes()
+    capsys.readouterr()
+    assert main(["features", "--db", str(tmp_path / "db"), "--label", "c6", "--workers", "1"]) == 0
+    out = capsys.readouterr().out
+    assert f"wrote {tmp_path / 'db' / 'features-C6.csv'} (the scans of C6; {tmp_path / 'db' / 'features.csv'} " \
+           "is left as it was)" in out
+    assert (tmp_path / "db" / "features.csv").read_bytes() == full
+    assert list(FeatureSpace.from_csv(tmp_path / "db" / "features-C6.csv").scan_ids) == ["granite-01-001"]

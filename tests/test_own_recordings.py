@@ -304,3 +304,36 @@ def test_a_two_stream_csv_set_with_gaps_and_its_own_split(tmp_path, capsys):
     quick = ["--classifier", "lda", "knn", "rf", "--n", "all", "--workers", 1]
     held_out = table(cli(capsys, "evaluate", "set:shuffled", "--db", db, *quick))
     assert np.mean(accuracies(held_out, "surface")) < chance_bound(2, 12)
+
+
+def test_evaluate_uses_the_sets_table_written_with_the_same_options(tmp_path, capsys, monkeypatch):
+    from scanner.cli import analysis
+
+    root, db = tmp_path / "sounds", tmp_path / "db"
+    write_sounds(root, {(m, o): m for m in SOUND_CLASSES for o in range(6)})
+    (tmp_path / "sounds.toml").write_text(SOUND_MAPPING)
+    cli(capsys, "ingest", root, "--mapping", tmp_path / "sounds.toml", "--db", db)
+    quick = ("--classifier", "nb", "--n", "3", "--level", "material", "--workers", 1)
+    out = cli(capsys, "evaluate", "set:sounds", "--db", db, *quick)
+    assert "set:sounds: extracting the features (no table written by 'texplorer features set:sounds')" in out
+    cli(capsys, "features", "set:sounds", "--db", db, "--window", "0.25", "--combine", "rows")
+    table_path = set_folder(db, "sounds") / "features.csv"
+    written = FeatureSpace.from_csv(table_path)
+    assert len(written) == 72  # two windows of each 0.5 s recording
+
+    extracted = []
+    original = analysis.set_space
+    monkeypatch.setattr(analysis, "set_space", lambda args, client=None: extracted.append(args) or
+                        original(args, client))
+    same = cli(capsys, "evaluate", "set:sounds", "--db", db, "--window", "0.25", "--combine", "rows", *quick)
+    assert f"set:sounds: using {table_path} (written by 'texplorer features set:sounds' with the same options)" \
+        in same
+    assert extracted == []
+    other = cli(capsys, "evaluate", "set:sounds", "--db", db, "--window", "0.1", *quick)
+    assert f"set:sounds: extracting the features ({table_path} was written with other --window, --combine)" \
+        in other
+    assert len(extracted) == 1
+    # The same cells as an evaluation that extracts again: the table holds what extraction gives.
+    monkeypatch.setattr(analysis, "stored_set_table", lambda args, folder: (None, "extracting"))
+    again = cli(capsys, "evaluate", "set:sounds", "--db", db, "--window", "0.25", "--combine", "rows", *quick)
+    assert table(again) == table(same)

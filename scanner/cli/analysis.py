@@ -4,11 +4,14 @@ selection, cross-validated evaluation and trained models, of the database's scan
 from __future__ import annotations
 
 import argparse
+import hashlib
+import json
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
-from features import REGISTRY
+from features import REGISTRY, FeatureSpace, code_version
 from features.recordings import Windowing, describe_families, feature_space
 from features.selection import select_features
 from scanner.cli.base import EXIT_ERROR, UsageError, add_db_option, open_db
@@ -23,6 +26,7 @@ from scanner.cli.common import (
     set_sizes,
     space_for,
 )
+from scanner.storage.files import atomic_write_bytes
 from scanner.storage.ingest import load_recordings, set_folder
 from scanner.storage.matfile import load_scan
 from scanner.workflows import (
@@ -34,7 +38,7 @@ from scanner.workflows import (
     predict_values,
     stored_features,
 )
-from taxonomy.labels import LEVELS
+from taxonomy.labels import LEVELS, parse_prefix
 from taxonomy.learning.evaluation import CLASSIFIERS, default_feature_sets, evaluate_grid
 from taxonomy.learning.models import load_model, save_model, train_model
 from taxonomy.learning.results import one_line
@@ -52,6 +56,12 @@ def report_space(space, seconds: float) -> None:
         print(f"failed   {scan_id}: {reason}")
 
 
+def table_name(label: str | None) -> str:
+    """The default file of ``texplorer features``: ``features.csv`` for every scan, ``features-C6.csv`` for the
+    scans of a label or class prefix, so a filtered run never replaces the table of every scan."""
+    return f"features-{parse_prefix(label)}.csv" if label else "features.csv"
+
+
 def cmd_features(args: argparse.Namespace) -> int:
     if args.dataset:
         return cmd_set_features(args)
@@ -60,9 +70,11 @@ def cmd_features(args: argparse.Namespace) -> int:
     with cluster(args) as client:
         space = extract_database(db, label=args.label, workers=args.workers, client=client, ship_data=args.ship_data)
     report_space(space, time.perf_counter() - started)
-    out = args.out or db.root / "features.csv"
+    out = args.out or db.root / table_name(args.label)
     space.to_csv(out)
-    print(f"wrote {out}")
+    kept = "" if args.out or not args.label else (f" (the scans of {parse_prefix(args.label)}; "
+                                                  f"{db.root / table_name(None)} is left as it was)")
+    print(f"wrote {out}{kept}")
     if args.mat:
         space.to_mat(args.mat)
         print(f"wrote {args.mat}")
@@ -136,11 +148,56 @@ def set_space(args: argparse.Namespace, client=None):
     return space
 
 
+SET_TABLE = "features.csv"
+SET_TABLE_OPTIONS = "features.json"
+"""Beside a set's feature table, the options it was written with (windowing, crop, grouping), the feature
+code version and the recordings it read, so ``evaluate set:NAME`` can tell whether the table fits."""
+
+
+def recordings_fingerprint(folder: Path) -> str:
+    """A hash of the set's recording files (name, size, modification time): a re-ingested set differs."""
+    digest = hashlib.sha256()
+    for path in sorted(folder.glob("*.mat")):
+        stat = path.stat()
+        digest.update(f"{path.name}\0{stat.st_size}\0{stat.st_mtime_ns}\n".encode())
+    return digest.hexdigest()
+
+
+def set_table_options(args: argparse.Namespace, folder: Path) -> dict[str, Any]:
+    """What a set's feature table depends on, as ``features.json`` records it."""
+    return {"window": args.window, "combine": args.combine, "border": args.border, "group_by": args.group_by,
+            "code_version": code_version(), "recordings": recordings_fingerprint(folder)}
+
+
+OPTION_WORDS = {"window": "--window", "combine": "--combine", "border": "--border", "group_by": "--group-by",
+                "code_version": "the feature code", "recordings": "the recordings"}
+
+
+def stored_set_table(args: argparse.Namespace, folder: Path) -> tuple[Path | None, str]:
+    """The set's feature table if it was written with the options of ``args`` (and the same recordings and
+    feature code), else None; and one line saying which table ``evaluate`` uses and why."""
+    table, written = folder / SET_TABLE, folder / SET_TABLE_OPTIONS
+    if not table.is_file() or not written.is_file():
+        return None, f"extracting the features (no table written by 'texplorer features {args.dataset}')"
+    try:
+        stored = json.loads(written.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None, f"extracting the features ({written} cannot be read)"
+    wanted = set_table_options(args, folder)
+    differ = [OPTION_WORDS[key] for key in wanted if stored.get(key) != wanted[key]]
+    if differ:
+        return None, f"extracting the features ({table} was written with other {', '.join(differ)})"
+    return table, f"using {table} (written by 'texplorer features {args.dataset}' with the same options)"
+
+
 def cmd_set_features(args: argparse.Namespace) -> int:
+    folder = set_folder(args.db, args.dataset[4:])
     with cluster(args) as client:
         space = set_space(args, client)
-    out = args.out or set_folder(args.db, args.dataset[4:]) / "features.csv"
+    out = args.out or folder / SET_TABLE
     print(f"wrote {space.to_csv(out)}")
+    if args.out is None:
+        atomic_write_bytes(folder / SET_TABLE_OPTIONS, json.dumps(set_table_options(args, folder)).encode())
     if args.mat:
         print(f"wrote {space.to_mat(args.mat)}")
     return 0
@@ -149,8 +206,10 @@ def cmd_set_features(args: argparse.Namespace) -> int:
 def cmd_set_evaluate(args: argparse.Namespace) -> int:
     if args.features:
         raise UsageError("give either a set (set:NAME) or --features CSV, not both")
+    table, which = stored_set_table(args, set_folder(args.db, args.dataset[4:]))
+    print(f"{args.dataset}: {which}")
     with cluster(args) as client:
-        space = set_space(args, client)
+        space = FeatureSpace.from_csv(table) if table else set_space(args, client)
         reports = run_evaluation(space, args, client)
     return 0 if reports else EXIT_ERROR
 
@@ -230,8 +289,9 @@ def register(commands: argparse._SubParsersAction) -> None:
     add_db_option(features)
     _add_set_options(features)
     features.add_argument("--workers", type=int, help="processes (default: number of cores)")
-    features.add_argument("--out", type=Path, help="CSV file (default: <db>/features.csv; for a set "
-                          "<db>/recordings/<set>/features.csv)")
+    features.add_argument("--out", type=Path, help="CSV file (default: <db>/features.csv, with --label "
+                          "<db>/features-<LABEL>.csv; for a set <db>/recordings/<set>/features.csv, which "
+                          "'evaluate set:NAME' then uses when given the same options)")
     features.add_argument("--mat", type=Path, help="also write the feature space as a .mat file")
     features.add_argument("--label", help="only scans with this label or class prefix")
     add_cluster_options(features)
