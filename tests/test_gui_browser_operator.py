@@ -67,7 +67,7 @@ def complete(app) -> None:
     viewer = app.test_client()
     for step in session.steps:
         if step.kind == "record":
-            op.touch()  # the tab that polls while a step records (else the Peltier watchdog stops the heating)
+            op.touch()  # the page that polls while a step records (else the Peltier watchdog stops the heating)
             status = session.record(step.id)
             assert status.state == "recorded", status
             # the step tab shows the recording's figure
@@ -103,7 +103,7 @@ def test_abort_asks_first_then_keeps_the_start_form(tab, fast_server):
 
 
 RECORD_BUSY = """() => {
-    // Headless Chromium runs no script of the old tab while its form's request is on its way, so the tab
+    // Headless Chromium runs no script of the old page while its form's request is on its way, so the page
     // notes what it shows in sessionStorage (kept across the navigation), to be read on the next tab.
     const note = document.getElementById('busy-note');
     sessionStorage.setItem('submits', '[]');
@@ -137,7 +137,7 @@ def test_a_sent_form_is_busy_and_cannot_be_sent_twice(tab, fast_server):
     tab.wait_for_url(f"{base}/db/scan/granite-05-001", wait_until="domcontentloaded")
     busy = json.loads(tab.evaluate("sessionStorage.getItem('busy')"))
     assert busy == {"text": "Saving the scan…", "noteShown": True, "allDisabled": True, "pageBusy": "true",
-                    "note": "Saving the scan… Please wait; the tab changes by itself."}
+                    "note": "Saving the scan… Please wait; the page changes by itself."}
     assert json.loads(tab.evaluate("sessionStorage.getItem('submits')")) == ["sent", "refused"]
     assert posts == [base + "/session/save"]
     assert [r.scan_id for r in app.extensions["texplorer"].db.records()] == ["granite-05-001"]
@@ -150,7 +150,7 @@ def test_a_sent_form_is_busy_and_cannot_be_sent_twice(tab, fast_server):
 
 
 def overflow(tab) -> dict[str, float]:
-    """How far the tab and its main content reach beyond the screen, and the widest table beyond its box
+    """How far the page and its main content reach beyond the screen, and the widest table beyond its box
     when that box does not scroll (all 0 when everything fits)."""
     return tab.evaluate("""() => {
         const main = document.querySelector('main');
@@ -176,7 +176,7 @@ def smallest_text(tab) -> float:
 @pytest.mark.parametrize(("screen", "viewport"), [("tablet", TABLET), ("desktop", DESKTOP)])
 def test_summary_and_scan_pages_fit_the_screen(chromium, fast_server, screen, viewport):
     base, app = fast_server
-    context = browser.new_context(viewport=viewport)
+    context = chromium.new_context(viewport=viewport)
     tab = context.new_page()
     try:
         start(tab, base, "granite-06")
