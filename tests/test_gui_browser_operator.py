@@ -70,7 +70,7 @@ def complete(app) -> None:
             op.touch()  # the page that polls while a step records (else the Peltier watchdog stops the heating)
             status = session.record(step.id)
             assert status.state == "recorded", status
-            # the step tab shows the recording's figure
+            # the step page shows the recording's figure
             assert viewer.get(f"/session/step/{step.id}/traces.png", base_url=BASE).status_code == 200
     for name in IMAGES:
         session.capture_photo(name)
@@ -159,7 +159,7 @@ def overflow(tab) -> dict[str, float]:
             const scrolls = getComputedStyle(box).overflowX === 'auto';
             return scrolls ? 0 : table.getBoundingClientRect().right - box.getBoundingClientRect().right;
         });
-        return {tab: document.documentElement.scrollWidth - window.innerWidth,
+        return {page: document.documentElement.scrollWidth - window.innerWidth,
                 main: main.scrollWidth - main.clientWidth,
                 table: Math.max(0, ...tables)};
     }""")
@@ -189,7 +189,7 @@ def test_summary_and_scan_pages_fit_the_screen(chromium, fast_server, screen, vi
                 tab.goto(base + url)
             tab.evaluate("[...document.images].forEach(i => { i.loading = 'eager'; })")
             wait_until(tab, "[...document.images].every(i => i.complete && i.naturalWidth)", timeout=60)
-            assert overflow(tab) == {"tab": 0, "main": 0, "table": 0}, name
+            assert overflow(tab) == {"page": 0, "main": 0, "table": 0}, name
             assert smallest_text(tab) >= 12, name
             # The step figures are 800 px wide with text of 14.5 px and more: shown at 85 % or more of their
             # size, no text of theirs is below 12 px.
@@ -197,14 +197,14 @@ def test_summary_and_scan_pages_fit_the_screen(chromium, fast_server, screen, vi
             assert len(widths) == 9 and min(widths) >= 0.85 * 800, widths
             shot(tab, f"22-{name}-{screen}")
         tab.goto(base + "/db/scans")
-        assert overflow(tab) == {"tab": 0, "main": 0, "table": 0}
+        assert overflow(tab) == {"page": 0, "main": 0, "table": 0}
         shot(tab, f"23-scans-{screen}")
     finally:
         context.close()
 
 
 def visit(tab, url: str) -> int:
-    """The status of a tab the browser opens (a download, such as the feature table, is fetched instead)."""
+    """The status of a page the browser opens (a download, such as the feature table, is fetched instead)."""
     try:
         return tab.goto(url).status
     except playwright.Error as error:
