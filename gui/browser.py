@@ -217,6 +217,9 @@ def step_png(scan_id: str, step: str) -> Response:
     if step not in figures.RECORDED:
         abort(404, description=f"there is no recording step {step[:40]!r}")
     path = figures.cached_path(context().plot_dir, record.content_hash, step)
+    kept = context().figures.pending(path)
+    if kept is not None:  # kept by the save, still being written
+        return send_file(io.BytesIO(kept), mimetype="image/png", max_age=3600)
     if not path.is_file():
         path = figures.stored_figure(context().plot_dir, record.content_hash, context().db.get(scan_id), step)
     return send_file(path, mimetype="image/png", max_age=3600)

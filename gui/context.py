@@ -13,6 +13,7 @@ from pathlib import Path
 from flask import current_app
 
 from gui.exports import Exports
+from gui.figures import Keeper
 from gui.live_session import Operations
 from gui.photos import DEFAULT_MAX_BYTES, DEFAULT_MAX_PIXELS, PhotoStore
 from scanner.acquisition.config import Config
@@ -72,6 +73,7 @@ class Context:
         self.device_config = settings.device_config
         self.photos = PhotoStore(settings.work_dir / "uploads")
         self.plot_dir = settings.work_dir / "plots"
+        self.figures = Keeper()
         self.operations = Operations(self.photos, settings.heartbeat_timeout_s)
         self.exports = Exports(self.db, settings.export_dir, workers=settings.workers,
                                abandon_after_s=settings.export_abandon_s)
@@ -96,9 +98,11 @@ class Context:
             _ = self.model
 
     def shutdown(self) -> None:
-        """Abort a running scan (Peltier off, devices released); cancel an export and delete its file."""
+        """Abort a running scan (Peltier off, devices released); cancel an export and delete its file; finish
+        writing the figures a save kept."""
         self.operations.shutdown()
         self.exports.shutdown()
+        self.figures.wait(10)
 
 
 def context() -> Context:

@@ -10,7 +10,9 @@ Scans stored otherwise (``texplorer demo``, ``import``) have theirs drawn on fir
 
 from __future__ import annotations
 
+import contextlib
 import io
+import threading
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -64,11 +66,41 @@ def cached_path(plot_dir: Path, content_hash: str, step: str) -> Path:
     return plot_dir / f"{content_hash}-{step}.png"
 
 
-def keep(plot_dir: Path, content_hash: str, figures: Mapping[str, bytes]) -> None:
-    """Store a scan's step figures under its content hash (atomic writes; the figures drawn in the session
-    are those of the saved file: same traces, same title)."""
-    for step, png in figures.items():
-        atomic_write_bytes(cached_path(plot_dir, content_hash, step), png)
+class Keeper:
+    """Writes the figures a save keeps into the plot cache in a thread of its own, so the save does not wait
+    for the disk (an atomic write with fsync per figure); until a figure is written, :meth:`pending` has it."""
+
+    def __init__(self) -> None:
+        self._pending: dict[Path, bytes] = {}
+        self._lock = threading.Lock()
+        self._threads: list[threading.Thread] = []
+
+    def keep(self, plot_dir: Path, content_hash: str, figures: Mapping[str, bytes]) -> threading.Thread:
+        """Store a scan's step figures under its content hash (the figures drawn in the session are those of
+        the saved file: same traces, same title); returns the writing thread."""
+        paths = {cached_path(plot_dir, content_hash, step): png for step, png in figures.items()}
+        with self._lock:
+            self._pending.update(paths)
+        thread = threading.Thread(target=self._write, args=(paths,), name="keep-figures", daemon=True)
+        thread.start()
+        self._threads = [t for t in self._threads if t.is_alive()] + [thread]
+        return thread
+
+    def wait(self, timeout: float | None = None) -> None:
+        """Wait until the figures kept so far are written (the server's stop, tests)."""
+        for thread in list(self._threads):
+            thread.join(timeout)
+
+    def _write(self, paths: Mapping[Path, bytes]) -> None:
+        for path, png in paths.items():
+            with contextlib.suppress(OSError):  # only a cache: the scan's page draws what is missing
+                atomic_write_bytes(path, png)
+            with self._lock:
+                self._pending.pop(path, None)
+
+    def pending(self, path: Path) -> bytes | None:
+        with self._lock:
+            return self._pending.get(path)
 
 
 def stored_figure(plot_dir: Path, content_hash: str, scan: Scan, step: str) -> Path:

@@ -594,8 +594,7 @@ def keep_for_the_scan_page(op: Operation, record: ScanRecord) -> None:
     cache) and the summary's feature values (the database's feature cache; the ``.mat`` round trip is exact,
     so they are the values ``texplorer features`` would compute for the stored file)."""
     ctx = context()
-    with contextlib.suppress(OSError):  # only caches: the scan's page computes what is missing
-        figures.keep(ctx.plot_dir, record.content_hash, current_figures(op))
+    ctx.figures.keep(ctx.plot_dir, record.content_hash, current_figures(op))
     scan, values = op.summary_cache.get("scan"), op.summary_cache.get("values")
     if scan is not None and values is not None and scan.scan_id == record.scan_id:
         with contextlib.suppress(DatabaseError):

@@ -454,6 +454,7 @@ def test_full_session_through_the_server(client, app):
     assert not any((app.extensions["texplorer"].photos.folder).iterdir())  # staged previews removed
     # Only the step figures drawn during the scan are kept, as the saved scan's cached figures (gui.figures)
     work = app.extensions["texplorer"].settings.work_dir
+    app.extensions["texplorer"].figures.wait(30)  # written after the save's answer
     record = database(app).record("granite-07-001")
     kept = sorted(p.relative_to(work).as_posix() for p in work.rglob("*") if p.is_file())
     assert kept and all(re.fullmatch(rf"plots/{record.content_hash}-[a-z_]+\.png", name) for name in kept)

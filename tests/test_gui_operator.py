@@ -294,3 +294,18 @@ def test_texplorer_serve_warns_about_a_missing_model(tmp_path):
     finally:
         process.kill()
         process.wait(10)
+
+
+def test_figures_kept_at_save_are_served_while_being_written(tmp_path, monkeypatch):
+    from gui import figures
+
+    gate = __import__("threading").Event()
+    written = figures.atomic_write_bytes
+    monkeypatch.setattr(figures, "atomic_write_bytes", lambda path, data: gate.wait(30) and written(path, data))
+    keeper = figures.Keeper()
+    keeper.keep(tmp_path, "abc", {"press": b"\x89PNG press"})
+    path = figures.cached_path(tmp_path, "abc", "press")
+    assert keeper.pending(path) == b"\x89PNG press" and not path.exists()
+    gate.set()
+    keeper.wait(30)
+    assert keeper.pending(path) is None and path.read_bytes() == b"\x89PNG press"
