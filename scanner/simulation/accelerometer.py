@@ -1,12 +1,17 @@
 """The simulated ADXL335 accelerometer of TU1 (0.330 V/g around 1.65 V through the DAQ's 16 bits over
-+-10 V, +-3.6 g rails): the finger and tool taps, and the unit's vibration while it slides."""
++-10 V, +-3.6 g rails): the finger and tool taps, and the unit's vibration while it slides.
+
+While sliding, the unit carries the tip's acceleration (:mod:`~scanner.simulation.contact`: texture,
+stick-slip, the finger's ridges) through the tip-surface contact resonance, plus its bearings' rolling, the
+hand's own motion and the jolt as it breaks loose. The contact resonance is a lumped model: the unit's
+effective mass on the Hertz contact stiffness, in series with the tip's own resonance.
+"""
 
 from __future__ import annotations
 
 import numpy as np
-from scipy import signal
-
-from scanner.calibration import ACCEL_V_PER_G, ACCEL_ZERO_V, accel_g
+from scipy import fft
+from scanner.preprocess import ACCEL_V_PER_G, ACCEL_ZERO_V, accel_g
 from scanner.simulation.materials import Material
 from scanner.simulation.signals import (
     DAQ_LSB_V,
@@ -17,8 +22,9 @@ from scanner.simulation.signals import (
     Rng,
     band_noise,
     gravity,
+    noise_spectrum,
     quantise,
-    resonance_sos,
+    resonance,
     tilt,
     times,
 )
@@ -70,8 +76,7 @@ def tool_tap(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
 
 ROLLING_G = 0.2
 """Broadband excitation of the unit by its rolling bearings at 130 mm/s (g, before the contact resonance)."""
-STICK_SLIP_G = 0.2
-"""Tangential stick-slip excitation per unit kinetic friction at 130 mm/s (g)."""
+ROLLING_BAND_HZ = (50.0, 3000.0)
 
 
 def onset_jolt(rng: Rng, t: np.ndarray, start_s: float) -> np.ndarray:
@@ -84,21 +89,39 @@ def onset_jolt(rng: Rng, t: np.ndarray, start_s: float) -> np.ndarray:
     amplitude = rng.uniform(0.15, 0.35)
     return amplitude * np.column_stack([pulse + 0.5 * ring, 0.3 * ring, 0.5 * pulse + 0.4 * ring])
 
-def contact_vibration(material: Material, rng: Rng, tip: Tip, path: SlidePath, normal: np.ndarray,
-                       lateral: np.ndarray) -> np.ndarray:
-    """(n, 3) g at 3000 Hz: tip accelerations and the bearings' rolling through the contact resonance.
 
-    The normal track drives z, the lateral track (scaled by the kinetic friction, plus stick-slip) drives x;
-    y sees a little of both. Computed at 44100 Hz, then resampled to the DAQ rate (anti-aliased).
+def rolling_spectrum(rng: Rng, n: int, fs: float, speed: float) -> np.ndarray:
+    """Spectrum of the bearings' rolling noise (g) at the slide's mean ``speed`` (mm/s): flat over
+    50-3000 Hz with rms ``ROLLING_G speed / 130 mm/s``."""
+    f = np.fft.rfftfreq(n, 1.0 / fs)
+    lo, hi = ROLLING_BAND_HZ
+    band = (f >= lo) & (f <= hi)
+    psd = np.where(band, (ROLLING_G * speed / 130.0) ** 2 / (hi - lo), 0.0)
+    return noise_spectrum(rng, n, fs, psd)
+
+
+def tip_response(material: Material, tip: Tip, f: np.ndarray) -> np.ndarray:
+    """The tip-surface contact resonance (:func:`contact_frequency_hz`, :func:`damping_ratio`) at ``f``: how
+    the tip's acceleration follows the acceleration the surface imposes."""
+    return resonance(f, contact_frequency_hz(material, tip), damping_ratio(material, tip)).astype(np.complex64)
+
+
+def unit_vibration(stationary: np.ndarray, timed: np.ndarray, tip: Tip, envelope: np.ndarray,
+                   n_fft: int, n_out: int) -> np.ndarray:
+    """(n_out, 3) g at the DAQ rate: the tip's vertical (z) and lateral (x) acceleration on the unit.
+
+    ``stationary`` and ``timed`` (2, bins) are tip-acceleration spectra on the audio-rate grid of ``n_fft``
+    samples; the bins up to 1500 Hz are the same signal at 3000 Hz (``n_fft`` FS_DAQ / FS_AUDIO samples),
+    band-limited exactly as the ADXL335's 1.6 kHz bandwidth and the DAQ's anti-aliasing leave it. The
+    stationary part is scaled in time by ``envelope`` (at the DAQ rate); y sees a little of both axes.
     """
-    n = path.x.size
-    contact = resonance_sos(contact_frequency_hz(material, tip), damping_ratio(material, tip), FS_AUDIO)
-    rolling = ROLLING_G * (path.v / 130.0) * band_noise(rng, n, FS_AUDIO, 50.0, 3000.0)
-    stick_slip = STICK_SLIP_G * np.sqrt(path.v / 130.0) * band_noise(rng, n, FS_AUDIO, 50.0, 3000.0)
-    seen_z = signal.sosfilt(contact, normal + rolling) * tip.gain
-    seen_x = signal.sosfilt(contact, material.friction.kinetic * (lateral + stick_slip) + rolling) * tip.gain
-    unit = np.column_stack([seen_x, 0.3 * seen_z + 0.2 * seen_x, seen_z])
-    return signal.resample_poly(unit, 10, 147, axis=0)
+    n_daq = int(round(n_fft * FS_DAQ / FS_AUDIO))
+    bins = n_daq // 2 + 1
+    rows = np.vstack([stationary[:, :bins], timed[:, :bins]])
+    seen = fft.irfft(rows, n_daq)[:, :n_out].astype(np.float64) * (n_daq / n_fft) * tip.gain
+    z = seen[0] * envelope + seen[2]
+    x = seen[1] * envelope + seen[3]
+    return np.column_stack([x, 0.3 * z + 0.2 * x, z])
 
 
 def hand_motion(rng: Rng, path: SlidePath) -> np.ndarray:

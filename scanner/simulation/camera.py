@@ -3,6 +3,8 @@ texture, with the phone's placement, lighting, focus, exposure and tone curve.""
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import cv2
 import numpy as np
 
@@ -14,11 +16,12 @@ from scanner.simulation.variability import OperatorDraw
 PHOTO_FOV_MM = {"I_disp": 60.0, "I_macro": 15.0, "I_illu": 60.0}
 """Field of view across the image width: the 4x lens shows a quarter of the normal view."""
 
-def _ramp(colors: tuple[tuple[float, float, float], ...], field: np.ndarray) -> np.ndarray:
-    """Map a field in [0, 1] piecewise linearly through the colours (0 = dominant colour) to RGB in [0, 1]."""
-    palette = np.asarray(colors, dtype=np.float32) / 255.0
+def _ramp(colors: np.ndarray, field: np.ndarray) -> np.ndarray:
+    """Map a field in [0, 1] piecewise linearly through the colours (rows of RGB in [0, 1], dominant first)."""
+    palette = np.asarray(colors, dtype=np.float32)
     position = np.clip(field, 0.0, 1.0).astype(np.float32) * (len(palette) - 1)
-    rgb = np.broadcast_to(palette[0], (*field.shape, 3)).copy()
+    rgb = np.empty((*field.shape, 3), np.float32)
+    rgb[...] = palette[0]
     for index, step in enumerate(np.diff(palette, axis=0)):
         rgb += np.clip(position - index, 0.0, 1.0)[..., None] * step
     return rgb
@@ -33,10 +36,19 @@ def _place(image: np.ndarray, angle_deg: float, shift: np.ndarray, out: tuple[in
     return cv2.warpAffine(image, matrix, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
 
 
-def _photo(material: Material, rng: Rng, operator: OperatorDraw, kind: str,
-           size: tuple[int, int]) -> np.ndarray:
-    """One RGB uint8 photo: texture, rotation, zoom and position, relief shading, lighting, white balance,
-    vignetting, focus, exposure control, tone curve, sensor noise."""
+@lru_cache(maxsize=8)
+def _frame(h: int, w: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Image-plane coordinates in [-1, 1] (columns, rows) and the radius over the half-diagonal, read-only."""
+    cols, rows = np.meshgrid(np.linspace(-1, 1, w, dtype=np.float32), np.linspace(-1, 1, h, dtype=np.float32))
+    radius = np.hypot(cols, rows) / np.float32(np.sqrt(2))
+    for array in (cols, rows, radius):
+        array.flags.writeable = False
+    return cols, rows, radius
+
+
+def _view(material: Material, rng: Rng, operator: OperatorDraw, kind: str, size: tuple[int, int]) -> np.ndarray:
+    """(h, w, 2) colour field and height of the surface as the camera frames it: texture, rotation, zoom,
+    position."""
     look = material.appearance
     h, w = size
     ppm = w / PHOTO_FOV_MM[kind] * operator.camera_zoom
@@ -44,39 +56,53 @@ def _photo(material: Material, rng: Rng, operator: OperatorDraw, kind: str,
     field, height = TEXTURE_FUNCTIONS[look.texture](look, rng, canvas, ppm)
     layers = np.dstack([field, height]).astype(np.float32)
     angle = look.orientation_deg + operator.photo_rotation_deg + rng.normal(0.0, 1.0)
-    placed = _place(layers, angle, rng.uniform(-0.05, 0.05, 2) * w, (h, w))
-    rgb = _ramp(look.colors, placed[..., 0])
+    return _place(layers, angle, rng.uniform(-0.05, 0.05, 2) * w, (h, w))
+
+
+def _photo(material: Material, rng: Rng, operator: OperatorDraw, kind: str, placed: np.ndarray) -> np.ndarray:
+    """One RGB uint8 photo of a framed view: relief shading, lighting, white balance, vignetting, focus,
+    exposure control, tone curve, sensor noise."""
+    look = material.appearance
+    h, w = placed.shape[:2]
     flash = kind == "I_illu"
+    palette = np.asarray(look.colors, np.float32) / 255.0 * np.asarray(operator.white_balance, np.float32)
+    rgb = _ramp(palette, placed[..., 0])
     relief = look.relief * (0.5 if flash else 1.0) * (1.5 if kind == "I_macro" else 1.0)
-    rgb = rgb * _shading(placed[..., 1], relief, rng.uniform(-2.6, -2.0))[..., None]
-    cols, rows = np.meshgrid(np.linspace(-1, 1, w, dtype=np.float32), np.linspace(-1, 1, h, dtype=np.float32))
-    radius = np.hypot(cols, rows) / np.sqrt(2)
-    vignetting = 1 - (0.45 if kind == "I_macro" else 0.3) * radius**3
-    light = operator.light_gain * rng.normal(1.0, 0.02) * vignetting
+    cols, rows, radius = _frame(h, w)
+    gain = _shading(placed[..., 1], relief, rng.uniform(-2.6, -2.0))
+    vignetting = 1 - np.float32(0.45 if kind == "I_macro" else 0.3) * radius**3
     side = rng.uniform(0, 2 * np.pi)
-    light = light * (1 + 0.06 * (cols * np.cos(side) + rows * np.sin(side)))
-    rgb = rgb * light[..., None] * np.asarray(operator.white_balance, np.float32)
+    light = np.float32(operator.light_gain * rng.normal(1.0, 0.02) * (1.3 if flash else 1.0))
+    gain = gain * vignetting * (1 + np.float32(0.06 * np.cos(side)) * cols + np.float32(0.06 * np.sin(side)) * rows)
+    rgb *= (gain * light)[..., None]
     if flash:
-        rgb = rgb * 1.3 + _highlight(look.gloss, rng, cols, rows)[..., None]
+        rgb += _highlight(look.gloss, rng, cols, rows)[..., None]
     focus = rng.uniform(0.6, 1.4) if kind == "I_macro" else rng.uniform(0.0, 0.8)
     if focus * w / 512 > 0.1:
         rgb = cv2.GaussianBlur(rgb, (0, 0), focus * w / 512)
-    counts = _tone(_auto_exposure(rgb)) * 255 + rng.normal(0.0, 2.0, rgb.shape).astype(np.float32)
-    return np.clip(np.round(counts), 0, 255).astype(np.uint8)
+    counts = _tone(_auto_exposure(rgb))
+    counts *= 255
+    counts += rng.standard_normal(counts.shape, dtype=np.float32) * np.float32(2.0)
+    np.rint(counts, out=counts)
+    np.clip(counts, 0, 255, out=counts)
+    return counts.astype(np.uint8)
 
 
 def _auto_exposure(rgb: np.ndarray, target: float = 0.72) -> np.ndarray:
     """The phone's exposure control: a frame brighter than ``target`` on average is darkened halfway (in
     log terms) toward it, so white surfaces and flash shots stay below white but remain brighter."""
     mean = float(rgb.mean())
-    return rgb * np.float32(np.sqrt(target / mean)) if mean > target else rgb
+    if mean > target:
+        rgb *= np.float32(np.sqrt(target / mean))
+    return rgb
 
 
 def _tone(rgb: np.ndarray, knee: float = 0.8) -> np.ndarray:
     """The phone's tone curve: linear up to ``knee``, then a soft shoulder that never quite reaches white,
-    so a bright or flash-lit surface keeps some texture instead of clipping flat."""
-    shoulder = knee + (1 - knee) * np.tanh((rgb - knee) / (1 - knee))
-    return np.where(rgb < knee, rgb, shoulder)
+    so a bright or flash-lit surface keeps some texture instead of clipping flat (in place)."""
+    bright = rgb >= knee
+    rgb[bright] = knee + (1 - knee) * np.tanh((rgb[bright] - knee) / (1 - knee))
+    return rgb
 
 
 def _shading(height: np.ndarray, relief: float, light_angle: float) -> np.ndarray:
@@ -84,19 +110,28 @@ def _shading(height: np.ndarray, relief: float, light_angle: float) -> np.ndarra
     if relief == 0.0 or not np.any(height):
         return np.ones_like(height)
     gy, gx = np.gradient(cv2.GaussianBlur(height, (0, 0), 1.0))
-    slope = gx * np.cos(light_angle) + gy * np.sin(light_angle)
+    slope = gx * np.float32(np.cos(light_angle)) + gy * np.float32(np.sin(light_angle))
     spread = max(float(slope.std()), 1e-6)
-    return np.clip(1 + 0.35 * relief * slope / spread, 0.3, 1.7)
+    return np.clip(1 + np.float32(0.35 * relief / spread) * slope, 0.3, 1.7)
 
 
 def _highlight(gloss: float, rng: Rng, cols: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """The flash's specular spot near the image centre, as strong as the surface is glossy."""
-    centre = rng.normal(0.0, 0.08, 2)
-    return 0.45 * gloss * np.exp(-((cols - centre[0]) ** 2 + (rows - centre[1]) ** 2) / (2 * 0.15**2))
+    centre = rng.normal(0.0, 0.08, 2).astype(np.float32)
+    return np.float32(0.45 * gloss) * np.exp(-((cols - centre[0]) ** 2 + (rows - centre[1]) ** 2) / (2 * 0.15**2))
 
 
 def photos(material: Material, rng: Rng, operator: OperatorDraw,
            image_size: tuple[int, int] = (512, 512)) -> dict[str, np.ndarray]:
     """TU3 photos ``I_disp``, ``I_macro`` (4x lens: a quarter of the field, coarser texture, softer) and
-    ``I_illu`` (flash: brighter, specular highlight, flatter relief), RGB uint8 of ``image_size`` (h, w)."""
-    return {kind: _photo(material, rng, operator, kind, image_size) for kind in PHOTO_FOV_MM}
+    ``I_illu`` (flash: brighter, specular highlight, flatter relief), RGB uint8 of ``image_size`` (h, w).
+
+    ``I_disp`` and ``I_illu`` are taken from the same position, the flash switched on for the second, so
+    they frame the same view of the surface.
+    """
+    size = (int(image_size[0]), int(image_size[1]))
+    normal = _view(material, rng, operator, "I_disp", size)
+    macro = _view(material, rng, operator, "I_macro", size)
+    return {"I_disp": _photo(material, rng, operator, "I_disp", normal),
+            "I_macro": _photo(material, rng, operator, "I_macro", macro),
+            "I_illu": _photo(material, rng, operator, "I_illu", normal)}

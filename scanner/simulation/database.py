@@ -6,14 +6,20 @@ from __future__ import annotations
 import concurrent.futures
 import os
 import sys
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from tqdm import tqdm
 
-from scanner.scan import Scan
-from scanner.simulation.scans import scan_jobs, simulate_one
-from scanner.storage.database import Database
+from scanner.scan import ScanMeta
+from scanner.simulation.scans import _Job, scan_jobs, simulate_one
+from scanner.storage.database import STAGING_PREFIX, Database, file_roles
+from scanner.storage.files import owned_folder, temp_path_for
+from scanner.storage.matfile import save_scan
+
+Staged = tuple[ScanMeta, dict[str, Path]]
+BATCH = 8
+"""Scans catalogued per transaction: an interrupted demo loses at most this many finished scans."""
 
 
 def synthetic_database(root: str | Path, materials: Iterable[str] | None = None, scans_per_material: int = 5,
@@ -22,9 +28,12 @@ def synthetic_database(root: str | Path, materials: Iterable[str] | None = None,
                        samples_per_material: int = 1) -> Database:
     """Simulate scans (see :func:`synthetic_scans`) into ``scanner.storage.database.Database(root)``; returns it.
 
-    Scans are simulated in ``workers`` processes (default: the number of cores) and added by this process
-    in a fixed order. Scans whose id is already in the database are kept, not simulated again, so an
-    interrupted demo resumes where it stopped (delete the folder to start over with another seed).
+    Scans are simulated and written (``.mat`` and photos, the costly encoding) in ``workers`` processes
+    (default: the number of cores) into a staging folder on the database's file system, then catalogued by
+    this process in a fixed order, :data:`BATCH` at a time (:meth:`~scanner.storage.database.Database.add_written`),
+    so the files and the catalog are exactly those :meth:`~scanner.storage.database.Database.add` writes.
+    Scans whose id is already in the database are kept, not simulated again, so an interrupted demo resumes
+    where it stopped (delete the folder to start over with another seed).
     """
     all_jobs = scan_jobs(materials, samples_per_material, scans_per_material, seed, image_size, fold_skip_probability)
     database = Database(root)
@@ -33,15 +42,32 @@ def synthetic_database(root: str | Path, materials: Iterable[str] | None = None,
     bar = tqdm(total=len(jobs), desc="simulating scans", unit="scan", file=sys.stderr,
                disable=None if progress else True, leave=False)
     workers = max(1, min(workers or os.cpu_count() or 1, len(jobs) or 1))
-    if workers == 1:
-        scans: Iterable[Scan] = map(simulate_one, jobs)
-        for scan in scans:
-            database.add(scan)
+    with owned_folder(temp_path_for(database.root / STAGING_PREFIX.lstrip("."))) as staging:
+        batch: list[Staged] = []
+        for staged in _staged_scans(jobs, staging, workers):
+            batch.append(staged)
             bar.update(1)
-    else:
-        with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
-            for scan in pool.map(simulate_one, jobs):
-                database.add(scan)
-                bar.update(1)
+            if len(batch) == BATCH:
+                database.add_written(batch)
+                batch = []
+        if batch:
+            database.add_written(batch)
     bar.close()
     return database
+
+
+def _staged_scans(jobs: list[_Job], staging: Path, workers: int) -> Iterator[Staged]:
+    """Each job's scan written into ``staging``, in job order."""
+    if workers == 1:
+        yield from (simulate_into(job, staging) for job in jobs)
+        return
+    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+        yield from pool.map(simulate_into, jobs, [staging] * len(jobs))
+
+
+def simulate_into(job: _Job, folder: Path) -> Staged:
+    """Simulate one job's scan and write its files into ``folder``: its meta and its files by role."""
+    scan = simulate_one(job)
+    mat_path = folder / f"{scan.scan_id}.mat"
+    save_scan(scan, mat_path)
+    return scan.meta, {role: path for path, role in file_roles(mat_path, scan)}

@@ -35,7 +35,7 @@ def fsr(force_n: np.ndarray, rng: Rng) -> np.ndarray:
     return fsr_newtons(quantise(volts, DAQ_LSB_V))
 
 FINGER_CONTACT = Tip("finger-fsr", radius_mm=6.0, min_contact_mm=1.0, frequency_hz=180.0, damping=0.25,
-                     gain=0.0, tap_g=0.0, audio_gain=0.0)
+                     gain=0.0, tap_g=0.0, mass_g=3.0, modulus_mpa=3500.0)
 """The TU2 friction contact (finger on the FSR with a PLA hemisphere): only its geometry matters."""
 
 def friction_slide(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:

@@ -1,35 +1,155 @@
-"""The simulated lavalier microphone of TU1: the tip's contact vibration through a radiation filter, the
-bearings' rolling noise and room noise, 16-bit audio at 44100 Hz."""
+"""The simulated lavalier microphone of TU1: the sound of one slide, from the same excitation the
+accelerometer sees (:mod:`~scanner.simulation.contact`).
+
+The contact force ``F = m_tip a_tip`` (the tip's acceleration through the contact resonance, times its
+effective mass) drives two radiators, and the room adds its own:
+
+- **The sample**, a plate of the piece's thickness ``h = V / A`` (``A`` = 100 cm^2 face; the piece's volume
+  varies between pieces, :func:`~scanner.simulation.variability.sample_of`) and bending stiffness
+  ``D = E h^3 / 12 (1 - nu^2)``. Its point mobility is the infinite-plate value ``1 / (8 sqrt(D rho h))``
+  plus its bending modes ``f_mn = (pi / 2) sqrt(D / rho h) (m^2 + n^2) / L^2`` (simply supported square
+  plate), each damped by the material's loss factor plus the table it rests on (Cremer, Heckl and
+  Petersson 2005, *Structure-Borne Sound*, ch. 5; modal sum, ch. 7). It radiates
+  ``p = rho0 c sigma(f) v`` with the radiation efficiency 1 above the coincidence frequency
+  ``f_c = c0^2 / (2 pi) sqrt(rho h / D)`` and ``(P c0 / pi^2 S f_c) sqrt(f / f_c)`` below it, the edge
+  modes of a finite plate (Fahy and Gardonio 2007, *Sound and Structural Vibration*, section 2.8). Metals
+  and glass ring at their modes, wood and stone plates sound dull, foams and fabrics barely radiate.
+- **The unit** (TU1's housing, which carries the clip-on microphone): its acceleration, the accelerometer's
+  signal at full band, radiated as a piston of 30 mm radius, ``sigma = (ka)^2 / (1 + (ka)^2)``.
+- **The room**: pink background noise of 28-36 dB SPL and a reverberation tail of ``T60`` 0.25-0.6 s,
+  drawn per scan.
+
+The lavalier's band is 10-7500 Hz (paper section III-B1b), full scale 20 Pa (120 dB SPL), 16-bit samples.
+Everything linear is computed in the frequency domain on one padded grid (no wrap-around of the ringing).
+"""
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
-from scipy import signal
+from scipy import fft
 
-from scanner.simulation.signals import FS_AUDIO, Rng, band_noise, quantise
-from scanner.simulation.surface import SlidePath, Tip
+from scanner.simulation.contact import Excitation
+from scanner.simulation.materials import Material
+from scanner.simulation.signals import FS_AUDIO, Rng, noise_spectrum, quantise
+from scanner.simulation.surface import G_MM_S2, Tip
+
+RHO_C = 415.0
+"""Characteristic impedance of air at 20 degC (Pa s/m)."""
+C0 = 343.0
+"""Speed of sound in air (m/s)."""
+FACE_CM2 = 100.0
+"""The sample's face under TU1 (10 cm x 10 cm); its thickness is the piece's volume over this face."""
+SUPPORT_LOSS = 0.01
+"""Loss factor the table adds to every plate mode (interpretation: a sample lying loosely on a table)."""
+HOUSING_RADIUS_M = 0.03
+FULL_SCALE_PA = 20.0
+MIC_BAND_HZ = (10.0, 7500.0)
+MODE_ORDERS = 5
+ROOM_DB_SPL = (28.0, 36.0)
+"""Background noise of a quiet laboratory room, drawn per scan (interpretation)."""
 
 
-def microphone(rng: Rng, tip_g: np.ndarray, path: SlidePath, tip: Tip) -> np.ndarray:
-    """Microphone signal: the tip's contact vibration through a radiation filter, room noise, 16 bits.
+def plate_mobility(material: Material, f: np.ndarray, position: float) -> np.ndarray:
+    """Point mobility (m/(N s)) of the sample plate at the frequencies ``f``, driven at the relative
+    cross position ``position`` (0..1) of the slide; the slide runs along the other axis, so each mode's
+    shape averages to 1/2 along it."""
+    comp = material.compliance
+    h = material.sample_volume_cm3 / FACE_CM2 * 1e-2  # m
+    side = np.sqrt(FACE_CM2) * 1e-2
+    e_pa, rho = comp.elastic_modulus_mpa * 1e6, material.density_g_cm3 * 1e3
+    stiffness = e_pa * h**3 / (12 * (1 - 0.3**2))
+    mass = rho * h
+    w = 2 * np.pi * f
+    mobility = np.full(f.size, 1 / (8 * np.sqrt(stiffness * mass)), dtype=complex)
+    eta = comp.loss_factor + SUPPORT_LOSS
+    base = np.pi / 2 * np.sqrt(stiffness / mass) / side**2
+    orders = np.arange(1, MODE_ORDERS + 1)
+    for m in orders:
+        for n in orders:
+            f_mn = base * (m * m + n * n)
+            if f_mn > MIC_BAND_HZ[1]:
+                continue
+            w_mn = 2 * np.pi * f_mn
+            shape = 4 * 0.5 * np.sin(n * np.pi * position) ** 2
+            mobility += shape / (mass * side**2) * 1j * w / (w_mn**2 - w**2 + 1j * eta * w_mn * w)
+    return mobility
 
-    Radiation from the small contact region rises as f^2 below ~1 kHz (second-order high-pass); the
-    lavalier's band is 10-7500 Hz (paper III-B1b). The bearings' rolling noise grows with speed.
+
+def radiation_efficiency(material: Material, f: np.ndarray) -> np.ndarray:
+    """Radiation efficiency of the sample plate: 1 above coincidence, edge modes below it."""
+    comp = material.compliance
+    h = material.sample_volume_cm3 / FACE_CM2 * 1e-2
+    side = np.sqrt(FACE_CM2) * 1e-2
+    stiffness = comp.elastic_modulus_mpa * 1e6 * h**3 / (12 * (1 - 0.3**2))
+    coincidence = C0**2 / (2 * np.pi) * np.sqrt(material.density_g_cm3 * 1e3 * h / stiffness)
+    edge = 4 * side * C0 / (np.pi**2 * side**2 * coincidence) * np.sqrt(np.maximum(f, 1.0) / coincidence)
+    return np.where(f >= coincidence, 1.0, np.minimum(edge, 1.0))
+
+
+def mic_response(f: np.ndarray) -> np.ndarray:
+    """Magnitude of the lavalier's 10-7500 Hz band (second-order Butterworth edges), zero phase."""
+    lo, hi = MIC_BAND_HZ
+    safe = np.maximum(f, 1e-3)
+    return 1 / np.sqrt((1 + (lo / safe) ** 4) * (1 + (f / hi) ** 4))
+
+
+def room_spectra(rng: Rng, n: int, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The room's pink background noise (Pa, spectrum) and its reverberation response (``1 + tail``)."""
+    level_pa = 2e-5 * 10 ** (rng.uniform(*ROOM_DB_SPL) / 20)
+    pink = 1 / np.maximum(f, 20.0)
+    pink *= level_pa**2 / np.sum(pink[(f >= 20) & (f <= 20000)] * (f[1] - f[0]))
+    noise = noise_spectrum(rng, n, FS_AUDIO, pink)
+    t60 = rng.uniform(0.25, 0.6)
+    length = int(min(t60, 0.45) * FS_AUDIO)
+    t = np.arange(length) / FS_AUDIO
+    tail = rng.standard_normal(length) * np.exp(-6.9 * t / t60) * (t > 0.003)
+    tail *= 10 ** (rng.uniform(-18.0, -10.0) / 20) / np.sqrt(np.sum(tail**2))  # direct-to-reverberant
+    return noise, 1 + fft.rfft(tail.astype(np.float32), n)
+
+
+def sound(material: Material, rng: Rng, tip: Tip, exc: Excitation, tip_spectra: np.ndarray,
+          timed_spectra: np.ndarray, n_out: int) -> np.ndarray:
+    """Microphone samples (full scale) of one slide.
+
+    ``tip_spectra`` (2, bins): the stationary vertical and lateral tip acceleration (g) through the contact
+    resonance; ``timed_spectra`` the same of the timed excitation; both on the padded grid of ``n`` samples.
+    The plate's mobility is computed every :data:`COARSE` bins and interpolated (its narrowest modes are
+    several bins wide).
     """
-    n = tip_g.size
-    radiation = signal.butter(2, 1000.0, btype="highpass", fs=FS_AUDIO, output="sos")
-    microphone = signal.butter(2, [10.0, 7500.0], btype="bandpass", fs=FS_AUDIO, output="sos")
-    radiated = signal.sosfilt(radiation, tip_g) * tip.audio_gain
-    rolling = 0.001 * (path.v / 130.0) * band_noise(rng, n, FS_AUDIO, 200.0, 6000.0)
-    room = rng.uniform(0.0002, 0.001) * _pink(rng, n)
-    audio = signal.sosfilt(microphone, radiated + rolling + room)
+    n = 2 * (tip_spectra.shape[1] - 1)
+    f = _frequencies(n)
+    coarse = f[::COARSE]
+    mobility = plate_mobility(material, coarse, rng.uniform(0.2, 0.8)) * radiation_efficiency(material, coarse)
+    plate = RHO_C * tip.mass_g * 1e-3 * (np.interp(f, coarse, mobility.real) + 1j * np.interp(f, coarse, mobility.imag))
+    w = np.maximum(2 * np.pi * f, 1e-3)
+    ka = w * (HOUSING_RADIUS_M / C0)
+    housing = (RHO_C * tip.gain) * ka**2 / (1 + ka**2) / (1j * w)
+    noise, reverb = room_spectra(rng, n, f)
+    to_pa = (G_MM_S2 * 1e-3 * rng.lognormal(0.0, 0.1) / FULL_SCALE_PA) * _mic(n) * reverb  # g -> m/s^2 -> FS
+    vertical = ((plate + housing) * to_pa).astype(np.complex64)
+    lateral = ((0.3 * plate + housing) * to_pa).astype(np.complex64)
+    pressure = vertical * np.vstack([tip_spectra[0], timed_spectra[0]])
+    pressure += lateral * np.vstack([tip_spectra[1], timed_spectra[1]])
+    pressure[1] += noise * (_mic(n) / FULL_SCALE_PA)
+    heard = fft.irfft(pressure, n)[:, :n_out]
+    audio = heard[0] * exc.envelope + heard[1]
     return quantise(np.clip(audio, -1.0, 1.0 - 2.0**-15), 2.0**-15)
 
 
-def _pink(rng: Rng, n: int) -> np.ndarray:
-    """Unit-rms 1/f noise (room noise)."""
-    spectrum = rng.standard_normal(n // 2 + 1) + 1j * rng.standard_normal(n // 2 + 1)
-    f = np.fft.rfftfreq(n, 1.0 / FS_AUDIO)
-    spectrum /= np.sqrt(np.maximum(f, 20.0))
-    x = np.fft.irfft(spectrum, n)
-    return x / np.sqrt(np.mean(x**2))
+COARSE = 8
+
+
+@lru_cache(maxsize=4)
+def _frequencies(n: int) -> np.ndarray:
+    f = fft.rfftfreq(n, 1.0 / FS_AUDIO)
+    f.flags.writeable = False
+    return f
+
+
+@lru_cache(maxsize=4)
+def _mic(n: int) -> np.ndarray:
+    response = mic_response(_frequencies(n)).astype(np.float32)
+    response.flags.writeable = False
+    return response

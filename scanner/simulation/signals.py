@@ -44,6 +44,23 @@ def band_noise(rng: Rng, n: int, fs: float, lo: float, hi: float) -> np.ndarray:
     return x / rms if rms > 0 else x
 
 
+def noise_spectrum(rng: Rng, n: int, fs: float, psd: np.ndarray) -> np.ndarray:
+    """Spectrum (``n//2+1`` bins, for ``irfft(., n)``) of Gaussian noise with the one-sided PSD ``psd``.
+
+    Each bin is ``sqrt(psd n fs / 4) (a + i b)`` with ``a, b`` standard normal, so the signal's variance is
+    ``sum(psd) fs / n``, the PSD integrated over the bins.
+    """
+    draws = rng.standard_normal((2, n // 2 + 1), dtype=np.float32)
+    scale = np.sqrt(np.asarray(psd, np.float32) * np.float32(n * fs / 4))
+    return scale * draws[0] + 1j * (scale * draws[1])
+
+
+def resonance(f: np.ndarray, f0: float, zeta: float) -> np.ndarray:
+    """Frequency response of ``w0^2 / (s^2 + 2 zeta w0 s + w0^2)`` (unit DC gain) at the frequencies ``f``."""
+    r = f / f0
+    return 1.0 / (1.0 - r * r + 2j * zeta * r)
+
+
 def resonance_sos(f0: float, zeta: float, fs: float) -> np.ndarray:
     """Second-order low-pass ``w0^2 / (s^2 + 2 zeta w0 s + w0^2)`` (unit DC gain), bilinear, pre-warped."""
     f0 = min(f0, 0.45 * fs)

@@ -1,41 +1,69 @@
-"""TU1 slides: the accelerometer, the microphone and the IR sensor along one path."""
+"""TU1 slides: the accelerometer, the microphone and the IR sensor along one path, from one excitation.
+
+The path, the macro-profile and the micro-profile's spectrum are drawn once per slide
+(:mod:`~scanner.simulation.contact`); the tip's acceleration through the contact resonance is what the
+accelerometer sees (:func:`~scanner.simulation.accelerometer.unit_vibration`) and, times the tip's mass,
+the force whose sound the microphone hears (:func:`~scanner.simulation.microphone.sound`). Linear filtering
+happens in the frequency domain on one grid padded by ``PAD_S``, so that ringing never wraps around into
+the rest before the slide.
+"""
 
 from __future__ import annotations
 
 import numpy as np
+from scipy import fft
 
-from scanner.simulation.accelerometer import adxl335, contact_vibration, hand_motion, onset_jolt
+from scanner.simulation.accelerometer import (
+    adxl335,
+    hand_motion,
+    onset_jolt,
+    rolling_spectrum,
+    tip_response,
+    unit_vibration,
+)
+from scanner.simulation.contact import excitation
 from scanner.simulation.materials import Material
-from scanner.simulation.microphone import microphone
+from scanner.simulation.microphone import sound
 from scanner.simulation.reflectance import reflectance
 from scanner.simulation.signals import FS_AUDIO, FS_DAQ, STEP_S, Arrays, Rng, gravity, tilt, times
 from scanner.simulation.surface import FINGER, MACRO_DX_MM, TOOL, Tip, draw_motion, macro_profile, slide_path, surface
 from scanner.simulation.variability import OperatorDraw
 
+PAD_S = 0.5
+"""Zero padding of the frequency-domain grid: longer than any ringing the slide excites."""
 
-def _slide(material: Material, rng: Rng, operator: OperatorDraw, tip: Tip,
-           speed: float, start_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+
+def _slide(material: Material, rng: Rng, operator: OperatorDraw, tip: Tip, speed: float, start_s: float,
+           normal_n: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Acceleration (n, 3) g at 3000 Hz, audio at 44100 Hz and IR volts at 3000 Hz of one TU1 slide."""
     motion = draw_motion(rng)
     fast = slide_path(STEP_S, FS_AUDIO, start_s, speed, motion)
     slow = slide_path(STEP_S, FS_DAQ, start_s, speed, motion)
+    n_fft = fast.x.size + int(PAD_S * FS_AUDIO)
     length = float(fast.x[-1]) + 1.0
     macro = macro_profile(material.roughness, rng, int(length / MACRO_DX_MM) + 8, MACRO_DX_MM)
-    normal = surface(material, rng, tip, length, fast.x.size, macro).acceleration(fast)
-    lateral = surface(material, rng, tip, length, fast.x.size, macro).acceleration(fast)
-    unit = (contact_vibration(material, rng, tip, fast, normal, lateral) + hand_motion(rng, slow)
+    exc = excitation(material, rng, tip, fast, FS_AUDIO, normal_n, surface(material, tip, macro), n_fft)
+    f = fft.rfftfreq(n_fft, 1.0 / FS_AUDIO).astype(np.float32)
+    response = tip_response(material, tip, f)
+    stationary = response * (exc.stationary + rolling_spectrum(rng, n_fft, FS_AUDIO, exc.mean_speed))
+    timed = response * fft.rfft(exc.timed.astype(np.float32), n_fft)
+    envelope = (slow.v / exc.mean_speed) ** 2
+    unit = (unit_vibration(stationary, timed, tip, envelope, n_fft, slow.x.size) + hand_motion(rng, slow)
             + onset_jolt(rng, times(STEP_S, FS_DAQ), start_s))
     accel = unit @ tilt(*operator.tilt_deg).T + gravity(unit.shape[0], operator.tilt_deg)
-    return adxl335(accel, rng), microphone(rng, normal, fast, tip), reflectance(material, rng, slow.x, macro)
+    audio = sound(material, rng, tip, exc, stationary, timed, fast.x.size)
+    return adxl335(accel, rng), audio, reflectance(material, rng, slow.x, macro)
+
 
 def finger_slide(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
-    """TU1 finger slide: ``v_fs``, ``a_fs``, ``r_fs`` (docs/operator.md#procedure step 2)."""
-    speed, start = operator.finger_speed_mm_s, operator.finger_slide_start_s
-    v, a, r = _slide(material, rng, operator, FINGER, speed, start)
+    """TU1 finger slide: ``v_fs``, ``a_fs``, ``r_fs`` (SPEC 4 step 2)."""
+    v, a, r = _slide(material, rng, operator, FINGER, operator.finger_speed_mm_s, operator.finger_slide_start_s,
+                     operator.finger_force_n)
     return {"v_fs": v, "a_fs": a, "r_fs": r}
 
 
 def tool_slide(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
-    """TU1 tool slide: ``v_ts``, ``a_ts``, ``r_ts`` (docs/operator.md#procedure step 4)."""
-    v, a, r = _slide(material, rng, operator, TOOL, operator.tool_speed_mm_s, operator.tool_slide_start_s)
+    """TU1 tool slide: ``v_ts``, ``a_ts``, ``r_ts`` (SPEC 4 step 4)."""
+    v, a, r = _slide(material, rng, operator, TOOL, operator.tool_speed_mm_s, operator.tool_slide_start_s,
+                     operator.tool_force_n)
     return {"v_ts": v, "a_ts": a, "r_ts": r}

@@ -1,9 +1,9 @@
 """Tips, contact mechanics and the surface a tip follows along a slide path.
 
 Vibration is modelled as the tip following a surface height profile ``z(x)`` along the path ``x(t)``: its
-acceleration ``v^2 z''(x) + v' z'(x)`` passes the tip-surface contact resonance (the tap frequency) to the
-accelerometer and a radiation filter to the microphone, so the spectrum scales with the slide speed; the IR
-sensor sees the same macro profile.
+acceleration ``v^2 z''(x) + v' z'(x)`` (:mod:`~scanner.simulation.contact`) passes the tip-surface contact
+resonance (the tap frequency) to the accelerometer and drives the sound the microphone hears, so the
+spectrum scales with the slide speed; the IR sensor and the friction slide see the same macro-profile.
 """
 
 from __future__ import annotations
@@ -34,14 +34,22 @@ class Tip:
     """Share of the tip's vertical acceleration reaching the accelerometer."""
     tap_g: float
     """Peak tap acceleration at a 500 Hz contact resonance and unit tap strength (g)."""
-    audio_gain: float
-    """Microphone full scale per g of radiated contact acceleration."""
+    mass_g: float
+    """Effective mass moving with the contact: the force on the surface is this mass times the tip's
+    acceleration."""
+    modulus_mpa: float
+    """Young's modulus of the tip (steel; the finger pad's effective modulus) for the Hertz contact."""
+    ridge_mm: float = 0.0
+    """Spacing of the skin's ridges (0: a rigid tip). The skin conforms ridge by ridge, so a finger averages
+    the texture over half a ridge rather than over its whole Hertz patch."""
 
 
 TOOL = Tip("tool", radius_mm=3.0, min_contact_mm=0.02, frequency_hz=1400.0, damping=0.03, gain=0.03,
-           tap_g=1.2, audio_gain=0.004)
+           tap_g=1.2, mass_g=10.0, modulus_mpa=200000.0)
 FINGER = Tip("finger", radius_mm=6.0, min_contact_mm=0.3, frequency_hz=250.0, damping=0.25, gain=0.1,
-             tap_g=0.4, audio_gain=0.002)
+             tap_g=0.4, mass_g=3.0, modulus_mpa=0.2, ridge_mm=0.45)
+"""The steel tool tip (6 mm ball) and the bare finger (interpretation: an effective pad modulus of 0.2 MPa,
+the order of magnitude of fingertip indentation stiffness, and 3 g of pad moving with the contact)."""
 
 
 def contact_frequency_hz(material: Material, tip: Tip) -> float:
@@ -55,36 +63,11 @@ def contact_frequency_hz(material: Material, tip: Tip) -> float:
     return float(1.0 / np.sqrt(1.0 / f_mat**2 + 1.0 / tip.frequency_hz**2))
 
 
-def _contact_width_mm(material: Material, tip: Tip) -> float:
-    """Hertz contact radius ``(3 F R / 4 E)^(1/3)`` at 1 N, not below the tip's minimum, not above R."""
-    e_pa = material.compliance.elastic_modulus_mpa * 1e6
-    hertz = 1e3 * (3 * 1.0 * tip.radius_mm * 1e-3 / (4 * e_pa)) ** (1 / 3)
-    return float(np.clip(hertz, tip.min_contact_mm, tip.radius_mm))
-
-
 def damping_ratio(material: Material, tip: Tip) -> float:
     return material.compliance.loss_factor / 2 + tip.damping
 
 
 MACRO_DX_MM = 0.05
-
-
-def _micro_derivatives(rough: Roughness, rng: Rng, n: int, dx: float,
-                       contact_mm: float) -> tuple[np.ndarray, np.ndarray]:
-    """Slope and curvature (1/mm) of a self-affine micro-profile on a grid of ``n`` points ``dx`` mm apart.
-
-    Height spectrum ``S(k) = (1 + (k/k_c)^2)^(-exponent/2)`` scaled to an rms of ``micro_um``, seen through
-    the contact as ``1 / (1 + (pi k a)^2)`` with ``a = contact_mm``: wavelengths shorter than the contact
-    are averaged out, but asperity impacts keep a power-law tail.
-    """
-    k = np.fft.rfftfreq(n, dx)
-    amplitude = (1.0 + (k / rough.cutoff_per_mm) ** 2) ** (-rough.exponent / 4)
-    amplitude[0] = 0.0
-    spectrum = amplitude * (rng.standard_normal(k.size) + 1j * rng.standard_normal(k.size))
-    rms = np.sqrt(2 * np.sum(np.abs(spectrum) ** 2)) / n
-    spectrum *= (rough.micro_um * 1e-3 / rms if rms > 0 else 0.0) / (1 + (np.pi * k * contact_mm) ** 2)
-    ik = 2j * np.pi * k
-    return np.fft.irfft(ik * spectrum, n), np.fft.irfft(ik**2 * spectrum, n)
 
 
 def _feature_train(rough: Roughness, rng: Rng, length_mm: float) -> tuple[np.ndarray, ...]:
@@ -152,35 +135,23 @@ def draw_motion(rng: Rng) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Surface:
-    """Slope and curvature of the tip's path on two grids: fine micro-profile and coarse macro-profile."""
+    """Slope and curvature of the tip's path over the macro-profile, on its grid ``MACRO_DX_MM`` apart."""
 
-    dx: float
-    micro_slope: np.ndarray
-    micro_curvature: np.ndarray
-    macro_slope: np.ndarray
-    macro_curvature: np.ndarray
+    slope: np.ndarray
+    curvature: np.ndarray
 
     def acceleration(self, path: SlidePath) -> np.ndarray:
         """Vertical tip acceleration ``v^2 z''(x) + v' z'(x)`` in g."""
-        fine = path.x / self.dx
         coarse = path.x / MACRO_DX_MM
-        slope = lookup(self.micro_slope, fine) + lookup(self.macro_slope, coarse)
-        curvature = lookup(self.micro_curvature, fine) + lookup(self.macro_curvature, coarse)
-        return (path.v**2 * curvature + path.dv * slope) / G_MM_S2
+        return (path.v**2 * lookup(self.curvature, coarse) + path.dv * lookup(self.slope, coarse)) / G_MM_S2
 
 
 def lookup(grid: np.ndarray, position: np.ndarray) -> np.ndarray:
     return np.interp(position, np.arange(grid.size), grid)
 
 
-def surface(material: Material, rng: Rng, tip: Tip, length_mm: float,
-             n_fine: int, macro: np.ndarray | None = None) -> Surface:
-    """The surface the tip follows over ``length_mm``; pass ``macro`` to share one macro profile."""
-    n = int(2 ** np.ceil(np.log2(max(n_fine, 1024))))
-    dx = max(length_mm, 1.0) / n
-    slope, curvature = _micro_derivatives(material.roughness, rng, n, dx, _contact_width_mm(material, tip))
-    if macro is None:
-        macro = macro_profile(material.roughness, rng, int(length_mm / MACRO_DX_MM) + 8, MACRO_DX_MM)
+def surface(material: Material, tip: Tip, macro: np.ndarray) -> Surface:
+    """The macro-profile as the tip follows it: pits narrower than the tip are bridged."""
     path = tip_path(macro, MACRO_DX_MM, tip.radius_mm) if material.roughness.macro_height_um else macro
-    macro_slope = np.gradient(path, MACRO_DX_MM)
-    return Surface(dx, slope, curvature, macro_slope, np.gradient(macro_slope, MACRO_DX_MM))
+    slope = np.gradient(path, MACRO_DX_MM)
+    return Surface(slope, np.gradient(slope, MACRO_DX_MM))

@@ -43,7 +43,7 @@ def _texture_grain(look: Appearance, rng: Rng, size: int, ppm: float) -> Layers:
     period = ppm / look.frequency_per_mm
     warp = 0.6 * period * _noise(rng, (size, size), 4 * period, stretch=4.0)
     theta = 2 * np.pi * (rows + warp) / period + rng.uniform(0, 2 * np.pi)
-    c0 = np.cos(np.pi * look.duty)
+    c0 = float(np.cos(np.pi * look.duty))
     late = np.clip((np.cos(theta) - c0) / (1 - c0), 0, 1)
     pores = _noise(rng, (size, size), 0.15 * ppm, stretch=12.0)
     return look.contrast * np.clip(late + 0.15 * pores, 0, 1), -late
@@ -54,7 +54,9 @@ def _texture_speckle(look: Appearance, rng: Rng, size: int, ppm: float) -> Layer
     grain = ppm / look.frequency_per_mm
     dark = _noise(rng, (size, size), 0.7 * grain)
     second = _noise(rng, (size, size), grain)
-    cut_dark, cut_second = np.quantile(dark, 1 - 0.4 * look.duty), np.quantile(second, 1 - look.duty)
+    # A quarter of the pixels set the phase shares as well as all of them, at a sixteenth of the cost.
+    cut_dark = float(np.quantile(dark[::4, ::4], 1 - 0.4 * look.duty))
+    cut_second = float(np.quantile(second[::4, ::4], 1 - look.duty))
     field = 0.5 * special.expit((second - cut_second) / 0.08) + special.expit((dark - cut_dark) / 0.08)
     field = np.clip(field, 0, 1) + 0.12 * _noise(rng, (size, size), 0.15 * grain)
     return look.contrast * field, _noise(rng, (size, size), 0.5 * grain)
@@ -109,13 +111,13 @@ def _texture_weave(look: Appearance, rng: Rng, size: int, ppm: float) -> Layers:
     """Plain weave: threads ``duty`` of the pitch wide, alternating over and under."""
     cols, rows = _grid(size)
     pitch = ppm / look.frequency_per_mm
-    shift = rng.uniform(0, pitch, 2)
+    shift = [float(v) for v in rng.uniform(0, pitch, 2)]
     u, v = (cols + shift[0]) / pitch, (rows + shift[1]) / pitch
     warp_over = (np.floor(u) + np.floor(v)) % 2 == 0
     across = np.where(warp_over, u % 1.0, v % 1.0)
     gap = (1 - look.duty) / 2
     inside = np.clip((across - gap) / max(look.duty, 1e-3), 0, 1)
-    thread = np.sqrt(np.sin(np.pi * inside)) * ((across > gap) & (across < 1 - gap))
+    thread = np.sqrt(np.maximum(np.sin(np.pi * inside), 0.0)) * ((across > gap) & (across < 1 - gap))
     fibres = 0.1 * np.where(warp_over, _noise(rng, (size, size), 0.05 * pitch, stretch=0.1),
                             _noise(rng, (size, size), 0.05 * pitch, stretch=10.0))
     return look.contrast * np.clip(1 - thread + fibres, 0, 1), thread
@@ -125,7 +127,7 @@ def _texture_perforated(look: Appearance, rng: Rng, size: int, ppm: float) -> La
     """A square grid of round holes, diameter ``duty`` of the pitch, with sharp edges."""
     cols, rows = _grid(size)
     pitch = ppm / look.frequency_per_mm
-    shift = rng.uniform(0, pitch, 2)
+    shift = [float(v) for v in rng.uniform(0, pitch, 2)]
     du = ((cols + shift[0]) / pitch) % 1.0 - 0.5
     dv = ((rows + shift[1]) / pitch) % 1.0 - 0.5
     distance = np.hypot(du, dv) * pitch

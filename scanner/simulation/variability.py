@@ -17,7 +17,8 @@ class OperatorDraw:
     """What one operator does differently in one scan (docs/devices.md): speeds, forces, timing, judgement, camera.
 
     Speeds are in mm/s within the 20-240 mm/s range of hand-held exploration (Culbertson et al., paper
-    section III-D); ``*_start_s`` is when the unit starts moving after resting still.
+    section III-D); ``*_start_s`` is when the unit starts moving after resting still; ``finger_force_n`` and
+    ``tool_force_n`` press the finger and the tool tip on the surface during the TU1 slides.
     """
 
     t_amb: float
@@ -27,6 +28,8 @@ class OperatorDraw:
     finger_slide_start_s: float
     tool_slide_start_s: float
     friction_start_s: float
+    finger_force_n: float
+    tool_force_n: float
     friction_normal_n: float
     friction_factor: float
     press_force_n: float
@@ -46,6 +49,12 @@ class OperatorDraw:
 
 
 SPEED_RANGE_MM_S = (20.0, 240.0)
+SPEED_MEAN_MM_S, SPEED_SPREAD_MM_S = 130.0, 40.0
+"""Hand speeds scatter around the 130 mm/s average Culbertson et al. observed for hand-held tools (paper
+section III-D), kept within its 20-240 mm/s range."""
+SLIDE_FORCE_N, SLIDE_FORCE_SPREAD = 1.0, 0.3
+"""Median and log-spread of the force pressing the finger or the tool tip during a TU1 slide (interpretation:
+a light exploratory touch of about 1 N, the hand's force varying by about 30 % between scans)."""
 SLIDE_START_RANGE_S = (0.42, 0.75)
 
 
@@ -62,7 +71,7 @@ def draw_operator(rng: Rng, *, t_amb: float | None = None,
     if not 0.0 <= fold_skip_probability <= 1.0:
         raise SimulationError(f"fold_skip_probability must be in [0, 1], got {fold_skip_probability!r}")
     ambient = rng.normal(21.5, 1.2) if t_amb is None else float(t_amb)
-    speeds = rng.uniform(*SPEED_RANGE_MM_S, size=3)
+    speeds = np.clip(rng.normal(SPEED_MEAN_MM_S, SPEED_SPREAD_MM_S, size=3), *SPEED_RANGE_MM_S)
     starts = rng.uniform(*SLIDE_START_RANGE_S, size=3)
     disagree = rng.random(2) < 1 / 6
     return OperatorDraw(
@@ -71,6 +80,8 @@ def draw_operator(rng: Rng, *, t_amb: float | None = None,
         friction_speed_mm_s=float(speeds[2]),
         finger_slide_start_s=float(starts[0]), tool_slide_start_s=float(starts[1]),
         friction_start_s=float(starts[2]),
+        finger_force_n=float(rng.lognormal(np.log(SLIDE_FORCE_N), SLIDE_FORCE_SPREAD)),
+        tool_force_n=float(rng.lognormal(np.log(SLIDE_FORCE_N), SLIDE_FORCE_SPREAD)),
         friction_normal_n=float(rng.uniform(3.0, 7.0)),
         friction_factor=float(rng.lognormal(0.0, 0.12)),
         press_force_n=float(rng.uniform(6.0, 15.0)),
