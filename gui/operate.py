@@ -43,6 +43,7 @@ from scanner.acquisition.config import ConfigError
 from scanner.acquisition.devices.protocols import DeviceError
 from scanner.acquisition.session import VOLUME_METHODS, Session, SessionError, StepInfo, StepState
 from scanner.scan import CHANNELS, IMAGES
+from scanner.simulation import is_hand_set
 from scanner.storage.database import DatabaseError, ScanRecord
 from scanner.workflows import predict_values
 from taxonomy.learning.models import ModelError
@@ -180,7 +181,7 @@ def begin() -> tuple[str, int] | Response:
     except SessionBusy as exc:
         return render_start(form, {"form": str(exc)}, 409)
     except ConfigError as exc:
-        # The simulated scanner only knows its library's materials.
+        # A label the simulated scanner cannot simulate (a class a lab added), or a bad simulated.material.
         return render_start(form, {"label": session_error(exc)}, 422)
     except (SessionError, DeviceError) as exc:
         return render_start(form, {"form": f"the scanner could not start: {session_error(exc)}"}, 422)
@@ -191,11 +192,17 @@ def begin() -> tuple[str, int] | Response:
 
 @blueprint.get("/api/taxonomy")
 def api_taxonomy() -> Response:
-    """Materials matching ``q`` (name or code prefix) for the picker: code, name, sub-class, major class."""
+    """Materials matching ``q`` (name or code prefix) for the picker: code, name, sub-class, major class,
+    and with a simulated device whether the simulator's parameters are ``hand-set`` or ``derived``."""
     query = request.args.get("q", "")[:40]
-    found = context().db.taxonomy().search(query)
+    ctx = context()
+    found = ctx.db.taxonomy().search(query)
     materials = [{"code": m.code, "name": m.name, "subclass": m.subclass, "major": m.major}
                  for m in found[:PICKER_LIMIT]]
+    if "simulated" in ctx.device_config.devices.values():
+        # Which of them the simulated scanner knows by hand-set parameters, and which it derives.
+        for m in materials:
+            m["simulation"] = "hand-set" if is_hand_set(m["code"]) else "derived"
     return jsonify(total=len(found), materials=materials)
 
 

@@ -341,13 +341,12 @@ def test_start_form_shows_each_reason_beside_its_field(client, app):
     assert active(app) is None and len(database(app)) == 0
 
 
-def test_start_refuses_unknown_code_and_a_label_the_simulator_lacks(client, app):
+def test_start_refuses_unknown_code_and_simulates_every_taxonomy_label(client, app):
     page = start_session(client, label="C6S9M1P2X1").text
     assert field_error(page, "label") == "C6S9M1P2X1: stone has no sub-class S9"
-    page = start_session(client, label="C6S1M1P5X1")  # a known label no simulated material has
-    assert page.status_code == 422
-    assert field_error(page.text, "label").startswith("no simulated material has label C6S1M1P5X1")
     assert active(app) is None
+    page = start_session(client, label="C6S1M1P5X1")  # no hand-set material: derived from its codes
+    assert page.status_code == 302 and active(app) is not None
 
 
 def test_csrf_token_required_on_every_state_change(client, app):
@@ -386,10 +385,13 @@ def test_any_host_when_listening_on_the_network(tmp_path):
 
 def test_taxonomy_picker_api(client):
     found = get(client, "/api/taxonomy?q=granite").json
-    granite = {"code": "C6S1M1", "name": "granite", "subclass": "igneous stone", "major": "stone"}
+    granite = {"code": "C6S1M1", "name": "granite", "subclass": "igneous stone", "major": "stone",
+               "simulation": "hand-set"}
     assert granite in found["materials"]
     by_code = get(client, "/api/taxonomy?q=c6s1").json["materials"]
     assert by_code and all(m["code"].startswith("C6S1M") for m in by_code)
+    # The default (simulated) scanner tells which materials it derives: basalt has no hand-set table.
+    assert {m["code"]: m["simulation"] for m in by_code}["C6S1M2"] == "derived"
     assert get(client, "/api/label?label=C6S1M1P2X1").json == {
         "ok": True, "label": "C6S1M1P2X1", "description": "granite (igneous stone, stone), polished, plain"}
     answer = get(client, "/api/label?label=C6S1").json

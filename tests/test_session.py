@@ -252,7 +252,7 @@ def test_an_exception_in_the_worker_thread_fails_the_step_and_switches_off(sessi
 
 
 def test_unknown_simulated_material_is_a_config_error():
-    with pytest.raises(ConfigError, match="no simulated material has label C9S9M9P9X9"):
+    with pytest.raises(ConfigError, match="has no physics for C9S9 .* choose a material of the classes C1-C8"):
         Session.open(parse_config(FAST), label="C9S9M9P9X9", sample_id="x-01", operator="ab")
     with pytest.raises(SessionError, match="sample id 'a/b' must be"):
         Session.open(parse_config(FAST), label="C6S1M1P2X1", sample_id="a/b", operator="ab")

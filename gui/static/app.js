@@ -66,6 +66,13 @@ function setupPicker(describe) {
       sub.className = "sub";
       sub.textContent = ` (${m.subclass}, ${m.major})`;
       button.append(code, name, sub);
+      if (m.simulation) {
+        const physics = document.createElement("span");
+        physics.className = `sub simulation ${m.simulation}`;
+        physics.textContent = m.simulation === "hand-set"
+          ? " · simulated with hand-set parameters" : " · simulated with parameters derived from its class";
+        button.append(physics);
+      }
       button.addEventListener("click", () => {
         material = m.code;
         compose();

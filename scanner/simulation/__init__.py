@@ -1,8 +1,9 @@
 """The simulated Texplorer2: physically plausible scans from a material library (docs/devices.md#simulator).
 
-The material library is data (``scanner/data/materials.toml``, one table per material); this package turns a
-material, a seed and a per-scan operator draw into every channel of docs/database.md at its true rate, following the
-scanning procedure of docs/operator.md#procedure one step at a time. Each simulated sensor has its own module:
+The material library is data (``scanner/data/materials.toml``, one table per material, set by hand); every
+other material of the taxonomy is derived from its codes (:mod:`~scanner.simulation.derived`,
+``scanner/data/material_classes.toml``). This package turns a material, a seed and a per-scan operator draw into every channel of SPEC 3 at its true rate, following the
+scanning procedure of SPEC 4 one step at a time. Each simulated sensor has its own module:
 
 ======================  ==================  ============================================================
 step                    module              what is synthesised
@@ -10,7 +11,8 @@ step                    module              what is synthesised
 ``finger_tap``          ``accelerometer``   ``v_ft``: decaying contact resonances, frequency rising with
                                             stiffness
 ``finger_slide``        ``slides``          ``v_fs``, ``a_fs``, ``r_fs``: rest, then the finger slides over
-                                            the surface (``accelerometer``, ``microphone``, ``reflectance``)
+                                            the surface; one contact excitation (``contact``) drives the
+                                            ``accelerometer`` and the ``microphone``; ``reflectance``
 ``tool_tap``            ``accelerometer``   ``v_tt``: as the finger tap, through the steel tool tip
 ``tool_slide``          ``slides``          ``v_ts``, ``a_ts``, ``r_ts``: rest, then the tool tip slides
 ``static``              ``electrodes``,     ``m`` (metal electrodes) and ``dB`` (magnetometer), 1 s
@@ -42,6 +44,7 @@ storage; :mod:`~scanner.simulation.recordings` simulates the related methods' se
 
 from scanner.simulation.accelerometer import finger_tap, tool_tap
 from scanner.simulation.camera import PHOTO_FOV_MM, photos
+from scanner.simulation.derived import NotSimulatedError, is_hand_set, material_for_label, material_named
 from scanner.simulation.flex import fold
 from scanner.simulation.force import friction_slide, press
 from scanner.simulation.materials import (
@@ -63,8 +66,8 @@ from scanner.simulation.variability import OperatorDraw, draw_operator, sample_o
 
 __all__ = [
     "FINGER", "MAGNETIC_TYPES", "PHOTO_FOV_MM", "SIMULATOR", "STEPS", "STEP_FUNCTIONS", "TEXTURES", "TOOL",
-    "Material", "MaterialLibraryError", "OperatorDraw", "SimulationError", "Tip", "UnknownMaterialError",
-    "contact_frequency_hz", "draw_operator", "finger_slide", "finger_tap", "fold", "friction_slide",
+    "Material", "MaterialLibraryError", "NotSimulatedError", "OperatorDraw", "SimulationError", "Tip", "UnknownMaterialError",
+    "contact_frequency_hz", "draw_operator", "is_hand_set", "material_for_label", "material_named", "finger_slide", "finger_tap", "fold", "friction_slide",
     "load_materials", "photos", "press", "sample_id_of", "sample_of", "scan_seed", "static_touch",
     "synthetic_scan", "synthetic_scans", "thermal", "tool_slide", "tool_tap", "tu4",
 ]

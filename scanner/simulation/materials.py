@@ -116,6 +116,9 @@ class Material:
     thermal: Thermal
     reflectance: Reflectance
     appearance: Appearance
+    derived: bool = False
+    """True for a material derived from its taxonomy codes (:mod:`~scanner.simulation.derived`), False for
+    one set by hand in the library."""
 
 
 _LABEL_FORM = "C<c>S<s>M<m>P<p>X<x>"

@@ -13,7 +13,8 @@ import numpy as np
 
 from scanner.scan import CHANNELS, Scan, ScanMeta, Trace
 from scanner.simulation.camera import photos
-from scanner.simulation.materials import Material, SimulationError, default_library, known, resolve
+from scanner.simulation.derived import material_named
+from scanner.simulation.materials import Material, SimulationError, default_library
 from scanner.simulation.steps import STEP_FUNCTIONS, STEPS
 from scanner.simulation.variability import OperatorDraw, draw_operator, sample_of
 from scanner.version import __version__
@@ -36,14 +37,15 @@ def synthetic_scan(material: Material | str, *, seed: int, scan_index: int = 1, 
                    session_id: str = "sim", operator: str = "sim", image_size: tuple[int, int] = (512, 512),
                    started: str | None = None, t_amb: float | None = None,
                    fold_skip_probability: float = 0.5) -> Scan:
-    """One simulated scan of ``material`` (a :class:`Material` or a slug of the default library).
+    """One simulated scan of ``material`` (a :class:`Material`, a slug of the default library or any full
+    label of the taxonomy, :func:`~scanner.simulation.derived.material_named`).
 
     Every channel of docs/database.md at its true rate and shape, the three photos at ``image_size`` (h, w) and the
     meta data. Bit-identical for the same arguments: the seed feeds an ``np.random.SeedSequence`` whose
     children drive the operator draw and each procedure step. A rigid sample's fold step is skipped
     (``meta.rigid``, no fold channels) with ``fold_skip_probability``.
     """
-    material = resolve(material)
+    material = material_named(material)
     size = _check_image_size(image_size)
     sample_id = sample_id or f"{material.slug}-01"
     sample = sample_of(material, sample_id)
@@ -114,7 +116,7 @@ class _Job:
 
 def scan_jobs(materials: Iterable[str] | None, samples_per_material: int, scans_per_sample: int, seed: int,
           image_size: tuple[int, int], fold_skip_probability: float) -> list[_Job]:
-    slugs = list(default_library()) if materials is None else known(materials)
+    slugs = list(default_library()) if materials is None else [material_named(m).slug for m in materials]
     for name, value in (("samples_per_material", samples_per_material), ("scans_per_material", scans_per_sample)):
         if not (isinstance(value, int) and value >= 1):
             raise SimulationError(f"{name} must be an integer >= 1, got {value!r}")
@@ -124,7 +126,7 @@ def scan_jobs(materials: Iterable[str] | None, samples_per_material: int, scans_
 
 
 def simulate_one(job: _Job) -> Scan:
-    return synthetic_scan(default_library()[job.slug], seed=scan_seed(job.seed, job.slug, job.index, job.sample),
+    return synthetic_scan(material_named(job.slug), seed=scan_seed(job.seed, job.slug, job.index, job.sample),
                           scan_index=job.index, sample_id=sample_id_of(job.slug, job.sample),
                           image_size=job.image_size, fold_skip_probability=job.fold_skip_probability)
 
@@ -136,7 +138,7 @@ def synthetic_scans(materials: Iterable[str] | None = None, scans_per_material: 
     ``<slug>-01``, ``<slug>-02``, ...), material by material; ``scans_per_material`` is n, the scans of
     each sample.
 
-    ``materials``: slugs of the default library, or None for all of it. Scan k of sample j of material m
+    ``materials``: slugs of the default library or full taxonomy labels, or None for the whole library. Scan k of sample j of material m
     is ``synthetic_scan(m, seed=scan_seed(seed, m, k, j), scan_index=k, sample_id=sample_id_of(m, j), ...)``.
     """
     return map(simulate_one, scan_jobs(materials, samples_per_material, scans_per_material, seed, image_size,

@@ -33,8 +33,10 @@ from scanner.simulation import (
     STEP_FUNCTIONS,
     STEPS,
     Material,
+    SimulationError,
     draw_operator,
     load_materials,
+    material_for_label,
     photos,
     sample_of,
     scan_seed,
@@ -256,17 +258,19 @@ def simulated_sample(config: Config, specimen: Specimen) -> SimulatedSample:
 
 
 def material_for(label: str, slug: str = "") -> Material:
-    """The library material named ``slug``, else the first one with ``label`` (for a simulated session)."""
+    """The library material named ``slug``, else the material of ``label``: hand-set in the library, or
+    derived from the label's taxonomy codes (:func:`scanner.simulation.material_for_label`)."""
     library = load_materials()
     if slug:
         if slug not in library:
-            raise ConfigError(f"unknown simulated material {slug!r} (known: {', '.join(library)})")
+            raise ConfigError(f"the simulated scanner has no material {slug!r}: remove simulated.material from "
+                              f"the configuration to simulate the scan's own label, or set it to one of: "
+                              f"{', '.join(library)}")
         return library[slug]
-    for material in library.values():
-        if material.label == label:
-            return material
-    raise ConfigError(f"no simulated material has label {label} (set simulated.material to one of: "
-                      f"{', '.join(library)})")
+    try:
+        return material_for_label(label)
+    except SimulationError as exc:
+        raise ConfigError(str(exc)) from None
 
 
 class Pacer:
