@@ -2,8 +2,9 @@
 
 The material library is data (``scanner/data/materials.toml``, one table per material, set by hand); every
 other material of the taxonomy is derived from its codes (:mod:`~scanner.simulation.derived`,
-``scanner/data/material_classes.toml``). This package turns a material, a seed and a per-scan operator draw into every channel of SPEC 3 at its true rate, following the
-scanning procedure of SPEC 4 one step at a time. Each simulated sensor has its own module:
+``scanner/data/material_classes.toml``). This package turns a material, a seed and a per-scan operator draw
+into every channel of SPEC 3 at its true rate, following the scanning procedure of SPEC 4 one step at a
+time. Each simulated sensor has its own module:
 
 ======================  ==================  ============================================================
 step                    module              what is synthesised
@@ -66,8 +67,9 @@ from scanner.simulation.variability import OperatorDraw, draw_operator, sample_o
 
 __all__ = [
     "FINGER", "MAGNETIC_TYPES", "PHOTO_FOV_MM", "SIMULATOR", "STEPS", "STEP_FUNCTIONS", "TEXTURES", "TOOL",
-    "Material", "MaterialLibraryError", "NotSimulatedError", "OperatorDraw", "SimulationError", "Tip", "UnknownMaterialError",
-    "contact_frequency_hz", "draw_operator", "is_hand_set", "material_for_label", "material_named", "finger_slide", "finger_tap", "fold", "friction_slide",
+    "Material", "MaterialLibraryError", "NotSimulatedError", "OperatorDraw", "SimulationError", "Tip",
+    "UnknownMaterialError", "contact_frequency_hz", "draw_operator", "finger_slide", "finger_tap", "fold",
+    "friction_slide", "is_hand_set", "material_for_label", "material_named",
     "load_materials", "photos", "press", "sample_id_of", "sample_of", "scan_seed", "static_touch",
     "synthetic_scan", "synthetic_scans", "thermal", "tool_slide", "tool_tap", "tu4",
 ]

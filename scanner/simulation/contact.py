@@ -11,9 +11,10 @@ Models and their sources:
 
 - **Texture vibration.** The tip follows the surface profile ``z(x)`` at the hand's speed ``v``; its
   acceleration ``v^2 z''(x) + v' z'(x)`` has the height spectrum mapped to temporal frequency ``f = v k``:
-  ``P_a(f) = (2 pi f)^4 S_z(f / v) / v``, so it grows and brightens with speed (the texture-vibration model behind the Penn Haptic Texture Toolkit: Culbertson, McDonald,
-  Goodman and Kuchenbecker 2014, "One hundred data-driven haptic texture models and open-source methods
-  for rendering on 3D objects", IEEE Haptics Symposium, whose models are indexed by speed and force
+  ``P_a(f) = (2 pi f)^4 S_z(f / v) / v``, so it grows and brightens with speed (the texture-vibration
+  model behind the Penn Haptic Texture Toolkit: Culbertson, McDonald, Goodman and Kuchenbecker 2014,
+  "One hundred data-driven haptic texture models and open-source methods for rendering on 3D objects",
+  IEEE Haptics Symposium, whose models are indexed by speed and force
   because the spectrum moves with both). The micro-profile is stationary during the slide, so it is
   synthesised once at the slide's mean speed in the frequency domain and scaled by ``(v(t)/v_mean)^2``;
   the macro-profile (pores, holes, ridges) is followed sample by sample along the path.
@@ -26,9 +27,10 @@ Models and their sources:
   recur at ``f_ss = k_t v / (2 (mu_s - mu_k) F_n)`` (the relaxation oscillation of Rabinowicz 1965,
   *Friction and Wear of Materials*, ch. 4), each releasing ``(mu_s - mu_k) F_n`` at once. A soft or sticky
   contact squeaks within the audio band; a hard one slips far above it and only its broadband hiss remains.
-- **Fingerprint ridges.** Skin ridges ``0.45 mm`` apart (:data:`~scanner.simulation.surface.FINGER`) modulate the finger's friction at ``v / 0.45 mm``
-  (Scheibert, Leurent, Prevost and Debregeas 2009, "The role of fingerprints in the coding of tactile
-  information probed with a biomimetic sensor", Science 323).
+- **Fingerprint ridges.** Skin ridges ``0.45 mm`` apart (:data:`~scanner.simulation.surface.FINGER`)
+  modulate the finger's friction at ``v / 0.45 mm`` (Scheibert, Leurent, Prevost and Debregeas 2009,
+  "The role of fingerprints in the coding of tactile information probed with a biomimetic sensor",
+  Science 323).
 """
 
 from __future__ import annotations

@@ -138,8 +138,9 @@ def synthetic_scans(materials: Iterable[str] | None = None, scans_per_material: 
     ``<slug>-01``, ``<slug>-02``, ...), material by material; ``scans_per_material`` is n, the scans of
     each sample.
 
-    ``materials``: slugs of the default library or full taxonomy labels, or None for the whole library. Scan k of sample j of material m
-    is ``synthetic_scan(m, seed=scan_seed(seed, m, k, j), scan_index=k, sample_id=sample_id_of(m, j), ...)``.
+    ``materials``: slugs of the default library or full taxonomy labels, or None for the whole library.
+    Scan k of sample j of material m is
+    ``synthetic_scan(m, seed=scan_seed(seed, m, k, j), scan_index=k, sample_id=sample_id_of(m, j), ...)``.
     """
     return map(simulate_one, scan_jobs(materials, samples_per_material, scans_per_material, seed, image_size,
                                     fold_skip_probability))
