@@ -23,7 +23,6 @@ from scanner.simulation.signals import (
     Rng,
     band_noise,
     gravity,
-    noise_spectrum,
     quantise,
     resonance,
     tilt,
@@ -91,14 +90,12 @@ def onset_jolt(rng: Rng, t: np.ndarray, start_s: float) -> np.ndarray:
     return amplitude * np.column_stack([pulse + 0.5 * ring, 0.3 * ring, 0.5 * pulse + 0.4 * ring])
 
 
-def rolling_spectrum(rng: Rng, n: int, fs: float, speed: float) -> np.ndarray:
-    """Spectrum of the bearings' rolling noise (g) at the slide's mean ``speed`` (mm/s): flat over
+def rolling_psd(f: np.ndarray, speed: float) -> np.ndarray:
+    """One-sided PSD (g^2/Hz) of the bearings' rolling noise at the slide's mean ``speed`` (mm/s): flat over
     50-3000 Hz with rms ``ROLLING_G speed / 130 mm/s``."""
-    f = np.fft.rfftfreq(n, 1.0 / fs)
     lo, hi = ROLLING_BAND_HZ
-    band = (f >= lo) & (f <= hi)
-    psd = np.where(band, (ROLLING_G * speed / 130.0) ** 2 / (hi - lo), 0.0)
-    return noise_spectrum(rng, n, fs, psd)
+    level = (ROLLING_G * speed / 130.0) ** 2 / (hi - lo)
+    return np.where((f >= lo) & (f <= hi), level, 0.0)
 
 
 def tip_response(material: Material, tip: Tip, f: np.ndarray) -> np.ndarray:
@@ -118,7 +115,7 @@ def unit_vibration(stationary: np.ndarray, timed: np.ndarray, tip: Tip, envelope
     """
     n_daq = int(round(n_fft * FS_DAQ / FS_AUDIO))
     bins = n_daq // 2 + 1
-    rows = np.vstack([stationary[:, :bins], timed[:, :bins]])
+    rows = np.concatenate([stationary[:, :bins], timed[:, :bins]])
     seen = fft.irfft(rows, n_daq)[:, :n_out].astype(np.float64) * (n_daq / n_fft) * tip.gain
     z = seen[0] * envelope + seen[2]
     x = seen[1] * envelope + seen[3]

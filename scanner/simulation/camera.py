@@ -16,15 +16,18 @@ from scanner.simulation.variability import OperatorDraw
 PHOTO_FOV_MM = {"I_disp": 60.0, "I_macro": 15.0, "I_illu": 60.0}
 """Field of view across the image width: the 4x lens shows a quarter of the normal view."""
 
+RAMP_LEVELS = 4096
+"""Steps of the colour ramp's lookup table: 16 per 8-bit output count."""
+
+
 def _ramp(colors: np.ndarray, field: np.ndarray) -> np.ndarray:
-    """Map a field in [0, 1] piecewise linearly through the colours (rows of RGB in [0, 1], dominant first)."""
+    """Map a field in [0, 1] piecewise linearly through the colours (rows of RGB in [0, 1], dominant first),
+    through a lookup table of :data:`RAMP_LEVELS` steps."""
     palette = np.asarray(colors, dtype=np.float32)
-    position = np.clip(field, 0.0, 1.0).astype(np.float32) * (len(palette) - 1)
-    rgb = np.empty((*field.shape, 3), np.float32)
-    rgb[...] = palette[0]
-    for index, step in enumerate(np.diff(palette, axis=0)):
-        rgb += np.clip(position - index, 0.0, 1.0)[..., None] * step
-    return rgb
+    position = np.linspace(0.0, len(palette) - 1, RAMP_LEVELS)
+    table = np.column_stack([np.interp(position, np.arange(len(palette)), palette[:, c]) for c in range(3)])
+    index = np.clip(field, 0.0, 1.0) * np.float32(RAMP_LEVELS - 1)
+    return table.astype(np.float32)[np.rint(index).astype(np.int16)]
 
 
 def _place(image: np.ndarray, angle_deg: float, shift: np.ndarray, out: tuple[int, int]) -> np.ndarray:
@@ -34,6 +37,28 @@ def _place(image: np.ndarray, angle_deg: float, shift: np.ndarray, out: tuple[in
     matrix = cv2.getRotationMatrix2D((size / 2, size / 2), angle_deg, 1.0)
     matrix[:, 2] += np.array([w / 2 - size / 2, h / 2 - size / 2]) + shift
     return cv2.warpAffine(image, matrix, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+
+
+SENSOR_NOISE_COUNTS = 2.0
+"""Rms of the phone's pixel noise in 8-bit counts."""
+
+
+@lru_cache(maxsize=1)
+def _noise_bank() -> np.ndarray:
+    """Gaussian pixel noise to take photos' noise from (fixed; each photo reads it from a random offset)."""
+    bank = np.random.default_rng(20241127).standard_normal(3 * 2**20, dtype=np.float32) * SENSOR_NOISE_COUNTS
+    bank.flags.writeable = False
+    return bank
+
+
+def _sensor_noise(rng: Rng, shape: tuple[int, ...]) -> np.ndarray:
+    """Pixel noise of one photo: a stretch of the bank from a random offset, drawn afresh where too large."""
+    size = int(np.prod(shape))
+    bank = _noise_bank()
+    if size > bank.size // 2:
+        return rng.standard_normal(shape, dtype=np.float32) * np.float32(SENSOR_NOISE_COUNTS)
+    start = int(rng.integers(0, bank.size - size))
+    return bank[start:start + size].reshape(shape)
 
 
 @lru_cache(maxsize=8)
@@ -82,7 +107,7 @@ def _photo(material: Material, rng: Rng, operator: OperatorDraw, kind: str, plac
         rgb = cv2.GaussianBlur(rgb, (0, 0), focus * w / 512)
     counts = _tone(_auto_exposure(rgb))
     counts *= 255
-    counts += rng.standard_normal(counts.shape, dtype=np.float32) * np.float32(2.0)
+    counts += _sensor_noise(rng, counts.shape)
     np.rint(counts, out=counts)
     np.clip(counts, 0, 255, out=counts)
     return counts.astype(np.uint8)

@@ -35,6 +35,7 @@ Models and their sources:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,6 +45,8 @@ from scanner.simulation.signals import Rng
 from scanner.simulation.surface import G_MM_S2, SlidePath, Surface, Tip
 
 POISSON = 0.3
+SMOOTH_STEP = 16
+"""Frequency bins between the points where smooth spectral factors are evaluated (then interpolated)."""
 RIDGE_SHARE = 0.05
 """Share of the finger's friction force the ridges modulate (interpretation)."""
 
@@ -98,40 +101,45 @@ class Excitation:
 
 
 def excitation(material: Material, rng: Rng, tip: Tip, path: SlidePath, fs: float, normal_n: float,
-               surface: Surface, n_fft: int) -> Excitation:
+               surface: Surface, n_fft: int, background: Callable[[np.ndarray, float], np.ndarray]) -> Excitation:
     """The slide's excitation (:class:`Excitation`) for the tip pressed with ``normal_n`` along ``path``,
-    its stationary part on a grid of ``n_fft`` samples."""
+    its stationary part on a grid of ``n_fft`` samples; ``background(f, mean_speed)`` is the PSD (g^2/Hz) of
+    independent stationary noise added to both tracks (the bearings' rolling)."""
     moving = path.v > 1e-3
     mean_speed = float(path.v[moving].mean()) if moving.any() else 1.0
     contact = contact_mechanics(material, tip, normal_n)
-    micro = micro_spectra(material, rng, n_fft, fs, mean_speed, contact.averaging_mm)
+    micro = micro_spectra(material, rng, n_fft, fs, mean_speed, contact.averaging_mm, background)
     envelope = (path.v / mean_speed) ** 2
     macro = surface.acceleration(path)
     lateral = stick_slip(rng, path, contact, material, tip) + ridges(path, material, tip, normal_n)
     return Excitation(micro, envelope, np.vstack([macro, lateral]), contact, mean_speed)
 
 
-def micro_spectra(material: Material, rng: Rng, n: int, fs: float, speed: float,
-                  contact_mm: float) -> np.ndarray:
+def micro_spectra(material: Material, rng: Rng, n: int, fs: float, speed: float, contact_mm: float,
+                  background: Callable[[np.ndarray, float], np.ndarray]) -> np.ndarray:
     """(2, n//2+1) spectra of the vertical and the lateral tip acceleration (g) over the micro-profile.
 
     Height PSD ``S_z(k) ~ (1 + (k/k_c)^2)^(-exponent/2)`` scaled to the rms ``micro_um`` over 0.01-100 /mm,
     seen through the contact patch as ``1 / (1 + (pi k a)^2)``; temporal PSD ``S_z(f/v)/v``; the lateral
     track is an independent profile of the same statistics times the kinetic friction coefficient (the
-    friction force follows the normal load the asperities put on the tip).
+    friction force follows the normal load the asperities put on the tip). The ``background`` noise is
+    independent of both, so it adds in power and shares their Gaussian draws.
     """
     rough = material.roughness
-    f = np.fft.rfftfreq(n, 1.0 / fs).astype(np.float32)
-    k = f / np.float32(speed)
+    f = np.fft.rfftfreq(n, 1.0 / fs)
+    coarse = f[::SMOOTH_STEP]  # every factor is smooth in f: computed on a coarse grid, interpolated
+    k = coarse / speed
     shape = (1.0 + (k / rough.cutoff_per_mm) ** 2) ** (-rough.exponent / 2)
     shape[0] = 0.0
     density = (rough.micro_um * 1e-3) ** 2 / _shape_integral(rough.cutoff_per_mm, rough.exponent)
-    psd = shape * np.float32(density / speed)  # mm^2 / Hz
-    amplitude = np.sqrt(psd * np.float32(n * fs / 4)) / (1 + (np.float32(np.pi * contact_mm) * k) ** 2)
-    amplitude *= (np.float32(2 * np.pi) * f) ** 2 / np.float32(G_MM_S2)
+    psd = shape * (density / speed)  # mm^2 / Hz
+    amplitude = np.sqrt(psd * (n * fs / 4)) / (1 + (np.pi * contact_mm * k) ** 2) * (2 * np.pi * coarse) ** 2 / G_MM_S2
+    floor = background(coarse, speed) * (n * fs / 4)
+    vertical = np.interp(f, coarse, np.sqrt(amplitude**2 + floor)).astype(np.float32)
+    lateral = np.interp(f, coarse, np.sqrt((material.friction.kinetic * amplitude) ** 2 + floor)).astype(np.float32)
+    tracks = np.stack([vertical, lateral])
     draws = rng.standard_normal((2, 2, f.size), dtype=np.float32)
-    draws[1] *= np.float32(material.friction.kinetic)
-    return amplitude * draws[:, 0] + 1j * (amplitude * draws[:, 1])
+    return tracks * draws[:, 0] + 1j * (tracks * draws[:, 1])
 
 
 def _shape_integral(cutoff: float, exponent: float) -> float:

@@ -16,7 +16,7 @@ effective mass) drives two radiators, and the room adds its own:
   and glass ring at their modes, wood and stone plates sound dull, foams and fabrics barely radiate.
 - **The unit** (TU1's housing, which carries the clip-on microphone): its acceleration, the accelerometer's
   signal at full band, radiated as a piston of 30 mm radius, ``sigma = (ka)^2 / (1 + (ka)^2)``.
-- **The room**: pink background noise of 28-36 dB SPL and a reverberation tail of ``T60`` 0.25-0.6 s,
+- **The room**: pink background noise of 30-34 dB SPL and a reverberation tail of ``T60`` 0.3-0.45 s,
   drawn per scan.
 
 The lavalier's band is 10-7500 Hz (paper section III-B1b), full scale 20 Pa (120 dB SPL), 16-bit samples.
@@ -47,8 +47,10 @@ HOUSING_RADIUS_M = 0.03
 FULL_SCALE_PA = 20.0
 MIC_BAND_HZ = (10.0, 7500.0)
 MODE_ORDERS = 5
-ROOM_DB_SPL = (28.0, 36.0)
-"""Background noise of a quiet laboratory room, drawn per scan (interpretation)."""
+ROOM_DB_SPL = (30.0, 34.0)
+ROOM_T60_S = (0.3, 0.45)
+"""Background noise and reverberation time of one quiet laboratory room, drawn per scan within what a
+room's ventilation and furnishing change in a day (interpretation)."""
 
 
 def plate_mobility(material: Material, f: np.ndarray, position: float) -> np.ndarray:
@@ -101,12 +103,16 @@ def room_spectra(rng: Rng, n: int, f: np.ndarray) -> tuple[np.ndarray, np.ndarra
     pink = 1 / np.maximum(f, 20.0)
     pink *= level_pa**2 / np.sum(pink[(f >= 20) & (f <= 20000)] * (f[1] - f[0]))
     noise = noise_spectrum(rng, n, FS_AUDIO, pink)
-    t60 = rng.uniform(0.25, 0.6)
+    t60 = rng.uniform(*ROOM_T60_S)
     length = int(min(t60, 0.45) * FS_AUDIO)
     t = np.arange(length) / FS_AUDIO
     tail = rng.standard_normal(length) * np.exp(-6.9 * t / t60) * (t > 0.003)
     tail *= 10 ** (rng.uniform(-18.0, -10.0) / 20) / np.sqrt(np.sum(tail**2))  # direct-to-reverberant
-    return noise, 1 + fft.rfft(tail.astype(np.float32), n)
+    # The tail's spectrum on its own grid (it lasts `length` samples, so this grid resolves it) and
+    # interpolated onto the slide's finer one.
+    short = fft.rfft(tail)
+    grid = fft.rfftfreq(length, 1.0 / FS_AUDIO)
+    return noise, 1 + (np.interp(f, grid, short.real) + 1j * np.interp(f, grid, short.imag)).astype(np.complex64)
 
 
 def sound(material: Material, rng: Rng, tip: Tip, exc: Excitation, tip_spectra: np.ndarray,
@@ -123,16 +129,15 @@ def sound(material: Material, rng: Rng, tip: Tip, exc: Excitation, tip_spectra: 
     coarse = f[::COARSE]
     mobility = plate_mobility(material, coarse, rng.uniform(0.2, 0.8)) * radiation_efficiency(material, coarse)
     plate = RHO_C * tip.mass_g * 1e-3 * (np.interp(f, coarse, mobility.real) + 1j * np.interp(f, coarse, mobility.imag))
-    w = np.maximum(2 * np.pi * f, 1e-3)
-    ka = w * (HOUSING_RADIUS_M / C0)
-    housing = (RHO_C * tip.gain) * ka**2 / (1 + ka**2) / (1j * w)
+    housing = _housing(n, tip.gain)
     noise, reverb = room_spectra(rng, n, f)
     to_pa = (G_MM_S2 * 1e-3 * rng.lognormal(0.0, 0.1) / FULL_SCALE_PA) * _mic(n) * reverb  # g -> m/s^2 -> FS
-    vertical = ((plate + housing) * to_pa).astype(np.complex64)
-    lateral = ((0.3 * plate + housing) * to_pa).astype(np.complex64)
-    pressure = vertical * np.vstack([tip_spectra[0], timed_spectra[0]])
-    pressure += lateral * np.vstack([tip_spectra[1], timed_spectra[1]])
-    pressure[1] += noise * (_mic(n) / FULL_SCALE_PA)
+    plate = plate.astype(np.complex64)
+    vertical = (plate + housing) * to_pa
+    lateral = (0.3 * plate + housing) * to_pa
+    pressure = np.empty((2, f.size), np.complex64)
+    pressure[0] = vertical * tip_spectra[0] + lateral * tip_spectra[1]
+    pressure[1] = vertical * timed_spectra[0] + lateral * timed_spectra[1] + noise * (_mic(n) / FULL_SCALE_PA)
     heard = fft.irfft(pressure, n)[:, :n_out]
     audio = heard[0] * exc.envelope + heard[1]
     return quantise(np.clip(audio, -1.0, 1.0 - 2.0**-15), 2.0**-15)
@@ -146,6 +151,16 @@ def _frequencies(n: int) -> np.ndarray:
     f = fft.rfftfreq(n, 1.0 / FS_AUDIO)
     f.flags.writeable = False
     return f
+
+
+@lru_cache(maxsize=8)
+def _housing(n: int, gain: float) -> np.ndarray:
+    """Pressure (Pa) per m/s^2 of the tip's acceleration radiated by TU1's housing (a piston of 30 mm)."""
+    w = np.maximum(2 * np.pi * _frequencies(n), 1e-3)
+    ka = w * (HOUSING_RADIUS_M / C0)
+    response = ((RHO_C * gain) * ka**2 / (1 + ka**2) / (1j * w)).astype(np.complex64)
+    response.flags.writeable = False
+    return response
 
 
 @lru_cache(maxsize=4)

@@ -51,7 +51,7 @@ def synthetic_scan(material: Material | str, *, seed: int, scan_index: int = 1, 
     sample = sample_of(material, sample_id)
     children = np.random.SeedSequence(seed).spawn(1 + len(STEPS))
     draw = draw_operator(np.random.default_rng(children[0]), t_amb=t_amb,
-                         fold_skip_probability=fold_skip_probability)
+                         fold_skip_probability=fold_skip_probability, operator=operator)
     results: dict[str, dict[str, Any]] = {}
     for step, child in zip(STEPS, children[1:], strict=True):
         rng = np.random.default_rng(child)

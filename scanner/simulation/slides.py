@@ -17,7 +17,7 @@ from scanner.simulation.accelerometer import (
     adxl335,
     hand_motion,
     onset_jolt,
-    rolling_spectrum,
+    rolling_psd,
     tip_response,
     unit_vibration,
 )
@@ -42,11 +42,15 @@ def _slide(material: Material, rng: Rng, operator: OperatorDraw, tip: Tip, speed
     n_fft = fast.x.size + int(PAD_S * FS_AUDIO)
     length = float(fast.x[-1]) + 1.0
     macro = macro_profile(material.roughness, rng, int(length / MACRO_DX_MM) + 8, MACRO_DX_MM)
-    exc = excitation(material, rng, tip, fast, FS_AUDIO, normal_n, surface(material, tip, macro), n_fft)
+    exc = excitation(material, rng, tip, fast, FS_AUDIO, normal_n, surface(material, tip, macro), n_fft,
+                     rolling_psd)
     f = fft.rfftfreq(n_fft, 1.0 / FS_AUDIO).astype(np.float32)
     response = tip_response(material, tip, f)
-    stationary = response * (exc.stationary + rolling_spectrum(rng, n_fft, FS_AUDIO, exc.mean_speed))
-    timed = response * fft.rfft(exc.timed.astype(np.float32), n_fft)
+    stationary = response * exc.stationary
+    if exc.timed.any():
+        timed = response * fft.rfft(exc.timed.astype(np.float32), n_fft)
+    else:  # a flat surface without stick-slip felt by a rigid tip: nothing happens at a particular moment
+        timed = np.zeros_like(stationary)
     envelope = (slow.v / exc.mean_speed) ** 2
     unit = (unit_vibration(stationary, timed, tip, envelope, n_fft, slow.x.size) + hand_motion(rng, slow)
             + onset_jolt(rng, times(STEP_S, FS_DAQ), start_s))

@@ -50,17 +50,42 @@ class OperatorDraw:
 
 SPEED_RANGE_MM_S = (20.0, 240.0)
 SPEED_MEAN_MM_S, SPEED_SPREAD_MM_S = 130.0, 40.0
-"""Hand speeds scatter around the 130 mm/s average Culbertson et al. observed for hand-held tools (paper
-section III-D), kept within its 20-240 mm/s range."""
+"""Operators' habitual speeds scatter around the 130 mm/s average Culbertson et al. observed for hand-held
+tools (paper section III-D); every speed stays within its 20-240 mm/s range."""
 SLIDE_FORCE_N, SLIDE_FORCE_SPREAD = 1.0, 0.3
-"""Median and log-spread of the force pressing the finger or the tool tip during a TU1 slide (interpretation:
-a light exploratory touch of about 1 N, the hand's force varying by about 30 % between scans)."""
+"""Median and log-spread between operators of the force pressing the finger or the tool tip during a TU1
+slide (interpretation: a light exploratory touch of about 1 N)."""
+STROKE_SPREAD = 0.2
+"""Log-spread of one operator's speed and force from stroke to stroke around their habit (interpretation:
+repeated strokes of one hand differ by about a fifth)."""
+
+
+@dataclass(frozen=True)
+class Habit:
+    """How one operator tends to scan: habitual slide speed, slide force and posture (tilt of the unit)."""
+
+    speed_mm_s: float
+    force_n: float
+    tilt_deg: tuple[float, float]
+
+
+def habit_of(operator: str) -> Habit:
+    """The habit of the operator named ``operator``, the same in every scan they make (seeded by the name)."""
+    rng = np.random.default_rng(zlib.crc32(f"operator/{operator}".encode()))
+    speed = float(np.clip(rng.normal(SPEED_MEAN_MM_S, SPEED_SPREAD_MM_S), *SPEED_RANGE_MM_S))
+    force = float(rng.lognormal(np.log(SLIDE_FORCE_N), SLIDE_FORCE_SPREAD))
+    tilt = rng.normal(0.0, 5.0, 2)
+    return Habit(speed, force, (float(tilt[0]), float(tilt[1])))
 SLIDE_START_RANGE_S = (0.42, 0.75)
 
 
-def draw_operator(rng: Rng, *, t_amb: float | None = None,
-                  fold_skip_probability: float = 0.5) -> OperatorDraw:
+def draw_operator(rng: Rng, *, t_amb: float | None = None, fold_skip_probability: float = 0.5,
+                  operator: str = "sim") -> OperatorDraw:
     """Draw one scan's operator variability.
+
+    Slide speeds, slide forces and the unit's tilt scatter around the habit of ``operator``
+    (:func:`habit_of`) by :data:`STROKE_SPREAD` (speeds and forces) and 3 degrees (tilt), so two operators
+    differ more than two scans of one.
 
     The judged tack and yielding are off by +-0.25 in about one scan in six; a rigid sample's fold step is
     skipped with ``fold_skip_probability``. ``friction_factor`` scales both friction coefficients for the
@@ -71,7 +96,9 @@ def draw_operator(rng: Rng, *, t_amb: float | None = None,
     if not 0.0 <= fold_skip_probability <= 1.0:
         raise SimulationError(f"fold_skip_probability must be in [0, 1], got {fold_skip_probability!r}")
     ambient = rng.normal(21.5, 1.2) if t_amb is None else float(t_amb)
-    speeds = np.clip(rng.normal(SPEED_MEAN_MM_S, SPEED_SPREAD_MM_S, size=3), *SPEED_RANGE_MM_S)
+    habit = habit_of(operator)
+    speeds = np.clip(habit.speed_mm_s * rng.lognormal(0.0, STROKE_SPREAD, size=3), *SPEED_RANGE_MM_S)
+    forces = habit.force_n * rng.lognormal(0.0, STROKE_SPREAD, size=2)
     starts = rng.uniform(*SLIDE_START_RANGE_S, size=3)
     disagree = rng.random(2) < 1 / 6
     return OperatorDraw(
@@ -80,8 +107,7 @@ def draw_operator(rng: Rng, *, t_amb: float | None = None,
         friction_speed_mm_s=float(speeds[2]),
         finger_slide_start_s=float(starts[0]), tool_slide_start_s=float(starts[1]),
         friction_start_s=float(starts[2]),
-        finger_force_n=float(rng.lognormal(np.log(SLIDE_FORCE_N), SLIDE_FORCE_SPREAD)),
-        tool_force_n=float(rng.lognormal(np.log(SLIDE_FORCE_N), SLIDE_FORCE_SPREAD)),
+        finger_force_n=float(forces[0]), tool_force_n=float(forces[1]),
         friction_normal_n=float(rng.uniform(3.0, 7.0)),
         friction_factor=float(rng.lognormal(0.0, 0.12)),
         press_force_n=float(rng.uniform(6.0, 15.0)),
@@ -89,7 +115,7 @@ def draw_operator(rng: Rng, *, t_amb: float | None = None,
         fold_force_n=float(rng.uniform(1.0, 3.0)),
         fold_extent=float(rng.uniform(0.7, 1.1)),
         tap_strength=float(rng.uniform(0.6, 1.4)),
-        tilt_deg=(float(rng.normal(0.0, 6.0)), float(rng.normal(0.0, 6.0))),
+        tilt_deg=(habit.tilt_deg[0] + float(rng.normal(0.0, 3.0)), habit.tilt_deg[1] + float(rng.normal(0.0, 3.0))),
         heat_delay_s=float(rng.uniform(0.6, 1.4)),
         skips_rigid_fold=bool(rng.random() < fold_skip_probability),
         atk_offset=float(disagree[0] * rng.choice([-0.25, 0.25])),
