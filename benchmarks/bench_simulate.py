@@ -22,7 +22,7 @@ from scanner.simulation.scans import scan_jobs, simulate_one
 IMAGE_SIZE = (512, 512)
 DEMO_SUBSET = 4
 """Every 4th material of the library: 8 demo scans (first piece, first scan) stand for the demo's 192."""
-OLD_RATIO = 0.0
+OLD_RATIO = 12.5
 """Demo-scan time over the reference of the simulator at commit 7eeaefc (see the module docstring)."""
 
 

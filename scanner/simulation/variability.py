@@ -1,5 +1,15 @@
-"""What changes from scan to scan: the operator's draw (speeds, forces, timing, judgement, camera) and the
-physical sample (a piece a few percent off the library's typical material)."""
+"""What changes between scans, operators and pieces, each from a named physical source.
+
+- **Operators** (:func:`habit_of`, seeded by the operator's name): a habitual slide speed around the
+  130 mm/s average of hand-held tool exploration within its 20-240 mm/s range (Culbertson et al., as cited
+  in the paper, section III-D), a habitual slide force of about 1 N, a posture (the unit's tilt); the
+  finger's friction that day (skin moisture) and how they judge tack and yielding.
+- **Scans** (:func:`draw_operator`): each stroke's speed and force about 20 % around the habit, the hand's
+  modulation, timing, tilt, tap, press and fold forces, the camera's placement, light and exposure.
+- **Pieces** (:func:`sample_of`, seeded by the sample id): the piece's size (hence its thickness and plate
+  modes, :mod:`~scanner.simulation.microphone`), density, surface statistics (micro- and macro-roughness),
+  friction, heat rise and colour, a few percent off the material's typical values.
+"""
 
 from __future__ import annotations
 
