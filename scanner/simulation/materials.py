@@ -349,22 +349,8 @@ def _read_library(path: Path) -> dict[str, Material]:
 
 
 class UnknownMaterialError(TexplorerError, KeyError):
-    """A slug that is not in the default material library."""
+    """A name that is neither a slug of the default material library nor a taxonomy label."""
 
     def __str__(self) -> str:
         return str(self.args[0])
 
-
-def known(slugs: Iterable[str]) -> list[str]:
-    library = default_library()
-    slugs = list(slugs)
-    unknown = [slug for slug in slugs if slug not in library]
-    if unknown:
-        raise UnknownMaterialError(f"unknown material {unknown[0]!r} (known: {', '.join(library)})")
-    return slugs
-
-
-def resolve(material: Material | str) -> Material:
-    if isinstance(material, Material):
-        return material
-    return default_library()[known([material])[0]]
