@@ -16,8 +16,8 @@ from scanner.simulation.variability import OperatorDraw
 PHOTO_FOV_MM = {"I_disp": 60.0, "I_macro": 15.0, "I_illu": 60.0}
 """Field of view across the image width: the 4x lens shows a quarter of the normal view."""
 
-RAMP_LEVELS = 4096
-"""Steps of the colour ramp's lookup table: 16 per 8-bit output count."""
+RAMP_LEVELS = 256
+"""Steps of the colour ramp's lookup table (a step moves a colour by less than one 8-bit count)."""
 
 
 def _ramp(colors: np.ndarray, field: np.ndarray) -> np.ndarray:
@@ -26,8 +26,8 @@ def _ramp(colors: np.ndarray, field: np.ndarray) -> np.ndarray:
     palette = np.asarray(colors, dtype=np.float32)
     position = np.linspace(0.0, len(palette) - 1, RAMP_LEVELS)
     table = np.column_stack([np.interp(position, np.arange(len(palette)), palette[:, c]) for c in range(3)])
-    index = np.clip(field, 0.0, 1.0) * np.float32(RAMP_LEVELS - 1)
-    return table.astype(np.float32)[np.rint(index).astype(np.int16)]
+    index = cv2.convertScaleAbs(np.clip(field, 0.0, 1.0), alpha=RAMP_LEVELS - 1)  # rounds to uint8
+    return cv2.LUT(cv2.merge([index, index, index]), table.astype(np.float32).reshape(1, RAMP_LEVELS, 3))
 
 
 def _place(image: np.ndarray, angle_deg: float, shift: np.ndarray, out: tuple[int, int]) -> np.ndarray:
@@ -125,6 +125,8 @@ def _auto_exposure(rgb: np.ndarray, target: float = 0.72) -> np.ndarray:
 def _tone(rgb: np.ndarray, knee: float = 0.8) -> np.ndarray:
     """The phone's tone curve: linear up to ``knee``, then a soft shoulder that never quite reaches white,
     so a bright or flash-lit surface keeps some texture instead of clipping flat (in place)."""
+    if rgb.max() < knee:
+        return rgb
     bright = rgb >= knee
     rgb[bright] = knee + (1 - knee) * np.tanh((rgb[bright] - knee) / (1 - knee))
     return rgb
