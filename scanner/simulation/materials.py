@@ -116,6 +116,9 @@ class Material:
     thermal: Thermal
     reflectance: Reflectance
     appearance: Appearance
+    stock_thickness_mm: float | None = None
+    """Thickness of the stock a piece is cut from (:func:`~scanner.simulation.variability.sample_of`); None
+    for the library's typical sample, whose face is 100 cm^2."""
     derived: bool = False
     """True for a material derived from its taxonomy codes (:mod:`~scanner.simulation.derived`), False for
     one set by hand in the library."""

@@ -4,8 +4,9 @@ accelerometer sees (:mod:`~scanner.simulation.contact`).
 The contact force ``F = m_tip a_tip`` (the tip's acceleration through the contact resonance, times its
 effective mass) drives two radiators, and the room adds its own:
 
-- **The sample**, a plate of the piece's thickness ``h = V / A`` (``A`` = 100 cm^2 face; the piece's volume
-  varies between pieces, :func:`~scanner.simulation.variability.sample_of`) and bending stiffness
+- **The sample**, a square plate of the stock's thickness ``h`` (the typical volume over a 100 cm^2 face)
+  and the piece's volume (so its face varies between pieces,
+  :func:`~scanner.simulation.variability.sample_of`), of bending stiffness
   ``D = E h^3 / 12 (1 - nu^2)``. Its point mobility is the infinite-plate value ``1 / (8 sqrt(D rho h))``
   plus its bending modes ``f_mn = (pi / 2) sqrt(D / rho h) (m^2 + n^2) / L^2`` (simply supported square
   plate), each damped by the material's loss factor plus the table it rests on (Cremer, Heckl and
@@ -34,13 +35,12 @@ from scanner.simulation.contact import Excitation
 from scanner.simulation.materials import Material
 from scanner.simulation.signals import FS_AUDIO, Rng, noise_spectrum, quantise
 from scanner.simulation.surface import G_MM_S2, Tip
+from scanner.simulation.variability import plate_thickness_mm
 
 RHO_C = 415.0
 """Characteristic impedance of air at 20 degC (Pa s/m)."""
 C0 = 343.0
 """Speed of sound in air (m/s)."""
-FACE_CM2 = 100.0
-"""The sample's face under TU1 (10 cm x 10 cm); its thickness is the piece's volume over this face."""
 SUPPORT_LOSS = 0.01
 """Loss factor the table adds to every plate mode (interpretation: a sample lying loosely on a table)."""
 HOUSING_RADIUS_M = 0.03
@@ -58,8 +58,8 @@ def plate_mobility(material: Material, f: np.ndarray, position: float) -> np.nda
     cross position ``position`` (0..1) of the slide; the slide runs along the other axis, so each mode's
     shape averages to 1/2 along it."""
     comp = material.compliance
-    h = material.sample_volume_cm3 / FACE_CM2 * 1e-2  # m
-    side = np.sqrt(FACE_CM2) * 1e-2
+    h = plate_thickness_mm(material) * 1e-3  # m
+    side = np.sqrt(material.sample_volume_cm3 * 1e-6 / h)
     e_pa, rho = comp.elastic_modulus_mpa * 1e6, material.density_g_cm3 * 1e3
     stiffness = e_pa * h**3 / (12 * (1 - 0.3**2))
     mass = rho * h
@@ -82,8 +82,8 @@ def plate_mobility(material: Material, f: np.ndarray, position: float) -> np.nda
 def radiation_efficiency(material: Material, f: np.ndarray) -> np.ndarray:
     """Radiation efficiency of the sample plate: 1 above coincidence, edge modes below it."""
     comp = material.compliance
-    h = material.sample_volume_cm3 / FACE_CM2 * 1e-2
-    side = np.sqrt(FACE_CM2) * 1e-2
+    h = plate_thickness_mm(material) * 1e-3
+    side = np.sqrt(material.sample_volume_cm3 * 1e-6 / h)
     stiffness = comp.elastic_modulus_mpa * 1e6 * h**3 / (12 * (1 - 0.3**2))
     coincidence = C0**2 / (2 * np.pi) * np.sqrt(material.density_g_cm3 * 1e3 * h / stiffness)
     edge = 4 * side * C0 / (np.pi**2 * side**2 * coincidence) * np.sqrt(np.maximum(f, 1.0) / coincidence)

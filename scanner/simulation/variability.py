@@ -6,9 +6,9 @@
   finger's friction that day (skin moisture) and how they judge tack and yielding.
 - **Scans** (:func:`draw_operator`): each stroke's speed and force about 20 % around the habit, the hand's
   modulation, timing, tilt, tap, press and fold forces, the camera's placement, light and exposure.
-- **Pieces** (:func:`sample_of`, seeded by the sample id): the piece's size (hence its thickness and plate
-  modes, :mod:`~scanner.simulation.microphone`), density, surface statistics (micro- and macro-roughness),
-  friction, heat rise and colour, a few percent off the material's typical values.
+- **Pieces** (:func:`sample_of`, seeded by the sample id): the piece's size (cut from one stock: its face,
+  hence its plate modes, :mod:`~scanner.simulation.microphone`), density, surface statistics (micro- and
+  macro-roughness), friction, heat rise and colour, a few percent off the material's typical values.
 """
 
 from __future__ import annotations
@@ -137,12 +137,23 @@ def draw_operator(rng: Rng, *, t_amb: float | None = None, fold_skip_probability
     )
 
 
+FACE_CM2 = 100.0
+"""The face of the library's typical sample (10 cm x 10 cm): its thickness is its volume over this face."""
+
+
+def plate_thickness_mm(material: Material) -> float:
+    """Thickness of ``material``'s plate: the stock's for a piece, else the typical volume over a 100 cm^2 face."""
+    if material.stock_thickness_mm is not None:
+        return material.stock_thickness_mm
+    return material.sample_volume_cm3 / FACE_CM2 * 10.0
+
+
 def sample_of(material: Material, sample_id: str) -> Material:
     """The material as one physical sample: a few percent off the library's typical values.
 
     Deterministic in (slug, sample_id), so every scan of a sample sees the same piece: its volume (80-125 %
-    of the typical sample), density (+-1 %, at most 2 %), roughness and friction (+-5 %), heat rise (+-5 %)
-    and colour.
+    of the typical sample; pieces are cut from one stock, so the face varies and the thickness does not),
+    density (+-1 %, at most 2 %), roughness and friction (+-5 %), heat rise (+-5 %) and colour.
     """
     rng = np.random.default_rng(zlib.crc32(f"{material.slug}/{sample_id}".encode()))
     scale = rng.normal(1.0, 0.05, size=5)
@@ -154,6 +165,7 @@ def sample_of(material: Material, sample_id: str) -> Material:
         material,
         density_g_cm3=material.density_g_cm3 * float(np.clip(rng.normal(1.0, 0.01), 0.98, 1.02)),
         sample_volume_cm3=material.sample_volume_cm3 * float(rng.uniform(0.8, 1.25)),
+        stock_thickness_mm=plate_thickness_mm(material),
         roughness=replace(rough, micro_um=rough.micro_um * scale[0],
                           macro_height_um=rough.macro_height_um * min(scale[1], 1.1)),
         friction=replace(fric, static=fric.static * scale[2], kinetic=fric.kinetic * min(scale[2], scale[3])),
