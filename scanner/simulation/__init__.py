@@ -3,8 +3,8 @@
 The material library is data (``scanner/data/materials.toml``, one table per material, set by hand); every
 other material of the taxonomy is derived from its codes (:mod:`~scanner.simulation.derived`,
 ``scanner/data/material_classes.toml``). This package turns a material, a seed and a per-scan operator draw
-into every channel of SPEC 3 at its true rate, following the scanning procedure of SPEC 4 one step at a
-time. Each simulated sensor has its own module:
+into every channel of docs/database.md at its true rate, following the scanning procedure of
+docs/operator.md#procedure one step at a time. Each simulated sensor has its own module:
 
 ======================  ==================  ============================================================
 step                    module              what is synthesised

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import fft
 
-from scanner.preprocess import ACCEL_V_PER_G, ACCEL_ZERO_V, accel_g
+from scanner.calibration import ACCEL_V_PER_G, ACCEL_ZERO_V, accel_g
 from scanner.simulation.materials import Material
 from scanner.simulation.signals import (
     DAQ_LSB_V,

@@ -60,14 +60,14 @@ def _slide(material: Material, rng: Rng, operator: OperatorDraw, tip: Tip, speed
 
 
 def finger_slide(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
-    """TU1 finger slide: ``v_fs``, ``a_fs``, ``r_fs`` (SPEC 4 step 2)."""
+    """TU1 finger slide: ``v_fs``, ``a_fs``, ``r_fs`` (docs/operator.md#procedure step 2)."""
     v, a, r = _slide(material, rng, operator, FINGER, operator.finger_speed_mm_s, operator.finger_slide_start_s,
                      operator.finger_force_n)
     return {"v_fs": v, "a_fs": a, "r_fs": r}
 
 
 def tool_slide(material: Material, rng: Rng, operator: OperatorDraw) -> Arrays:
-    """TU1 tool slide: ``v_ts``, ``a_ts``, ``r_ts`` (SPEC 4 step 4)."""
+    """TU1 tool slide: ``v_ts``, ``a_ts``, ``r_ts`` (docs/operator.md#procedure step 4)."""
     v, a, r = _slide(material, rng, operator, TOOL, operator.tool_speed_mm_s, operator.tool_slide_start_s,
                      operator.tool_force_n)
     return {"v_ts": v, "a_ts": a, "r_ts": r}
