@@ -7,6 +7,7 @@
 ``tactum``, ``image``, ``audio``, ``other``, ``related``, ``selection``, ``space``.
 """
 
+from features import modern  # noqa: F401  (registers the opt-in families)
 from features.extraction import (
     FeatureCache,
     ScanSource,

@@ -36,10 +36,11 @@ if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
     from distributed import Client
 
 
-def code_version() -> str:
+def code_version(families: Sequence[str] | None = None) -> str:
     """Hash of the feature code (every registered family's module, this module and what they import): a
-    cached feature vector is reused only with the code that computed it."""
-    return REGISTRY.code_version(__name__)
+    cached feature vector is reused only with the code that computed it. ``families`` (default: the
+    default families) adds the chosen families' names and parameters (:meth:`Registry.code_version`)."""
+    return REGISTRY.code_version(__name__, families=families)
 
 
 def without_short_channels(scan: Scan) -> Scan:
@@ -63,9 +64,10 @@ REUSE_FROM_PIXELS = 1 << 22
 largest mapping threshold, so without :func:`reusing_freed_memory` each is faulted in anew."""
 
 
-def extract(scan: Scan) -> dict[str, float]:
-    """The named features of a scan (docs/features.md): every registered family's, in order; NaN where a
-    value is undefined. The scan is prepared once (:class:`~features.prepared.PreparedScan`) for all of them;
+def extract(scan: Scan, families: Sequence[str] | None = None) -> dict[str, float]:
+    """The named features of a scan (docs/features.md): every default family's (or those named in
+    ``families``, opt-in ones too: :mod:`features.modern`), in order; NaN where a value is
+    undefined. The scan is prepared once (:class:`~features.prepared.PreparedScan`) for all of them;
     channels too short for their features count as missing (:func:`without_short_channels`).
 
     BLAS runs on one thread: a product's summation order depends on its thread count, which would make
@@ -79,7 +81,7 @@ def extract(scan: Scan) -> dict[str, float]:
     large = any(photo.shape[0] * photo.shape[1] >= REUSE_FROM_PIXELS for photo in scan.images.values())
     with reusing_freed_memory() if large else contextlib.nullcontext(), one_blas_thread():
         prepared = PreparedScan(without_short_channels(scan))
-        for family in REGISTRY:
+        for family in REGISTRY.chosen(families):
             computed = family.compute(prepared)
             if tuple(computed) != family.columns:
                 # A programming error, not bad input.
@@ -118,11 +120,12 @@ def source_of(scan: Scan) -> ScanSource:
     return ScanSource(scan.scan_id, scan.meta.label, scan.meta.sample_id, functools.partial(_return, scan))
 
 
-def _extract_source(source: ScanSource) -> tuple[list[float] | None, str | None]:
+def _extract_source(source: ScanSource,
+                    families: tuple[str, ...] | None = None) -> tuple[list[float] | None, str | None]:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # missing-channel warnings are expected on partial scans
-            values = extract(source.load())
+            values = extract(source.load(), families)
     except NotOnThisMachine:
         raise  # a cluster worker without the scan's files: the client sends them (features.cluster)
     except Exception as exc:  # one broken scan must not stop the others; reported with its id
@@ -132,7 +135,8 @@ def _extract_source(source: ScanSource) -> tuple[list[float] | None, str | None]
 
 def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None, *,
                  cache: FeatureCache | None = None, progress: bool = True, client: Client | None = None,
-                 ship_data: bool = False, pool: WorkerPool | None = None) -> FeatureSpace:
+                 ship_data: bool = False, pool: WorkerPool | None = None,
+                 families: Sequence[str] | None = None) -> FeatureSpace:
     """Features of many scans as a :class:`FeatureSpace`, rows in input order.
 
     ``workers`` processes (default: the number of cores; 1 = in this process), kept for the next call
@@ -146,12 +150,17 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     ``workers`` processes, with the same results; the cache is still read and written here only.
     Workers read stored scans where they see them, else (or with ``ship_data``) this process sends each
     scan's files: see :func:`features.cluster.extract`.
+
+    ``families`` names the families to compute (default: the default ones, the paper's 193 features), opt-in
+    ones too; their cache entries are keyed by their names and parameters as well.
     """
     if pool is not None and workers not in (None, pool.size):
         raise ValueError(f"workers={workers} with a pool of {pool.size} workers")
     sources = [s if isinstance(s, ScanSource) else source_of(s) for s in scans]
-    names = REGISTRY.names
-    version = code_version()
+    families = None if families is None else tuple(f.name for f in REGISTRY.chosen(families))
+    names = REGISTRY.columns_of(families)
+    version = code_version(families)
+    work = _extract_source if families is None else functools.partial(_extract_source, families=families)
     rows: list[list[float] | None] = [None] * len(sources)
     errors: dict[int, str] = {}
     todo = []
@@ -167,15 +176,15 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     workers = max(1, min(size, len(todo) or 1))
     with contextlib.ExitStack() as stack:
         if client is not None:
-            results = cluster.extract(client, _extract_source, [sources[i] for i in todo], todo, bar.update,
-                                      version=code_version, ship_data=ship_data)
+            results = cluster.extract(client, work, [sources[i] for i in todo], todo, bar.update,
+                                      version=functools.partial(code_version, families), ship_data=ship_data)
         else:
             key = (version, names, _working_directory())
             if pool is not None:
                 pool = pool.serving(key)
             elif workers > 1:  # this function's own, kept between calls (None: another thread's call has them)
                 pool = stack.enter_context(_KEPT.lent(size, key))
-            results = _run(_extract_source, [sources[i] for i in todo], todo, workers, bar.update, pool)
+            results = _run(work, [sources[i] for i in todo], todo, workers, bar.update, pool)
         # leaving early (Ctrl-C) ends the workers' tasks now, not at exit
         for i, (row, error) in stack.enter_context(contextlib.closing(results)):
             if error is not None:

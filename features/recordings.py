@@ -287,7 +287,7 @@ def generic_family(role: str, width: int) -> RoleFamily:
 
 def _family(name: str) -> RoleFamily:
     """A registered family, or the generic family a name of :func:`generic_family` stands for."""
-    if name in ROLE_REGISTRY.modalities:
+    if name in ROLE_REGISTRY:
         return ROLE_REGISTRY[name]
     role, _, width = name.removeprefix("generic.").partition(":")
     return generic_family(role, int(width or 1))
@@ -345,11 +345,12 @@ VIBRATION = ROLE_REGISTRY.register(RoleFamily(
 FRICTION = ROLE_REGISTRY.register(RoleFamily("friction", "force_xyz", FRICTION_NAMES, _friction))
 
 
-def families(recording: Recording) -> list[str]:
+def families(recording: Recording, chosen: Sequence[str] | None = None) -> list[str]:
     """The families that apply to a recording: the registered ones (``audio.audio``, ``image.photo``, ...)
-    in order, then the generic family of each generic channel and of a vibration below 1 kHz."""
+    in order, among the default ones or those named in ``chosen`` (opt-in ones too: docs/modern-features.md),
+    then the generic family of each generic channel and of a vibration below 1 kHz."""
     found = []
-    for family in ROLE_REGISTRY:
+    for family in ROLE_REGISTRY.chosen(chosen):
         if family.role in IMAGE_ROLES:
             applies = recording.image(family.role) is not None
         else:
@@ -474,7 +475,8 @@ def _extract_one(job: tuple[Recording, Windowing, int, tuple[str, ...]]) -> tupl
 
 def feature_space(recordings: Sequence[Recording], windowing: Windowing = Windowing(), border: int = 0,
                   group_by: str | None = "auto", workers: int | None = 1, progress: bool = False,
-                  client: Client | None = None) -> tuple[FeatureSpace, list[str]]:
+                  client: Client | None = None,
+                  chosen: Sequence[str] | None = None) -> tuple[FeatureSpace, list[str]]:
     """The feature space of a set of recordings with its own labels, levels, groups and split, and the
     warnings raised while extracting (one line each, naming the recording).
 
@@ -483,7 +485,8 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     there (evaluation then leaves the column out). Rows are in recording order (windows in time order with
     ``combine = "rows"``). ``workers`` processes (1: in this process, None: one per core), or the Dask
     cluster of ``client`` (:mod:`features.cluster`; the recordings are sent from here, the values are the
-    same).
+    same). ``chosen`` names the registered families to compute (default: the default ones), opt-in ones too
+    (``catch22.audio``, ...: docs/modern-features.md).
 
     Raises
     ------
@@ -496,11 +499,11 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     unlabelled = next((r.name for r in recordings if not r.label), None)
     if unlabelled is not None:
         raise RecordingFeatureError(f"recording {unlabelled!r} has no label")
-    found = [families(r) for r in recordings]
-    applied = _applied({f for names in found for f in names})
+    found = [families(r, chosen) for r in recordings]
+    applied = _applied({f for names in found for f in names}, chosen)
     if not applied:
         roles = sorted({role for r in recordings for role in r.roles})
-        needed = list(dict.fromkeys(family.role for family in ROLE_REGISTRY))
+        needed = list(dict.fromkeys(family.role for family in ROLE_REGISTRY.chosen(chosen)))
         raise RecordingFeatureError(f"no feature family applies: the recordings have the roles "
                                     f"{', '.join(roles) or 'none'}; the families need "
                                     f"{', '.join(needed[:-1])} or {needed[-1]}")
@@ -527,28 +530,30 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     return space, missing + list(dict.fromkeys(notes))
 
 
-def _applied(present: set[str]) -> tuple[str, ...]:
-    """The families of a set: the registered ones present, in registry order, then one generic family per
-    generic role, as wide as its widest channel (a narrower one fills the columns it has)."""
+def _applied(present: set[str], chosen: Sequence[str] | None = None) -> tuple[str, ...]:
+    """The families of a set: the registered ones present (of the default ones or ``chosen``), in registry
+    order, then one generic family per generic role, as wide as its widest channel (a narrower one fills
+    the columns it has)."""
     widest: dict[str, int] = {}
-    for name in present - set(ROLE_REGISTRY.modalities):
+    for name in present - {f.name for f in ROLE_REGISTRY.every}:
         family = _family(name)
         widest[family.role] = max(widest.get(family.role, 0), len(family.columns) // len(SIGNAL_NAMES))
-    return (*(f for f in ROLE_REGISTRY.modalities if f in present),
+    return (*(f.name for f in ROLE_REGISTRY.chosen(chosen) if f.name in present),
             *(generic_family(role, width).name for role, width in sorted(widest.items())))
 
 
 def _has(own: Sequence[str], name: str) -> bool:
     """Whether families ``own`` (a recording's) cover ``name``: by name, or a generic family by its role."""
-    if name in ROLE_REGISTRY.modalities:
+    if name in ROLE_REGISTRY:
         return name in own
     role = _family(name).role
-    return any(f not in ROLE_REGISTRY.modalities and _family(f).role == role for f in own)
+    return any(f not in ROLE_REGISTRY and _family(f).role == role for f in own)
 
 
 def _own(recording: Recording, applied: Sequence[str]) -> list[str]:
     """The families of a recording that cover one of ``applied``."""
-    return [f for f in families(recording) if any(_has([f], name) for name in applied)]
+    registered = [name for name in applied if name in ROLE_REGISTRY]
+    return [f for f in families(recording, registered) if any(_has([f], name) for name in applied)]
 
 
 def lacking(recordings: Sequence[Recording], found: Sequence[Sequence[str]], applied: Sequence[str],

@@ -44,9 +44,11 @@ class RegistryError(TexplorerError, ValueError):
 
 
 class _Code:
-    """What a family's values depend on: the module that defines its function."""
+    """What a family's values depend on: the module that defines its function, and its parameters."""
 
     compute: Callable[..., object]
+    params: Mapping[str, object]
+    opt_in: bool
 
     @property
     def module(self) -> str:
@@ -61,7 +63,11 @@ class Family(_Code):
     ``name`` is the modality: the first part of every column name (``tactum.matx``). ``groups`` are the
     web application's groups of values, ``(column prefix, title)``, by default the whole family under its
     ``title``. ``solver_rtol`` gives the relative tolerance of columns computed by an iterative fit (the
-    regression comparison uses it; closed-form columns have none).
+    regression comparison uses it; closed-form columns have none). ``params`` are the values the family's
+    function reads besides the scan (a length rule, a filter bank's octaves): they count towards the code
+    version, so a cached value is never served for other parameters. An ``opt_in`` family is computed
+    only when asked for by name (:meth:`Registry.chosen`); iterating the registry, its ``names``,
+    ``modalities``, ``groups`` and code version are those of the default families only.
     """
 
     name: str
@@ -70,6 +76,8 @@ class Family(_Code):
     compute: Compute
     groups: tuple[tuple[str, str], ...] = ()
     solver_rtol: Mapping[str, float] = field(default_factory=dict)
+    params: Mapping[str, object] = field(default_factory=dict)
+    opt_in: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "columns", tuple(self.columns))
@@ -90,6 +98,7 @@ class RoleFamily(_Code):
     ``prepare(data, fs)`` (optional) runs once on the whole recording before it is cut into windows (a
     band limit), and ``compute(window, fs)`` gives the values of one window of the prepared data, in
     column order. An image role (``photo``): ``compute(image, border)``, the border cropped in pixels.
+    ``params`` and ``opt_in`` as for :class:`Family`.
     """
 
     name: str
@@ -98,6 +107,8 @@ class RoleFamily(_Code):
     compute: Callable[[np.ndarray, Any], Sequence[float]]
     applies: Callable[[float], bool] = field(default=lambda fs: True)  # any rate
     prepare: Callable[[np.ndarray, float], np.ndarray] | None = None
+    params: Mapping[str, object] = field(default_factory=dict)
+    opt_in: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "columns", tuple(self.columns))
@@ -119,7 +130,11 @@ F = TypeVar("F", Family, RoleFamily)
 
 
 class Registry(Generic[F]):
-    """Registered families, in extraction (column) order."""
+    """Registered families, in extraction (column) order.
+
+    Iteration, :attr:`names`, :attr:`modalities` and :meth:`code_version` cover the default families;
+    :meth:`chosen` gives any families by name, the opt-in ones too, and :attr:`every` all of them.
+    """
 
     def __init__(self) -> None:
         self._families: dict[str, F] = {}
@@ -128,7 +143,7 @@ class Registry(Generic[F]):
         """Add ``family`` after the others; returns it."""
         if family.name in self._families:
             raise RegistryError(f"a feature family {family.name!r} is already registered")
-        taken = sorted(set(family.columns) & set(self.names))
+        taken = sorted(set(family.columns) & {c for f in self.every for c in f.columns})
         if taken:
             raise RegistryError(f"family {family.name!r}: column(s) already registered: {', '.join(taken[:3])}")
         self._families[family.name] = family
@@ -142,10 +157,42 @@ class Registry(Generic[F]):
             raise RegistryError(f"no feature family {name!r} (registered: {', '.join(self._families)})") from None
 
     def __iter__(self) -> Iterator[F]:
-        return iter(tuple(self._families.values()))
+        return iter(tuple(f for f in self._families.values() if not f.opt_in))
 
     def __len__(self) -> int:
-        return len(self._families)
+        return len(tuple(iter(self)))
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._families
+
+    @property
+    def every(self) -> tuple[F, ...]:
+        """Every registered family, the opt-in ones too, in order."""
+        return tuple(self._families.values())
+
+    @property
+    def opt_in(self) -> tuple[str, ...]:
+        """The names of the opt-in families, in order."""
+        return tuple(f.name for f in self._families.values() if f.opt_in)
+
+    def chosen(self, names: Sequence[str] | None = None) -> tuple[F, ...]:
+        """The families ``names`` in registry order (None: the default ones).
+
+        Raises
+        ------
+        RegistryError
+            If a name is not a registered family.
+        """
+        if names is None:
+            return tuple(self)
+        unknown = [n for n in names if n not in self._families]
+        if unknown:
+            raise RegistryError(f"no feature family {unknown[0]!r} (registered: {', '.join(self._families)})")
+        return tuple(f for f in self._families.values() if f.name in names)
+
+    def columns_of(self, names: Sequence[str] | None = None) -> tuple[str, ...]:
+        """Every column of the families ``names`` (None: the default ones), in order."""
+        return tuple(column for family in self.chosen(names) for column in family.columns)
 
     def __getitem__(self, name: str) -> F:
         return self._families[name]
@@ -157,18 +204,25 @@ class Registry(Generic[F]):
 
     @property
     def modalities(self) -> tuple[str, ...]:
-        """The family names, in order."""
-        return tuple(self._families)
+        """The default families' names, in order."""
+        return tuple(family.name for family in self)
 
-    def code_modules(self, *extra: str) -> tuple[str, ...]:
-        """The modules whose source the values depend on: each family's module, ``extra`` modules (the
-        extraction's own), and every project module they import, directly or not."""
-        return _closure(tuple(sorted({family.module for family in self} | set(extra))))
+    def code_modules(self, *extra: str, families: Sequence[str] | None = None) -> tuple[str, ...]:
+        """The modules whose source the values depend on: each family's module (of ``families``, default
+        the default ones), ``extra`` modules (the extraction's own), and every project module they import,
+        directly or not."""
+        return _closure(tuple(sorted({family.module for family in self.chosen(families)} | set(extra))))
 
-    def code_version(self, *extra: str) -> str:
-        """Hash of the source of :meth:`code_modules`: a cached feature vector is reused only with the code
-        that computed it."""
-        return _digest(self.code_modules(*extra))
+    def code_version(self, *extra: str, families: Sequence[str] | None = None) -> str:
+        """Hash of the source of :meth:`code_modules` (and of the chosen families' names and ``params``
+        when ``families`` are given): a cached feature vector is reused only with the code and parameters
+        that computed it. The default families' version is that of their source alone."""
+        source = _digest(self.code_modules(*extra, families=families))
+        if families is None:
+            return source
+        described = repr([(f.name, sorted((k, repr(v)) for k, v in f.params.items()))
+                          for f in self.chosen(families)])
+        return hashlib.sha256(f"{source}\0{described}".encode()).hexdigest()[:20]
 
 
 class ScanRegistry(Registry[Family]):

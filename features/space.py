@@ -196,8 +196,9 @@ class FeatureSpace:
     def modality(self, name: str) -> FeatureSpace:
         """The columns of one modality: a registered family (``tactum``, ``image``, ``audio``, ``other``),
         whose name is the first part of its column names."""
-        if name not in REGISTRY.modalities:
-            raise FeatureSpaceError(f"unknown modality {name!r} (known: {', '.join(REGISTRY.modalities)})")
+        if name not in REGISTRY:
+            known = ", ".join(f.name for f in REGISTRY.every)
+            raise FeatureSpaceError(f"unknown modality {name!r} (known: {known})")
         return self.subset([c for c in self.columns if c.split(".", 1)[0] == name])
 
     def subset(self, columns: Sequence[str]) -> FeatureSpace:

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from features import FeatureSpace, ScanSource, WorkerPool, code_version, extract, extract_many
+from features import FeatureSpace, ScanSource, WorkerPool, code_version, extract, extract_many, feature_sets
 from scanner.scan import Scan
 from scanner.storage.bundle import ExportReport, Progress, export_bundle
 from scanner.storage.database import Database, DatabaseError, ScanRecord
@@ -51,12 +51,14 @@ def database_sources(db: Database, records: Iterable[ScanRecord]) -> list[ScanSo
 
 def extract_database(db: Database, *, label: str | None = None, records: Sequence[ScanRecord] | None = None,
                      workers: int | None = None, progress: bool = True, client: Client | None = None,
-                     ship_data: bool = False, pool: WorkerPool | None = None) -> FeatureSpace:
+                     ship_data: bool = False, pool: WorkerPool | None = None,
+                     families: Sequence[str] | None = None) -> FeatureSpace:
     """The features of every scan of ``db`` (or of ``label``, a label or class prefix, or of ``records``),
     read from the database's feature cache where the scan and the feature code are unchanged; extracted in
     ``workers`` processes here (or those of ``pool``, kept across a job's batches), or on the Dask cluster
     of ``client`` (``ship_data``: send the files to the workers; see :func:`features.extract_many`). The
-    catalog and the cache are read and written here only.
+    catalog and the cache are read and written here only. ``families``: the feature families to compute
+    (default: the paper's; opt-in ones such as :mod:`features.modern`'s too).
 
     Raises
     ------
@@ -68,7 +70,7 @@ def extract_database(db: Database, *, label: str | None = None, records: Sequenc
     if not records:
         raise DatabaseError(f"{db.root}: no scans{f' with label {label}' if label else ''} to extract")
     return extract_many(database_sources(db, records), workers=workers, cache=db, progress=progress, client=client,
-                        ship_data=ship_data, pool=pool)
+                        ship_data=ship_data, pool=pool, families=families)
 
 
 def stored_features(db: Database, record: ScanRecord) -> tuple[dict[str, float], str | None]:
@@ -148,7 +150,7 @@ def predict_scan(model: TrainedModel, scan: Scan, k: int, taxonomy: Taxonomy) ->
     taxonomy.learning.models.ModelError
         A feature the model needs is missing or undefined for this scan.
     """
-    return predict_values(model, extract(scan), k, taxonomy)
+    return predict_values(model, extract(scan, feature_sets.families_of(model.feature_names)), k, taxonomy)
 
 
 def predict_values(model: TrainedModel, values: dict[str, float], k: int, taxonomy: Taxonomy) -> list[Prediction]:

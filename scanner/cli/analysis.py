@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from features import REGISTRY, FeatureSpace, code_version
+from features import REGISTRY, FeatureSpace, code_version, feature_sets
 from features.recordings import Windowing, describe_families, feature_space
 from features.selection import select_features
 from scanner.cli.base import EXIT_ERROR, UsageError, add_db_option, open_db
@@ -20,6 +20,7 @@ from scanner.cli.common import (
     CLASSIFIER_NAMES,
     add_cluster_options,
     add_evaluation_options,
+    add_feature_set_option,
     add_space_options,
     choices,
     cluster,
@@ -39,7 +40,7 @@ from scanner.workflows import (
     stored_features,
 )
 from taxonomy.labels import LEVELS, parse_prefix
-from taxonomy.learning.evaluation import CLASSIFIERS, default_feature_sets, evaluate_grid
+from taxonomy.learning.evaluation import CLASSIFIERS, default_feature_sets, evaluate_grid, present_feature_sets
 from taxonomy.learning.models import load_model, save_model, train_model
 from taxonomy.learning.results import one_line
 from taxonomy.reports.report import format_table, write_report
@@ -68,7 +69,8 @@ def cmd_features(args: argparse.Namespace) -> int:
     db = open_db(args)
     started = time.perf_counter()
     with cluster(args) as client:
-        space = extract_database(db, label=args.label, workers=args.workers, client=client, ship_data=args.ship_data)
+        space = extract_database(db, label=args.label, workers=args.workers, client=client, ship_data=args.ship_data,
+                                 families=feature_sets.families_for(args.feature_set))
     report_space(space, time.perf_counter() - started)
     out = args.out or db.root / table_name(args.label)
     space.to_csv(out)
@@ -93,7 +95,12 @@ def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
     print the table; write the HTML report if asked."""
     classifiers = choices(args.classifier, list(CLASSIFIERS))
     levels = choices(args.level, space.level_names)
-    sets = None if ALL in args.feature_set else {name: default_feature_sets()[name] for name in args.feature_set}
+    defaults = default_feature_sets()
+    named = {name: defaults.get(name, name) for name in args.feature_set if name != ALL}
+    if not named:
+        sets = None
+    else:
+        sets = {**present_feature_sets(space), **named} if ALL in args.feature_set else named
     use_split = not getattr(args, "ignore_split", False)
     sizes = set_sizes(args.n, ("3", "10", ALL) if space.label_level is not None else ("3", "10"))
     started = time.perf_counter()
@@ -133,8 +140,9 @@ def set_space(args: argparse.Namespace, client=None):
     name, recordings = set_recordings(args.dataset, args.db)
     windowing = Windowing(args.window, args.combine)
     started = time.perf_counter()
+    wanted = args.feature_set if isinstance(args.feature_set, list) else [args.feature_set]
     space, notes = feature_space(recordings, windowing, args.border, args.group_by, workers=args.workers,
-                                 progress=True, client=client)
+                                 progress=True, client=client, chosen=feature_sets.role_families_for(wanted))
     for note in notes if args.verbose else notes[:3]:
         print(f"texplorer: warning: {one_line(note)}", file=sys.stderr)
     if len(notes) > 3 and not args.verbose:
@@ -233,7 +241,8 @@ def _add_set_options(parser: argparse.ArgumentParser) -> None:
 def cmd_train(args: argparse.Namespace) -> int:
     with cluster(args) as client:
         space = space_for(args, client)
-    model = train_model(space, args.level, args.n, args.classifier, args.seed)
+    model = train_model(space, args.level, args.n, args.classifier, args.seed,
+                        None if args.feature_set == ALL else args.feature_set)
     save_model(model, args.out)
     print(model.describe())
     print(f"wrote {args.out}")
@@ -288,6 +297,7 @@ def register(commands: argparse._SubParsersAction) -> None:
                                    "by scan content and feature-code version) and write features.csv.")
     add_db_option(features)
     _add_set_options(features)
+    add_feature_set_option(features, many=True)
     features.add_argument("--workers", type=int, help="processes (default: number of cores)")
     features.add_argument("--out", type=Path, help="CSV file (default: <db>/features.csv, with --label "
                           "<db>/features-<LABEL>.csv; for a set <db>/recordings/<set>/features.csv, which "
@@ -331,6 +341,7 @@ def register(commands: argparse._SubParsersAction) -> None:
     train.add_argument("--n", type=int, default=10, help="selected features (default 10)")
     train.add_argument("--classifier", choices=CLASSIFIER_NAMES, default="rf", help="classifier (default rf)")
     train.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    add_feature_set_option(train, many=False)
     train.set_defaults(handler=cmd_train)
 
     classify = commands.add_parser("classify", help="predict the material of a stored scan (its id in the "

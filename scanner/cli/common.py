@@ -10,7 +10,7 @@ import warnings
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
-from features import REGISTRY, FeatureSpace
+from features import REGISTRY, FeatureSpace, feature_sets
 from features.cluster import ClusterError, connect, describe
 from scanner.cli.base import UsageError, add_db_option, open_db
 from scanner.workflows import extract_database
@@ -23,7 +23,10 @@ def space_for(args: argparse.Namespace, client=None):
     """The feature space of ``--features CSV`` if given, else of the database (from its feature cache)."""
     if args.features:
         return FeatureSpace.from_csv(args.features)
-    space = extract_database(open_db(args), workers=args.workers, client=client, ship_data=args.ship_data)
+    wanted = args.feature_set if isinstance(getattr(args, "feature_set", None), list) else [
+        getattr(args, "feature_set", ALL)]
+    space = extract_database(open_db(args), workers=args.workers, client=client, ship_data=args.ship_data,
+                             families=feature_sets.families_for(wanted))
     for scan_id, reason in space.failed:
         print(f"texplorer: warning: {scan_id} left out: {reason}", file=sys.stderr)
     return space
@@ -65,9 +68,7 @@ def add_evaluation_options(parser: argparse.ArgumentParser, report_default: str 
                         "own levels (default all)")
     parser.add_argument("--n", nargs="+", metavar="N", help="selected set sizes, and 'all' for every feature "
                         "without selection (default 3 10; for a set 3 10 all)")
-    parser.add_argument("--feature-set", nargs="+", choices=(*REGISTRY.modalities, ALL), default=[ALL],
-                        help=f"feature sets: one modality each, or all = every modality and all "
-                        f"{len(REGISTRY.names)} (default)")
+    add_feature_set_option(parser, many=True)
     parser.add_argument("--protocol", choices=("nested", "paper"), default="nested",
                         help="nested (default): scaling and selection inside the folds; paper: on all data first")
     parser.add_argument("--folds", type=int, default=5, help="cross-validation folds (default 5)")
@@ -75,6 +76,24 @@ def add_evaluation_options(parser: argparse.ArgumentParser, report_default: str 
         parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     default = f" (default {report_default})" if report_default else ""
     parser.add_argument("--report", type=Path, default=None, help=f"write the HTML report into this folder{default}")
+
+
+def feature_set_name(value: str) -> str:
+    """An argparse type: a modality, ``all``, or a modern or fused set (:mod:`features.feature_sets`)."""
+    try:
+        return feature_sets.check_names([value])[0]
+    except feature_sets.FeatureSetError as problem:
+        raise argparse.ArgumentTypeError(str(problem)) from None
+
+
+def add_feature_set_option(parser: argparse.ArgumentParser, many: bool) -> None:
+    modern = ", ".join(feature_sets.MODERN_SETS)
+    parser.add_argument("--feature-set", nargs="+" if many else None, type=feature_set_name,
+                        default=[ALL] if many else ALL, metavar="SET",
+                        help=f"feature sets: {', '.join(REGISTRY.modalities)}, {ALL} = every modality and all "
+                        f"{len(REGISTRY.names)} (default); opt-in: {modern} (docs/modern-features.md), "
+                        f"paper, {feature_sets.FUSION} (paper+catch22+scattering+minirocket), or parts joined "
+                        "by '+' (paper+minirocket)")
 
 
 @contextlib.contextmanager

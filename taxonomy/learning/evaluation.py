@@ -37,6 +37,7 @@ from joblib import Parallel, delayed
 from sklearn.base import BaseEstimator, clone
 from sklearn.discriminant_analysis import LinearDiscriminantAnalysis
 from sklearn.ensemble import RandomForestClassifier
+from sklearn.linear_model import RidgeClassifierCV
 from sklearn.metrics import confusion_matrix, f1_score
 from sklearn.model_selection import StratifiedGroupKFold, StratifiedKFold
 from sklearn.naive_bayes import GaussianNB
@@ -47,7 +48,8 @@ from sklearn.preprocessing import MinMaxScaler
 from sklearn.svm import SVC
 from tqdm import tqdm
 
-from features import cluster
+from features import cluster, feature_sets
+from features.random_kernels import RandomKernels
 from features.registry import REGISTRY
 from features.selection import FQSelector, KeepAll
 from features.space import FeatureSpace
@@ -74,7 +76,8 @@ def default_feature_sets() -> dict[str, FeatureSet]:
 
 
 def classifier_estimators(seed: int) -> dict[str, BaseEstimator]:
-    """The paper's six classifiers (section V-B), each with its random state fixed to ``seed``.
+    """The paper's six classifiers (section V-B), each with its random state fixed to ``seed``, and a ridge
+    classifier, the usual head of random-kernel features (Dempster et al. 2020, section 3.3).
 
     Interpretations where the paper used MATLAB defaults or gave no value: SVM with an RBF kernel and
     Platt-scaled probabilities (``predict_top`` needs them); kNN with k = 3 and distance weights (five
@@ -82,7 +85,8 @@ def classifier_estimators(seed: int) -> dict[str, BaseEstimator]:
     conjugate gradient, a full-batch method, becomes one hidden layer of 100 ReLU units trained by
     L-BFGS, scikit-learn's full-batch quasi-Newton solver, for at most 200 iterations; "bagged trees" is a
     random forest of 100 trees (MATLAB's Classification Learner bags 30), each split drawing sqrt(f)
-    candidate features.
+    candidate features. ``ridge``: ``RidgeClassifierCV`` choosing its penalty among 10 values from 1e-3 to
+    1e3 by efficient leave-one-out on the training rows, as Dempster et al.
     """
     return {
         "svm": SVC(kernel="rbf", probability=True, random_state=seed),
@@ -91,11 +95,14 @@ def classifier_estimators(seed: int) -> dict[str, BaseEstimator]:
         "mlp": MLPClassifier(hidden_layer_sizes=(100,), solver="lbfgs", max_iter=200, random_state=seed),
         "rf": RandomForestClassifier(n_estimators=100, random_state=seed, n_jobs=1),
         "nb": GaussianNB(),
+        "ridge": RidgeClassifierCV(alphas=np.logspace(-3, 3, 10)),
     }
 
 
-def _pipeline(classifier: BaseEstimator, n_features: int | None) -> Pipeline:
+def _pipeline(classifier: BaseEstimator, n_features: int | None, kernels: RandomKernels | None = None) -> Pipeline:
+    # A random-kernel transform is the first step: fitted on the training folds, as the scaling and selection.
     return Pipeline([
+        *([("kernels", kernels)] if kernels is not None else []),
         ("scale", MinMaxScaler()),
         ("select", KeepAll() if n_features is None else FQSelector(n_features=n_features)),
         ("classify", classifier),
@@ -109,9 +116,11 @@ CLASSIFIERS: dict[str, Pipeline] = {
 
 
 def make_pipeline(classifier: str | BaseEstimator = "rf", n_features: int | None = 10,
-                  seed: int = SEED) -> Pipeline:
+                  seed: int = SEED, kernels: str | None = None, columns: Sequence[str] = ()) -> Pipeline:
     """A fresh, unfitted ``MinMaxScaler -> FQSelector(n_features) -> classifier`` pipeline (``KeepAll``
-    instead of the selector for ``n_features`` None).
+    instead of the selector for ``n_features`` None), after a ``kernels`` step (``minirocket``,
+    ``multirocket``: :class:`features.random_kernels.RandomKernels` on the ``signal`` columns of
+    ``columns``, the names of the input columns, seeded with ``seed``) where given.
 
     ``classifier`` is a key of :data:`CLASSIFIERS` or any unfitted scikit-learn classifier (it is cloned;
     its random state is set to ``seed`` when it has one).
@@ -126,7 +135,8 @@ def make_pipeline(classifier: str | BaseEstimator = "rf", n_features: int | None
             estimator.set_params(random_state=seed)
     else:
         raise EvaluationError(f"classifier must be a name or a scikit-learn estimator, got {classifier!r}")
-    return _pipeline(estimator, n_features)
+    step = None if kernels is None else RandomKernels(kernels, tuple(columns), random_state=seed)
+    return _pipeline(estimator, n_features, step)
 
 
 def classifier_name(classifier: str | BaseEstimator) -> str:
@@ -220,6 +230,8 @@ def resolve_feature_set(space: FeatureSpace, feature_set: FeatureSet) -> tuple[F
     """The columns of ``feature_set`` and its display name ("all", the modality, or "<n> columns")."""
     if feature_set is None or feature_set == "all":
         return space, "all"
+    if isinstance(feature_set, str) and feature_sets.is_named_set(feature_set):
+        return space.subset(feature_sets.columns_of(space.columns, feature_set)), feature_set
     if isinstance(feature_set, str):
         return space.modality(feature_set), feature_set
     columns = list(feature_set)
@@ -323,7 +335,7 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
     classifiers = list(classifiers)
     levels = list(dict.fromkeys(space.check_level(level) for level in (levels or space.level_names)))
     set_sizes = list(set_sizes)
-    sets = dict(feature_sets) if feature_sets is not None else _present_feature_sets(space)
+    sets = dict(feature_sets) if feature_sets is not None else present_feature_sets(space)
     cells = [_Cell(level, name, feature_set, size)
              for name, feature_set in sets.items() for level in levels for size in set_sizes]
     reports = _run(space, classifiers, cells, folds, seed, protocol, workers, progress, use_split, client,
@@ -332,7 +344,7 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
     return [reports[c * per_cell + k] for k in range(per_cell) for c in range(len(cells))]
 
 
-def _present_feature_sets(space: FeatureSpace) -> dict[str, FeatureSet]:
+def present_feature_sets(space: FeatureSpace) -> dict[str, FeatureSet]:
     """The modalities present, then all of them; a single modality only once (it is all of them)."""
     prefixes = {c.split(".", 1)[0] for c in space.columns}
     present = {name: fs for name, fs in default_feature_sets().items() if fs in prefixes}
@@ -391,7 +403,7 @@ def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells:
     else:
         on_cluster = client.scatter(prepared, hash=False)
         results = cluster.run(client, _fold, [(on_cluster[c], f, protocol) for c, f in jobs], name="texplorer-fold")
-    outcome: dict[tuple[int, int], tuple[list[np.ndarray], np.ndarray, tuple[str, ...]]] = {}
+    outcome: dict[tuple[int, int], tuple[list[np.ndarray], tuple[str, ...], tuple[str, ...]]] = {}
     with contextlib.closing(results):  # leaving early (Ctrl-C) cancels the cluster's remaining folds now
         for j, result in results:
             outcome[jobs[j]] = result
@@ -418,13 +430,27 @@ def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseE
         else:
             splits, grouped = cv_splits(y, subset.groups, folds, seed, grouping_labels=subset.label_text,
                                         single_group=single_group)
-        pipelines = [_without_probabilities(make_pipeline(c, cell.n_features, seed)) for c in classifiers]
+        kernels = _kernels(cell.feature_set, protocol)
+        pipelines = [_without_probabilities(make_pipeline(c, cell.n_features, seed, kernels, subset.columns))
+                     for c in classifiers]
         shared = None
         if protocol == "paper":
             with one_blas_thread():
                 shared = clone(pipelines[0][:-1]).fit(subset.X, y)
     return _Prepared(cell, subset.X, y, subset.columns, dropped, splits, grouped, own,
                      space.label_level is None, pipelines, shared, warning_notes(caught))
+
+
+def _kernels(feature_set: FeatureSet, protocol: str) -> str | None:
+    """The random-kernel transform of a feature set; refused under the ``paper`` protocol, which would fit it
+    on every row before splitting."""
+    if not (isinstance(feature_set, str) and feature_sets.is_named_set(feature_set)):
+        return None
+    kernels = feature_sets.kernels_of(feature_set)
+    if kernels is not None and protocol != "nested":
+        raise EvaluationError(f"feature set {feature_set!r}: {kernels} is fitted inside the folds; "
+                              "it runs under the nested protocol only")
+    return kernels
 
 
 def _without_probabilities(pipeline: Pipeline) -> Pipeline:
@@ -443,12 +469,12 @@ def _without_probabilities(pipeline: Pipeline) -> Pipeline:
 
 
 def _fold(prepared: _Prepared, fold: int,
-          protocol: str) -> tuple[list[np.ndarray], np.ndarray, tuple[str, ...]]:
+          protocol: str) -> tuple[list[np.ndarray], tuple[str, ...], tuple[str, ...]]:
     """One fold: fit the shared scale -> select part (nested protocol) and every classifier on its output.
 
     A pipeline's fit is its transformers' ``fit_transform`` followed by the classifier's ``fit``, so fitting
     the shared part once gives exactly the predictions of fitting each full pipeline. Returns the
-    predictions of the test rows per classifier, the selected column indices and the warnings raised.
+    predictions of the test rows per classifier, the selected column names and the warnings raised.
     """
     train, test = prepared.splits[fold]
     X, y = prepared.X, prepared.y
@@ -467,18 +493,25 @@ def _fold(prepared: _Prepared, fold: int,
             classifier = clone(pipeline[-1])
             predictions.append(classifier.fit(X_train, y[train]).predict(X_test))
         messages += warning_notes(caught, f"{type(classifier).__name__}: ")
-    return predictions, shared.named_steps["select"].selected_, tuple(dict.fromkeys(messages))
+    return predictions, _selected_names(shared, prepared.columns), tuple(dict.fromkeys(messages))
+
+
+def _selected_names(shared: Pipeline, columns: tuple[str, ...]) -> tuple[str, ...]:
+    """The names of the columns the selector kept (a random-kernel step names its outputs)."""
+    if "kernels" in shared.named_steps:
+        columns = tuple(shared.named_steps["kernels"].get_feature_names_out())
+    return tuple(columns[i] for i in shared.named_steps["select"].selected_)
 
 
 def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],
-             per_fold: list[tuple[list[np.ndarray], np.ndarray, tuple[str, ...]]], seed: int,
+             per_fold: list[tuple[list[np.ndarray], tuple[str, ...], tuple[str, ...]]], seed: int,
              protocol: str) -> list[Result]:
     y, splits, cell = prepared.y, prepared.splits, prepared.cell
     fold_of_row = np.full(len(y), -1, dtype=np.int64)  # -1: a training row of the set's own split
     for index, (_, test) in enumerate(splits):
         fold_of_row[test] = index
     tested = fold_of_row >= 0
-    selected = tuple(tuple(prepared.columns[i] for i in indices) for _, indices, _ in per_fold)
+    selected = tuple(names for _, names, _ in per_fold)
     notes = tuple(dict.fromkeys(prepared.notes + sum((n for _, _, n in per_fold), ())))
     classes = np.unique(y)
     reports = []
