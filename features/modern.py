@@ -64,14 +64,15 @@ EXTRA = "texplorer[modern]"
 
 CATCH22_NAMES = (
     "DN_HistogramMode_5", "DN_HistogramMode_10", "DN_OutlierInclude_p_001_mdrmd",
-    "DN_OutlierInclude_n_001_mdrmd", "CO_f1ecac", "CO_FirstMin_ac", "SP_Summaries_welch_rect_area_5_1",
-    "SP_Summaries_welch_rect_centroid", "FC_LocalSimple_mean3_stderr", "CO_trev_1_num", "CO_HistogramAMI_even_2_5",
-    "IN_AutoMutualInfoStats_40_gaussian_fmmi", "MD_hrv_classic_pnn40", "SB_BinaryStats_mean_longstretch1",
-    "SB_MotifThree_quantile_hh", "FC_LocalSimple_mean1_tauresrat", "CO_Embed2_Dist_tau_d_expfit_meandiff",
-    "SC_FluctAnal_2_dfa_50_1_2_logi_prop_r1", "SC_FluctAnal_2_rsrangefit_50_1_logi_prop_r1",
-    "SB_TransitionMatrix_3ac_sumdiagcov", "PD_PeriodicityWang_th0_01", "SB_BinaryStats_diff_longstretch0",
+    "DN_OutlierInclude_n_001_mdrmd", "CO_FirstCrossing_acf_1e_pointOfCrossing", "CO_FirstMin_ac",
+    "SP_Summaries_fft_area_5_1", "SP_Summaries_fft_wq_50", "FC_LocalSimple_mean3_stde",
+    "FC_LocalSimple_mean1_taurat", "MD_pNN_pnn40", "SB_BinaryStats_mean_longstretch1",
+    "SB_BinaryStats_diff_longstretch0", "SB_MotifThree_quantile_hh", "CO_HistogramAMI_even_5bin_ami2",
+    "CO_trev_1_num", "IN_AutoMutualInfoStats_40_gaussian_fmmi", "SB_TransitionMatrix_quantile_3_ac_sumdiagcov",
+    "PD_PeriodicityWang_th0_01", "CO_Embed2_Dist_tau_d_expfit_meandiff",
+    "SC_FluctAnal_2_rsrangefit_50_1_logi_prop_r1", "SC_FluctAnal_2_dfa_50_1_2_logi_prop_r1",
 )
-"""The 22 features of catch22 (Lubba et al. 2019, Table 1), in ``pycatch22.catch22_all``'s order."""
+"""The 22 features of catch22 (Lubba et al. 2019, Table 1), as ``pycatch22.catch22_all`` names and orders them."""
 
 SCATTERING_Q = 8
 """Wavelets per octave of the first order (Andén and Mallat 2014 use Q = 8 for audio)."""

@@ -237,6 +237,30 @@ def accept_uncorrelated(order: Sequence[int], rho: np.ndarray, n_features: int, 
     return accepted
 
 
+FULL_SPEARMAN_MAX = 2000
+"""Up to this many usable columns the selector reads |rho| from the whole Spearman matrix; above it (the
+thousands of random-kernel features, :mod:`features.random_kernels`) it computes only the correlations of
+each column it walks with those accepted (:func:`walk_uncorrelated`), not m x m of them."""
+
+
+def walk_uncorrelated(X: np.ndarray, order: Sequence[int], n_features: int,
+                      max_corr: float) -> tuple[list[int], np.ndarray]:
+    """:func:`accept_uncorrelated` without the whole matrix: Spearman's rho is Pearson's correlation of the
+    average ranks, so each column's centred, unit-norm ranks are made once and a walked column's rho with
+    the accepted ones is one product with them. Returns the accepted indices and their rho matrix."""
+    ranks = scipy.stats.rankdata(X, axis=0)
+    ranks -= ranks.mean(axis=0)
+    ranks /= np.linalg.norm(ranks, axis=0)
+    accepted: list[int] = []
+    for j in order:
+        if not accepted or np.all(np.abs(ranks[:, accepted].T @ ranks[:, j]) < max_corr):
+            accepted.append(int(j))
+            if len(accepted) == n_features:
+                break
+    kept = ranks[:, accepted]
+    return accepted, kept.T @ kept
+
+
 class FQSelector(SelectorMixin, BaseEstimator):
     """Keep the ``n_features`` best features by FQ that are not rank-correlated (paper section V-A5).
 
@@ -288,10 +312,13 @@ class FQSelector(SelectorMixin, BaseEstimator):
         self.fq_ = feature_quality(X, y)
         candidates = np.flatnonzero(usable_columns(X))
         order = np.argsort(-self.fq_[candidates], kind="stable")
-        rho = spearman_matrix(X[:, candidates])
-        accepted = accept_uncorrelated(order, rho, self.n_features, self.max_corr)
+        if candidates.size > FULL_SPEARMAN_MAX:
+            accepted, self.rho_ = walk_uncorrelated(X[:, candidates], order, self.n_features, self.max_corr)
+        else:
+            rho = spearman_matrix(X[:, candidates])
+            accepted = accept_uncorrelated(order, rho, self.n_features, self.max_corr)
+            self.rho_ = rho[np.ix_(accepted, accepted)]
         self.selected_ = candidates[accepted]
-        self.rho_ = rho[np.ix_(accepted, accepted)]
         return self
 
     def _check_params(self) -> None:
