@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import sys
+import time
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -403,7 +404,7 @@ def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells:
     else:
         on_cluster = client.scatter(prepared, hash=False)
         results = cluster.run(client, _fold, [(on_cluster[c], f, protocol) for c, f in jobs], name="texplorer-fold")
-    outcome: dict[tuple[int, int], tuple[list[np.ndarray], tuple[str, ...], tuple[str, ...]]] = {}
+    outcome: dict[tuple[int, int], _FoldOutcome] = {}
     with contextlib.closing(results):  # leaving early (Ctrl-C) cancels the cluster's remaining folds now
         for j, result in results:
             outcome[jobs[j]] = result
@@ -431,7 +432,8 @@ def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseE
             splits, grouped = cv_splits(y, subset.groups, folds, seed, grouping_labels=subset.label_text,
                                         single_group=single_group)
         kernels = _kernels(cell.feature_set, protocol)
-        pipelines = [_without_probabilities(make_pipeline(c, cell.n_features, seed, kernels, subset.columns))
+        pipelines = [_without_probabilities(make_pipeline(c, cell.n_features, seed) if kernels is None else
+                                            make_pipeline(c, cell.n_features, seed, kernels, subset.columns))
                      for c in classifiers]
         shared = None
         if protocol == "paper":
@@ -468,16 +470,28 @@ def _without_probabilities(pipeline: Pipeline) -> Pipeline:
     return pipeline
 
 
-def _fold(prepared: _Prepared, fold: int,
-          protocol: str) -> tuple[list[np.ndarray], tuple[str, ...], tuple[str, ...]]:
+@dataclass(frozen=True)
+class _FoldOutcome:
+    """One fold's predictions per classifier, the selected column names, the warnings, and the seconds per
+    classifier (the shared part's time included)."""
+
+    predictions: list[np.ndarray]
+    selected: tuple[str, ...]
+    notes: tuple[str, ...]
+    seconds: list[float]
+
+
+def _fold(prepared: _Prepared, fold: int, protocol: str) -> _FoldOutcome:
     """One fold: fit the shared scale -> select part (nested protocol) and every classifier on its output.
 
     A pipeline's fit is its transformers' ``fit_transform`` followed by the classifier's ``fit``, so fitting
     the shared part once gives exactly the predictions of fitting each full pipeline. Returns the
-    predictions of the test rows per classifier, the selected column names and the warnings raised.
+    predictions of the test rows per classifier, the selected column names, the warnings raised and the
+    time each classifier took with the shared part.
     """
     train, test = prepared.splits[fold]
     X, y = prepared.X, prepared.y
+    started = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught, one_blas_thread():
         # Small dense matrices: BLAS threads cost more than they gain, and folds run side by side.
         warnings.simplefilter("always")
@@ -485,15 +499,19 @@ def _fold(prepared: _Prepared, fold: int,
         if protocol == "nested":
             shared = clone(prepared.pipelines[0][:-1]).fit(X[train], y[train])
         X_train, X_test = shared.transform(X[train]), shared.transform(X[test])
+    shared_seconds = time.perf_counter() - started
     messages = warning_notes(caught)
-    predictions = []
+    predictions, seconds = [], []
     for pipeline in prepared.pipelines:
+        started = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught, one_blas_thread():
             warnings.simplefilter("always")
             classifier = clone(pipeline[-1])
             predictions.append(classifier.fit(X_train, y[train]).predict(X_test))
+        seconds.append(shared_seconds + time.perf_counter() - started)
         messages += warning_notes(caught, f"{type(classifier).__name__}: ")
-    return predictions, _selected_names(shared, prepared.columns), tuple(dict.fromkeys(messages))
+    return _FoldOutcome(predictions, _selected_names(shared, prepared.columns), tuple(dict.fromkeys(messages)),
+                        seconds)
 
 
 def _selected_names(shared: Pipeline, columns: tuple[str, ...]) -> tuple[str, ...]:
@@ -504,21 +522,21 @@ def _selected_names(shared: Pipeline, columns: tuple[str, ...]) -> tuple[str, ..
 
 
 def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],
-             per_fold: list[tuple[list[np.ndarray], tuple[str, ...], tuple[str, ...]]], seed: int,
+             per_fold: list[_FoldOutcome], seed: int,
              protocol: str) -> list[Result]:
     y, splits, cell = prepared.y, prepared.splits, prepared.cell
     fold_of_row = np.full(len(y), -1, dtype=np.int64)  # -1: a training row of the set's own split
     for index, (_, test) in enumerate(splits):
         fold_of_row[test] = index
     tested = fold_of_row >= 0
-    selected = tuple(names for _, names, _ in per_fold)
-    notes = tuple(dict.fromkeys(prepared.notes + sum((n for _, _, n in per_fold), ())))
+    selected = tuple(outcome.selected for outcome in per_fold)
+    notes = tuple(dict.fromkeys(prepared.notes + sum((outcome.notes for outcome in per_fold), ())))
     classes = np.unique(y)
     reports = []
     for k, classifier in enumerate(classifiers):
         y_pred = np.full_like(y, "")
-        for (_, test), (predictions, _, _) in zip(splits, per_fold, strict=True):
-            y_pred[test] = predictions[k]
+        for (_, test), outcome in zip(splits, per_fold, strict=True):
+            y_pred[test] = outcome.predictions[k]
         accuracy = np.array([np.mean(y_pred[test] == y[test]) for _, test in splits])
         f1 = np.array([f1_score(y[test], y_pred[test], average="macro", zero_division=0.0)
                        for _, test in splits])
@@ -529,6 +547,7 @@ def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],
             n_samples=len(y), seed=seed, notes=notes, taxonomy=prepared.taxonomy, n_features=cell.n_features,
             grouped=prepared.grouped, given_split=prepared.given_split, columns=prepared.columns,
             dropped=prepared.dropped, selected=selected, y_true=y, y_pred=y_pred, fold=fold_of_row,
+            seconds=float(sum(outcome.seconds[k] for outcome in per_fold)),
         ))
     return reports
 

@@ -120,7 +120,9 @@ class Result:
     (the set's own train/test split was used: one "fold"), ``columns`` (the feature columns evaluated),
     ``dropped`` (those left out because they hold NaN), ``selected`` (the names each fold's selector kept,
     best FQ first), and per row of the feature space ``y_true``, ``y_pred`` (out-of-fold predictions) and
-    ``fold`` (the split that tested it; -1 for a training row of the set's own split).
+    ``fold`` (the split that tested it; -1 for a training row of the set's own split), and ``seconds``, the
+    wall time of fitting and predicting over all splits (the shared transform, scaling and selection, and
+    this classifier).
 
     A related method's own: ``feature_seconds`` and ``classify_seconds``, the time per classification
     (feature extraction and the classifier itself), ``paper``, the figure its paper reports for this
@@ -155,6 +157,7 @@ class Result:
     classify_seconds: float = math.nan
     paper: str = ""
     detail: str = ""
+    seconds: float = math.nan
 
     @property
     def folds(self) -> int:

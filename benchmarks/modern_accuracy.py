@@ -1,0 +1,65 @@
+"""Accuracy of every modern family beside the paper's features, on the same folds (docs/modern-features.md).
+
+    python benchmarks/modern_accuracy.py [--db DEMO_DB] [--per-class 30] [--workers 2]
+
+Sets: the simulated database of ``texplorer demo`` (if ``--db`` is given; scans), and the two contrast sets
+of :mod:`scanner.simulation.contrasts` (spectral shape only; transient timing only; recordings with a
+``vibration`` role). Every feature set is evaluated by the project's evaluation (nested protocol, 5 folds,
+seed 0, the same folds for every set, random kernels fitted inside the folds) with the random forest and
+the ridge classifier, on the 10 features FQ + Spearman selects and on every feature. Prints one table per
+set and the time each feature set took. Run once; it takes minutes on two cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from features import feature_sets
+from features.recordings import feature_space
+from scanner.simulation.contrasts import contrast_recordings
+from scanner.storage.database import Database
+from scanner.workflows import extract_database
+from taxonomy.evaluation import evaluate_grid
+from taxonomy.report import format_table
+
+SETS = ("paper", "catch22", "scattering", "minirocket", "multirocket", "fusion")
+CLASSIFIERS = ("rf", "ridge")
+SIZES = (10, None)
+
+
+def evaluate_sets(space, levels, workers: int) -> None:
+    reports = []
+    for name in SETS:
+        started = time.perf_counter()
+        found = evaluate_grid(space, CLASSIFIERS, levels, SIZES, {name: name}, workers=workers)
+        reports += found
+        print(f"  {name:<12} {time.perf_counter() - started:7.1f} s", flush=True)
+    print(format_table(reports), flush=True)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--db", type=Path)
+    parser.add_argument("--per-class", type=int, default=30)
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args()
+    for which in ("spectral", "timing"):
+        recordings = contrast_recordings(which, per_class=args.per_class)
+        started = time.perf_counter()
+        space, _ = feature_space(recordings, chosen=feature_sets.role_families_for(SETS), workers=args.workers)
+        print(f"== {which}: {len(space)} recordings, {len(set(space.label_text))} classes, "
+              f"{len(space.columns)} columns in {time.perf_counter() - started:.1f} s", flush=True)
+        evaluate_sets(space, None, args.workers)
+    if args.db:
+        started = time.perf_counter()
+        space = extract_database(Database(args.db, create=False), workers=args.workers, progress=False,
+                                 families=feature_sets.families_for(SETS))
+        print(f"== simulated database {args.db}: {len(space)} scans, {len(space.columns)} columns in "
+              f"{time.perf_counter() - started:.1f} s", flush=True)
+        evaluate_sets(space, None, args.workers)
+
+
+if __name__ == "__main__":
+    main()
