@@ -19,6 +19,7 @@ from features.space import FeatureSpace
 from taxonomy.learning.evaluation import CLASSIFIERS
 from taxonomy.learning.models import (
     MODEL_FORMAT,
+    NO_PROBABILITIES,
     ModelError,
     TrainedModel,
     load_model,
@@ -73,7 +74,7 @@ def test_training_keeps_the_metadata(space, model):
     assert "rf at level fine, 4 classes" in model.describe()
 
 
-@pytest.mark.parametrize("classifier", list(CLASSIFIERS))
+@pytest.mark.parametrize("classifier", [c for c in CLASSIFIERS if c not in NO_PROBABILITIES])
 def test_save_and_load_give_identical_predictions(space, tmp_path, classifier):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -86,6 +87,11 @@ def test_save_and_load_give_identical_predictions(space, tmp_path, classifier):
                  "software_version", "sklearn_version", "dropped", "n_rows"):
         assert getattr(loaded, name) == getattr(trained, name)
     assert [p.name for p in tmp_path.iterdir()] == ["model.skops"]
+
+
+def test_a_classifier_without_probabilities_is_not_trained_into_a_model(space):
+    with pytest.raises(ModelError, match="ridge gives no class probabilities"):
+        train_model(space, level="medium", n_features=3, classifier="ridge")
 
 
 def test_saving_over_an_existing_model_replaces_it(space, model, tmp_path):

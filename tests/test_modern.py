@@ -303,3 +303,24 @@ def test_walked_selection_equals_the_whole_matrix_selection():
     accepted, walked = walk_uncorrelated(X, order, 10, 0.5)
     assert accepted == expected
     np.testing.assert_allclose(walked, rho[np.ix_(expected, expected)], rtol=0, atol=1e-12)
+
+
+def test_a_minirocket_model_round_trips_and_classifies(noise_space, tmp_path):
+    """train -> save -> load -> predict_top: the kernel step is saved (skops, its types trusted by name)
+    and a row's signal columns are what it needs."""
+    from taxonomy.models import load_model, predict_top, required_inputs, save_model, train_model
+
+    codes = {"a": "C1S1M1P1X1", "b": "C2S1M1P1X1"}  # models are of the taxonomy's labels
+    noise_space = dataclasses.replace(noise_space, label_text=[codes[t] for t in noise_space.label_text],
+                                      label_level=None, levels={})
+    model = train_model(noise_space, level="fine", n_features=3, classifier="lda", feature_set="minirocket")
+    assert all(name.startswith("minirocket.vibration.") for name in model.selected)
+    loaded = load_model(save_model(model, tmp_path / "m.skops"))
+    row = dict(zip(noise_space.columns, noise_space.X[0], strict=True))
+    assert predict_top(loaded, row, 2) == predict_top(model, row, 2)
+    assert set(required_inputs(loaded)) == set(noise_space.columns)
+    del row[noise_space.columns[5]]
+    from taxonomy.models import ModelError
+
+    with pytest.raises(ModelError, match="missing feature value"):
+        predict_top(loaded, row, 2)

@@ -31,6 +31,8 @@ import sklearn
 from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import MinMaxScaler
 
+from features import feature_sets
+from features.random_kernels import SIGNAL_PREFIX, RandomKernels
 from features.selection import FQSelector
 from features.space import FeatureSpace
 from scanner.storage.files import atomic_write_bytes
@@ -52,11 +54,15 @@ MODEL_FORMAT = "texplorer-model"
 MODEL_FORMAT_VERSION = 1
 
 TRUSTED_TYPES = (
+    "features.modern.LengthRule",
+    "features.random_kernels.RandomKernels",
     "features.selection.FQSelector",
     "sklearn.metrics._dist_metrics.EuclideanDistance64",
     "sklearn.neighbors._kd_tree.KDTree",
     "sklearn.neural_network._stochastic_optimizers.AdamOptimizer",
     "sklearn.tree._tree.Tree",
+    "sktime.transformations.rocket._minirocket.MiniRocket",
+    "sktime.transformations.rocket._multirocket.MultiRocket",
 )
 """The types of our fitted pipelines that skops does not trust by default (it trusts builtins, numpy
 arrays and scikit-learn estimators); a file with any other such type is refused before it is loaded."""
@@ -104,6 +110,28 @@ class TrainedModel:
                 f"features: {', '.join(self.selected)}")
 
 
+NO_PROBABILITIES = ("ridge",)
+"""Classifiers without ``predict_proba``: evaluated, not trained into models (which rank classes by it)."""
+
+
+def selected_names(pipeline: Pipeline, columns: Sequence[str]) -> tuple[str, ...]:
+    """The names of the features the pipeline's selector kept: input columns, or the random-kernel step's
+    outputs (``minirocket.v_ts.00042``) where the pipeline has one."""
+    if "kernels" in pipeline.named_steps:
+        columns = list(pipeline.named_steps["kernels"].get_feature_names_out())
+    return tuple(columns[i] for i in np.asarray(pipeline.named_steps["select"].selected_, dtype=np.int64)
+                 if 0 <= i < len(columns))
+
+
+def required_inputs(model: TrainedModel) -> tuple[str, ...]:
+    """The inputs that must be finite to classify: the selected features, and with a random-kernel step
+    every signal column (each signal is transformed whole)."""
+    if "kernels" not in model.pipeline.named_steps:
+        return model.selected
+    signals = tuple(n for n in model.feature_names if n.startswith(f"{SIGNAL_PREFIX}."))
+    return tuple(n for n in model.selected if n in set(model.feature_names)) + signals
+
+
 def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, classifier: str = "rf",
                 seed: int = SEED, feature_set: FeatureSet = None) -> TrainedModel:
     """Fit ``scale -> select n_features -> classifier`` on every row of ``space`` at ``level``.
@@ -115,14 +143,17 @@ def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, 
     check_level(level)
     if classifier not in CLASSIFIERS:
         raise ModelError(f"unknown classifier {classifier!r} (known: {', '.join(CLASSIFIERS)})")
+    if classifier in NO_PROBABILITIES:
+        raise ModelError(f"{classifier} gives no class probabilities, which classify and the web application "
+                         f"show; train one of {', '.join(c for c in CLASSIFIERS if c not in NO_PROBABILITIES)}")
     subset, _ = resolve_feature_set(space, feature_set)
     subset, dropped = drop_nan_columns(subset)
     y = subset.y(level)
-    pipeline = make_pipeline(classifier, n_features, seed).fit(subset.X, y)
-    selector = pipeline.named_steps["select"]
+    kernels = feature_sets.kernels_of(feature_set) if feature_sets.is_named_set(feature_set) else None
+    pipeline = make_pipeline(classifier, n_features, seed, kernels, subset.columns).fit(subset.X, y)
     return TrainedModel(
         pipeline=pipeline, feature_names=subset.columns, level=level, classifier=classifier,
-        n_features=n_features, selected=tuple(subset.columns[i] for i in selector.selected_),
+        n_features=n_features, selected=selected_names(pipeline, subset.columns),
         classes=tuple(str(c) for c in pipeline.classes_), seed=seed, software_version=__version__,
         sklearn_version=sklearn.__version__, dropped=dropped, n_rows=len(y),
     )
@@ -228,9 +259,12 @@ def _model_from(path: Path, payload: Any) -> TrainedModel:
 
 
 def _check_pipeline(path: Path, pipeline: Any) -> None:
-    if not isinstance(pipeline, Pipeline) or [name for name, _ in pipeline.steps] != list(_STEPS):
+    names = [name for name, _ in pipeline.steps] if isinstance(pipeline, Pipeline) else []
+    if names not in (list(_STEPS), ["kernels", *_STEPS]):
         raise ModelError(f"{path}: the model is not a {' -> '.join(_STEPS)} pipeline")
-    scale, select, classify = (step for _, step in pipeline.steps)
+    if names[0] == "kernels" and not isinstance(pipeline.steps[0][1], RandomKernels):
+        raise ModelError(f"{path}: unexpected first step {type(pipeline.steps[0][1]).__name__}")
+    scale, select, classify = (step for _, step in pipeline.steps[-3:])
     kinds = (type(scale), type(select), type(classify))
     if kinds[:2] != (MinMaxScaler, FQSelector) or kinds[2] not in MODEL_TYPES[2:]:
         raise ModelError(f"{path}: unexpected pipeline steps {' -> '.join(k.__name__ for k in kinds)}")
@@ -243,10 +277,7 @@ def _check_consistent(path: Path, payload: dict[str, Any], pipeline: Pipeline) -
     if len(set(names)) != len(names) or pipeline.n_features_in_ != len(names):
         raise ModelError(f"{path}: {len(names)} distinct feature names for a pipeline of "
                          f"{pipeline.n_features_in_} inputs")
-    selector = pipeline.named_steps["select"]
-    selected = [names[i] for i in np.asarray(selector.selected_, dtype=np.int64)
-                if 0 <= i < len(names)]
-    if selected != payload["selected"]:
+    if list(selected_names(pipeline, names)) != payload["selected"]:
         raise ModelError(f"{path}: the selected feature names do not match the pipeline's selector")
     if [str(c) for c in pipeline.classes_] != payload["classes"]:
         raise ModelError(f"{path}: the class list does not match the pipeline's classes")
@@ -267,10 +298,11 @@ def predict_top(model: TrainedModel, feature_values: Mapping[str, float],
     """
     if isinstance(k, bool) or not isinstance(k, int) or k < 1:
         raise ModelError(f"k must be a positive integer, got {k!r}")
-    missing = [n for n in model.selected if n not in feature_values]
+    required = required_inputs(model)
+    missing = [n for n in required if n not in feature_values]
     if missing:
-        raise ModelError(f"missing feature value(s) the model needs: {', '.join(missing)}")
-    undefined = [n for n in model.selected if not _finite(feature_values[n])]
+        raise ModelError(f"missing feature value(s) the model needs: {', '.join(missing[:10])}")
+    undefined = [n for n in required if not _finite(feature_values[n])]
     if undefined:
         raise ModelError(f"undefined (NaN or non-numeric) feature value(s) the model needs: "
                          f"{', '.join(undefined)}")
