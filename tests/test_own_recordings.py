@@ -135,7 +135,7 @@ def test_a_folder_of_wav_files(tmp_path, capsys):
     out = cli(capsys, "evaluate", "set:sounds", "--db", db, "--report", tmp_path / "report", "--workers", 1)
     cells = table(out)
     assert {key[0] for key in cells} == {"X3", "X10", "all"}
-    assert {key[1] for key in cells} == {"svm", "lda", "knn", "mlp", "rf", "nb"}
+    assert {key[1] for key in cells} == {"svm", "lda", "knn", "mlp", "rf", "nb", "ridge"}
     assert np.mean(accuracies(cells, "material")) > 0.9  # chance: 1/3
     assert all(cell[-1] == "-" for cell in cells.values())  # r_C needs taxonomy codes
     assert "5 grouped folds" in out
@@ -337,3 +337,27 @@ def test_evaluate_uses_the_sets_table_written_with_the_same_options(tmp_path, ca
     monkeypatch.setattr(analysis, "stored_set_table", lambda args, folder: (None, "extracting"))
     again = cli(capsys, "evaluate", "set:sounds", "--db", db, "--window", "0.25", "--combine", "rows", *quick)
     assert table(again) == table(same)
+
+
+def test_a_set_with_the_modern_families(tmp_path, capsys):
+    """features and evaluate of set:NAME with --feature-set: the modern columns are extracted only when
+    asked for, and each set, alone and fused, is evaluated on the same folds and shown side by side."""
+    pytest.importorskip("sktime", reason="the modern families need texplorer[modern]")
+    pytest.importorskip("pycatch22", reason="the modern families need texplorer[modern]")
+    root, db = tmp_path / "sounds", tmp_path / "db"
+    write_sounds(root, {(m, o): m for m in SOUND_CLASSES for o in range(6)})
+    (tmp_path / "sounds.toml").write_text(SOUND_MAPPING)
+    cli(capsys, "ingest", root, "--mapping", tmp_path / "sounds.toml", "--db", db)
+    out = cli(capsys, "features", "set:sounds", "--db", db, "--feature-set", "catch22", "--workers", 1)
+    assert "features: audio.audio (35), catch22.audio (22) in" in out
+    out = cli(capsys, "evaluate", "set:sounds", "--db", db, "--workers", 1, "--classifier", "lda", "ridge",
+              "--level", "material", "--n", "3", "--feature-set", "paper", "catch22", "minirocket",
+              "paper+minirocket", "--report", tmp_path / "report")
+    cells = table(out)
+    assert {key[2] for key in cells} == {"paper", "catch22", "minirocket", "paper+minirocket"}
+    # chance 1/3; guessing 36 rows has a standard deviation of sqrt(2 / 9 / 36) = 0.079: 0.7 is 4.6 of them
+    assert np.mean(accuracies(cells, "material", "minirocket")) > 0.7
+    page = (tmp_path / "report" / "index.html").read_text()
+    assert "Feature sets side by side" in page and "paper+minirocket" in page
+    code = main(["evaluate", "set:sounds", "--db", str(db), "--feature-set", "rocket"])
+    assert code != 0 and "unknown feature set 'rocket'" in capsys.readouterr().err
