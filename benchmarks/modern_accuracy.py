@@ -21,8 +21,8 @@ from features.recordings import feature_space
 from scanner.simulation.contrasts import contrast_recordings
 from scanner.storage.database import Database
 from scanner.workflows import extract_database
-from taxonomy.evaluation import evaluate_grid
-from taxonomy.report import format_table
+from taxonomy.learning.evaluation import evaluate_grid
+from taxonomy.reports.report import format_table
 
 SETS = ("paper", "catch22", "scattering", "minirocket", "multirocket", "fusion")
 CLASSIFIERS = ("rf", "ridge")

@@ -7,7 +7,7 @@ columns of a feature space (:mod:`features.modern`: every signal's instances by 
 sktime transform per signal on the training rows it is given, and outputs the columns it was not asked to
 transform (the paper's features in a fusion) followed by the kernel features of every signal, each the mean
 over the signal's instances. In the evaluation it is the first step of the pipeline, so it is fitted on the
-training folds only, as the scaling and the FQ selection are (:mod:`taxonomy.evaluation`).
+training folds only, as the scaling and the FQ selection are (:mod:`taxonomy.learning.evaluation`).
 
 The transforms are sktime's (``texplorer[modern]``): the step adds the wiring, not the arithmetic. sktime
 rather than aeon: aeon 1.6 requires numba < 0.64, below the numba this project runs. Series are

@@ -25,7 +25,7 @@ from scanner.preprocess import dft321, slide_signal  # noqa: E402
 from scanner.scan import Recording, Trace  # noqa: E402
 from scanner.simulation.contrasts import contrast_recordings  # noqa: E402
 from scanner.storage.matfile import load_scan  # noqa: E402
-from taxonomy.evaluation import EvaluationError, evaluate, make_pipeline  # noqa: E402
+from taxonomy.learning.evaluation import EvaluationError, evaluate, make_pipeline  # noqa: E402
 
 SCAN = Path(__file__).parent / "regression" / "scans" / "granite-polished-01-001.mat"
 
@@ -259,7 +259,7 @@ def test_leak_kernels_and_selection_stay_inside_the_folds(noise_space):
 def test_each_folds_kernels_are_fitted_on_its_training_rows_only(noise_space):
     """The kernel step of a fold transforms exactly as one fitted on that fold's training rows, and not as
     one fitted on every row (MiniRocket's biases are quantiles of the training series' convolutions)."""
-    from taxonomy.evaluation import cv_splits
+    from taxonomy.learning.evaluation import cv_splits
 
     space = noise_space
     y = space.y(space.label_level)
@@ -308,7 +308,7 @@ def test_walked_selection_equals_the_whole_matrix_selection():
 def test_a_minirocket_model_round_trips_and_classifies(noise_space, tmp_path):
     """train -> save -> load -> predict_top: the kernel step is saved (skops, its types trusted by name)
     and a row's signal columns are what it needs."""
-    from taxonomy.models import load_model, predict_top, required_inputs, save_model, train_model
+    from taxonomy.learning.models import load_model, predict_top, required_inputs, save_model, train_model
 
     codes = {"a": "C1S1M1P1X1", "b": "C2S1M1P1X1"}  # models are of the taxonomy's labels
     noise_space = dataclasses.replace(noise_space, label_text=[codes[t] for t in noise_space.label_text],
@@ -320,7 +320,7 @@ def test_a_minirocket_model_round_trips_and_classifies(noise_space, tmp_path):
     assert predict_top(loaded, row, 2) == predict_top(model, row, 2)
     assert set(required_inputs(loaded)) == set(noise_space.columns)
     del row[noise_space.columns[5]]
-    from taxonomy.models import ModelError
+    from taxonomy.learning.models import ModelError
 
     with pytest.raises(ModelError, match="missing feature value"):
         predict_top(loaded, row, 2)

@@ -26,7 +26,7 @@ FS = 3000.0
 SECONDS = 2.0
 SETS = ("spectral", "timing")
 
-SPECTRAL_SHAPES: dict[str, tuple[tuple[float, float], ...]] = {
+BAND_SHAPES: dict[str, tuple[tuple[float, float], ...]] = {
     "one-peak": ((300.0, 15.0),),
     "two-peaks-wide": ((200.0, 15.0), (400.0, 15.0)),
     "flat": ((300.0, 150.0),),
@@ -93,13 +93,13 @@ def contrast_recordings(which: str, per_class: int = 30, seed: int = 0) -> list[
     if per_class < 2:
         raise SimulationError(f"per_class must be at least 2, got {per_class}")
     n = int(FS * SECONDS)
-    classes = list(SPECTRAL_SHAPES) if which == "spectral" else list(TIMINGS)
+    classes = list(BAND_SHAPES) if which == "spectral" else list(TIMINGS)
     recordings = []
     for c, label in enumerate(classes):
         for k in range(per_class):
             rng = _rng(seed, which, c, k)
             if which == "spectral":
-                data = _band_noise(rng, n, SPECTRAL_SHAPES[label], rng.uniform(0.96, 1.04))
+                data = _band_noise(rng, n, BAND_SHAPES[label], rng.uniform(0.96, 1.04))
             else:
                 data = _impulses(rng, label, n)
             data = data / np.sqrt(np.mean(data**2))
