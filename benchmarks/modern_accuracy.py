@@ -29,9 +29,9 @@ CLASSIFIERS = ("rf", "ridge")
 SIZES = (10, None)
 
 
-def evaluate_sets(space, levels, workers: int) -> None:
+def evaluate_sets(space, levels, workers: int, sets: tuple[str, ...] = SETS) -> None:
     reports = []
-    for name in SETS:
+    for name in sets:
         started = time.perf_counter()
         found = evaluate_grid(space, CLASSIFIERS, levels, SIZES, {name: name}, workers=workers)
         reports += found
@@ -44,8 +44,11 @@ def main() -> None:
     parser.add_argument("--db", type=Path)
     parser.add_argument("--per-class", type=int, default=30)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--sets", nargs="+", default=list(SETS), help="feature sets (default: all six)")
+    parser.add_argument("--levels", nargs="+", help="levels of the database (default: all)")
+    parser.add_argument("--no-contrasts", action="store_true", help="only the database")
     args = parser.parse_args()
-    for which in ("spectral", "timing"):
+    for which in () if args.no_contrasts else ("spectral", "timing"):
         recordings = contrast_recordings(which, per_class=args.per_class)
         started = time.perf_counter()
         space, _ = feature_space(recordings, chosen=feature_sets.role_families_for(SETS), workers=args.workers)
@@ -55,10 +58,10 @@ def main() -> None:
     if args.db:
         started = time.perf_counter()
         space = extract_database(Database(args.db, create=False), workers=args.workers, progress=False,
-                                 families=feature_sets.families_for(SETS))
+                                 families=feature_sets.families_for(args.sets))
         print(f"== simulated database {args.db}: {len(space)} scans, {len(space.columns)} columns in "
               f"{time.perf_counter() - started:.1f} s", flush=True)
-        evaluate_sets(space, None, args.workers)
+        evaluate_sets(space, args.levels, args.workers, tuple(args.sets))
 
 
 if __name__ == "__main__":
