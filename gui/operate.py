@@ -24,7 +24,7 @@ from flask import Blueprint, abort, flash, jsonify, redirect, render_template, r
 from flask import session as browser_session
 from werkzeug.wrappers import Response
 
-from features import extract
+from features import extract, feature_sets
 from features.extraction import code_version
 from gui import figures
 from gui.context import context
@@ -485,7 +485,7 @@ def summarise(op: Operation) -> Summary:
     scan = op.session.scan(ctx.db.next_scan_index(op.session.sample_id))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        values = extract(scan)
+        values = extract(scan, _model_families())
     notes = sorted({str(w.message) for w in caught})
     tactum = [(TACTUM_TITLES[name], _format(values[name])) for name in TACTUM_TITLES]
     predictions, note = _predict(values)
@@ -494,6 +494,16 @@ def summarise(op: Operation) -> Summary:
     op.summary_cache["scan"] = scan
     op.summary_cache["values"] = values
     return summary
+
+
+def _model_families() -> tuple[str, ...] | None:
+    """The families the model's inputs need beside the paper's (a model of modern features,
+    docs/modern-features.md); None without a usable model."""
+    try:
+        model = context().model
+    except ModelError:
+        return None
+    return None if model is None else feature_sets.families_of(model.feature_names)
 
 
 def _predict(values: dict[str, float]) -> tuple[list[tuple[str, float, str]] | None, str]:
