@@ -100,7 +100,9 @@ def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
     if not named:
         sets = None
     else:
-        sets = {**present_feature_sets(space), **named} if ALL in args.feature_set else named
+        # "all" beside a modern set is the paper's columns, not every column (the signals are no features).
+        present = {name: feature_sets.PAPER if name == ALL else fs for name, fs in present_feature_sets(space).items()}
+        sets = {**present, **named} if ALL in args.feature_set else named
     use_split = not getattr(args, "ignore_split", False)
     sizes = set_sizes(args.n, ("3", "10", ALL) if space.label_level is not None else ("3", "10"))
     started = time.perf_counter()

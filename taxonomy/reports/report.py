@@ -174,6 +174,8 @@ def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: S
         figures.append((f"{lvl} classification with {size_name(size)}: accuracy and macro F1 per feature set",
                         plot_scores(reports, lvl, size, folder / f"scores_{lvl}_{size_name(size)}.png")))
     level = space.check_level(level)
+    # The signal columns (input of the random-kernel step, docs/modern-features.md) are samples, not features.
+    space = space.subset([c for c in space.columns if not c.startswith("signal.")])
     selection = select_features(space, level, n_features)
     figures += _selection_figures(folder, space, selection, top)
     figures.append(("explained variance over the principal components (Fig. 15)",
