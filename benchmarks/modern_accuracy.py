@@ -36,7 +36,7 @@ def evaluate_sets(space, levels, workers: int, sets: tuple[str, ...] = SETS) -> 
         found = evaluate_grid(space, CLASSIFIERS, levels, SIZES, {name: name}, workers=workers)
         reports += found
         print(f"  {name:<12} {time.perf_counter() - started:7.1f} s", flush=True)
-    print(format_table(reports), flush=True)
+        print(format_table(found), flush=True)
 
 
 def main() -> None:
@@ -47,14 +47,15 @@ def main() -> None:
     parser.add_argument("--sets", nargs="+", default=list(SETS), help="feature sets (default: all six)")
     parser.add_argument("--levels", nargs="+", help="levels of the database (default: all)")
     parser.add_argument("--no-contrasts", action="store_true", help="only the database")
+    parser.add_argument("--contrasts", nargs="*", default=["spectral", "timing"], help="contrast sets")
     args = parser.parse_args()
-    for which in () if args.no_contrasts else ("spectral", "timing"):
+    for which in () if args.no_contrasts else args.contrasts:
         recordings = contrast_recordings(which, per_class=args.per_class)
         started = time.perf_counter()
         space, _ = feature_space(recordings, chosen=feature_sets.role_families_for(SETS), workers=args.workers)
         print(f"== {which}: {len(space)} recordings, {len(set(space.label_text))} classes, "
               f"{len(space.columns)} columns in {time.perf_counter() - started:.1f} s", flush=True)
-        evaluate_sets(space, None, args.workers)
+        evaluate_sets(space, None, args.workers, tuple(args.sets))
     if args.db:
         started = time.perf_counter()
         space = extract_database(Database(args.db, create=False), workers=args.workers, progress=False,
