@@ -402,3 +402,24 @@ def test_ship_data_and_a_worker_that_sees_another_database_at_the_path(dask_comm
     replayed = texplorer(["replay", "other-db/scans", "--ship-data", "--scheduler", address], tmp_path)
     assert replayed.returncode == 0, replayed.stderr
     assert f"{len(sources)} scan(s) replayed" in replayed.stdout
+
+
+def test_modern_families_on_the_cluster_equal_the_local_run(local_cluster):
+    """An opt-in family travels by name: the workers compute catch22 and the signals of the scan (and of a
+    recording set) as this process does, and check the same code version (families and parameters)."""
+    pytest.importorskip("pycatch22", reason="the modern families need texplorer[modern]")
+    from test_recording_features import recording
+
+    from features import extract_many, feature_sets
+    from features.recordings import feature_space
+    from scanner.storage.matfile import load_scan
+
+    scan = load_scan(Path(__file__).parent / "regression" / "scans" / "granite-polished-01-001.mat")
+    here = extract_many([scan], workers=1, progress=False, families=["catch22", "signal"])
+    there = extract_many([scan], progress=False, client=local_cluster, families=["catch22", "signal"])
+    assert same_bits(there, here) and here.columns[0].startswith("catch22.")
+    rs = [recording(1.0, f"r{i}", object=f"o{i // 2}") for i in range(2)]
+    chosen = feature_sets.role_families_for(["catch22"])
+    local, _ = feature_space(rs, workers=1, chosen=chosen)
+    remote, _ = feature_space(rs, client=local_cluster, chosen=chosen)
+    assert same_bits(remote, local) and any(c.startswith("catch22.") for c in local.columns)
