@@ -415,8 +415,8 @@ def test_modern_families_on_the_cluster_equal_the_local_run(local_cluster):
     from scanner.storage.matfile import load_scan
 
     scan = load_scan(Path(__file__).parent / "regression" / "scans" / "granite-polished-01-001.mat")
-    here = extract_many([scan], workers=1, progress=False, families=["catch22", "signal"])
-    there = extract_many([scan], progress=False, client=local_cluster, families=["catch22", "signal"])
+    here = extract_many([scan], workers=1, progress=False, families=["catch22"])
+    there = extract_many([scan], progress=False, client=local_cluster, families=["catch22"])
     assert same_bits(there, here) and "catch22.v_ts.CO_FirstMin_ac" in here.columns
     rs = [recording(1.0, f"r{i}", object=f"o{i // 2}") for i in range(2)]
     chosen = feature_sets.role_families_for(["catch22"])

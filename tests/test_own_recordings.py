@@ -359,5 +359,6 @@ def test_a_set_with_the_modern_families(tmp_path, capsys):
     assert np.mean(accuracies(cells, "material", "minirocket")) > 0.7
     page = (tmp_path / "report" / "index.html").read_text()
     assert "Feature sets side by side" in page and "paper+minirocket" in page
-    code = main(["evaluate", "set:sounds", "--db", str(db), "--feature-set", "rocket"])
-    assert code != 0 and "unknown feature set 'rocket'" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as refused:
+        main(["evaluate", "set:sounds", "--db", str(db), "--feature-set", "rocket"])
+    assert refused.value.code == 2 and "unknown feature set 'rocket'" in capsys.readouterr().err
