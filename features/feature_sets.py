@@ -20,10 +20,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 
+from features.modern import FITTED_KINDS, SIGNAL_PREFIX, role_families
 from features.modern import KINDS as EXTRACTED_KINDS
-from features.modern import role_families
-from features.random_kernels import KINDS as FITTED_KINDS
-from features.random_kernels import SIGNAL_PREFIX
 from features.registry import REGISTRY, ROLE_REGISTRY
 from taxonomy.errors import TexplorerError
 

@@ -32,6 +32,7 @@ registered, and asking for it names the extra (:func:`require`).
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import warnings
 from collections.abc import Callable, Mapping, Sequence
@@ -40,24 +41,26 @@ from fractions import Fraction
 from functools import lru_cache
 
 import numpy as np
-from scipy import signal
 
 from features import recordings
 from features.prepared import PreparedScan
 from features.registry import REGISTRY, ROLE_REGISTRY, Family, RoleFamily
+from scanner.lazy import library
 from scanner.preprocess import QualityError, dft321
 from taxonomy.errors import TexplorerError
 
-try:  # the optional extra texplorer[modern]
-    import pycatch22
-except ImportError:  # pragma: no cover - exercised where the extra is missing
-    pycatch22 = None
-try:
-    # The 1-D frontend alone: kymatio.numpy also imports the 3-D frontend, which needs scipy.special.sph_harm
-    # (removed in SciPy 1.15).
-    from kymatio.scattering1d.frontend.numpy_frontend import ScatteringNumPy1D
-except ImportError:  # pragma: no cover
-    ScatteringNumPy1D = None
+signal = library("scipy.signal")
+pycatch22 = library("pycatch22")  # the optional extra texplorer[modern], loaded at first use
+# The 1-D frontend alone: kymatio.numpy also imports the 3-D frontend, which needs scipy.special.sph_harm
+# (removed in SciPy 1.15).
+kymatio_1d = library("kymatio.scattering1d.frontend.numpy_frontend")
+
+LIBRARIES = {"catch22": "pycatch22", "scattering": "kymatio"}
+"""The library each family needs (the random-kernel transforms need sktime: features.random_kernels)."""
+
+SCATTERING_SIZES = {9: (62, 237), 8: (54, 179)}
+"""Coefficients of orders 1 and 2 of kymatio's ``Scattering1D`` with Q = 8, by J: the column names are
+known without building the filter bank (tests check them against kymatio)."""
 
 EXTRA = "texplorer[modern]"
 """The optional extra that installs the libraries of these families."""
@@ -167,7 +170,7 @@ def scattering_transform(length: int) -> object:
     """kymatio's ``Scattering1D`` for instances of ``length`` samples (J by :func:`scattering_octaves`,
     Q = :data:`SCATTERING_Q`, orders 0 to 2), built once per process."""
     require("scattering")
-    return ScatteringNumPy1D(J=scattering_octaves(length), shape=length, Q=SCATTERING_Q)
+    return kymatio_1d.ScatteringNumPy1D(J=scattering_octaves(length), shape=length, Q=SCATTERING_Q)
 
 
 def scattering(windows: np.ndarray) -> np.ndarray:
@@ -187,26 +190,23 @@ def _orders(length: int) -> np.ndarray:
 
 
 def scattering_names(length: int) -> tuple[str, ...]:
-    """``s0``, ``s1_000``, ..., ``s2_000``, ...: the coefficients of :func:`scattering` by order."""
-    order = _orders(length)
-    counts = {0: 0, 1: 0, 2: 0}
-    names = []
-    for o in order.tolist():
-        names.append("s0" if o == 0 else f"s{o}_{counts[o]:03d}")
-        counts[o] += 1
-    return tuple(names)
+    """``s0``, ``s1_000``, ..., ``s2_000``, ...: the coefficients of :func:`scattering` in kymatio's order
+    (order 0, then 1, then 2; :data:`SCATTERING_SIZES`)."""
+    first, second = SCATTERING_SIZES[scattering_octaves(length)]
+    return ("s0", *(f"s1_{k:03d}" for k in range(first)), *(f"s2_{k:03d}" for k in range(second)))
 
 
 def available(kind: str) -> bool:
-    """Whether the library of ``catch22`` or ``scattering`` is installed (``signal`` needs none)."""
-    return {"catch22": pycatch22 is not None, "scattering": ScatteringNumPy1D is not None}.get(kind, True)
+    """Whether the library of ``catch22`` or ``scattering`` is installed (``signal`` needs none), found
+    without importing it."""
+    return kind not in LIBRARIES or importlib.util.find_spec(LIBRARIES[kind]) is not None
 
 
 def require(kind: str) -> object:
     """The library of ``kind``; an error naming the extra where it is missing."""
     if not available(kind):
         raise ModernFeatureError(f"the {kind} features need {EXTRA} (pip install '{EXTRA}')")
-    return {"catch22": pycatch22, "scattering": ScatteringNumPy1D}.get(kind)
+    return {"catch22": pycatch22, "scattering": kymatio_1d}.get(kind)
 
 
 # -- the scan's signals -----------------------------------------------------------------------------
@@ -384,6 +384,12 @@ if available("catch22"):
 if available("scattering"):
     _register_roles("scattering", lambda rule: scattering_names(rule.length), scattering,
                     {"Q": SCATTERING_Q, "log_floor": SCATTERING_LOG_FLOOR})
+
+FITTED_KINDS = ("minirocket", "multirocket")
+"""The random-kernel transforms, fitted inside the folds on the ``signal`` columns (features.random_kernels)."""
+
+SIGNAL_PREFIX = "signal"
+"""The family whose columns the random-kernel transforms read."""
 
 KINDS = ("signal", "catch22", "scattering")
 """The modern extraction families, by kind (a scan family's name; a role family is ``<kind>.<role>``)."""

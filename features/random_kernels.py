@@ -25,14 +25,11 @@ import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted
 
-from features.modern import EXTRA, ROLE_RULES, SCAN_SIGNALS, LengthRule
+from features.modern import EXTRA, FITTED_KINDS, ROLE_RULES, SCAN_SIGNALS, SIGNAL_PREFIX, LengthRule
 from taxonomy.errors import TexplorerError
 
-KINDS = ("minirocket", "multirocket")
+KINDS = FITTED_KINDS
 """The random-kernel transforms."""
-
-SIGNAL_PREFIX = "signal"
-"""The family whose columns the transforms read (:mod:`features.modern`)."""
 
 CHUNK_INSTANCES = 256
 """Instances transformed at once: bounds the memory of a transform of many rows."""

@@ -100,8 +100,16 @@ def test_scattering_is_kymatio_on_the_slide_signal(scan, values):
     order = np.asarray(transform.meta()["order"])
     expected = np.where(order > 0, np.log(means + modern.SCATTERING_LOG_FLOOR), means)
     names = modern.scattering_names(3000)
+    assert len(names) == order.size and [n.split("_")[0] for n in names] == [f"s{o}" for o in order]
     got = [values[f"scattering.v_ts.{name}"] for name in names]
     np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("length", [3000, 2048, 1024])
+def test_scattering_names_follow_kymatios_coefficients(length):
+    order = np.asarray(modern.scattering_transform(length).meta()["order"])
+    names = modern.scattering_names(length)
+    assert [n.split("_")[0] for n in names] == [f"s{o}" for o in order]
 
 
 def test_minirocket_step_is_sktime_minirocket():
