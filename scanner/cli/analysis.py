@@ -175,11 +175,15 @@ def recordings_fingerprint(folder: Path) -> str:
 
 def set_table_options(args: argparse.Namespace, folder: Path) -> dict[str, Any]:
     """What a set's feature table depends on, as ``features.json`` records it."""
+    wanted = args.feature_set if isinstance(args.feature_set, list) else [args.feature_set]
+    families = feature_sets.role_families_for(wanted)
     return {"window": args.window, "combine": args.combine, "border": args.border, "group_by": args.group_by,
-            "code_version": code_version(), "recordings": recordings_fingerprint(folder)}
+            "families": list(families or ()), "code_version": code_version(),
+            "recordings": recordings_fingerprint(folder)}
 
 
 OPTION_WORDS = {"window": "--window", "combine": "--combine", "border": "--border", "group_by": "--group-by",
+                "families": "--feature-set",
                 "code_version": "the feature code", "recordings": "the recordings"}
 
 
