@@ -215,9 +215,9 @@ class WorkerPool:
     its next call as well (:class:`_KeptWorkers`), for :data:`KEEP_WORKERS_S`; a job's pool is its own
     until the job closes it, whatever the job's pauses and whatever other threads extract meanwhile.
 
-    That start-up is forking the workers and, in each one's first scan, some 6,000 page faults (its heap
-    is new, and every page it shares with this process is copied when written); README and ``make bench``
-    give the measured speed-ups on a process's first call and on calls that find the workers kept.
+    That start-up is forking the workers and, in each one's first scan, the page faults of a new heap and
+    of every page it shares with this process, copied when written; docs/performance.md gives the measured
+    speed-ups on a process's first call and on calls that find the workers kept (``bench_features.py``).
 
     The processes are forked by the first batch that needs them, so a job whose scans are all cached forks
     none, and they end when the pool is closed (``with WorkerPool(2) as pool: ...``). They run the code
@@ -243,7 +243,7 @@ class WorkerPool:
     def close(self) -> None:
         """Let the workers end. Tasks not started were dropped by their batch; the workers end by
         themselves once a task already handed to them is done, and the executor's thread collects them
-        (waiting here for each to tear down its address space took 8 ms of a 12-scan batch)."""
+        (waiting here for each to tear down its address space would only delay the caller)."""
         if self._executor is not None:
             self._executor.shutdown(wait=False)
             self._executor = None
@@ -276,8 +276,8 @@ program that extracts call after call, short enough that workers holding the mem
 
 class _KeptWorkers:
     """:func:`extract_many`'s own workers, kept between its calls as a :class:`WorkerPool` is kept between a
-    job's batches: forking two workers and their first scans (page faults, cold caches) cost some 30 ms, 5 %
-    of 12 small scans, which every call without a pool paid again (README, ``make bench``).
+    job's batches: forking two workers and their first scans (page faults, cold caches) cost a few percent
+    of a short batch, which every call without a pool paid again (docs/performance.md).
 
     They end :data:`KEEP_WORKERS_S` after the call that last used them (a timer thread), when
     :func:`release_workers` is called, and at exit; they are forked anew for a call that asks for another
