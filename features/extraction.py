@@ -64,16 +64,37 @@ largest mapping threshold, so without :func:`reusing_freed_memory` each is fault
 
 
 def extract(scan: Scan) -> dict[str, float]:
-    """The named features of a scan (docs/features.md): every registered family's, in order; NaN where a
-    value is undefined. The scan is prepared once (:class:`~features.prepared.PreparedScan`) for all of them;
-    channels too short for their features count as missing (:func:`without_short_channels`).
+    """The named features of a scan (docs/features.md): every registered family's, in order.
 
-    BLAS runs on one thread: a product's summation order depends on its thread count, which would make
-    the last bits of a few features (Tamura contrast, MaCo, MaRG) differ between machines with other core
-    counts and between a process of this machine and a Dask worker (which starts with one BLAS thread).
+    The scan is prepared once (:class:`~features.prepared.PreparedScan`) for all families; channels too short
+    for their features count as missing (:func:`without_short_channels`). BLAS runs on one thread, since a
+    product's summation order depends on its thread count: the last bits of a few features (Tamura
+    contrast, MaCo, MaRG) would otherwise differ between machines. A scan with a photo of
+    :data:`REUSE_FROM_PIXELS` or more is extracted :func:`reusing_freed_memory` (docs/performance.md).
 
-    A scan with a photo of :data:`REUSE_FROM_PIXELS` or more is extracted :func:`reusing_freed_memory`: its
-    photos and TacTUM reuse each other's temporaries (5 % of a 12-megapixel scan's time).
+    Parameters
+    ----------
+    scan : Scan
+        A stored or simulated scan.
+
+    Returns
+    -------
+    dict of str to float
+        The 193 features of :data:`features.NAMES` (and those of any family registered since), a finite
+        float or NaN where a value is undefined.
+
+    Warns
+    -----
+    MissingDataWarning
+        Naming the channel and the features it made NaN.
+
+    Examples
+    --------
+    >>> import features
+    >>> from scanner.simulation import synthetic_scan
+    >>> values = features.extract(synthetic_scan("mild-steel-brushed", seed=0, image_size=(320, 320)))
+    >>> len(values), values["other.metal"]
+    (193, 1.0)
     """
     values: dict[str, float] = {}
     large = any(photo.shape[0] * photo.shape[1] >= REUSE_FROM_PIXELS for photo in scan.images.values())
@@ -100,7 +121,21 @@ class FeatureCache(Protocol):
 
 @dataclass(frozen=True)
 class ScanSource:
-    """A scan to extract, loaded where it is processed (in a worker process), with its row identity."""
+    """A scan to extract, loaded where it is processed (in a worker process), with its row identity.
+
+    Parameters
+    ----------
+    scan_id : str
+        The row's id in the feature space.
+    label : str
+        The row's label.
+    group : str
+        The row's group (sample id).
+    load : callable returning Scan
+        Loads the scan; pickled to the worker that extracts it.
+    cache_key : str, optional
+        The scan's content hash: with one, :func:`extract_many` reads and writes the feature cache.
+    """
 
     scan_id: str
     label: str
@@ -135,17 +170,41 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
                  ship_data: bool = False, pool: WorkerPool | None = None) -> FeatureSpace:
     """Features of many scans as a :class:`FeatureSpace`, rows in input order.
 
-    ``workers`` processes (default: the number of cores; 1 = in this process), kept for the next call
-    (:data:`KEEP_WORKERS_S`; :func:`release_workers` ends them at once), or those of ``pool``, kept across
-    the calls of a job that extracts in batches (:class:`WorkerPool`). A scan that fails is
-    reported in ``FeatureSpace.failed`` with its id and the reason, the others are kept. With a
-    ``cache``, sources with a ``cache_key`` (the scan's content hash) are looked up first and stored after,
-    keyed by :func:`code_version` too, so a second run over unchanged scans only reads the cache.
+    A scan that fails is reported in ``FeatureSpace.failed`` with its id and the reason, the others are kept.
+    With a ``cache``, sources with a ``cache_key`` (the scan's content hash) are looked up first and stored
+    after, keyed by :func:`code_version` too, so a second run over unchanged scans only reads the cache.
 
-    With a ``distributed.Client`` the uncached scans are extracted on its Dask cluster instead of
-    ``workers`` processes, with the same results; the cache is still read and written here only.
-    Workers read stored scans where they see them, else (or with ``ship_data``) this process sends each
-    scan's files: see :func:`features.cluster.extract`.
+    Parameters
+    ----------
+    scans : iterable of Scan or ScanSource
+        Scans, or sources that load them where they are extracted (with label, group and cache key).
+    workers : int, optional
+        Processes (default: the number of cores; 1 = in this process), kept for the next call
+        (:data:`KEEP_WORKERS_S`; :func:`release_workers` ends them at once).
+    cache : FeatureCache, optional
+        Where cached rows are read and new ones written (a ``scanner.Database``); only this process uses it.
+    progress : bool
+        Show a progress bar.
+    client : distributed.Client, optional
+        Extract the uncached scans on this Dask cluster instead, with the same results
+        (:func:`features.cluster.extract`).
+    ship_data : bool
+        Send each scan's files from here instead of letting the cluster's workers read them.
+    pool : WorkerPool, optional
+        Workers kept across the calls of a job that extracts in batches.
+
+    Returns
+    -------
+    FeatureSpace
+
+    Examples
+    --------
+    >>> import features
+    >>> from scanner.simulation import synthetic_scan
+    >>> scans = [synthetic_scan(m, seed=s, image_size=(320, 320)) for m in ("oak-planed", "cork-board") for s in (1, 2)]
+    >>> space = features.extract_many(scans, workers=1, progress=False)
+    >>> space.X.shape, space.y("coarse").tolist()
+    ((4, 193), ['C1', 'C1', 'C2', 'C2'])
     """
     if pool is not None and workers not in (None, pool.size):
         raise ValueError(f"workers={workers} with a pool of {pool.size} workers")
@@ -354,9 +413,13 @@ def _working_directory() -> str | None:
 
 
 def release_workers() -> None:
-    """End the workers :func:`extract_many` keeps for its next call, now rather than
-    :data:`KEEP_WORKERS_S` after its last: they hold the memory of the largest scan they extracted, and run
-    the code of the moment they were forked."""
+    """End the workers :func:`extract_many` keeps for its next call now, rather than :data:`KEEP_WORKERS_S`
+    after its last call.
+
+    Call it when a program is done extracting (they hold the memory of the largest scan they extracted), or
+    before it changes what the features depend on at run time (they run the code of the moment they were
+    forked).
+    """
     _KEPT.release()
 
 

@@ -137,8 +137,9 @@ def demo_folder(tmp_path_factory) -> Path:
     """A working folder holding the small demo database (``texplorer-data``) and the tool-slide sounds of
     ingest.md's walk-through (``slides/<material>/<object>_<trial>.wav``)."""
     folder = tmp_path_factory.mktemp("examples")
-    subprocess.run([_texplorer(), *DEMO, "--db", str(folder / "texplorer-data")], check=True, env=_environment(),
-                   cwd=folder, capture_output=True, timeout=1800)
+    done = subprocess.run([_texplorer(), *DEMO, "--db", str(folder / "texplorer-data")], env=_environment(),
+                          cwd=folder, capture_output=True, text=True, timeout=1800)
+    assert done.returncode == 0, f"texplorer {' '.join(DEMO)} exits {done.returncode}: {done.stderr[-2000:]}"
     for k, (material, frequency) in enumerate((("cardboard", 180.0), ("cork", 420.0), ("steel", 900.0))):
         for piece in (1, 2, 3, 4):
             for trial in (1, 2):
@@ -200,3 +201,45 @@ def test_the_site_builds_with_warnings_as_errors(tmp_path):
     assert done.returncode == 0, done.stderr[-4000:]
     assert (tmp_path / "site" / "features" / "index.html").is_file()
     assert "tactum.matx" in (tmp_path / "site" / "api" / "features" / "index.html").read_text()
+
+
+# -- the API reference and its examples ------------------------------------------------------------------------
+
+API_ENTRY = re.compile(r"^::: (?P<name>[\w.]+)", re.M)
+
+
+def _is_module(name: str) -> bool:
+    try:
+        return importlib.util.find_spec(name) is not None
+    except ModuleNotFoundError:  # a name inside a module that is not a package
+        return False
+
+
+def _documented_modules() -> list[str]:
+    """The modules whose objects docs/api/*.md lists (``::: package.module.name``)."""
+    modules = set()
+    for page in sorted((ROOT / "docs" / "api").glob("*.md")):
+        for m in API_ENTRY.finditer(page.read_text()):
+            parts = m["name"].split(".")
+            while parts and not _is_module(".".join(parts)):
+                parts.pop()
+            assert parts, f"{page.name}: {m['name']} names no module"
+            modules.add(".".join(parts))
+    return sorted(modules)
+
+
+def test_every_object_of_the_api_reference_exists():
+    for page in sorted((ROOT / "docs" / "api").glob("*.md")):
+        for m in API_ENTRY.finditer(page.read_text()):
+            module_name, _, attribute = m["name"].rpartition(".")
+            if _is_module(m["name"]):
+                continue
+            assert hasattr(importlib.import_module(module_name), attribute), f"{page.name}: no {m['name']}"
+
+
+@pytest.mark.parametrize("module", _documented_modules())
+def test_the_docstring_examples_of_the_api_reference_run(module):
+    import doctest
+
+    found = doctest.testmod(importlib.import_module(module), optionflags=doctest.NORMALIZE_WHITESPACE)
+    assert found.failed == 0, f"{found.failed} of {found.attempted} examples of {module} fail"
