@@ -25,7 +25,7 @@ import time
 import urllib.request
 from pathlib import Path
 
-from playwright.sync_api import Page, sync_playwright
+from playwright.sync_api import Error, Page, sync_playwright
 
 HERE = Path(__file__).resolve().parent
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
@@ -37,7 +37,7 @@ CONFIG = """\
 # Short steps so that a scan takes seconds; the simulated scanner in real time, as an operator sees it.
 [steps]
 finger_tap = 0.8
-finger_slide = 1.4
+finger_slide = 2.4
 tool_tap = 0.8
 tool_slide = 2.4
 static = 0.4
@@ -80,10 +80,17 @@ def serve(db: Path, config: Path, port: int) -> subprocess.Popen:
 def wait_until(page: Page, expression: str, timeout: float = 30.0) -> None:
     """Poll a JavaScript expression (the app's content security policy forbids ``wait_for_function``)."""
     deadline = time.monotonic() + timeout
-    while not page.evaluate(expression):
+    while not _holds(page, expression):
         if time.monotonic() > deadline:
             raise TimeoutError(expression)
         time.sleep(0.05)
+
+
+def _holds(page: Page, expression: str) -> bool:
+    try:
+        return bool(page.evaluate(expression))
+    except Error:  # the page is being replaced (a form was submitted): ask the next one
+        return False
 
 
 def record(page: Page) -> None:
@@ -139,14 +146,15 @@ def take(db: Path, out: Path) -> list[Path]:
                 page.check("label.choice:has-text('material recovers shape') input >> nth=0")
                 shot("form", full_page=True)
                 page.click("button:has-text('Continue to the summary')")
-                page.wait_for_url(base + "/session/summary")
+                page.wait_for_url(base + "/session/summary", timeout=300_000)  # features and prediction
                 shot("summary", full_page=True)
                 page.click("button:has-text('Abort the scan') >> nth=0")
 
                 page.goto(base + "/db/")
                 page.click("main table >> text=C6S1M1P2X1")
                 page.click("main a:has-text('granite-polished-01-001')")
-                wait_until(page, "Array.from(document.images).every(i => i.complete)")
+                # the trace figure is drawn and the features extracted on the first view
+                wait_until(page, "document.querySelector('main img')?.complete", timeout=300)
                 shot("browser")
 
                 report = db.resolve() / "report" / "index.html"

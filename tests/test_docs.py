@@ -59,7 +59,7 @@ PYTHON, SHELL = {"python", "py"}, {"sh", "bash", "shell"}
 FILE_HEADER = re.compile(r"#\s*(?P<name>[\w.-]+\.(?:toml|csv|txt))\s*\n")
 SNIPPET = re.compile(r'^--8<-- "(?P<path>[^"]+)"$')
 DEMO = ["demo", "--materials", "granite-polished", "oak-planed", "mild-steel-brushed", "polyurethane-foam",
-        "--samples", "2", "--scans", "2", "--image-size", "256", "--classifier", "rf", "lda"]
+        "--image-size", "256", "--classifier", "rf", "lda"]
 """The small demo database the examples run on: the command getting-started.md shows."""
 
 
