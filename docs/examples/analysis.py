@@ -14,7 +14,7 @@ import numpy as np
 import scanner
 from features.selection import feature_quality
 from scanner.workflows import extract_database
-from taxonomy.evaluation import evaluate
+from taxonomy.learning.evaluation import evaluate
 
 root = sys.argv[1] if len(sys.argv) > 1 else "texplorer-data"
 out = sys.argv[2] if len(sys.argv) > 2 else "analysis.png"

@@ -344,7 +344,7 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
     Returns
     -------
     list of Result
-        Ordered by classifier, feature set, level and size; :func:`taxonomy.report.format_table` prints them.
+        Ordered by classifier, feature set, level and size; :func:`taxonomy.reports.report.format_table` prints them.
 
     Raises
     ------

@@ -90,7 +90,7 @@ def format_table(reports: Sequence[Result]) -> str:
     Parameters
     ----------
     reports : sequence of Result
-        As :func:`taxonomy.evaluation.evaluate_grid` returns them.
+        As :func:`taxonomy.learning.evaluation.evaluate_grid` returns them.
 
     Returns
     -------
