@@ -30,7 +30,7 @@ bench: $(STAMP)
 
 # The documentation site (mkdocs.yml, pages in docs/) into site/, warnings as errors; no network needed.
 docs: $(STAMP)
-	$(BIN)/mkdocs build --strict --quiet
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
 
 lint: $(STAMP)
 	$(BIN)/ruff check scanner features taxonomy gui tests benchmarks
