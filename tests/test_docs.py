@@ -168,23 +168,35 @@ def _run(block: Block, command: list[str], cwd: Path) -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("page", _pages_with_examples())
 def test_the_examples_of_a_page_run_as_written(page, demo_folder, tmp_path):
-    """Every Python and shell block of the page, in order, each in a process of its own, in one folder
-    holding a copy of the small demo database; the files the page shows (``# slides.toml``) are written
+    """Every Python and shell block of the page, in order, in one folder
+    holding a copy of the small demo database (a shell block, or a run of consecutive Python blocks, in a
+    process of its own); the files the page shows (``# slides.toml``) are written
     there first, and the repository's docs/, tests/ and benchmarks/ are reachable by the relative paths the
     examples use."""
     work = tmp_path / "work"
     shutil.copytree(demo_folder, work, symlinks=True)
     for name in ("docs", "tests", "benchmarks"):
         (work / name).symlink_to(ROOT / name)
-    for block in filter(runnable, blocks(ROOT / page)):
+    python: list[Block] = []  # consecutive Python blocks run in one process, as a notebook's cells
+    for block in [*filter(runnable, blocks(ROOT / page)), None]:
+        if block is not None and block.lang in PYTHON:
+            python.append(block)
+            continue
+        if python:
+            code = "\n".join(_python_source(b) for b in python)
+            _run(python[0], [sys.executable, "-c", code], work)
+            python = []
+        if block is None:
+            break
         if block.file is not None:
             (work / block.file).write_text(block.body)
-        elif block.lang in PYTHON:
-            snippet = SNIPPET.match(block.body.strip())
-            code = (ROOT / "docs" / snippet["path"]).read_text() if snippet else block.body
-            _run(block, [sys.executable, "-c", code], work)
         else:
             _run(block, ["bash", "-euo", "pipefail", "-c", block.body], work)
+
+
+def _python_source(block: Block) -> str:
+    snippet = SNIPPET.match(block.body.strip())
+    return (ROOT / "docs" / snippet["path"]).read_text() if snippet else block.body
 
 
 # -- the site --------------------------------------------------------------------------------------------------
