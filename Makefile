@@ -8,14 +8,14 @@ STAMP  := $(VENV)/.installed-$(shell $(PYTHON) -c "import hashlib;print(hashlib.
 DB     ?= texplorer-data
 JOBS   ?= 2
 
-.PHONY: demo test bench lint clean install lock
+.PHONY: demo test bench lint docs clean install lock
 
 install: $(STAMP)
 
 $(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -c $(LOCK) -e '.[dev]'
+	$(BIN)/python -m pip install --quiet -c $(LOCK) -e '.[dev,docs]'
 	rm -f $(VENV)/.installed-*
 	touch $@
 
@@ -28,6 +28,10 @@ test: $(STAMP)
 bench: $(STAMP)
 	@for b in benchmarks/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
 
+# The documentation site (mkdocs.yml, pages in docs/) into site/, warnings as errors; no network needed.
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
+
 lint: $(STAMP)
 	$(BIN)/ruff check scanner features taxonomy gui tests benchmarks
 	$(BIN)/lint-imports --no-logo
@@ -38,7 +42,7 @@ lock:
 	rm -rf .venv-lock
 	$(PYTHON) -m venv .venv-lock
 	.venv-lock/bin/python -m pip install --quiet --upgrade pip
-	.venv-lock/bin/python -m pip install --quiet -e '.[dev]'
+	.venv-lock/bin/python -m pip install --quiet -e '.[dev,docs]'
 	{ echo "# Tested versions of every dependency (make lock; installed by make install with pip -c)."; \
 	  echo "# Python $$(.venv-lock/bin/python -c 'import platform; print(platform.python_version())'), $$(date -u +%Y-%m-%d)"; \
 	  .venv-lock/bin/python -m pip freeze --exclude-editable --all | grep -v '^pip=='; } > $(LOCK).new
@@ -46,4 +50,4 @@ lock:
 	rm -rf .venv-lock
 
 clean:
-	rm -rf $(VENV) .venv-lock build *.egg-info .pytest_cache .ruff_cache
+	rm -rf $(VENV) .venv-lock build site *.egg-info .pytest_cache .ruff_cache

@@ -1,4 +1,4 @@
-"""Dask cluster benchmark (README "More than one machine"): one 24-scan database extracted serially, with
+"""Dask cluster benchmark (docs/clusters.md): one 24-scan database extracted serially, with
 the local process pool and on a LocalCluster of 2 worker processes (reading the database, and with the
 files shipped by the client), every result checked bit for bit against the serial one.
 

@@ -64,7 +64,7 @@ def _harris_corners(gray32: np.ndarray) -> np.ndarray:
 
 
 def harris_response(gray32: np.ndarray) -> np.ndarray:
-    """``cv2.cornerHarris(gray32, 3, 3, 0.04)``, bit for bit, with half its memory in about 55 % of its time.
+    """``cv2.cornerHarris(gray32, 3, 3, 0.04)``, bit for bit, with half its memory (time: docs/performance.md).
 
     ``cornerHarris`` makes the Sobel derivatives ``Dx``, ``Dy`` of the whole image (scale 1/12), the three
     products ``Dx^2, Dx Dy, Dy^2`` as one 3-channel image, their unnormalised 3 x 3 box sums, and

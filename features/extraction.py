@@ -66,16 +66,39 @@ largest mapping threshold, so without :func:`reusing_freed_memory` each is fault
 
 def extract(scan: Scan, families: Sequence[str] | None = None) -> dict[str, float]:
     """The named features of a scan (docs/features.md): every default family's (or those named in
-    ``families``, opt-in ones too: :mod:`features.modern`), in order; NaN where a value is
-    undefined. The scan is prepared once (:class:`~features.prepared.PreparedScan`) for all of them;
-    channels too short for their features count as missing (:func:`without_short_channels`).
+    ``families``, opt-in ones too: :mod:`features.modern`), in order.
 
-    BLAS runs on one thread: a product's summation order depends on its thread count, which would make
-    the last bits of a few features (Tamura contrast, MaCo, MaRG) differ between machines with other core
-    counts and between a process of this machine and a Dask worker (which starts with one BLAS thread).
+    The scan is prepared once (:class:`~features.prepared.PreparedScan`) for all families; channels too short
+    for their features count as missing (:func:`without_short_channels`). BLAS runs on one thread, since a
+    product's summation order depends on its thread count: the last bits of a few features (Tamura
+    contrast, MaCo, MaRG) would otherwise differ between machines. A scan with a photo of
+    :data:`REUSE_FROM_PIXELS` or more is extracted :func:`reusing_freed_memory` (docs/performance.md).
 
-    A scan with a photo of :data:`REUSE_FROM_PIXELS` or more is extracted :func:`reusing_freed_memory`: its
-    photos and TacTUM reuse each other's temporaries (5 % of a 12-megapixel scan's time).
+    Parameters
+    ----------
+    scan : Scan
+        A stored or simulated scan.
+    families : sequence of str, optional
+        The families to compute (default: the default ones, the paper's 193 features), opt-in ones too.
+
+    Returns
+    -------
+    dict of str to float
+        The 193 features of :data:`features.NAMES` (and those of any family registered since), a finite
+        float or NaN where a value is undefined.
+
+    Warns
+    -----
+    MissingDataWarning
+        Naming the channel and the features it made NaN.
+
+    Examples
+    --------
+    >>> import features
+    >>> from scanner.simulation import synthetic_scan
+    >>> values = features.extract(synthetic_scan("mild-steel-brushed", seed=0, image_size=(320, 320)))
+    >>> len(values), values["other.metal"]
+    (193, 1.0)
     """
     values: dict[str, float] = {}
     large = any(photo.shape[0] * photo.shape[1] >= REUSE_FROM_PIXELS for photo in scan.images.values())
@@ -102,7 +125,21 @@ class FeatureCache(Protocol):
 
 @dataclass(frozen=True)
 class ScanSource:
-    """A scan to extract, loaded where it is processed (in a worker process), with its row identity."""
+    """A scan to extract, loaded where it is processed (in a worker process), with its row identity.
+
+    Parameters
+    ----------
+    scan_id : str
+        The row's id in the feature space.
+    label : str
+        The row's label.
+    group : str
+        The row's group (sample id).
+    load : callable returning Scan
+        Loads the scan; pickled to the worker that extracts it.
+    cache_key : str, optional
+        The scan's content hash: with one, :func:`extract_many` reads and writes the feature cache.
+    """
 
     scan_id: str
     label: str
@@ -139,20 +176,44 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
                  families: Sequence[str] | None = None) -> FeatureSpace:
     """Features of many scans as a :class:`FeatureSpace`, rows in input order.
 
-    ``workers`` processes (default: the number of cores; 1 = in this process), kept for the next call
-    (:data:`KEEP_WORKERS_S`; :func:`release_workers` ends them at once), or those of ``pool``, kept across
-    the calls of a job that extracts in batches (:class:`WorkerPool`). A scan that fails is
-    reported in ``FeatureSpace.failed`` with its id and the reason, the others are kept. With a
-    ``cache``, sources with a ``cache_key`` (the scan's content hash) are looked up first and stored after,
-    keyed by :func:`code_version` too, so a second run over unchanged scans only reads the cache.
+    A scan that fails is reported in ``FeatureSpace.failed`` with its id and the reason, the others are kept.
+    With a ``cache``, sources with a ``cache_key`` (the scan's content hash) are looked up first and stored
+    after, keyed by :func:`code_version` too, so a second run over unchanged scans only reads the cache.
 
-    With a ``distributed.Client`` the uncached scans are extracted on its Dask cluster instead of
-    ``workers`` processes, with the same results; the cache is still read and written here only.
-    Workers read stored scans where they see them, else (or with ``ship_data``) this process sends each
-    scan's files: see :func:`features.cluster.extract`.
+    Parameters
+    ----------
+    scans : iterable of Scan or ScanSource
+        Scans, or sources that load them where they are extracted (with label, group and cache key).
+    workers : int, optional
+        Processes (default: the number of cores; 1 = in this process), kept for the next call
+        (:data:`KEEP_WORKERS_S`; :func:`release_workers` ends them at once).
+    cache : FeatureCache, optional
+        Where cached rows are read and new ones written (a ``scanner.Database``); only this process uses it.
+    progress : bool
+        Show a progress bar.
+    client : distributed.Client, optional
+        Extract the uncached scans on this Dask cluster instead, with the same results
+        (:func:`features.cluster.extract`).
+    ship_data : bool
+        Send each scan's files from here instead of letting the cluster's workers read them.
+    pool : WorkerPool, optional
+        Workers kept across the calls of a job that extracts in batches.
+    families : sequence of str, optional
+        The families to compute (default: the default ones, the paper's 193 features), opt-in ones too;
+        their cache entries are keyed by their names and parameters as well.
 
-    ``families`` names the families to compute (default: the default ones, the paper's 193 features), opt-in
-    ones too; their cache entries are keyed by their names and parameters as well.
+    Returns
+    -------
+    FeatureSpace
+
+    Examples
+    --------
+    >>> import features
+    >>> from scanner.simulation import synthetic_scan
+    >>> scans = [synthetic_scan(m, seed=s, image_size=(320, 320)) for m in ("oak-planed", "cork-board") for s in (1, 2)]
+    >>> space = features.extract_many(scans, workers=1, progress=False)
+    >>> space.X.shape, space.y("coarse").tolist()
+    ((4, 193), ['C1', 'C1', 'C2', 'C2'])
     """
     if pool is not None and workers not in (None, pool.size):
         raise ValueError(f"workers={workers} with a pool of {pool.size} workers")
@@ -224,9 +285,9 @@ class WorkerPool:
     its next call as well (:class:`_KeptWorkers`), for :data:`KEEP_WORKERS_S`; a job's pool is its own
     until the job closes it, whatever the job's pauses and whatever other threads extract meanwhile.
 
-    That start-up is forking the workers and, in each one's first scan, some 6,000 page faults (its heap
-    is new, and every page it shares with this process is copied when written); README and ``make bench``
-    give the measured speed-ups on a process's first call and on calls that find the workers kept.
+    That start-up is forking the workers and, in each one's first scan, the page faults of a new heap and
+    of every page it shares with this process, copied when written; docs/performance.md gives the measured
+    speed-ups on a process's first call and on calls that find the workers kept (``bench_features.py``).
 
     The processes are forked by the first batch that needs them, so a job whose scans are all cached forks
     none, and they end when the pool is closed (``with WorkerPool(2) as pool: ...``). They run the code
@@ -252,7 +313,7 @@ class WorkerPool:
     def close(self) -> None:
         """Let the workers end. Tasks not started were dropped by their batch; the workers end by
         themselves once a task already handed to them is done, and the executor's thread collects them
-        (waiting here for each to tear down its address space took 8 ms of a 12-scan batch)."""
+        (waiting here for each to tear down its address space would only delay the caller)."""
         if self._executor is not None:
             self._executor.shutdown(wait=False)
             self._executor = None
@@ -285,8 +346,8 @@ program that extracts call after call, short enough that workers holding the mem
 
 class _KeptWorkers:
     """:func:`extract_many`'s own workers, kept between its calls as a :class:`WorkerPool` is kept between a
-    job's batches: forking two workers and their first scans (page faults, cold caches) cost some 30 ms, 5 %
-    of 12 small scans, which every call without a pool paid again (README, ``make bench``).
+    job's batches: forking two workers and their first scans (page faults, cold caches) cost a few percent
+    of a short batch, which every call without a pool paid again (docs/performance.md).
 
     They end :data:`KEEP_WORKERS_S` after the call that last used them (a timer thread), when
     :func:`release_workers` is called, and at exit; they are forked anew for a call that asks for another
@@ -363,9 +424,13 @@ def _working_directory() -> str | None:
 
 
 def release_workers() -> None:
-    """End the workers :func:`extract_many` keeps for its next call, now rather than
-    :data:`KEEP_WORKERS_S` after its last: they hold the memory of the largest scan they extracted, and run
-    the code of the moment they were forked."""
+    """End the workers :func:`extract_many` keeps for its next call now, rather than :data:`KEEP_WORKERS_S`
+    after its last call.
+
+    Call it when a program is done extracting (they hold the memory of the largest scan they extracted), or
+    before it changes what the features depend on at run time (they run the code of the moment they were
+    forked).
+    """
     _KEPT.release()
 
 

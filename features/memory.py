@@ -3,9 +3,9 @@
 Extracting a 12-megapixel scan allocates and frees several hundred MB of temporaries, each photo anew:
 TacTUM's Harris planes are 130 MB, the gray images and spectra 43-86 MB each. glibc serves blocks that
 large (above its largest mapping threshold, 32 MiB) with fresh mappings and unmaps them when they are
-freed, so the next photo faults the same amount in again: about 16,000 page faults a scan (numpy asks for
-huge pages for its large arrays, which take 512 small pages each, but OpenCV's own buffers fault a page
-at a time). Two settings let freed memory serve the next allocation instead:
+freed, so the next photo faults the same amount in again (numpy asks for huge pages for its large
+arrays, but OpenCV's own buffers fault a page at a time; the counts are in docs/performance.md). Two
+settings let freed memory serve the next allocation instead:
 
 - :func:`keep_freed_memory`, for good: a process that extracts scan after scan (:func:`~features.extract_many`'s
   workers, kept for its next call or a job's batches) then holds its peak resident memory until it ends;
@@ -86,7 +86,7 @@ def keep_freed_memory() -> bool:
 
     The free memory the process has at the call is given back first (``malloc_trim``): in a forked worker
     that is the parent's free heap, whose pages it shares with the parent, so that reusing them would copy
-    each one (a worker's first 512 px scan: 66 ms instead of 70).
+    each one.
 
     Returns
     -------
@@ -107,8 +107,7 @@ def give_back_free_memory() -> bool:
 
     :func:`~features.extract_many` calls it before forking its workers: a fork copies the page table of
     every resident page, free ones included, and each worker would then give the same pages back itself
-    (:func:`keep_freed_memory`), or copy them on first use. 12 scans of 512 px from a database on 2
-    workers forked for the call, alternating in one process: 0.423-0.442 s instead of 0.448-0.456 s. Blocks of
+    (:func:`keep_freed_memory`), or copy them on first use (docs/performance.md). Blocks of
     :func:`reusing_freed_memory` running in other threads lose nothing: the memory they hold is in use.
 
     Returns
@@ -129,10 +128,9 @@ def reusing_freed_memory() -> Iterator[None]:
     is given back to the system (``malloc_trim``) and glibc's settings become :data:`_AFTERWARDS`.
 
     Thread-safe: blocks may overlap in several threads; the memory is given back when the last one ends.
-    A 12-megapixel scan extracted in a block: about 1,500 page faults instead of 16,000, 5 % less time
-    (0.98-1.01 s against 1.04-1.06 s), and about 120 MB more at its peak (+387 MB against +258-269 MB:
-    freed blocks are not returned in the middle of the scan, and a free block too small for the next
-    allocation grows the heap).
+    Memory: the block holds its peak until it ends, about 120 MB more than without it for a 12-megapixel
+    scan (freed blocks are not returned in the middle of the scan, and a free block too small for the next
+    allocation grows the heap); the time it saves is in docs/performance.md.
     """
     libc = _glibc()
     with _lock:

@@ -711,7 +711,27 @@ FEATURE_SETS: Mapping[str, RelatedSet] = MappingProxyType({s.name: s for s in (
 
 
 def compute(name: str, recording: Recording) -> dict[str, float]:
-    """The feature set ``name`` of one recording (see :data:`FEATURE_SETS`)."""
+    """The feature set ``name`` of one recording (docs/features.md#related).
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`FEATURE_SETS`: ``fishel3``, ``xie11``, ``huang7``, ``chathuranga4``, ``xu3``,
+        ``chu``, ``mean23``, ``dallaire``, ``chitta``, ``temperature``.
+    recording : Recording
+        A recording with the set's roles (a scan is one through :func:`scan_recording`).
+
+    Returns
+    -------
+    dict of str to float
+
+    Raises
+    ------
+    MissingRoleError
+        The recording lacks a role the set reads.
+    RelatedFeatureError
+        An unknown set name, or data the set cannot use.
+    """
     if name not in FEATURE_SETS:
         raise RelatedFeatureError(f"unknown feature set {name!r} (known: {', '.join(FEATURE_SETS)})")
     return FEATURE_SETS[name].function(recording)

@@ -50,12 +50,41 @@ class FeatureSpaceError(TexplorerError, ValueError):
 class FeatureSpace:
     """Feature matrix ``X`` (n scans x f features) with its column names, scan ids, labels and groups.
 
-    ``groups`` are the sample ids: scans of one sample must stay in one cross-validation fold.
-    ``failed`` lists ``(scan_id, reason)`` for scans that could not be extracted (they have no row).
+    Parameters
+    ----------
+    X : numpy.ndarray
+        (n, f) float values, NaN where a feature is undefined.
+    columns : tuple of str
+        Feature names, e.g. ``features.NAMES``.
+    scan_ids : tuple of str
+        One id per row.
+    label_text : tuple of str
+        One label per row: a taxonomy label, or a free class name at ``label_level``.
+    groups : tuple of str
+        Sample ids: scans of one sample stay in one cross-validation fold.
+    failed : tuple of (str, str)
+        ``(scan_id, reason)`` of scans that could not be extracted (they have no row).
+    label_level : str, optional
+        None for taxonomy labels (levels coarse, medium, fine); a name for free class names at that level
+        (an imported set's ``material``, ``object``, ...).
+    levels : mapping of str to tuple of str
+        Coarser levels the set defines: name -> one class per row.
+    split : tuple of str
+        Empty, or ``train``/``test`` per row.
 
-    ``label_level`` None means taxonomy labels (levels coarse, medium, fine); a name means free class
-    names at that level (an imported set's ``material``, ``object``, ...), with the coarser ``levels``
-    (name -> one class per row) the set defines. ``split`` is empty or ``train``/``test`` per row.
+    Raises
+    ------
+    FeatureSpaceError
+        Inconsistent lengths or shapes, repeated column names or scan ids.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> space = FeatureSpace(np.array([[1.0, 2.0], [3.0, 4.0]]), ("tactum.matx", "other.density"), ("a", "b"),
+    ...                      ("C6S1M1P2X1", "C1S1M1P4X1"), ("granite-01", "oak-01"))
+    >>> space.y("coarse").tolist(), space.modality("other").columns
+    (['C6', 'C1'], ('other.density',))
     """
 
     X: np.ndarray

@@ -16,7 +16,7 @@ products then ran on several threads (other last bits), or a worker was forked w
 which it started and spun on the cores the workers need. So the limits are counted: the first user sets
 them, the last one restores what it found.
 
-The first and the last user may be different threads. threadpoolctl 3.8 lets only one thread at a time
+The first and the last user may be different threads. threadpoolctl lets only one thread at a time
 set OpenBLAS's process-wide pool (the first that sets it, until it leaves a ``with`` block or ends) and
 silently ignores the others, so a long-lived thread that once limited BLAS (a web server's) made every
 other thread's limit a no-op. Each change here therefore releases that control before and after itself.

@@ -57,7 +57,18 @@ def _too_large(error: RequestEntityTooLarge) -> tuple[str, int] | Response:
 
 
 def create_app(settings: Settings) -> Flask:
-    """The web application for the database at ``settings.db``."""
+    """The operator's web application for the database at ``settings.db`` (docs/operator.md).
+
+    Parameters
+    ----------
+    settings : Settings
+        Database, device configuration, model, upload limit and export folder.
+
+    Returns
+    -------
+    flask.Flask
+        Serve it with :func:`serve`, or any WSGI server on the loopback interface.
+    """
     app = Flask(__name__)
     app.config.update(
         SECRET_KEY=settings.secret_key,
@@ -97,7 +108,16 @@ def model_warning(settings: Settings) -> str | None:
 
 
 def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None:
-    """Run the app until Ctrl-C; warns on stderr when it listens beyond this computer."""
+    """Run the app until Ctrl-C; warns on stderr when it listens beyond this computer.
+
+    Parameters
+    ----------
+    settings : Settings
+    host : str
+        Address to listen on; anything but a loopback address lets the lab network use the scanner.
+    port : int
+        TCP port; 0 picks a free one (printed).
+    """
     from werkzeug.serving import make_server
 
     if not is_loopback(host):

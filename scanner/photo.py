@@ -46,9 +46,9 @@ _JPEG_FRAME_MARKERS = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
 
 def _imread_rgb() -> int:
     """OpenCV >= 4.11 decodes straight to RGB (``IMREAD_COLOR_RGB``; 0 before), the same values as
-    ``IMREAD_COLOR`` with the channels reversed (PNG: libpng's output order; JPEG: libjpeg's colour space):
-    a 12-megapixel PNG in 213 ms instead of 227, without a second full-size image. Older versions decode
-    to BGR and convert."""
+    ``IMREAD_COLOR`` with the channels reversed (PNG: libpng's output order; JPEG: libjpeg's colour space),
+    faster and without a second full-size image (docs/performance.md). Older versions decode to BGR and
+    convert."""
     return getattr(cv2, "IMREAD_COLOR_RGB", 0)
 
 

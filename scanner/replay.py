@@ -75,11 +75,25 @@ def scan_paths(paths: Iterable[str | Path]) -> list[Path]:
 
 def replay(paths: Sequence[Path], *, workers: int | None = None, progress: bool = True, client: Client | None = None,
            ship_data: bool = False) -> FeatureSpace:
-    """The features of the scans stored at ``paths`` (rows in that order; failures in ``.failed``).
+    """The features of the scans stored at ``paths``, extracted by the current code (nothing is cached).
 
-    Each scan is loaded (validated) and extracted in a worker process, or on the Dask cluster of
-    ``client`` (workers read the files at the same paths, or get them from here: ``extract_many``);
-    nothing is cached, so the numbers are those of the current code.
+    Parameters
+    ----------
+    paths : sequence of pathlib.Path
+        ``.mat`` files (:func:`scan_paths` expands folders).
+    workers : int, optional
+        Worker processes (default: the number of cores); each scan is loaded (validated) and extracted there.
+    progress : bool
+        Show a progress bar.
+    client : distributed.Client, optional
+        Extract on this Dask cluster; workers read the files at the same paths, or get them from here.
+    ship_data : bool
+        Send every file from here instead of letting workers read them.
+
+    Returns
+    -------
+    features.FeatureSpace
+        Rows in the order of ``paths``; scans that fail are listed in ``.failed`` with the reason.
     """
     sources = [ScanSource(str(path), "", "", StoredScan(path)) for path in paths]
     return _identified(extract_many(sources, workers=workers, progress=progress, client=client, ship_data=ship_data))

@@ -144,9 +144,30 @@ _FIELD = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,62}")
 
 @dataclass(frozen=True)
 class Trace:
-    """A uniformly sampled signal: ``data`` of shape (n,) or (n, channels) (or (n, h, w) for taxels).
+    """A uniformly sampled signal.
 
-    The array is stored read-only as float64 so features can never modify a scan in place.
+    Parameters
+    ----------
+    data : numpy.ndarray
+        Samples of shape (n,) or (n, channels), or (n, h, w) for taxels; stored read-only as float64, so
+        features can never modify a scan in place.
+    fs : float
+        Sample rate in Hz.
+    unit : str
+        Physical unit of the samples (``"g"``, ``"N"``, ``"V"``, ``"FS"``, ...).
+
+    Raises
+    ------
+    ScanError
+        If the data are not finite, empty, of another shape, or the rate is not positive.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scanner import Trace
+    >>> t = Trace(np.zeros((3000, 3)), 3000.0, "g")
+    >>> t.data.shape, t.fs
+    ((3000, 3), 3000.0)
     """
 
     data: np.ndarray
@@ -375,9 +396,28 @@ def _is_iso8601(text: str) -> bool:
 class Scan(_Picklable):
     """One pass of all exploratory procedures over one material sample (docs/database.md).
 
-    ``traces`` maps channel names of :data:`CHANNELS` to :class:`Trace`; ``images`` maps ``I_disp``,
-    ``I_macro``, ``I_illu`` to RGB ``uint8`` arrays of shape (h, w, 3); ``raw`` keeps the DAQ volts of a
-    channel (saved as ``<name>_raw``) so a calibration can be redone.
+    A scan validates itself on construction, so a ``Scan`` that exists is one the ``.mat`` format can store.
+
+    Parameters
+    ----------
+    meta : ScanMeta
+        Label, operator, sample and session ids, ambient temperature, mass, volume, judged values, device.
+    traces : mapping of str to Trace
+        Channels of :data:`CHANNELS` (``v_ts``, ``a_ts``, ``f_frn``, ...); missing optional channels are
+        allowed, and the features that need them are NaN.
+    images : mapping of str to numpy.ndarray
+        ``I_disp``, ``I_macro``, ``I_illu`` as RGB ``uint8`` arrays of shape (h, w, 3).
+    raw : mapping of str to Trace
+        The DAQ volts of a channel (saved as ``<name>_raw``), so a calibration can be redone.
+
+    Raises
+    ------
+    ScanError
+        A channel of the wrong rate, unit, shape or length, an unknown channel, or a bad photo.
+
+    See Also
+    --------
+    scanner.load_scan, scanner.save_scan, scanner.Database.get
     """
 
     meta: ScanMeta
@@ -513,10 +553,28 @@ def _check_image(name: str, image: np.ndarray) -> np.ndarray:
 class Recording(_Picklable):
     """A generic recording from another sensor or dataset (docs/ingest.md).
 
-    ``channels`` are named traces at their own rates; ``images`` named RGB photos (uint8, (h, w, 3)), e.g.
-    a texture photo or one patch of it; ``roles`` map a role of :data:`ROLES` to a channel name (an image
-    name for ``photo``), which is how the feature sets (docs/features.md#related) find their inputs; ``label`` is the
-    class (any string; a taxonomy label where known), ``group`` the object/sample ids used for grouped splits.
+    Parameters
+    ----------
+    name : str
+        Identifier of the recording within its set.
+    channels : mapping of str to Trace
+        Named traces, each at its own rate.
+    roles : mapping of str to str
+        A role of :data:`ROLES` (``vibration``, ``audio``, ``force_xyz``, ``photo``, ...) to a channel name
+        (an image name for ``photo``): how the feature sets (docs/features.md#related) find their inputs.
+    label : str, optional
+        The class: any string, a taxonomy label where known.
+    group : mapping of str to str
+        Object or sample ids used for grouped splits (``{"object": "cork-1"}``).
+    meta : mapping of str to object
+        Free metadata kept with the recording.
+    images : mapping of str to numpy.ndarray
+        Named RGB photos (uint8, (h, w, 3)), e.g. a texture photo or one patch of it.
+
+    Raises
+    ------
+    ScanError
+        A role naming a missing channel, an unknown role, or a channel of the wrong shape for its role.
     """
 
     name: str

@@ -2,8 +2,18 @@
 
 from __future__ import annotations
 
+import dataclasses
+import importlib.util
+import os
 import re
+import shutil
+import subprocess
+import sys
 from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.io.wavfile
 
 ROOT = Path(__file__).resolve().parent.parent
 CITED_TREES = ("scanner", "features", "taxonomy", "gui", "tests", "benchmarks", "docs", ".ci")
@@ -39,3 +49,209 @@ def test_the_check_finds_a_citation_and_ignores_ordinary_words():
     assert UNSHIPPED_DOCUMENT.search("(" + "SP" + "EC 7.1)")
     assert UNSHIPPED_DOCUMENT.search("SP" + "EC_NAMES = [")
     assert not UNSHIPPED_DOCUMENT.search("INSPECTION of the spectrum, Spectral centroid")
+
+
+# -- the examples of README.md and docs/ run as written ------------------------------------------------------
+
+FENCE = re.compile(r"^(?:<!-- (?P<directive>not run|file): (?P<argument>[^>]*) -->\n)?"
+                   r"```(?P<lang>[\w-]*)[^\n]*\n(?P<body>.*?)^```$", re.S | re.M)
+PYTHON, SHELL = {"python", "py"}, {"sh", "bash", "shell"}
+FILE_HEADER = re.compile(r"#\s*(?P<name>[\w.-]+\.(?:toml|csv|txt))\s*\n")
+SNIPPET = re.compile(r'^--8<-- "(?P<path>[^"]+)"$')
+DEMO = ["demo", "--materials", "granite-polished", "oak-planed", "mild-steel-brushed", "polyurethane-foam",
+        "--image-size", "256", "--classifier", "rf", "lda"]
+"""The small demo database the examples run on: the command getting-started.md shows."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Block:
+    """A fenced code block of a page: ``skip`` is the reason it does not run, ``file`` the file it is written
+    to (``<!-- file: NAME -->`` before the block, or a first line ``# NAME.toml``)."""
+
+    page: str
+    line: int
+    lang: str
+    body: str
+    skip: str | None = None
+    file: str | None = None
+
+    def __str__(self) -> str:
+        return f"{self.page}:{self.line} ({self.lang or 'text'})"
+
+
+def _pages() -> list[Path]:
+    return [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+
+
+def blocks(path: Path) -> list[Block]:
+    """The fenced code blocks of a Markdown page, with the reason given in a ``<!-- not run: ... -->`` comment
+    on the line before a block that must not run (hardware, a cluster, a server that runs until stopped)."""
+    text = path.read_text(encoding="utf-8")
+    page = str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else path.name
+    found = []
+    for m in FENCE.finditer(text):
+        header = FILE_HEADER.match(m["body"]) if m["lang"] not in PYTHON | SHELL else None
+        found.append(Block(page, text.count("\n", 0, m.start("body")), m["lang"].lower(), m["body"],
+                           skip=m["argument"] if m["directive"] == "not run" else None,
+                           file=m["argument"] if m["directive"] == "file" else header and header["name"]))
+    return found
+
+
+def runnable(block: Block) -> bool:
+    return block.skip is None and (block.lang in PYTHON | SHELL or block.file is not None)
+
+
+def test_blocks_are_found_with_their_languages_and_reasons(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text("text\n\n```python\nx = 1\n```\n\n<!-- not run: needs a DAQ -->\n```sh\ntexplorer scan\n```\n"
+                    "\n```toml\n# lab.toml\n[steps]\n```\n\n```\n$ transcript\n```\n"
+                    "<!-- file: lab.csv -->\n```\nkind,code\n```\n")
+    found = blocks(page)
+    assert [(b.lang, b.skip, b.file, b.line) for b in found] == [
+        ("python", None, None, 3), ("sh", "needs a DAQ", None, 8), ("toml", None, "lab.toml", 12),
+        ("", None, None, 17), ("", None, "lab.csv", 21)]
+    assert [runnable(b) for b in found] == [True, False, True, False, True]
+
+
+def test_every_skipped_example_says_why():
+    for path in _pages():
+        for block in blocks(path):
+            assert block.skip is None or block.skip.strip(), f"{block}: say why the example does not run"
+
+
+def _pages_with_examples() -> list[str]:
+    return [str(p.relative_to(ROOT)) for p in _pages() if any(runnable(b) for b in blocks(p))]
+
+
+def _wav(path: Path, frequency: float, seed: int) -> None:
+    """One second of a noisy tone as 16-bit PCM, a tool slide's sound for the walk-through of ingest.md."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(44100) / 44100
+    x = 0.3 * np.sin(2 * np.pi * frequency * t) + 0.05 * rng.standard_normal(t.size)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    scipy.io.wavfile.write(path, 44100, (x * 32767).astype(np.int16))
+
+
+@pytest.fixture(scope="module")
+def demo_folder(tmp_path_factory) -> Path:
+    """A working folder holding the small demo database (``texplorer-data``) and the tool-slide sounds of
+    ingest.md's walk-through (``slides/<material>/<object>_<trial>.wav``)."""
+    folder = tmp_path_factory.mktemp("examples")
+    done = subprocess.run([_texplorer(), *DEMO, "--db", str(folder / "texplorer-data")], env=_environment(),
+                          cwd=folder, capture_output=True, text=True, timeout=1800)
+    assert done.returncode == 0, f"texplorer {' '.join(DEMO)} exits {done.returncode}: {done.stderr[-2000:]}"
+    for k, (material, frequency) in enumerate((("cardboard", 180.0), ("cork", 420.0), ("steel", 900.0))):
+        for piece in (1, 2, 3, 4):
+            for trial in (1, 2):
+                _wav(folder / "slides" / material / f"{material}-{piece}_{trial:02d}.wav",
+                     frequency * (1 + 0.02 * piece), seed=100 * k + 10 * piece + trial)
+    return folder
+
+
+def _texplorer() -> str:
+    return str(Path(sys.executable).with_name("texplorer"))
+
+
+def _environment() -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k != "TEXPLORER_DB"}
+    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    env["MPLBACKEND"] = "Agg"
+    return env
+
+
+def _run(block: Block, command: list[str], cwd: Path) -> None:
+    done = subprocess.run(command, cwd=cwd, env=_environment(), capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, f"{block} exits {done.returncode}:\n{block.body}\n{done.stdout}\n{done.stderr}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("page", _pages_with_examples())
+def test_the_examples_of_a_page_run_as_written(page, demo_folder, tmp_path):
+    """Every Python and shell block of the page, in order, in one folder
+    holding a copy of the small demo database (a shell block, or a run of consecutive Python blocks, in a
+    process of its own); the files the page shows (``# slides.toml``) are written
+    there first, and the repository's docs/, tests/ and benchmarks/ are reachable by the relative paths the
+    examples use."""
+    work = tmp_path / "work"
+    shutil.copytree(demo_folder, work, symlinks=True)
+    for name in ("docs", "tests", "benchmarks"):
+        (work / name).symlink_to(ROOT / name)
+    python: list[Block] = []  # consecutive Python blocks run in one process, as a notebook's cells
+    for block in [*filter(runnable, blocks(ROOT / page)), None]:
+        if block is not None and block.lang in PYTHON:
+            python.append(block)
+            continue
+        if python:
+            code = "\n".join(_python_source(b) for b in python)
+            _run(python[0], [sys.executable, "-c", code], work)
+            python = []
+        if block is None:
+            break
+        if block.file is not None:
+            (work / block.file).write_text(block.body)
+        else:
+            _run(block, ["bash", "-euo", "pipefail", "-c", block.body], work)
+
+
+def _python_source(block: Block) -> str:
+    snippet = SNIPPET.match(block.body.strip())
+    return (ROOT / "docs" / snippet["path"]).read_text() if snippet else block.body
+
+
+# -- the site --------------------------------------------------------------------------------------------------
+
+@pytest.mark.slow
+def test_the_site_builds_with_warnings_as_errors(tmp_path):
+    """``make docs``: every page, link, anchor, image and API entry resolves (mkdocs build --strict), with no
+    network (the theme's web fonts are off)."""
+    if importlib.util.find_spec("mkdocs") is None or importlib.util.find_spec("mkdocstrings") is None:
+        pytest.skip("mkdocs and mkdocstrings are not installed (pip install 'texplorer[docs]'; make install does)")
+    done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path / "site")],
+                          cwd=ROOT, env={**_environment(), "NO_MKDOCS_2_WARNING": "1"}, capture_output=True,
+                          text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-4000:]
+    assert (tmp_path / "site" / "features" / "index.html").is_file()
+    assert "tactum.matx" in (tmp_path / "site" / "api" / "features" / "index.html").read_text()
+
+
+# -- the API reference and its examples ------------------------------------------------------------------------
+
+API_ENTRY = re.compile(r"^::: (?P<name>[\w.]+)", re.M)
+
+
+def _is_module(name: str) -> bool:
+    try:
+        return importlib.util.find_spec(name) is not None
+    except ModuleNotFoundError:  # a name inside a module that is not a package
+        return False
+
+
+def _documented_modules() -> list[str]:
+    """The modules whose objects docs/api/*.md lists (``::: package.module.name``)."""
+    modules = set()
+    for page in sorted((ROOT / "docs" / "api").glob("*.md")):
+        for m in API_ENTRY.finditer(page.read_text()):
+            parts = m["name"].split(".")
+            while parts and not _is_module(".".join(parts)):
+                parts.pop()
+            assert parts, f"{page.name}: {m['name']} names no module"
+            modules.add(".".join(parts))
+    return sorted(modules)
+
+
+def test_every_object_of_the_api_reference_exists():
+    for page in sorted((ROOT / "docs" / "api").glob("*.md")):
+        for m in API_ENTRY.finditer(page.read_text()):
+            module_name, _, attribute = m["name"].rpartition(".")
+            if _is_module(m["name"]):
+                continue
+            assert hasattr(importlib.import_module(module_name), attribute), f"{page.name}: no {m['name']}"
+
+
+@pytest.mark.parametrize("module", _documented_modules())
+def test_the_docstring_examples_of_the_api_reference_run(module):
+    import doctest
+
+    found = doctest.testmod(importlib.import_module(module), optionflags=doctest.NORMALIZE_WHITESPACE)
+    assert found.failed == 0, f"{found.failed} of {found.attempted} examples of {module} fail"

@@ -26,7 +26,7 @@ def synthetic_database(root: str | Path, materials: Iterable[str] | None = None,
                        seed: int = 0, image_size: tuple[int, int] = (512, 512), progress: bool = True,
                        fold_skip_probability: float = 0.5, workers: int | None = None,
                        samples_per_material: int = 1) -> Database:
-    """Simulate scans (see :func:`synthetic_scans`) into ``scanner.storage.database.Database(root)``; returns it.
+    """Simulate scans (see :func:`synthetic_scans`) into ``scanner.storage.database.Database(root)``.
 
     Scans are simulated and written (``.mat`` and photos, the costly encoding) in ``workers`` processes
     (default: the number of cores) into a staging folder on the database's file system, then catalogued by
@@ -34,6 +34,31 @@ def synthetic_database(root: str | Path, materials: Iterable[str] | None = None,
     so the files and the catalog are exactly those :meth:`~scanner.storage.database.Database.add` writes.
     Scans whose id is already in the database are kept, not simulated again, so an interrupted demo resumes
     where it stopped (delete the folder to start over with another seed).
+
+    Parameters
+    ----------
+    root : str or pathlib.Path
+        The database folder (created if missing).
+    materials : iterable of str, optional
+        Material slugs of ``scanner/data/materials.toml``; default the whole library.
+    scans_per_material : int
+        Scans of each sample.
+    seed : int
+        Seed of the whole database: the same arguments give the same scans.
+    image_size : (int, int)
+        Photo height and width in pixels.
+    progress : bool
+        Show a progress bar.
+    fold_skip_probability : float
+        How often the simulated operator skips the fold of a rigid sample.
+    workers : int, optional
+        Processes (default: the number of cores).
+    samples_per_material : int
+        Pieces per material (sample ids ``<slug>-01``, ``<slug>-02``, ...).
+
+    Returns
+    -------
+    Database
     """
     all_jobs = scan_jobs(materials, samples_per_material, scans_per_material, seed, image_size, fold_skip_probability)
     database = Database(root)

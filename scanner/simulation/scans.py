@@ -37,13 +37,44 @@ def synthetic_scan(material: Material | str, *, seed: int, scan_index: int = 1, 
                    session_id: str = "sim", operator: str = "sim", image_size: tuple[int, int] = (512, 512),
                    started: str | None = None, t_amb: float | None = None,
                    fold_skip_probability: float = 0.5) -> Scan:
-    """One simulated scan of ``material`` (a :class:`Material`, a slug of the default library or any full
-    label of the taxonomy, :func:`~scanner.simulation.derived.material_named`).
+    """One simulated scan of ``material``: every channel of docs/database.md at its true rate and shape, the
+    three photos and the meta data.
 
-    Every channel of docs/database.md at its true rate and shape, the three photos at ``image_size`` (h, w) and the
-    meta data. Bit-identical for the same arguments: the seed feeds an ``np.random.SeedSequence`` whose
-    children drive the operator draw and each procedure step. A rigid sample's fold step is skipped
-    (``meta.rigid``, no fold channels) with ``fold_skip_probability``.
+    Bit-identical for the same arguments: the seed feeds an ``np.random.SeedSequence`` whose children drive
+    the operator draw and each procedure step.
+
+    Parameters
+    ----------
+    material : Material or str
+        A material, a slug of the default library (``scanner/data/materials.toml``) or any full label of
+        the taxonomy (:func:`~scanner.simulation.derived.material_named`).
+    seed : int
+        Seed of this scan.
+    scan_index : int
+        The scan's number within its sample.
+    sample_id : str, optional
+        Default ``<slug>-01``.
+    session_id, operator : str
+        Written into ``meta``.
+    image_size : (int, int)
+        Photo height and width in pixels (at least 202 for the image features after the 100 px crop).
+    started : str, optional
+        ISO 8601 start time (default: fixed, so the scan is reproducible).
+    t_amb : float, optional
+        Ambient temperature in degC (default: drawn).
+    fold_skip_probability : float
+        How often the fold step of a rigid sample is skipped (``meta.rigid``, no fold channels).
+
+    Returns
+    -------
+    Scan
+
+    Examples
+    --------
+    >>> from scanner.simulation import synthetic_scan
+    >>> scan = synthetic_scan("granite-polished", seed=0, image_size=(256, 256))
+    >>> str(scan.meta.label), scan["v_ts"].fs, scan["v_ts"].data.shape[1]
+    ('C6S1M1P2X1', 3000.0, 3)
     """
     material = material_named(material)
     size = _check_image_size(image_size)

@@ -230,9 +230,35 @@ def is_database(root: Path) -> bool:
 
 
 class Database:
-    """A scan database at ``root`` (created if missing). Safe for concurrent readers and writers.
+    """A scan database: ``.mat`` files and photos under ``root/scans`` plus the SQLite catalog (docs/database.md).
 
-    Each thread gets its own SQLite connection; writers are serialised by SQLite's write lock.
+    Safe for concurrent readers and writers: each thread gets its own SQLite connection, and writers are
+    serialised by SQLite's write lock. Every file is written atomically and catalogued only when complete.
+
+    Parameters
+    ----------
+    root : str or os.PathLike
+        The database folder.
+    create : bool
+        Create the folder and catalog if missing; with False a folder that is not a database is refused.
+
+    Raises
+    ------
+    DatabaseError
+        An unreadable catalog (``texplorer db rebuild`` recreates it), or no database at ``root`` with
+        ``create=False``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from scanner import Database
+    >>> from scanner.simulation import synthetic_scan
+    >>> db = Database(tempfile.mkdtemp())
+    >>> scan_id = db.add(synthetic_scan("oak-planed", seed=1, image_size=(256, 256)))
+    >>> [r.scan_id for r in db.records(label="C1")] == [scan_id]
+    True
+    >>> db.get(scan_id).meta.label
+    'C1S1M1P4X1'
     """
 
     def __init__(self, root: str | os.PathLike[str], *, create: bool = True) -> None:

@@ -171,9 +171,8 @@ def check_file_size(size: int, max_bytes: int) -> None:
 
 def _uncompressed(handle: BinaryIO, max_bytes: int) -> io.BytesIO:
     """The checked elements written one by one into a growing stream, each let go after its write: peak memory
-    about the stream plus one element. (Keeping the elements to join them once saves a 512 px scan about
-    1 ms, but holds every element and the joined copy at once: 441 MB at the peak for a file of 200 MB
-    against 310 MB.)"""
+    about the stream plus one element. (Keeping the elements to join them once would hold every element and
+    the joined copy at once, about 1.4 times the peak; docs/performance.md.)"""
     out = io.BytesIO()
     total = 0
     header = handle.read(HEADER_BYTES)

@@ -144,8 +144,30 @@ def encode_mat(variables: dict[str, Any]) -> bytes:
 def save_scan(scan: Scan, path: str | os.PathLike[str]) -> list[Path]:
     """Write ``scan`` to ``path`` (a ``.mat`` file) and its photos beside it, each atomically.
 
-    Photos are written first, so a ``.mat`` file never names a photo that is not there. Returns the
-    written paths, the ``.mat`` last.
+    Photos are written first, so a ``.mat`` file never names a photo that is not there.
+
+    Parameters
+    ----------
+    scan : Scan
+        The scan to store.
+    path : str or os.PathLike
+        The ``.mat`` file; the photos become ``<stem>_disp.png``, ``_macro.png``, ``_illu.png`` beside it.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The written paths, the ``.mat`` last.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from scanner import load_scan, save_scan
+    >>> from scanner.simulation import synthetic_scan
+    >>> scan = synthetic_scan("granite-polished", seed=0, image_size=(256, 256))
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "granite.mat"
+    >>> written = save_scan(scan, path)
+    >>> load_scan(path) == scan
+    True
     """
     mat_path = Path(path)
     if mat_path.suffix != ".mat":
@@ -373,16 +395,35 @@ def _read_images(path: Path, variables: dict[str, Any], files: FileView | None =
 def load_scan(path: str | os.PathLike[str], *, images: bool = True, files: FileView | None = None) -> Scan:
     """Read and validate a scan written by :func:`save_scan` (or by MATLAB in the same layout).
 
-    Raises :class:`ScanFormatError` naming the file and field for a truncated, foreign or oversized file
-    (:data:`MAX_SCAN_BYTES`), a wrong shape, non-finite samples, a channel longer than
-    ``scanner.scan.MAX_CHANNEL_SECONDS``, a missing required field, a meta value out of its range (module
-    ``scanner.scan``), a wrong or missing rate, an unknown schema version, or a photo that is unreadable or
-    beyond the pixel limit (checked from its header before decoding). No other exception comes out of it
-    for any content of the files. Missing optional channels are fine. A file with ``meta.rigid`` = 1 that
-    stores the fold loads with a :class:`ScanFormatWarning`: the stored fold wins (Strese et al. 2020, eq. 21;
-    docs/features.md#cdf). ``images=False`` skips the photos. ``files`` reads the ``.mat`` and its photos from elsewhere
-    than this
-    machine's file system (:class:`FileView`); errors still name ``path``.
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.mat`` file.
+    images : bool
+        Read the photos too (False skips them).
+    files : FileView, optional
+        Read the ``.mat`` and its photos from elsewhere than this machine's file system; errors still
+        name ``path``.
+
+    Returns
+    -------
+    Scan
+        Missing optional channels are fine: the features that need them are NaN.
+
+    Raises
+    ------
+    ScanFormatError
+        Naming the file and field, for a truncated, foreign or oversized file (:data:`MAX_SCAN_BYTES`), a
+        wrong shape, non-finite samples, a channel longer than ``scanner.scan.MAX_CHANNEL_SECONDS``, a
+        missing required field, a meta value out of its range, a wrong or missing rate, an unknown schema
+        version, or a photo that is unreadable or beyond the pixel limit (checked from its header before
+        decoding). No other exception comes out of it for any content of the files.
+
+    Warns
+    -----
+    ScanFormatWarning
+        A file with ``meta.rigid`` = 1 that stores the fold: the stored fold wins (Strese et al. 2020,
+        eq. 21; docs/features.md#cdf).
     """
     mat_path = Path(path)
     variables = _read_variables(mat_path, files)

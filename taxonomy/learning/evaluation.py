@@ -324,14 +324,47 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
                   single_group: str = "train") -> list[Result]:
     """Every classifier x feature set x level x set size (the paper's Figs. 16-18), folds in parallel.
 
-    ``levels`` default to every level of the space (``space.level_names``); a set size None is ``all``.
+    Each fold of each (level, feature set, size) is one job in one of ``workers`` processes, or one task on
+    the Dask cluster of ``client`` (each cell's data sent once), the fine level first because it takes
+    longest. Results equal those of :func:`evaluate` with the same arguments.
 
-    ``feature_sets`` maps a display name to a feature set (see :func:`evaluate`); the default is
-    :func:`default_feature_sets` restricted to the modalities present in ``space``. Each fold of each
-    (level, feature set, size) is one job in one of ``workers`` processes (default: all cores), or one task
-    on the Dask cluster of ``client`` (each cell's data sent once), the fine level first because it takes
-    longest; ``progress`` shows a bar. Results come back ordered by classifier, feature set, level and
-    size, and equal those of :func:`evaluate` with the same arguments.
+    Parameters
+    ----------
+    space : features.FeatureSpace
+        Rows = scans (or recordings), with labels and groups.
+    classifiers : iterable of str or estimator
+        Keys of :data:`CLASSIFIERS` or unfitted scikit-learn classifiers.
+    levels : iterable of str, optional
+        Default: every level of the space (``space.level_names``).
+    set_sizes : iterable of int or None
+        Features kept by the selector; None is ``all`` (every feature, unselected).
+    feature_sets : mapping of str to feature set, optional
+        Display name -> feature set (see :func:`evaluate`); default :func:`default_feature_sets`
+        restricted to the modalities present in ``space``.
+    folds, seed : int
+        Number of folds; seed of the fold assignment and of the classifiers.
+    protocol : str
+        ``"nested"`` or ``"paper"``.
+    workers : int, optional
+        Processes (default: all cores).
+    progress : bool
+        Show a progress bar.
+    use_split : bool
+        Use the space's own train/test split where it has one.
+    client : distributed.Client, optional
+        Fit the folds on this Dask cluster.
+
+    Returns
+    -------
+    list of Result
+        Ordered by classifier, feature set, level and size; :func:`taxonomy.reports.report.format_table` prints them.
+
+    Raises
+    ------
+    EvaluationError
+        An unknown classifier or protocol, too few rows per class for the folds, or only NaN columns.
+    FeatureSpaceError
+        A level the space does not have.
     """
     classifiers = list(classifiers)
     levels = list(dict.fromkeys(space.check_level(level) for level in (levels or space.level_names)))

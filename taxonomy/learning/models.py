@@ -136,9 +136,34 @@ def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, 
                 seed: int = SEED, feature_set: FeatureSet = None) -> TrainedModel:
     """Fit ``scale -> select n_features -> classifier`` on every row of ``space`` at ``level``.
 
-    Columns that hold NaN in any row are left out, as in ``taxonomy.learning.evaluation.evaluate`` (listed in
-    ``dropped``).
-    Cross-validated scores of the same settings come from ``taxonomy.learning.evaluation.evaluate``.
+    Columns that hold NaN in any row are left out, as in :func:`taxonomy.learning.evaluation.evaluate` (listed in
+    ``dropped``); cross-validated scores of the same settings come from there.
+
+    Parameters
+    ----------
+    space : features.FeatureSpace
+        The training rows.
+    level : str
+        ``"coarse"``, ``"medium"`` or ``"fine"`` (or a level of the space's own labels).
+    n_features : int
+        Features the FQ + Spearman selector keeps.
+    classifier : str
+        ``"svm"``, ``"lda"``, ``"knn"``, ``"mlp"``, ``"rf"`` or ``"nb"``.
+    seed : int
+        Seed of the classifier.
+    feature_set : None, str or list of str
+        None / ``"all"``, a modality or column names.
+
+    Returns
+    -------
+    TrainedModel
+        With the feature names, the fitted pipeline, the level and the software version; see
+        :func:`save_model`.
+
+    Raises
+    ------
+    EvaluationError
+        An unknown classifier, or only NaN columns.
     """
     check_level(level)
     if classifier not in CLASSIFIERS:
@@ -173,7 +198,20 @@ def _skops() -> ModuleType:
 def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
     """Write ``model`` to ``path`` as a skops archive, atomically (temp file + fsync + rename).
 
-    Refuses (ModelError) a model that :func:`load_model` would refuse, so no unreadable file is written.
+    Parameters
+    ----------
+    model : TrainedModel
+    path : str or os.PathLike
+
+    Returns
+    -------
+    pathlib.Path
+        The written file.
+
+    Raises
+    ------
+    ModelError
+        A model that :func:`load_model` would refuse, so no unreadable file is written.
     """
     path = Path(path)
     payload = {
@@ -191,7 +229,21 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
 
 
 def load_model(path: str | os.PathLike[str]) -> TrainedModel:
-    """Read a model written by :func:`save_model`; anything else raises a one-line ModelError."""
+    """Read a model written by :func:`save_model`; loading cannot run code (skops with a list of trusted types).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    TrainedModel
+
+    Raises
+    ------
+    ModelError
+        One line, for anything else: not a skops archive, an untrusted type, an inconsistent pipeline.
+    """
     path = Path(path)
     try:
         data = path.read_bytes()
@@ -288,13 +340,29 @@ def _check_consistent(path: Path, payload: dict[str, Any], pipeline: Pipeline) -
 
 def predict_top(model: TrainedModel, feature_values: Mapping[str, float],
                 k: int = 3) -> list[tuple[str, float]]:
-    """The ``k`` most probable classes of one scan as ``[(label, probability), ...]``, most probable first.
+    """The ``k`` most probable classes of one scan, most probable first.
 
-    ``feature_values`` maps feature names to values (``features.extract(scan)``); extra names are ignored.
-    Only the selected features reach the classifier, so only they must be present and finite: a missing
-    or NaN selected feature raises ModelError naming them (a guess would look like a real prediction).
-    Other model inputs may be missing or NaN; they are passed on as NaN and dropped by the selector.
-    Equal probabilities keep the model's class order.
+    Only the selected features reach the classifier, so only they must be present and finite; other model
+    inputs may be missing or NaN (they are passed on as NaN and dropped by the selector). Equal
+    probabilities keep the model's class order.
+
+    Parameters
+    ----------
+    model : TrainedModel
+    feature_values : mapping of str to float
+        Feature names to values (``features.extract(scan)``); extra names are ignored.
+    k : int
+        How many classes.
+
+    Returns
+    -------
+    list of (str, float)
+        ``[(label, probability), ...]``.
+
+    Raises
+    ------
+    ModelError
+        A selected feature missing or NaN, naming them (a guess would look like a real prediction).
     """
     if isinstance(k, bool) or not isinstance(k, int) or k < 1:
         raise ModelError(f"k must be a positive integer, got {k!r}")

@@ -126,7 +126,18 @@ def _blocks(reports: Sequence[Result]) -> list[tuple[str, list[str], list[tuple[
 
 
 def format_table(reports: Sequence[Result]) -> str:
-    """The classifier x feature set x level table as text, one block per set size and protocol."""
+    """The classifier x feature set x level table as text, one block per set size and protocol.
+
+    Parameters
+    ----------
+    reports : sequence of Result
+        As :func:`taxonomy.learning.evaluation.evaluate_grid` returns them.
+
+    Returns
+    -------
+    str
+        Accuracy mean +- std (%), macro F1 and r_C per cell; ``-`` where r_C is undefined.
+    """
     if not reports:
         return "no results"
     lines = [f"cells: {CELL_LEGEND}"]
