@@ -25,13 +25,14 @@ from tqdm import tqdm
 from features import cluster, tactum
 from features.memory import give_back_free_memory, keep_freed_memory, reusing_freed_memory
 from features.prepared import PreparedScan
-from features.registry import REGISTRY
+from features.registry import REGISTRY, fix_code_version
 from features.space import FeatureSpace
 from features.threads import one_blas_thread, one_thread_each, one_thread_for_good
 from scanner.lazy import preload
 from scanner.processes import end_with_parent
 from scanner.scan import Scan
 from scanner.storage.stored import NotOnThisMachine
+from taxonomy.errors import TexplorerError
 
 if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
     from distributed import Client
@@ -42,6 +43,9 @@ def code_version(families: Sequence[str] | None = None) -> str:
     cached feature vector is reused only with the code that computed it. ``families`` (default: the
     default families) adds the chosen families' names and parameters (:meth:`Registry.code_version`)."""
     return REGISTRY.code_version(__name__, families=families)
+
+
+fix_code_version(__name__)  # this module's source and its imports, as imported now
 
 
 def without_short_channels(scan: Scan) -> Scan:
@@ -141,6 +145,19 @@ def _extract_source(source: ScanSource,
     return list(values.values()), None
 
 
+def _unverified(source: ScanSource) -> str | None:
+    """Why ``source``'s cached features must not be served (its files are not the bytes they were computed
+    from: ``load.verify()`` of a :class:`~scanner.storage.stored.StoredScan`), or None."""
+    verify = getattr(source.load, "verify", None)
+    if verify is None:
+        return None
+    try:
+        verify()
+    except (TexplorerError, OSError) as exc:
+        return f"{type(exc).__name__}: {exc}"
+    return None
+
+
 def _extract_with_code(version: str, families: tuple[str, ...] | None,
                        source: ScanSource) -> tuple[list[float] | None, str | None]:
     """:func:`_extract_source` in a worker process, refused where the worker's feature code is not ``version``
@@ -163,7 +180,10 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     the calls of a job that extracts in batches (:class:`WorkerPool`). A scan that fails is
     reported in ``FeatureSpace.failed`` with its id and the reason, the others are kept. With a
     ``cache``, sources with a ``cache_key`` (the scan's content hash) are looked up first and stored after,
-    keyed by :func:`code_version` too, so a second run over unchanged scans only reads the cache.
+    keyed by :func:`code_version` too, so a second run over unchanged scans only reads the cache. A cached
+    row is served only once the source's files are verified to be the bytes it was computed from (a
+    stored scan's ``load.verify()``: their SHA-256), and a stored scan is extracted only from its catalogued
+    bytes: a file changed since it was stored fails its row, naming the file, and nothing is cached.
 
     With a ``distributed.Client`` the uncached scans are extracted on its Dask cluster instead of
     ``workers`` processes, with the same results; the cache is still read and written here only.
@@ -185,10 +205,12 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     todo = []
     for i, source in enumerate(sources):
         cached = cache.cached_features(source.cache_key, version) if cache and source.cache_key else None
-        if cached is not None and tuple(cached) == names:
-            rows[i] = list(cached.values())
-        else:
+        if cached is None or tuple(cached) != names:
             todo.append(i)
+        elif (problem := _unverified(source)) is not None:
+            errors[i] = problem
+        else:
+            rows[i] = list(cached.values())
     bar = _Bar(total=len(todo), desc="features", unit="scan", file=sys.stderr, disable=None if progress else True,
                leave=False)
     size = (pool.size if pool else workers) or os.cpu_count() or 1
