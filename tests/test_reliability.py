@@ -202,3 +202,145 @@ def test_the_code_version_is_computed_once_when_threads_ask_at_once():
     for _ in range(3):
         process = _python(CONCURRENT_FIRST_CALLS, stdout=subprocess.PIPE)
         assert process.communicate(timeout=120)[0].strip() == "1 16 []"
+
+
+# -- 7, 8. the web app under concurrent feature requests ---------------------------------------------------
+
+def _serve(db: Path) -> tuple[subprocess.Popen, str]:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    process = subprocess.Popen([sys.executable, "-m", "scanner.cli", "serve", "--db", str(db), "--port", "0"],
+                               env=env, stderr=subprocess.PIPE, text=True)
+    for line in process.stderr:
+        if " at http://" in line:
+            return process, line.split(" at ", 1)[1].split("/ ", 1)[0]
+    process.kill()
+    raise AssertionError("the server printed no address")
+
+
+def _get(url: str) -> int:
+    import urllib.error
+    import urllib.request
+
+    try:
+        with urllib.request.urlopen(url, timeout=300) as answer:
+            answer.read()
+            return answer.status
+    except urllib.error.HTTPError as exc:
+        return exc.code
+
+
+@linux_only
+def test_concurrent_feature_requests_at_a_fresh_server_all_answer(tmp_path):
+    import concurrent.futures
+    import sqlite3
+
+    from scanner.simulation.database import synthetic_database
+
+    db = synthetic_database(tmp_path / "db", materials=["oak-planed", "float-glass"], scans_per_material=3,
+                            image_size=(96, 96), progress=False, workers=1)
+    ids = [record.scan_id for record in db.records()]
+    db.close()
+    for _ in range(4):  # each round a fresh server (first calls) and an empty feature cache (workers fork)
+        with sqlite3.connect(tmp_path / "db" / "catalog.sqlite") as conn:
+            conn.execute("DELETE FROM feature_cache")
+        process, url = _serve(tmp_path / "db")
+        try:
+            paths = ["/db/export/features.csv"] * 3 + [f"/db/scan/{scan_id}" for scan_id in ids[:3]]
+            with concurrent.futures.ThreadPoolExecutor(len(paths)) as requests:
+                answers = list(requests.map(_get, [url + path for path in paths]))
+            assert answers == [200] * len(paths)
+            process.send_signal(signal.SIGTERM)
+            assert process.wait(60) == 0 and "texplorer: stopped" in process.stderr.read()
+        finally:
+            process.kill()
+            process.wait()
+
+
+# -- 3, 9. one pixel limit that cannot be dodged, and decoding bounded in time ------------------------------
+
+def progressive_jpeg(width: int, height: int, repeats: int = 0, seed: int = 0) -> bytes:
+    """A progressive JPEG of noise whose last scan is repeated ``repeats`` more times before the end."""
+    import cv2
+    import numpy as np
+
+    image = np.random.default_rng(seed).integers(0, 256, (height, width, 3), dtype=np.uint8)
+    ok, encoded = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_PROGRESSIVE, 1, cv2.IMWRITE_JPEG_QUALITY, 50])
+    assert ok
+    data = encoded.tobytes()
+    last = data.rindex(b"\xff\xda")
+    return data[:-2] + data[last:-2] * repeats + b"\xff\xd9"
+
+
+def tiff(*pages: list[tuple[int, int, int]], loop: bool = False) -> bytes:
+    """A little-endian TIFF whose pages are directories of ``(tag, type, value)`` entries (1 value each),
+    each with a strip of 16 zero bytes; ``loop``: the last directory points back to the first."""
+    import struct
+
+    out = bytearray(b"II*\x00" + struct.pack("<I", 8))
+    strip = 0
+    for number, entries in enumerate(pages):
+        entries = [*entries, (259, 3, 1), (262, 3, 1), (273, 4, 0), (277, 3, 1), (278, 4, 1 << 30), (279, 4, 16)]
+        start = len(out)
+        size = 2 + 12 * len(entries) + 4
+        strip = start + size
+        out += struct.pack("<H", len(entries))
+        for tag, kind, value in entries:
+            value = strip if tag == 273 else value
+            out += struct.pack("<HHI", tag, kind, 1) + struct.pack("<I" if kind == 4 else "<HH", *(
+                (value,) if kind == 4 else (value, 0)))
+        last = number == len(pages) - 1
+        out += struct.pack("<I", 8 if last and loop else 0 if last else strip + 16)
+        out += bytes(16)
+    return bytes(out)
+
+
+def hostile_images() -> dict[str, tuple[bytes, str]]:
+    """Seeded hostile images per format, each with a word its refusal names."""
+    from conftest import png_bomb
+
+    sides = [(256, 4, 10), (257, 4, 10)]
+    return {
+        "png-bomb": (png_bomb(20000, 20000), "pixels"),
+        "jpeg-scans": (progressive_jpeg(640, 480, repeats=40), "scans"),
+        "tiff-width-twice": (tiff([(256, 4, 20000), (256, 4, 10), (257, 4, 20000), (257, 4, 10)]), "twice"),
+        "tiff-large-second-page": (tiff(sides, [(256, 4, 20000), (257, 4, 20000)]), "pixels"),
+        "tiff-side-as-two-values": (tiff([(256, 4, 10), (257, 12, 10)]), "whole number"),
+        "tiff-loop": (tiff(sides, sides, loop=True), "loop"),
+        "tiff-many-pages": (tiff(*[sides] * 17), "pages"),
+    }
+
+
+def test_every_hostile_image_is_refused_from_its_header_in_one_line():
+    from scanner.photo import PhotoError, check_pixels
+
+    for case, (data, word) in hostile_images().items():
+        with pytest.raises(PhotoError) as refused:
+            check_pixels(data, name=case)
+        message = str(refused.value)
+        assert message.startswith(f"{case}: ") and word in message and "\n" not in message, case
+
+
+def test_a_jpeg_within_the_scan_limit_decodes():
+    from scanner.photo import MAX_JPEG_SCANS, decode, jpeg_scans
+
+    plain = progressive_jpeg(64, 48)
+    assert 1 < jpeg_scans(plain) <= MAX_JPEG_SCANS
+    assert decode(plain).shape == (48, 64, 3)
+    assert jpeg_scans(progressive_jpeg(64, 48, repeats=MAX_JPEG_SCANS - jpeg_scans(plain))) == MAX_JPEG_SCANS
+
+
+def test_the_pages_of_a_plain_tiff_are_read_as_its_decoder_reads_them(tmp_path):
+    import cv2
+    import numpy as np
+    import tifffile
+
+    from scanner.photo import image_size, tiff_pages
+
+    path = tmp_path / "two.tif"
+    with tifffile.TiffWriter(path) as writer:
+        writer.write(np.zeros((30, 40), np.uint8))
+        writer.write(np.zeros((50, 20), np.uint8))
+    data = path.read_bytes()
+    assert tiff_pages(data) == [(40, 30), (20, 50)] and image_size(data) == ("TIFF", 40, 50)
+    assert cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED).shape == (30, 40)
+
