@@ -344,3 +344,144 @@ def test_the_pages_of_a_plain_tiff_are_read_as_its_decoder_reads_them(tmp_path):
     assert tiff_pages(data) == [(40, 30), (20, 50)] and image_size(data) == ("TIFF", 40, 50)
     assert cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED).shape == (30, 40)
 
+
+
+# -- 4, 5. ingest: bounded bridging, one bad file of each kind skipped by name ------------------------------
+
+INGEST_MAPPING = """
+[[files]]
+glob = "**/*.csv"
+time_column = "t"
+[[files.channels]]
+name = "pdc"
+role = "pressure_dc"
+columns = "p"
+[[files]]
+glob = "**/*.wav"
+[[files.channels]]
+name = "audio"
+role = "audio"
+[[files]]
+glob = "**/*.np[yz]"
+rate = 100.0
+[[files.channels]]
+name = "v"
+role = "vibration"
+"""
+
+
+def _good_csv(path: Path, n: int = 50) -> None:
+    path.write_text("t,p\n" + "".join(f"{i / 100},{i}\n" for i in range(n)))
+
+
+def hostile_recordings(folder: Path) -> dict[str, str]:
+    """One hostile file of each kind written into ``folder``, with a word its skipped line names."""
+    import zipfile
+
+    import numpy as np
+
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "jump.csv").write_text("t,p\n0,1\n0.01,2\n0.02,3\n4000000000,4\n4000000000.01,5\n")
+    (folder / "nudge.csv").write_text("t,p\n0,1\n0.01,2\n0.02,3\n30,4\n30.01,5\n")  # 3000 from 5
+    (folder / "empty_rate.wav").write_bytes(
+        b"RIFF\x24\x00\x00\x00WAVEfmt \x10\x00\x00\x00\x01\x00\x00\x00\x44\xac\x00\x00\x88\x58\x01\x00"
+        b"\x02\x00\x10\x00data\x00\x00\x00\x00")  # no channels: the standard library divides by zero
+    np.save(folder / "objects.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    (folder / "cut.npz").write_bytes(b"PK\x03\x04" + bytes(30))
+    with zipfile.ZipFile(folder / "short_header.npz", "w") as archive:
+        archive.writestr("v.npy", b"\x93NUMPY\x01\x00\xff\xff{'descr': '<f8', 'fortran_order': False, }")
+    return {"jump": "bridge", "nudge": "bridge", "empty_rate": "empty_rate.wav", "objects": "objects.npy",
+            "cut": "cut.npz", "short_header": "short_header.npz"}
+
+
+def test_one_hostile_file_of_each_kind_is_named_and_skipped_and_the_good_one_stored(tmp_path, capsys):
+    from scanner.cli import main
+    from scanner.storage import ingest
+
+    lab = tmp_path / "lab" / "cork"
+    expected = hostile_recordings(lab)
+    _good_csv(lab / "good.csv")
+    (tmp_path / "map.toml").write_text(INGEST_MAPPING)
+    code = main(["ingest", str(tmp_path / "lab"), "--mapping", str(tmp_path / "map.toml"), "--db",
+                 str(tmp_path / "db"), "--name", "lab"])
+    out = capsys.readouterr().out.splitlines()
+    assert code == 3
+    stored = ingest.load_recordings(ingest.set_folder(tmp_path / "db", "lab"))
+    assert [r.name for r in stored] == ["good"] and stored[0].channels["pdc"].data.size == 50
+    for name, word in expected.items():
+        lines = [line for line in out if f"cork/{name}" in line]
+        assert lines and any(word in line for line in lines), (name, out)
+
+
+def test_a_gap_within_the_bridging_limit_is_bridged_and_one_beyond_it_refused(tmp_path):
+    from scanner.storage import ingest
+    from scanner.storage.ingest.alignment import MAX_BRIDGED_SHARE
+
+    lab = tmp_path / "lab" / "cork"
+    lab.mkdir(parents=True)
+    n = 40  # real samples at 100 Hz: a gap may add at most MAX_BRIDGED_SHARE * n grid samples
+    within = int(MAX_BRIDGED_SHARE * n)
+    for name, missing in (("within", within), ("beyond", within + 2)):
+        t = [i / 100 for i in range(n // 2)] + [(i + missing) / 100 for i in range(n // 2, n)]
+        (lab / f"{name}.csv").write_text("t,p\n" + "".join(f"{a!r},1.0\n" for a in t))
+    report = ingest.ingest(lab.parent, ingest.parse_mapping(INGEST_MAPPING, "lab"))
+    assert [r.name for r in report.recordings] == ["within"]
+    assert report.recordings[0].channels["pdc"].data.size == n + within
+    assert len(report.skipped) == 1 and report.skipped[0].startswith("cork/beyond: recording skipped: beyond.csv")
+
+
+# -- 6. a set replaced crash-safe ----------------------------------------------------------------------------
+
+KILLED_STORE = """
+import os, signal, sys
+from pathlib import Path
+import numpy as np
+from scanner.scan import Recording, Trace
+from scanner.storage import ingest
+
+db, kill_at = sys.argv[1], int(sys.argv[2])
+renames = {"count": 0}
+replace = os.replace
+
+def replace_then_maybe_die(source, target):
+    replace(source, target)
+    renames["count"] += 1
+    if renames["count"] == kill_at:
+        os.kill(os.getpid(), signal.SIGKILL)
+
+os.replace = replace_then_maybe_die
+new = [Recording(f"new{i}", {"v": Trace(np.full(8, 2.0), 100.0, "V")}, {"vibration": "v"}, "cork") for i in range(3)]
+ingest.store_recordings(db, "lab", new, replace=True)
+"""
+
+
+@linux_only
+def test_a_replacement_killed_after_any_rename_is_rolled_forward_or_back_never_lost(tmp_path):
+    import numpy as np
+
+    from scanner.scan import Recording, Trace
+    from scanner.storage import ingest
+    from scanner.storage.database import Database
+
+    old = [Recording("old", {"v": Trace(np.full(8, 1.0), 100.0, "V")}, {"vibration": "v"}, "cork")]
+    # Renames 1-3 put each new recording file in place in the staging folder, 4-6 swap (staged -> new, set
+    # -> old, new -> set); 7 never comes.
+    for kill_at in range(1, 8):
+        db = tmp_path / f"db{kill_at}"
+        Database(db).close()
+        ingest.store_recordings(db, "lab", old)
+        process = subprocess.run(
+            [sys.executable, "-c", KILLED_STORE, str(db), str(kill_at)], capture_output=True, text=True,
+            env={**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])},
+            timeout=120)
+        killed = process.returncode == -signal.SIGKILL
+        assert killed == (kill_at < 7), process.stderr
+        with Database(db) as database:
+            leftovers = database.check().leftovers
+            assert bool(leftovers) == killed and all(p.startswith("recordings/.lab.") for p in leftovers)
+            repaired = database.repair()
+            assert database.check().leftovers == [] and bool(repaired) == killed
+        # Killed before the new set was complete: the old one stays; after: the replacement is finished.
+        expected = ["old"] if kill_at <= 3 else ["new0", "new1", "new2"]
+        assert [r.name for r in ingest.load_recordings(ingest.set_folder(db, "lab"))] == expected
+        assert sorted(p.name for p in (db / "recordings").iterdir() if p.name != ".swap.lock") == ["lab"]

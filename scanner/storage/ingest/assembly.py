@@ -180,6 +180,13 @@ class _Parts:
     grid: tuple[int, int] | None
 
 
+def failure_line(path: Path, exc: BaseException) -> str:
+    """One line naming ``path`` and an unexpected failure reading it (a library's error, MemoryError)."""
+    text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    what = "out of memory" if isinstance(exc, MemoryError) else type(exc).__name__
+    return f"{path}: cannot be read ({what}{': ' + text[:200] if text else ''})"
+
+
 def _read_parts(key: Path, files: list[tuple[Path, FileMap]], root: Path, mapping: IngestMapping,
                 report: IngestReport) -> _Parts | None:
     streams: dict[str, Stream] = {}
@@ -190,8 +197,8 @@ def _read_parts(key: Path, files: list[tuple[Path, FileMap]], root: Path, mappin
     for path, spec in files:
         try:
             read, pictures, notes = read_streams(path, spec, mapping.missing)
-        except IngestError as exc:
-            report.skipped.append(str(exc))
+        except Exception as exc:  # noqa: BLE001 (any failure of one file, a library's MemoryError too, skips it)
+            report.skipped.append(str(exc) if isinstance(exc, IngestError) else failure_line(path, exc))
             report.skipped.append(f"{key.relative_to(root)}: recording skipped, {path.name} is unusable")
             return None
         report.notes.extend(notes)
@@ -234,6 +241,9 @@ def _recordings(key: Path, name: str, files: list[tuple[Path, FileMap]], root: P
             recordings = _patched(name, parts, aligned.traces, label, group, meta)
     except (IngestError, ScanError) as exc:
         report.skipped.append(f"{key.relative_to(root)}: recording skipped: {exc}")
+        return []
+    except Exception as exc:  # noqa: BLE001 (one recording's failure, whatever it is, spares the others)
+        report.skipped.append(f"{key.relative_to(root)}: recording skipped: {failure_line(files[0][0], exc)}")
         return []
     report.notes.extend(aligned.notes)
     return recordings

@@ -8,8 +8,6 @@ from __future__ import annotations
 import io
 import json
 import os
-import secrets
-import shutil
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -18,7 +16,7 @@ import numpy as np
 import scipy.io
 
 from scanner.scan import Recording, Trace
-from scanner.storage.files import atomic_write_bytes, fsync_dir
+from scanner.storage.files import atomic_write_bytes, recover_swaps, staging_folder, swap_in
 from scanner.storage.ingest.mapping import _NAME, _SET, IngestError
 
 RECORDINGS = "recordings"
@@ -103,30 +101,33 @@ def store_recordings(db_root: str | os.PathLike[str], name: str, recordings: Seq
                      replace: bool = False) -> Path:
     """Write a set of recordings to ``<db_root>/recordings/<name>/<recording>.mat``; returns the folder.
 
-    The files go to a temporary folder first, which is renamed into place only when all are written, so a
-    crash leaves the previous set (or none), never part of one. An existing set is refused unless
-    ``replace``.
+    The files go to a staging folder first, which is swapped into place only when all are written
+    (:func:`scanner.storage.files.swap_in`), so a crash leaves the previous set (or none), never part of one;
+    a replacement killed between its renames is finished by the next store or ``texplorer db check
+    --repair`` (:func:`recover_sets`). An existing set is refused unless ``replace``.
     """
     target = set_folder(db_root, name)
+    recover_sets(db_root)  # a replacement killed before: finished first, so "exists" is the truth
     if target.exists() and not replace:
         raise IngestError(f"{target}: the set {name!r} exists; choose another name or replace it")
     if not recordings:
         raise IngestError(f"set {name!r}: no recordings to store")
-    temp = target.with_name(f".{name}.tmp-{secrets.token_hex(4)}")
-    temp.mkdir(parents=True)
-    try:
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with staging_folder(target) as staging:
+        content = staging / "content"
+        content.mkdir()
         for recording in recordings:
-            atomic_write_bytes(temp / f"{recording.name}.mat", encode_recording(recording))
-        old = target.with_name(f".{name}.old-{secrets.token_hex(4)}")
-        if target.exists():
-            os.replace(target, old)
-        os.replace(temp, target)
-        fsync_dir(target.parent)
-    except BaseException:
-        shutil.rmtree(temp, ignore_errors=True)
-        raise
-    shutil.rmtree(old, ignore_errors=True)
+            atomic_write_bytes(content / f"{recording.name}.mat", encode_recording(recording))
+        if target.exists() and not replace:  # another ingest stored it meanwhile
+            raise IngestError(f"{target}: the set {name!r} exists; choose another name or replace it")
+        swap_in(content, target)
     return target
+
+
+def recover_sets(db_root: str | os.PathLike[str]) -> list[str]:
+    """Finish or undo the set replacements a killed ingest left, and remove its staging folders
+    (:func:`scanner.storage.files.recover_swaps`); returns what was done."""
+    return recover_swaps(Path(db_root) / RECORDINGS)
 
 
 def load_recordings(folder: str | os.PathLike[str]) -> list[Recording]:
