@@ -30,9 +30,13 @@ def _alive(pid: int) -> bool:
     return state not in ("Z", "X")
 
 
+def _env() -> dict[str, str]:
+    """This process's environment with this tree first on the path."""
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+
+
 def _python(code: str, **kwargs) -> subprocess.Popen:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-    return subprocess.Popen([sys.executable, "-c", textwrap.dedent(code)], env=env, text=True, **kwargs)
+    return subprocess.Popen([sys.executable, "-c", textwrap.dedent(code)], env=_env(), text=True, **kwargs)
 
 
 # -- 1. no orphaned workers --------------------------------------------------------------------------------
@@ -59,8 +63,7 @@ if __name__ == "__main__":
 def test_workers_end_within_a_bound_when_their_parent_is_killed(tmp_path, started):
     script = tmp_path / "extract_and_wait.py"  # a file: the fork server imports the main module by path
     script.write_text(EXTRACT_AND_WAIT)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-    parent = subprocess.Popen([sys.executable, str(script), started], env=env, stdout=subprocess.PIPE, text=True)
+    parent = subprocess.Popen([sys.executable, str(script), started], env=_env(), stdout=subprocess.PIPE, text=True)
     try:
         workers = [int(pid) for pid in parent.stdout.readline().split()]
     finally:
@@ -207,9 +210,8 @@ def test_the_code_version_is_computed_once_when_threads_ask_at_once():
 # -- 7, 8. the web app under concurrent feature requests ---------------------------------------------------
 
 def _serve(db: Path) -> tuple[subprocess.Popen, str]:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
     process = subprocess.Popen([sys.executable, "-m", "scanner.cli", "serve", "--db", str(db), "--port", "0"],
-                               env=env, stderr=subprocess.PIPE, text=True)
+                               env=_env(), stderr=subprocess.PIPE, text=True)
     for line in process.stderr:
         if " at http://" in line:
             return process, line.split(" at ", 1)[1].split("/ ", 1)[0]
@@ -472,8 +474,7 @@ def test_a_replacement_killed_after_any_rename_is_rolled_forward_or_back_never_l
         ingest.store_recordings(db, "lab", old)
         process = subprocess.run(
             [sys.executable, "-c", KILLED_STORE, str(db), str(kill_at)], capture_output=True, text=True,
-            env={**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])},
-            timeout=120)
+            env=_env(), timeout=120)
         killed = process.returncode == -signal.SIGKILL
         assert killed == (kill_at < 7), process.stderr
         with Database(db) as database:
@@ -485,3 +486,91 @@ def test_a_replacement_killed_after_any_rename_is_rolled_forward_or_back_never_l
         expected = ["old"] if kill_at <= 3 else ["new0", "new1", "new2"]
         assert [r.name for r in ingest.load_recordings(ingest.set_folder(db, "lab"))] == expected
         assert sorted(p.name for p in (db / "recordings").iterdir() if p.name != ".swap.lock") == ["lab"]
+
+
+# -- 10. ingest memory bounded: limits count the values as held, per format --------------------------------
+
+def test_size_limits_count_the_values_as_held_after_conversion_for_every_format(tmp_path, monkeypatch):
+    import numpy as np
+    from scipy.io import wavfile
+
+    from scanner.storage import ingest
+
+    monkeypatch.setattr(ingest.readers, "MAX_ARRAY_BYTES", 8 * 1000)  # 1000 values as float64
+    spec = ingest.FileMap(glob="*", suffix=None, format=None, channels=(ingest.ChannelMap("v", "vibration"),),
+                          rate=100.0)
+    np.save(tmp_path / "int8.npy", np.ones(1001, np.int8))  # 1001 bytes in the file, 8008 as held
+    np.savez_compressed(tmp_path / "zeros.npz", v=np.zeros(1001, np.int8))
+    wavfile.write(tmp_path / "sound.wav", 8000, np.zeros(1001, np.int16))
+    (tmp_path / "table.csv").write_text("t,p\n" + "".join(f"{i},{i}\n" for i in range(501)))  # 1002 values
+    for name in ("int8.npy", "zeros.npz", "sound.wav", "table.csv"):
+        with pytest.raises(ingest.IngestError, match=rf"{name}: .*more than the 0 MB one file may hold"):
+            ingest.read_file(tmp_path / name, spec)
+    np.save(tmp_path / "fits.npy", np.ones(1000, np.int8))
+    assert ingest.read_file(tmp_path / "fits.npy", spec)[0]["v"].data.size == 1000
+
+
+def test_a_truncated_wav_is_named_not_imported_short(tmp_path):
+    import numpy as np
+    from scipy.io import wavfile
+
+    from scanner.storage import ingest
+
+    wavfile.write(tmp_path / "full.wav", 8000, np.arange(800, dtype=np.int16))
+    data = (tmp_path / "full.wav").read_bytes()
+    (tmp_path / "cut.wav").write_bytes(data[:len(data) // 2])
+    spec = ingest.FileMap(glob="*", suffix=None, format=None, channels=(ingest.ChannelMap("a", "audio"),))
+    assert ingest.read_file(tmp_path / "full.wav", spec)[0]["a"].data.size == 800
+    with pytest.raises(ingest.IngestError, match="cut.wav: the WAV file is truncated"):
+        ingest.read_file(tmp_path / "cut.wav", spec)
+
+
+def test_a_table_is_read_as_before_line_by_line(tmp_path):
+    from scanner.storage import ingest
+
+    path = tmp_path / "t.csv"
+    path.write_text("# comment\r\nx,y,\r\n1,2,\r\n\r\n3,nan,\r\n")
+    names, values = ingest.read_table(path, ",", True)
+    assert names == ["x", "y"] and values.shape == (2, 2) and values[1, 0] == 3.0 and values[1, 1] != values[1, 1]
+    names, values = ingest.read_table(path, ",", False, skip_rows=1)
+    assert names == ["0", "1"] and values.tolist()[0] == [1.0, 2.0]
+
+
+HOSTILE_IMAGES_UNDER_A_LIMIT = """
+import json, resource, sys, time
+from pathlib import Path
+sys.path.insert(0, sys.argv[1])
+from test_reliability import hostile_images
+from scanner.photo import PhotoError, decode
+from scanner.storage.ingest import IngestError, read_image
+
+folder = Path(sys.argv[2])
+corpus = hostile_images()  # made before the limit: making the cases is not what is measured
+with open("/proc/self/status") as status:
+    used = next(int(line.split()[1]) * 1024 for line in status if line.startswith("VmSize:"))
+resource.setrlimit(resource.RLIMIT_AS, (used + (512 << 20), resource.RLIM_INFINITY))
+for case, (data, _) in corpus.items():
+    path = folder / (case + (".tif" if case.startswith("tiff") else ".img"))
+    path.write_bytes(data)
+    outcomes = []
+    for read in (read_image, lambda p: decode(p.read_bytes(), p.name)):
+        try:
+            read(path)
+            outcomes.append("decoded")
+        except (IngestError, PhotoError):
+            outcomes.append("refused")
+        except BaseException as exc:
+            outcomes.append(type(exc).__name__)
+    print(json.dumps({"case": case, "outcomes": outcomes}), flush=True)
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the address-space limit needs /proc and setrlimit")
+def test_hostile_images_are_refused_by_ingest_and_load_within_a_memory_limit(tmp_path):
+    import json
+
+    result = subprocess.run([sys.executable, "-c", HOSTILE_IMAGES_UNDER_A_LIMIT, str(ROOT / "tests"), str(tmp_path)],
+                            capture_output=True, text=True, timeout=300, env=_env())
+    lines = [json.loads(line) for line in result.stdout.splitlines()]
+    assert [line["case"] for line in lines] == list(hostile_images()), result.stderr
+    assert all(line["outcomes"] == ["refused", "refused"] for line in lines), lines
