@@ -169,15 +169,21 @@ class StoredScan:
         files = {self.path.name: mat}
         if isinstance(mat.data, bytes):
             files.update((name, _sent(self.path.with_name(name), max_file_bytes())) for name in photo_names(mat.data))
-        changed = None
+        return ShippedScan(self.path, files, self._changed(files))
+
+    def _changed(self, files: Mapping[str, SentFile]) -> ChangedSinceStored | None:
+        """The error a local load of these files would raise for the first that is not catalogued bytes
+        (its size, then its SHA-256, in the order the load reads them), or None."""
         for name, sent in files.items():
+            path = self.path.with_name(name)
+            if name in self.catalogued and isinstance(sent.size, int) and sent.size != self.catalogued[name][0]:
+                return ChangedSinceStored(path, "size")
             try:
                 if isinstance(sent.data, bytes):
-                    CheckedFiles(self.catalogued).check(self.path.with_name(name), sent.data)
+                    CheckedFiles(self.catalogued).check(path, sent.data)
             except ChangedSinceStored as exc:
-                changed = exc
-                break
-        return ShippedScan(self.path, files, changed)
+                return exc
+        return None
 
 
 @dataclass(frozen=True)
