@@ -16,10 +16,12 @@ from features.extraction import (
     extract,
     extract_many,
     release_workers,
+    start_workers_from_a_server,
 )
 from features.families import NAMES, SOLVER_RTOL
 from features.registry import REGISTRY, Family
 from features.space import FeatureSpace, FeatureSpaceError
 
 __all__ = ["NAMES", "REGISTRY", "SOLVER_RTOL", "Family", "FeatureCache", "FeatureSpace", "FeatureSpaceError",
-           "ScanSource", "WorkerPool", "code_version", "extract", "extract_many", "release_workers"]
+           "ScanSource", "WorkerPool", "code_version", "extract", "extract_many", "release_workers",
+           "start_workers_from_a_server"]

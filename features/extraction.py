@@ -25,12 +25,14 @@ from tqdm import tqdm
 from features import cluster, tactum
 from features.memory import give_back_free_memory, keep_freed_memory, reusing_freed_memory
 from features.prepared import PreparedScan
-from features.registry import REGISTRY
+from features.registry import REGISTRY, fix_code_version
 from features.space import FeatureSpace
-from features.threads import one_blas_thread, one_thread_each
+from features.threads import one_blas_thread, one_thread_each, one_thread_for_good
 from scanner.lazy import preload
+from scanner.processes import end_with_parent
 from scanner.scan import Scan
 from scanner.storage.stored import NotOnThisMachine
+from taxonomy.errors import TexplorerError
 
 if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
     from distributed import Client
@@ -41,6 +43,9 @@ def code_version(families: Sequence[str] | None = None) -> str:
     cached feature vector is reused only with the code that computed it. ``families`` (default: the
     default families) adds the chosen families' names and parameters (:meth:`Registry.code_version`)."""
     return REGISTRY.code_version(__name__, families=families)
+
+
+fix_code_version(__name__)  # this module's source and its imports, as imported now
 
 
 def without_short_channels(scan: Scan) -> Scan:
@@ -115,6 +120,13 @@ def extract(scan: Scan, families: Sequence[str] | None = None) -> dict[str, floa
 
 # -- many scans ----------------------------------------------------------------------------------------
 
+class _Bar(tqdm):
+    """The progress bar without tqdm's monitor thread: workers are forked only from a process whose one
+    thread is the forking one (another thread could hold a lock the workers inherit held)."""
+
+    monitor_interval = 0
+
+
 class FeatureCache(Protocol):
     """Where feature vectors are kept between runs (``scanner.Database`` implements it)."""
 
@@ -170,6 +182,30 @@ def _extract_source(source: ScanSource,
     return list(values.values()), None
 
 
+def _unverified(source: ScanSource) -> str | None:
+    """Why ``source``'s cached features must not be served (its files are not the bytes they were computed
+    from: ``load.verify()`` of a :class:`~scanner.storage.stored.StoredScan`), or None."""
+    verify = getattr(source.load, "verify", None)
+    if verify is None:
+        return None
+    try:
+        verify()
+    except (TexplorerError, OSError) as exc:
+        return f"{type(exc).__name__}: {exc}"
+    return None
+
+
+def _extract_with_code(version: str, families: tuple[str, ...] | None,
+                       source: ScanSource) -> tuple[list[float] | None, str | None]:
+    """:func:`_extract_source` in a worker process, refused where the worker's feature code is not ``version``
+    (the caller's): a worker started by a server (:func:`start_workers_from_a_server`) imported the code
+    when that server started, which may be after the caller imported it and the files changed."""
+    if code_version(families) != version:
+        return None, (f"this worker runs feature code {code_version(families)}, the calling process {version}: "
+                      "the code changed on disk since the process started; restart it")
+    return _extract_source(source, families)
+
+
 def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None, *,
                  cache: FeatureCache | None = None, progress: bool = True, client: Client | None = None,
                  ship_data: bool = False, pool: WorkerPool | None = None,
@@ -178,7 +214,10 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
 
     A scan that fails is reported in ``FeatureSpace.failed`` with its id and the reason, the others are kept.
     With a ``cache``, sources with a ``cache_key`` (the scan's content hash) are looked up first and stored
-    after, keyed by :func:`code_version` too, so a second run over unchanged scans only reads the cache.
+    after, keyed by :func:`code_version` too, so a second run over unchanged scans only reads the cache. A
+    cached row is served only once the source's files are verified to be the bytes it was computed from (a
+    stored scan's ``load.verify()``: their SHA-256), and a stored scan is extracted only from its catalogued
+    bytes: a file changed since it was stored fails its row, naming the file, and nothing is cached.
 
     Parameters
     ----------
@@ -227,11 +266,13 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     todo = []
     for i, source in enumerate(sources):
         cached = cache.cached_features(source.cache_key, version) if cache and source.cache_key else None
-        if cached is not None and tuple(cached) == names:
-            rows[i] = list(cached.values())
-        else:
+        if cached is None or tuple(cached) != names:
             todo.append(i)
-    bar = tqdm(total=len(todo), desc="features", unit="scan", file=sys.stderr, disable=None if progress else True,
+        elif (problem := _unverified(source)) is not None:
+            errors[i] = problem
+        else:
+            rows[i] = list(cached.values())
+    bar = _Bar(total=len(todo), desc="features", unit="scan", file=sys.stderr, disable=None if progress else True,
                leave=False)
     size = (pool.size if pool else workers) or os.cpu_count() or 1
     workers = max(1, min(size, len(todo) or 1))
@@ -245,7 +286,8 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
                 pool = pool.serving(key)
             elif workers > 1:  # this function's own, kept between calls (None: another thread's call has them)
                 pool = stack.enter_context(_KEPT.lent(size, key))
-            results = _run(work, [sources[i] for i in todo], todo, workers, bar.update, pool)
+            fn = work if workers == 1 else functools.partial(_extract_with_code, version, families)
+            results = _run(fn, [sources[i] for i in todo], todo, workers, bar.update, pool)
         # leaving early (Ctrl-C) ends the workers' tasks now, not at exit
         for i, (row, error) in stack.enter_context(contextlib.closing(results)):
             if error is not None:
@@ -438,14 +480,61 @@ _FORK = multiprocessing.get_context("fork") if "fork" in multiprocessing.get_all
 """Workers are forked where the system can (Linux: Python 3.14 makes forkserver the default): they inherit
 the one-thread limits set while forking (:func:`features.threads.one_thread_each`) and the loaded code."""
 
+_SERVER: dict[str, multiprocessing.context.BaseContext | None] = {"context": None}
+"""The worker server's context once :func:`start_workers_from_a_server` was called."""
+
+WORKER_SERVER_PRELOAD = ("features", "scanner.storage.stored")
+"""Modules the worker server imports once, so that each worker it forks starts with them loaded."""
+
+
+def start_workers_from_a_server() -> None:
+    """Start the workers of every later pool from a server process started now (multiprocessing's
+    forkserver, started with this process's ``sys.path`` and :data:`WORKER_SERVER_PRELOAD` imported), not
+    by forking this process.
+
+    For a process that extracts while other threads run (the web app: request threads reading SQLite, an
+    export job): a worker forked from it inherits every lock another thread held at that moment, held for
+    good (SQLite's memory mutex: the worker hangs in ``sqlite3_free``). The server has one thread; call
+    this before starting any other, and the server is started before them too. Its workers import nothing
+    more and check that they run the caller's feature code (:func:`code_version`). Where the system has no
+    forkserver, the pools use the default start method (spawn).
+    """
+    if _SERVER["context"] is not None:
+        return
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        _SERVER["context"] = multiprocessing.get_context()
+        return
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(list(WORKER_SERVER_PRELOAD))
+    from multiprocessing import forkserver  # noqa: PLC0415 (only where it exists)
+
+    forkserver.ensure_running()
+    _SERVER["context"] = context
+
+
+def _start_worker(parent: int | None, forked: bool) -> None:
+    """A worker's first step: end with ``parent`` (None: the server that forked it, which ends with this
+    process; :func:`scanner.processes.end_with_parent`), then keep the memory it frees. A worker not
+    ``forked`` from this process limits its own thread pools (a forked one inherited the limits)."""
+    end_with_parent(parent)
+    if not forked:
+        one_thread_for_good()
+    keep_freed_memory()
+
 
 def _forked_pool(workers: int) -> concurrent.futures.ProcessPoolExecutor:
-    """``workers`` processes that keep the memory they free (:func:`keep_freed_memory`), forked where possible,
-    after this process gave its free memory back (:func:`give_back_free_memory`: a lighter fork)."""
+    """``workers`` processes that end with this process and keep the memory they free
+    (:func:`_start_worker`): forked where possible, after this process gave its free memory back
+    (:func:`give_back_free_memory`: a lighter fork), or started by the worker server once
+    :func:`start_workers_from_a_server` was called."""
+    server = _SERVER["context"]
+    if server is not None:
+        return concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=server,
+                                                      initializer=_start_worker, initargs=(None, False))
     give_back_free_memory()
     preload()  # the workers share the libraries the features compute with instead of each importing its own
-    return concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=_FORK,
-                                                  initializer=keep_freed_memory)
+    return concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=_FORK, initializer=_start_worker,
+                                                  initargs=(os.getpid(), _FORK is not None))
 
 
 def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,

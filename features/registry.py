@@ -21,9 +21,9 @@ from __future__ import annotations
 import ast
 import hashlib
 import importlib.util
+import threading
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from functools import cache
 from pathlib import Path
 from typing import Any, Generic, TypeVar
 
@@ -146,6 +146,7 @@ class Registry(Generic[F]):
         taken = sorted(set(family.columns) & {c for f in self.every for c in f.columns})
         if taken:
             raise RegistryError(f"family {family.name!r}: column(s) already registered: {', '.join(taken[:3])}")
+        fix_code_version(family.module)
         self._families[family.name] = family
         return family
 
@@ -214,9 +215,11 @@ class Registry(Generic[F]):
         return _closure(tuple(sorted({family.module for family in self.chosen(families)} | set(extra))))
 
     def code_version(self, *extra: str, families: Sequence[str] | None = None) -> str:
-        """Hash of the source of :meth:`code_modules` (and of the chosen families' names and ``params``
-        when ``families`` are given): a cached feature vector is reused only with the code and parameters
-        that computed it. The default families' version is that of their source alone."""
+        """Hash of the source of :meth:`code_modules` as each module's file was when it was fixed
+        (:func:`fix_code_version`, at registration; a process computes with the code it imported, not with
+        what is on disk later), and of the chosen families' names and ``params`` when ``families`` are
+        given: a cached feature vector is reused only with the code and parameters that computed it. The
+        default families' version is that of their source alone."""
         source = _digest(self.code_modules(*extra, families=families))
         if families is None:
             return source
@@ -248,17 +251,40 @@ ROLE_REGISTRY: Registry[RoleFamily] = Registry()
 
 
 # -- the code a family depends on ---------------------------------------------------------------------
+#
+# Read once per process and module, under one lock: the web app's request threads asked for the version at
+# once, and ``ast.parse`` is not safe to call from several threads (CPython 3.11: "AST constructor
+# recursion depth mismatch"); ``functools.cache`` does not serialise first calls.
 
-@cache
+_lock = threading.RLock()
+_closures: dict[tuple[str, ...], tuple[str, ...]] = {}
+_sources: dict[str, bytes] = {}
+"""Each module's source as this process read it, when the module (or a family importing it) was fixed."""
+
+
+def fix_code_version(*modules: str) -> None:
+    """Read now the source of ``modules`` and of every project module they import, for the code version.
+
+    Called when a family is registered, that is when its module is imported (and :mod:`features.extraction`
+    for itself): the version is that of the files the process imported, so a long-running process (a web
+    server) whose files are updated on disk keeps storing its values under the version of its own code.
+    """
+    for module in _closure(tuple(sorted(modules))):
+        _source_bytes(module)
+
+
 def _closure(start: tuple[str, ...]) -> tuple[str, ...]:
-    seen: set[str] = set()
-    todo = list(start)
-    while todo:
-        module = todo.pop()
-        if module not in seen:
-            seen.add(module)
-            todo.extend(_imported(module))
-    return tuple(sorted(seen))
+    with _lock:
+        if start not in _closures:
+            seen: set[str] = set()
+            todo = list(start)
+            while todo:
+                module = todo.pop()
+                if module not in seen:
+                    seen.add(module)
+                    todo.extend(_imported(module))
+            _closures[start] = tuple(sorted(seen))
+        return _closures[start]
 
 
 def _source(module: str) -> Path:
@@ -268,9 +294,16 @@ def _source(module: str) -> Path:
     return Path(spec.origin)
 
 
+def _source_bytes(module: str) -> bytes:
+    with _lock:
+        if module not in _sources:
+            _sources[module] = _source(module).read_bytes()
+        return _sources[module]
+
+
 def _imported(module: str) -> set[str]:
     """Project modules that ``module`` imports (modules only import at their top, see docs/extending.md)."""
-    tree = ast.parse(_source(module).read_text(encoding="utf-8"))
+    tree = ast.parse(_source_bytes(module).decode("utf-8"))
     found = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
@@ -288,13 +321,11 @@ def _is_module(name: str) -> bool:
         return False
 
 
-@cache
 def _digest(modules: tuple[str, ...]) -> str:
     root = Path(__file__).resolve().parents[1]
     digest = hashlib.sha256()
     for module in modules:
         path = _source(module).resolve()
         shown = path.relative_to(root).as_posix() if path.is_relative_to(root) else module
-        digest.update(shown.encode() + b"\0" + path.read_bytes())
+        digest.update(shown.encode() + b"\0" + _source_bytes(module))
     return digest.hexdigest()[:20]
-

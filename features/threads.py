@@ -141,6 +141,15 @@ def one_blas_thread() -> contextlib.AbstractContextManager[None]:
     return _counted((_take_blas, _give_blas))
 
 
+def one_thread_for_good() -> None:
+    """OpenCV, BLAS and OpenMP on one thread for the rest of this process: a worker that was not forked by
+    :func:`one_thread_each` (started by a server, or spawned) limits its own pools, which it has not
+    started yet (so OpenCV's may be set)."""
+    with _lock:
+        _take_cv2()
+        _take_blas()
+
+
 def one_thread_each() -> contextlib.AbstractContextManager[None]:
     """OpenCV, BLAS and OpenMP on one thread while worker processes are forked and run, so that each worker
     inherits that: each one's own pools (OpenCV's as many threads as cores, BLAS's for long dot products)

@@ -8,11 +8,15 @@ The app holds no business logic. Pages call ``scanner`` (database, guided sessio
 ``features`` (extraction with the database's cache) and ``taxonomy`` (table, model, plots).
 
 :func:`serve` runs it on Werkzeug's threaded WSGI server, bound to 127.0.0.1 unless another host is given.
+Extraction for its requests runs in workers started by a fork server that :func:`serve` starts before any
+request thread exists (:func:`features.start_workers_from_a_server`): a worker forked from the threaded
+server would inherit locks other request threads held (SQLite's memory mutex: a request hung for good).
 """
 
 from __future__ import annotations
 
 import math
+import signal
 import sys
 import threading
 from dataclasses import replace
@@ -21,6 +25,7 @@ from flask import Flask, Response, render_template
 from flask.globals import request_ctx
 from werkzeug.exceptions import HTTPException, RequestEntityTooLarge
 
+from features import start_workers_from_a_server
 from gui import browser, operate, security
 from gui.context import LOOPBACK_HOSTS, Context, Settings, context
 
@@ -107,6 +112,10 @@ def model_warning(settings: Settings) -> str | None:
             "('texplorer train --out FILE' makes one)")
 
 
+def _stop(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None:
     """Run the app until Ctrl-C; warns on stderr when it listens beyond this computer.
 
@@ -128,6 +137,8 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None
     if warning:
         print(f"texplorer: warning: {warning}", file=sys.stderr)
     app = create_app(settings)
+    start_workers_from_a_server()  # before the first request thread
+    signal.signal(signal.SIGTERM, _stop)  # as Ctrl-C: a running scan aborted, an export's bundle deleted
     threading.Thread(target=app.extensions["texplorer"].warm_up, name="warm-up", daemon=True).start()
     server = make_server(host, port, app, threaded=True)
     print(f"texplorer: serving {settings.db} at {url_of(host, server.server_port)} (Ctrl-C stops)", file=sys.stderr)

@@ -13,11 +13,19 @@ PNG or JPEG header is a few dozen bytes, so a 1 MB file announcing 20000 x 20000
 about 15 GB while its features are computed) is refused after reading those bytes. Files that are neither
 PNG nor JPEG are refused before OpenCV sees them: its other decoders (TIFF, BMP, WebP, ...) would decode
 without this check.
+
+The sizes are those the decoder will use: a JPEG's first frame header (libjpeg's), a TIFF's every page
+(:func:`tiff_pages`: a directory naming its width or length twice, or as anything but one whole number, is
+refused, as are files of more than :data:`MAX_TIFF_PAGES` pages or whose directories loop). Decoding is
+bounded in time as well: a progressive JPEG is decoded once per scan, so one whose markers count more than
+:data:`MAX_JPEG_SCANS` scans is refused from those markers (a 25-megapixel image repeating its last scan
+3000 times took 68 s to decode).
 """
 
 from __future__ import annotations
 
 import os
+import re
 import struct
 from pathlib import Path
 
@@ -42,6 +50,17 @@ TIFF_SIGNATURES = {b"II*\x00": ("<", False), b"MM\x00*": (">", False), b"II+\x00
 """Byte order and BigTIFF of the four TIFF signatures."""
 _JPEG_FRAME_MARKERS = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
 """Start-of-frame markers SOF0-SOF15; C4 (Huffman tables), C8 (reserved) and CC (arithmetic) are not."""
+MAX_JPEG_SCANS = 32
+"""Most scans a JPEG may have: a baseline JPEG has one (three when its colours are not interleaved),
+libjpeg's progressive mode writes 10 for a colour image and mozjpeg's about as many; each scan costs a full
+pass over the image (some 20 ms for 25 megapixels)."""
+MAX_TIFF_PAGES = 16
+"""Most pages (image file directories) a TIFF may have, every one within the pixel limit."""
+MAX_TIFF_ENTRIES = 4096
+"""Most entries one TIFF image directory may have (a real one has a few dozen)."""
+_JPEG_MARKER_IN_SCAN = re.compile(rb"\xff+[^\x00\xff\xd0-\xd7]")
+"""The first marker after a scan's entropy-coded data: 0xFF then neither a stuffed zero, a fill byte nor a
+restart marker (which sit inside the scan)."""
 
 
 def _imread_rgb() -> int:
@@ -96,6 +115,35 @@ def _jpeg_size(data: bytes) -> tuple[int, int]:
     raise PhotoError("the JPEG file is damaged (no frame header)")
 
 
+def jpeg_scans(data: bytes, stop_after: int = MAX_JPEG_SCANS) -> int:
+    """The number of scans (start-of-scan segments) of JPEG bytes, counted from the markers up to the end
+    of image, or ``stop_after + 1`` as soon as it is exceeded (a hostile file is not walked to its end)."""
+    position, scans = 2, 0
+    while position + 4 <= len(data):
+        if data[position] != 0xFF:
+            raise PhotoError("the JPEG file is damaged (bad marker)")
+        marker = data[position + 1]
+        if marker == 0xFF:  # fill byte before a marker
+            position += 1
+            continue
+        if marker == 0xD9:  # end of image: the decoder reads nothing after it
+            break
+        if marker in (0x01, *range(0xD0, 0xD8)):  # markers without a length field
+            position += 2
+            continue
+        (length,) = struct.unpack(">H", data[position + 2:position + 4])
+        position += 2 + length
+        if marker == 0xDA:
+            scans += 1
+            if scans > stop_after:
+                break
+            found = _JPEG_MARKER_IN_SCAN.search(data, position)
+            if found is None:
+                break
+            position = found.end() - 2
+    return scans
+
+
 def _bmp_size(data: bytes) -> tuple[int, int]:
     """From the DIB header: 16-bit sides in the old OS/2 header (12 bytes), 32-bit (height signed) after."""
     if len(data) < 26:
@@ -106,25 +154,61 @@ def _bmp_size(data: bytes) -> tuple[int, int]:
     return width, abs(height)
 
 
-def _tiff_size(data: bytes) -> tuple[int, int]:
-    """ImageWidth (tag 256) and ImageLength (257) of the first image file directory, the page decoded."""
+_TIFF_KINDS = {3: "H", 4: "I", 16: "Q"}
+"""The TIFF field types a side may have: SHORT, LONG, LONG8."""
+
+
+def tiff_pages(data: bytes) -> list[tuple[int, int]]:
+    """``(width, length)`` of every page of TIFF bytes, following the chain of image file directories.
+
+    Raises
+    ------
+    PhotoError
+        A damaged directory; a side named twice in one directory (decoders differ in which they take: a
+        0.4 MB file announcing 10 x 10 px decoded as 20000 x 10), given with a count other than one or as
+        another type; directories that loop; more than :data:`MAX_TIFF_PAGES` pages.
+    """
     order, big = TIFF_SIGNATURES[data[:4]]
     count_format, entry, offset_format = ("Q", 20, "Q") if big else ("H", 12, "I")
+    pages: list[tuple[int, int]] = []
+    seen: set[int] = set()
     try:
-        first = struct.unpack_from(order + offset_format, data, 8 if big else 4)[0]
-        (entries,) = struct.unpack_from(order + count_format, data, first)
-        start = first + struct.calcsize(count_format)
-        sides = {}
-        for k in range(min(entries, 4096)):
-            tag, kind = struct.unpack_from(order + "HH", data, start + k * entry)
-            if tag in (256, 257) and kind in (3, 4, 16):  # SHORT, LONG, LONG8
+        directory = struct.unpack_from(order + offset_format, data, 8 if big else 4)[0]
+        while directory:
+            if directory in seen:
+                raise PhotoError("the TIFF file is damaged (its image directories loop)")
+            if len(pages) == MAX_TIFF_PAGES:
+                raise PhotoError(f"the TIFF file has more than {MAX_TIFF_PAGES} pages")
+            seen.add(directory)
+            (entries,) = struct.unpack_from(order + count_format, data, directory)
+            if entries > MAX_TIFF_ENTRIES:
+                raise PhotoError(f"the TIFF file is damaged ({entries} entries in one image directory)")
+            start = directory + struct.calcsize(count_format)
+            sides: dict[int, int] = {}
+            for k in range(entries):
+                tag, kind = struct.unpack_from(order + "HH", data, start + k * entry)
+                if tag not in (256, 257):
+                    continue
+                (count,) = struct.unpack_from(order + offset_format, data, start + k * entry + 4)
+                if tag in sides:
+                    raise PhotoError(f"the TIFF file names its image {'width' if tag == 256 else 'length'} twice")
+                if kind not in _TIFF_KINDS or count != 1:
+                    raise PhotoError("the TIFF file gives an image side as other than one whole number")
                 value_at = start + k * entry + (12 if big else 8)
-                sides[tag] = struct.unpack_from(order + {3: "H", 4: "I", 16: "Q"}[kind], data, value_at)[0]
+                sides[tag] = struct.unpack_from(order + _TIFF_KINDS[kind], data, value_at)[0]
+            if len(sides) < 2:
+                raise PhotoError("the TIFF file is damaged (no image width and length)")
+            pages.append((sides[256], sides[257]))
+            directory = struct.unpack_from(order + offset_format, data, start + entries * entry)[0]
     except struct.error:
         raise PhotoError("the TIFF file is damaged (no complete image directory)") from None
-    if len(sides) < 2:
-        raise PhotoError("the TIFF file is damaged (no image width and length)")
-    return sides[256], sides[257]
+    return pages
+
+
+def _tiff_size(data: bytes) -> tuple[int, int]:
+    """The largest side of any page in each direction: every page is within the limit if this is."""
+    pages = tiff_pages(data)
+    return max(width for width, _ in pages), max(length for _, length in pages)
 
 
 def image_size(data: bytes) -> tuple[str, int, int] | None:
@@ -164,15 +248,19 @@ def check_size(width: int, height: int, limit: int | None = None, name: str = "t
 def check_pixels(data: bytes, limit: int | None = None, name: str = "the photo") -> None:
     """Refuse PNG, JPEG, BMP or TIFF bytes whose header announces an empty image or one beyond the limit.
 
-    Checked before decoding, so a small compressed file cannot expand into gigabytes. Other content
-    passes here; :func:`decode` refuses it.
+    Checked before decoding, so a small compressed file cannot expand into gigabytes, and neither can a
+    JPEG of more than :data:`MAX_JPEG_SCANS` scans take minutes to decode. Other content passes here;
+    :func:`decode` refuses it.
     """
     try:
         size = image_size(data)
+        scans = jpeg_scans(data) if size is not None and size[0] == "JPEG" else 0
     except PhotoError as problem:
         raise PhotoError(f"{name}: {problem}") from None
     if size is not None:
         check_size(size[1], size[2], limit, name)
+    if scans > MAX_JPEG_SCANS:
+        raise PhotoError(f"{name}: the JPEG file has more than {MAX_JPEG_SCANS} scans (each a full decoding pass)")
 
 
 def decode(data: bytes, name: str = "the photo", limit: int | None = None) -> np.ndarray:

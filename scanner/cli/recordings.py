@@ -12,6 +12,7 @@ from scanner.simulation.recordings import simulate_recordings
 from scanner.storage.database import Database, DatabaseError
 from scanner.storage.ingest import (
     IngestError,
+    SetWriter,
     default_mapping,
     ingest,
     load_mapping,
@@ -19,7 +20,6 @@ from scanner.storage.ingest import (
     parse_grid,
     safe_name,
     set_folder,
-    store_recordings,
     summarise_notes,
     with_grid,
     with_label_pattern,
@@ -44,21 +44,24 @@ def ingest_mapping(args: argparse.Namespace):
 
 def cmd_ingest(args: argparse.Namespace) -> int:
     mapping = ingest_mapping(args)
-    report = ingest(args.path, mapping, progress=progress("reading", unit="recording"))
-    for line in report.skipped:
-        print(f"skipped  {line}")
-    notes = [str(note) for note in report.notes] if args.verbose else summarise_notes(report.notes)
-    for note in notes:
-        print(f"note     {note}")
-    if report.notes and not args.verbose:
-        print(f"note     {len(report.notes)} note(s) in all; --verbose lists every one")
-    if not report.recordings:
-        raise IngestError(f"{args.path}: no recording could be imported from {report.files} matching file(s)")
-    folder = store_recordings(args.db, args.name or mapping.name, report.recordings, replace=args.replace)
-    roles = sorted({role for r in report.recordings for role in r.roles})
-    splits = [r.meta.get("split") for r in report.recordings]
+    # Each recording is written as it is read (the set swapped in at the end): memory does not grow with
+    # the number of files, and an interrupted import leaves the database as it was.
+    with SetWriter(args.db, args.name or mapping.name, replace=args.replace) as writer:
+        report = ingest(args.path, mapping, progress=progress("reading", unit="recording"), sink=writer)
+        for line in report.skipped:
+            print(f"skipped  {line}")
+        notes = [str(note) for note in report.notes] if args.verbose else summarise_notes(report.notes)
+        for note in notes:
+            print(f"note     {note}")
+        if report.notes and not args.verbose:
+            print(f"note     {len(report.notes)} note(s) in all; --verbose lists every one")
+        if not report.made:
+            raise IngestError(f"{args.path}: no recording could be imported from {report.files} matching file(s)")
+        folder = writer.commit()
+    roles = sorted({role for made in report.made for role in made.roles})
+    splits = [made.split for made in report.made]
     split = (f"; split {splits.count('train')} train / {splits.count('test')} test" if any(splits) else "")
-    print(f"{len(report.recordings)} recording(s) from {report.files} file(s) -> {folder}; roles "
+    print(f"{len(report.made)} recording(s) from {report.files} file(s) -> {folder}; roles "
           f"{', '.join(roles) or 'none'}{split}; {len(report.skipped)} problem line(s)")
     return EXIT_PROBLEMS if report.skipped else 0
 

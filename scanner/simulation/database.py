@@ -11,6 +11,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from scanner.processes import end_with_parent
 from scanner.scan import ScanMeta
 from scanner.simulation.scans import _Job, scan_jobs, simulate_one
 from scanner.storage.database import STAGING_PREFIX, Database, file_roles
@@ -86,7 +87,8 @@ def _staged_scans(jobs: list[_Job], staging: Path, workers: int) -> Iterator[Sta
     if workers == 1:
         yield from (simulate_into(job, staging) for job in jobs)
         return
-    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+    with concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=end_with_parent,
+                                                initargs=(os.getpid(),)) as pool:
         yield from pool.map(simulate_into, jobs, [staging] * len(jobs))
 
 

@@ -51,7 +51,9 @@ from scanner.storage.files import (
     fsync_dir,
     is_abandoned,
     is_temp_file,
+    recover_swaps,
     sha256_file,
+    swap_leftovers,
     temp_path_for,
 )
 from scanner.storage.matfile import ScanFormatError, load_scan, photo_file_name, save_scan, scan_files
@@ -62,6 +64,9 @@ from taxonomy.table import Taxonomy, load_taxonomy
 
 CATALOG = "catalog.sqlite"
 SCANS = "scans"
+RECORDINGS = "recordings"
+"""Imported recording sets (``texplorer ingest``, :mod:`scanner.storage.ingest`): checked for the leftovers
+of killed ingests, not catalogued."""
 TAXONOMY = "taxonomy.csv"
 PENDING = ".pending"
 QUARANTINE = "quarantine"
@@ -656,6 +661,7 @@ class Database:
         leftovers = set(self._leftovers(stored, set(known), ids))
         report.unknown = [p for p in stored if p not in known and p not in leftovers]
         report.leftovers = sorted(leftovers) + [f"{folder.name}/" for folder in self._abandoned_staging()]
+        report.leftovers += [f"{RECORDINGS}/{folder.name}/" for folder in swap_leftovers(self.root / RECORDINGS)]
         return report
 
     def _leftovers(self, stored: list[str], catalogued: set[str], ids: set[str] | None) -> list[str]:
@@ -681,10 +687,12 @@ class Database:
     @_catalog
     def repair(self) -> list[str]:
         """Remove the crash leftovers :meth:`check` lists, under the write lock (nothing in flight is
-        touched); returns their paths. Files that belong to no scan and are not leftovers stay."""
+        touched), and finish or undo a recording set's replacement that a killed ingest left
+        (:func:`scanner.storage.files.recover_swaps`); returns their paths. Files that belong to no scan and
+        are not leftovers stay."""
         with self._transaction() as conn:
             removed = self._remove_leftovers(conn)
-        return removed
+        return removed + [f"{RECORDINGS}/{line}" for line in recover_swaps(self.root / RECORDINGS)]
 
     def _remove_leftovers(self, conn: sqlite3.Connection) -> list[str]:
         removed = self._discard_uncommitted(conn)

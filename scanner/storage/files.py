@@ -118,3 +118,96 @@ def sha256_file(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:
         while block := handle.read(chunk):
             digest.update(block)
     return digest.hexdigest()
+
+
+# -- folders replaced whole ----------------------------------------------------------------------------
+#
+# A folder (a recording set) is written into an owned staging folder, then swapped in by renames under one
+# lock per parent folder:  staged -> .NAME.new-T (complete),  NAME -> .NAME.old-T,  .NAME.new-T -> NAME,
+# and .NAME.old-T removed. A process killed between any two steps leaves names that say how far it got:
+# :func:`recover_swaps` rolls a complete new folder forward and removes what is left of the old one.
+
+SWAP_LOCK = ".swap.lock"
+"""The lock file of a parent folder whose sub-folders are swapped (:func:`swap_in`, :func:`recover_swaps`)."""
+_SWAP_NAME = re.compile(r"\.(?P<name>.+)\.(?P<step>tmp|new|old)-(?P<token>[0-9a-f]{8})")
+
+
+def staging_folder(target: Path) -> contextlib.AbstractContextManager[Path]:
+    """An :func:`owned_folder` beside ``target`` (``.NAME.tmp-T``) to write the new content into, in its
+    sub-folder ``content``; removed when the block ends, whatever happened."""
+    return owned_folder(target.with_name(f".{target.name}.tmp-{secrets.token_hex(4)}"))
+
+
+@contextlib.contextmanager
+def _swap_lock(parent: Path) -> Iterator[None]:
+    lock = sqlite3.connect(parent / SWAP_LOCK, isolation_level=None, timeout=60)
+    try:
+        lock.execute("BEGIN EXCLUSIVE")
+        yield
+    finally:
+        lock.close()
+
+
+def swap_in(content: Path, target: Path) -> None:
+    """Make the complete folder ``content`` the folder ``target`` (replacing what was there), crash-safe:
+    after a kill at any point, :func:`recover_swaps` finds ``target`` as it was or as ``content``."""
+    token = secrets.token_hex(4)
+    new = target.with_name(f".{target.name}.new-{token}")
+    old = target.with_name(f".{target.name}.old-{token}")
+    with _swap_lock(target.parent):
+        _recover(target.parent, target.name)
+        os.replace(content, new)
+        fsync_dir(target.parent)
+        if target.exists():
+            os.replace(target, old)
+        os.replace(new, target)
+        fsync_dir(target.parent)
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def swap_leftovers(parent: Path) -> list[Path]:
+    """What killed swaps left in ``parent``: abandoned staging folders, complete new folders not swapped in,
+    old folders not removed (a staging folder whose writer still runs is not listed)."""
+    if not parent.is_dir():
+        return []
+    found = []
+    for path in sorted(parent.iterdir()):
+        match = _SWAP_NAME.fullmatch(path.name)
+        if match and path.is_dir() and (match["step"] != "tmp" or is_abandoned(path)):
+            found.append(path)
+    return found
+
+
+def recover_swaps(parent: Path) -> list[str]:
+    """Finish or undo every swap a killed process left in ``parent``; returns what was done, one line each."""
+    if not parent.is_dir():
+        return []
+    with _swap_lock(parent):
+        return _recover(parent)
+
+
+def _recover(parent: Path, name: str | None = None) -> list[str]:
+    """:func:`recover_swaps` for the folder ``name`` (all: None), the swap lock held."""
+    done = []
+    leftovers = [(path, _SWAP_NAME.fullmatch(path.name)) for path in swap_leftovers(parent)]
+    leftovers = [(path, match) for path, match in leftovers if name is None or match["name"] == name]
+    for path, match in sorted(leftovers, key=lambda item: "tno".index(item[1]["step"][0])):
+        target = parent / match["name"]
+        if not path.exists():
+            continue
+        if match["step"] == "new":  # complete: roll forward
+            old = target.with_name(f".{target.name}.old-{match['token']}")
+            if target.exists():
+                os.replace(target, old)
+            os.replace(path, target)
+            fsync_dir(parent)
+            shutil.rmtree(old, ignore_errors=True)
+            done.append(f"{path.name}/ -> {target.name}/ (an interrupted replacement finished)")
+        elif match["step"] == "old" and not target.exists():  # its replacement never came: roll back
+            os.replace(path, target)
+            fsync_dir(parent)
+            done.append(f"{path.name}/ -> {target.name}/ (an interrupted replacement undone)")
+        else:
+            shutil.rmtree(path, ignore_errors=True)
+            done.append(f"{path.name}/ removed")
+    return done

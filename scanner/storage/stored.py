@@ -24,6 +24,7 @@ from pathlib import Path
 
 from scanner.photo import max_file_bytes
 from scanner.scan import Scan
+from scanner.storage.files import sha256_file
 from scanner.storage.matfile import MAX_SCAN_BYTES, load_scan, photo_names
 from taxonomy.errors import TexplorerError
 
@@ -33,6 +34,21 @@ Catalogued = Mapping[str, tuple[int, str]]
 
 class NotOnThisMachine(TexplorerError):
     """A worker does not see a stored scan's file as the client does: missing, unreadable or other bytes."""
+
+
+class ChangedSinceStored(TexplorerError):
+    """A stored scan's file is not the bytes the catalog recorded: changed in place since it was stored.
+
+    Its features are neither computed nor served from the feature cache (the cache is keyed by the
+    catalogued bytes, which are not there); ``texplorer db check`` lists the file."""
+
+    def __init__(self, path: Path, what: str) -> None:
+        super().__init__(path, what)  # both in args: the error travels back from a worker process
+        self.path, self.what = path, what
+
+    def __str__(self) -> str:
+        return (f"{self.path}: changed since it was stored ({self.what} differs from the catalog); "
+                "run 'texplorer db check'")
 
 
 @dataclass(frozen=True)
@@ -66,8 +82,11 @@ class ShippedScan:
 
     path: Path
     files: Mapping[str, SentFile]
+    changed: ChangedSinceStored | None = None
 
     def __call__(self) -> Scan:
+        if self.changed is not None:  # the client read other bytes than catalogued
+            raise self.changed
         return load_scan(self.path, files=self)
 
     @property
@@ -113,7 +132,20 @@ class StoredScan:
     catalogued: Catalogued = field(default_factory=dict)
 
     def __call__(self) -> Scan:
-        return load_scan(self.path)
+        """The scan, parsed from bytes checked against the catalog where it has them
+        (:class:`ChangedSinceStored` otherwise): its features are stored under the catalogued hash."""
+        return load_scan(self.path, files=CheckedFiles(self.catalogued) if self.catalogued else None)
+
+    def verify(self) -> None:
+        """Raise :class:`ChangedSinceStored` unless every catalogued file (the ``.mat`` and its photos) is
+        there with its catalogued size and SHA-256: before serving cached features, which were computed
+        from those bytes. A missing or unreadable file raises its ``OSError``."""
+        for name, (size, digest) in sorted(self.catalogued.items()):
+            path = self.path.with_name(name)
+            if path.stat().st_size != size:
+                raise ChangedSinceStored(path, "size")
+            if sha256_file(path) != digest:
+                raise ChangedSinceStored(path, "SHA-256")
 
     def load_seen(self) -> Scan:
         """Load from this machine's view of ``path``; :class:`NotOnThisMachine` if a file is missing,
@@ -131,12 +163,55 @@ class StoredScan:
         return True
 
     def shipped(self) -> ShippedScan:
-        """The ``.mat`` and the photos it names, read here for a worker that cannot see them."""
+        """The ``.mat`` and the photos it names, read here for a worker that cannot see them; where a file's
+        bytes are not the catalogued ones, the worker's load raises :class:`ChangedSinceStored`."""
         mat = _sent(self.path, MAX_SCAN_BYTES)
         files = {self.path.name: mat}
         if isinstance(mat.data, bytes):
             files.update((name, _sent(self.path.with_name(name), max_file_bytes())) for name in photo_names(mat.data))
-        return ShippedScan(self.path, files)
+        return ShippedScan(self.path, files, self._changed(files))
+
+    def _changed(self, files: Mapping[str, SentFile]) -> ChangedSinceStored | None:
+        """The error a local load of these files would raise for the first that is not catalogued bytes
+        (its size, then its SHA-256, in the order the load reads them), or None."""
+        for name, sent in files.items():
+            path = self.path.with_name(name)
+            if name in self.catalogued and isinstance(sent.size, int) and sent.size != self.catalogued[name][0]:
+                return ChangedSinceStored(path, "size")
+            try:
+                if isinstance(sent.data, bytes):
+                    CheckedFiles(self.catalogued).check(path, sent.data)
+            except ChangedSinceStored as exc:
+                return exc
+        return None
+
+
+@dataclass(frozen=True)
+class CheckedFiles:
+    """This machine's files as a :class:`scanner.storage.matfile.FileView` that parses only catalogued bytes:
+    the hash is computed on the bytes that are then parsed (a file changed between a check and the read
+    cannot slip in). Missing or unreadable files raise as a plain load does."""
+
+    catalogued: Catalogued
+
+    def is_file(self, path: Path) -> bool:
+        return path.is_file()
+
+    def size(self, path: Path) -> int:
+        size = path.stat().st_size
+        if path.name in self.catalogued and size != self.catalogued[path.name][0]:
+            raise ChangedSinceStored(path, "size")
+        return size
+
+    def read(self, path: Path) -> bytes:
+        data = path.read_bytes()
+        self.check(path, data)
+        return data
+
+    def check(self, path: Path, data: bytes) -> None:
+        """Raise :class:`ChangedSinceStored` if ``data`` read from ``path`` is not the catalogued file."""
+        if path.name in self.catalogued and hashlib.sha256(data).hexdigest() != self.catalogued[path.name][1]:
+            raise ChangedSinceStored(path, "SHA-256")
 
 
 @dataclass(frozen=True)

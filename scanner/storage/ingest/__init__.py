@@ -22,7 +22,16 @@ format), :mod:`.alignment` (a common time base), :mod:`.assembly` (recordings fr
 """
 
 from scanner.storage.ingest.alignment import GAP_STEPS, Aligned, align, gaps
-from scanner.storage.ingest.assembly import IngestReport, ingest, patches, recording_names, safe_name, split_of, stem_of
+from scanner.storage.ingest.assembly import (
+    IngestReport,
+    Made,
+    ingest,
+    patches,
+    recording_names,
+    safe_name,
+    split_of,
+    stem_of,
+)
 from scanner.storage.ingest.mapping import (
     DEFAULT_CHANNELS,
     FORMATS,
@@ -60,11 +69,13 @@ from scanner.storage.ingest.readers import (
 )
 from scanner.storage.ingest.sets import (
     RECORDINGS,
+    SetWriter,
     encode_recording,
     load_recordings,
     read_recording,
     recording_sets,
     recording_variables,
+    recover_sets,
     set_folder,
     store_recordings,
 )
@@ -78,4 +89,5 @@ __all__ = [
     "read_streams", "read_file", "GAP_STEPS", "gaps", "Aligned", "align", "IngestReport", "stem_of",
     "recording_names", "split_of", "safe_name", "patches", "ingest", "RECORDINGS", "recording_variables",
     "encode_recording", "read_recording", "set_folder", "store_recordings", "load_recordings", "recording_sets",
+    "SetWriter", "recover_sets", "Made",
 ]

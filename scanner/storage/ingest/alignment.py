@@ -18,6 +18,23 @@ from scanner.storage.ingest.readers import RATE_TOLERANCE, Note, Stream
 
 GAP_STEPS = 1.5
 """A time step longer than this many sample periods is a gap: at least one sample is missing."""
+MAX_BRIDGED_SHARE = 1.0
+"""Bridging may at most double a stream: its samples on the common grid are at most ``1 + this`` times the
+samples it really has. Gaps longer than that (a jump of the clock: 5 CSV lines asked for hundreds of
+millions of samples) refuse the file instead of being filled."""
+
+
+def check_bridged_length(name: str, stream: Stream, count: int, file: str) -> None:
+    """Refuse a stream whose ``count`` samples on the common grid exceed what its real samples may be
+    bridged into (:data:`MAX_BRIDGED_SHARE`), before any grid is made."""
+    assert stream.times is not None
+    real = int(stream.times.size)
+    if count > (1.0 + MAX_BRIDGED_SHARE) * real + 1:
+        steps = np.diff(stream.times)
+        at = int(np.argmax(steps)) if steps.size else 0
+        raise IngestError(f"{file}: channel {name}: a gap of {float(steps[at]) if steps.size else 0.0:.6g} s at "
+                          f"t = {float(stream.times[at]):.6g} s would bridge {count - real:,} samples into "
+                          f"{real:,} real ones (at most {MAX_BRIDGED_SHARE:g} x the real ones are bridged)")
 
 
 EPOCH_AFTER_S = 1e8
@@ -79,7 +96,8 @@ def align(streams: Mapping[str, Stream], files: Mapping[str, str], missing: str 
     k of every stream then means the same moment. A stream whose samples already lie on that grid (to
     1e-6 of a period) is taken as it is; otherwise it is resampled by linear interpolation, with a note.
     A step longer than 1.5 periods is a gap: the grid samples inside it are bridged by the interpolation
-    and reported (``missing = "interpolate"``) or the recording is refused (``missing = "error"``), never
+    (at most as many as the stream has, :data:`MAX_BRIDGED_SHARE`; more refuse the file) and reported
+    (``missing = "interpolate"``) or the recording is refused (``missing = "error"``), never
     filled silently. Streams without timestamps are taken as they are. ``files`` names each stream's file.
     """
     timed = {name: s for name, s in streams.items() if s.times is not None}
@@ -116,6 +134,7 @@ def _on_common_grid(name: str, stream: Stream, start: float, stop: float, file: 
     assert stream.times is not None
     step = 1.0 / stream.rate
     count = max(1, int(math.floor((stop - start) * stream.rate + 1e-6)))
+    check_bridged_length(name, stream, count, file)
     grid = start + np.arange(count) * step
     notes = []
     gap_start, gap_length = gaps(stream.times, step)

@@ -12,7 +12,7 @@ import re
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -31,6 +31,21 @@ class IngestReport:
     skipped: list[str] = field(default_factory=list)
     notes: list[Note] = field(default_factory=list)
     files: int = 0
+    made: list[Made] = field(default_factory=list)
+    """What every recording made was (also those handed to a ``sink`` and not kept in ``recordings``)."""
+
+
+@dataclass(frozen=True)
+class Made:
+    """A recording the import made, without its data: its name, channel roles and train/test part."""
+
+    name: str
+    roles: tuple[str, ...]
+    split: str | None
+
+    @classmethod
+    def of(cls, recording: Recording) -> Made:
+        return cls(recording.name, tuple(recording.roles), recording.meta.get("split"))
 
 
 def stem_of(path: Path, spec: FileMap) -> str | None:
@@ -180,6 +195,13 @@ class _Parts:
     grid: tuple[int, int] | None
 
 
+def failure_line(path: Path, exc: BaseException) -> str:
+    """One line naming ``path`` and an unexpected failure reading it (a library's error, MemoryError)."""
+    text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    what = "out of memory" if isinstance(exc, MemoryError) else type(exc).__name__
+    return f"{path}: cannot be read ({what}{': ' + text[:200] if text else ''})"
+
+
 def _read_parts(key: Path, files: list[tuple[Path, FileMap]], root: Path, mapping: IngestMapping,
                 report: IngestReport) -> _Parts | None:
     streams: dict[str, Stream] = {}
@@ -190,8 +212,8 @@ def _read_parts(key: Path, files: list[tuple[Path, FileMap]], root: Path, mappin
     for path, spec in files:
         try:
             read, pictures, notes = read_streams(path, spec, mapping.missing)
-        except IngestError as exc:
-            report.skipped.append(str(exc))
+        except Exception as exc:  # noqa: BLE001 (any failure of one file, a library's MemoryError too, skips it)
+            report.skipped.append(str(exc) if isinstance(exc, IngestError) else failure_line(path, exc))
             report.skipped.append(f"{key.relative_to(root)}: recording skipped, {path.name} is unusable")
             return None
         report.notes.extend(notes)
@@ -235,6 +257,9 @@ def _recordings(key: Path, name: str, files: list[tuple[Path, FileMap]], root: P
     except (IngestError, ScanError) as exc:
         report.skipped.append(f"{key.relative_to(root)}: recording skipped: {exc}")
         return []
+    except Exception as exc:  # noqa: BLE001 (one recording's failure, whatever it is, spares the others)
+        report.skipped.append(f"{key.relative_to(root)}: recording skipped: {failure_line(files[0][0], exc)}")
+        return []
     report.notes.extend(aligned.notes)
     return recordings
 
@@ -250,7 +275,7 @@ def _patched(name: str, parts: _Parts, traces: Mapping[str, Trace], label: str, 
             for r, c, patch in patches(image, parts.grid)]
 
 
-def lacking_roles(recordings: Sequence[Recording], first: int = 3) -> list[Note]:
+def lacking_roles(recordings: Sequence[Recording | Made], first: int = 3) -> list[Note]:
     """A note per role that some recordings have and others lack (a file of the recording missing, say):
     how many lack it and the first few; the feature families that need the role are NaN there."""
     notes = []
@@ -265,7 +290,7 @@ def lacking_roles(recordings: Sequence[Recording], first: int = 3) -> list[Note]
 
 
 def ingest(path: str | os.PathLike[str], mapping: IngestMapping,
-           progress: Callable[[Iterable[Any]], Iterable[Any]] = iter) -> IngestReport:
+           progress: Callable[[Iterable[Any]], Iterable[Any]] = iter, sink: Sink | None = None) -> IngestReport:
     """Recordings from the files under ``path`` as ``mapping`` describes them.
 
     Files with the same stem in the same folder form one recording; its timestamped streams are put on a
@@ -273,7 +298,9 @@ def ingest(path: str | os.PathLike[str], mapping: IngestMapping,
     bad token, no rate, ...) is reported in ``skipped`` with its name and reason, and its recording is
     skipped; the import goes on with the others. Names come from the paths (:func:`recording_names`);
     an image file with a ``grid`` gives one recording per patch. ``progress`` wraps the iteration over
-    the recordings (e.g. a tqdm bar).
+    the recordings (e.g. a tqdm bar). With a ``sink`` (a :class:`~scanner.storage.ingest.SetWriter`) each
+    recording is handed to it as soon as it is made and not kept (``report.made`` still lists it), so the
+    import's memory does not grow with the number of files.
 
     Raises
     ------
@@ -289,12 +316,32 @@ def ingest(path: str | os.PathLike[str], mapping: IngestMapping,
     names = recording_names(list(matched), root)
     for key, files in progress(list(matched.items())):
         report.files += len(files)
-        report.recordings += _recordings(key, names[key], files, root, mapping, table, report)
-    report.notes.extend(lacking_roles(report.recordings))
-    splits = {r.meta.get("split") for r in report.recordings}
-    if mapping.split_from == "auto" and splits != {"train", "test"}:
+        for recording in _recordings(key, names[key], files, root, mapping, table, report):
+            report.made.append(Made.of(recording))
+            if sink is None:
+                report.recordings.append(recording)
+            else:
+                sink.add(recording)  # written now: memory does not grow with the number of files
+    report.notes.extend(lacking_roles(report.made))
+    splits = {made.split for made in report.made}
+    if mapping.split_from == "auto" and splits != {"train", "test"} and splits != {None}:
         # Folders named train or test hold only some recordings, or one part: not a split of the set.
-        report.recordings = [replace(r, meta={k: v for k, v in r.meta.items() if k != "split"})
-                             for r in report.recordings]
+        report.made = [replace(made, split=None) for made in report.made]
+        if sink is None:
+            report.recordings = [_without_split(r) for r in report.recordings]
+        else:
+            sink.rewrite(_without_split)
     return report
+
+
+def _without_split(recording: Recording) -> Recording:
+    return replace(recording, meta={k: v for k, v in recording.meta.items() if k != "split"})
+
+
+class Sink(Protocol):
+    """Where :func:`ingest` hands each recording as it is made (:class:`~scanner.storage.ingest.SetWriter`)."""
+
+    def add(self, recording: Recording) -> None: ...
+
+    def rewrite(self, change: Callable[[Recording], Recording]) -> None: ...
 

@@ -5,12 +5,14 @@ turned into timestamped streams and notes of what was done to the data.
 from __future__ import annotations
 
 import csv
+import itertools
 import math
+import warnings
 import zipfile
-from collections.abc import Callable, Collection, Iterable, Sequence
+from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import cv2
 import numpy as np
@@ -25,8 +27,13 @@ from scanner.storage.mat5 import MatFileError, read_mat
 NAN_TOKENS = ("nan", "-nan", "+nan", "", "na", "n/a", "null", "none")
 """Tokens read as a missing sample (case-insensitive, surrounding spaces ignored)."""
 MAX_ARRAY_BYTES = 1 << 30
-"""An NPY, NPZ or MAT file may hold at most this many bytes of arrays (once inflated): checked before
-they are read, so a small file cannot make an import take unbounded memory."""
+"""The samples of one file may take at most this many bytes as they are held after reading: float64, 8
+bytes a value, whatever the file's own type (an int8 NPY of 40 MB is 320 MB). Checked from the headers
+before an NPY, NPZ or WAV file's data is read, while a CSV/TSV file is read, and on a MAT file's variables
+before they are converted (which inflate to at most this many bytes), so that a small file cannot make an
+import take unbounded memory."""
+HELD_ITEMSIZE = 8
+"""Bytes of one sample as an import holds it (float64)."""
 RATE_TOLERANCE = 0.05
 """Time steps may vary by this fraction of their median before the import notes it."""
 
@@ -41,9 +48,9 @@ def _number(token: str) -> float:
         raise
 
 
-def _split_lines(text: str, delimiter: str | None, comment: str | None) -> list[tuple[int, list[str]]]:
-    rows = []
-    lines = text.splitlines()
+def _split_lines(lines: Iterable[str], delimiter: str | None,
+                 comment: str | None) -> Iterator[tuple[int, list[str]]]:
+    """The non-empty, non-comment rows of ``lines`` with their line numbers, one at a time."""
     reader: Iterable[list[str]]
     if delimiter == "whitespace":
         reader = (line.split() for line in lines)
@@ -54,8 +61,11 @@ def _split_lines(text: str, delimiter: str | None, comment: str | None) -> list[
             continue
         if comment and row[0].lstrip().startswith(comment):
             continue
-        rows.append((number, row))
-    return rows
+        yield number, row
+
+
+TABLE_BLOCK_ROWS = 4096
+"""Rows parsed into one float64 block while a table is read: its text is never held whole."""
 
 
 def read_table(path: Path, delimiter: str | None, header: bool, comment: str | None = "#",
@@ -67,41 +77,64 @@ def read_table(path: Path, delimiter: str | None, header: bool, comment: str | N
     Trailing delimiters (an empty last field on every line) are dropped; a row with a different number of
     fields than the header is an error naming the line. ``needed`` (the column names -> the indices to
     read) leaves every other column unread, NaN: a text column the mapping does not use is no error, and
-    is put in ``ignored`` (its name -> its first value) for a note.
+    is put in ``ignored`` (its name -> its first value) for a note. The file is read line by line into
+    blocks of float64 values, refused as soon as the table would exceed :data:`MAX_ARRAY_BYTES` (a 90 MB
+    CSV held as text and Python lists took 3.96 GB).
     """
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        with open(path, encoding="utf-8-sig", newline="") as handle:
+            lines = (line.rstrip("\r\n") for line in handle)
+            rows = itertools.islice(_split_lines(lines, delimiter, comment), skip_rows, None)
+            return _parse_table(path, rows, header, needed, ignored)
     except (OSError, UnicodeDecodeError) as exc:
         raise IngestError(f"{path}: cannot read ({exc})") from None
-    rows = _split_lines(text, delimiter, comment)[skip_rows:]
-    if not rows:
+
+
+def _parse_table(path: Path, rows: Iterator[tuple[int, list[str]]], header: bool,
+                 needed: Callable[[list[str]], Collection[int]] | None,
+                 ignored: dict[str, str] | None) -> tuple[list[str], np.ndarray]:
+    first = next(rows, None)
+    if first is None:
         raise IngestError(f"{path}: no data")
     names: list[str]
     if header:
-        names = [cell.strip() for cell in rows[0][1]]
-        rows = rows[1:]
+        names = [cell.strip() for cell in first[1]]
         while names and not names[-1]:
             names.pop()
     else:
         # Without a header an empty last field can only be read as a trailing delimiter.
-        names = [str(k) for k in range(len(_trimmed(rows[0][1], 0)))]
-    if not rows:
-        raise IngestError(f"{path}: a header but no data rows")
+        names = [str(k) for k in range(len(_trimmed(first[1], 0)))]
+        rows = itertools.chain([first], rows)
     read = sorted(set(range(len(names)) if needed is None else needed(names)))
-    parsed = []
+    most_rows = MAX_ARRAY_BYTES // (HELD_ITEMSIZE * max(1, len(names)))
+    blocks: list[np.ndarray] = []
+    block: list[list[float]] = []
+    count, first_row = 0, None
     for line, cells in rows:
         cells = _trimmed(cells, len(names))
         if len(cells) != len(names):
             raise IngestError(f"{path}: line {line}: {len(cells)} fields, expected {len(names)}")
+        first_row = cells if first_row is None else first_row
         try:
-            parsed.append([_number(cells[c]) for c in read])
+            block.append([_number(cells[c]) for c in read])
         except ValueError:
             c = next(c for c in read if not _is_number(cells[c]))
             raise IngestError(f"{path}: line {line}, column {names[c]}: {cells[c]!r} is not a number") from None
-    values = np.full((len(rows), len(names)), np.nan)
-    values[:, read] = np.array(parsed, dtype=np.float64).reshape(len(rows), len(read))
+        count += 1
+        if count > most_rows:
+            raise IngestError(f"{path}: more than {most_rows:,} rows of {len(names)} values, more than the "
+                              f"{MAX_ARRAY_BYTES / 1e6:.0f} MB one file may hold")
+        if len(block) == TABLE_BLOCK_ROWS:
+            blocks.append(np.array(block, dtype=np.float64).reshape(len(block), len(read)))
+            block = []
+    if block:
+        blocks.append(np.array(block, dtype=np.float64).reshape(len(block), len(read)))
+    if first_row is None:
+        raise IngestError(f"{path}: a header but no data rows")
+    values = np.full((count, len(names)), np.nan)
+    values[:, read] = np.concatenate(blocks) if len(blocks) > 1 else blocks[0]
     if ignored is not None and header:
-        ignored.update({names[c]: cell.strip() for c, cell in enumerate(_trimmed(rows[0][1], len(names)))
+        ignored.update({names[c]: cell.strip() for c, cell in enumerate(first_row)
                         if c not in read and c < len(names) and not _is_number(cell)})
     return names, values
 
@@ -297,9 +330,20 @@ def _clock_info(clock: Clock, rate: float) -> dict[str, Any]:
 
 def _wav_file(path: Path, spec: FileMap) -> _Read:
     try:
-        rate, data = wavfile.read(path)
+        with warnings.catch_warnings(record=True) as warned:
+            warnings.simplefilter("always", wavfile.WavFileWarning)
+            rate, data = wavfile.read(path, mmap=True)  # the samples stay on disk until checked
     except (OSError, ValueError) as exc:
+        if "mmap length is greater than file size" in str(exc):
+            raise IngestError(f"{path}: the WAV file is truncated (its header announces more samples than it "
+                              "holds)") from None
         raise IngestError(f"{path}: not a readable WAV file ({exc})") from None
+    _check_held(path, data.size)
+    if data.ndim not in (1, 2) or data.size == 0 or not rate > 0:
+        raise IngestError(f"{path}: not a readable WAV file (no samples, or no sample rate)")
+    short = [str(w.message) for w in warned if "EOF" in str(w.message) or "truncat" in str(w.message).lower()]
+    if short:
+        raise IngestError(f"{path}: the WAV file is truncated ({short[0]})")
     if data.dtype.kind in "iu":
         info = np.iinfo(data.dtype)
         data = (data.astype(np.float64) - (info.max + 1 + info.min) / 2) / ((info.max - info.min + 1) / 2)
@@ -316,30 +360,46 @@ def _wav_file(path: Path, spec: FileMap) -> _Read:
     return read
 
 
+def _npy_values(handle: BinaryIO) -> int:
+    """The number of values an NPY stream's header announces."""
+    version = np.lib.format.read_magic(handle)
+    read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+    shape, _, _ = read(handle)
+    return math.prod(shape)
+
+
+def _check_held(path: Path, values: int) -> None:
+    """Refuse a file whose ``values`` samples would take more than :data:`MAX_ARRAY_BYTES` as held."""
+    if values * HELD_ITEMSIZE > MAX_ARRAY_BYTES:
+        raise IngestError(f"{path}: its arrays take {values * HELD_ITEMSIZE / 1e6:.0f} MB, more than the "
+                          f"{MAX_ARRAY_BYTES / 1e6:.0f} MB one file may hold")
+
+
 def _check_sizes(path: Path, fmt: str) -> None:
-    """Refuse, from headers alone, an array file whose data would take more than :data:`MAX_ARRAY_BYTES`.
+    """Refuse, from headers alone, an array file whose values would take more than :data:`MAX_ARRAY_BYTES`
+    as held (float64), whatever their type in the file.
 
     A few bytes of NPY header or a zip directory can announce terabytes; numpy would allocate them first.
     """
     if fmt == "npy":
         with open(path, "rb") as handle:
-            version = np.lib.format.read_magic(handle)
-            read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
-            shape, _, dtype = read(handle)
-        size = math.prod(shape) * dtype.itemsize
+            values = _npy_values(handle)
     else:
+        values = 0
         with zipfile.ZipFile(path) as archive:
-            size = sum(info.file_size for info in archive.infolist())
-    if size > MAX_ARRAY_BYTES:
-        raise IngestError(f"{path}: its arrays take {size / 1e6:.0f} MB, more than the "
-                          f"{MAX_ARRAY_BYTES / 1e6:.0f} MB one file may hold")
+            for info in archive.infolist():
+                with archive.open(info) as member:
+                    values += _npy_values(member) if info.filename.endswith(".npy") else info.file_size
+    _check_held(path, values)
 
 
 def _variables(path: Path, fmt: str) -> dict[str, np.ndarray]:
     try:
         if fmt == "mat":
             variables = read_mat(path, MAX_ARRAY_BYTES, squeeze_me=False)
-            return {k: v for k, v in variables.items() if not k.startswith("__")}
+            variables = {k: v for k, v in variables.items() if not k.startswith("__")}
+            _check_held(path, sum(np.size(v) for v in variables.values()))
+            return variables
         _check_sizes(path, fmt)
         if fmt == "npy":
             return {"": np.load(path, allow_pickle=False)}

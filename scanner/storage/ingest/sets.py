@@ -5,12 +5,11 @@ place, so a set is either complete or absent.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import os
-import secrets
-import shutil
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +17,7 @@ import numpy as np
 import scipy.io
 
 from scanner.scan import Recording, Trace
-from scanner.storage.files import atomic_write_bytes, fsync_dir
+from scanner.storage.files import atomic_write_bytes, recover_swaps, staging_folder, swap_in
 from scanner.storage.ingest.mapping import _NAME, _SET, IngestError
 
 RECORDINGS = "recordings"
@@ -99,34 +98,79 @@ def set_folder(db_root: str | os.PathLike[str], name: str) -> Path:
     return Path(db_root) / RECORDINGS / name
 
 
-def store_recordings(db_root: str | os.PathLike[str], name: str, recordings: Sequence[Recording],
+class SetWriter:
+    """A recording set written one recording at a time, as they are read: memory does not grow with the
+    number of recordings. Used as ``with SetWriter(db, name) as writer: writer.add(r); ...; writer.commit()``.
+
+    The recordings go to a staging folder, which :meth:`commit` swaps into place
+    (:func:`scanner.storage.files.swap_in`), so a crash leaves the previous set (or none), never part of
+    one; a replacement killed between its renames is finished by the next writer or ``texplorer db check
+    --repair`` (:func:`recover_sets`). Leaving the block without :meth:`commit` (an error, Ctrl-C) removes
+    the staging folder and changes nothing. An existing set is refused unless ``replace``, on entering.
+    """
+
+    def __init__(self, db_root: str | os.PathLike[str], name: str, replace: bool = False) -> None:
+        self.target = set_folder(db_root, name)
+        self.name, self.replace, self.db_root = name, replace, db_root
+        self.count = 0
+        self._stack = contextlib.ExitStack()
+        self._content: Path | None = None
+
+    def __enter__(self) -> SetWriter:
+        recover_sets(self.db_root)  # a replacement killed before: finished first, so "exists" is the truth
+        self._refuse_existing()
+        self.target.parent.mkdir(parents=True, exist_ok=True)
+        staging = self._stack.enter_context(staging_folder(self.target))
+        self._content = staging / "content"
+        self._content.mkdir()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self._stack.close()
+
+    def add(self, recording: Recording) -> None:
+        """Write one recording into the staging folder."""
+        assert self._content is not None, "add() inside the with block"
+        atomic_write_bytes(self._content / f"{recording.name}.mat", encode_recording(recording))
+        self.count += 1
+
+    def rewrite(self, change: Callable[[Recording], Recording]) -> None:
+        """Replace every written recording by ``change(recording)``, one at a time."""
+        assert self._content is not None, "rewrite() inside the with block"
+        for path in sorted(self._content.glob("*.mat")):
+            atomic_write_bytes(path, encode_recording(change(read_recording(path))))
+
+    def commit(self) -> Path:
+        """Swap the written set into place; returns its folder."""
+        assert self._content is not None, "commit() inside the with block"
+        if not self.count:
+            raise IngestError(f"set {self.name!r}: no recordings to store")
+        self._refuse_existing()  # another ingest stored it meanwhile
+        swap_in(self._content, self.target)
+        return self.target
+
+    def _refuse_existing(self) -> None:
+        if self.target.exists() and not self.replace:
+            raise IngestError(f"{self.target}: the set {self.name!r} exists; choose another name or replace it")
+
+
+def store_recordings(db_root: str | os.PathLike[str], name: str, recordings: Iterable[Recording],
                      replace: bool = False) -> Path:
     """Write a set of recordings to ``<db_root>/recordings/<name>/<recording>.mat``; returns the folder.
 
-    The files go to a temporary folder first, which is renamed into place only when all are written, so a
-    crash leaves the previous set (or none), never part of one. An existing set is refused unless
+    Crash-safe as :class:`SetWriter` (which writes them, one at a time). An existing set is refused unless
     ``replace``.
     """
-    target = set_folder(db_root, name)
-    if target.exists() and not replace:
-        raise IngestError(f"{target}: the set {name!r} exists; choose another name or replace it")
-    if not recordings:
-        raise IngestError(f"set {name!r}: no recordings to store")
-    temp = target.with_name(f".{name}.tmp-{secrets.token_hex(4)}")
-    temp.mkdir(parents=True)
-    try:
+    with SetWriter(db_root, name, replace) as writer:
         for recording in recordings:
-            atomic_write_bytes(temp / f"{recording.name}.mat", encode_recording(recording))
-        old = target.with_name(f".{name}.old-{secrets.token_hex(4)}")
-        if target.exists():
-            os.replace(target, old)
-        os.replace(temp, target)
-        fsync_dir(target.parent)
-    except BaseException:
-        shutil.rmtree(temp, ignore_errors=True)
-        raise
-    shutil.rmtree(old, ignore_errors=True)
-    return target
+            writer.add(recording)
+        return writer.commit()
+
+
+def recover_sets(db_root: str | os.PathLike[str]) -> list[str]:
+    """Finish or undo the set replacements a killed ingest left, and remove its staging folders
+    (:func:`scanner.storage.files.recover_swaps`); returns what was done."""
+    return recover_swaps(Path(db_root) / RECORDINGS)
 
 
 def load_recordings(folder: str | os.PathLike[str]) -> list[Recording]:
