@@ -678,7 +678,7 @@ def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = 
     return Result(
         method=OWN_METHOD, feature_set=_set_name(feature_set), classifier=classifier_name(classifier), level=level,
         protocol="nested", splitting=f"{len(splits)} {'grouped' if grouped else 'ungrouped'} folds, "
-        f"a {len(parts)}th of the classes held out per fold", classes=tuple(classes.tolist()),
+        f"1/{len(parts)} of the classes held out per fold", classes=tuple(classes.tolist()),
         accuracy=np.array(accuracy), f1=np.array(f1),
         confusion=confusion_matrix(y_true[known_a], y_pred_a[known_a], labels=classes), n_samples=len(y),
         seed=seed, notes=warning_notes(caught), taxonomy=subset.label_level is None, n_features=n_features,

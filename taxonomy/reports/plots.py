@@ -354,8 +354,8 @@ def plot_scores(reports: Sequence[Result], level: str, n_features: int | None,
     figure.legend(*top.get_legend_handles_labels(), loc="outside right upper", fontsize="small")
     first = chosen[0]
     size = "all features" if n_features is None else f"X{n_features}"
-    top.set_title(f"{level} classification with {size} ({first.protocol} protocol, "
-                  f"{first.splitting}, {len(first.classes)} classes)")
+    top.set_title(_wrap(f"{level} classification with {size} ({first.protocol} protocol, "
+                        f"{first.splitting}, {len(first.classes)} classes)", 60), fontsize=10)
     return _save(figure, path)
 
 
