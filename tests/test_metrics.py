@@ -11,7 +11,7 @@ from sklearn.metrics import f1_score
 from sklearn.naive_bayes import GaussianNB
 
 from features.space import FeatureSpace
-from taxonomy import metrics
+from taxonomy.learning import metrics
 from taxonomy.learning.calibration import TemperatureScaledClassifier
 from taxonomy.learning.evaluation import evaluate, recording_of, vote
 from taxonomy.learning.results import OWN_METHOD, Result
