@@ -73,7 +73,11 @@ def test_bootstrap_interval_over_groups_holds_the_pooled_figure():
     # Groups g0 and g3 hold one error each out of two rows: a resample of only g1 and g2 is all right.
     assert high == 1.0 and 0.0 <= low < 0.75
     # A statistic that does not depend on the rows has a degenerate interval.
-    assert metrics.bootstrap_interval(lambda rows: 0.5, ["a", "b", "c"]) == (0.5, 0.5)
+    assert metrics.bootstrap_interval(lambda weights: 0.5, ["a", "b", "c"]) == (0.5, 0.5)
+    # Each resample draws as many groups as there are, with replacement.
+    seen = []
+    metrics.bootstrap_interval(lambda weights: seen.append(weights) or 0.0, ["a", "a", "b", "c"], resamples=50)
+    assert all(w[1] + w[2] + w[3] == 3 and w[0] == w[1] for w in seen)  # group a's two rows drawn together
 
 
 def test_auroc_is_the_mann_whitney_probability_with_ties_halved():

@@ -77,19 +77,17 @@ def accuracy(y_true: Sequence[str], y_pred: Sequence[str]) -> float:
 
 def bootstrap_interval(statistic: Callable[[np.ndarray], float], groups: Sequence[str], seed: int = 0,
                        resamples: int = BOOTSTRAP_RESAMPLES, level: float = 0.95) -> tuple[float, float]:
-    """Percentile interval of ``statistic(rows)`` over resamples of whole groups drawn with replacement.
+    """Percentile interval of ``statistic(weights)`` over resamples of whole groups drawn with replacement.
 
-    ``statistic`` takes the row indices of a resample (a row appears as often as its group was drawn).
-    A single group gives the degenerate interval of the statistic itself.
+    ``statistic`` takes the weight of every row in one resample: how often its group was drawn (the G
+    draws of G groups, a multinomial count). A single group gives the degenerate interval of the
+    statistic itself.
     """
     groups = np.asarray(groups)
     names, inverse = np.unique(groups, return_inverse=True)
-    members = [np.flatnonzero(inverse == g) for g in range(names.size)]
     rng = np.random.default_rng(seed)
-    values = np.empty(resamples)
-    for b in range(resamples):
-        drawn = rng.integers(0, names.size, names.size)
-        values[b] = statistic(np.concatenate([members[g] for g in drawn]))
+    drawn = rng.multinomial(names.size, np.full(names.size, 1 / names.size), size=resamples)
+    values = np.array([statistic(counts[inverse]) for counts in drawn], dtype=np.float64)
     values = values[np.isfinite(values)]
     if values.size == 0:
         return float("nan"), float("nan")

@@ -250,11 +250,21 @@ class Result:
         y_true, y_pred, groups = self._scored_rows()
         if y_true.size == 0:
             return {"accuracy": (math.nan, math.nan), "f1": (math.nan, math.nan)}
+        # Class indices once: each of the 2000 resamples is then a weighted bincount.
+        classes, codes = np.unique(np.concatenate([y_true, y_pred]), return_inverse=True)
+        true, pred = codes[:len(y_true)], codes[len(y_true):]
+        k = classes.size
+
+        right = (true == pred).astype(np.float64)
+
+        def f1(weights: np.ndarray) -> float:
+            cells = np.bincount(true * k + pred, weights=weights, minlength=k * k)
+            return metrics.macro_f1_from_confusion(cells.reshape(k, k))
+
         return {
-            "accuracy": metrics.bootstrap_interval(lambda r: metrics.accuracy(y_true[r], y_pred[r]), groups,
+            "accuracy": metrics.bootstrap_interval(lambda weights: float(weights @ right / weights.sum()), groups,
                                                    self.seed),
-            "f1": metrics.bootstrap_interval(lambda r: metrics.pooled_macro_f1(y_true[r], y_pred[r]), groups,
-                                             self.seed),
+            "f1": metrics.bootstrap_interval(f1, groups, self.seed),
         }
 
     @property

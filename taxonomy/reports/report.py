@@ -183,7 +183,11 @@ def _auroc_interval(r: Result) -> tuple[float, float]:
     from taxonomy.learning.metrics import auroc, bootstrap_interval
 
     groups = r.groups if r.groups is not None else np.arange(len(r.open_score)).astype(str)
-    return bootstrap_interval(lambda rows: auroc(r.open_score[rows], ~r.known[rows]), groups, r.seed)
+    def resampled(weights: np.ndarray) -> float:
+        rows = np.repeat(np.arange(weights.size), weights.astype(int))
+        return auroc(r.open_score[rows], ~r.known[rows])
+
+    return bootstrap_interval(resampled, groups, r.seed)
 
 
 def format_open_set(reports: Sequence[Result]) -> str:
