@@ -376,6 +376,7 @@ class _Prepared:
     X: np.ndarray
     y: np.ndarray
     groups: np.ndarray
+    materials: np.ndarray
     columns: tuple[str, ...]
     dropped: tuple[str, ...]
     splits: list[tuple[np.ndarray, np.ndarray]]
@@ -443,7 +444,8 @@ def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseE
         if protocol == "paper":
             with one_blas_thread():
                 shared = clone(pipelines[0][:-1]).fit(subset.X, y)
-    return _Prepared(cell, subset.X, y, np.asarray(subset.groups), subset.columns, dropped, splits, grouped, own,
+    return _Prepared(cell, subset.X, y, np.asarray(subset.groups), np.asarray(subset.label_text), subset.columns,
+                     dropped, splits, grouped, own,
                      space.label_level is None, pipelines, shared, warning_notes(caught), calibrate, group_by,
                      seed)
 
@@ -496,7 +498,7 @@ def _fold(prepared: _Prepared, fold: int, protocol: str) -> _FoldOutcome:
             name = type(classifier).__name__
             if prepared.calibrate:
                 classifier = TemperatureScaledClassifier(classifier, seed=prepared.seed)
-                classifier.fit(X_train, y[train], groups=prepared.groups[train])
+                classifier.fit(X_train, y[train], groups=prepared.groups[train], materials=prepared.materials[train])
                 probability = np.zeros((len(test), classes.size))
                 probability[:, np.searchsorted(classes, classifier.classes_)] = classifier.predict_proba(X_test)
                 probabilities.append(probability)
@@ -551,17 +553,20 @@ def _splitting(prepared: _Prepared) -> str:
 
 
 def fit_pipeline(X: np.ndarray, y: np.ndarray, groups: np.ndarray, classifier: str | BaseEstimator = "rf",
-                 n_features: int | None = 10, seed: int = SEED, calibrate: bool = True) -> Pipeline:
+                 n_features: int | None = 10, seed: int = SEED, calibrate: bool = True,
+                 materials: np.ndarray | None = None) -> Pipeline:
     """A fitted ``scale -> select -> classify`` pipeline on every row; with ``calibrate`` its classifier is a
     :class:`~taxonomy.learning.calibration.TemperatureScaledClassifier` whose inner splits keep ``groups`` together
-    (scikit-learn's ``Pipeline.fit`` cannot hand the groups to the last step, so the steps are fitted here
-    one after the other, as ``Pipeline.fit`` would)."""
+    and leave out rows whose ``materials`` (full labels) their inner training part lacks (scikit-learn's
+    ``Pipeline.fit`` cannot hand these to the last step, so the steps are fitted here one after the other,
+    as ``Pipeline.fit`` would)."""
     pipeline = make_pipeline(classifier, n_features, seed)
     with one_blas_thread():
         Z = pipeline[:-1].fit_transform(X, y)
         estimator = pipeline.steps[-1][1]
         if calibrate:
-            estimator = TemperatureScaledClassifier(estimator, seed=seed).fit(Z, y, groups=np.asarray(groups))
+            estimator = TemperatureScaledClassifier(estimator, seed=seed).fit(Z, y, groups=np.asarray(groups),
+                                                                              materials=materials)
         else:
             estimator.fit(Z, y)
     pipeline.steps[-1] = ("classify", estimator)
@@ -655,7 +660,7 @@ def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = 
             train = np.flatnonzero(~held & ~in_test)
             test = np.flatnonzero((in_test & ~held) | held)
             pipeline = fit_pipeline(subset.X[train], y[train], groups[train], classifier, n_features, seed,
-                                    calibrate)
+                                    calibrate, materials=np.asarray(subset.label_text)[train])
             threshold, _ = learn_rejection(subset.X[train], y[train], groups[train], fit, seed=seed,
                                            max_accuracy_drop=max_accuracy_drop)
             rule = fit_rule(pipeline, subset.X[train], y[train], groups[train], threshold)

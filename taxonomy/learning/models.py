@@ -142,7 +142,8 @@ def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, 
     subset, dropped = drop_nan_columns(subset)
     y = subset.y(level)
     groups = np.asarray(subset.groups)
-    pipeline = fit_pipeline(subset.X, y, groups, classifier, n_features, seed, calibrate=True)
+    pipeline = fit_pipeline(subset.X, y, groups, classifier, n_features, seed, calibrate=True,
+                            materials=np.asarray(subset.label_text))
 
     def fit(X: np.ndarray, y_fit: np.ndarray, g: np.ndarray) -> Pipeline:
         return fit_pipeline(X, y_fit, g, classifier, n_features, seed, calibrate=False)
