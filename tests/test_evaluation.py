@@ -339,7 +339,7 @@ def test_html_report_is_one_offline_folder(tmp_path):
     assert '<tr class="chance"><td colspan="3">chance, coarse</td>' in text and 'href="#results-0"' in text
     coarse_rows = re.findall(r"<tr><td>\w+</td><td>\w+</td><td>coarse</td>(.*?)</tr>", text)
     assert len(coarse_rows) == 4 and all('<td class="num">-</td>' in row for row in coarse_rows)  # r_C
-    words = re.sub(r'src="data:image/png;base64,[^"]*"', "", text)
+    words = re.sub(r'src="data:image/png;base64,[^"]*"|<script>.*?</script>', "", text, flags=re.S)
     assert "nan" not in words.lower() and "r_C" not in words.split("coarse level (", 1)[1].split(")", 1)[0]
 
 
