@@ -304,7 +304,7 @@ def test_text_table_shows_the_report_numbers():
     assert cell_text(fine).split()[-1] == ("-" if np.isnan(fine.r_c) else f"{fine.r_c:.2f}")
     assert np.isnan(coarse.r_c) and row.split()[6] == "-"  # undefined at the coarse level, not "1.00"
     # Chance in the table: four classes at the coarse level, eight at the fine, every class 6 of 48 scans.
-    assert chance.split()[:2] == ["chance", "25.0"] and "12.5 most frequent class, F1 0.12" in chance
+    assert chance.split()[:2] == ["chance", "25.0"] and "12.5 %, F1 0.12" in chance
     derived = text.splitlines()[-1].split()
     assert derived[:3] == ["nb", "all", "coarse"] and float(derived[3]) == pytest.approx(
         100 * fine.derived_accuracy("coarse"), abs=0.05)

@@ -45,7 +45,8 @@ from taxonomy.reports.plots import (
 CELL_LEGEND = ("accuracy % of the pooled out-of-fold predictions, its 95 % interval (percentile bootstrap over "
                "the folds' groups, 1000 resamples), macro F1 of the pooled predictions, macro F1 per fold over "
                "the classes present in the fold, r_C (paper eq. 32; - where undefined: no misclassification, "
-               "or the coarse level, where every misclassification leaves the major class)")
+               "or the coarse level, where every misclassification leaves the major class); chance: accuracy of "
+               "always answering the most frequent class, and 1 / K for macro F1")
 F1_SENTENCE = ("Macro F1 is computed once over all out-of-fold predictions pooled (the headline); the per-fold "
                "figure averages each fold's F1 over the classes present in that fold, since a fold grouped by "
                "sample holds only some classes and a class absent from it would otherwise count as F1 0.")
@@ -157,7 +158,7 @@ def format_table(reports: Sequence[Result]) -> str:
                           + "  ".join(f"{cell:<{width}}" for cell in cells)).rstrip())
         chance = [_chance(chosen, level) for level in levels]
         lines.append((f"{'chance':<{width_c + width_s + 2}}  " + "  ".join(
-            f"{f'{_percent(r.chance):>5} most frequent class, F1 {r.chance_f1:.2f}':<{width}}" for r in chance
+            f"{f'{_percent(r.chance):>5} %, F1 {r.chance_f1:.2f}':<{width}}" for r in chance
             if r is not None)).rstrip())
         derived = _derived(chosen)
         if derived:
