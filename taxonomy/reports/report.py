@@ -427,8 +427,7 @@ def _html(space: FeatureSpace, reports: Sequence[Result], selection: Selection,
                      "calibrated by temperature scaling inside each fold's training rows (Guo et al. 2017); "
                      "ECE: expected calibration error over 10 confidence bins. From fine: the coarse or medium "
                      "accuracy of the fine prediction cut to that level, beside the classifier trained at that "
-                     "level directly. Chance: accuracy of always answering the most frequent class, and "
-                     "1 / K for macro F1.</p>")
+                     "level directly.</p>")
         notes = list(dict.fromkeys(note for r in reports for note in r.notes))
         dropped = sorted({c for r in reports for c in r.dropped})
         if dropped:
