@@ -470,6 +470,7 @@ class Summary:
     predictions: list[tuple[str, float, str]] | None
     prediction_note: str
     notes: list[str]
+    unknown: str = ""
 
 
 def _format(value: float) -> str:
@@ -488,8 +489,8 @@ def summarise(op: Operation) -> Summary:
         values = extract(scan, _model_families())
     notes = sorted({str(w.message) for w in caught})
     tactum = [(TACTUM_TITLES[name], _format(values[name])) for name in TACTUM_TITLES]
-    predictions, note = _predict(values)
-    summary = Summary(tactum, predictions, note, notes)
+    predictions, note, unknown = _predict(values)
+    summary = Summary(tactum, predictions, note, notes, unknown)
     op.summary_cache["summary"] = summary
     op.summary_cache["scan"] = scan
     op.summary_cache["values"] = values
@@ -506,20 +507,22 @@ def _model_families() -> tuple[str, ...] | None:
     return None if model is None else feature_sets.families_of(model.feature_names)
 
 
-def _predict(values: dict[str, float]) -> tuple[list[tuple[str, float, str]] | None, str]:
+def _predict(values: dict[str, float]) -> tuple[list[tuple[str, float, str]] | None, str, str]:
+    """The top three, a note on the model, and "unknown material (closest: ...)" when its rule rejects."""
     ctx = context()
     try:
         model = ctx.model
     except ModelError as exc:
-        return None, f"the model cannot be used: {session_error(exc)}"
+        return None, f"the model cannot be used: {session_error(exc)}", ""
     if model is None:
-        return None, "no trained model: run 'texplorer train' (or 'texplorer demo') to see predictions here"
+        return None, "no trained model: run 'texplorer train' (or 'texplorer demo') to see predictions here", ""
     try:
-        top = predict_values(model, values, 3, ctx.db.taxonomy())
+        prediction = predict_values(model, values, 3, ctx.db.taxonomy())
     except ModelError as exc:
-        return None, f"no prediction: {session_error(exc)}"
-    named = [(p.label, p.probability, p.names) for p in top]
-    return named, f"{model.classifier} at level {model.level}, trained on {model.n_rows} scans"
+        return None, f"no prediction: {session_error(exc)}", ""
+    named = [(p.label, p.probability, p.names) for p in prediction.predictions]
+    unknown = prediction.headline() if prediction.unknown else ""
+    return named, f"{model.classifier} at level {model.level}, trained on {model.n_rows} scans", unknown
 
 
 def session_figures(session: Session) -> list[figures.StepFigure]:

@@ -29,7 +29,7 @@ from scanner.scan import Scan
 from scanner.storage.bundle import ExportReport, Progress, export_bundle
 from scanner.storage.database import Database, DatabaseError, ScanRecord
 from taxonomy.labels import LabelError
-from taxonomy.learning.models import TrainedModel, predict_top
+from taxonomy.learning.models import TrainedModel, classify_values
 from taxonomy.table import Taxonomy, UnknownLabelError
 
 if TYPE_CHECKING:
@@ -142,8 +142,29 @@ def _names(label: str, taxonomy: Taxonomy) -> str:
         return NOT_IN_TAXONOMY
 
 
-def predict_scan(model: TrainedModel, scan: Scan, k: int, taxonomy: Taxonomy) -> list[Prediction]:
-    """The ``k`` most probable labels of ``scan`` by ``model``, most probable first, named by ``taxonomy``.
+@dataclass(frozen=True)
+class ScanPrediction:
+    """A model's ``k`` most probable labels for a scan (``predictions``, most probable first) and whether its
+    rejection rule calls the scan an unknown material (:mod:`taxonomy.learning.openset`)."""
+
+    predictions: list[Prediction]
+    unknown: bool = False
+    score: float = float("nan")
+    threshold: float = float("inf")
+
+    def headline(self) -> str:
+        """``unknown material (closest: granite, polished 45.0 %)`` when rejected, else the best label's
+        name and probability."""
+        if not self.predictions:
+            return "no prediction"
+        best = self.predictions[0]
+        named = f"{best.names} ({best.label}) {100 * best.probability:.1f} %"
+        return f"unknown material (closest: {named})" if self.unknown else named
+
+
+def predict_scan(model: TrainedModel, scan: Scan, k: int, taxonomy: Taxonomy) -> ScanPrediction:
+    """The ``k`` most probable labels of ``scan`` by ``model``, most probable first, named by ``taxonomy``,
+    and whether the model's rejection rule calls it an unknown material.
 
     Raises
     ------
@@ -153,13 +174,21 @@ def predict_scan(model: TrainedModel, scan: Scan, k: int, taxonomy: Taxonomy) ->
     return predict_values(model, extract(scan, feature_sets.families_of(model.feature_names)), k, taxonomy)
 
 
-def predict_values(model: TrainedModel, values: dict[str, float], k: int, taxonomy: Taxonomy) -> list[Prediction]:
+def predict_values(model: TrainedModel, values: dict[str, float], k: int, taxonomy: Taxonomy) -> ScanPrediction:
     """As :func:`predict_scan`, from the scan's feature values already extracted."""
-    return name_predictions(predict_top(model, values, k), taxonomy)
+    verdict = classify_values(model, values, k)
+    return ScanPrediction(name_predictions(verdict.top, taxonomy), verdict.unknown, verdict.score, verdict.threshold)
 
 
-def format_predictions(predictions: Sequence[Prediction]) -> str:
-    """Lines like ``1. C6S1M1P2X1   82.0 %  granite (igneous stone, stone), polished, plain``."""
-    width = max((len(p.label) for p in predictions), default=0)
-    return "\n".join(f"{rank}. {p.label:<{width}}  {100 * p.probability:5.1f} %  {p.names}"
-                     for rank, p in enumerate(predictions, start=1))
+def format_predictions(prediction: ScanPrediction | Sequence[Prediction]) -> str:
+    """Lines like ``1. C6S1M1P2X1   82.0 %  granite (igneous stone, stone), polished, plain``, after a first
+    line ``unknown material (closest: ...)`` when the model's rule rejects the scan."""
+    head = []
+    if isinstance(prediction, ScanPrediction):
+        if prediction.unknown:
+            head = [f"{prediction.headline()}; rejection score {prediction.score:.2f} > threshold "
+                    f"{prediction.threshold:.2f}; the most probable trained materials:"]
+        prediction = prediction.predictions
+    width = max((len(p.label) for p in prediction), default=0)
+    return "\n".join(head + [f"{rank}. {p.label:<{width}}  {100 * p.probability:5.1f} %  {p.names}"
+                             for rank, p in enumerate(prediction, start=1)])

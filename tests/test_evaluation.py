@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import html
 import json
 import re
 import warnings
@@ -130,9 +129,12 @@ def test_report_numbers_equal_a_direct_cross_val_predict(classifier):
         predicted = cross_val_predict(make_pipeline(classifier, 3, seed=2), space.X, y, cv=splits)
     np.testing.assert_array_equal(report.y_pred, predicted)
     accuracy = [np.mean(predicted[test] == y[test]) for _, test in splits]
-    f1 = [f1_score(y[test], predicted[test], average="macro", zero_division=0) for _, test in splits]
+    # Per fold: macro F1 over the classes present in the fold's true labels; the headline pools every fold.
+    f1 = [f1_score(y[test], predicted[test], labels=np.unique(y[test]), average="macro", zero_division=0)
+          for _, test in splits]
     np.testing.assert_allclose(report.accuracy, accuracy)
     np.testing.assert_allclose(report.f1, f1)
+    assert report.f1_pooled == pytest.approx(f1_score(y, predicted, average="macro"))
     assert report.accuracy_mean == pytest.approx(np.mean(accuracy))
     assert report.accuracy_std == pytest.approx(np.std(accuracy, ddof=1))
     classes = sorted(set(y))
@@ -292,13 +294,20 @@ def test_text_table_shows_the_report_numbers():
     reports = evaluate_grid(space, classifiers=("nb",), levels=("coarse", "fine"), set_sizes=(2,),
                             feature_sets={"all": None}, folds=3, workers=1)
     text = format_table(reports)
-    header, row = text.splitlines()[3:5]
+    header, row, chance = text.splitlines()[4:7]
     assert header.split()[3:] == ["coarse", "fine"]
     coarse, fine = reports
     assert row.split()[:2] == ["nb", "all"]
-    assert f"{100 * coarse.accuracy_mean:.1f} +- {100 * coarse.accuracy_std:.1f}" in " ".join(row.split())
+    low, high = coarse.accuracy_ci
+    assert (f"{100 * coarse.accuracy_pooled:.1f} {100 * low:.1f}-{100 * high:.1f} {coarse.f1_pooled:.2f} "
+            f"{coarse.f1_mean:.2f}") in " ".join(row.split())
     assert cell_text(fine).split()[-1] == ("-" if np.isnan(fine.r_c) else f"{fine.r_c:.2f}")
     assert np.isnan(coarse.r_c) and row.split()[6] == "-"  # undefined at the coarse level, not "1.00"
+    # Chance in the table: four classes at the coarse level, eight at the fine, every class 6 of 48 scans.
+    assert chance.split()[:2] == ["chance", "25.0"] and "12.5 %, F1 0.12" in chance
+    derived = text.splitlines()[-1].split()
+    assert derived[:3] == ["nb", "all", "coarse"] and float(derived[3]) == pytest.approx(
+        100 * fine.derived_accuracy("coarse"), abs=0.05)
     assert "nan" not in text.lower()
 
 
@@ -318,14 +327,19 @@ def test_html_report_is_one_offline_folder(tmp_path):
     page = write_report(tmp_path / "report", space, reports, level="medium", n_features=3)
     names = sorted(p.name for p in page.parent.iterdir())
     assert names == ["boxes.png", "confusion_coarse.png", "confusion_medium.png", "fq_ranking.png", "index.html",
-                     "pca.png", "scores_coarse_X3.png", "scores_medium_X3.png", "spearman.png"]
+                     "pca.png", "reliability.png", "scores_coarse_X3.png", "scores_medium_X3.png", "spearman.png"]
     text = page.read_text(encoding="utf-8")
-    assert text.count('src="data:image/png;base64,') == 8
-    assert "http" not in text and "<link" not in text and "<script" not in text
-    assert html.escape(cell_text(reports[0])) in text
-    coarse_cells = [cell_text(r) for r in reports if r.level == "coarse"]
-    assert all(cell.endswith("  -") and f"<td>{cell}</td>" in text for cell in coarse_cells)
-    words = re.sub(r'src="data:image/png;base64,[^"]*"', "", text)
+    assert text.count('src="data:image/png;base64,') == 9
+    # Offline: nothing fetched; the one script is the inline sorter of the tables.
+    assert "http" not in text and "<link" not in text and text.count("<script") == 1 and "<script src" not in text
+    # One column per figure, every header sortable; a chance row per level.
+    assert text.count('<th scope="col" data-sort>accuracy %</th>') == 1
+    first = reports[0]
+    assert f'<td class="num" data-v="{first.accuracy_pooled:.6g}">{100 * first.accuracy_pooled:.1f}</td>' in text
+    assert '<tr class="chance"><td colspan="3">chance, coarse</td>' in text and 'href="#results-0"' in text
+    coarse_rows = re.findall(r"<tr><td>\w+</td><td>\w+</td><td>coarse</td>(.*?)</tr>", text)
+    assert len(coarse_rows) == 4 and all('<td class="num">-</td>' in row for row in coarse_rows)  # r_C
+    words = re.sub(r'src="data:image/png;base64,[^"]*"|<script>.*?</script>', "", text, flags=re.S)
     assert "nan" not in words.lower() and "r_C" not in words.split("coarse level (", 1)[1].split(")", 1)[0]
 
 

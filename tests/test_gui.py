@@ -513,6 +513,35 @@ def test_summary_shows_the_models_top_predictions(tmp_path):
         app.extensions["texplorer"].shutdown()
 
 
+def test_summary_says_unknown_material_for_a_scan_unlike_every_trained_one(tmp_path):
+    """Three materials by density, two pieces each; a scan of 8.0 g/cm^3 (steel) is far from all of them."""
+    from features.space import FeatureSpace
+    from taxonomy.learning.models import save_model, train_model
+
+    rng = np.random.default_rng(0)
+    centres = {"C6S1M1P2X1": 2.7, "C1S1M1P4X1": 0.7, "C3S4M2P1X1": 1.2}
+    labels = [label for label in centres for _ in range(8)]
+    density = np.array([centres[label] for label in labels]) + 0.05 * rng.standard_normal(len(labels))
+    space = FeatureSpace(X=density[:, None], columns=("other.density",),
+                         scan_ids=[f"s-{i}" for i in range(len(labels))], label_text=labels,
+                         groups=[f"{label}-{i % 2}" for i, label in enumerate(labels)])
+    save_model(train_model(space, "fine", 1, "rf"), tmp_path / "db" / "models" / "rf-fine-X10.skops")
+    app = make_app(tmp_path / "db")
+    client = app.test_client()
+    try:
+        start_session(client)
+        record_all(client, app)
+        for name in ("I_disp", "I_macro", "I_illu"):
+            post(client, "/session/form", {"capture": name})
+        post(client, "/session/form", {"atk": "0", "cyd": "0", "mass_g": "1520", "volume_cm3": "190",
+                                       "volume_method": "water"})
+        page = get(client, "/session/summary").text
+        assert 'id="unknown-material"' in page
+        assert "unknown material (closest: granite (igneous stone, stone), polished, plain (C6S1M1P2X1)" in page
+    finally:
+        app.extensions["texplorer"].shutdown()
+
+
 def test_operator_form_errors_save_nothing(client, app):
     start_session(client)
     record_all(client, app, skip_fold=True)

@@ -40,10 +40,18 @@ from scanner.workflows import (
     stored_features,
 )
 from taxonomy.labels import LEVELS, parse_prefix
-from taxonomy.learning.evaluation import CLASSIFIERS, default_feature_sets, evaluate_grid, present_feature_sets
+from taxonomy.learning.evaluation import (
+    CLASSIFIERS,
+    default_feature_sets,
+    evaluate_grid,
+    evaluate_open_set,
+    present_feature_sets,
+    recording_of,
+    vote,
+)
 from taxonomy.learning.models import load_model, save_model, train_model
 from taxonomy.learning.results import one_line
-from taxonomy.reports.report import format_table, write_report
+from taxonomy.reports.report import format_open_set, format_table, write_report
 from taxonomy.table import load_taxonomy
 
 
@@ -90,6 +98,45 @@ def cmd_select(args: argparse.Namespace) -> int:
     return 0
 
 
+SCAN_GROUPINGS = ("sample", "session", "operator", "recording")
+"""What ``--group-by`` keeps in one fold for the database's scans (a scan is its own recording)."""
+
+
+def scan_grouping(args: argparse.Namespace) -> str:
+    """The ``--group-by`` of a command on the database's scans: ``sample`` by default."""
+    group_by = getattr(args, "group_by", "auto")
+    group_by = "sample" if group_by in (None, "auto") else group_by
+    if group_by not in SCAN_GROUPINGS:
+        raise UsageError(f"--group-by {group_by!r}: the database's scans group by "
+                         f"{', '.join(SCAN_GROUPINGS)}")
+    return group_by
+
+
+def regroup_scans(space, args: argparse.Namespace):
+    """The space with ``groups`` replaced by each scan's session, operator or scan id (``--group-by``), read
+    from the database's catalog; the space itself for ``sample``."""
+    import dataclasses
+
+    group_by = scan_grouping(args)
+    if group_by == "sample":
+        return space
+    if group_by == "recording":
+        return dataclasses.replace(space, groups=space.scan_ids)
+    records = {r.scan_id: r for r in open_db(args).records()}
+    missing = [s for s in space.scan_ids if s not in records]
+    if missing:
+        raise UsageError(f"--group-by {group_by}: {len(missing)} scan(s) of the feature table are not in the "
+                         f"database {args.db}, e.g. {missing[0]}")
+    field = "session_id" if group_by == "session" else "operator"
+    return dataclasses.replace(space, groups=tuple(getattr(records[s], field) for s in space.scan_ids))
+
+
+def set_grouping(args: argparse.Namespace) -> str:
+    """The ``--group-by`` of a set, as the report names it (``recording`` for each recording alone)."""
+    group_by = getattr(args, "group_by", "auto")
+    return {"auto": "the set's groups", "none": "recording"}.get(group_by, group_by)
+
+
 def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
     """Evaluate the grid asked for on the command line (on the Dask cluster of ``client`` if given);
     print the table; write the HTML report if asked."""
@@ -105,10 +152,20 @@ def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
         sets = {**present, **named} if ALL in args.feature_set else named
     use_split = not getattr(args, "ignore_split", False)
     sizes = set_sizes(args.n, ("3", "10", ALL) if space.label_level is not None else ("3", "10"))
+    group_by = set_grouping(args) if space.label_level is not None else scan_grouping(args)
+    if getattr(args, "open_set", False):
+        return run_open_set(space, args, classifiers, levels, sizes, sets, group_by)
     started = time.perf_counter()
     reports = evaluate_grid(space, classifiers, levels, sizes, sets, folds=args.folds, seed=args.seed,
                             protocol=args.protocol, workers=args.workers, progress=True, use_split=use_split,
-                            client=client, single_group=getattr(args, "single_group", "train"))
+                            client=client, single_group=getattr(args, "single_group", "train"),
+                            calibrate=not getattr(args, "no_calibration", False), group_by=group_by)
+    if getattr(args, "vote", False):
+        recordings = [recording_of(s) for s in space.scan_ids]
+        if len(set(recordings)) == len(recordings):
+            print("texplorer: warning: --vote: every recording is one row (no windows), so the vote changes "
+                  "nothing", file=sys.stderr)
+        reports = [vote(r, recordings) for r in reports]
     print(format_table(reports))
     splitting = reports[0].splitting if reports else f"{args.folds} folds"
     print(f"{len(reports)} evaluations ({args.protocol} protocol, {splitting}) "
@@ -120,11 +177,28 @@ def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
     return reports
 
 
+def run_open_set(space, args: argparse.Namespace, classifiers, levels, sizes, sets, group_by: str) -> list:
+    """``evaluate --open-set``: every classifier x level x set size x feature set with whole classes held
+    out per fold (:func:`taxonomy.learning.evaluation.evaluate_open_set`); the table of AUROC and accuracies."""
+    started = time.perf_counter()
+    named_sets = sets if sets is not None else {"all": None}
+    reports = [evaluate_open_set(space, classifier, level, size, args.folds, args.seed, feature_set,
+                                 group_by=group_by, calibrate=not getattr(args, "no_calibration", False))
+               for classifier in classifiers for level in levels for size in sizes
+               for feature_set in named_sets.values()]
+    print(format_open_set(reports))
+    print(f"{len(reports)} open-set evaluations in {time.perf_counter() - started:.1f} s")
+    if args.report:
+        print(f"report: {write_report(args.report, space, reports)}")
+    return reports
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.dataset:
         return cmd_set_evaluate(args)
     with cluster(args) as client:
-        run_evaluation(space_for(args, client), args, client)
+        space = space_for(args, client)
+        run_evaluation(regroup_scans(space, args), args, client)
     return 0
 
 
@@ -143,7 +217,8 @@ def set_space(args: argparse.Namespace, client=None):
     windowing = Windowing(args.window, args.combine)
     started = time.perf_counter()
     wanted = args.feature_set if isinstance(args.feature_set, list) else [args.feature_set]
-    space, notes = feature_space(recordings, windowing, args.border, args.group_by, workers=args.workers,
+    group_by = "none" if args.group_by == "recording" else args.group_by
+    space, notes = feature_space(recordings, windowing, args.border, group_by, workers=args.workers,
                                  progress=True, client=client, chosen=feature_sets.role_families_for(wanted))
     for note in notes if args.verbose else notes[:3]:
         print(f"texplorer: warning: {one_line(note)}", file=sys.stderr)
@@ -238,9 +313,11 @@ def _add_set_options(parser: argparse.ArgumentParser) -> None:
                         "(in its recording's group)")
     parser.add_argument("--border", type=int, default=0, metavar="PX", help="sets: pixels cropped from every "
                         "side of a photo before its features (default 0; the scanner's photos use 100)")
-    parser.add_argument("--group-by", default="auto", metavar="GROUP", help="sets: the group folds keep "
-                        "together: a group of the mapping's pattern, 'none', or auto (default: object, else "
-                        "the photo a patch was cut from, else the recording)")
+    parser.add_argument("--group-by", default="auto", metavar="GROUP", help="what folds keep together: for "
+                        "the database's scans sample (default), session, operator or recording (each scan); "
+                        "for sets a group of the mapping's pattern, recording (each recording with its "
+                        "windows; also 'none'), or auto (default: object, else the photo a patch was cut "
+                        "from, else the recording)")
     parser.add_argument("--verbose", action="store_true", help="sets: print every extraction warning")
 
 
@@ -336,6 +413,13 @@ def register(commands: argparse._SubParsersAction) -> None:
     evaluate.add_argument("--single-group", choices=("train", "drop"), default="train",
                           help="a class with a single sample (group) cannot be tested in grouped folds: keep it "
                           "in training only (default) or leave it out; the other classes' folds stay grouped")
+    evaluate.add_argument("--vote", action="store_true", help="score each recording once, by the mean "
+                          "calibrated probability of its windows (sets with --combine rows)")
+    evaluate.add_argument("--open-set", action="store_true", help="hold out whole classes per fold: AUROC of "
+                          "the rejection score, known-class accuracy at the learned threshold and the share "
+                          "of unknown scans rejected (docs/trust.md)")
+    evaluate.add_argument("--no-calibration", action="store_true", help="skip the temperature scaling inside "
+                          "every fold (about 4x less fitting; no reliability diagram or ECE)")
     evaluate.set_defaults(handler=cmd_evaluate)
 
     train = commands.add_parser("train", help="train a classifier on all scans and save it (skops)",

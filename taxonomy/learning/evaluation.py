@@ -12,8 +12,10 @@ Interpretation: the selector ranks features by FQ over the classes of the level 
 the pipeline is fitted with, as any scikit-learn selector); the paper computed FQ over its 184 material
 classes, which is the same thing at the fine level.
 
-Metrics per fold: accuracy and macro F1 (F1 averaged over the classes that occur in the fold's true or
-predicted labels; a class never predicted scores 0). ``r_C`` (eq. 32) is the share of misclassifications
+Metrics (:mod:`taxonomy.learning.metrics`): accuracy per fold; macro F1 over the pooled out-of-fold predictions
+(the headline) and per fold over the classes present in the fold's true labels; 95 % intervals by the
+bootstrap over the folds' groups; calibrated probabilities (:mod:`taxonomy.learning.calibration`) and their
+expected calibration error. ``r_C`` (eq. 32) is the share of misclassifications
 whose predicted major class C differs from the true one; it is NaN (shown as "-") where undefined: without
 misclassifications, and at the coarse level, where every misclassification changes C by definition.
 
@@ -30,7 +32,7 @@ import sys
 import time
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -39,7 +41,7 @@ from sklearn.base import BaseEstimator, clone
 from sklearn.discriminant_analysis import LinearDiscriminantAnalysis
 from sklearn.ensemble import RandomForestClassifier
 from sklearn.linear_model import RidgeClassifierCV
-from sklearn.metrics import confusion_matrix, f1_score
+from sklearn.metrics import confusion_matrix
 from sklearn.model_selection import StratifiedGroupKFold, StratifiedKFold
 from sklearn.naive_bayes import GaussianNB
 from sklearn.neighbors import KNeighborsClassifier
@@ -55,6 +57,9 @@ from features.registry import REGISTRY
 from features.selection import FQSelector, KeepAll
 from features.space import FeatureSpace
 from features.threads import one_blas_thread
+from taxonomy.learning.calibration import TemperatureScaledClassifier
+from taxonomy.learning.metrics import present_class_f1
+from taxonomy.learning.openset import MAX_ACCURACY_DROP, class_folds, fit_rule, learn_rejection
 from taxonomy.learning.results import OWN_METHOD, EvaluationError, Result, warning_notes
 
 if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
@@ -274,7 +279,7 @@ def _without_rows(space: FeatureSpace, bad: np.ndarray, why: str, first: int = 3
 def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level: str = "fine",
              n_features: int | None = 10, folds: int = 5, seed: int = SEED, protocol: str = "nested",
              feature_set: FeatureSet = None, use_split: bool = True, client: Client | None = None,
-             single_group: str = "train") -> Result:
+             single_group: str = "train", calibrate: bool = True, group_by: str = "sample") -> Result:
     """Cross-validate one classifier pipeline on ``space`` at classification ``level`` (paper section V-C).
 
     Parameters
@@ -304,6 +309,13 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
     single_group : str
         ``"train"`` or ``"drop"``: a class with a single sample (group) is kept in training only, or left
         out, while the folds of the others stay grouped (:func:`cv_splits`).
+    calibrate : bool
+        Also fit each fold's temperature (:mod:`taxonomy.learning.calibration`, on grouped splits of the fold's
+        training rows) and keep the calibrated out-of-fold probabilities (``Result.probability``); the
+        predictions are the same either way.
+    group_by : str
+        What ``space.groups`` are, for the report: ``sample`` (the default), ``session``, ``operator``,
+        ``recording`` or a set's group key.
 
     Returns
     -------
@@ -313,7 +325,8 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
     """
     cell = _Cell(space.check_level(level), _set_name(feature_set), feature_set, n_features)
     return _run(space, [classifier], [cell], folds, seed, protocol, workers=1, progress=False,
-                use_split=use_split, client=client, single_group=single_group)[0]
+                use_split=use_split, client=client, single_group=single_group, calibrate=calibrate,
+                group_by=group_by)[0]
 
 
 def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator] = tuple(CLASSIFIERS),
@@ -321,7 +334,7 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
                   feature_sets: Mapping[str, FeatureSet] | None = None, folds: int = 5, seed: int = SEED,
                   protocol: str = "nested", workers: int | None = None,
                   progress: bool = False, use_split: bool = True, client: Client | None = None,
-                  single_group: str = "train") -> list[Result]:
+                  single_group: str = "train", calibrate: bool = True, group_by: str = "sample") -> list[Result]:
     """Every classifier x feature set x level x set size (the paper's Figs. 16-18), folds in parallel.
 
     Each fold of each (level, feature set, size) is one job in one of ``workers`` processes, or one task on
@@ -373,7 +386,7 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
     cells = [_Cell(level, name, feature_set, size)
              for name, feature_set in sets.items() for level in levels for size in set_sizes]
     reports = _run(space, classifiers, cells, folds, seed, protocol, workers, progress, use_split, client,
-                   single_group)
+                   single_group, calibrate, group_by)
     per_cell = len(classifiers)
     return [reports[c * per_cell + k] for k in range(per_cell) for c in range(len(cells))]
 
@@ -408,6 +421,8 @@ class _Prepared:
     cell: _Cell
     X: np.ndarray
     y: np.ndarray
+    groups: np.ndarray
+    materials: np.ndarray
     columns: tuple[str, ...]
     dropped: tuple[str, ...]
     splits: list[tuple[np.ndarray, np.ndarray]]
@@ -417,15 +432,20 @@ class _Prepared:
     pipelines: list[Pipeline]
     shared: Pipeline | None
     notes: tuple[str, ...]
+    calibrate: bool = True
+    group_by: str = "sample"
+    seed: int = SEED
 
 
 def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells: Sequence[_Cell], folds: int,
          seed: int, protocol: str, workers: int | None, progress: bool, use_split: bool = True,
-         client: Client | None = None, single_group: str = "train") -> list[Result]:
+         client: Client | None = None, single_group: str = "train", calibrate: bool = True,
+         group_by: str = "sample") -> list[Result]:
     """Results of every classifier in every cell, in that order (cells outer, classifiers inner)."""
     if protocol not in PROTOCOLS:
         raise EvaluationError(f"unknown protocol {protocol!r} (expected one of {', '.join(PROTOCOLS)})")
-    prepared = [_prepare(space, cell, classifiers, folds, seed, protocol, use_split, single_group) for cell in cells]
+    prepared = [_prepare(space, cell, classifiers, folds, seed, protocol, use_split, single_group, calibrate,
+                         group_by) for cell in cells]
     jobs = sorted(((c, f) for c, p in enumerate(prepared) for f in range(len(p.splits))),
                   key=lambda job: -space.level_names.index(cells[job[0]].level))
     # disable=None hides the bar when stderr is not a terminal (logs, CI).
@@ -451,7 +471,8 @@ def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells:
 
 
 def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseEstimator], folds: int,
-             seed: int, protocol: str, use_split: bool = True, single_group: str = "train") -> _Prepared:
+             seed: int, protocol: str, use_split: bool = True, single_group: str = "train",
+             calibrate: bool = True, group_by: str = "sample") -> _Prepared:
     space.check_level(cell.level)
     own = use_split and bool(space.split)
     with warnings.catch_warnings(record=True) as caught:
@@ -472,8 +493,10 @@ def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseE
         if protocol == "paper":
             with one_blas_thread():
                 shared = clone(pipelines[0][:-1]).fit(subset.X, y)
-    return _Prepared(cell, subset.X, y, subset.columns, dropped, splits, grouped, own,
-                     space.label_level is None, pipelines, shared, warning_notes(caught))
+    return _Prepared(cell, subset.X, y, np.asarray(subset.groups), np.asarray(subset.label_text), subset.columns,
+                     dropped, splits, grouped, own,
+                     space.label_level is None, pipelines, shared, warning_notes(caught), calibrate, group_by,
+                     seed)
 
 
 def _kernels(feature_set: FeatureSet, protocol: str) -> str | None:
@@ -505,13 +528,15 @@ def _without_probabilities(pipeline: Pipeline) -> Pipeline:
 
 @dataclass(frozen=True)
 class _FoldOutcome:
-    """One fold's predictions per classifier, the selected column names, the warnings, and the seconds per
-    classifier (the shared part's time included)."""
+    """One fold's predictions per classifier, the selected column names, the warnings, the seconds per
+    classifier (the shared part's time included), and the test rows' calibrated probabilities per classifier
+    (columns in the order of the cell's classes; None without calibration)."""
 
     predictions: list[np.ndarray]
     selected: tuple[str, ...]
     notes: tuple[str, ...]
     seconds: list[float]
+    probabilities: list[np.ndarray | None]
 
 
 def _fold(prepared: _Prepared, fold: int, protocol: str) -> _FoldOutcome:
@@ -520,7 +545,9 @@ def _fold(prepared: _Prepared, fold: int, protocol: str) -> _FoldOutcome:
     A pipeline's fit is its transformers' ``fit_transform`` followed by the classifier's ``fit``, so fitting
     the shared part once gives exactly the predictions of fitting each full pipeline. Returns the
     predictions of the test rows per classifier, the selected column names, the warnings raised and the
-    time each classifier took with the shared part.
+    time each classifier took with the shared part. With calibration each classifier is wrapped in a
+    :class:`~taxonomy.learning.calibration.TemperatureScaledClassifier` fitted on the fold's training rows and
+    their groups; its predictions are the classifier's own.
     """
     train, test = prepared.splits[fold]
     X, y = prepared.X, prepared.y
@@ -534,17 +561,28 @@ def _fold(prepared: _Prepared, fold: int, protocol: str) -> _FoldOutcome:
         X_train, X_test = shared.transform(X[train]), shared.transform(X[test])
     shared_seconds = time.perf_counter() - started
     messages = warning_notes(caught)
-    predictions, seconds = [], []
+    classes = np.unique(y)
+    predictions, seconds, probabilities = [], [], []
     for pipeline in prepared.pipelines:
         started = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught, one_blas_thread():
             warnings.simplefilter("always")
             classifier = clone(pipeline[-1])
-            predictions.append(classifier.fit(X_train, y[train]).predict(X_test))
+            name = type(classifier).__name__
+            if prepared.calibrate:
+                classifier = TemperatureScaledClassifier(classifier, seed=prepared.seed)
+                classifier.fit(X_train, y[train], groups=prepared.groups[train], materials=prepared.materials[train])
+                probability = np.zeros((len(test), classes.size))
+                probability[:, np.searchsorted(classes, classifier.classes_)] = classifier.predict_proba(X_test)
+                probabilities.append(probability)
+            else:
+                classifier.fit(X_train, y[train])
+                probabilities.append(None)
+            predictions.append(classifier.predict(X_test))
         seconds.append(shared_seconds + time.perf_counter() - started)
-        messages += warning_notes(caught, f"{type(classifier).__name__}: ")
+        messages += warning_notes(caught, f"{name}: ")
     return _FoldOutcome(predictions, _selected_names(shared, prepared.columns), tuple(dict.fromkeys(messages)),
-                        seconds)
+                        seconds, probabilities)
 
 
 def _selected_names(shared: Pipeline, columns: tuple[str, ...]) -> tuple[str, ...]:
@@ -555,8 +593,7 @@ def _selected_names(shared: Pipeline, columns: tuple[str, ...]) -> tuple[str, ..
 
 
 def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],
-             per_fold: list[_FoldOutcome], seed: int,
-             protocol: str) -> list[Result]:
+             per_fold: list[_FoldOutcome], seed: int, protocol: str) -> list[Result]:
     y, splits, cell = prepared.y, prepared.splits, prepared.cell
     fold_of_row = np.full(len(y), -1, dtype=np.int64)  # -1: a training row of the set's own split
     for index, (_, test) in enumerate(splits):
@@ -568,11 +605,13 @@ def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],
     reports = []
     for k, classifier in enumerate(classifiers):
         y_pred = np.full_like(y, "")
+        probability = np.full((len(y), classes.size), np.nan) if prepared.calibrate else None
         for (_, test), outcome in zip(splits, per_fold, strict=True):
             y_pred[test] = outcome.predictions[k]
+            if probability is not None:
+                probability[test] = outcome.probabilities[k]
         accuracy = np.array([np.mean(y_pred[test] == y[test]) for _, test in splits])
-        f1 = np.array([f1_score(y[test], y_pred[test], average="macro", zero_division=0.0)
-                       for _, test in splits])
+        f1 = np.array([present_class_f1(y[test], y_pred[test]) for _, test in splits])
         reports.append(Result(
             method=OWN_METHOD, feature_set=cell.set_name, classifier=classifier_name(classifier),
             level=cell.level, protocol=protocol, splitting=_splitting(prepared), classes=tuple(classes.tolist()),
@@ -581,6 +620,7 @@ def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],
             grouped=prepared.grouped, given_split=prepared.given_split, columns=prepared.columns,
             dropped=prepared.dropped, selected=selected, y_true=y, y_pred=y_pred, fold=fold_of_row,
             seconds=float(sum(outcome.seconds[k] for outcome in per_fold)),
+            groups=prepared.groups, probability=probability, group_by=prepared.group_by,
         ))
     return reports
 
@@ -590,3 +630,149 @@ def _splitting(prepared: _Prepared) -> str:
     if prepared.given_split:
         return "the set's train/test split"
     return f"{len(prepared.splits)} {'grouped' if prepared.grouped else 'ungrouped'} folds"
+
+
+# -- fitting a whole model, voting, the open set ---------------------------------------------------------
+
+
+def fit_pipeline(X: np.ndarray, y: np.ndarray, groups: np.ndarray, classifier: str | BaseEstimator = "rf",
+                 n_features: int | None = 10, seed: int = SEED, calibrate: bool = True,
+                 materials: np.ndarray | None = None, kernels: str | None = None,
+                 columns: Sequence[str] = ()) -> Pipeline:
+    """A fitted ``scale -> select -> classify`` pipeline on every row; with ``calibrate`` its classifier is a
+    :class:`~taxonomy.learning.calibration.TemperatureScaledClassifier` whose inner splits keep ``groups`` together
+    and leave out rows whose ``materials`` (full labels) their inner training part lacks (scikit-learn's
+    ``Pipeline.fit`` cannot hand these to the last step, so the steps are fitted here one after the other,
+    as ``Pipeline.fit`` would). ``kernels`` and ``columns`` are :func:`make_pipeline`'s."""
+    pipeline = make_pipeline(classifier, n_features, seed, kernels, columns)
+    with one_blas_thread():
+        Z = pipeline[:-1].fit_transform(X, y)
+        estimator = pipeline.steps[-1][1]
+        if calibrate:
+            estimator = TemperatureScaledClassifier(estimator, seed=seed).fit(Z, y, groups=np.asarray(groups),
+                                                                              materials=materials)
+        else:
+            estimator.fit(Z, y)
+    pipeline.steps[-1] = ("classify", estimator)
+    return pipeline
+
+
+def recording_of(scan_id: str) -> str:
+    """The recording a row belongs to: ``<recording>#w<k>`` is window k of a recording (``--combine rows``)."""
+    return scan_id.rsplit("#w", 1)[0]
+
+
+def vote(result: Result, recordings: Sequence[str]) -> Result:
+    """The result with every recording scored once, by its windows' vote (``--vote``).
+
+    ``recordings`` names the recording of every row of the result. A recording's prediction is the class of
+    the highest mean calibrated probability over its windows (soft voting) where the result has
+    probabilities, else the most frequent prediction (ties: the first in class order). Its fold is its
+    windows' fold (they share one: folds keep a recording's windows together); a recording whose windows
+    lie in different folds is an error.
+    """
+    if result.y_true is None or result.y_pred is None or result.fold is None:
+        raise EvaluationError("only a result with its out-of-fold predictions can be voted")
+    recordings = np.asarray(recordings)
+    names = list(dict.fromkeys(recordings.tolist()))
+    classes = np.asarray(result.classes)
+    y_true, y_pred, fold, groups, probability = [], [], [], [], []
+    for name in names:
+        rows = np.flatnonzero(recordings == name)
+        if np.unique(result.fold[rows]).size != 1 or np.unique(result.y_true[rows]).size != 1:
+            raise EvaluationError(f"recording {name!r}: its windows lie in different folds or classes; group "
+                                  "the folds by recording to vote")
+        if result.probability is not None and np.isfinite(result.probability[rows]).all():
+            mean = result.probability[rows].mean(axis=0)
+            probability.append(mean)
+            y_pred.append(classes[int(np.argmax(mean))])
+        else:
+            counts = np.array([np.sum(result.y_pred[rows] == c) for c in classes])
+            y_pred.append(classes[int(np.argmax(counts))])
+        y_true.append(result.y_true[rows[0]])
+        fold.append(result.fold[rows[0]])
+        groups.append(result.groups[rows[0]] if result.groups is not None else name)
+    y_true_a, y_pred_a, fold_a = np.array(y_true), np.array(y_pred), np.array(fold)
+    folds = np.unique(fold_a[fold_a >= 0])
+    tested = fold_a >= 0
+    return replace(
+        result, y_true=y_true_a, y_pred=y_pred_a, fold=fold_a, groups=np.array(groups),
+        probability=np.array(probability) if len(probability) == len(names) else None,
+        accuracy=np.array([np.mean(y_pred_a[fold_a == f] == y_true_a[fold_a == f]) for f in folds]),
+        f1=np.array([present_class_f1(y_true_a[fold_a == f], y_pred_a[fold_a == f]) for f in folds]),
+        confusion=confusion_matrix(y_true_a[tested], y_pred_a[tested], labels=classes),
+        voted=True, splitting=f"{result.splitting}, recordings voted by their windows")
+
+
+def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = "fine", n_features: int | None = 10,
+                      folds: int = 5, seed: int = SEED, feature_set: FeatureSet = None,
+                      group_by: str = "sample", max_accuracy_drop: float = MAX_ACCURACY_DROP,
+                      calibrate: bool = True) -> Result:
+    """Open-set cross-validation: whole classes held out per fold (Scheirer et al. 2013's protocol).
+
+    The classes are dealt into ``folds`` parts (:func:`taxonomy.learning.openset.class_folds`) and the rows into the
+    usual grouped folds (:func:`cv_splits`). Fold k trains a whole model -- pipeline, calibration and the
+    rejection rule learned by leave-classes-out inside its training rows (:mod:`taxonomy.learning.openset`) -- on
+    the rows of the other class parts outside sample fold k, and tests the rows of sample fold k whose
+    class it knows ("known") and every row of class part k ("unknown"). So every scan is tested once as
+    unknown, and once as known unless its sample's fold is the one that holds out its class. The result's
+    arrays are per test instance (``Result.rows``); ``auroc``, ``known_accuracy``, ``closed_accuracy`` and
+    ``unknown_rejected`` hold the figures.
+    """
+    level = space.check_level(level)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        subset, _ = resolve_feature_set(space, feature_set)
+        subset, dropped = drop_nan_columns(subset)
+        y = subset.y(level)
+        groups = np.asarray(subset.groups)
+        splits, grouped = cv_splits(y, groups, folds, seed, grouping_labels=subset.label_text)
+        parts = class_folds(y, len(splits), seed)
+        if len(parts) < 2:
+            raise EvaluationError("an open-set evaluation needs at least two classes to hold out in turn")
+
+        def fit(X: np.ndarray, y_fit: np.ndarray, g: np.ndarray) -> Pipeline:
+            return fit_pipeline(X, y_fit, g, classifier, n_features, seed, calibrate=False)
+
+        classes = np.unique(y)
+        rows, fold, known, score, rejected, y_pred, probability = [], [], [], [], [], [], []
+        accuracy, f1 = [], []
+        for k, (_, sample_test) in enumerate(splits):
+            held = np.isin(y, parts[k % len(parts)])
+            in_test = np.zeros(len(y), dtype=bool)
+            in_test[sample_test] = True
+            train = np.flatnonzero(~held & ~in_test)
+            test = np.flatnonzero((in_test & ~held) | held)
+            pipeline = fit_pipeline(subset.X[train], y[train], groups[train], classifier, n_features, seed,
+                                    calibrate, materials=np.asarray(subset.label_text)[train])
+            threshold, _ = learn_rejection(subset.X[train], y[train], groups[train], fit, seed=seed,
+                                           max_accuracy_drop=max_accuracy_drop)
+            rule = fit_rule(pipeline, subset.X[train], y[train], groups[train], threshold)
+            s = rule.score(pipeline, subset.X[test])
+            predicted = pipeline.predict(subset.X[test])
+            p = np.zeros((len(test), classes.size))
+            p[:, np.searchsorted(classes, pipeline.classes_)] = pipeline.predict_proba(subset.X[test])
+            is_known = ~held[test]
+            rows.append(test)
+            fold.append(np.full(len(test), k))
+            known.append(is_known)
+            score.append(s)
+            rejected.append(s > threshold)
+            y_pred.append(predicted)
+            probability.append(p)
+            accuracy.append(np.mean(predicted[is_known] == y[test][is_known]))
+            f1.append(present_class_f1(y[test][is_known], predicted[is_known]))
+    rows_a, known_a, y_pred_a = np.concatenate(rows), np.concatenate(known), np.concatenate(y_pred)
+    y_true = y[rows_a]
+    return Result(
+        method=OWN_METHOD, feature_set=_set_name(feature_set), classifier=classifier_name(classifier), level=level,
+        protocol="nested", splitting=f"{len(splits)} {'grouped' if grouped else 'ungrouped'} folds, "
+        f"1/{len(parts)} of the classes held out per fold", classes=tuple(classes.tolist()),
+        accuracy=np.array(accuracy), f1=np.array(f1),
+        confusion=confusion_matrix(y_true[known_a], y_pred_a[known_a], labels=classes), n_samples=len(y),
+        seed=seed, notes=warning_notes(caught), taxonomy=subset.label_level is None, n_features=n_features,
+        grouped=grouped, columns=subset.columns, dropped=dropped, y_true=y_true, y_pred=y_pred_a,
+        fold=np.concatenate(fold), groups=groups[rows_a],
+        probability=np.concatenate(probability) if calibrate else None,
+        group_by=group_by, rows=rows_a, known=known_a, open_score=np.concatenate(score),
+        rejected=np.concatenate(rejected))

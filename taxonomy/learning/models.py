@@ -3,9 +3,17 @@
 A model file is a skops archive (``skops.io``), a format that rebuilds objects from a declared schema and
 never executes code on load. It holds one dict::
 
-    format "texplorer-model", format_version 1, pipeline (MinMaxScaler -> FQSelector -> classifier),
+    format "texplorer-model", format_version 2, pipeline (MinMaxScaler -> FQSelector -> classifier),
     feature_names (input columns in order), level, classifier, n_features, selected (kept feature names,
-    best FQ first), classes, seed, software_version, sklearn_version, dropped, n_rows
+    best FQ first), classes, seed, software_version, sklearn_version, dropped, n_rows,
+    open_set (means, precision, distance_scale, threshold, max_accuracy_drop, inner_auroc)
+
+The classifier is a :class:`~taxonomy.learning.calibration.TemperatureScaledClassifier`: its probabilities are
+calibrated on grouped out-of-fold scores inside the training scans. ``open_set`` is the rejection rule
+of :mod:`taxonomy.learning.openset`: the class means and shared precision matrix of the training scans in the
+model's feature space, the distance scale ``M_0`` and the threshold ``t`` learned by leave-classes-out
+inside the training scans; a scan scoring above ``t`` is an unknown material. A version 1 file (before
+calibration and the rule) still loads, as a model that never rejects.
 
 Loading first lists the file's types that skops does not trust by default and refuses the file unless
 they are all in :data:`TRUSTED_TYPES`; then it checks that the dict has exactly this shape and that the
@@ -39,24 +47,29 @@ from scanner.storage.files import atomic_write_bytes
 from scanner.version import __version__
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import LEVELS, check_level
+from taxonomy.learning.calibration import TemperatureScaledClassifier
 from taxonomy.learning.evaluation import (
     CLASSIFIERS,
     SEED,
     FeatureSet,
     classifier_estimators,
     drop_nan_columns,
-    make_pipeline,
+    fit_pipeline,
     resolve_feature_set,
 )
+from taxonomy.learning.openset import MAX_ACCURACY_DROP, RejectionRule, fit_rule, learn_rejection
 from taxonomy.table import Taxonomy
 
 MODEL_FORMAT = "texplorer-model"
-MODEL_FORMAT_VERSION = 1
+MODEL_FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)
+"""Version 1 files have no calibration and no rejection rule; they load as models that never reject."""
 
 TRUSTED_TYPES = (
     "features.modern.LengthRule",
     "features.random_kernels.RandomKernels",
     "features.selection.FQSelector",
+    "taxonomy.learning.calibration.TemperatureScaledClassifier",
     "sklearn.metrics._dist_metrics.EuclideanDistance64",
     "sklearn.neighbors._kd_tree.KDTree",
     "sklearn.neural_network._stochastic_optimizers.AdamOptimizer",
@@ -68,7 +81,10 @@ TRUSTED_TYPES = (
 arrays and scikit-learn estimators); a file with any other such type is refused before it is loaded."""
 
 MODEL_TYPES = (MinMaxScaler, FQSelector, *(type(est) for est in classifier_estimators(SEED).values()))
-"""The estimator classes a model's pipeline may consist of, step by step: scale, select, classify."""
+"""The estimator classes a model's pipeline may consist of, step by step: scale, select, classify (the
+classifier bare, in a version 1 file, or inside a :class:`TemperatureScaledClassifier`)."""
+_OPEN_SET_TYPES = {"means": np.ndarray, "precision": np.ndarray, "distance_scale": float, "threshold": float,
+                   "max_accuracy_drop": float, "inner_auroc": float}
 
 _STEPS = ("scale", "select", "classify")
 _META_TYPES: dict[str, type | tuple[type, ...]] = {
@@ -102,11 +118,15 @@ class TrainedModel:
     sklearn_version: str
     dropped: tuple[str, ...] = ()
     n_rows: int = 0
+    rejection: RejectionRule | None = None
 
     def describe(self) -> str:
-        """One line for people: classifier, level, classes, rows and the selected features."""
+        """One line for people: classifier, level, classes, rows, the rejection rule and the features."""
+        rule = ("; no rejection rule (a version 1 model)" if self.rejection is None else
+                f"; rejects a scan scoring above {self.rejection.threshold:.2f} (leave-classes-out AUROC "
+                f"{self.rejection.inner_auroc:.2f} inside training)")
         return (f"{self.classifier} at level {self.level}, {len(self.classes)} classes, "
-                f"trained on {self.n_rows} scans, texplorer {self.software_version}; "
+                f"trained on {self.n_rows} scans, texplorer {self.software_version}{rule}; "
                 f"features: {', '.join(self.selected)}")
 
 
@@ -133,11 +153,15 @@ def required_inputs(model: TrainedModel) -> tuple[str, ...]:
 
 
 def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, classifier: str = "rf",
-                seed: int = SEED, feature_set: FeatureSet = None) -> TrainedModel:
-    """Fit ``scale -> select n_features -> classifier`` on every row of ``space`` at ``level``.
+                seed: int = SEED, feature_set: FeatureSet = None,
+                max_accuracy_drop: float = MAX_ACCURACY_DROP) -> TrainedModel:
+    """Fit ``scale -> select n_features -> calibrated classifier`` on every row of ``space`` at ``level``,
+    and learn its rejection rule by leave-classes-out inside the same rows (:mod:`taxonomy.learning.openset`).
 
-    Columns that hold NaN in any row are left out, as in :func:`taxonomy.learning.evaluation.evaluate` (listed in
-    ``dropped``); cross-validated scores of the same settings come from there.
+    The calibration's inner splits and the rule's rounds keep a sample's scans together (``space.groups``).
+    Columns that hold NaN in any row are left out, as in :func:`taxonomy.learning.evaluation.evaluate`
+    (listed in ``dropped``). Cross-validated scores of the same settings come from
+    :func:`taxonomy.learning.evaluation.evaluate` and, for the rule, ``evaluate_open_set``.
 
     Parameters
     ----------
@@ -175,12 +199,22 @@ def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, 
     subset, dropped = drop_nan_columns(subset)
     y = subset.y(level)
     kernels = feature_sets.kernels_of(feature_set) if feature_sets.is_named_set(feature_set) else None
-    pipeline = make_pipeline(classifier, n_features, seed, kernels, subset.columns).fit(subset.X, y)
+    groups = np.asarray(subset.groups)
+    pipeline = fit_pipeline(subset.X, y, groups, classifier, n_features, seed, calibrate=True,
+                            materials=np.asarray(subset.label_text), kernels=kernels, columns=subset.columns)
+
+    def fit(X: np.ndarray, y_fit: np.ndarray, g: np.ndarray) -> Pipeline:
+        return fit_pipeline(X, y_fit, g, classifier, n_features, seed, calibrate=False, kernels=kernels,
+                            columns=subset.columns)
+
+    threshold, inner_auroc = learn_rejection(subset.X, y, groups, fit, seed=seed,
+                                             max_accuracy_drop=max_accuracy_drop)
+    rule = fit_rule(pipeline, subset.X, y, groups, threshold, max_accuracy_drop, inner_auroc)
     return TrainedModel(
         pipeline=pipeline, feature_names=subset.columns, level=level, classifier=classifier,
         n_features=n_features, selected=selected_names(pipeline, subset.columns),
         classes=tuple(str(c) for c in pipeline.classes_), seed=seed, software_version=__version__,
-        sklearn_version=sklearn.__version__, dropped=dropped, n_rows=len(y),
+        sklearn_version=sklearn.__version__, dropped=dropped, n_rows=len(y), rejection=rule,
     )
 
 
@@ -221,6 +255,10 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
         "seed": int(model.seed), "software_version": model.software_version,
         "sklearn_version": model.sklearn_version, "dropped": list(model.dropped), "n_rows": int(model.n_rows),
     }
+    if model.rejection is not None:
+        payload["open_set"] = model.rejection.to_dict()
+    else:
+        payload["format_version"] = 1
     data = _skops().dumps(payload)
     _check_types(path, data)
     _model_from(path, _skops().loads(data, trusted=list(TRUSTED_TYPES)))
@@ -283,10 +321,11 @@ def _model_from(path: Path, payload: Any) -> TrainedModel:
     """The model in a loaded payload, after checking that every part has the shape save_model writes."""
     if not isinstance(payload, dict) or payload.get("format") != MODEL_FORMAT:
         raise ModelError(f"{path}: not a texplorer model (no format tag {MODEL_FORMAT!r})")
-    if payload.get("format_version") != MODEL_FORMAT_VERSION:
-        raise ModelError(f"{path}: model format version {payload.get('format_version')!r} is not supported "
-                         f"(this program reads version {MODEL_FORMAT_VERSION})")
-    expected = {*_META_TYPES, "pipeline"}
+    version = payload.get("format_version")
+    if isinstance(version, bool) or version not in READABLE_VERSIONS:
+        raise ModelError(f"{path}: model format version {version!r} is not supported "
+                         f"(this program reads versions {', '.join(map(str, READABLE_VERSIONS))})")
+    expected = {*_META_TYPES, "pipeline", *(("open_set",) if version >= 2 else ())}
     if set(payload) != expected:
         odd = sorted(set(payload) ^ expected)
         raise ModelError(f"{path}: wrong model metadata fields: {', '.join(odd)}")
@@ -301,13 +340,33 @@ def _model_from(path: Path, payload: Any) -> TrainedModel:
     pipeline = payload["pipeline"]
     _check_pipeline(path, pipeline)
     _check_consistent(path, payload, pipeline)
+    rule = _rule_from(path, payload["open_set"], pipeline) if version >= 2 else None
     return TrainedModel(
         pipeline=pipeline, feature_names=tuple(payload["feature_names"]), level=payload["level"],
         classifier=payload["classifier"], n_features=payload["n_features"],
         selected=tuple(payload["selected"]), classes=tuple(payload["classes"]), seed=payload["seed"],
         software_version=payload["software_version"], sklearn_version=payload["sklearn_version"],
-        dropped=tuple(payload["dropped"]), n_rows=payload["n_rows"],
+        dropped=tuple(payload["dropped"]), n_rows=payload["n_rows"], rejection=rule,
     )
+
+
+def _rule_from(path: Path, stored: Any, pipeline: Pipeline) -> RejectionRule:
+    """The rejection rule of a version 2 file, after checking its fields' types and the arrays' shapes."""
+    if not isinstance(stored, dict) or set(stored) != set(_OPEN_SET_TYPES):
+        raise ModelError(f"{path}: the open_set field must hold {', '.join(_OPEN_SET_TYPES)}")
+    for key, kind in _OPEN_SET_TYPES.items():
+        if not isinstance(stored[key], kind):
+            raise ModelError(f"{path}: open_set field {key!r} must be {kind.__name__}")
+    means, precision = stored["means"], stored["precision"]
+    width = len(pipeline.named_steps["select"].selected_)
+    if means.shape != (len(pipeline.classes_), width) or precision.shape != (width, width) \
+            or not (np.isfinite(means).all() and np.isfinite(precision).all()):
+        raise ModelError(f"{path}: the open-set class means and precision must be finite, of "
+                         f"{len(pipeline.classes_)} classes x {width} selected features")
+    if not stored["distance_scale"] > 0 or math.isnan(stored["threshold"]):
+        raise ModelError(f"{path}: the open-set distance scale must be positive and the threshold a number")
+    return RejectionRule(means, precision, stored["distance_scale"], stored["threshold"], stored["max_accuracy_drop"],
+                         stored["inner_auroc"])
 
 
 def _check_pipeline(path: Path, pipeline: Any) -> None:
@@ -317,9 +376,15 @@ def _check_pipeline(path: Path, pipeline: Any) -> None:
     if names[0] == "kernels" and not isinstance(pipeline.steps[0][1], RandomKernels):
         raise ModelError(f"{path}: unexpected first step {type(pipeline.steps[0][1]).__name__}")
     scale, select, classify = (step for _, step in pipeline.steps[-3:])
+    if isinstance(classify, TemperatureScaledClassifier):
+        classify = getattr(classify, "estimator_", classify.estimator)
     kinds = (type(scale), type(select), type(classify))
     if kinds[:2] != (MinMaxScaler, FQSelector) or kinds[2] not in MODEL_TYPES[2:]:
         raise ModelError(f"{path}: unexpected pipeline steps {' -> '.join(k.__name__ for k in kinds)}")
+    calibrated = pipeline.steps[-1][1]
+    if isinstance(calibrated, TemperatureScaledClassifier) and not isinstance(getattr(calibrated, "beta_", None),
+                                                                               float):
+        raise ModelError(f"{path}: the classifier's calibration in the file is not fitted")
     if not all(hasattr(step, "n_features_in_") for step in (scale, select, classify)):
         raise ModelError(f"{path}: the pipeline in the file is not fitted")
 
@@ -336,6 +401,34 @@ def _check_consistent(path: Path, payload: dict[str, Any], pipeline: Pipeline) -
 
 
 # -- prediction --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """A model's answer for one scan: its ``k`` most probable classes, the rejection score and threshold
+    (NaN and +inf for a model without a rule) and whether the rule rejects the scan as an unknown material."""
+
+    top: list[tuple[str, float]]
+    score: float
+    threshold: float
+
+    @property
+    def unknown(self) -> bool:
+        return bool(self.score > self.threshold)
+
+
+def classify_values(model: TrainedModel, feature_values: Mapping[str, float], k: int = 3) -> Verdict:
+    """:func:`predict_top` with the model's rejection rule applied (:mod:`taxonomy.learning.openset`)."""
+    top = predict_top(model, feature_values, k)
+    if model.rejection is None:
+        return Verdict(top, math.nan, math.inf)
+    row = _row(model, feature_values)
+    score = float(model.rejection.score(model.pipeline, row)[0])
+    return Verdict(top, score, model.rejection.threshold)
+
+
+def _row(model: TrainedModel, feature_values: Mapping[str, float]) -> np.ndarray:
+    return np.array([[_as_float(feature_values.get(n, math.nan)) for n in model.feature_names]])
 
 
 def predict_top(model: TrainedModel, feature_values: Mapping[str, float],
@@ -374,8 +467,7 @@ def predict_top(model: TrainedModel, feature_values: Mapping[str, float],
     if undefined:
         raise ModelError(f"undefined (NaN or non-numeric) feature value(s) the model needs: "
                          f"{', '.join(undefined)}")
-    row = np.array([[_as_float(feature_values.get(n, math.nan)) for n in model.feature_names]])
-    probability = model.pipeline.predict_proba(row)[0]
+    probability = model.pipeline.predict_proba(_row(model, feature_values))[0]
     order = np.argsort(-probability, kind="stable")[:k]
     return [(str(model.pipeline.classes_[i]), float(probability[i])) for i in order]
 

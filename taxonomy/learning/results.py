@@ -14,6 +14,7 @@ The metric ``r_C`` (Strese et al. 2020, eq. 32) is defined here too, as a result
 
 from __future__ import annotations
 
+import functools
 import html
 import math
 import warnings
@@ -26,7 +27,8 @@ import numpy as np
 from scanner.lazy import optional
 from taxonomy import labels
 from taxonomy.errors import TexplorerError
-from taxonomy.labels import LabelError
+from taxonomy.labels import Label, LabelError
+from taxonomy.learning import metrics
 
 OWN_METHOD = "texplorer"
 """The ``method`` of the project's own evaluation (the paper's scale -> FQ selection -> classifier pipeline)."""
@@ -109,20 +111,31 @@ class Result:
     1/6``, ...), ``motions`` (a related method's motions), ``n_features`` (the selected set size; None:
     every feature, unselected) and ``seed``.
 
-    Scores: ``accuracy`` and ``f1`` (macro, over the classes in each split's true or predicted labels) hold
-    one value per split; ``confusion`` sums all splits (rows true, columns predicted, in the order of
-    ``classes``); ``notes`` what scikit-learn or the split reported while fitting (e.g. an MLP that did
-    not converge) and what was left out; ``taxonomy`` that the classes are taxonomy codes (else ``r_c``
-    is NaN); ``n_samples`` the rows of the set used, training and test (with a set's own split, the
-    training rows too; the rows classified are those of ``confusion``).
+    Scores: ``accuracy`` and ``f1`` (macro, over the classes present in each split's true labels, see
+    :func:`taxonomy.learning.metrics.present_class_f1`) hold one value per split; ``f1_pooled``, the headline, is
+    the macro F1 of all splits' predictions at once; ``confusion`` sums all splits (rows true, columns
+    predicted, in the order of ``classes``); ``notes`` what scikit-learn or the split reported while
+    fitting (e.g. an MLP that did not converge) and what was left out; ``taxonomy`` that the classes are
+    taxonomy codes (else ``r_c`` is NaN); ``n_samples`` the rows of the set used, training and test (with
+    a set's own split, the training rows too; the rows classified are those of ``confusion``).
 
     The evaluation's own: ``grouped`` (the folds keep the scans of a sample together), ``given_split``
     (the set's own train/test split was used: one "fold"), ``columns`` (the feature columns evaluated),
     ``dropped`` (those left out because they hold NaN), ``selected`` (the names each fold's selector kept,
-    best FQ first), and per row of the feature space ``y_true``, ``y_pred`` (out-of-fold predictions) and
-    ``fold`` (the split that tested it; -1 for a training row of the set's own split), and ``seconds``, the
-    wall time of fitting and predicting over all splits (the shared transform, scaling and selection, and
-    this classifier).
+    best FQ first), and per row of the feature space ``y_true``, ``y_pred`` (out-of-fold predictions),
+    ``fold`` (the split that tested it; -1 for a training row of the set's own split), ``groups`` (what the
+    folds kept together: ``group_by``, the sample by default) and ``probability`` (calibrated out-of-fold
+    class probabilities, columns in the order of ``classes``; None when not calibrated). ``voted``: each row
+    is a recording scored by the vote of its windows (:func:`taxonomy.learning.evaluation.vote`).
+``seconds``: the wall time of fitting and predicting over all splits (the shared transform, scaling and
+selection, and this classifier).
+
+    An open-set evaluation's own (:func:`taxonomy.learning.evaluation.evaluate_open_set`): the arrays above
+    are per test *instance* (a scan is tested once as an unknown, in the fold that holds out its class,
+    and once as a known scan, in its sample's fold, unless that is the same fold), ``rows`` the
+    feature-space row of each, ``known`` whether its class was trained, ``open_score`` its rejection
+    score, ``rejected`` whether the model's rule rejected it; ``accuracy`` per split and ``confusion`` are
+    over the known instances without rejection.
 
     A related method's own: ``feature_seconds`` and ``classify_seconds``, the time per classification
     (feature extraction and the classifier itself), ``paper``, the figure its paper reports for this
@@ -158,6 +171,14 @@ class Result:
     paper: str = ""
     detail: str = ""
     seconds: float = math.nan
+    groups: np.ndarray | None = None
+    probability: np.ndarray | None = None
+    group_by: str = "sample"
+    voted: bool = False
+    rows: np.ndarray | None = None
+    known: np.ndarray | None = None
+    open_score: np.ndarray | None = None
+    rejected: np.ndarray | None = None
 
     @property
     def folds(self) -> int:
@@ -193,11 +214,142 @@ class Result:
         counts = self.confusion.sum(axis=1)
         return float(counts.max() / counts.sum()) if counts.sum() else math.nan
 
+    @property
+    def chance_f1(self) -> float:
+        """Expected macro F1 of guessing with the class frequencies, ``1 / K`` (:func:`metrics.chance_macro_f1`)."""
+        return metrics.chance_macro_f1(int((self.confusion.sum(axis=1) > 0).sum()))
+
+    @property
+    def accuracy_pooled(self) -> float:
+        """The share of all out-of-fold predictions that are right (the confusion matrix's trace)."""
+        total = self.confusion.sum()
+        return float(np.trace(self.confusion) / total) if total else math.nan
+
+    @property
+    def f1_pooled(self) -> float:
+        """Macro F1 over the pooled out-of-fold predictions, the headline F1 (:mod:`taxonomy.learning.metrics`)."""
+        return metrics.macro_f1_from_confusion(self.confusion)
+
+    def _scored_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """True and predicted labels and groups of the scored instances (known instances of an open-set
+        result); rebuilt from the confusion matrix, one group per row, where the result has no rows."""
+        if self.y_true is not None and self.y_pred is not None and self.fold is not None:
+            tested = self.fold >= 0
+            if self.known is not None:
+                tested &= self.known
+            groups = self.groups if self.groups is not None else np.arange(len(self.y_true)).astype(str)
+            return self.y_true[tested], self.y_pred[tested], np.asarray(groups)[tested]
+        true, pred = np.nonzero(self.confusion)
+        counts = self.confusion[true, pred]
+        classes = np.asarray(self.classes)
+        y_true, y_pred = np.repeat(classes[true], counts), np.repeat(classes[pred], counts)
+        return y_true, y_pred, np.arange(len(y_true)).astype(str)
+
+    @functools.cached_property
+    def intervals(self) -> dict[str, tuple[float, float]]:
+        """95 % percentile-bootstrap intervals of the pooled ``accuracy`` and ``f1`` over the folds' groups
+        (:func:`metrics.bootstrap_interval`, 1000 resamples with the result's seed); over single rows for a
+        result without groups (a related method's splits)."""
+        y_true, y_pred, groups = self._scored_rows()
+        if y_true.size == 0:
+            return {"accuracy": (math.nan, math.nan), "f1": (math.nan, math.nan)}
+        # Class indices once: each of the 2000 resamples is then a weighted bincount.
+        classes, codes = np.unique(np.concatenate([y_true, y_pred]), return_inverse=True)
+        true, pred = codes[:len(y_true)], codes[len(y_true):]
+        k = classes.size
+
+        right = (true == pred).astype(np.float64)
+
+        def f1(weights: np.ndarray) -> float:
+            cells = np.bincount(true * k + pred, weights=weights, minlength=k * k)
+            return metrics.macro_f1_from_confusion(cells.reshape(k, k))
+
+        return {
+            "accuracy": metrics.bootstrap_interval(lambda weights: float(weights @ right / weights.sum()), groups,
+                                                   self.seed),
+            "f1": metrics.bootstrap_interval(f1, groups, self.seed),
+        }
+
+    @property
+    def accuracy_ci(self) -> tuple[float, float]:
+        return self.intervals["accuracy"]
+
+    @property
+    def f1_ci(self) -> tuple[float, float]:
+        return self.intervals["f1"]
+
+    @functools.cached_property
+    def reliability(self) -> metrics.Reliability | None:
+        """The reliability bins and ECE of the calibrated out-of-fold probabilities; None without them."""
+        if self.probability is None or self.y_true is None:
+            return None
+        tested = np.all(np.isfinite(self.probability), axis=1)
+        if self.known is not None:
+            tested &= self.known
+        if not tested.any():
+            return None
+        index = np.searchsorted(np.asarray(self.classes), self.y_true[tested])
+        return metrics.reliability(self.probability[tested], index)
+
+    @property
+    def ece(self) -> float:
+        """Expected calibration error of the calibrated probabilities (Guo et al. 2017, eq. 3); NaN without."""
+        return self.reliability.ece if self.reliability is not None else math.nan
+
+    def derived_accuracy(self, level: str) -> float:
+        """Accuracy at a coarser ``level`` of this fine result's predictions cut to that level (``C6S1M1P2X1``
+        -> ``C6`` at the coarse level); NaN where it does not apply (not the fine level of taxonomy codes)."""
+        if self.level != "fine" or not self.taxonomy or self.y_true is None or self.y_pred is None:
+            return math.nan
+        y_true, y_pred, _ = self._scored_rows()
+        try:
+            cut_true = [Label.parse(t).at(level) for t in y_true]
+            cut_pred = [Label.parse(p).at(level) for p in y_pred]
+        except (LabelError, ValueError):
+            return math.nan
+        return metrics.accuracy(cut_true, cut_pred) if cut_true else math.nan
+
+    # -- open set ------------------------------------------------------------------------------------
+
+    @property
+    def open_set(self) -> bool:
+        return self.known is not None and self.open_score is not None and self.rejected is not None
+
+    @property
+    def auroc(self) -> float:
+        """AUROC of the rejection score, unknown against known instances; NaN for a closed-set result."""
+        return metrics.auroc(self.open_score, ~self.known) if self.open_set else math.nan
+
+    @property
+    def closed_accuracy(self) -> float:
+        """Accuracy on the known instances without rejection."""
+        if not self.open_set:
+            return self.accuracy_pooled
+        return metrics.accuracy(self.y_true[self.known], self.y_pred[self.known])
+
+    @property
+    def known_accuracy(self) -> float:
+        """Accuracy on the known instances with the rejection rule, a rejected instance counting as wrong."""
+        if not self.open_set:
+            return math.nan
+        right = (self.y_true == self.y_pred) & ~self.rejected
+        return float(np.mean(right[self.known]))
+
+    @property
+    def unknown_rejected(self) -> float:
+        """The share of unknown instances (classes never trained) that the rule rejected."""
+        if not self.open_set or self.known.all():
+            return math.nan
+        return float(np.mean(self.rejected[~self.known]))
+
     def summary(self) -> str:
-        """One line: ``rf fine X10 all (nested): accuracy 90.2 % +- 1.2 %, F1 0.90 +- 0.01, r_C 0.05 ...``."""
+        """One line: ``rf fine X10 all (nested): accuracy 90.2 % +- 1.2 % (95 % CI 86.0-93.1), macro F1 0.90
+        pooled, 0.91 per fold, r_C 0.05, chance 3.1 % ...``."""
+        low, high = self.accuracy_ci
         return (f"{self.classifier} {self.level} {size_name(self.n_features)} {self.feature_set} "
-                f"({self.protocol}): accuracy {100 * self.accuracy_mean:.1f} % +- {100 * self.accuracy_std:.1f} %, "
-                f"F1 {self.f1_mean:.2f} +- {self.f1_std:.2f}, r_C {format_r_c(self.r_c)} "
+                f"({self.protocol}): accuracy {100 * self.accuracy_mean:.1f} % +- {100 * self.accuracy_std:.1f} % "
+                f"(95 % CI {100 * low:.1f}-{100 * high:.1f}), macro F1 {self.f1_pooled:.2f} pooled, "
+                f"{self.f1_mean:.2f} per fold, r_C {format_r_c(self.r_c)}, chance {100 * self.chance:.1f} % "
                 f"({self.splitting}, {len(self.classes)} classes, seed {self.seed})")
 
     def __repr__(self) -> str:
@@ -276,6 +428,11 @@ class Result:
             "accuracy": self.accuracy.tolist(), "f1": self.f1.tolist(),
             "accuracy_mean": self.accuracy_mean, "accuracy_std": self.accuracy_std,
             "f1_mean": self.f1_mean, "f1_std": self.f1_std, "r_c": number(self.r_c),
+            "f1_pooled": number(self.f1_pooled), "accuracy_pooled": number(self.accuracy_pooled),
+            "accuracy_ci": [number(v) for v in self.accuracy_ci], "f1_ci": [number(v) for v in self.f1_ci],
+            "chance": number(self.chance), "chance_f1": number(self.chance_f1), "ece": number(self.ece),
+            "group_by": self.group_by, "voted": self.voted, "auroc": number(self.auroc),
+            "known_accuracy": number(self.known_accuracy), "unknown_rejected": number(self.unknown_rejected),
             "classes": list(self.classes), "confusion": self.confusion.tolist(),
             "selected": [list(s) for s in self.selected], "columns": list(self.columns),
             "dropped": list(self.dropped), "notes": list(self.notes),

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from sklearn.base import BaseEstimator
-from sklearn.metrics import confusion_matrix, f1_score
+from sklearn.metrics import confusion_matrix
 from sklearn.model_selection import StratifiedKFold, StratifiedShuffleSplit
 from sklearn.pipeline import Pipeline
 
@@ -20,6 +20,7 @@ from features import cluster
 from features.threads import one_blas_thread
 from taxonomy import labels
 from taxonomy.labels import LabelError
+from taxonomy.learning.metrics import present_class_f1
 from taxonomy.learning.results import Result, warning_notes
 from taxonomy.related.datasets import TIMED_ROWS, Extracted, MethodError
 
@@ -96,7 +97,8 @@ def _single_row_seconds(model: BaseEstimator, rows: np.ndarray) -> tuple[list[fl
 
 @dataclass(frozen=True)
 class Scores:
-    """Cross-validated scores of one model: per-split accuracy and F1, summed confusion, row timings."""
+    """Cross-validated scores of one model: per-split accuracy and macro F1 (over the classes present in
+    the split, :func:`taxonomy.learning.metrics.present_class_f1`), summed confusion, row timings."""
 
     accuracy: np.ndarray
     f1: np.ndarray
@@ -144,7 +146,7 @@ def score(make: Maker, X: np.ndarray, y: np.ndarray, splits: Sequence[Split],
     for (_, test), (predicted, messages, _, _) in zip(splits, fitted, strict=True):
         notes += messages
         accuracy.append(float(np.mean(predicted == y[test])))
-        f1.append(float(f1_score(y[test], predicted, average="macro", zero_division=0.0)))
+        f1.append(present_class_f1(y[test], predicted))
         confusion += confusion_matrix(y[test], predicted, labels=classes)
     return Scores(np.array(accuracy), np.array(f1), tuple(classes.tolist()), confusion,
                   float(np.median(feature)), float(np.median(classify)), tuple(dict.fromkeys(notes)))

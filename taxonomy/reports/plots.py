@@ -313,8 +313,10 @@ def plot_scores(reports: Sequence[Result], level: str, n_features: int | None,
                 path: str | os.PathLike[str]) -> Path:
     """Accuracy (top) and macro F1 (bottom) per feature set and classifier, like the paper's Figs. 16-18.
 
-    Bars are fold means with +- one standard deviation over folds; the dotted line marks the best mean
-    accuracy and its F1, as in Fig. 17. Only the reports at ``level`` with ``n_features`` are drawn.
+    Bars are the pooled out-of-fold accuracy and macro F1 with their 95 % bootstrap intervals
+    (``Result.intervals``); the dotted line marks the best accuracy and its F1, as in Fig. 17; the dashed
+    red line is chance (the most frequent class; ``1 / K`` for macro F1). Only the reports at ``level``
+    with ``n_features`` are drawn.
     """
     chosen = [r for r in reports if r.level == level and r.n_features == n_features]
     if not chosen:
@@ -329,27 +331,31 @@ def plot_scores(reports: Sequence[Result], level: str, n_features: int | None,
     for k, name in enumerate(classifiers):
         rows = [cell.get((name, s)) for s in sets]
         offset = x - 0.4 + (k + 0.5) * width
-        for ax, mean, std, scale in ((top, "accuracy_mean", "accuracy_std", 100.0),
-                                     (bottom, "f1_mean", "f1_std", 1.0)):
-            heights = [scale * getattr(r, mean) if r else np.nan for r in rows]
-            errors = [scale * getattr(r, std) if r else 0.0 for r in rows]
+        for ax, value, interval, scale in ((top, "accuracy_pooled", "accuracy_ci", 100.0),
+                                           (bottom, "f1_pooled", "f1_ci", 1.0)):
+            heights = np.array([scale * getattr(r, value) if r else np.nan for r in rows])
+            bounds = np.array([[scale * v for v in getattr(r, interval)] if r else [np.nan, np.nan] for r in rows])
+            errors = np.nan_to_num(np.abs(bounds.T - heights))
             ax.bar(offset, heights, width, yerr=errors, capsize=2, label=name, color=f"C{k}",
                    error_kw={"elinewidth": 0.8})
-    best = max(chosen, key=lambda r: r.accuracy_mean)
-    top.axhline(100 * best.accuracy_mean, color="0.3", ls=":", lw=1,
-                label=f"best {100 * best.accuracy_mean:.1f} % ({best.classifier}, {best.feature_set})")
-    bottom.axhline(best.f1_mean, color="0.3", ls=":", lw=1)
-    top.set_ylabel("accuracy (%)")
+    best = max(chosen, key=lambda r: r.accuracy_pooled)
+    top.axhline(100 * best.accuracy_pooled, color="0.3", ls=":", lw=1,
+                label=f"best {100 * best.accuracy_pooled:.1f} % ({best.classifier}, {best.feature_set})")
+    bottom.axhline(best.f1_pooled, color="0.3", ls=":", lw=1)
+    top.axhline(100 * chosen[0].chance, color="C3", ls="--", lw=1,
+                label=f"chance {100 * chosen[0].chance:.1f} % (most frequent class)")
+    bottom.axhline(chosen[0].chance_f1, color="C3", ls="--", lw=1)
     top.set_ylim(0, 105)
-    bottom.set_ylabel("macro F1")
+    top.set_ylabel("accuracy (%), 95 % CI")
+    bottom.set_ylabel("macro F1 (pooled), 95 % CI")
     bottom.set_ylim(0, 1.05)
     bottom.set_xticks(x, sets)
     bottom.set_xlabel("feature set")
     figure.legend(*top.get_legend_handles_labels(), loc="outside right upper", fontsize="small")
     first = chosen[0]
     size = "all features" if n_features is None else f"X{n_features}"
-    top.set_title(f"{level} classification with {size} ({first.protocol} protocol, "
-                  f"{first.splitting}, {len(first.classes)} classes)")
+    top.set_title(_wrap(f"{level} classification with {size} ({first.protocol} protocol, "
+                        f"{first.splitting}, {len(first.classes)} classes)", 60), fontsize=10)
     return _save(figure, path)
 
 
@@ -527,3 +533,68 @@ def plot_confusion(confusion: np.ndarray, classes: Sequence[str], path: str | os
     figure.colorbar(image, cax=bar, label="share of the true class")
     figure.savefig(_target(path), dpi=90, bbox_inches="tight", pad_inches=0.15, format="png")
     return Path(path)
+
+
+def plot_reliability(reports: Sequence[Result], path: str | os.PathLike[str]) -> Path:
+    """Reliability diagrams of calibrated probabilities, one panel per result (Guo et al. 2017, Fig. 1).
+
+    Each populated bin of top-label confidence is a point at (mean confidence, accuracy), its area growing
+    with the scans in it; the diagonal is perfect calibration and the dashed red line chance (the most
+    frequent class). The title gives the result and its expected calibration error (ECE).
+    """
+    chosen = [r for r in reports if r.reliability is not None]
+    if not chosen:
+        raise ValueError("no result with calibrated probabilities to plot")
+    columns = min(3, len(chosen))
+    rows = -(-len(chosen) // columns)
+    figure = _canvas(3.2 * columns, 3.2 * rows)
+    axes = np.atleast_1d(figure.subplots(rows, columns, squeeze=False)).ravel()
+    for ax, report in zip(axes, chosen, strict=False):
+        bins = report.reliability
+        ax.plot([0, 1], [0, 1], color="0.5", lw=1, label="calibrated")
+        ax.axhline(report.chance, color="C3", ls="--", lw=1, label="chance")
+        ax.plot(bins.confidence, bins.accuracy, color="C0", lw=1)
+        ax.scatter(bins.confidence, bins.accuracy, s=12 + 200 * bins.count / bins.count.sum(), color="C0",
+                   zorder=3, label="bins (area: scans)")
+        ax.set_xlim(0, 1)
+        ax.set_ylim(0, 1.02)
+        ax.set_aspect("equal")
+        ax.set_title(f"{report.classifier}, {report.feature_set}, {report.level}, "
+                     f"{'all' if report.n_features is None else f'X{report.n_features}'}\nECE {report.ece:.3f}",
+                     fontsize=9)
+        ax.set_xlabel("confidence (top probability)", fontsize=8)
+        ax.set_ylabel("accuracy", fontsize=8)
+    for ax in axes[len(chosen):]:
+        ax.set_visible(False)
+    axes[0].legend(fontsize=7, loc="upper left")
+    return _save(figure, path, dpi=90)
+
+
+def plot_open_set(report: Result, path: str | os.PathLike[str]) -> Path:
+    """Histograms of the rejection score of known and unknown test scans of an open-set result, with the
+    ROC curve beside them; the ROC's diagonal is chance (AUROC 0.5)."""
+    if not report.open_set:
+        raise ValueError("not an open-set result")
+    figure = _canvas(9.0, 3.4)
+    left, right = figure.subplots(1, 2)
+    score = report.open_score
+    bins = np.linspace(score.min(), score.max(), 30)
+    left.hist(score[report.known], bins, alpha=0.6, label="known materials", color="C0")
+    left.hist(score[~report.known], bins, alpha=0.6, label="held-out materials", color="C3")
+    left.set_xlabel("rejection score s(x)")
+    left.set_ylabel("test scans")
+    left.legend(fontsize=8)
+    order = np.argsort(-score, kind="stable")
+    unknown = ~report.known[order]
+    tpr = np.r_[0, np.cumsum(unknown) / max(unknown.sum(), 1)]
+    fpr = np.r_[0, np.cumsum(~unknown) / max((~unknown).sum(), 1)]
+    right.plot(fpr, tpr, color="C0", label=f"AUROC {report.auroc:.3f}")
+    right.plot([0, 1], [0, 1], color="C3", ls="--", lw=1, label="chance (0.5)")
+    right.set_xlabel("known scans rejected")
+    right.set_ylabel("unknown scans rejected")
+    right.set_aspect("equal")
+    right.legend(fontsize=8, loc="lower right")
+    figure.suptitle(f"{report.classifier}, {report.level}: known-class accuracy {100 * report.known_accuracy:.1f} % "
+                    f"(closed set {100 * report.closed_accuracy:.1f} %), unknown rejected "
+                    f"{100 * report.unknown_rejected:.1f} %", fontsize=9)
+    return _save(figure, path, dpi=90)

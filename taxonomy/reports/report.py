@@ -1,14 +1,18 @@
 """Evaluation reports (docs/evaluation.md): a text table for the terminal and a self-contained HTML page with plots.
 
 ``format_table(reports)`` prints one block per set size and protocol: a row per classifier and feature
-set, a column per level, each cell ``accuracy % (mean +- std over folds)  macro F1  r_C``.
+set, a column per level, each cell ``accuracy %  95 % interval  macro F1 (pooled)  macro F1 (per fold)
+r_C``, then the chance row and the coarse and medium accuracy derived from the fine prediction.
+``format_open_set(reports)`` prints the figures of an open-set evaluation.
 
 ``write_report(folder, space, reports)`` writes ``index.html`` and its PNG figures into ``folder``. The page
 embeds the figures as base64 data, so ``index.html`` alone opens offline; the PNGs beside it are for papers
 and slides. Figures: accuracy and F1 per classifier and feature set for every level and set size (paper
 Figs. 16-18), the FQ ranking and the Spearman heat map of the features selected on all rows (Table IV's
 view), the PCA explained variance (Fig. 15), per-class box plots of the best feature (Fig. 14) and the
-confusion matrix of the best classifier at every level.
+confusion matrix of the best classifier at every level, the reliability diagram of every classifier's
+calibrated probabilities and, for an open-set evaluation, the rejection score's histograms and ROC. Every
+table has one column per figure and sorts by any column (a click on its header); every chart draws chance.
 """
 
 from __future__ import annotations
@@ -31,29 +35,61 @@ from taxonomy.reports.plots import (
     plot_confusion,
     plot_feature_boxes,
     plot_fq_ranking,
+    plot_open_set,
     plot_pca_variance,
+    plot_reliability,
     plot_scores,
     plot_spearman,
 )
 
-CELL_LEGEND = ("accuracy % (mean +- std over folds), macro F1, r_C (paper eq. 32; - where undefined: no "
-               "misclassification, or the coarse level, where every misclassification leaves the major class)")
-PAGE_STYLE = ("body{font-family:sans-serif;margin:2em;max-width:1200px}table{border-collapse:collapse;"
-              "margin-bottom:1.5em;display:block;overflow-x:auto;max-width:100%}"
-              "td,th{border:1px solid #ccc;padding:2px 8px;font-family:monospace;"
-              "white-space:pre;text-align:left}figure{margin:1.5em 0}img{max-width:100%}"
-              "figcaption{color:#444}")
-"""The CSS of every texplorer report page; a wide table scrolls inside the page (a tablet's 800 px)."""
+CELL_LEGEND = ("accuracy % of the pooled out-of-fold predictions, its 95 % interval (percentile bootstrap over "
+               "the folds' groups, 1000 resamples), macro F1 of the pooled predictions, macro F1 per fold over "
+               "the classes present in the fold, r_C (paper eq. 32; - where undefined: no misclassification, "
+               "or the coarse level, where every misclassification leaves the major class); chance: accuracy of "
+               "always answering the most frequent class, and 1 / K for macro F1")
+F1_SENTENCE = ("Macro F1 is computed once over all out-of-fold predictions pooled (the headline); the per-fold "
+               "figure averages each fold's F1 over the classes present in that fold, since a fold grouped by "
+               "sample holds only some classes and a class absent from it would otherwise count as F1 0.")
+PAGE_STYLE = ("body{font-family:sans-serif;margin:1em auto;max-width:1200px;padding:0 1em;line-height:1.4}"
+              ".scroll{overflow-x:auto;max-width:100%;margin-bottom:1.5em}table{border-collapse:collapse}"
+              "td,th{border:1px solid #ccc;padding:2px 6px;text-align:left;font-size:0.9em}"
+              "td.num{font-family:monospace;text-align:right;white-space:nowrap}"
+              "th{background:#f3f3f3;vertical-align:bottom}th[data-sort]{cursor:pointer}"
+              "th[data-sort]::after{content:' \\2195';color:#999}tr.chance td{color:#a00;font-style:italic}"
+              "nav ul{columns:2;max-width:40em}figure{margin:1.5em 0}img{max-width:100%;height:auto}"
+              "figcaption{color:#444}@media(max-width:800px){body{margin:0.5em;padding:0 0.5em}"
+              "td,th{padding:2px 3px;font-size:0.8em}nav ul{columns:1}}")
+"""The CSS of every texplorer report page: readable at a tablet's 768 px (a wider table scrolls inside its
+box, numbers never wrap)."""
+SORT_SCRIPT = ("document.querySelectorAll('th[data-sort]').forEach(function(th){th.addEventListener('click',"
+               "function(){var table=th.closest('table'),body=table.tBodies[0],k=th.cellIndex,"
+               "up=th.dataset.dir!=='asc';th.dataset.dir=up?'asc':'desc';var rows=Array.from(body.rows)"
+               ".filter(function(r){return !r.classList.contains('chance')});rows.sort(function(a,b){"
+               "var x=a.cells[k].dataset.v||a.cells[k].textContent,y=b.cells[k].dataset.v||b.cells[k].textContent,"
+               "p=parseFloat(x),q=parseFloat(y),c=(isNaN(p)||isNaN(q))?x.localeCompare(y):p-q;return up?c:-c});"
+               "rows.forEach(function(r){body.insertBefore(r,body.querySelector('tr.chance'))})})})")
+"""Sorts a table by the column whose header is clicked (ascending, then descending); the chance row stays
+last. Inline, so the page still opens offline as one file."""
+
+
+def _percent(value: float) -> str:
+    return "-" if math.isnan(value) else f"{100 * value:.1f}"
+
+
+def _interval(bounds: tuple[float, float], scale: float = 100.0, digits: int = 1) -> str:
+    low, high = bounds
+    return "-" if math.isnan(low) else f"{scale * low:.{digits}f}-{scale * high:.{digits}f}"
 
 
 def cell_text(report: Result) -> str:
-    """``"90.2 +- 1.2  0.90  0.05"``: accuracy in percent, macro F1 and r_C.
+    """``"90.2  86.0-93.1  0.90  0.91  0.05"``: pooled accuracy in percent, its 95 % interval, macro F1
+    pooled and per fold, r_C.
 
     r_C is NaN where it is undefined (``taxonomy.learning.results.r_c``: no misclassification, or the coarse
     level) and shown as ``-`` then, never as a number.
     """
-    return (f"{100 * report.accuracy_mean:5.1f} +- {100 * report.accuracy_std:4.1f}  {report.f1_mean:4.2f}  "
-            f"{format_r_c(report.r_c):>4}")
+    return (f"{_percent(report.accuracy_pooled):>5}  {_interval(report.accuracy_ci):>11}  {report.f1_pooled:4.2f}  "
+            f"{report.f1_mean:4.2f}  {format_r_c(report.r_c):>4}")
 
 
 WILSON_Z = 1.959963984540054
@@ -103,30 +139,51 @@ def _level_order(reports: Sequence[Result]) -> list[str]:
             if any(r.level == level for r in reports)]
 
 
+def _block_title(chosen: Sequence[Result]) -> str:
+    first = chosen[0]
+    unit = first.group_by if first.taxonomy or first.group_by != "sample" else "the set's groups"
+    split = (f"grouped by {unit}" if all(r.grouped for r in chosen)
+             else f"NOT grouped by {unit}: {'scans of one ' + unit if first.taxonomy else 'a group'} "
+                  "in training and test")
+    splits = "the set's train/test split" if first.given_split else f"{first.folds} folds {split}"
+    voted = ", recordings voted by their windows" if first.voted else ""
+    return f"{size_name(first.n_features)}, {first.protocol} protocol, {splits}{voted}, seed {first.seed}"
+
+
+def _block_results(reports: Sequence[Result]) -> list[list[Result]]:
+    """The reports per (set size, protocol), in order of appearance."""
+    return [[r for r in reports if (r.n_features, r.protocol) == key]
+            for key in dict.fromkeys((r.n_features, r.protocol) for r in reports)]
+
+
 def _blocks(reports: Sequence[Result]) -> list[tuple[str, list[str], list[tuple[str, str, list[str]]]]]:
     """Per (set size, protocol): a title, the levels present, and rows (classifier, feature set, cells)."""
     blocks = []
-    for size, protocol in dict.fromkeys((r.n_features, r.protocol) for r in reports):
-        chosen = [r for r in reports if r.n_features == size and r.protocol == protocol]
+    for chosen in _block_results(reports):
         levels = _level_order(chosen)
         cell = {(r.classifier, r.feature_set, r.level): r for r in chosen}
         rows = []
         for classifier, feature_set in dict.fromkeys((r.classifier, r.feature_set) for r in chosen):
             found = [cell.get((classifier, feature_set, level)) for level in levels]
             rows.append((classifier, feature_set, [cell_text(r) if r else "" for r in found]))
-        first = chosen[0]
-        unit = "sample" if first.taxonomy else "the set's groups"
-        split = (f"grouped by {unit}" if all(r.grouped for r in chosen)
-                 else f"NOT grouped by {unit}: {'scans of one sample' if first.taxonomy else 'a group'} "
-                      "in training and test")
-        splits = "the set's train/test split" if first.given_split else f"{first.folds} folds {split}"
-        title = f"{size_name(size)}, {protocol} protocol, {splits}, seed {first.seed}"
-        blocks.append((title, levels, rows))
+        blocks.append((_block_title(chosen), levels, rows))
     return blocks
 
 
+def _chance(chosen: Sequence[Result], level: str) -> Result | None:
+    return next((r for r in chosen if r.level == level), None)
+
+
+def _derived(chosen: Sequence[Result]) -> list[tuple[str, str, list[str]]]:
+    """Rows (classifier, feature set, [coarse, medium accuracy %]) of the fine results cut to the coarser
+    levels; empty where no fine result of taxonomy codes is there."""
+    return [(r.classifier, r.feature_set, [_percent(r.derived_accuracy(level)) for level in ("coarse", "medium")])
+            for r in chosen if r.level == "fine" and r.taxonomy and r.y_pred is not None]
+
+
 def format_table(reports: Sequence[Result]) -> str:
-    """The classifier x feature set x level table as text, one block per set size and protocol.
+    """The classifier x feature set x level table as text, one block per set size and protocol: a row per
+    classifier and feature set, the chance row, then the coarse and medium accuracy of the fine prediction.
 
     Parameters
     ----------
@@ -136,12 +193,12 @@ def format_table(reports: Sequence[Result]) -> str:
     Returns
     -------
     str
-        Accuracy mean +- std (%), macro F1 and r_C per cell; ``-`` where r_C is undefined.
+        The table, one block per set size and protocol.
     """
     if not reports:
         return "no results"
-    lines = [f"cells: {CELL_LEGEND}"]
-    for title, levels, rows in _blocks(reports):
+    lines = [f"cells: {CELL_LEGEND}", F1_SENTENCE]
+    for chosen, (title, levels, rows) in zip(_block_results(reports), _blocks(reports), strict=True):
         width_c = max(len("classifier"), *(len(r[0]) for r in rows))
         width_s = max(len("feature set"), *(len(r[1]) for r in rows))
         width = max(len(cell) for row in rows for cell in row[2])
@@ -151,6 +208,53 @@ def format_table(reports: Sequence[Result]) -> str:
         for classifier, feature_set, cells in rows:
             lines.append((f"{classifier:<{width_c}}  {feature_set:<{width_s}}  "
                           + "  ".join(f"{cell:<{width}}" for cell in cells)).rstrip())
+        chance = [_chance(chosen, level) for level in levels]
+        lines.append((f"{'chance':<{width_c + width_s + 2}}  " + "  ".join(
+            f"{f'{_percent(r.chance):>5} %, F1 {r.chance_f1:.2f}':<{width}}" for r in chance
+            if r is not None)).rstrip())
+        derived = _derived(chosen)
+        if derived:
+            lines.append("accuracy % of the fine prediction cut to coarse / medium (beside the levels trained "
+                         "directly above):")
+            lines += [f"  {c:<{width_c}}  {fs:<{width_s}}  coarse {a:>5}  medium {b:>5}" for c, fs, (a, b) in derived]
+    return "\n".join(lines)
+
+
+OPEN_SET_COLUMNS = ("classifier", "feature set", "level", "features", "AUROC", "95 % CI", "known accuracy %",
+                    "closed-set accuracy %", "unknown rejected %", "chance AUROC")
+
+
+def _open_set_cells(r: Result) -> list[str]:
+    low, high = _auroc_interval(r)
+    return [r.classifier, r.feature_set, r.level, size_name(r.n_features), f"{r.auroc:.3f}",
+            "-" if math.isnan(low) else f"{low:.3f}-{high:.3f}", _percent(r.known_accuracy),
+            _percent(r.closed_accuracy), _percent(r.unknown_rejected), "0.500"]
+
+
+def _auroc_interval(r: Result) -> tuple[float, float]:
+    """95 % bootstrap interval of the AUROC over the test instances' groups (samples)."""
+    from taxonomy.learning.metrics import auroc, bootstrap_interval
+
+    groups = r.groups if r.groups is not None else np.arange(len(r.open_score)).astype(str)
+    def resampled(weights: np.ndarray) -> float:
+        rows = np.repeat(np.arange(weights.size), weights.astype(int))
+        return auroc(r.open_score[rows], ~r.known[rows])
+
+    return bootstrap_interval(resampled, groups, r.seed)
+
+
+def format_open_set(reports: Sequence[Result]) -> str:
+    """The open-set figures as text: AUROC (chance 0.5) with its interval, the known-class accuracy at the
+    learned threshold beside the closed-set accuracy of the same folds, and the share of unknown scans
+    rejected."""
+    if not reports:
+        return "no results"
+    rows = [OPEN_SET_COLUMNS[:-1], *(_open_set_cells(r)[:-1] for r in reports)]
+    widths = [max(len(row[k]) for row in rows) for k in range(len(rows[0]))]
+    lines = [f"open set: {reports[0].splitting}; AUROC of known against held-out materials (chance 0.500), "
+             f"accuracy on known materials with the rejection rule (a rejected scan counts as wrong) and "
+             f"without it, share of held-out materials' scans rejected"]
+    lines += ["  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip() for row in rows]
     return "\n".join(lines)
 
 
@@ -193,6 +297,15 @@ def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: S
                     plot_pca_variance(space.X, folder / "pca.png")))
     feature = feature or selection.ranking[0][0]
     figures.append(_boxes(folder, space, feature, level, max_classes))
+    calibrated = _calibration_results(reports)
+    if calibrated:
+        figures.append(("reliability diagrams of the calibrated probabilities, one per classifier (accuracy "
+                        "against confidence per bin; diagonal: calibrated; dashed: chance); ECE in each title",
+                        plot_reliability(calibrated, folder / "reliability.png")))
+    for k, r in enumerate(x for x in reports if x.open_set):
+        figures.append((f"open set, {r.classifier} {r.feature_set} {r.level} {size_name(r.n_features)}: rejection "
+                        "score of known and held-out materials, and the ROC curve (dashed: chance)",
+                        plot_open_set(r, folder / f"open_set_{k}.png")))
     for lvl in order:
         at_level = [r for r in reports if r.level == lvl]
         if at_level:
@@ -206,6 +319,22 @@ def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: S
     page = folder / "index.html"
     atomic_write_bytes(page, _html(space, reports, selection, figures).encode("utf-8"))
     return page
+
+
+def _calibration_results(reports: Sequence[Result]) -> list[Result]:
+    """One calibrated result per classifier for the reliability diagram: at the finest level evaluated,
+    with every feature ("all") and the larger set size where there, else its most accurate."""
+    order = _level_order(reports)
+    chosen = []
+    for classifier in dict.fromkeys(r.classifier for r in reports):
+        mine = [r for r in reports if r.classifier == classifier and r.reliability is not None and not r.open_set]
+        if not mine:
+            continue
+        finest = [r for r in mine if r.level == max((r.level for r in mine), key=order.index)]
+        chosen.append(max(finest, key=lambda r: (r.feature_set == "all",
+                                                 math.inf if r.n_features is None else r.n_features,
+                                                 r.accuracy_pooled)))
+    return chosen
 
 
 def _selection_figures(folder: Path, space: FeatureSpace, selection: Selection,
@@ -238,6 +367,70 @@ def _boxes(folder: Path, space: FeatureSpace, feature: str, level: str,
     return f"{feature} per class at the {level} level{scope} (Fig. 14)", path
 
 
+RESULT_COLUMNS = ("classifier", "feature set", "level", "accuracy %", "95 % CI", "fold mean +- sd",
+                  "macro F1", "F1 per fold", "r_C", "from fine %", "ECE", "chance %")
+"""The HTML results table: one column per figure (``from fine``: the coarse or medium accuracy of the same
+classifier's fine prediction cut to that level)."""
+
+
+def _td(text: str, value: float | None = None) -> str:
+    """A numeric cell; ``value`` sorts it (NaN sorts as text: "-")."""
+    e = html.escape
+    sort = "" if value is None or math.isnan(value) else f' data-v="{value:.6g}"'
+    return f'<td class="num"{sort}>{e(text)}</td>'
+
+
+def _result_row(r: Result, fine: Result | None) -> str:
+    e = html.escape
+    derived = fine.derived_accuracy(r.level) if fine is not None and r.level != "fine" else math.nan
+    low, high = r.accuracy_ci
+    flow, fhigh = r.f1_ci
+    cells = [
+        _td(_percent(r.accuracy_pooled), r.accuracy_pooled),
+        _td(_interval(r.accuracy_ci), low),
+        _td(f"{100 * r.accuracy_mean:.1f} +- {100 * r.accuracy_std:.1f}", r.accuracy_mean),
+        _td(f"{r.f1_pooled:.2f}" + ("" if math.isnan(flow) else f" ({flow:.2f}-{fhigh:.2f})"), r.f1_pooled),
+        _td(f"{r.f1_mean:.2f}", r.f1_mean),
+        _td(format_r_c(r.r_c), r.r_c),
+        _td(_percent(derived), derived),
+        _td("-" if math.isnan(r.ece) else f"{r.ece:.3f}", r.ece),
+        _td(_percent(r.chance), r.chance),
+    ]
+    del high
+    return (f"<tr><td>{e(r.classifier)}</td><td>{e(r.feature_set)}</td><td>{e(r.level)}</td>"
+            + "".join(cells) + "</tr>")
+
+
+def _results_table(chosen: Sequence[Result]) -> str:
+    e = html.escape
+    fine = {(r.classifier, r.feature_set): r for r in chosen if r.level == "fine"}
+    order = _level_order(chosen)
+    rows = sorted(chosen, key=lambda r: (order.index(r.level),))
+    head = "".join(f'<th scope="col" data-sort>{e(c)}</th>' for c in RESULT_COLUMNS)
+    body = [_result_row(r, fine.get((r.classifier, r.feature_set))) for r in rows]
+    chance = [f'<tr class="chance"><td colspan="3">chance, {e(level)}</td>'
+              f'<td class="num">{_percent(r.chance)}</td><td colspan="2"></td>'
+              f'<td class="num">{r.chance_f1:.2f}</td><td colspan="4"></td>'
+              f'<td class="num">{_percent(r.chance)}</td></tr>'
+              for level in order for r in [_chance(chosen, level)] if r is not None]
+    return (f'<div class="scroll"><table><thead><tr>{head}</tr></thead><tbody>' + "".join(body + chance)
+            + "</tbody></table></div>")
+
+
+def _open_set_table(reports: Sequence[Result]) -> str:
+    e = html.escape
+    head = "".join(f'<th scope="col" data-sort>{e(c)}</th>' for c in OPEN_SET_COLUMNS)
+    rows = []
+    for r in reports:
+        cells = _open_set_cells(r)
+        rows.append("<tr>" + "".join(f"<td>{e(c)}</td>" for c in cells[:4])
+                    + _td(cells[4], r.auroc) + _td(cells[5]) + _td(cells[6], r.known_accuracy)
+                    + _td(cells[7], r.closed_accuracy) + _td(cells[8], r.unknown_rejected) + _td(cells[9], 0.5)
+                    + "</tr>")
+    return (f'<div class="scroll"><table><thead><tr>{head}</tr></thead><tbody>' + "".join(rows)
+            + "</tbody></table></div>")
+
+
 def _html(space: FeatureSpace, reports: Sequence[Result], selection: Selection,
           figures: list[tuple[str, Path]]) -> str:
     e = html.escape
@@ -245,25 +438,33 @@ def _html(space: FeatureSpace, reports: Sequence[Result], selection: Selection,
     rows, groups = ("scans", "samples") if space.label_level is None else ("recordings", "groups")
     split = (f" (the set's split: {space.split.count('train')} train, {space.split.count('test')} test)"
              if space.split else "")
+    closed = [r for r in reports if not r.open_set]
+    open_set = [r for r in reports if r.open_set]
+    blocks = _block_results(closed)
+    toc = [(f"results-{k}", _block_title(chosen)) for k, chosen in enumerate(blocks)]
+    if open_set:
+        toc.append(("open-set", "Open set: unknown materials"))
+    if closed:
+        toc.append(("protocol", "How the figures were computed"))
+    toc.append(("figures", "Figures"))
     parts = [
         "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
         "<title>texplorer evaluation report</title>",
         f"<style>{PAGE_STYLE}</style></head><body>",
         "<h1>texplorer evaluation report</h1>",
         f"<p>{len(space)} {rows}{e(split)}, {len(set(space.groups))} {groups}, {len(space.columns)} features; "
         f"classes: {e(counts)}.</p>",
         f"<p>Selected on all rows at the {e(selection.level)} level: {e(', '.join(selection.selected))}.</p>",
+        '<nav aria-label="contents"><h2>Contents</h2><ul>'
+        + "".join(f'<li><a href="#{anchor}">{e(title)}</a></li>' for anchor, title in toc) + "</ul></nav>",
     ]
-    if reports:
-        parts.append(f"<h2>Cross-validated results</h2><p>Cells: {e(CELL_LEGEND)}.</p>")
-        for title, levels, rows in _blocks(reports):
-            parts.append(f"<h3>{e(title)}</h3><table><tr><th>classifier</th><th>feature set</th>"
-                         + "".join(f"<th>{e(level)}</th>" for level in levels) + "</tr>")
-            for classifier, feature_set, cells in rows:
-                parts.append(f"<tr><td>{e(classifier)}</td><td>{e(feature_set)}</td>"
-                             + "".join(f"<td>{e(cell)}</td>" for cell in cells) + "</tr>")
-            parts.append("</table>")
-        compared = side_by_side(reports)
+    if closed:
+        parts.append(f"<h2>Cross-validated results</h2><p>{e(F1_SENTENCE)} A click on a column's header sorts "
+                     "the table by it.</p>")
+        for (anchor, title), chosen in zip(toc, blocks, strict=False):
+            parts.append(f'<h3 id="{anchor}">{e(title)}</h3>' + _results_table(chosen))
+        compared = side_by_side(closed)
         if compared:
             parts.append("<h2>Feature sets side by side</h2><p>Per level, every feature set on the same folds: "
                          "out-of-fold accuracy % [95 % Wilson interval] and the seconds its folds took (fitting "
@@ -275,19 +476,33 @@ def _html(space: FeatureSpace, reports: Sequence[Result], selection: Selection,
                     parts.append(f"<tr><td>{e(feature_set)}</td>" + "".join(f"<td>{e(c)}</td>" for c in cells)
                                  + "</tr>")
                 parts.append("</table>")
-        grouping = "grouped by sample" if space.label_level is None else "grouped by the set's groups"
+    if open_set:
+        parts.append('<h2 id="open-set">Open set: unknown materials</h2>'
+                     f"<p>{e(open_set[0].splitting)}. AUROC: how well the rejection score separates scans of "
+                     "held-out materials from scans of trained ones (0.5 is chance, 1 perfect). Known accuracy: "
+                     "the trained materials' scans classified right and not rejected, at the threshold each "
+                     "fold's model learned inside its training scans; closed-set accuracy: the same scans "
+                     "without rejection. Unknown rejected: the share of held-out materials' scans the rule "
+                     "calls unknown.</p>" + _open_set_table(open_set))
+    if closed:
+        grouping = {r.group_by for r in closed}
         splits = {"the set's own train/test split" if r.given_split else
-                  grouping if r.grouped else "not grouped" for r in reports}
-        parts.append(f"<p>Folds: {e(', '.join(sorted(splits)))}.</p>")
+                  f"grouped by {r.group_by}" if r.grouped else "not grouped" for r in closed}
+        parts.append(f'<h2 id="protocol">How the figures were computed</h2><p>Folds: {e(", ".join(sorted(splits)))}'
+                     f" (groups: {e(', '.join(sorted(grouping)))}). {e(CELL_LEGEND)}. Probabilities are "
+                     "calibrated by temperature scaling inside each fold's training rows (Guo et al. 2017); "
+                     "ECE: expected calibration error over 10 confidence bins. From fine: the coarse or medium "
+                     "accuracy of the fine prediction cut to that level, beside the classifier trained at that "
+                     "level directly.</p>")
         notes = list(dict.fromkeys(note for r in reports for note in r.notes))
         dropped = sorted({c for r in reports for c in r.dropped})
         if dropped:
             parts.append(f"<p>Left out for NaN values: {e(', '.join(dropped))}.</p>")
         if notes:
             parts.append("<h3>Warnings</h3><ul>" + "".join(f"<li>{e(n)}</li>" for n in notes) + "</ul>")
-    parts.append("<h2>Figures</h2>")
+    parts.append('<h2 id="figures">Figures</h2>')
     parts.extend(_figure_html(caption, path) for caption, path in figures)
-    parts.append("</body></html>")
+    parts.append(f"<script>{SORT_SCRIPT}</script></body></html>")
     return "\n".join(parts)
 
 
