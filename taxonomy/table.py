@@ -25,7 +25,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import NamedTuple
 
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import ParameterError, TexplorerError
 from taxonomy.labels import Label, LabelError, format_code, parse_code
 
 KINDS = ("C", "S", "M", "P", "X")
@@ -192,7 +192,7 @@ class Taxonomy:
     def entries(self, kind: str | None = None) -> tuple[Entry, ...]:
         """All rows in table order (classes with their sub-classes and materials, then P, then X)."""
         if kind is not None and kind not in KINDS:
-            raise ValueError(f"kind {kind!r} is not one of {', '.join(KINDS)}")
+            raise ParameterError(f"kind {kind!r} is not one of {', '.join(KINDS)}")
         return tuple(entry for entry in self._entries.values() if kind is None or entry.kind == kind)
 
     def name(self, code: str) -> str:

@@ -42,6 +42,7 @@ from scanner.simulation import (
     scan_seed,
 )
 from scanner.storage.matfile import load_scan
+from taxonomy.errors import ParameterError
 
 STEP_SECONDS = 5.0
 """Length of a simulated tap, slide, friction, press or fold (docs/operator.md#procedure)."""
@@ -151,7 +152,7 @@ class SimulatedSample:
         slide get the same one.
         """
         if step not in STEP_FUNCTIONS:
-            raise KeyError(f"unknown procedure step {step!r} (known: {', '.join(STEPS)})")
+            raise ParameterError(f"unknown procedure step {step!r} (known: {', '.join(STEPS)})")
         with self._lock:
             index = self._counts.get((step, device), 0)
             self._counts[step, device] = index + 1
@@ -283,7 +284,7 @@ class Pacer:
 
     def __init__(self, speed: float = 1.0) -> None:
         if speed < 0:
-            raise ValueError(f"pacing speed must be >= 0, got {speed!r}")
+            raise ParameterError(f"pacing speed must be >= 0, got {speed!r}")
         self.speed = float(speed)
         self.started = time.perf_counter()
         self.virtual = 0.0
