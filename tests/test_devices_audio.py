@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from scanner.acquisition.devices.audio import PlaybackMicrophone
-from scanner.acquisition.devices.sources import Pacer, SimulatedSample
+from scanner.acquisition.devices.sources import SimulatedSample
+from scanner.pacing import Pacer
 
 SYSTEM_ALSA = Path("/usr/share/alsa/alsa.conf")
 

@@ -16,8 +16,9 @@ nidaqmx = pytest.importorskip("nidaqmx")
 from scanner.acquisition.config import DAQ_ROLES, Calibration, Config, DaqConfig  # noqa: E402
 from scanner.acquisition.devices.daq import NidaqmxDaq, PlaybackDaq  # noqa: E402
 from scanner.acquisition.devices.protocols import AcquisitionError, DeviceUnavailable  # noqa: E402
-from scanner.acquisition.devices.sources import Pacer, SimulatedSample, rest_volts  # noqa: E402
+from scanner.acquisition.devices.sources import SimulatedSample, rest_volts  # noqa: E402
 from scanner.acquisition.emulators.daq_grpc import DaqEmulator, DaqServicer, expand_channels  # noqa: E402
+from scanner.pacing import Pacer  # noqa: E402
 
 
 class RampSource:
@@ -192,12 +193,17 @@ def test_playback_daq_plays_the_source_then_holds_the_last_sample():
 
 
 def test_playback_daq_paces_in_real_time():
-    pacer = Pacer(1.0)
+    now, slept = [0.0], []
+
+    def sleep(seconds: float) -> None:
+        slept.append(seconds)
+        now[0] += seconds
+
+    pacer = Pacer(1.0, clock=lambda: now[0], sleep=sleep)
     daq = PlaybackDaq(RampSource(), Calibration(), block=300, pacer=pacer)
-    started = time.perf_counter()
     daq.start("tap")
     read_blocks(daq, 3)                                        # 900 samples = 0.3 s
-    assert 0.28 <= time.perf_counter() - started < 0.6
+    assert slept == pytest.approx([0.1, 0.1, 0.1])             # each block when its last sample is due
 
 
 def test_rest_volts_by_hand():

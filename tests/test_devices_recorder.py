@@ -19,8 +19,9 @@ from scanner.acquisition.devices.board import BoardPeltier, PlaybackBoard, Seria
 from scanner.acquisition.devices.camera import PlaybackCamera
 from scanner.acquisition.devices.daq import DaqPeltier, NidaqmxDaq, PlaybackDaq
 from scanner.acquisition.devices.protocols import AudioCapture, ConnectionLost
-from scanner.acquisition.devices.sources import Pacer, SimulatedSample, rest_volts
+from scanner.acquisition.devices.sources import SimulatedSample, rest_volts
 from scanner.acquisition.recorder import Recorder, StepCancelled, heat
+from scanner.pacing import Pacer
 
 posix = pytest.mark.skipif(sys.platform == "win32", reason="the board emulator needs pseudo-terminals")
 

@@ -38,7 +38,8 @@ from scanner.acquisition.devices.protocols import (
     Peltier,
     SensorBoard,
 )
-from scanner.acquisition.devices.sources import Pacer, SignalSource, Specimen, StoredScan, simulated_sample
+from scanner.acquisition.devices.sources import SignalSource, Specimen, StoredScan, simulated_sample
+from scanner.pacing import Pacer
 
 __all__ = [
     "AcquisitionError", "BoardTimeout", "ConnectionLost", "DeviceError", "DeviceUnavailable", "Devices",

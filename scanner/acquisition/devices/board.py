@@ -49,7 +49,8 @@ from scanner.acquisition.devices.protocols import (
     DeviceError,
     DeviceUnavailable,
 )
-from scanner.acquisition.devices.sources import Pacer, SignalSource
+from scanner.acquisition.devices.sources import SignalSource
+from scanner.pacing import Pacer
 from taxonomy.errors import ParameterError, TexplorerError
 
 BOARD_ID = "TEXPLORER-SB"

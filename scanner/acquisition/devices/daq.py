@@ -24,7 +24,8 @@ import numpy as np
 
 from scanner.acquisition.config import MAX_HEAT_S, Calibration, DaqConfig
 from scanner.acquisition.devices.protocols import AcquisitionError, DeviceError, DeviceUnavailable
-from scanner.acquisition.devices.sources import Pacer, SignalSource
+from scanner.acquisition.devices.sources import SignalSource
+from scanner.pacing import Pacer
 from taxonomy.errors import ParameterError
 
 OVERRUN_ERRORS = {-200279: "samples no longer available", -200361: "onboard FIFO overflow",

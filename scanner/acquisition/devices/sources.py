@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -272,40 +271,3 @@ def material_for(label: str, slug: str = "") -> Material:
         return material_for_label(label)
     except SimulationError as exc:
         raise ConfigError(str(exc)) from None
-
-
-class Pacer:
-    """The clock of the playback devices: holds them back to real time and tells how far a recording is.
-
-    ``speed`` 1 is real time, 2 twice as fast, 0 never waits (tests, batch replay): then time is *virtual*,
-    advanced by the devices' own reads, so a microphone sharing the DAQ's pacer records as long as the DAQ
-    was read.
-    """
-
-    def __init__(self, speed: float = 1.0) -> None:
-        if speed < 0:
-            raise ParameterError(f"pacing speed must be >= 0, got {speed!r}")
-        self.speed = float(speed)
-        self.started = time.perf_counter()
-        self.virtual = 0.0
-
-    def start(self) -> float:
-        """Restart the clock; returns the ``perf_counter`` time of the start."""
-        self.started = time.perf_counter()
-        self.virtual = 0.0
-        return self.started
-
-    def wait(self, seconds: float) -> None:
-        """Return when ``seconds`` of the recording have passed (at once at speed 0)."""
-        self.virtual = max(self.virtual, seconds)
-        if self.speed == 0:
-            return
-        delay = self.started + seconds / self.speed - time.perf_counter()
-        if delay > 0:
-            time.sleep(delay)
-
-    def elapsed(self) -> float:
-        """Seconds of recording since :meth:`start`: real (times speed) or virtual at speed 0."""
-        if self.speed == 0:
-            return self.virtual
-        return (time.perf_counter() - self.started) * self.speed
