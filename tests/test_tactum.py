@@ -12,6 +12,7 @@ from scipy.ndimage import gaussian_filter
 
 from features import corners, tactum
 from features.image import PreparedPhoto, tamura_contrast
+from scanner import simulation
 from scanner.preprocess import crop_image, grayscale, slide_signal
 from scanner.scan import Scan, ScanError, ScanMeta, Trace
 
@@ -485,8 +486,7 @@ def test_compute_uses_the_preprocessed_tool_slide():
 # --- physical direction on simulated materials --------------------------------------------------------------
 
 def _simulated(slug: str, seed: int) -> Scan:
-    simulate = pytest.importorskip("scanner.simulation")
-    return simulate.synthetic_scan(slug, seed=seed, image_size=(256, 256))
+    return simulation.synthetic_scan(slug, seed=seed, image_size=(256, 256))
 
 
 @pytest.mark.parametrize(("soft", "hard"), [("polyurethane-foam", "mild-steel-brushed")])

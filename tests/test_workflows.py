@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from features import code_version, extract
+from features import code_version, extract, extraction
 from scanner.simulation.database import synthetic_database
 from scanner.storage.database import Database, DatabaseError
 from scanner.workflows import (
@@ -24,11 +24,14 @@ from taxonomy.table import load_taxonomy
 SMALL = (64, 64)
 
 
-@pytest.fixture(scope="module")
-def db(tmp_path_factory) -> Database:
-    root = tmp_path_factory.mktemp("workflows") / "db"
+def small_database(root) -> Database:
     return synthetic_database(root, ["granite-polished", "oak-planed"], scans_per_material=1, image_size=SMALL,
                               progress=False, workers=1)
+
+
+@pytest.fixture(scope="module")
+def db(tmp_path_factory) -> Database:
+    return small_database(tmp_path_factory.mktemp("workflows") / "db")
 
 
 def test_sources_are_the_catalog_rows_keyed_by_content(db):
@@ -39,17 +42,28 @@ def test_sources_are_the_catalog_rows_keyed_by_content(db):
     assert sources[0].load().scan_id == records[0].scan_id
 
 
-def test_a_database_is_extracted_once_then_read_from_its_cache(db):
+def test_a_database_is_extracted_once_then_read_from_its_cache(tmp_path, monkeypatch):
+    db = small_database(tmp_path / "db")  # its own: no other test has filled its cache
+    ids = [r.scan_id for r in db.records()]
     with pytest.warns(Warning):  # the 64 px photos are too small for image features
-        expected = [extract(db.get(r.scan_id)) for r in db.records()]
+        expected = [extract(db.get(scan_id)) for scan_id in ids]
+    extracted = []
+
+    def counted(scan):
+        extracted.append(scan.scan_id)
+        return extract(scan)
+
+    monkeypatch.setattr(extraction, "extract", counted)  # workers=1: extracted in this process
     space = extract_database(db, workers=1, progress=False)
-    assert space.scan_ids == tuple(r.scan_id for r in db.records())
+    assert extracted == ids
+    assert space.scan_ids == tuple(ids)
     for row, values in zip(space.X, expected, strict=True):
         np.testing.assert_array_equal(row, np.array(list(values.values())))
     for record in db.records():
         cached = db.cached_features(record.content_hash, code_version())
         assert cached is not None and list(cached) == list(space.columns)
     again = extract_database(db, workers=1, progress=False)
+    assert extracted == ids  # the second time, every row came from the cache
     np.testing.assert_array_equal(again.X, space.X)
 
 
