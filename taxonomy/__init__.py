@@ -18,7 +18,7 @@ from taxonomy.table import (
     SHIPPED_TABLE,
     Entry,
     LabelNames,
-    Material,
+    MaterialChoice,
     Taxonomy,
     TaxonomyError,
     UnknownLabelError,
@@ -28,7 +28,7 @@ from taxonomy.table import (
 
 __all__ = [
     "ENV_VAR", "KINDS", "LEVELS", "SHIPPED_TABLE",
-    "Entry", "Label", "LabelError", "LabelNames", "Material", "ParameterError", "Taxonomy", "TaxonomyError",
+    "Entry", "Label", "LabelError", "LabelNames", "MaterialChoice", "ParameterError", "Taxonomy", "TaxonomyError",
     "TexplorerError", "UnknownLabelError",
     "check_level", "format_code", "load_taxonomy", "parse_code", "read_table",
 ]

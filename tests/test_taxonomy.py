@@ -332,7 +332,7 @@ def small(tmp_path: Path) -> Taxonomy:
     return Taxonomy.from_csv(path)
 
 
-def codes(materials: list[taxonomy.Material]) -> list[str]:
+def codes(materials: list[taxonomy.MaterialChoice]) -> list[str]:
     return [material.code for material in materials]
 
 

@@ -11,7 +11,7 @@ only in their source.
 Every time a device starts recording a step, the operator performs that step once more (a *take*): take
 ``k`` of a step is seeded by (seed, step, k), so a redo gives a new, still deterministic, performance, and
 the DAQ and the microphone starting the same slide for the k-th time see the same take.
-:class:`StoredScan` plays the same recording every time. Both produce volts where a real device gives volts,
+:class:`ReplayedScan` plays the same recording every time. Both produce volts where a real device gives volts,
 through the inverse of the configured calibration (or the scan's stored raw volts).
 """
 
@@ -196,7 +196,7 @@ class SimulatedSample:
         return self.take("photos", device)
 
 
-class StoredScan:
+class ReplayedScan:
     """A stored scan played back: every step gives the same recording, in volts where the DAQ gives volts
     (the scan's raw volts where kept, else through the inverse calibration)."""
 
@@ -207,7 +207,7 @@ class StoredScan:
         self.kind = "replay"
 
     @classmethod
-    def load(cls, path: str | Path) -> StoredScan:
+    def load(cls, path: str | Path) -> ReplayedScan:
         return cls(load_scan(path), Path(path).name)
 
     def describe(self) -> str:
