@@ -16,7 +16,7 @@ import pytest
 
 from scanner.processes import PARENT_POLL_S
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 linux_only = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="looks processes up in /proc")
 
@@ -569,7 +569,8 @@ for case, (data, _) in corpus.items():
 def test_hostile_images_are_refused_by_ingest_and_load_within_a_memory_limit(tmp_path):
     import json
 
-    result = subprocess.run([sys.executable, "-c", HOSTILE_IMAGES_UNDER_A_LIMIT, str(ROOT / "tests"), str(tmp_path)],
+    here = str(ROOT / "tests" / "system")
+    result = subprocess.run([sys.executable, "-c", HOSTILE_IMAGES_UNDER_A_LIMIT, here, str(tmp_path)],
                             capture_output=True, text=True, timeout=300, env=_env())
     lines = [json.loads(line) for line in result.stdout.splitlines()]
     assert [line["case"] for line in lines] == list(hostile_images()), result.stderr
