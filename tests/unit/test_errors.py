@@ -46,6 +46,8 @@ BUILT_IN_RAISES = {
         "an optional library is missing: the import fails as an import does, naming the extra",
     ("scanner/lazy.py", "library", "ValueError"):
         "a programming error (a project module deferred), in the one module that imports nothing of the project",
+    ("gui/app.py", "_stop", "KeyboardInterrupt"):
+        "a signal handler: SIGTERM stops the server the way Ctrl-C does",
     ("taxonomy/table.py", "Taxonomy.search", "TypeError"):
         "an argument of the wrong type, as Python's own functions say",
 }
