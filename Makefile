@@ -8,7 +8,7 @@ STAMP  := $(VENV)/.installed-$(shell $(PYTHON) -c "import hashlib;print(hashlib.
 DB     ?= texplorer-data
 JOBS   ?= 2
 
-.PHONY: demo test bench lint docs clean install lock
+.PHONY: demo test test-fast hooks bench lint docs clean install lock
 
 install: $(STAMP)
 
@@ -22,8 +22,17 @@ $(STAMP): pyproject.toml $(LOCK)
 demo: $(STAMP)
 	$(BIN)/texplorer demo --db $(DB)
 
+# Every test: tests/unit and tests/system (CONTRIBUTING.md). CI runs this.
 test: $(STAMP)
 	$(BIN)/python -m pytest -n $(JOBS) --durations=15
+
+# The unit tests only: the loop to run while working (under a minute on two cores).
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest tests/unit -n $(JOBS) -q
+
+# The commit-msg check of CONTRIBUTING.md, for this clone.
+hooks:
+	git config core.hooksPath .githooks
 
 bench: $(STAMP)
 	@for b in benchmarks/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done

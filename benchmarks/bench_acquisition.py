@@ -33,7 +33,8 @@ from scanner.acquisition.devices.audio import PlaybackMicrophone, SoundDeviceMic
 from scanner.acquisition.devices.board import SerialBoard, StreamCollector
 from scanner.acquisition.devices.daq import NidaqmxDaq
 from scanner.acquisition.devices.protocols import AcquisitionError, DeviceError
-from scanner.acquisition.devices.sources import Pacer, SimulatedSample
+from scanner.acquisition.devices.sources import SimulatedSample
+from scanner.pacing import Pacer
 
 NOMINAL_PER_CHANNEL = 3000.0
 CHANNELS = 8

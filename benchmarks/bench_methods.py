@@ -73,7 +73,7 @@ def bench_xie() -> None:
 
 def bench_chathuranga() -> None:
     data = Dataset.from_recordings("soft", soft3axis_recordings(trials=30))
-    cache = methods.FeatureCache(data)
+    cache = methods.ExtractedSets(data)
     _, X, first = methods.palpation_table(data, cache.get("chathuranga4"), 3)
     y = data.y(data.label_level, first)
     model = methods.PairwiseEliminationSVM(palpations=3).fit(X, y)

@@ -26,6 +26,7 @@ import numpy as np
 
 from features import kernels
 from scanner.lazy import jit, library
+from taxonomy.errors import ParameterError
 
 cv2 = library("cv2")
 sp_fft = library("scipy.fft")
@@ -675,18 +676,18 @@ def compute(signal: np.ndarray, fs: float = 44100.0) -> dict[str, float]:
 def _checked_signal(signal: np.ndarray, fs: float) -> np.ndarray:
     """The signal as float64 after checking it and ``fs``; raises ValueError naming the problem."""
     if not isinstance(fs, int | float | np.integer | np.floating) or not math.isfinite(fs) or fs <= 0:
-        raise ValueError(f"audio sampling rate must be a positive finite number, got {fs!r}")
+        raise ParameterError(f"audio sampling rate must be a positive finite number, got {fs!r}")
     window, _ = window_and_step(fs)
     if window < MIN_WINDOW:
-        raise ValueError(f"audio sampling rate {fs} Hz gives a {window}-sample window; need >= {MIN_WINDOW}")
+        raise ParameterError(f"audio sampling rate {fs} Hz gives a {window}-sample window; need >= {MIN_WINDOW}")
     x = np.asarray(signal)
     if x.ndim != 1:
-        raise ValueError(f"audio signal must be 1-D, got shape {x.shape}")
+        raise ParameterError(f"audio signal must be 1-D, got shape {x.shape}")
     if not (np.issubdtype(x.dtype, np.number) and not np.iscomplexobj(x)):
-        raise ValueError(f"audio signal must be real numbers, got dtype {x.dtype}")
+        raise ParameterError(f"audio signal must be real numbers, got dtype {x.dtype}")
     x = x.astype(np.float64, copy=False)  # read only: frames() makes new arrays
     if not np.all(np.isfinite(x)):
-        raise ValueError("audio signal contains NaN or infinite samples")
+        raise ParameterError("audio signal contains NaN or infinite samples")
     if x.size < window:
-        raise ValueError(f"audio signal has {x.size} samples, fewer than one {window}-sample window")
+        raise ParameterError(f"audio signal has {x.size} samples, fewer than one {window}-sample window")
     return x

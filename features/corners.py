@@ -16,6 +16,7 @@ import numpy as np
 from features import kernels
 from features.image import spans
 from scanner.lazy import jit, library
+from taxonomy.errors import ParameterError
 
 cv2 = library("cv2")
 
@@ -295,7 +296,7 @@ def gaussian_weights(sigma: float, order: int, truncate: float = 4.0) -> np.ndar
     reversed because scipy correlates with it.
     """
     if order not in (0, 1, 2):
-        raise ValueError(f"Gaussian derivative order must be 0, 1 or 2, got {order}")
+        raise ParameterError(f"Gaussian derivative order must be 0, 1 or 2, got {order}")
     x = np.arange(-_radius(sigma, truncate), _radius(sigma, truncate) + 1, dtype=np.float64)
     sigma2 = sigma * sigma
     phi = np.exp(-0.5 / sigma2 * x**2)

@@ -32,7 +32,7 @@ from scanner.lazy import preload
 from scanner.processes import end_with_parent
 from scanner.scan import Scan
 from scanner.storage.stored import NotOnThisMachine
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import ParameterError, TexplorerError
 
 if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
     from distributed import Client
@@ -255,7 +255,7 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     ((4, 193), ['C1', 'C1', 'C2', 'C2'])
     """
     if pool is not None and workers not in (None, pool.size):
-        raise ValueError(f"workers={workers} with a pool of {pool.size} workers")
+        raise ParameterError(f"workers={workers} with a pool of {pool.size} workers")
     sources = [s if isinstance(s, ScanSource) else source_of(s) for s in scans]
     families = None if families is None else tuple(f.name for f in REGISTRY.chosen(families))
     names = REGISTRY.columns_of(families)

@@ -28,6 +28,7 @@ import numpy as np
 from features import kernels
 from scanner.lazy import library
 from scanner.preprocess import IMAGE_BORDER_PX, crop_image
+from taxonomy.errors import ParameterError
 
 cv2 = library("cv2")
 
@@ -100,15 +101,15 @@ def _rows_per_band(width: int, elements: int | None = None) -> int:
 
 def _check_rgb(rgb: np.ndarray) -> np.ndarray:
     if not isinstance(rgb, np.ndarray) or rgb.dtype != np.uint8:
-        raise ValueError(f"expected an RGB photo as a uint8 array, got {getattr(rgb, 'dtype', type(rgb))}")
+        raise ParameterError(f"expected an RGB photo as a uint8 array, got {getattr(rgb, 'dtype', type(rgb))}")
     if rgb.ndim != 3 or rgb.shape[2] != 3 or min(rgb.shape[:2]) == 0:
-        raise ValueError(f"expected an RGB photo of shape (h, w, 3), got {rgb.shape}")
+        raise ParameterError(f"expected an RGB photo of shape (h, w, 3), got {rgb.shape}")
     return rgb
 
 
 def _check_side(shape: tuple[int, ...], min_side: int, purpose: str) -> None:
     if min(shape[:2]) < min_side:
-        raise ValueError(f"gray image of {shape[0]}x{shape[1]} px is smaller than the "
+        raise ParameterError(f"gray image of {shape[0]}x{shape[1]} px is smaller than the "
                          f"{min_side}x{min_side} px {purpose} needs")
 
 
@@ -116,13 +117,13 @@ def _check_gray(gray: np.ndarray, min_side: int = 1, purpose: str = "this featur
     """A 2-D float64 view or copy of ``gray``; ValueError if it is not 2-D, too small or not finite."""
     image = np.asarray(gray)
     if image.ndim != 2:
-        raise ValueError(f"expected a 2-D gray image, got shape {image.shape}")
+        raise ParameterError(f"expected a 2-D gray image, got shape {image.shape}")
     if image.dtype.kind not in "biuf":
-        raise ValueError(f"expected a numeric gray image, got dtype {image.dtype}")
+        raise ParameterError(f"expected a numeric gray image, got dtype {image.dtype}")
     _check_side(image.shape, min_side, purpose)
     image = image.astype(np.float64, copy=False)
     if not np.isfinite(image.sum()):
-        raise ValueError("gray image contains NaN or infinite values")
+        raise ParameterError("gray image contains NaN or infinite values")
     return image
 
 
@@ -301,7 +302,7 @@ def compute(rgb: np.ndarray, *, prepared: PreparedPhoto | None = None,
     125.0
     """
     if prepared is not None and prepared.source is not rgb:
-        raise ValueError("the prepared photo was made from a different array than rgb")
+        raise ParameterError("the prepared photo was made from a different array than rgb")
     photo = PreparedPhoto(rgb, keep_gray=False, border=border) if prepared is None else prepared
     _check_side(photo.photo.shape, MIN_SIDE_PX, "any image feature")
     small = _too_small(photo)
@@ -380,7 +381,7 @@ def edginess(gray_u8: np.ndarray) -> float:
     """
     image = np.asarray(gray_u8)
     if image.dtype != np.uint8 or image.ndim != 2 or image.size == 0:
-        raise ValueError(f"expected a 2-D uint8 gray image, got {image.dtype} of shape {image.shape}")
+        raise ParameterError(f"expected a 2-D uint8 gray image, got {image.dtype} of shape {image.shape}")
     edges = cv2.Canny(image, *CANNY_THRESHOLDS)
     return np.count_nonzero(edges) / edges.size
 
@@ -418,7 +419,7 @@ class RealSpectrum:
     def __init__(self, image: np.ndarray, *, mean: float = 0.0, overwrite: bool = False,
                  out: np.ndarray | None = None) -> None:
         if image.ndim != 2 or image.size == 0 or image.dtype != np.float64:
-            raise ValueError(f"expected a non-empty 2-D float64 image, got {image.dtype} of shape "
+            raise ParameterError(f"expected a non-empty 2-D float64 image, got {image.dtype} of shape "
                              f"{image.shape}")
         self.shape: tuple[int, int] = image.shape
         if out is not None:
@@ -548,7 +549,7 @@ def quantize(gray: np.ndarray, levels: int = GLCM_LEVELS) -> np.ndarray:
     0-based (0 .. levels-1); Haralick's formulas use ``q + 1``. Values below 0 map to 0.
     """
     if not 1 <= levels <= 256:
-        raise ValueError(f"levels must be in 1..256, got {levels}")
+        raise ParameterError(f"levels must be in 1..256, got {levels}")
     return _quantize(_check_gray(gray, purpose="quantisation"), levels)
 
 
@@ -596,14 +597,14 @@ def glcm(q: np.ndarray, offset: tuple[int, int] = (0, 1), levels: int = GLCM_LEV
     """
     q = np.asarray(q)
     if q.ndim != 2 or q.dtype.kind not in "iu":
-        raise ValueError(f"expected a 2-D integer array of gray levels, got {q.dtype} of shape {q.shape}")
+        raise ParameterError(f"expected a 2-D integer array of gray levels, got {q.dtype} of shape {q.shape}")
     if not 1 <= levels <= 256:
-        raise ValueError(f"levels must be in 1..256, got {levels}")
+        raise ParameterError(f"levels must be in 1..256, got {levels}")
     if q.size and (q.min() < 0 or q.max() >= levels):
-        raise ValueError(f"gray levels must lie in 0..{levels - 1}, got {q.min()}..{q.max()}")
+        raise ParameterError(f"gray levels must lie in 0..{levels - 1}, got {q.min()}..{q.max()}")
     reference, neighbour = _pair_views(q.astype(np.uint8, copy=False), offset)
     if reference.size == 0:
-        raise ValueError(f"a {q.shape[0]}x{q.shape[1]} image has no pixel pairs at offset {offset}")
+        raise ParameterError(f"a {q.shape[0]}x{q.shape[1]} image has no pixel pairs at offset {offset}")
     return _symmetric_normalised(_histogram([reference, neighbour], levels))
 
 
@@ -703,9 +704,9 @@ def haralick_from_glcm(p: np.ndarray) -> np.ndarray:
     """
     p = np.asarray(p, dtype=np.float64)
     if p.ndim != 2 or p.shape[0] != p.shape[1] or p.size == 0:
-        raise ValueError(f"expected a square GLCM, got shape {p.shape}")
+        raise ParameterError(f"expected a square GLCM, got shape {p.shape}")
     if not (np.all(p >= 0) and np.isclose(p.sum(), 1.0)):
-        raise ValueError("GLCM entries must be non-negative and sum to 1")
+        raise ParameterError("GLCM entries must be non-negative and sum to 1")
     return _haralick_features(p[None])[0]
 
 
@@ -803,7 +804,7 @@ def tamura_coarseness(gray: np.ndarray, kmax: int = TAMURA_KMAX) -> float:
     3.5
     """
     if kmax < 1:
-        raise ValueError(f"kmax must be at least 1, got {kmax}")
+        raise ParameterError(f"kmax must be at least 1, got {kmax}")
     image = _check_gray(gray, min_side=2 * 2**kmax, purpose=f"Tamura coarseness with kmax={kmax}")
     return _tamura_coarseness(image, kmax, 1e-9 * float(image.max()))
 

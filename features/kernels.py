@@ -10,7 +10,7 @@ results are bit for bit the same: numba compiles without ``fastmath``, which kee
 sums or contracting a product and a sum into one fused multiply-add (the rounding of ``a * b + c`` is
 that of two operations). Integer results (counts, window sums) are exact anyway. The two long sums
 (:func:`pixel_sum`, :func:`central_moment_sums`) fix their own order, documented there, and are equal to
-rounding to numpy's. ``tests/test_image.py`` compares each kernel with the straightforward formulation on
+rounding to numpy's. ``tests/unit/test_image.py`` compares each kernel with the straightforward formulation on
 random images, and the gray images with it for every 8-bit colour.
 
 ``cache=True`` stores the machine code beside this file (or in numba's user cache if that is read-only),

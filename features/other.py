@@ -25,7 +25,7 @@ from features.tactum import MissingDataWarning, spectral_centroid
 from scanner.lazy import library
 from scanner.preprocess import NO_SLIDE, QualityError, dft321
 from scanner.scan import Scan, Trace
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import ParameterError, TexplorerError
 
 optimize = library("scipy.optimize")
 signal = library("scipy.signal")
@@ -74,18 +74,18 @@ tap_decay sqrt(1.49e-8) = 1.2e-4, cooling_rate sqrt(1e-14) = 1e-7.
 def _samples(x: np.ndarray, name: str) -> np.ndarray:
     array = np.asarray(x, dtype=np.float64)
     if array.ndim != 1 or array.size == 0:
-        raise ValueError(f"{name} must be a non-empty 1-D array, got shape {array.shape}")
+        raise ParameterError(f"{name} must be a non-empty 1-D array, got shape {array.shape}")
     if not np.isfinite(array).all():
-        raise ValueError(f"{name} has non-finite samples")
+        raise ParameterError(f"{name} has non-finite samples")
     return array
 
 
 def _axes(a: np.ndarray, name: str) -> np.ndarray:
     array = np.asarray(a, dtype=np.float64)
     if array.ndim != 2 or array.shape[0] == 0:
-        raise ValueError(f"{name} must be a non-empty (n, axes) array, got shape {array.shape}")
+        raise ParameterError(f"{name} must be a non-empty (n, axes) array, got shape {array.shape}")
     if not np.isfinite(array).all():
-        raise ValueError(f"{name} has non-finite samples")
+        raise ParameterError(f"{name} has non-finite samples")
     return array
 
 
@@ -102,7 +102,7 @@ def density(mass_g: float, volume_cm3: float) -> float:
     mass, volume = float(mass_g), float(volume_cm3)
     for name, value in (("mass_g", mass), ("volume_cm3", volume)):
         if math.isinf(value) or value <= 0:
-            raise ValueError(f"{name} must be positive and finite (or NaN if not measured), got {value!r}")
+            raise ParameterError(f"{name} must be positive and finite (or NaN if not measured), got {value!r}")
     return mass / volume
 
 
@@ -145,7 +145,7 @@ def reflect_static(r_ts: np.ndarray, start: int) -> float:
     """
     values = _samples(r_ts, "r_ts")
     if isinstance(start, bool) or int(start) != start or not 0 <= start <= values.size:
-        raise ValueError(f"slide start must be a sample index in 0..{values.size}, got {start!r}")
+        raise ParameterError(f"slide start must be a sample index in 0..{values.size}, got {start!r}")
     return math.nan if start == 0 else float(np.mean(values[:int(start)]))
 
 
@@ -175,9 +175,9 @@ def cooling_rate(t_cool: np.ndarray, t_amb: float, fs: float = T_COOL_FS) -> flo
     """
     values = _samples(t_cool, "t_cool")
     if not math.isfinite(fs) or fs <= 0:
-        raise ValueError(f"t_cool sample rate must be positive and finite, got {fs!r}")
+        raise ParameterError(f"t_cool sample rate must be positive and finite, got {fs!r}")
     if math.isinf(t_amb):
-        raise ValueError(f"t_amb must be finite (or NaN if unknown), got {t_amb!r}")
+        raise ParameterError(f"t_amb must be finite (or NaN if unknown), got {t_amb!r}")
     tail = values[int(np.argmax(values)):]
     excess = float(tail[0] - t_amb)
     if math.isnan(excess) or tail.size < 2 or excess == 0:

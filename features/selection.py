@@ -25,7 +25,7 @@ from sklearn.base import BaseEstimator
 from sklearn.feature_selection import SelectorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import ParameterError, TexplorerError
 
 SF_TOLERANCE = 1e-9
 """Largest absolute error allowed for a studentized-range p-value taken from the interpolation table."""
@@ -308,7 +308,7 @@ class FQSelector(SelectorMixin, BaseEstimator):
         X, y = validate_data(self, X, y, ensure_all_finite="allow-nan", dtype=np.float64)
         n_classes = np.unique(y).size
         if n_classes < 2:
-            raise ValueError(f"FQSelector needs at least two classes in y, got {n_classes} class")
+            raise ParameterError(f"FQSelector needs at least two classes in y, got {n_classes} class")
         self.fq_ = feature_quality(X, y)
         candidates = np.flatnonzero(usable_columns(X))
         order = np.argsort(-self.fq_[candidates], kind="stable")
@@ -324,10 +324,10 @@ class FQSelector(SelectorMixin, BaseEstimator):
     def _check_params(self) -> None:
         n = self.n_features
         if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
-            raise ValueError(f"n_features must be a positive integer, got {n!r}")
+            raise ParameterError(f"n_features must be a positive integer, got {n!r}")
         if isinstance(self.max_corr, bool) or not isinstance(self.max_corr, int | float | np.floating) \
                 or not 0.0 < self.max_corr <= 1.0:
-            raise ValueError(f"max_corr must be a number in (0, 1], got {self.max_corr!r}")
+            raise ParameterError(f"max_corr must be a number in (0, 1], got {self.max_corr!r}")
 
     def _get_support_mask(self) -> np.ndarray:
         check_is_fitted(self, "selected_")

@@ -28,6 +28,7 @@ from scanner.preprocess import (
     remove_friction_offset,
 )
 from scanner.scan import JUDGED_SCALE, Scan
+from taxonomy.errors import ParameterError
 
 pywt = library("pywt")
 
@@ -87,7 +88,7 @@ def _ratio(numerator: float, denominator: float) -> float:
 def _samples(x: np.ndarray, name: str) -> np.ndarray:
     array = np.asarray(x, dtype=np.float64)
     if array.ndim != 1 or array.size == 0:
-        raise ValueError(f"{name} must be a non-empty 1-D array, got shape {array.shape}")
+        raise ParameterError(f"{name} must be a non-empty 1-D array, got shape {array.shape}")
     return array
 
 
@@ -106,7 +107,7 @@ def movmean(x: np.ndarray, window: int = MOVING_MEAN) -> np.ndarray:
     """
     values = _samples(x, "x")
     if window < 1:
-        raise ValueError(f"moving-mean window must be at least 1 sample, got {window}")
+        raise ParameterError(f"moving-mean window must be at least 1 sample, got {window}")
     before = window // 2
     after = window - before - 1
     n = values.size
@@ -195,7 +196,7 @@ def kept_peak_mean(gray: np.ndarray) -> float:
     """
     image = np.asarray(gray, dtype=np.float64)
     if image.ndim != 2 or image.size == 0:
-        raise ValueError(f"gray must be a non-empty 2-D image, got shape {image.shape}")
+        raise ParameterError(f"gray must be a non-empty 2-D image, got shape {image.shape}")
     return _kept_peak_mean(RealSpectrum(image - image.mean(), overwrite=True))
 
 
@@ -248,7 +249,7 @@ def wavelet_detail(v: np.ndarray, level: int, wavelet: str = WAVELET, levels: in
     """
     values = _samples(v, "v")
     if not 1 <= level <= levels:
-        raise ValueError(f"detail level must be in 1..{levels}, got {level}")
+        raise ParameterError(f"detail level must be in 1..{levels}, got {level}")
     return _detail_of(pywt.wavedec(values, wavelet, level=levels, mode="symmetric"), level, wavelet, values.size)
 
 
@@ -353,7 +354,7 @@ def judged(value: float, name: str) -> float:
     number = float(value)
     if math.isnan(number) or number in JUDGED_SCALE:
         return number
-    raise ValueError(f"{name} = {value!r} is not on the five-step scale 0, 0.25, 0.5, 0.75, 1")
+    raise ParameterError(f"{name} = {value!r} is not on the five-step scale 0, 0.25, 0.5, 0.75, 1")
 
 
 def atk(value: float) -> float:
@@ -401,7 +402,7 @@ def cdp(f_fold: np.ndarray, alpha_f: np.ndarray, rigid: bool, fs: float = 3000.0
         return 0.0
     f_fold, alpha_f = _samples(f_fold, "f_fold"), _samples(alpha_f, "alpha_f")
     if f_fold.size != alpha_f.size:
-        raise ValueError(f"f_fold ({f_fold.size}) and alpha_f ({alpha_f.size}) must have the same length")
+        raise ParameterError(f"f_fold ({f_fold.size}) and alpha_f ({alpha_f.size}) must have the same length")
     n_max = int(np.argmax(f_fold))
     rise = np.flatnonzero(f_fold > FORCE_RISE * f_fold[n_max])
     if rise.size == 0 or rise[0] >= n_max:
@@ -570,7 +571,7 @@ def compute(scan: Scan, *, disp: PreparedPhoto | None = None, prepared: Prepared
         prepared from this scan's ``I_disp``.
     """
     if disp is not None and disp.source is not scan.images.get("I_disp"):
-        raise ValueError("disp was not prepared from this scan's I_disp photo")
+        raise ParameterError("disp was not prepared from this scan's I_disp photo")
     inputs = _gather(prepared if prepared is not None else PreparedScan(scan), disp)
     values: dict[str, float] = {}
     blocked: dict[str, list[str]] = {}

@@ -31,6 +31,7 @@ from scanner.scan import CHANNELS, IMAGES
 from scanner.storage.database import DatabaseError, ScanRecord
 from scanner.storage.files import temp_path_for
 from scanner.workflows import extract_database, stored_features
+from taxonomy.errors import ParameterError
 from taxonomy.labels import Label, LabelError
 from taxonomy.reports.plots import plot_scan
 from taxonomy.table import Taxonomy
@@ -121,7 +122,7 @@ def label_filter(text: str, taxonomy: Taxonomy) -> tuple[str | None, LabelMatch 
         reason = str(exc)
     codes = {material.code for material in taxonomy.search(text)}
     if not codes:
-        raise ValueError(f"{reason}; or part of a material name, e.g. granite")
+        raise ParameterError(f"{reason}; or part of a material name, e.g. granite")
     return None, lambda label: _material_code(label) in codes
 
 

@@ -27,7 +27,7 @@ from scanner.acquisition.entries import (
     parse_volume_method,
 )
 from scanner.scan import ScanError, ScanMeta, check_sample_id
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import ParameterError, TexplorerError
 from taxonomy.labels import LabelError, parse_prefix
 from taxonomy.table import Taxonomy, UnknownLabelError
 
@@ -83,43 +83,43 @@ def meta_field_error(field: str, value: object) -> str | None:
 
 def _label(taxonomy: Taxonomy, text: str) -> str:
     if not text or not text.strip():
-        raise ValueError("enter a material label such as C6S1M1P2X1, or pick one with the search")
+        raise ParameterError("enter a material label such as C6S1M1P2X1, or pick one with the search")
     try:
         return taxonomy.check(text).format()
     except (LabelError, UnknownLabelError) as exc:
-        raise ValueError(str(exc)) from None
+        raise ParameterError(str(exc)) from None
 
 
 def _operator(text: str) -> str:
     text = (text or "").strip()
     if not text:
-        raise ValueError("enter the operator's name or initials")
+        raise ParameterError("enter the operator's name or initials")
     reason = meta_field_error("operator", text)
     if reason:
-        raise ValueError("1-64 printable characters without quotes, slashes or angle brackets")
+        raise ParameterError("1-64 printable characters without quotes, slashes or angle brackets")
     return text
 
 
 def _sample_id(text: str, owner: Callable[[str], str | None], label: str | None) -> str:
     text = (text or "").strip()
     if not text:
-        raise ValueError("enter the sample id, e.g. granite-01")
+        raise ParameterError("enter the sample id, e.g. granite-01")
     try:
         check_sample_id(text)
     except ScanError as exc:
-        raise ValueError(exc.reason) from None
+        raise ParameterError(exc.reason) from None
     stored = owner(text)
     if stored is not None and label is not None and stored != label:
-        raise ValueError(f"sample {text} is {stored} in the database, not {label}")
+        raise ParameterError(f"sample {text} is {stored} in the database, not {label}")
     return text
 
 
 def _notes(text: str) -> str:
     text = (text or "").replace("\r\n", "\n").strip()
     if len(text) > NOTES_MAX_CHARS:
-        raise ValueError(f"notes are {len(text)} characters long; at most {NOTES_MAX_CHARS} are kept")
+        raise ParameterError(f"notes are {len(text)} characters long; at most {NOTES_MAX_CHARS} are kept")
     if _CONTROL.search(text):
-        raise ValueError("notes contain control characters; type plain text")
+        raise ParameterError("notes contain control characters; type plain text")
     return text
 
 

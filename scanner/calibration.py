@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from taxonomy.errors import ParameterError
+
 FSR_REFERENCE_N = 9.81 * 0.01
 """Paper eq. 1: the force at 0 V, the weight of the 10 g reference mass (N)."""
 FSR_PER_V = 1.33
@@ -38,7 +40,7 @@ def flex_degrees(volts: np.ndarray, v0: float, deg0: float, v1: float, deg1: flo
     """Flex sensor angle by a two-point calibration: the line through (v0, deg0) and (v1, deg1) (Strese et al.
     2020, section III-B)."""
     if v0 == v1:
-        raise ValueError(f"flex calibration needs two different voltages, got {v0} V twice")
+        raise ParameterError(f"flex calibration needs two different voltages, got {v0} V twice")
     slope = (deg1 - deg0) / (v1 - v0)
     return deg0 + slope * (np.asarray(volts, dtype=np.float64) - v0)
 
@@ -52,5 +54,5 @@ def metal_sign(volts: np.ndarray, threshold: float = 2.5) -> np.ndarray:
 def accel_g(volts: np.ndarray, zero: float = ACCEL_ZERO_V, sensitivity: float = ACCEL_V_PER_G) -> np.ndarray:
     """ADXL335 acceleration in g: ``(volts - zero) / sensitivity`` (zero-g 1.65 V, 0.330 V/g)."""
     if not sensitivity > 0:
-        raise ValueError(f"accelerometer sensitivity must be positive V/g, got {sensitivity}")
+        raise ParameterError(f"accelerometer sensitivity must be positive V/g, got {sensitivity}")
     return (np.asarray(volts, dtype=np.float64) - zero) / sensitivity

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from scanner.lazy import library
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import ParameterError, TexplorerError
 
 cv2 = library("cv2")
 
@@ -81,7 +81,7 @@ def max_pixels() -> int:
     if not text:
         return DEFAULT_MAX_PIXELS
     if not text.isdigit() or int(text) < 1:
-        raise ValueError(f"${MAX_PIXELS_ENV} must be a positive whole number of pixels, got {text!r}")
+        raise ParameterError(f"${MAX_PIXELS_ENV} must be a positive whole number of pixels, got {text!r}")
     return int(text)
 
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from scanner.lazy import jit, library
 from scanner.scan import Trace
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import ParameterError, TexplorerError
 
 signal = library("scipy.signal")
 
@@ -56,7 +56,7 @@ def crop_image(image: np.ndarray, border: int = IMAGE_BORDER_PX) -> np.ndarray:
     """
     h, w = image.shape[:2]
     if h <= 2 * border or w <= 2 * border:
-        raise ValueError(f"image of {h}x{w} px is too small to crop {border} px from every border")
+        raise ParameterError(f"image of {h}x{w} px is too small to crop {border} px from every border")
     return image[border:h - border, border:w - border]
 
 
@@ -65,7 +65,7 @@ def grayscale(rgb: np.ndarray) -> np.ndarray:
     docs/features.md#preprocessing)."""
     rgb = np.asarray(rgb)
     if rgb.ndim != 3 or rgb.shape[2] != 3:
-        raise ValueError(f"expected an RGB image of shape (h, w, 3), got {rgb.shape}")
+        raise ParameterError(f"expected an RGB image of shape (h, w, 3), got {rgb.shape}")
     # Channel by channel with one scratch array: the same IEEE operations, in the same order, as the
     # expression in the docstring, without a (h, w, 3) float64 copy (seconds on a 12 MP photo).
     gray = np.multiply(rgb[..., 0], 0.299, dtype=np.float64)
@@ -87,7 +87,7 @@ def _axes(v: np.ndarray) -> np.ndarray:
     if array.ndim == 1:
         return array[:, None]
     if array.ndim != 2:
-        raise ValueError(f"expected a recording of shape (n,) or (n, axes), got {array.shape}")
+        raise ParameterError(f"expected a recording of shape (n,) or (n, axes), got {array.shape}")
     return array
 
 
@@ -135,7 +135,7 @@ def slide_start(v: np.ndarray, *, fs: float = VIBRATION_FS, frame: int = 30, noi
 def _exact_samples(seconds: float | Fraction, fs: float, what: str) -> int:
     count = Fraction(seconds) * Fraction(fs)
     if count.denominator != 1:
-        raise ValueError(f"{what} at {float(count):g} is not a whole sample at {fs:g} Hz")
+        raise ParameterError(f"{what} at {float(count):g} is not a whole sample at {fs:g} Hz")
     return int(count)
 
 
@@ -170,7 +170,7 @@ class SlideWindow:
 
     def __post_init__(self) -> None:
         if isinstance(self.start, bool) or int(self.start) != self.start or self.start < 0:
-            raise ValueError(f"window start must be a non-negative sample index, got {self.start!r}")
+            raise ParameterError(f"window start must be a non-negative sample index, got {self.start!r}")
         object.__setattr__(self, "start", int(self.start))
         # Checked and kept once: exact fractions cost more than everything else a window does.
         object.__setattr__(self, "_samples", _window_samples(self.start, self.fs, self.audio_fs, self.seconds))
@@ -260,7 +260,7 @@ def check_clipped(volts: np.ndarray, low: float = 0.0, high: float = 5.0) -> lis
     """
     values = np.asarray(volts, dtype=np.float64)
     if not low < high:
-        raise ValueError(f"clipping range must have low < high, got [{low}, {high}]")
+        raise ParameterError(f"clipping range must have low < high, got [{low}, {high}]")
     at_rail = int(np.count_nonzero((values <= low) | (values >= high)))
     if at_rail == 0:
         return []
@@ -307,10 +307,10 @@ def band_limit(v: np.ndarray, fs: float = VIBRATION_FS) -> np.ndarray:
     """
     array = np.asarray(v, dtype=np.float64)
     if fs <= 2 * BAND_HZ[1]:
-        raise ValueError(f"sample rate {fs:g} Hz is too low for a {BAND_HZ[1]:g} Hz band edge")
+        raise ParameterError(f"sample rate {fs:g} Hz is too low for a {BAND_HZ[1]:g} Hz band edge")
     sos, zi, padlen = _bandpass(float(fs))
     if array.shape[0] <= padlen:
-        raise ValueError(f"recording of {array.shape[0]} samples is too short to band-limit "
+        raise ParameterError(f"recording of {array.shape[0]} samples is too short to band-limit "
                          f"(needs more than {padlen})")
     return _sosfiltfilt(sos, zi, padlen, array)
 
@@ -404,5 +404,5 @@ def remove_friction_offset(f_frt: np.ndarray, fs: float = VIBRATION_FS) -> np.nd
     """
     values = np.asarray(f_frt, dtype=np.float64)
     if values.ndim != 1 or values.size == 0:
-        raise ValueError(f"f_frt must be a non-empty 1-D force trace, got shape {values.shape}")
+        raise ParameterError(f"f_frt must be a non-empty 1-D force trace, got shape {values.shape}")
     return values - values[:int(round(0.1 * fs))].mean()

@@ -9,8 +9,8 @@ be made on purpose by regenerating the table::
 
     texplorer replay tests/regression/scans --write-expected tests/regression/expected_features.csv
 
-:func:`paced_steps` plays a stored scan back step by step in real time, as the replay device of docs/devices.md
-delivers it to a guided session or a demo.
+:func:`paced_steps` plays a stored scan back step by step in real time, on the clock the replay device
+(docs/devices.md, :mod:`scanner.acquisition.devices`) plays it with to a guided session: :class:`scanner.pacing.Pacer`.
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ import numpy as np
 
 from features import ScanSource, extract_many
 from features.space import FeatureSpace
+from scanner.pacing import Pacer
 from scanner.scan import CHANNELS, Scan
 from scanner.storage.files import is_temp_file
 from scanner.storage.matfile import load_scan
@@ -319,14 +320,8 @@ def paced_steps(scan: Scan, speed: float = 1.0, *, chunk_s: float | None = None,
 
 def _paced(scan: Scan, speed: float, chunk_s: float | None, clock: Callable[[], float],
            sleep: Callable[[float], None]) -> Iterator[tuple[str, dict[str, np.ndarray]]]:
-    origin = clock()
+    pacer = Pacer(speed, clock=clock, sleep=sleep)  # started at the first next(): the origin of the deadlines
     elapsed = 0.0  # seconds of recording played so far
-
-    def wait_until(recording_time: float) -> None:
-        delay = origin + recording_time / speed - clock()
-        if delay > 0 and math.isfinite(delay):
-            sleep(delay)
-
     for step in STEPS[:-1]:
         arrays = _step_arrays(scan, step)
         if not arrays:
@@ -334,7 +329,7 @@ def _paced(scan: Scan, speed: float, chunk_s: float | None, clock: Callable[[], 
         seconds = _step_seconds(scan, step)
         start = 0.0
         for end in _chunk_ends(seconds, chunk_s):
-            wait_until(elapsed + end)
+            pacer.wait(elapsed + end)
             yield step, {name: _between(data, _rate(scan, name), start, end, last=end == seconds)
                          for name, data in arrays.items()}
             start = end

@@ -10,7 +10,7 @@ the features, which build on the scan model, which needs the labels:
 - :mod:`taxonomy.reports.report`, :mod:`taxonomy.reports.plots`: tables, HTML reports and figures.
 """
 
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import ParameterError, TexplorerError
 from taxonomy.labels import LEVELS, Label, LabelError, check_level, format_code, parse_code
 from taxonomy.table import (
     ENV_VAR,
@@ -18,7 +18,7 @@ from taxonomy.table import (
     SHIPPED_TABLE,
     Entry,
     LabelNames,
-    Material,
+    MaterialChoice,
     Taxonomy,
     TaxonomyError,
     UnknownLabelError,
@@ -28,7 +28,7 @@ from taxonomy.table import (
 
 __all__ = [
     "ENV_VAR", "KINDS", "LEVELS", "SHIPPED_TABLE",
-    "Entry", "Label", "LabelError", "LabelNames", "Material", "Taxonomy", "TaxonomyError", "TexplorerError",
-    "UnknownLabelError",
+    "Entry", "Label", "LabelError", "LabelNames", "MaterialChoice", "ParameterError", "Taxonomy", "TaxonomyError",
+    "TexplorerError", "UnknownLabelError",
     "check_level", "format_code", "load_taxonomy", "parse_code", "read_table",
 ]

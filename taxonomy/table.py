@@ -25,7 +25,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import NamedTuple
 
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import ParameterError, TexplorerError
 from taxonomy.labels import Label, LabelError, format_code, parse_code
 
 KINDS = ("C", "S", "M", "P", "X")
@@ -103,7 +103,7 @@ class LabelNames(NamedTuple):
 
 
 @dataclass(frozen=True)
-class Material:
+class MaterialChoice:
     """A material (C, S, M) with the names of its sub-class and major class, as a picker shows it."""
 
     code: str
@@ -192,7 +192,7 @@ class Taxonomy:
     def entries(self, kind: str | None = None) -> tuple[Entry, ...]:
         """All rows in table order (classes with their sub-classes and materials, then P, then X)."""
         if kind is not None and kind not in KINDS:
-            raise ValueError(f"kind {kind!r} is not one of {', '.join(KINDS)}")
+            raise ParameterError(f"kind {kind!r} is not one of {', '.join(KINDS)}")
         return tuple(entry for entry in self._entries.values() if kind is None or entry.kind == kind)
 
     def name(self, code: str) -> str:
@@ -266,16 +266,16 @@ class Taxonomy:
         label = Label.parse(key)
         return ", ".join([names.m, names.p] + ([names.x] if label.x != 1 else []))
 
-    def materials(self) -> list[Material]:
+    def materials(self) -> list[MaterialChoice]:
         """Every material (C, S, M) in table order, with its sub-class and major class names."""
         return [self._material(entry) for entry in self._entries.values() if entry.kind == "M"]
 
-    def _material(self, entry: Entry) -> Material:
+    def _material(self, entry: Entry) -> MaterialChoice:
         subclass = self._entries[entry.parent]
         major = self._entries[subclass.parent]
-        return Material(entry.code, entry.name, subclass.name, major.name, entry.description)
+        return MaterialChoice(entry.code, entry.name, subclass.name, major.name, entry.description)
 
-    def search(self, text: str) -> list[Material]:
+    def search(self, text: str) -> list[MaterialChoice]:
         """Materials for a picker: by code prefix (``"C6"``, ``"c6s1"``, a full label) or by name.
 
         A query that starts like a code matches materials below that code (``"C1"`` finds C1S1M1 but not

@@ -42,6 +42,14 @@ def make_scan(seed: int = 0, *, seconds: float = 0.2, images: bool = True, drop:
     return Scan(make_meta(**meta), traces, photos, raw_volts)
 
 
+def pytest_collection_modifyitems(config, items):
+    """Every test under ``tests/system`` carries the ``system`` marker, so ``-m "not system"`` selects the
+    unit tests wherever they are named (``make test-fast`` runs ``tests/unit``; CONTRIBUTING.md)."""
+    for item in items:
+        if item.path.parent.name == "system":
+            item.add_marker(pytest.mark.system)
+
+
 @pytest.fixture(autouse=True)
 def _no_workers_kept_between_tests():
     """``extract_many`` keeps its workers for its next call: a test must not extract with workers forked by

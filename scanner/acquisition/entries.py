@@ -15,6 +15,7 @@ import math
 import re
 
 from scanner.scan import JUDGED_SCALE, T_AMB_RANGE, VOLUME_METHODS
+from taxonomy.errors import ParameterError
 
 NUMBER = r"[+-]?(?:\d+(?:[.,]\d*)?|[.,]\d+)(?:[eE][+-]?\d+)?"
 """A decimal number as lab operators type it: ``12.5``, ``12,5``, ``.5``, ``2e3``."""
@@ -53,13 +54,13 @@ def parse_quantity(text: str, units: tuple[str, ...], *, what: str) -> float:
     NaN and infinity with a one-line reason naming ``what`` and the expected unit.
     """
     if not text or not text.strip():
-        raise ValueError(f"enter the {what} in {units[0]}")
+        raise ParameterError(f"enter the {what} in {units[0]}")
     value = _typed_number(text, "|".join(re.escape(u) for u in units))
     if value is None:
-        raise ValueError(f"{text.strip()[:40]!r} is not a number in {units[0]}")
+        raise ParameterError(f"{text.strip()[:40]!r} is not a number in {units[0]}")
     if not math.isfinite(value) or value <= 0:
         number = re.match(rf"\s*({NUMBER})", text).group(1)
-        raise ValueError(f"the {what} must be positive (in {units[0]}), got {number}")
+        raise ParameterError(f"the {what} must be positive (in {units[0]}), got {number}")
     return value
 
 
@@ -67,27 +68,27 @@ def parse_judged(text: str, choices: tuple[tuple[float, str], ...], *, what: str
     """One of the five judged values; anything else (missing, off the scale, not a number) is refused."""
     words = ", ".join(f'"{word}"' for _, word in choices)
     if not text or not text.strip():
-        raise ValueError(f"choose the {what}: one of {words}")
+        raise ParameterError(f"choose the {what}: one of {words}")
     try:
         value = float(text.strip().replace(",", "."))
     except ValueError:
-        raise ValueError(f"{text.strip()[:20]!r} is not one of the five {what} choices "
+        raise ParameterError(f"{text.strip()[:20]!r} is not one of the five {what} choices "
                          f"{', '.join(f'{v:g}' for v, _ in choices)}") from None
     if value not in {v for v, _ in choices}:
-        raise ValueError(f"{text.strip()[:20]} is not on the five-step scale 0, 0.25, 0.5, 0.75, 1 ({words})")
+        raise ParameterError(f"{text.strip()[:20]} is not on the five-step scale 0, 0.25, 0.5, 0.75, 1 ({words})")
     return value
 
 
 def parse_ambient(text: str) -> float:
     """The ambient temperature in degC, within the MLX90614's range (``scanner.scan.T_AMB_RANGE``)."""
     if not text or not text.strip():
-        raise ValueError("enter the ambient temperature in degC")
+        raise ParameterError("enter the ambient temperature in degC")
     value = _typed_number(text, "°?C|degC")
     if value is None:
-        raise ValueError(f"{text.strip()[:40]!r} is not a temperature in degC")
+        raise ParameterError(f"{text.strip()[:40]!r} is not a temperature in degC")
     low, high = T_AMB_RANGE
     if not low <= value <= high:
-        raise ValueError(f"{value:g} degC is outside the sensor's range {low:g} to {high:g} degC")
+        raise ParameterError(f"{value:g} degC is outside the sensor's range {low:g} to {high:g} degC")
     return value
 
 
@@ -97,5 +98,5 @@ def parse_volume_method(text: str) -> str:
     found = [method for method in VOLUME_METHODS if typed and method.startswith(typed)]
     if len(found) != 1:
         words = ", ".join(f"{method} ({VOLUME_METHOD_WORDS.get(method, method)})" for method in VOLUME_METHODS)
-        raise ValueError(f"choose how the volume was measured: {words}")
+        raise ParameterError(f"choose how the volume was measured: {words}")
     return found[0]

@@ -48,6 +48,7 @@ from scanner.acquisition.devices.board import collect, field_change
 from scanner.acquisition.devices.protocols import AcquisitionError, AudioCapture, Peltier
 from scanner.preprocess import check_clipped, check_contact, check_slide
 from scanner.scan import CHANNELS, Scan, ScanMeta, Trace
+from taxonomy.errors import ParameterError
 
 DAQ_STEPS = ("finger_tap", "finger_slide", "tool_tap", "tool_slide", "static", "friction", "press", "fold")
 AUDIO_CHANNEL = {"finger_slide": "a_fs", "tool_slide": "a_ts"}
@@ -115,7 +116,7 @@ def heat(peltier: Peltier, seconds: float, *, cancel: threading.Event | None = N
     fails while another error is on its way, that failure is added to the error's notes.
     """
     if not 0 < seconds <= MAX_HEAT_S:
-        raise ValueError(f"Peltier heating of {seconds:g} s is outside (0, {MAX_HEAT_S:g}] s")
+        raise ParameterError(f"Peltier heating of {seconds:g} s is outside (0, {MAX_HEAT_S:g}] s")
     cancel = cancel or threading.Event()
     started = time.monotonic()
     peltier.on(seconds)
@@ -169,7 +170,7 @@ class Recorder:
         elif step in DAQ_STEPS:
             result = self._daq_step(step, cancel, level)
         else:
-            raise ValueError(f"{step!r} is not a recorded step (known: {', '.join((*DAQ_STEPS, 'thermal'))})")
+            raise ParameterError(f"{step!r} is not a recorded step (known: {', '.join((*DAQ_STEPS, 'thermal'))})")
         return StepResult(step, *result, started=started)
 
     def ambient(self) -> float:

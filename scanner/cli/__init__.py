@@ -23,7 +23,7 @@ from importlib.metadata import EntryPoint, entry_points
 
 from scanner.cli.base import EXIT_ERROR, EXIT_PROBLEMS, UsageError
 from scanner.version import __version__
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import ParameterError, TexplorerError
 
 __all__ = ["COMMANDS", "EXIT_ERROR", "EXIT_PIPE", "EXIT_PROBLEMS", "GROUPS", "UsageError", "build_parser", "main"]
 
@@ -93,7 +93,7 @@ def build_parser(commands: Iterable[str] | None = None) -> argparse.ArgumentPars
 
 def _group_module(group: str):
     if group not in GROUPS:
-        raise ValueError(f"{group!r} is not a command group of the CLI")
+        raise ParameterError(f"{group!r} is not a command group of the CLI")
     return importlib.import_module(f"{__name__}.{group}")
 
 

@@ -47,6 +47,8 @@ class ChangedSinceStored(TexplorerError):
         self.path, self.what = path, what
 
     def __str__(self) -> str:
+        if not hasattr(self, "path"):  # made without __init__ (copied or unpickled by other means)
+            return super().__str__()
         return (f"{self.path}: changed since it was stored ({self.what} differs from the catalog); "
                 "run 'texplorer db check'")
 

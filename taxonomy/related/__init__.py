@@ -53,8 +53,8 @@ from taxonomy.related.chathuranga import (
 from taxonomy.related.compare import (
     METHOD_ROLES,
     METHODS,
-    Comparison,
     Method,
+    MethodComparison,
     applicable,
     compare,
     compare_methods,
@@ -67,7 +67,7 @@ from taxonomy.related.datasets import (
     TIMED_ROWS,
     Dataset,
     Extracted,
-    FeatureCache,
+    ExtractedSets,
     MethodError,
     MethodSkipped,
     extract,
@@ -115,8 +115,9 @@ from taxonomy.related.xie import (
 )
 
 __all__ = [
-    "applicable", "CHATHURANGA_PAPER", "COMBINATIONS", "combined_table", "compare", "compare_methods", "Comparison",
-    "Dataset", "every", "extract", "Extracted", "FeatureCache", "hoelscher_classifier", "HOELSCHER_CLASSIFIERS",
+    "applicable", "CHATHURANGA_PAPER", "COMBINATIONS", "combined_table", "compare", "compare_methods",
+    "MethodComparison", "Dataset", "every", "extract", "Extracted", "ExtractedSets", "hoelscher_classifier",
+    "HOELSCHER_CLASSIFIERS",
     "hoelscher_features", "HOELSCHER_PAPER", "HOELSCHER_SETS", "holdout_splits", "huang_classifier", "HUANG_PAPER",
     "kfold_splits", "leave_object_out_splits", "Maker", "MEAN_DIMENSIONS", "Method", "METHOD_ROLES", "MethodError",
     "METHODS", "MethodSkipped", "motion_of", "MotionCombination", "NearestSpatialPeriod", "not_applicable",

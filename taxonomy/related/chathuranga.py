@@ -21,7 +21,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 if TYPE_CHECKING:
     from distributed import Client
 from taxonomy.learning.results import Result
-from taxonomy.related.datasets import Dataset, Extracted, FeatureCache, MethodError, MethodSkipped, motion_of, trial_of
+from taxonomy.related.datasets import Dataset, Extracted, ExtractedSets, MethodError, MethodSkipped, motion_of, trial_of
 from taxonomy.related.scoring import holdout_splits, score, scored
 
 
@@ -154,7 +154,7 @@ def palpation_table(dataset: Dataset, extracted: Extracted,
     return keys, np.array(table).reshape(len(keys), -1), first
 
 
-def run_chathuranga(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
+def run_chathuranga(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int,
                     client: Client | None = None) -> list[Result]:
     """Chathuranga et al.: elimination over (up to) three palpations; the two single-palpation baselines."""
     c4 = cache.get("chathuranga4")

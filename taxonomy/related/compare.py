@@ -13,7 +13,7 @@ if TYPE_CHECKING:
     from distributed import Client
 from taxonomy.learning.results import Result
 from taxonomy.related.chathuranga import run_chathuranga
-from taxonomy.related.datasets import REPEATS, SEED, Dataset, FeatureCache, MethodError, MethodSkipped, every
+from taxonomy.related.datasets import REPEATS, SEED, Dataset, ExtractedSets, MethodError, MethodSkipped, every
 from taxonomy.related.fishel import run_fishel
 from taxonomy.related.hoelscher import HOELSCHER_SETS, run_hoelscher
 from taxonomy.related.huang import run_huang
@@ -28,7 +28,7 @@ class Method:
     paper: str
     needs: str
     applies: Callable[[Dataset], bool]
-    run: Callable[[Dataset, FeatureCache, int, int, Client | None], list[Result]]
+    run: Callable[[Dataset, ExtractedSets, int, int, Client | None], list[Result]]
 
 
 
@@ -80,7 +80,7 @@ def not_applicable(dataset: Dataset, name: str) -> str | None:
 
 
 @dataclass(frozen=True)
-class Comparison:
+class MethodComparison:
     """The results of :func:`compare_methods` and, for every method, ``ran`` or why it did not run."""
 
     results: list[Result]
@@ -94,7 +94,7 @@ class Comparison:
 def compare_methods(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Sequence[str] | None = None,
                     *, seed: int = SEED, repeats: int = REPEATS,
                     progress: Callable[[Iterable[str]], Iterable[str]] = iter,
-                    client: Client | None = None) -> Comparison:
+                    client: Client | None = None) -> MethodComparison:
     """:func:`compare` (on the Dask cluster of ``client`` if given), with the outcome of every method:
     ``ran (n results)`` (and the parts it skipped), or ``not run:`` the role or value it lacks, or why the
     data could not feed it."""
@@ -119,7 +119,7 @@ def compare_methods(dataset: Dataset | Sequence[Recording] | Sequence[Scan], met
             outcome[name] = "not run: " + ("; ".join(own) or "no result")
         else:
             outcome[name] = f"ran ({count} results)" + "".join(f"; {line}" for line in own)
-    return Comparison(results, {name: outcome[name] for name in METHODS if name in outcome})
+    return MethodComparison(results, {name: outcome[name] for name in METHODS if name in outcome})
 
 
 def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Sequence[str] | None = None, *,
@@ -160,7 +160,7 @@ def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Se
             raise MethodError(f"method {name} needs {METHODS[name].needs}, which dataset {data.name!r} lacks")
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise MethodError(f"repeats must be a positive integer, got {repeats!r}")
-    cache = FeatureCache(data)
+    cache = ExtractedSets(data)
     results: list[Result] = []
     for name in progress(names):
         try:

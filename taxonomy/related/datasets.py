@@ -186,7 +186,7 @@ def extract(dataset: Dataset, name: str, rows: Sequence[int] | None = None) -> E
     return Extracted(name, columns or (), X, times, failed)
 
 
-class FeatureCache:
+class ExtractedSets:
     """Feature sets extracted once per dataset and shared by the methods of one :func:`compare` run."""
 
     def __init__(self, dataset: Dataset) -> None:

@@ -16,11 +16,11 @@ from taxonomy.learning.evaluation import classifier_estimators, cv_splits
 if TYPE_CHECKING:
     from distributed import Client
 from taxonomy.learning.results import Result, warning_notes
-from taxonomy.related.datasets import Dataset, FeatureCache, object_of
+from taxonomy.related.datasets import Dataset, ExtractedSets, object_of
 from taxonomy.related.scoring import score, scored, usable_rows
 
 
-def run_fishel(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
+def run_fishel(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int,
                client: Client | None = None) -> list[Result]:
     """``fishel3`` with the project's six classifiers, 5-fold CV grouped by sample (fewer folds when a class
     has fewer scans), every taxonomy level."""

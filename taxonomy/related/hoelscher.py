@@ -26,7 +26,7 @@ from taxonomy.related.datasets import (
     SEED,
     Dataset,
     Extracted,
-    FeatureCache,
+    ExtractedSets,
     MethodError,
     MethodSkipped,
     every,
@@ -203,7 +203,7 @@ def _motion_rows(dataset: Dataset, motion: str) -> list[int]:
     return [i for i, r in enumerate(dataset.recordings) if motion_of(r) == motion]
 
 
-def _single_motion(dataset: Dataset, cache: FeatureCache, set_name: str, classifier: str, seed: int,
+def _single_motion(dataset: Dataset, cache: ExtractedSets, set_name: str, classifier: str, seed: int,
                    repeats: int, client: Client | None = None) -> Result:
     """One feature set and classifier on every motion separately; the accuracies of all motions together.
     Motions it cannot run on are noted; if that is every motion, a :class:`MethodError` says why."""
@@ -256,7 +256,7 @@ def combined_table(dataset: Dataset, extracted: Extracted,
     return table.reshape(len(complete), -1), [t[motions[0]] for t in complete]
 
 
-def _combined(dataset: Dataset, cache: FeatureCache, mode: str, classifier: str, level: str,
+def _combined(dataset: Dataset, cache: ExtractedSets, mode: str, classifier: str, level: str,
               protocol: str, seed: int, repeats: int, client: Client | None = None) -> Result | None:
     extracted = cache.get("mean23")
     motions = dataset.motions()
@@ -278,7 +278,7 @@ def _combined(dataset: Dataset, cache: FeatureCache, mode: str, classifier: str,
                   classifier=classifier, motions=label, level=level, splitting=shown, seed=seed, paper=paper)
 
 
-def run_hoelscher(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
+def run_hoelscher(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int,
                   client: Client | None = None) -> list[Result]:
     """Hoelscher et al. 2015: every applicable feature set x classifier per motion, then motion combinations, the
     material-class level and held-out objects with the mean features."""

@@ -16,7 +16,7 @@ from sklearn.svm import SVC
 if TYPE_CHECKING:
     from distributed import Client
 from taxonomy.learning.results import Result
-from taxonomy.related.datasets import Dataset, FeatureCache, slides_first
+from taxonomy.related.datasets import Dataset, ExtractedSets, slides_first
 from taxonomy.related.scoring import kfold_splits, score, scored, usable_rows
 
 HUANG_PAPER = {"svm": "95 +- 2.3 %, 0.47 s features", "rf": "94 +- 2.2 %, 0.47 s features",
@@ -35,7 +35,7 @@ def huang_classifier(name: str, seed: int) -> BaseEstimator:
     }[name]()
 
 
-def run_huang(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
+def run_huang(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int,
               client: Client | None = None) -> list[Result]:
     """Huang and Wu: seven band means, RBF SVM / random forest / kNN, 10-fold CV at the label level."""
     extracted = cache.get("huang7")

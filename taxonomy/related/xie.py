@@ -22,7 +22,7 @@ from features import related
 if TYPE_CHECKING:
     from distributed import Client
 from taxonomy.learning.results import Result
-from taxonomy.related.datasets import Dataset, FeatureCache, slides_first
+from taxonomy.related.datasets import Dataset, ExtractedSets, slides_first
 from taxonomy.related.scoring import kfold_splits, score, scored, usable_rows
 
 XIE_CLASSIFIERS = ("linear-svm", "rbf-svm", "knn", "lda", "nb", "rf", "mlp")
@@ -80,7 +80,7 @@ def pca_sweep(X: np.ndarray, y: np.ndarray, seed: int, folds: int = 5) -> np.nda
 
 
 
-def run_xie(dataset: Dataset, cache: FeatureCache, seed: int, repeats: int,
+def run_xie(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int,
             client: Client | None = None) -> list[Result]:
     """Xie et al.: PCA dimension swept per training fold with the linear SVM, then seven classifiers."""
     extracted = cache.get("xie_sequences")

@@ -17,6 +17,7 @@ import numpy as np
 import scipy.stats
 
 from scanner.scan import Scan, Trace
+from taxonomy.errors import ParameterError
 from taxonomy.labels import LabelError, major_class
 from taxonomy.learning.results import Result
 from taxonomy.table import Taxonomy, load_taxonomy
@@ -220,7 +221,7 @@ def _step_panels(step: str, traces: Traces, t_amb: float, rigid: bool) -> list[C
         "fold": functools.partial(_fold, traces=traces, rigid=rigid),
     }
     if step not in others:
-        raise ValueError(f"{step!r} is not a recorded step (known: {', '.join([*_ACCELERATION, *others])})")
+        raise ParameterError(f"{step!r} is not a recorded step (known: {', '.join([*_ACCELERATION, *others])})")
     return [others[step]]
 
 
@@ -300,7 +301,7 @@ def class_labels(classes: Sequence[str], taxonomy: Taxonomy | None = None, width
     for code in classes:
         try:
             if code != code.strip().upper():  # "c3" of another data set is no taxonomy code
-                raise ValueError(code)
+                raise ParameterError(code)
             name = _shorten(table.class_name(code), width)
         except ValueError:
             labels.append(code)
@@ -320,7 +321,7 @@ def plot_scores(reports: Sequence[Result], level: str, n_features: int | None,
     """
     chosen = [r for r in reports if r.level == level and r.n_features == n_features]
     if not chosen:
-        raise ValueError(f"no report at level {level} with {n_features} features to plot")
+        raise ParameterError(f"no report at level {level} with {n_features} features to plot")
     sets = list(dict.fromkeys(r.feature_set for r in chosen))
     classifiers = list(dict.fromkeys(r.classifier for r in chosen))
     cell = {(r.classifier, r.feature_set): r for r in chosen}
@@ -415,7 +416,7 @@ def plot_pca_variance(X: np.ndarray, path: str | os.PathLike[str], marks: Sequen
     X = X[:, np.isfinite(X).all(axis=0)]
     X = X[:, np.ptp(X, axis=0) > 0] if X.size else X
     if X.shape[0] < 2 or X.shape[1] < 1:
-        raise ValueError("PCA needs at least two rows and one finite, non-constant column")
+        raise ParameterError("PCA needs at least two rows and one finite, non-constant column")
     scaled = (X - X.min(axis=0)) / np.ptp(X, axis=0)
     singular = np.linalg.svd(scaled - scaled.mean(axis=0), compute_uv=False)
     share = 100 * singular**2 / np.sum(singular**2)
@@ -544,7 +545,7 @@ def plot_reliability(reports: Sequence[Result], path: str | os.PathLike[str]) ->
     """
     chosen = [r for r in reports if r.reliability is not None]
     if not chosen:
-        raise ValueError("no result with calibrated probabilities to plot")
+        raise ParameterError("no result with calibrated probabilities to plot")
     columns = min(3, len(chosen))
     rows = -(-len(chosen) // columns)
     figure = _canvas(3.2 * columns, 3.2 * rows)
@@ -574,7 +575,7 @@ def plot_open_set(report: Result, path: str | os.PathLike[str]) -> Path:
     """Histograms of the rejection score of known and unknown test scans of an open-set result, with the
     ROC curve beside them; the ROC's diagonal is chance (AUROC 0.5)."""
     if not report.open_set:
-        raise ValueError("not an open-set result")
+        raise ParameterError("not an open-set result")
     figure = _canvas(9.0, 3.4)
     left, right = figure.subplots(1, 2)
     score = report.open_score

@@ -5,7 +5,7 @@ real, a simulated and a replay implementation, chosen by the configuration (:mod
 device                  real                      simulated                       replay
 ======================  ========================  ==============================  =========================
 DAQ                     ``NidaqmxDaq`` (local or  ``PlaybackDaq`` of a            ``PlaybackDaq`` of a
-                        ``grpc://`` server)       ``SimulatedSample``             ``StoredScan``
+                        ``grpc://`` server)       ``SimulatedSample``             ``ReplayedScan``
 sensor board            ``SerialBoard``           ``PlaybackBoard``               ``PlaybackBoard``
 microphone              ``SoundDeviceMicrophone``  ``PlaybackMicrophone``          ``PlaybackMicrophone``
 camera                  ``OpenCvCamera``          ``PlaybackCamera``              ``PlaybackCamera``
@@ -38,7 +38,8 @@ from scanner.acquisition.devices.protocols import (
     Peltier,
     SensorBoard,
 )
-from scanner.acquisition.devices.sources import Pacer, SignalSource, Specimen, StoredScan, simulated_sample
+from scanner.acquisition.devices.sources import ReplayedScan, SignalSource, Specimen, simulated_sample
+from scanner.pacing import Pacer
 
 __all__ = [
     "AcquisitionError", "BoardTimeout", "ConnectionLost", "DeviceError", "DeviceUnavailable", "Devices",
@@ -115,7 +116,7 @@ def _sources(config: Config, simulated: SignalSource | None,
             raise ConfigError("simulated devices need a simulated sample or the specimen they observe")
         sources["simulated"] = simulated if simulated is not None else simulated_sample(config, specimen)
     if "replay" in choices:
-        sources["replay"] = StoredScan.load(config.replay.scan)
+        sources["replay"] = ReplayedScan.load(config.replay.scan)
     return sources
 
 

@@ -22,7 +22,8 @@ import numpy as np
 
 from scanner.acquisition.config import MicrophoneConfig
 from scanner.acquisition.devices.protocols import AcquisitionError, AudioCapture, DeviceError, DeviceUnavailable
-from scanner.acquisition.devices.sources import Pacer, SignalSource
+from scanner.acquisition.devices.sources import SignalSource
+from scanner.pacing import Pacer
 
 FIRST_BLOCK_TIMEOUT_S = 2.0
 FULL_SCALE = 32768.0

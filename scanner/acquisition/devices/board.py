@@ -49,8 +49,9 @@ from scanner.acquisition.devices.protocols import (
     DeviceError,
     DeviceUnavailable,
 )
-from scanner.acquisition.devices.sources import Pacer, SignalSource
-from taxonomy.errors import TexplorerError
+from scanner.acquisition.devices.sources import SignalSource
+from scanner.pacing import Pacer
+from taxonomy.errors import ParameterError, TexplorerError
 
 BOARD_ID = "TEXPLORER-SB"
 MAX_HEAT_MS = int(MAX_HEAT_S * 1000)
@@ -438,7 +439,7 @@ class SerialBoard:
 
     def start(self, kind: str, hz: float) -> None:
         if kind not in DATA_FIELDS:
-            raise ValueError(f"board stream must be T or M, got {kind!r}")
+            raise ParameterError(f"board stream must be T or M, got {kind!r}")
         self._prepare()
         while not self._samples.empty():
             self._samples.get_nowait()
@@ -499,7 +500,7 @@ class SerialBoard:
         """``HEAT <ms>``: the board heats for ``ms`` and switches off itself; more than 5000 ms is refused."""
         ms = int(ms)
         if not 0 < ms <= MAX_HEAT_MS:
-            raise ValueError(f"Peltier heating of {ms} ms is outside 1..{MAX_HEAT_MS} ms")
+            raise ParameterError(f"Peltier heating of {ms} ms is outside 1..{MAX_HEAT_MS} ms")
         self._prepare()
         self.command(f"HEAT {ms}", expect="OK HEAT")
 
@@ -621,7 +622,7 @@ class PlaybackBoard:
 
     def start(self, kind: str, hz: float) -> None:
         if kind not in DATA_FIELDS:
-            raise ValueError(f"board stream must be T or M, got {kind!r}")
+            raise ParameterError(f"board stream must be T or M, got {kind!r}")
         self.model.begin(kind, hz)
         self._kind, self._hz, self._sent = kind, float(hz), 0
         self._ms0 += 100_000
@@ -641,7 +642,7 @@ class PlaybackBoard:
 
     def heat(self, ms: int) -> None:
         if not 0 < int(ms) <= MAX_HEAT_MS:
-            raise ValueError(f"Peltier heating of {ms} ms is outside 1..{MAX_HEAT_MS} ms")
+            raise ParameterError(f"Peltier heating of {ms} ms is outside 1..{MAX_HEAT_MS} ms")
         self.model.heat()
         self.heat_log.append((time.perf_counter(), int(ms)))
 
@@ -663,7 +664,7 @@ class BoardPeltier:
 
     def on(self, seconds: float) -> None:
         if not 0 < seconds <= MAX_HEAT_S:
-            raise ValueError(f"Peltier heating of {seconds:g} s is outside (0, {MAX_HEAT_S:g}] s")
+            raise ParameterError(f"Peltier heating of {seconds:g} s is outside (0, {MAX_HEAT_S:g}] s")
         self.board.heat(int(round(seconds * 1000)))
 
     def off(self) -> None:

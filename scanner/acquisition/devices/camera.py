@@ -19,6 +19,7 @@ from scanner.acquisition.devices.protocols import DeviceError, DeviceUnavailable
 from scanner.acquisition.devices.sources import SignalSource
 from scanner.photo import PhotoError, check_size, decode
 from scanner.scan import IMAGES
+from taxonomy.errors import ParameterError
 
 MAX_PHOTO_BYTES = 40 << 20
 """Uploads larger than this are refused (a 12 MP PNG is about 25 MB)."""
@@ -60,7 +61,7 @@ class OpenCvCamera:
     def capture(self, photo: str) -> np.ndarray:
         """One RGB uint8 frame after ``warmup_frames`` frames (auto exposure and focus settle)."""
         if photo not in IMAGES:
-            raise ValueError(f"{photo!r} is not a photo (known: {', '.join(IMAGES)})")
+            raise ParameterError(f"{photo!r} is not a photo (known: {', '.join(IMAGES)})")
         frame = None
         for _ in range(self.config.warmup_frames + 1):
             ok, grabbed = self._capture.read()
@@ -97,7 +98,7 @@ class PlaybackCamera:
 
     def capture(self, photo: str) -> np.ndarray:
         if photo not in IMAGES:
-            raise ValueError(f"{photo!r} is not a photo (known: {', '.join(IMAGES)})")
+            raise ParameterError(f"{photo!r} is not a photo (known: {', '.join(IMAGES)})")
         if not self._take or photo in self._taken:
             self._take, self._taken = dict(self.source.photos("camera")), set()
         self._taken.add(photo)

@@ -24,7 +24,9 @@ import numpy as np
 
 from scanner.acquisition.config import MAX_HEAT_S, Calibration, DaqConfig
 from scanner.acquisition.devices.protocols import AcquisitionError, DeviceError, DeviceUnavailable
-from scanner.acquisition.devices.sources import Pacer, SignalSource
+from scanner.acquisition.devices.sources import SignalSource
+from scanner.pacing import Pacer
+from taxonomy.errors import ParameterError
 
 OVERRUN_ERRORS = {-200279: "samples no longer available", -200361: "onboard FIFO overflow",
                   -200010: "input FIFO overflow", -200283: "acquisition stopped to prevent an overflow"}
@@ -287,7 +289,7 @@ class DaqPeltier:
 
     def on(self, seconds: float) -> None:
         if not 0 < seconds <= MAX_HEAT_S:
-            raise ValueError(f"Peltier heating of {seconds:g} s is outside (0, {MAX_HEAT_S:g}] s")
+            raise ParameterError(f"Peltier heating of {seconds:g} s is outside (0, {MAX_HEAT_S:g}] s")
         with self._lock:
             self._cancel_timer()
             self.daq.set_peltier(True)

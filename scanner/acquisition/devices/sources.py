@@ -11,7 +11,7 @@ only in their source.
 Every time a device starts recording a step, the operator performs that step once more (a *take*): take
 ``k`` of a step is seeded by (seed, step, k), so a redo gives a new, still deterministic, performance, and
 the DAQ and the microphone starting the same slide for the k-th time see the same take.
-:class:`StoredScan` plays the same recording every time. Both produce volts where a real device gives volts,
+:class:`ReplayedScan` plays the same recording every time. Both produce volts where a real device gives volts,
 through the inverse of the configured calibration (or the scan's stored raw volts).
 """
 
@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,6 +41,7 @@ from scanner.simulation import (
     scan_seed,
 )
 from scanner.storage.matfile import load_scan
+from taxonomy.errors import ParameterError
 
 STEP_SECONDS = 5.0
 """Length of a simulated tap, slide, friction, press or fold (docs/operator.md#procedure)."""
@@ -151,7 +151,7 @@ class SimulatedSample:
         slide get the same one.
         """
         if step not in STEP_FUNCTIONS:
-            raise KeyError(f"unknown procedure step {step!r} (known: {', '.join(STEPS)})")
+            raise ParameterError(f"unknown procedure step {step!r} (known: {', '.join(STEPS)})")
         with self._lock:
             index = self._counts.get((step, device), 0)
             self._counts[step, device] = index + 1
@@ -196,7 +196,7 @@ class SimulatedSample:
         return self.take("photos", device)
 
 
-class StoredScan:
+class ReplayedScan:
     """A stored scan played back: every step gives the same recording, in volts where the DAQ gives volts
     (the scan's raw volts where kept, else through the inverse calibration)."""
 
@@ -207,7 +207,7 @@ class StoredScan:
         self.kind = "replay"
 
     @classmethod
-    def load(cls, path: str | Path) -> StoredScan:
+    def load(cls, path: str | Path) -> ReplayedScan:
         return cls(load_scan(path), Path(path).name)
 
     def describe(self) -> str:
@@ -271,40 +271,3 @@ def material_for(label: str, slug: str = "") -> Material:
         return material_for_label(label)
     except SimulationError as exc:
         raise ConfigError(str(exc)) from None
-
-
-class Pacer:
-    """The clock of the playback devices: holds them back to real time and tells how far a recording is.
-
-    ``speed`` 1 is real time, 2 twice as fast, 0 never waits (tests, batch replay): then time is *virtual*,
-    advanced by the devices' own reads, so a microphone sharing the DAQ's pacer records as long as the DAQ
-    was read.
-    """
-
-    def __init__(self, speed: float = 1.0) -> None:
-        if speed < 0:
-            raise ValueError(f"pacing speed must be >= 0, got {speed!r}")
-        self.speed = float(speed)
-        self.started = time.perf_counter()
-        self.virtual = 0.0
-
-    def start(self) -> float:
-        """Restart the clock; returns the ``perf_counter`` time of the start."""
-        self.started = time.perf_counter()
-        self.virtual = 0.0
-        return self.started
-
-    def wait(self, seconds: float) -> None:
-        """Return when ``seconds`` of the recording have passed (at once at speed 0)."""
-        self.virtual = max(self.virtual, seconds)
-        if self.speed == 0:
-            return
-        delay = self.started + seconds / self.speed - time.perf_counter()
-        if delay > 0:
-            time.sleep(delay)
-
-    def elapsed(self) -> float:
-        """Seconds of recording since :meth:`start`: real (times speed) or virtual at speed 0."""
-        if self.speed == 0:
-            return self.virtual
-        return (time.perf_counter() - self.started) * self.speed

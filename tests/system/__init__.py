@@ -1,0 +1,1 @@
+"""System tests: processes, clusters, browsers, emulators, simulated databases."""

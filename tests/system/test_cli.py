@@ -1,0 +1,99 @@
+"""The texplorer command line: db list/show/check/rebuild, one-line errors, --debug tracebacks: the system tests
+(the CLI in subprocesses and texplorer demo)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+from conftest import make_scan
+
+from scanner.cli import EXIT_PIPE, main
+from scanner.storage.database import Database
+
+
+@pytest.fixture
+def db_path(tmp_path):
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0, sample_id="granite-01", scan_index=1))
+    db.add(make_scan(1, label="C7S1M1P8X1", sample_id="steel-01", scan_index=1, operator="cd",
+                     rigid=True, drop=("f_fold", "alpha_f")))
+    db.close()
+    return tmp_path / "db"
+
+
+def test_errors_are_one_line_without_traceback(tmp_path, db_path):
+    run = subprocess.run([sys.executable, "-m", "scanner.cli", "db", "show", "nope", "--db", str(db_path)],
+                         capture_output=True, text=True)
+    assert run.returncode == 1 and run.stdout == ""
+    assert run.stderr.strip().splitlines() == [f"texplorer: error: no scan 'nope' in {db_path}"]
+    run = subprocess.run([sys.executable, "-m", "scanner.cli", "db", "list", "--db", str(tmp_path / "none")],
+                         capture_output=True, text=True)
+    assert run.returncode == 1 and len(run.stderr.strip().splitlines()) == 1
+    assert "no texplorer database here" in run.stderr and not (tmp_path / "none").exists()
+    run = subprocess.run([sys.executable, "-m", "scanner.cli", "db", "show", "nope", "--db", str(db_path),
+                          "--debug"], capture_output=True, text=True)
+    assert run.returncode == 1 and "Traceback" in run.stderr
+
+
+def test_db_list_into_a_closed_pipe_ends_quietly(db_path):
+    # `texplorer db list | head`: the reader is gone before the table is written.
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        run = subprocess.run([sys.executable, "-m", "scanner.cli", "db", "list", "--db", str(db_path)],
+                             stdout=write_end, stderr=subprocess.PIPE, text=True)
+    finally:
+        os.close(write_end)
+    assert run.stderr == "" and run.returncode == EXIT_PIPE
+
+
+@pytest.fixture(scope="module")
+def demo_db(tmp_path_factory):
+    """A small synthetic database with features, evaluation and a model, built by 'texplorer demo'."""
+    root = tmp_path_factory.mktemp("demo") / "db"
+    code = main(["demo", "--db", str(root), "--samples", "2", "--scans", "2", "--image-size", "320", "--materials",
+                 "polyurethane-foam", "mild-steel-brushed", "float-glass", "--classifier", "rf", "nb",
+                 "--level", "coarse", "fine", "--feature-set", "tactum", "--folds", "3", "--workers", "2"])
+    assert code == 0
+    return root
+
+
+def test_demo_runs_the_whole_chain(demo_db):
+    # Two samples per material: the evaluation keeps each sample in one fold and its table says so.
+    database = Database(demo_db, create=False)
+    assert len(database) == 12 and len({r.sample_id for r in database.records()}) == 6
+    assert (demo_db / "features.csv").is_file()
+    assert (demo_db / "report" / "index.html").is_file() and (demo_db / "report" / "fq_ranking.png").is_file()
+    assert (demo_db / "models" / "rf-fine-X10.skops").is_file()
+
+
+def test_select_evaluate_train_classify(demo_db, tmp_path, capsys):
+    capsys.readouterr()
+    assert main(["select", "--db", str(demo_db), "--n", "3", "--top", "5"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("feature quality at level fine (193 features, top 5):")
+    assert "selected (|Spearman rho| < 0.5, n = 3): " in out
+    assert main(["evaluate", "--db", str(demo_db), "--features", str(demo_db / "features.csv"),
+                 "--classifier", "lda", "--level", "coarse", "--n", "3", "--feature-set", "other",
+                 "--folds", "3", "--report", str(tmp_path / "r")]) == 0
+    out = capsys.readouterr().out
+    assert "lda" in out and "other" in out and (tmp_path / "r" / "index.html").is_file()
+    assert "X3, nested protocol, 3 folds grouped by sample, seed 0" in out
+    model = tmp_path / "m.skops"
+    assert main(["train", "--db", str(demo_db), "--out", str(model), "--level", "coarse", "--n", "3"]) == 0
+    scan = next(demo_db.glob("scans/C3*/*/*-001.mat"))
+    capsys.readouterr()
+    assert main(["classify", str(scan), "--model", str(model), "--k", "2"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[1].split()[:2] == ["1.", "C3"]
+
+
+def test_classify_refuses_a_foreign_model(demo_db, tmp_path, capsys):
+    (tmp_path / "evil.skops").write_bytes(b"PK\x03\x04 not really a model")
+    scan = next(demo_db.glob("scans/C3*/*/*-001.mat"))
+    assert main(["classify", str(scan), "--model", str(tmp_path / "evil.skops")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("texplorer: error: ") and "evil.skops" in err and len(err.strip().splitlines()) == 1

@@ -1,0 +1,504 @@
+"""The web application at server level: form validation, uploads, CSRF, the database browser, and the guided
+session driven through Flask's test client with simulated devices: the system tests (texplorer serve in a
+subprocess, exports and whole sessions)."""
+
+from __future__ import annotations
+
+import re
+import struct
+
+import numpy as np
+import pytest
+from unit.test_gui import (
+    RECORDED_STEPS,
+    active,
+    database,
+    field_error,
+    get,
+    make_app,
+    noise_photo,
+    png_upload,
+    post,
+    record_all,
+    start_session,
+)
+
+
+@pytest.fixture
+def app(tmp_path):
+    app = make_app(tmp_path / "db", upload_limit=400_000)
+    yield app
+    app.extensions["texplorer"].shutdown()
+
+
+@pytest.fixture
+def client(app):
+    return app.test_client()
+
+
+def test_full_session_through_the_server(client, app):
+    assert start_session(client, operator="Ann", sample_id="granite-07").headers["Location"] == "/session"
+    overview = get(client, "/session").text
+    assert "granite (igneous stone, stone), polished, plain" in overview
+    sensor = active(app).session.t_amb
+    assert f'value="{sensor:.1f}"' in overview  # pre-filled from the (simulated) MLX90614
+    assert field_error(post(client, "/session/ambient", {"t_amb": "90"}).text, "t_amb") \
+        == "90 degC is outside the sensor's range -40 to 85 degC"
+    assert post(client, "/session/ambient", {"t_amb": "22,5"}).status_code == 302
+    assert get(client, "/session/step/finger_tap/traces.png").status_code == 404  # nothing recorded yet
+    record_all(client, app)
+    numbers = []
+    for step in RECORDED_STEPS:
+        step_page = get(client, f"/session/step/{step}").text
+        assert "Quality check" in step_page and "Redo this step" in step_page
+        numbers.append(int(step_page.split("<h1>Step ", 1)[1].split(":", 1)[0]))
+        # the step's traces between the quality result and the keep/redo buttons
+        image = f'<img src="/session/step/{step}/traces.png?v={active(app).version}"'
+        assert step_page.index("Quality check") < step_page.index(image) < step_page.index("Redo this step")
+        png = get(client, f"/session/step/{step}/traces.png")
+        assert png.mimetype == "image/png" and png_size(png.data)[0] == 800
+    assert numbers == list(range(1, len(RECORDED_STEPS) + 1))
+    chips = re.findall(r'<a href="/session/[^"]*"[^>]*>(\d+)\. ', step_page)
+    assert chips == [str(n) for n in range(1, 12)]  # the progress strip too, photos and TU4 included
+
+    photo = noise_photo(1)
+    upload = {"I_disp": png_upload(photo), "atk": "0.25", "cyd": "0", "mass_g": "512,5 g",
+              "volume_cm3": "190", "volume_method": "micro-pearls", "notes": "left corner chipped"}
+    page = post(client, "/session/form", upload, content_type="multipart/form-data")
+    assert page.status_code == 422  # two photos still missing; the upload and the values are kept
+    assert field_error(page.text, "I_macro").startswith("upload a PNG or JPEG photo")
+    assert field_error(page.text, "I_disp") is None and 'value="512,5 g"' in page.text
+    for name in ("I_macro", "I_illu"):
+        assert post(client, "/session/form", {"capture": name}).status_code == 200
+    done = post(client, "/session/form", {"atk": "0.25", "cyd": "0", "mass_g": "512,5 g", "volume_cm3": "190",
+                                         "volume_method": "micro-pearls", "notes": "left corner chipped"})
+    assert done.headers["Location"] == "/session/summary"
+    summary = get(client, "/session/summary")
+    assert summary.status_code == 200
+    assert "thermal cooling TCO (K)" in summary.text and "no trained model" in summary.text
+    traces = get(client, "/session/summary/traces.png")
+    assert traces.data.startswith(b"\x89PNG")
+    assert len(database(app)) == 0  # nothing stored before save
+
+    saved = post(client, "/session/save")
+    assert saved.headers["Location"] == "/db/scan/granite-07-001"
+    assert active(app) is None
+    scan = database(app).get("granite-07-001")
+    meta = scan.meta
+    assert (meta.label, meta.operator, meta.sample_id, meta.scan_index) \
+        == ("C6S1M1P2X1", "Ann", "granite-07", 1)
+    assert (meta.t_amb, meta.atk, meta.cyd, meta.mass_g, meta.volume_cm3) == (22.5, 0.25, 0.0, 512.5, 190.0)
+    assert "left corner chipped" in meta.notes and meta.volume_method == "micro-pearls" and not meta.rigid
+    assert np.array_equal(scan.images["I_disp"], photo)  # the uploaded pixels, losslessly
+    assert set(scan.traces) == set(scanner_channels())
+    assert not any((app.extensions["texplorer"].photos.folder).iterdir())  # staged previews removed
+    # Only the step figures drawn during the scan are kept, as the saved scan's cached figures (gui.figures)
+    work = app.extensions["texplorer"].settings.work_dir
+    app.extensions["texplorer"].figures.wait(30)  # written after the save's answer
+    record = database(app).record("granite-07-001")
+    kept = sorted(p.relative_to(work).as_posix() for p in work.rglob("*") if p.is_file())
+    assert kept and all(re.fullmatch(rf"plots/{record.content_hash}-[a-z_]+\.png", name) for name in kept)
+    listing = get(client, "/db/scans").text
+    assert "granite-07-001" in listing
+
+
+def png_size(data: bytes) -> tuple[int, int]:
+    """Width and height from a PNG's IHDR chunk."""
+    assert data.startswith(b"\x89PNG\r\n\x1a\n")
+    return struct.unpack(">II", data[16:24])
+
+
+def scanner_channels():
+    from scanner.scan import CHANNELS
+
+    return CHANNELS
+
+
+def density_model(path):
+    """A random forest on density alone: granite (2.6-2.8 g/cm^3) against oak (0.6-0.8 g/cm^3)."""
+    from features.space import FeatureSpace
+    from taxonomy.learning.models import save_model, train_model
+
+    density = np.concatenate([np.linspace(2.6, 2.8, 6), np.linspace(0.6, 0.8, 6)])
+    labels = ["C6S1M1P2X1"] * 6 + ["C1S1M1P4X1"] * 6
+    space = FeatureSpace(X=density[:, None], columns=("other.density",),
+                         scan_ids=[f"s-{i}" for i in range(12)], label_text=labels,
+                         groups=[f"g-{i}" for i in range(12)])
+    return save_model(train_model(space, "fine", 1, "rf"), path)
+
+
+def test_summary_shows_the_models_top_predictions(tmp_path):
+    density_model(tmp_path / "db" / "models" / "rf-fine-X10.skops")  # where 'texplorer demo' puts it
+    app = make_app(tmp_path / "db")
+    client = app.test_client()
+    try:
+        start_session(client)
+        record_all(client, app)
+        for name in ("I_disp", "I_macro", "I_illu"):
+            post(client, "/session/form", {"capture": name})
+        # density 512.5 g / 190 cm^3 = 2.697 g/cm^3: inside the granite range
+        post(client, "/session/form", {"atk": "0", "cyd": "0", "mass_g": "512.5", "volume_cm3": "190",
+                                       "volume_method": "water"})
+        page = get(client, "/session/summary").text
+        ranking = page.split('<ol class="predictions">', 1)[1].split("</ol>", 1)[0]
+        assert ranking.index("C6S1M1P2X1") < ranking.index("C1S1M1P4X1")
+        # every tree splits between 0.8 and 2.6, so all of them vote granite
+        assert ranking.index("100.0 %") < ranking.index("0.0 %")
+        assert "granite (igneous stone, stone), polished, plain" in ranking
+        assert "oak (hardwood, wood), planed, plain" in ranking
+        assert "rf at level fine, trained on 12 scans" in page
+    finally:
+        app.extensions["texplorer"].shutdown()
+
+
+def test_summary_says_unknown_material_for_a_scan_unlike_every_trained_one(tmp_path):
+    """Three materials by density, two pieces each; a scan of 8.0 g/cm^3 (steel) is far from all of them."""
+    from features.space import FeatureSpace
+    from taxonomy.learning.models import save_model, train_model
+
+    rng = np.random.default_rng(0)
+    centres = {"C6S1M1P2X1": 2.7, "C1S1M1P4X1": 0.7, "C3S4M2P1X1": 1.2}
+    labels = [label for label in centres for _ in range(8)]
+    density = np.array([centres[label] for label in labels]) + 0.05 * rng.standard_normal(len(labels))
+    space = FeatureSpace(X=density[:, None], columns=("other.density",),
+                         scan_ids=[f"s-{i}" for i in range(len(labels))], label_text=labels,
+                         groups=[f"{label}-{i % 2}" for i, label in enumerate(labels)])
+    save_model(train_model(space, "fine", 1, "rf"), tmp_path / "db" / "models" / "rf-fine-X10.skops")
+    app = make_app(tmp_path / "db")
+    client = app.test_client()
+    try:
+        start_session(client)
+        record_all(client, app)
+        for name in ("I_disp", "I_macro", "I_illu"):
+            post(client, "/session/form", {"capture": name})
+        post(client, "/session/form", {"atk": "0", "cyd": "0", "mass_g": "1520", "volume_cm3": "190",
+                                       "volume_method": "water"})
+        page = get(client, "/session/summary").text
+        assert 'id="unknown-material"' in page
+        assert "unknown material (closest: granite (igneous stone, stone), polished, plain (C6S1M1P2X1)" in page
+    finally:
+        app.extensions["texplorer"].shutdown()
+
+
+@pytest.fixture
+def stocked(tmp_path):
+    from conftest import make_scan
+
+    from scanner.storage.database import Database
+
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0, sample_id="granite-01", scan_index=1, image_shape=(300, 300)))
+    db.add(make_scan(1, sample_id="granite-01", scan_index=2, image_shape=(300, 300)))
+    db.add(make_scan(2, label="C7S1M1P8X1", sample_id="steel-01", scan_index=1, operator="cd", rigid=True,
+                     drop=("f_fold", "alpha_f"), images=False))
+    db.close()
+    app = make_app(tmp_path / "db")
+    yield app.test_client()
+    app.extensions["texplorer"].shutdown()
+
+
+def test_browser_scan_page_traces_photos_features(stocked):
+    page = get(stocked, "/db/scan/granite-01-001").text
+    assert "Scan granite-01-001" in page and "21.50 °C" in page and "512 g" in page
+    assert "<code>v_ts</code>" in page and "44100 Hz" in page
+    assert "TacTUM (paper section IV-A)" in page
+    assert '<th scope="row">atk</th><td class="num">0</td>' in page
+    assert get(stocked, "/db/scan/granite-01-001/traces.png").data.startswith(b"\x89PNG")
+    photo = get(stocked, "/db/scan/granite-01-001/photo/I_disp")
+    assert photo.mimetype == "image/png" and photo.data.startswith(b"\x89PNG")
+    assert get(stocked, "/db/scan/steel-01-001/photo/I_disp").status_code == 404
+    assert "This scan has no photos" in get(stocked, "/db/scan/steel-01-001").text
+
+
+def test_feature_table_export(stocked):
+    answer = get(stocked, "/db/export/features.csv")
+    assert answer.status_code == 200 and "attachment" in answer.headers["Content-Disposition"]
+    lines = answer.data.decode().splitlines()
+    header = lines[0].split(",")
+    assert "tactum.matx" in header and "other.tap_decay" in header and len(header) == 3 + 5 + 193
+    scan_ids = sorted(line.split(",")[0] for line in lines[1:])
+    assert scan_ids == ["granite-01-001", "granite-01-002", "steel-01-001"]
+
+
+def export_in_browser_session(client, form, timeout=60.0):
+    """Start an export from the database page, poll it as the page does, download the bundle."""
+    import time
+
+    answer = post(client, "/db/export", form)
+    assert answer.status_code == 302, answer.text
+    job_url = answer.headers["Location"]
+    assert get(client, job_url).status_code == 200
+    deadline = time.monotonic() + timeout
+    while (status := get(client, job_url + "/status").json)["running"]:
+        assert time.monotonic() < deadline, status
+        time.sleep(0.05)
+    assert status["ready"], status
+    return get(client, status["download"])
+
+
+def bundle_manifest(data: bytes) -> dict:
+    import io
+    import json
+    import zipfile
+
+    with zipfile.ZipFile(io.BytesIO(data)) as bundle:
+        assert bundle.testzip() is None
+        return json.loads(bundle.read("manifest.json"))
+
+
+def files_under(folder):
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file()) if folder.exists() else []
+
+
+@pytest.fixture
+def exporter(tmp_path):
+    """The stocked database's app with its own temporary folder for bundles, to see what is left there."""
+    from conftest import make_scan
+
+    from scanner.storage.database import Database
+
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0, sample_id="granite-01", scan_index=1, session_id="s-1", image_shape=(300, 300)))
+    db.add(make_scan(1, sample_id="granite-01", scan_index=2, session_id="s-2", image_shape=(300, 300)))
+    db.add(make_scan(2, label="C7S1M1P8X1", sample_id="steel-01", scan_index=1, session_id="s-2", rigid=True,
+                     drop=("f_fold", "alpha_f"), images=False))
+    db.close()
+    (tmp_path / "tmp").mkdir()
+    app = make_app(tmp_path / "db", export_dir=tmp_path / "tmp")
+    yield app
+    app.extensions["texplorer"].shutdown()
+
+
+def test_export_job_streams_the_whole_database_and_keeps_nothing(exporter, tmp_path):
+    answer = export_in_browser_session(exporter.test_client(), {})
+    assert answer.status_code == 200 and answer.mimetype == "application/zip"
+    assert answer.headers["Content-Length"] == str(len(answer.data))
+    manifest = bundle_manifest(answer.data)
+    assert [scan["scan_id"] for scan in manifest["scans"]] == ["granite-01-001", "granite-01-002", "steel-01-001"]
+    assert manifest["filters"] == {"label": None, "session": None}
+    assert files_under(tmp_path / "tmp") == [] and not list((tmp_path / "tmp").iterdir())
+    assert files_under(tmp_path / "db" / ".gui") == []
+
+
+@pytest.mark.parametrize(("form", "filters", "scans"), [
+    ({"label": " c7 "}, {"label": "C7", "session": None}, ["steel-01-001"]),
+    ({"session": "s-2"}, {"label": None, "session": "s-2"}, ["granite-01-002", "steel-01-001"]),
+    ({"label": "C6S1M1P2X1", "session": "s-2"}, {"label": "C6S1M1P2X1", "session": "s-2"}, ["granite-01-002"])])
+def test_export_job_filters_like_the_cli(exporter, form, filters, scans):
+    answer = export_in_browser_session(exporter.test_client(), form)
+    manifest = bundle_manifest(answer.data)
+    assert [scan["scan_id"] for scan in manifest["scans"]] == scans and manifest["filters"] == filters
+
+
+def test_export_job_refusals(exporter, tmp_path):
+    client = exporter.test_client()
+    answer = post(client, "/db/export", {"label": "Z9"})
+    assert answer.status_code == 422
+    assert field_error(answer.text, "label").startswith("'Z9' is not a label or class prefix")
+    answer = post(client, "/db/export", {"label": "C1"})
+    assert answer.status_code == 409 and "no scans with label C1 to export" in answer.text
+    assert exporter.extensions["texplorer"].exports.job is None and not list((tmp_path / "tmp").iterdir())
+
+
+def test_export_bundle_is_taken_once_then_gone(exporter, tmp_path):
+    client = exporter.test_client()
+    first = export_in_browser_session(client, {"label": "C7"})
+    assert first.status_code == 200
+    job = exporter.extensions["texplorer"].exports.job
+    again = get(client, f"/db/export/{job.id}/bundle.zip")
+    assert again.status_code == 409 and "no bundle to download (downloaded, and no longer kept here)" in again.text
+    assert get(client, f"/db/export/{job.id}/status").json["phase"] == "downloaded"
+    assert get(client, "/db/export/not-a-job/status").status_code == 404
+    assert get(client, "/db/export/%C3%A9t%C3%A9/status").status_code == 404
+    job.thread.join(5)
+    assert not list((tmp_path / "tmp").iterdir())
+
+
+def test_second_export_while_one_runs_is_refused_and_cancel_deletes(exporter, tmp_path):
+    import threading
+
+    from gui import exports
+
+    exports_ = exporter.extensions["texplorer"].exports
+    gate = threading.Event()
+    original = exports.extract_database
+
+    def held(*args, **kwargs):  # the first chunk waits until the test has looked
+        gate.wait(10)
+        return original(*args, **kwargs)
+
+    exports.extract_database = held
+    try:
+        client = exporter.test_client()
+        first = post(client, "/db/export", {})
+        job = exports_.job
+        assert job.running and len(list((tmp_path / "tmp").iterdir())) == 1
+        second = post(client, "/db/export", {"label": "C7"})
+        assert second.status_code == 302 and second.headers["Location"].endswith(f"/db/export/{job.id}")
+        assert "an export of every scan is running" in get(client, second.headers["Location"]).text
+        assert exports_.job is job
+        gate.set()
+        assert post(client, f"/db/export/{job.id}/cancel").status_code == 302
+        assert first.status_code == 302 and job.phase in ("cancelled", "done") and not job.thread.is_alive()
+    finally:
+        exports.extract_database = original
+    assert job.phase == "cancelled" and not list((tmp_path / "tmp").iterdir())
+
+
+def test_abandoned_export_and_server_stop_delete_the_bundle(tmp_path, exporter):
+    import time
+
+    from gui.exports import Exports
+
+    db = exporter.extensions["texplorer"].db
+    exports = Exports(db, tmp_path / "tmp", abandon_after_s=0.3)
+    job = exports.start()
+    job.thread.join(60)
+    assert job.phase == "cancelled" and job.path is None  # built, then nobody came for it
+    assert not list((tmp_path / "tmp").iterdir())
+    job = exports.start(label="C7")
+    deadline = time.monotonic() + 30
+    while job.phase != "done":
+        job.touch()
+        assert time.monotonic() < deadline and job.phase != "failed", job.status()
+        time.sleep(0.02)
+    assert len(list((tmp_path / "tmp").rglob("*.zip"))) == 1
+    exports.shutdown()
+    assert job.phase == "cancelled" and not list((tmp_path / "tmp").iterdir())
+
+
+def test_export_chunks_share_one_set_of_worker_processes(tmp_path, monkeypatch):
+    """The export extracts its uncached scans chunk by chunk (progress and cancellation between); the chunks
+    use the same two worker processes, forked once, not a pool each."""
+    import time
+
+    from conftest import make_scan
+
+    from features import code_version
+    from gui import exports
+    from gui.exports import Exports
+    from scanner.storage.database import Database
+
+    db = Database(tmp_path / "db")
+    for index in range(1, 5):
+        db.add(make_scan(index, sample_id="granite-01", scan_index=index, image_shape=(64, 64)))
+    original, workers_seen = exports.extract_database, []
+
+    def extract_noting_the_workers(db, *, records, pool, **kwargs):
+        space = original(db, records=records, pool=pool, **kwargs)
+        workers_seen.append((pool, frozenset(pool._executor._processes)))
+        return space
+
+    monkeypatch.setattr(exports, "FEATURE_CHUNK", 2)
+    monkeypatch.setattr(exports, "extract_database", extract_noting_the_workers)
+    (tmp_path / "tmp").mkdir()
+    jobs = Exports(db, tmp_path / "tmp", workers=2)
+    try:
+        job = jobs.start()
+        deadline = time.monotonic() + 120
+        while job.phase in exports.RUNNING and time.monotonic() < deadline:
+            job.touch()
+            time.sleep(0.02)
+        assert job.phase == "done", job.status()
+    finally:
+        jobs.shutdown()
+    (pool, first), (same_pool, second) = workers_seen
+    assert pool is same_pool and first == second and len(first) == 2
+    assert pool._executor is None  # closed with the job
+    assert len(db.records()) == 4 and all(db.cached_features(r.content_hash, code_version()) for r in db.records())
+
+
+def test_export_needs_free_space(exporter, tmp_path, monkeypatch):
+    import shutil
+    from collections import namedtuple
+
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage(10 << 20, 9 << 20, 1 << 20))
+    answer = post(exporter.test_client(), "/db/export", {})
+    assert answer.status_code == 409 and "not enough free space in" in answer.text
+    assert "1 MB free" in answer.text and not list((tmp_path / "tmp").iterdir())
+
+
+def test_relative_database_path_serves_files(tmp_path, monkeypatch):
+    """'texplorer serve --db texplorer-data': photos, traces, the feature table and the bundle are found
+    although Flask reads relative paths against its package folder (they were all HTTP 500)."""
+    from conftest import make_scan
+
+    from scanner.storage.database import Database
+
+    monkeypatch.chdir(tmp_path)
+    Database("texplorer-data").add(make_scan(0, image_shape=(300, 300)))
+    app = make_app("texplorer-data")
+    try:
+        client = app.test_client()
+        for url in ("/db/scan/granite-01-001/photo/I_disp", "/db/scan/granite-01-001/traces.png",
+                    "/db/export/features.csv"):
+            assert get(client, url).status_code == 200, url
+        assert export_in_browser_session(client, {}).status_code == 200
+        assert app.extensions["texplorer"].settings.db == tmp_path / "texplorer-data"
+    finally:
+        app.extensions["texplorer"].shutdown()
+
+
+def serve_process(tmp_path, *options):
+    import subprocess
+    import sys
+
+    command = [sys.executable, "-m", "scanner.cli", "serve", "--db", str(tmp_path / "db"), "--port", "0",
+               *options]
+    return subprocess.Popen(command, stderr=subprocess.PIPE, text=True)
+
+
+def served_url(process) -> tuple[str, list[str]]:
+    """The URL the server prints, and the lines it printed before."""
+    lines = []
+    for line in process.stderr:
+        lines.append(line.strip())
+        if " at http://" in line:
+            return line.split(" at ", 1)[1].split("/ ", 1)[0], lines
+    raise AssertionError(f"the server printed no address: {lines}")
+
+
+def test_texplorer_serve_binds_loopback_and_stops_on_ctrl_c(tmp_path):
+    import signal
+    import urllib.request
+
+    process = serve_process(tmp_path)
+    try:
+        url, lines = served_url(process)
+        assert url.startswith("http://127.0.0.1:") and not any("warning" in line for line in lines)
+        with urllib.request.urlopen(url + "/") as answer:
+            assert answer.status == 200 and b"Start a scan" in answer.read()
+        process.send_signal(signal.SIGINT)
+        assert process.wait(10) == 0
+        assert "texplorer: stopped" in process.stderr.read()
+    finally:
+        process.kill()
+
+
+def test_texplorer_serve_warns_when_listening_on_the_network(tmp_path):
+    process = serve_process(tmp_path, "--host", "0.0.0.0")
+    try:
+        _, lines = served_url(process)
+        assert any(line.startswith("texplorer: warning: listening on 0.0.0.0:") for line in lines)
+    finally:
+        process.kill()
+
+
+def test_texplorer_serve_on_ipv6_loopback_answers_a_browser(tmp_path):
+    import socket
+    import urllib.request
+
+    try:
+        with socket.socket(socket.AF_INET6) as probe:
+            probe.bind(("::1", 0))
+    except OSError:
+        pytest.skip("no IPv6 loopback on this machine")
+    process = serve_process(tmp_path, "--host", "::1")
+    try:
+        url, lines = served_url(process)
+        assert url.startswith("http://[::1]:") and not any("warning" in line for line in lines)
+        with urllib.request.urlopen(url + "/") as answer:  # sends Host: [::1]:PORT, as a browser does
+            assert answer.status == 200 and b"Start a scan" in answer.read()
+    finally:
+        process.kill()

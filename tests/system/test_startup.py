@@ -1,0 +1,68 @@
+"""What starting the CLI or importing the packages loads: the heavy libraries only where a command computes with
+them (benchmarks/bench_cli.py measures the time). Each check runs in a fresh interpreter, whose ``sys.modules``
+holds only what it imported itself."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from conftest import make_scan
+
+from scanner.storage.database import Database
+
+TESTS = Path(__file__).resolve().parents[1]
+
+HEAVY = ("numba", "sklearn", "flask", "cv2", "scipy.signal", "scipy.stats", "scipy.io", "matplotlib", "skops",
+         "pywt", "distributed")
+"""Libraries that cost more CPU to import than numpy itself, or about as much."""
+
+
+def _loaded_after(code: str) -> list[str]:
+    """The :data:`HEAVY` libraries loaded in a fresh interpreter after running ``code``."""
+    probe = (f"import json, sys\nsys.path.insert(0, {str(TESTS)!r})\n{code}\n"
+             f"print(json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)))")
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    return json.loads(run.stdout.splitlines()[-1])
+
+
+def _cli(*argv: str) -> str:
+    return f"from scanner.cli import main\ntry:\n    main({list(argv)!r})\nexcept SystemExit:\n    pass"
+
+
+@pytest.mark.parametrize("package", ["scanner", "features", "taxonomy"])
+def test_importing_a_package_loads_no_heavy_library(package):
+    assert _loaded_after(f"import {package}") == []
+
+
+def test_help_and_version_load_no_heavy_library_nor_any_command_group():
+    code = _cli("--help") + "\n" + _cli("--version") + "\nimport sys\nprint(sorted(m for m in sys.modules if " \
+        "m.startswith(('scanner.cli.', 'features', 'gui.', 'taxonomy.learning'))))"
+    run = subprocess.run([sys.executable, "-c", code + f"\nprint(sorted(m for m in {HEAVY!r} if m in sys.modules))"],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    *_, groups, heavy = run.stdout.splitlines()
+    assert groups == "['scanner.cli.base']" and heavy == "[]"
+
+
+def test_db_list_loads_no_heavy_library(tmp_path):
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0, sample_id="granite-01", scan_index=1))
+    db.close()
+    assert _loaded_after(_cli("db", "list", "--db", str(tmp_path / "db"))) == []
+
+
+def test_features_load_the_libraries_they_compute_with():
+    # the other side of the checks above: a command that computes loads what it needs, when it needs it
+    loaded = _loaded_after("from conftest import make_scan\nfrom features import extract\nextract(make_scan(0))")
+    assert {"numba", "cv2", "scipy.signal"} <= set(loaded) and "sklearn" not in loaded
+
+
+def test_python_dash_m_texplorer_is_the_texplorer_command():
+    run = subprocess.run([sys.executable, "-m", "texplorer", "--version"], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.startswith("texplorer ") and run.stdout.split()[1][0].isdigit()

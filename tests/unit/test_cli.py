@@ -1,0 +1,245 @@
+"""The texplorer command line: db list/show/check/rebuild, one-line errors, --debug tracebacks."""
+
+from __future__ import annotations
+
+import argparse
+import re
+
+import pytest
+from conftest import make_scan
+
+from scanner.cli import COMMANDS, ENTRY_POINTS, EXIT_PROBLEMS, build_parser, main, plugin_summary
+from scanner.cli.base import UsageError
+from scanner.storage.database import Database
+
+
+@pytest.fixture
+def db_path(tmp_path):
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0, sample_id="granite-01", scan_index=1))
+    db.add(make_scan(1, label="C7S1M1P8X1", sample_id="steel-01", scan_index=1, operator="cd",
+                     rigid=True, drop=("f_fold", "alpha_f")))
+    db.close()
+    return tmp_path / "db"
+
+
+def test_db_list_filters(db_path, capsys):
+    assert main(["db", "list", "--db", str(db_path)]) == 0
+    out = capsys.readouterr().out
+    assert "granite-01-001" in out and "steel-01-001" in out and out.rstrip().endswith("2 scan(s)")
+    assert main(["db", "list", "--db", str(db_path), "--label", "C7"]) == 0
+    out = capsys.readouterr().out
+    assert "steel-01-001" in out and "granite-01-001" not in out
+    assert main(["db", "list", "--db", str(db_path), "--operator", "nobody"]) == 0
+    assert capsys.readouterr().out.rstrip().endswith("0 scan(s)")
+
+
+def test_db_show(db_path, capsys):
+    assert main(["db", "show", "granite-01-001", "--db", str(db_path)]) == 0
+    out = capsys.readouterr().out
+    assert "label       C6S1M1P2X1" in out and "v_ts" in out and "44100 Hz" in out and "I_disp" in out
+    # make_scan records 0.2 s per step: the slides and the audio are too short for their features.
+    assert ("too short:  v_fs (600 of the 3000 samples its features need; they are NaN), v_ts (600 of the 3000 "
+            "samples") in out
+    assert main(["db", "show", "steel-01-001", "--db", str(db_path)]) == 0
+    assert "rigid 1" in capsys.readouterr().out
+
+
+def test_db_check_exit_codes(db_path, capsys):
+    assert main(["db", "check", "--db", str(db_path)]) == 0
+    assert "0 missing, 0 changed, 0 unknown" in capsys.readouterr().out
+    next(db_path.glob("scans/C7*/steel-01/*_illu.png")).unlink()
+    assert main(["db", "check", "--db", str(db_path)]) == EXIT_PROBLEMS
+    out = capsys.readouterr().out
+    assert "missing  scans/C7S1M1P8X1/steel-01/steel-01-001_illu.png" in out
+
+
+def test_db_rebuild(db_path, capsys):
+    (db_path / "catalog.sqlite").unlink()
+    for extra in db_path.glob("catalog.sqlite-*"):
+        extra.unlink()
+    assert main(["db", "rebuild", "--db", str(db_path)]) == 0
+    assert "catalog rebuilt: 2 scan(s), 0 file(s) skipped" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("command", [["db", "list"], ["db", "show", "x"], ["db", "check"], ["db", "rebuild"],
+                                     ["features"], ["select"], ["evaluate"], ["train", "--out", "m.skops"],
+                                     ["export", "out.zip"]])
+def test_commands_that_only_read_refuse_a_folder_that_is_not_a_database(command, tmp_path, capsys):
+    # `texplorer db list --db /etc` must not create /etc/catalog.sqlite and /etc/scans/.
+    folder = tmp_path / "etc"
+    folder.mkdir()
+    (folder / "passwd").write_text("root:x:0:0")
+    assert main([*command, "--db", str(folder)]) == 1
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1
+    assert "no texplorer database here" in err and "create one with 'texplorer demo'" in err
+    assert sorted(p.name for p in folder.iterdir()) == ["passwd"]
+
+
+def test_db_list_keeps_columns_aligned_for_long_ids(tmp_path, capsys):
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0, sample_id="polyurethane-foam-open-cell-01", scan_index=1, images=False))
+    db.add(make_scan(1, sample_id="oak-01", scan_index=1, images=False, label="C5S1M1P1X1"))
+    assert main(["db", "list", "--db", str(tmp_path / "db")]) == 0
+    header, *rows, total = capsys.readouterr().out.splitlines()
+    assert len(rows) == 2 and total == "2 scan(s)"
+    for column in ("label", "sample", "session", "operator", "started"):
+        assert {row[header.index(column) - 1] for row in rows} == {" "}  # every column starts after a blank
+        assert all(row[header.index(column)] != " " for row in rows)
+
+
+def test_label_filters_are_case_normalised_and_malformed_codes_refused(db_path, capsys):
+    assert main(["db", "list", "--db", str(db_path), "--label", "c7"]) == 0
+    out = capsys.readouterr().out
+    assert "steel-01-001" in out and out.rstrip().endswith("1 scan(s)")
+    for bad in ("Z9", "C06", "C7S", "C7S1M1P8X1Y1"):
+        assert main(["db", "list", "--db", str(db_path), "--label", bad]) == 1
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and f"'{bad}' is not a label or class prefix" in err
+        assert "e.g. C6, C6S1 or C6S1M1P2X1" in err
+
+
+def _subparsers(parser):
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                yield sub
+                yield from _subparsers(sub)
+
+
+def test_help_texts_name_the_paper_not_internal_documents():
+    parsers = [build_parser(), *_subparsers(build_parser())]
+    assert len(parsers) > 20
+    for parser in parsers:
+        text = parser.format_help()
+        assert not re.search(r"seed \d{3}|seed paper", text), parser.prog
+
+
+def _listed(parser: argparse.ArgumentParser) -> dict[str, str]:
+    """Each command of ``texplorer --help`` with its one-line help."""
+    (commands,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    return {action.dest: action.help for action in commands._choices_actions}
+
+
+def test_the_commands_listed_without_their_groups_are_those_the_groups_register():
+    from importlib.metadata import entry_points
+
+    registered, listed = _listed(build_parser()), _listed(build_parser([]))
+    plugins = {entry.name: entry for entry in entry_points(group=ENTRY_POINTS)}
+    assert "serve" in plugins and set(registered) == set(COMMANDS) | set(plugins)
+    assert registered == listed
+    assert listed == {**{name: summary for name, (_, summary) in COMMANDS.items()},
+                      **{name: plugin_summary(entry) for name, entry in plugins.items()}}
+
+
+def test_a_command_line_builds_only_its_own_group():
+    parser = build_parser(["db"])
+    (commands,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    assert commands.choices["db"].format_help().count("rebuild") >= 1
+    assert "--db" not in commands.choices["features"].format_help()  # listed, its options not loaded
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["db", "--help"], ["db", "check", "--help"], ["demo", "--help"],
+                                  ["features", "--help"]])
+def test_help_everywhere(argv, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 0 and "usage: texplorer" in capsys.readouterr().out
+
+
+@pytest.fixture(scope="module")
+def demo_db(tmp_path_factory):
+    """A small synthetic database with features, evaluation and a model, built by 'texplorer demo'."""
+    root = tmp_path_factory.mktemp("demo") / "db"
+    code = main(["demo", "--db", str(root), "--samples", "2", "--scans", "2", "--image-size", "320", "--materials",
+                 "polyurethane-foam", "mild-steel-brushed", "float-glass", "--classifier", "rf", "nb",
+                 "--level", "coarse", "fine", "--feature-set", "tactum", "--folds", "3", "--workers", "2"])
+    assert code == 0
+    return root
+
+
+def test_classify_a_scan_id_with_the_databases_default_model(demo_db, capsys):
+    record = Database(demo_db, create=False).records(label="C3")[0]
+    capsys.readouterr()
+    assert main(["classify", record.scan_id, "--db", str(demo_db), "--k", "2"]) == 0
+    by_id = capsys.readouterr().out.splitlines()
+    assert by_id[0] == f"{record.scan_id} ({record.label} recorded) with " + by_id[0].split(" with ", 1)[1]
+    assert len(by_id) == 3 and by_id[1].startswith("1. ")
+    # the same scan as a file, the same default model: the same predictions
+    assert main(["classify", str(demo_db / record.path), "--db", str(demo_db), "--k", "2"]) == 0
+    assert capsys.readouterr().out.splitlines() == by_id
+
+
+def test_classify_without_a_model_says_where_it_looked(db_path, capsys):
+    assert main(["classify", "granite-01-001", "--db", str(db_path)]) == 1
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "no --model given" in err and "rf-fine-X10.skops" in err
+    assert "texplorer demo" in err
+
+
+def test_classify_an_unknown_scan_id_is_one_line(demo_db, capsys):
+    assert main(["classify", "no-such-scan", "--db", str(demo_db)]) == 1
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "no scan 'no-such-scan'" in err
+
+
+def test_a_refused_import_leaves_no_database_folder(tmp_path, capsys):
+    damaged = tmp_path / "bundle.zip"
+    damaged.write_bytes(b"PK\x03\x04 not a bundle")
+    target = tmp_path / "new" / "db"
+    assert main(["import", "--db", str(target), str(damaged)]) == 1
+    assert "bundle.zip" in capsys.readouterr().err
+    assert not (tmp_path / "new").exists()
+    existing = tmp_path / "lab"
+    Database(existing).close()
+    before = sorted(p.relative_to(existing) for p in existing.rglob("*"))
+    assert main(["import", "--db", str(existing), str(damaged)]) == 1
+    assert sorted(p.relative_to(existing) for p in existing.rglob("*")) == before
+
+
+def test_progress_bars_count_what_they_go_through(monkeypatch):
+    import tqdm
+
+    from scanner.cli import base
+
+    made = {}
+    monkeypatch.setattr(tqdm, "tqdm", lambda items, **options: made.update(options) or items)
+    assert list(base.progress("comparing", unit="method")(["a"])) == ["a"]
+    assert made["unit"] == "method" and made["desc"] == "comparing"
+
+
+def test_demo_chooses_folds_that_fit_its_scans(tmp_path, capsys):
+    from scanner.cli.demo import fitting_folds
+
+    assert fitting_folds(5, 2, 2) == 4 and fitting_folds(5, 2, 3) == 5 and fitting_folds(3, 1, 2) == 2
+    with pytest.raises(UsageError, match="one scan per material; cross-validation needs two or more"):
+        fitting_folds(5, 1, 1)
+    root = tmp_path / "db"
+    assert main(["demo", "--db", str(root), "--samples", "1", "--scans", "1"]) == 1
+    assert "--samples 2 or --scans 2, or --no-evaluation" in capsys.readouterr().err and not root.exists()
+    code = main(["demo", "--db", str(root), "--samples", "2", "--scans", "2", "--image-size", "64", "--materials",
+                 "polyurethane-foam", "float-glass", "--classifier", "nb", "--level", "fine", "--n", "3",
+                 "--feature-set", "tactum", "--workers", "1"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert "texplorer: note: 4 folds instead of 5: each material has 2 x 2 = 4 scans" in captured.err
+    assert "4 folds" in captured.out
+
+
+def test_features_of_a_label_leave_the_full_table_alone(tmp_path, capsys):
+    from features import FeatureSpace
+
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0, sample_id="granite-01", image_shape=(64, 64)))
+    db.add(make_scan(1, label="C7S1M1P8X1", sample_id="steel-01", image_shape=(64, 64)))
+    db.close()
+    assert main(["features", "--db", str(tmp_path / "db"), "--workers", "1"]) == 0
+    full = (tmp_path / "db" / "features.csv").read_bytes()
+    capsys.readouterr()
+    assert main(["features", "--db", str(tmp_path / "db"), "--label", "c6", "--workers", "1"]) == 0
+    out = capsys.readouterr().out
+    assert f"wrote {tmp_path / 'db' / 'features-C6.csv'} (the scans of C6; {tmp_path / 'db' / 'features.csv'} " \
+           "is left as it was)" in out
+    assert (tmp_path / "db" / "features.csv").read_bytes() == full
+    assert list(FeatureSpace.from_csv(tmp_path / "db" / "features-C6.csv").scan_ids) == ["granite-01-001"]

@@ -1,0 +1,174 @@
+"""The feature-family registries: a toy family added through the registry alone reaches extraction, the
+feature space, evaluation, the web groups and the cache key; a toy family of generic recordings reaches
+their families, columns, feature space and the message naming the roles the families need."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from conftest import make_scan
+
+from features import NAMES, REGISTRY, Family, FeatureSpace, code_version, extract, extract_many
+from features.extraction import source_of
+from features.recordings import describe_families, families, feature_space
+from features.registry import ROLE_REGISTRY, RegistryError, RoleFamily
+from gui.browser import group_features
+from scanner import cli
+from scanner.scan import Recording, Trace
+from taxonomy.learning.evaluation import default_feature_sets, evaluate
+
+TOY = ("toy.peak_v_ts", "toy.samples_v_ts")
+
+
+def toy_values(prepared) -> dict[str, float]:
+    """The largest |v_ts| and the number of v_ts samples: two values known without any feature code."""
+    v_ts = prepared.scan["v_ts"].data
+    return {"toy.peak_v_ts": float(np.abs(v_ts).max()), "toy.samples_v_ts": float(v_ts.shape[0])}
+
+
+@pytest.fixture
+def toy():
+    before = code_version()
+    family = REGISTRY.register(Family("toy", "toy: v_ts at a glance", TOY, toy_values))
+    yield before
+    REGISTRY.unregister(family.name)
+
+
+class DictCache:
+    def __init__(self) -> None:
+        self.store: dict[tuple[str, str], dict[str, float]] = {}
+
+    def cached_features(self, content_hash, version):
+        return self.store.get((content_hash, version))
+
+    def store_features(self, content_hash, version, values):
+        self.store[(content_hash, version)] = dict(values)
+
+
+def test_the_paper_families_in_order():
+    assert REGISTRY.modalities == ("tactum", "image", "audio", "other")
+    assert REGISTRY.names == NAMES and len(NAMES) == 193
+    assert [len(family.columns) for family in REGISTRY] == [15, 93, 70, 15]
+
+
+def test_a_toy_family_is_extracted_after_the_others(toy):
+    scan = make_scan(seconds=5.0, images=False)
+    with pytest.warns(Warning):  # no photos: the image features are NaN
+        values = extract(scan)
+    assert tuple(values) == (*NAMES, *TOY)
+    assert values["toy.peak_v_ts"] == np.abs(scan["v_ts"].data).max()
+    assert values["toy.samples_v_ts"] == scan["v_ts"].data.shape[0]
+
+
+def test_a_toy_family_is_a_modality_of_the_feature_space(toy):
+    space = extract_many([make_scan(seconds=5.0, images=False)], workers=1, progress=False)
+    assert space.columns == (*NAMES, *TOY)
+    assert space.modality("toy").columns == TOY
+
+
+def test_a_toy_family_is_a_feature_set_of_the_evaluation(toy):
+    assert default_feature_sets() == {"tactum": "tactum", "image": "image", "audio": "audio", "other": "other",
+                                      "toy": "toy", "all": None}
+    rng = np.random.default_rng(0)
+    labels = tuple(f"C{1 + i % 2}S1M1P1X1" for i in range(12))
+    X = np.column_stack([np.array([1 + i % 2 for i in range(12)]) + 0.1 * rng.standard_normal(12),
+                         rng.standard_normal(12), rng.standard_normal(12)])
+    space = FeatureSpace(X, ("toy.peak_v_ts", "toy.samples_v_ts", "other.noise"), tuple(f"s{i}" for i in range(12)),
+                         labels, tuple(f"g{i}" for i in range(12)))
+    report = evaluate(space, "lda", level="coarse", n_features=1, folds=3, feature_set="toy")
+    assert report.columns == TOY and report.accuracy_mean == 1.0
+
+
+def test_a_toy_family_is_a_group_of_the_web_page(toy):
+    assert REGISTRY.groups[-1] == ("toy", "toy: v_ts at a glance")
+    values = {**dict.fromkeys(NAMES, 1.0), "toy.peak_v_ts": 2.5, "toy.samples_v_ts": 15000.0}
+    assert group_features(values)[-1] == ("toy: v_ts at a glance", [("peak_v_ts", "2.5"), ("samples_v_ts", "15000")])
+
+
+def test_a_toy_family_is_counted_in_the_cli_help(toy, capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["features", "--help"])
+    assert f"Extract the {len(NAMES) + 2} features of every scan" in " ".join(capsys.readouterr().out.split())
+    with pytest.raises(SystemExit):
+        cli.main(["evaluate", "--help"])
+    assert "toy" in capsys.readouterr().out
+
+
+def test_a_toy_family_changes_the_cache_key_and_is_not_served_stale(toy):
+    assert code_version() != toy
+    assert __name__ in REGISTRY.code_modules()  # the family's own module
+    scan = make_scan(seconds=5.0, images=False)
+    cache = DictCache()
+    source = dataclasses.replace(source_of(scan), cache_key="content-hash")
+    REGISTRY.unregister("toy")
+    try:
+        without = extract_many([source], workers=1, cache=cache, progress=False)
+    finally:
+        REGISTRY.register(Family("toy", "toy: v_ts at a glance", TOY, toy_values))
+    space = extract_many([source], workers=1, cache=cache, progress=False)
+    assert without.columns == NAMES and space.columns == (*NAMES, *TOY)
+    assert sorted(version for _, version in cache.store) == sorted((toy, code_version()))
+
+
+def test_a_family_is_refused_when_it_clashes():
+    with pytest.raises(RegistryError, match="already registered"):
+        REGISTRY.register(Family("tactum", "again", ("tactum.matx",), toy_values))
+    with pytest.raises(RegistryError, match="must start with 'toy.'"):
+        Family("toy", "toy", ("peak",), toy_values)
+    with pytest.raises(RegistryError, match="no feature family 'smell'"):
+        REGISTRY.unregister("smell")
+
+
+# -- families of generic recordings -----------------------------------------------------------------------
+
+TOY_TEMPERATURE = ("other.temperature.mean", "other.temperature.range")
+
+
+def temperature_values(window: np.ndarray, fs: float) -> list[float]:
+    """The mean and the range of a temperature window: values known without any feature code."""
+    return [float(window.mean()), float(window.max() - window.min())]
+
+
+@pytest.fixture
+def toy_role():
+    family = ROLE_REGISTRY.register(RoleFamily("temperature", "temperature", TOY_TEMPERATURE, temperature_values,
+                                               applies=lambda fs: fs >= 1.0))
+    yield family
+    ROLE_REGISTRY.unregister(family.name)
+
+
+def warm(name: str, label: str, degrees: float) -> Recording:
+    ramp = degrees + np.linspace(0.0, 2.0, 40)
+    return Recording(name, {"t": Trace(ramp, 10.0, "degC")}, {"temperature": "t"}, label)
+
+
+def test_the_project_families_of_recordings_in_order():
+    assert ROLE_REGISTRY.modalities == ("audio.audio", "audio.vibration", "image.photo", "vibration", "friction")
+    assert [family.role for family in ROLE_REGISTRY] == ["audio", "vibration", "photo", "vibration", "force_xyz"]
+
+
+def test_a_toy_role_family_reaches_the_recordings_features(toy_role):
+    recordings = [warm("a", "cold", 20.0), warm("b", "warm", 30.0)]
+    assert families(recordings[0]) == ["temperature"]
+    space, notes = feature_space(recordings)
+    assert space.columns == TOY_TEMPERATURE and notes == []
+    assert space.X.tolist() == [[21.0, 2.0], [31.0, 2.0]]
+    assert space.modality("other").columns == TOY_TEMPERATURE
+    assert describe_families(space.columns) == "other.temperature (2)"
+    slow = Recording("c", {"t": Trace(np.ones(4), 0.5, "degC")}, {"temperature": "t"}, "cold")
+    assert families(slow) == []  # its applies() refuses 0.5 Hz
+
+
+def test_the_roles_the_families_need_come_from_the_registry(toy_role):
+    pressed = Recording("p", {"d": Trace(np.ones(10), 100.0, "kPa")}, {"pressure_dc": "d"}, "soft")
+    with pytest.raises(ValueError, match="the families need audio, vibration, photo, force_xyz or temperature$"):
+        feature_space([pressed])
+
+
+def test_a_role_family_is_refused_when_it_clashes():
+    with pytest.raises(RegistryError, match="'<modality>.photo.<feature>'"):
+        RoleFamily("toy", "photo", ("image.disp.lbp_0",), temperature_values)
+    with pytest.raises(RegistryError, match="already registered: audio.audio.zcr"):
+        ROLE_REGISTRY.register(RoleFamily("sound again", "audio", ("audio.audio.zcr",), temperature_values))
