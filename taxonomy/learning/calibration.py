@@ -44,8 +44,8 @@ def grouped_splits(y: np.ndarray, groups: np.ndarray | None, folds: int,
     if groups is None:
         groups = np.arange(len(y)).astype(str)
     groups = np.asarray(groups)
-    folds = min(folds, np.unique(groups).size)
-    if folds < 2:
+    folds = min(folds, np.unique(groups).size, int(np.unique(y, return_counts=True)[1].max(initial=0)))
+    if folds < 2:  # too few groups, or every class smaller than two folds: nothing to calibrate on
         return []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a class with fewer groups than folds is expected in inner splits

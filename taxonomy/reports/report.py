@@ -30,6 +30,7 @@ from features.selection import Selection, select_features
 from features.space import FeatureSpace
 from scanner.storage.files import atomic_write_bytes
 from taxonomy.labels import LEVELS
+from taxonomy.learning.metrics import auroc, bootstrap_interval
 from taxonomy.learning.results import COLUMNS, Result, best_per_method, format_r_c, major_class, result_notes, size_name
 from taxonomy.reports.plots import (
     plot_confusion,
@@ -233,8 +234,6 @@ def _open_set_cells(r: Result) -> list[str]:
 
 def _auroc_interval(r: Result) -> tuple[float, float]:
     """95 % bootstrap interval of the AUROC over the test instances' groups (samples)."""
-    from taxonomy.learning.metrics import auroc, bootstrap_interval
-
     groups = r.groups if r.groups is not None else np.arange(len(r.open_score)).astype(str)
     def resampled(weights: np.ndarray) -> float:
         rows = np.repeat(np.arange(weights.size), weights.astype(int))

@@ -502,3 +502,14 @@ def test_texplorer_serve_on_ipv6_loopback_answers_a_browser(tmp_path):
             assert answer.status == 200 and b"Start a scan" in answer.read()
     finally:
         process.kill()
+
+
+def test_texplorer_serve_warns_about_a_missing_model(tmp_path):
+    process = serve_process(tmp_path, "--model", str(tmp_path / "no-such.skops"))
+    try:
+        _, lines = served_url(process)
+        assert f"texplorer: warning: --model {tmp_path / 'no-such.skops'} does not exist: the summary page " \
+               "shows no prediction until a model file is there ('texplorer train --out FILE' makes one)" in lines
+    finally:
+        process.kill()
+        process.wait(10)

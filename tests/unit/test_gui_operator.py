@@ -283,19 +283,6 @@ def test_step_numbers_agree_and_the_legend_is_on_every_scan_page(client, app):
 # -- texplorer serve, import, compare, demo ----------------------------------------------------------------
 
 
-def test_texplorer_serve_warns_about_a_missing_model(tmp_path):
-    from unit.test_gui import serve_process, served_url
-
-    process = serve_process(tmp_path, "--model", str(tmp_path / "no-such.skops"))
-    try:
-        _, lines = served_url(process)
-        assert f"texplorer: warning: --model {tmp_path / 'no-such.skops'} does not exist: the summary page " \
-               "shows no prediction until a model file is there ('texplorer train --out FILE' makes one)" in lines
-    finally:
-        process.kill()
-        process.wait(10)
-
-
 def test_figures_kept_at_save_are_served_while_being_written(tmp_path, monkeypatch):
     from gui import figures
 

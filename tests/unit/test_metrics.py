@@ -54,7 +54,7 @@ def test_per_fold_f1_over_present_classes_and_pooled_f1_differ_as_described():
 
 
 def test_evaluate_reports_pooled_f1_and_per_fold_f1_over_present_classes():
-    from test_evaluation import labelled_space
+    from unit.test_evaluation import labelled_space
 
     space = labelled_space()
     result = evaluate(space, "nb", "fine", n_features=3, folds=4, calibrate=False)
@@ -142,7 +142,7 @@ def test_reliability_of_a_perfectly_calibrated_forecast():
 
 
 def test_evaluation_keeps_calibrated_out_of_fold_probabilities_and_the_same_predictions():
-    from test_evaluation import labelled_space
+    from unit.test_evaluation import labelled_space
 
     space = labelled_space()
     plain = evaluate(space, "rf", "fine", n_features=3, folds=3, calibrate=False)
