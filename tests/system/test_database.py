@@ -105,10 +105,15 @@ KILLER = textwrap.dedent("""
     import json, os, random, signal, sqlite3, sys, time
     sys.path.insert(0, {tests!r})
     from conftest import make_scan
+    from scanner.lazy import preload
     from scanner.storage.database import Database
     from scanner.storage.files import sha256_file
 
     root, kills, seed = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+    # One add in a scratch database first: what storage imports or sets up on first use (OpenCV, scipy.io)
+    # is then in every forked writer, which starts adding at once, as before those imports were deferred.
+    preload()
+    Database(root + "-warm-up").add(make_scan(0, sample_id="warm-up", image_shape=(96, 96), seconds=0.3))
     rng = random.Random(seed)
     Database(root).close()
     committed, leftovers = set(), set()
