@@ -343,7 +343,7 @@ def test_kept_workers_are_forked_anew_for_other_code_another_number_or_another_d
     # Workers forked before a family was registered would compute the old columns under the new version; a
     # scan's relative paths would be found from the old directory.
     calls = [_workers_of_a_call(tmp_path)]
-    monkeypatch.setattr(extraction, "code_version", lambda: "other code")
+    monkeypatch.setattr(extraction, "code_version", lambda *families: "other code")
     calls.append(_workers_of_a_call(tmp_path))
     monkeypatch.chdir(tmp_path)
     calls.append(_workers_of_a_call(tmp_path))
