@@ -45,9 +45,9 @@ def test_a_database_is_extracted_once_then_read_from_its_cache(tmp_path, monkeyp
         expected = [extract(db.get(scan_id)) for scan_id in ids]
     extracted = []
 
-    def counted(scan):
+    def counted(scan, families=None):
         extracted.append(scan.scan_id)
-        return extract(scan)
+        return extract(scan, families)
 
     monkeypatch.setattr(extraction, "extract", counted)  # workers=1: extracted in this process
     space = extract_database(db, workers=1, progress=False)
