@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from scanner.scan import CHANNELS, Scan, ScanMeta, Trace
+from scanner.storage.database import Database
 
 
 def make_meta(**overrides) -> ScanMeta:
@@ -95,3 +96,14 @@ def png_bomb(width: int, height: int) -> bytes:
     stream = first + block * (blocks - 1) + last + b"\x03\x00" + struct.pack(">I", adler)
     header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
     return b"\x89PNG\r\n\x1a\n" + _png_chunk(b"IHDR", header) + _png_chunk(b"IDAT", stream) + _png_chunk(b"IEND", b"")
+
+
+@pytest.fixture
+def db_path(tmp_path):
+    """A database of two scans (granite, and a rigid steel without its fold channels) for the CLI tests."""
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0, sample_id="granite-01", scan_index=1))
+    db.add(make_scan(1, label="C7S1M1P8X1", sample_id="steel-01", scan_index=1, operator="cd",
+                     rigid=True, drop=("f_fold", "alpha_f")))
+    db.close()
+    return tmp_path / "db"

@@ -8,20 +8,9 @@ import subprocess
 import sys
 
 import pytest
-from conftest import make_scan
 
 from scanner.cli import EXIT_PIPE, main
 from scanner.storage.database import Database
-
-
-@pytest.fixture
-def db_path(tmp_path):
-    db = Database(tmp_path / "db")
-    db.add(make_scan(0, sample_id="granite-01", scan_index=1))
-    db.add(make_scan(1, label="C7S1M1P8X1", sample_id="steel-01", scan_index=1, operator="cd",
-                     rigid=True, drop=("f_fold", "alpha_f")))
-    db.close()
-    return tmp_path / "db"
 
 
 def test_errors_are_one_line_without_traceback(tmp_path, db_path):

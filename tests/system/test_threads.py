@@ -5,15 +5,15 @@ processes)."""
 from __future__ import annotations
 
 import os
-import threading
 import time
 
-import cv2
 import pytest
-from unit.test_threads import _blas_threads
+from unit.test_threads import (
+    a_thread_holding_openblas,  # noqa: F401 (a fixture)
+)
 
 from features import memory, threads
-from features.threads import one_blas_thread, one_thread_each, thread_pools
+from features.threads import one_blas_thread, one_thread_each
 
 
 def _take_a_limit() -> None:
@@ -42,33 +42,6 @@ def test_a_child_forked_while_another_thread_holds_the_lock_does_not_wait_for_it
         os.kill(pid, 9)
         os.waitpid(pid, 0)
     assert done != (0, 0) and os.waitstatus_to_exitcode(done[1]) == 0, "the child waited for the lock"
-
-
-@pytest.fixture
-def a_thread_holding_openblas():
-    """A live thread that set BLAS and OpenMP to two threads outside a ``with`` block (as a server's thread
-    may have): with threadpoolctl >= 3.8 it keeps control of OpenBLAS's pool while it lives, and other
-    threads' limits were silently ignored."""
-    if not _blas_threads():
-        pytest.skip("no OpenBLAS with a process-wide thread pool is loaded")
-    holding, leave = threading.Event(), threading.Event()
-
-    def hold() -> None:
-        limiter = thread_pools().limit(limits=2)
-        holding.set()
-        leave.wait(60)
-        limiter.restore_original_limits()
-        threads._release_openblas_control()
-
-    opencv = cv2.getNumThreads()
-    cv2.setNumThreads(2)
-    thread = threading.Thread(target=hold, daemon=True)
-    thread.start()
-    assert holding.wait(20)
-    yield
-    leave.set()
-    thread.join(20)
-    cv2.setNumThreads(opencv)
 
 
 def _threads_after_extracting(scan) -> list[str]:

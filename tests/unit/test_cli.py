@@ -13,16 +13,6 @@ from scanner.cli.base import UsageError
 from scanner.storage.database import Database
 
 
-@pytest.fixture
-def db_path(tmp_path):
-    db = Database(tmp_path / "db")
-    db.add(make_scan(0, sample_id="granite-01", scan_index=1))
-    db.add(make_scan(1, label="C7S1M1P8X1", sample_id="steel-01", scan_index=1, operator="cd",
-                     rigid=True, drop=("f_fold", "alpha_f")))
-    db.close()
-    return tmp_path / "db"
-
-
 def test_db_list_filters(db_path, capsys):
     assert main(["db", "list", "--db", str(db_path)]) == 0
     out = capsys.readouterr().out
