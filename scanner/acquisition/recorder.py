@@ -187,6 +187,7 @@ class Recorder:
         blocks = -(-n // daq.block)
         buffer = np.empty((blocks, len(daq.channels), daq.block))
         capture = None
+        daq_ended: float | None = None
         daq.arm(step)
         if audio:
             microphone.start(step)
@@ -201,11 +202,14 @@ class Recorder:
                         microphone.read()
                     if level is not None:
                         level(self._daq_level(step, buffer[k], (k + 1) * daq.block / daq.rate, seconds))
+                daq_ended = daq_started + seconds
             finally:
                 daq.stop()
         finally:
             if audio:
-                capture = microphone.stop()
+                # The DAQ's last block can come back before the microphone's (its start time is an estimate
+                # and the audio has its own latency): the microphone records on until it covers the step.
+                capture = microphone.stop(until=daq_ended)
         return buffer.transpose(0, 2, 1).reshape(-1, len(daq.channels))[:n], daq_started, capture
 
     def _daq_level(self, step: str, block: np.ndarray, elapsed: float, seconds: float) -> Level:
@@ -270,7 +274,7 @@ class Recorder:
         need = int(round(seconds * rate))
         audio = samples[skip:skip + need]
         if len(audio) < need:
-            raise AcquisitionError(f"microphone delivered {len(audio) / rate:.2f} s of the "
+            raise AcquisitionError(f"microphone delivered {len(audio)} of the {need} samples of the "
                                    f"{seconds:g} s step")
         if capture.overflows:
             problems.append(f"audio: {capture.overflows} input overflow(s), samples were lost")

@@ -110,7 +110,7 @@ class OffsetMicrophone:
     def read(self):
         return np.zeros(0)
 
-    def stop(self):
+    def stop(self, until=None):
         return AudioCapture(np.arange(3 * 44100) / 1e6, self.pacer.started + self.offset, 0)
 
     def close(self):
@@ -136,6 +136,18 @@ def test_a_late_microphone_is_padded_and_reported():
     # 4 ms late = 176.4 samples: 176 samples of silence, then the capture's first sample (0.0)
     assert not audio[:177].any() and audio[177] == pytest.approx(1e-6)
     assert "audio started 4.0 ms after the DAQ (silence padded)" in result.problems
+
+
+def test_the_microphone_records_on_until_it_covers_a_daq_that_ended_early():
+    # The DAQ's blocks come back at once (its own clock, not the microphone's); the microphone plays on a
+    # real-time clock of its own, so when the DAQ's last block is read the audio is short of the step.
+    source = SimulatedSample("cork-board", seed=1)
+    devices = playback_devices(source, microphone=PlaybackMicrophone(source, pacer=Pacer(1.0)))
+    config = parse_config({**FAST, "steps": {**FAST["steps"], "tool_slide": 0.5}})
+    started = time.perf_counter()
+    result = Recorder(devices, config).record("tool_slide")
+    assert result.traces["a_ts"].n == int(round(0.5 * 44100))
+    assert time.perf_counter() - started >= 0.5          # the microphone's clock was waited for
 
 
 def test_quality_checks_of_a_unit_that_never_moves():

@@ -26,6 +26,8 @@ from scanner.acquisition.devices.sources import SignalSource
 from scanner.pacing import Pacer
 
 FIRST_BLOCK_TIMEOUT_S = 2.0
+TAIL_GRACE_S = 0.5
+"""How long past its input latency :meth:`SoundDeviceMicrophone.stop` waits for the samples it was asked for."""
 FULL_SCALE = 32768.0
 """16-bit samples are read as integers (exact through any ALSA plug conversion) and scaled to [-1, 1)."""
 
@@ -67,6 +69,8 @@ class SoundDeviceMicrophone:
         self._recorded: list[np.ndarray] = []
         self._first = threading.Event()
         self._first_time = 0.0
+        self._arrived = 0
+        self._latency = 0.0
         self._overflows = 0
 
     def describe(self) -> dict[str, str]:
@@ -81,6 +85,7 @@ class SoundDeviceMicrophone:
             self._first_time = arrived - frames / self.rate - self._latency
             self._first.set()
         self._blocks.put(indata[:, 0] / FULL_SCALE)
+        self._arrived += frames
 
     def start(self, step: str) -> float:
         """Open and start the stream; returns once the first block arrived, with its first sample's time."""
@@ -88,6 +93,7 @@ class SoundDeviceMicrophone:
         self._blocks = queue.Queue()
         self._recorded = []
         self._first.clear()
+        self._arrived = 0
         self._overflows = 0
         try:
             self._stream = self._sd.InputStream(samplerate=self.rate, channels=1, dtype="int16",
@@ -114,7 +120,12 @@ class SoundDeviceMicrophone:
         self._recorded += blocks
         return np.concatenate(blocks) if blocks else np.zeros(0)
 
-    def stop(self) -> AudioCapture:
+    def stop(self, until: float | None = None) -> AudioCapture:
+        if until is not None and self._stream is not None:
+            deadline = time.perf_counter() + self._latency + TAIL_GRACE_S
+            while (self._first_time + self._arrived / self.rate < until
+                   and time.perf_counter() < deadline):
+                time.sleep(0.002)
         self.stop_stream()
         self.read()
         samples = np.concatenate(self._recorded) if self._recorded else np.zeros(0)
@@ -167,7 +178,9 @@ class PlaybackMicrophone:
         self._delivered = end
         return out
 
-    def stop(self) -> AudioCapture:
+    def stop(self, until: float | None = None) -> AudioCapture:
+        if until is not None and 0 < self.pacer.speed < float("inf"):
+            self.pacer.wait((until - self.pacer.started) * self.pacer.speed)
         end = max(int(round(self.pacer.elapsed() * self.rate)), self._delivered)
         # Playback shares the DAQ's clock, restarted when the DAQ starts: the take's sample 0 is the DAQ's.
         return AudioCapture(self._segment(0, end), self.pacer.started, 0)

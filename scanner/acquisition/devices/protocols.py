@@ -158,8 +158,9 @@ class Microphone(Protocol):
         """Samples that arrived since the last call (maybe none)."""
         ...
 
-    def stop(self) -> AudioCapture:
-        """Stop; everything recorded since ``start``."""
+    def stop(self, until: float | None = None) -> AudioCapture:
+        """Stop; everything recorded since ``start``. With ``until`` (a ``perf_counter`` time), first record
+        on until the samples reach that time (bounded by the input latency and a short grace period)."""
         ...
 
     def close(self) -> None: ...
