@@ -10,6 +10,7 @@ import sys
 import pytest
 
 from scanner.cli import EXIT_PIPE, main
+from scanner.cli.base import UsageError
 from scanner.storage.database import Database
 
 
@@ -86,3 +87,39 @@ def test_classify_refuses_a_foreign_model(demo_db, tmp_path, capsys):
     assert main(["classify", str(scan), "--model", str(tmp_path / "evil.skops")]) == 1
     err = capsys.readouterr().err
     assert err.startswith("texplorer: error: ") and "evil.skops" in err and len(err.strip().splitlines()) == 1
+
+
+def test_classify_a_scan_id_with_the_databases_default_model(demo_db, capsys):
+    record = Database(demo_db, create=False).records(label="C3")[0]
+    capsys.readouterr()
+    assert main(["classify", record.scan_id, "--db", str(demo_db), "--k", "2"]) == 0
+    by_id = capsys.readouterr().out.splitlines()
+    assert by_id[0] == f"{record.scan_id} ({record.label} recorded) with " + by_id[0].split(" with ", 1)[1]
+    assert len(by_id) == 3 and by_id[1].startswith("1. ")
+    # the same scan as a file, the same default model: the same predictions
+    assert main(["classify", str(demo_db / record.path), "--db", str(demo_db), "--k", "2"]) == 0
+    assert capsys.readouterr().out.splitlines() == by_id
+
+
+def test_classify_an_unknown_scan_id_is_one_line(demo_db, capsys):
+    assert main(["classify", "no-such-scan", "--db", str(demo_db)]) == 1
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "no scan 'no-such-scan'" in err
+
+
+def test_demo_chooses_folds_that_fit_its_scans(tmp_path, capsys):
+    from scanner.cli.demo import fitting_folds
+
+    assert fitting_folds(5, 2, 2) == 4 and fitting_folds(5, 2, 3) == 5 and fitting_folds(3, 1, 2) == 2
+    with pytest.raises(UsageError, match="one scan per material; cross-validation needs two or more"):
+        fitting_folds(5, 1, 1)
+    root = tmp_path / "db"
+    assert main(["demo", "--db", str(root), "--samples", "1", "--scans", "1"]) == 1
+    assert "--samples 2 or --scans 2, or --no-evaluation" in capsys.readouterr().err and not root.exists()
+    code = main(["demo", "--db", str(root), "--samples", "2", "--scans", "2", "--image-size", "64", "--materials",
+                 "polyurethane-foam", "float-glass", "--classifier", "nb", "--level", "fine", "--n", "3",
+                 "--feature-set", "tactum", "--workers", "1"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert "texplorer: note: 4 folds instead of 5: each material has 2 x 2 = 4 scans" in captured.err
+    assert "4 folds" in captured.out

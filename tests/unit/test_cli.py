@@ -9,7 +9,6 @@ import pytest
 from conftest import make_scan
 
 from scanner.cli import COMMANDS, ENTRY_POINTS, EXIT_PROBLEMS, build_parser, main, plugin_summary
-from scanner.cli.base import UsageError
 from scanner.storage.database import Database
 
 
@@ -138,40 +137,11 @@ def test_help_everywhere(argv, capsys):
     assert exit_info.value.code == 0 and "usage: texplorer" in capsys.readouterr().out
 
 
-@pytest.fixture(scope="module")
-def demo_db(tmp_path_factory):
-    """A small synthetic database with features, evaluation and a model, built by 'texplorer demo'."""
-    root = tmp_path_factory.mktemp("demo") / "db"
-    code = main(["demo", "--db", str(root), "--samples", "2", "--scans", "2", "--image-size", "320", "--materials",
-                 "polyurethane-foam", "mild-steel-brushed", "float-glass", "--classifier", "rf", "nb",
-                 "--level", "coarse", "fine", "--feature-set", "tactum", "--folds", "3", "--workers", "2"])
-    assert code == 0
-    return root
-
-
-def test_classify_a_scan_id_with_the_databases_default_model(demo_db, capsys):
-    record = Database(demo_db, create=False).records(label="C3")[0]
-    capsys.readouterr()
-    assert main(["classify", record.scan_id, "--db", str(demo_db), "--k", "2"]) == 0
-    by_id = capsys.readouterr().out.splitlines()
-    assert by_id[0] == f"{record.scan_id} ({record.label} recorded) with " + by_id[0].split(" with ", 1)[1]
-    assert len(by_id) == 3 and by_id[1].startswith("1. ")
-    # the same scan as a file, the same default model: the same predictions
-    assert main(["classify", str(demo_db / record.path), "--db", str(demo_db), "--k", "2"]) == 0
-    assert capsys.readouterr().out.splitlines() == by_id
-
-
 def test_classify_without_a_model_says_where_it_looked(db_path, capsys):
     assert main(["classify", "granite-01-001", "--db", str(db_path)]) == 1
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "no --model given" in err and "rf-fine-X10.skops" in err
     assert "texplorer demo" in err
-
-
-def test_classify_an_unknown_scan_id_is_one_line(demo_db, capsys):
-    assert main(["classify", "no-such-scan", "--db", str(demo_db)]) == 1
-    err = capsys.readouterr().err
-    assert len(err.strip().splitlines()) == 1 and "no scan 'no-such-scan'" in err
 
 
 def test_a_refused_import_leaves_no_database_folder(tmp_path, capsys):
@@ -197,24 +167,6 @@ def test_progress_bars_count_what_they_go_through(monkeypatch):
     monkeypatch.setattr(tqdm, "tqdm", lambda items, **options: made.update(options) or items)
     assert list(base.progress("comparing", unit="method")(["a"])) == ["a"]
     assert made["unit"] == "method" and made["desc"] == "comparing"
-
-
-def test_demo_chooses_folds_that_fit_its_scans(tmp_path, capsys):
-    from scanner.cli.demo import fitting_folds
-
-    assert fitting_folds(5, 2, 2) == 4 and fitting_folds(5, 2, 3) == 5 and fitting_folds(3, 1, 2) == 2
-    with pytest.raises(UsageError, match="one scan per material; cross-validation needs two or more"):
-        fitting_folds(5, 1, 1)
-    root = tmp_path / "db"
-    assert main(["demo", "--db", str(root), "--samples", "1", "--scans", "1"]) == 1
-    assert "--samples 2 or --scans 2, or --no-evaluation" in capsys.readouterr().err and not root.exists()
-    code = main(["demo", "--db", str(root), "--samples", "2", "--scans", "2", "--image-size", "64", "--materials",
-                 "polyurethane-foam", "float-glass", "--classifier", "nb", "--level", "fine", "--n", "3",
-                 "--feature-set", "tactum", "--workers", "1"])
-    captured = capsys.readouterr()
-    assert code == 0, captured.err
-    assert "texplorer: note: 4 folds instead of 5: each material has 2 x 2 = 4 scans" in captured.err
-    assert "4 folds" in captured.out
 
 
 def test_features_of_a_label_leave_the_full_table_alone(tmp_path, capsys):

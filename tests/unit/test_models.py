@@ -52,7 +52,7 @@ def space() -> FeatureSpace:
 
 @pytest.fixture(scope="module")
 def model(space) -> TrainedModel:
-    return train_model(space, level="fine", n_features=2, classifier="rf")
+    return train_model(space, level="fine", n_features=2, classifier="lda")
 
 
 def payload_of(model: TrainedModel) -> dict:
@@ -68,10 +68,10 @@ def payload_of(model: TrainedModel) -> dict:
 
 def test_training_keeps_the_metadata(space, model):
     assert model.feature_names == space.columns
-    assert model.level == "fine" and model.classifier == "rf" and model.n_rows == len(space)
+    assert model.level == "fine" and model.classifier == "lda" and model.n_rows == len(space)
     assert model.selected == ("other.density", "other.metal")
     assert model.classes == tuple(sorted(MATERIALS))
-    assert "rf at level fine, 4 classes" in model.describe()
+    assert "lda at level fine, 4 classes" in model.describe()
 
 
 @pytest.mark.parametrize("classifier", [c for c in CLASSIFIERS if c not in NO_PROBABILITIES])

@@ -11,13 +11,11 @@ import scipy.stats
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
 from features.selection import (
-    SF_TOLERANCE,
     FQSelector,
     SelectionError,
     accept_uncorrelated,
     feature_quality,
     select_features,
-    studentized_range_sf,
 )
 from features.space import FeatureSpace
 
@@ -106,25 +104,6 @@ def test_many_columns_and_classes_match_the_loop():
     fq = feature_quality(X, y)
     expected = [loop_fq(X[:, j].tolist(), y) for j in range(X.shape[1])]
     np.testing.assert_allclose(fq, expected, rtol=0, atol=1e-9)
-
-
-def test_many_pairs_through_the_interpolation_table_match_the_loop():
-    # 100 classes of 2 rows: 4950 pairs, enough to take the table path
-    rng = np.random.default_rng(5)
-    y = [f"m{i // 2}" for i in range(200)]
-    column = (np.arange(200) // 2 * 0.05 + rng.standard_normal(200)).round(1)
-    fq = feature_quality(column[:, None], y)
-    assert fq[0] == pytest.approx(loop_fq(column.tolist(), y), abs=100 * SF_TOLERANCE)
-
-
-@pytest.mark.parametrize("k", [3, 40, 184])
-def test_studentized_range_table_stays_within_tolerance(k):
-    rng = np.random.default_rng(k)
-    q = np.concatenate([rng.uniform(0, 13, 4000), [0.0, 1e-3, 20.0, 50.0]])
-    fast = studentized_range_sf(q, k)
-    probe = np.concatenate([rng.choice(q.size, 300, replace=False), np.arange(q.size - 4, q.size)])
-    exact = scipy.stats.studentized_range.sf(q[probe], k, np.inf)
-    np.testing.assert_allclose(fast[probe], exact, rtol=0, atol=SF_TOLERANCE)
 
 
 def test_unusable_columns_and_single_class_give_zero():

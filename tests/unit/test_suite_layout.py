@@ -75,6 +75,10 @@ SLOW_MODULES = {
     "test_own_recordings.py": "recording sets ingested, extracted and evaluated through the CLI (9-18 s of CPU each)",
     "test_corners.py": "Harris on a photo-sized image, bit for bit against OpenCV (11 s of CPU)",
     "test_image.py": "every image feature on photos of many sizes (2-9 s of CPU each)",
+    "test_modern.py": "cross-validated random-kernel evaluations and a saved MiniRocket model (4-40 s of CPU each)",
+    "test_simulation_physics.py": "a simulated set of 48 whole scans, each family cross-validated (about 60 s of CPU)",
+    "test_selection.py": "the studentized-range table against SciPy's numerical integration (4-6 s of CPU each)",
+    "test_gui_operator.py": "about two thousand hostile requests through the web app (about 10 s of CPU)",
 }
 """System test modules that start nothing heavy but take seconds of CPU per test."""
 
