@@ -1,6 +1,6 @@
 """Accuracy of every modern family beside the paper's features, on the same folds (docs/modern-features.md).
 
-    python benchmarks/modern_accuracy.py [--db DEMO_DB] [--per-class 30] [--workers 2]
+    python benchmarks/modern_accuracy.py [--db DEMO_DB] [--per-class 30] [--workers 2] [--snr-db 0 -6]
 
 Sets: the simulated database of ``texplorer demo`` (if ``--db`` is given; scans), and the two contrast sets
 of :mod:`scanner.simulation.contrasts` (spectral shape only; transient timing only; recordings with a
@@ -48,12 +48,16 @@ def main() -> None:
     parser.add_argument("--levels", nargs="+", help="levels of the database (default: all)")
     parser.add_argument("--no-contrasts", action="store_true", help="only the database")
     parser.add_argument("--contrasts", nargs="*", default=["spectral", "timing"], help="contrast sets")
+    parser.add_argument("--snr-db", type=float, nargs="*", default=[],
+                        help="also each contrast set buried in white noise at these signal-to-noise ratios")
     args = parser.parse_args()
-    for which in () if args.no_contrasts else args.contrasts:
-        recordings = contrast_recordings(which, per_class=args.per_class)
+    contrasts = [(which, snr) for which in args.contrasts for snr in [None, *args.snr_db]]
+    for which, snr in () if args.no_contrasts else contrasts:
+        recordings = contrast_recordings(which, per_class=args.per_class, snr_db=snr)
         started = time.perf_counter()
         space, _ = feature_space(recordings, chosen=feature_sets.role_families_for(SETS), workers=args.workers)
-        print(f"== {which}: {len(space)} recordings, {len(set(space.label_text))} classes, "
+        where = "" if snr is None else f" at {snr:g} dB SNR"
+        print(f"== {which}{where}: {len(space)} recordings, {len(set(space.label_text))} classes, "
               f"{len(space.columns)} columns in {time.perf_counter() - started:.1f} s", flush=True)
         evaluate_sets(space, None, args.workers, tuple(args.sets))
     if args.db:

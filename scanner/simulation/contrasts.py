@@ -11,8 +11,14 @@ summarises the signal's level, spread or peakiness cannot tell them apart:
               same background noise, in three *timings*: periodic every 50 ms; at random (Poisson) times;
               in pairs 12 ms apart every 100 ms. The impulse times vary by up to 2 ms.
 
+With ``snr_db``, each recording's contrast is buried in white sensor noise at that signal-to-noise ratio
+(noise of RMS ``10 ** (-snr_db / 20)`` added to the unit-RMS signal, then the sum scaled to unit RMS
+again): the same contrast, harder to see, so that feature families that resolve it only when it is clean
+part from those that still resolve it in noise.
+
 Recordings are deterministic per seed (each draws from its own generator seeded by (seed, set, class,
-recording)). Every recording is its own group.
+recording); the noise is drawn after the signal, so a noisy recording holds its clean one). Every
+recording is its own group.
 """
 
 from __future__ import annotations
@@ -80,8 +86,18 @@ def _impulses(rng: np.random.Generator, timing: str, n: int) -> np.ndarray:
     return signal
 
 
-def contrast_recordings(which: str, per_class: int = 30, seed: int = 0) -> list[Recording]:
-    """The recordings of the set ``which`` (``spectral`` or ``timing``), ``per_class`` of each class.
+def add_noise(rng: np.random.Generator, data: np.ndarray, snr_db: float) -> np.ndarray:
+    """Unit-RMS ``data`` plus white noise of RMS exactly ``10 ** (-snr_db / 20)``, scaled to unit RMS."""
+    noise = rng.standard_normal(data.size)
+    noise *= 10.0 ** (-snr_db / 20.0) / np.sqrt(np.mean(noise**2))
+    noisy = data + noise
+    return noisy / np.sqrt(np.mean(noisy**2))
+
+
+def contrast_recordings(which: str, per_class: int = 30, seed: int = 0,
+                        snr_db: float | None = None) -> list[Recording]:
+    """The recordings of the set ``which`` (``spectral`` or ``timing``), ``per_class`` of each class,
+    clean or (``snr_db``) in white noise at that signal-to-noise ratio.
 
     Raises
     ------
@@ -92,6 +108,8 @@ def contrast_recordings(which: str, per_class: int = 30, seed: int = 0) -> list[
         raise SimulationError(f"unknown contrast set {which!r} (known: {', '.join(SETS)})")
     if per_class < 2:
         raise SimulationError(f"per_class must be at least 2, got {per_class}")
+    if snr_db is not None and not np.isfinite(snr_db):
+        raise SimulationError(f"snr_db must be a finite number of dB, got {snr_db!r}")
     n = int(FS * SECONDS)
     classes = list(BAND_SHAPES) if which == "spectral" else list(TIMINGS)
     recordings = []
@@ -103,6 +121,8 @@ def contrast_recordings(which: str, per_class: int = 30, seed: int = 0) -> list[
             else:
                 data = _impulses(rng, label, n)
             data = data / np.sqrt(np.mean(data**2))
+            if snr_db is not None:
+                data = add_noise(rng, data, snr_db)
             name = f"{which}-{label}-{k:03d}"
             recordings.append(Recording(name, {"acc": Trace(data, FS, "g")}, {"vibration": "acc"}, label=label,
                                         group={"object": name}))

@@ -24,6 +24,7 @@ from features.registry import REGISTRY, ScanRegistry  # noqa: E402
 from scanner.preprocess import dft321, slide_signal  # noqa: E402
 from scanner.scan import Recording, Trace  # noqa: E402
 from scanner.simulation.contrasts import contrast_recordings  # noqa: E402
+from scanner.simulation.materials import SimulationError  # noqa: E402
 from scanner.storage.matfile import load_scan  # noqa: E402
 
 SCAN = Path(__file__).parents[1] / "regression" / "scans" / "granite-polished-01-001.mat"
@@ -232,6 +233,22 @@ def test_contrast_sets_are_balanced_and_unit_power():
         assert len(set(labels)) in (3, 4) and all(labels.count(label) == 3 for label in set(labels))
         for r in recordings:
             np.testing.assert_allclose(np.mean(r.role("vibration").data ** 2), 1.0, rtol=1e-12)
+
+
+def test_a_noisy_contrast_set_holds_its_clean_recordings_at_the_asked_ratio():
+    """At 0 dB the clean unit-RMS signal and the noise have equal power, so the noisy recording correlates
+    with its clean one at 1/sqrt(2); the cross term of two independent series of n samples moves the
+    correlation by about 1/sqrt(n) (n = 6000: 0.013), so 4/sqrt(n) bounds it."""
+    for which in ("spectral", "timing"):
+        clean = contrast_recordings(which, per_class=2)
+        noisy = contrast_recordings(which, per_class=2, snr_db=0.0)
+        for a, b in zip(clean, noisy, strict=True):
+            x, y = a.role("vibration").data, b.role("vibration").data
+            assert a.name == b.name and a.label == b.label
+            np.testing.assert_allclose(np.mean(y**2), 1.0, rtol=1e-12)
+            assert abs(np.corrcoef(x, y)[0, 1] - 2**-0.5) < 4 / np.sqrt(x.size)
+    with pytest.raises(SimulationError, match="snr_db must be a finite number"):
+        contrast_recordings("spectral", snr_db=float("nan"))
 
 
 def test_walked_selection_equals_the_whole_matrix_selection():
