@@ -9,6 +9,7 @@ import hashlib
 import io
 import os
 import re
+import unicodedata
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -18,7 +19,7 @@ import numpy as np
 
 from scanner.scan import Recording, ScanError, Trace, role_key
 from scanner.storage.ingest.alignment import align
-from scanner.storage.ingest.mapping import FileMap, IngestError, IngestMapping
+from scanner.storage.ingest.mapping import FileMap, IngestError, IngestMapping, shown
 from scanner.storage.ingest.readers import Note, Stream, read_streams
 
 
@@ -48,15 +49,33 @@ class Made:
         return cls(recording.name, tuple(recording.roles), recording.meta.get("split"))
 
 
+def nfc(text: str) -> str:
+    """``text`` in Unicode normal form C: a name typed on one system (``è``, NFC) and copied from another
+    (``e`` + a combining grave accent, NFD, as macOS file systems store it) is one name."""
+    return unicodedata.normalize("NFC", text)
+
+
 def stem_of(path: Path, spec: FileMap) -> str | None:
-    """The recording stem of a file: the ``stem`` group of ``stem_pattern`` searched in its name (None if
-    it does not match), else its name without ``suffix`` (default: without the extension)."""
+    """The recording stem of a file, in NFC (:func:`nfc`): the ``stem`` group of ``stem_pattern`` searched in
+    its name (None if it does not match), else its name without ``suffix`` (default: without the
+    extension)."""
+    name = nfc(path.name)
     if spec.stem_pattern is not None:
-        match = spec.stem_pattern.search(path.name)
+        match = spec.stem_pattern.search(name)
         return match["stem"] if match and match["stem"] else None
     if spec.suffix is not None:
-        return path.name[:-len(spec.suffix)] if spec.suffix and path.name.endswith(spec.suffix) else path.name
-    return path.stem
+        suffix = nfc(spec.suffix)
+        return name[:-len(suffix)] if suffix and name.endswith(suffix) else name
+    return nfc(path.stem)
+
+
+def outside_line(path: Path, root: Path) -> str | None:
+    """A problem line if ``path`` (a link, or a file below a linked folder) leads out of the folder
+    ``root``, else None: an import reads only files inside the folder it was given."""
+    real = path.resolve()
+    if real.is_relative_to(root.resolve()):
+        return None
+    return f"{path}: a link to {real}, outside the ingested folder: not read"
 
 
 def _matched(root: Path, mapping: IngestMapping,
@@ -64,18 +83,36 @@ def _matched(root: Path, mapping: IngestMapping,
     """Files of every [[files]] entry, grouped by recording key: the folder plus the stem. A file whose
     name the entry's ``stem_pattern`` does not match is reported in ``report.skipped``."""
     groups: dict[Path, list[tuple[Path, FileMap]]] = {}
+    skipped = report.skipped if report is not None else []
     for spec in mapping.files:
-        for path in sorted(p for p in root.glob(spec.glob) if p.is_file()):
-            if spec.suffix and not path.name.endswith(spec.suffix):
+        for path in _globbed(root, spec.glob):
+            if spec.suffix and not nfc(path.name).endswith(nfc(spec.suffix)):
+                continue
+            outside = outside_line(path, root)
+            if outside is not None:
+                skipped.append(outside)
                 continue
             stem = stem_of(path, spec)
             if stem is None:  # only with a stem_pattern
-                if report is not None:
-                    pattern = spec.stem_pattern.pattern if spec.stem_pattern else ""
-                    report.skipped.append(f"{path}: name does not match stem_pattern {pattern!r}")
+                pattern = spec.stem_pattern.pattern if spec.stem_pattern else ""
+                skipped.append(f"{path}: name does not match stem_pattern {pattern!r}")
                 continue
-            groups.setdefault(path.parent / stem, []).append((path, spec))
+            files = groups.setdefault(path.parent / stem, [])
+            first = next((seen for seen, kind in files if kind is spec), None)
+            if first is not None:  # names equal in NFC (or in the stem a suffix leaves)
+                skipped.append(f"{path}: the same recording and files entry as {first.name} (the same name in "
+                               "Unicode NFC): not read")
+                continue
+            files.append((path, spec))
     return groups
+
+
+def _globbed(root: Path, glob: str) -> list[Path]:
+    """The files ``glob`` matches under ``root``, sorted; an IngestError naming it if they cannot be listed."""
+    try:
+        return sorted(p for p in root.glob(glob) if p.is_file())
+    except OSError as exc:  # a name longer than the file system allows, a folder that cannot be read
+        raise IngestError(f"{root}: cannot list the files of glob {shown(glob)} ({exc.strerror or exc})") from None
 
 
 def recording_names(keys: Sequence[Path], root: Path) -> dict[Path, str]:
@@ -91,7 +128,7 @@ def recording_names(keys: Sequence[Path], root: Path) -> dict[Path, str]:
     names = {}
     for key in keys:
         relative = key.relative_to(root)
-        long = re.sub(r"[^A-Za-z0-9._-]", "_", "_".join(relative.parts)).lstrip("._-") or "recording"
+        long = re.sub(r"[^A-Za-z0-9._-]", "_", nfc("_".join(relative.parts))).lstrip("._-") or "recording"
         names[key] = safe_name(key.name) if stems[safe_name(key.name)] == 1 else long
     shared: dict[str, int] = {}
     for name in names.values():
@@ -106,12 +143,15 @@ def recording_names(keys: Sequence[Path], root: Path) -> dict[Path, str]:
 def _label_table(root: Path, mapping: IngestMapping) -> dict[str, dict[str, str]]:
     if mapping.label_from != "csv" or mapping.label_csv is None:
         return {}
-    path = Path(mapping.label_csv)
-    path = path if path.is_absolute() else root / path
+    path = root / mapping.label_csv  # relative, without '..' (parse_mapping)
+    outside = outside_line(path, root) if path.exists() else None
+    if outside is not None:
+        raise IngestError(outside)
     try:
-        rows = list(csv.DictReader(io.StringIO(path.read_text(encoding="utf-8-sig"))))
+        text = nfc(path.read_text(encoding="utf-8-sig"))
     except (OSError, UnicodeDecodeError) as exc:
         raise IngestError(f"{path}: cannot read the label table ({exc})") from None
+    rows = list(csv.DictReader(io.StringIO(text)))
     needed = [mapping.label_key, mapping.label_column, *mapping.label_levels]
     missing = [c for c in needed if rows and c not in rows[0]]
     if not rows or missing:
@@ -130,7 +170,7 @@ def _label(key: Path, root: Path, mapping: IngestMapping, table: Mapping[str, Ma
         if row is None or not row.get(mapping.label_column):
             raise IngestError(f"no label for {key.name!r} in {mapping.label_csv}")
         return row[mapping.label_column], {level: row[level] for level in mapping.label_levels}
-    relative = key.relative_to(root).parts[:-1]
+    relative = [nfc(folder) for folder in key.relative_to(root).parts[:-1]]
     if len(relative) < mapping.label_depth:
         raise IngestError(f"{key.name}: no folder {mapping.label_depth} level(s) up to take the label from "
                           "(put each class in a folder of its own, or take the labels from the file names "
@@ -139,7 +179,7 @@ def _label(key: Path, root: Path, mapping: IngestMapping, table: Mapping[str, Ma
 
 
 def _split_part(value: str, mapping: IngestMapping) -> str | None:
-    lowered = value.lower()
+    lowered = nfc(value).lower()
     return next((part for part, names in mapping.split_names.items() if lowered in names), None)
 
 
