@@ -19,8 +19,10 @@ Where the data lives (:func:`extract`): a worker reads a stored scan from the pa
 it sees the catalogued bytes there (shared storage); otherwise the client reads the files and sends them
 (``ship_data``, chosen automatically when a worker cannot see the path, and per scan for a worker that
 joins later). A worker that dies costs its tasks a rerun elsewhere (Dask's scheduler reruns a task up to
-``distributed.scheduler.allowed-failures`` times, then the scan is reported as failed). Leaving a run early
-(Ctrl-C, an error) cancels every task still submitted.
+``distributed.scheduler.allowed-failures`` times, then the scan is reported as failed). When the scheduler
+has had no worker at all for :func:`no_workers_timeout` seconds while tasks wait (every worker died or
+left), the run stops with a :class:`ClusterError` naming the scheduler instead of waiting for good. Leaving
+a run early (Ctrl-C, an error) cancels every task still submitted.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ import contextlib
 import dataclasses
 import itertools
 import logging
+import math
 import os
 import signal
 import threading
@@ -49,6 +52,14 @@ if TYPE_CHECKING:
 
 LOCAL = "local"
 """``local`` or ``local:N``: a LocalCluster of N worker processes here (default: one per core)."""
+
+NO_WORKERS_TIMEOUT = 30.0
+"""Seconds a run waits for a worker while its scheduler has none (all died or left) before it stops:
+long enough for Dask's nanny to restart a killed worker (a second or two) or an adaptive cluster to start
+one; ``$TEXPLORER_DASK_NO_WORKERS_TIMEOUT`` sets another bound."""
+NO_WORKERS_ENV = "TEXPLORER_DASK_NO_WORKERS_TIMEOUT"
+WORKER_CHECK_INTERVAL = 1.0
+"""Seconds between two questions to the scheduler, while waiting for results, whether it has a worker."""
 
 SHIP_WINDOW_PER_THREAD = 2
 """Scans whose files are in flight per worker thread when the client sends them: enough to keep every
@@ -134,6 +145,75 @@ def dask_setup(worker: Any) -> None:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+def no_workers_timeout() -> float:
+    """``$TEXPLORER_DASK_NO_WORKERS_TIMEOUT`` (seconds, > 0) or :data:`NO_WORKERS_TIMEOUT`."""
+    text = os.environ.get(NO_WORKERS_ENV, "").strip()
+    if not text:
+        return NO_WORKERS_TIMEOUT
+    try:
+        seconds = float(text)
+    except ValueError:
+        seconds = math.nan
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise ClusterError(f"${NO_WORKERS_ENV} must be a positive number of seconds, got {text!r}")
+    return seconds
+
+
+def worker_count(client: Client) -> int:
+    """How many workers the client's scheduler has now; a ClusterError naming it if it does not answer."""
+    try:
+        return len(client.nthreads(callback_timeout=max(10.0, WORKER_CHECK_INTERVAL)))
+    except (OSError, TimeoutError) as exc:
+        raise ClusterError(f"the Dask scheduler at {_address(client)} does not answer ({type(exc).__name__}: "
+                           f"{exc})") from None
+
+
+def _address(client: Client) -> str:
+    scheduler = getattr(client, "scheduler", None)
+    return getattr(scheduler, "address", None) or "?"
+
+
+def completions(client: Client, completed: Any, patience: float | None = None) -> Iterator[Future]:
+    """The futures of ``completed`` (a ``distributed.as_completed``, which may grow meanwhile) as they finish.
+
+    While none is ready the scheduler is asked every :data:`WORKER_CHECK_INTERVAL` s whether it has a
+    worker: a task waits for one as long as it takes, so a cluster whose workers all died would wait for
+    good. When it has had none for ``patience`` seconds (:func:`no_workers_timeout`), a ClusterError
+    names the scheduler and how many tasks were waiting.
+    """
+    patience = no_workers_timeout() if patience is None else patience
+    alone_since: float | None = None
+    next_check = time.monotonic() + WORKER_CHECK_INTERVAL
+    while not completed.is_empty():
+        if completed.has_ready():
+            yield next(completed)
+            continue
+        now = time.monotonic()
+        if now >= next_check:
+            next_check = now + WORKER_CHECK_INTERVAL
+            if worker_count(client):
+                alone_since = None
+            else:
+                alone_since = now if alone_since is None else alone_since
+                if now - alone_since >= patience:
+                    raise ClusterError(f"the Dask scheduler at {_address(client)} has had no worker for "
+                                       f"{now - alone_since:.0f} s (they died or left) and {completed.count()} "
+                                       f"task(s) wait: start workers, or run without --scheduler")
+        time.sleep(0.02)  # as_completed's own wait polls too (0.1 s)
+
+
+def scatter(client: Client, data: Any) -> Any:
+    """``client.scatter(data, hash=False)``, waiting at most :func:`no_workers_timeout` seconds for a running
+    worker to hold the data; a ClusterError naming the scheduler when none came."""
+    patience = no_workers_timeout()
+    try:
+        return client.scatter(data, hash=False, timeout=patience)
+    except TimeoutError:
+        raise ClusterError(f"the Dask scheduler at {_address(client)} had no running worker to send the data "
+                           f"to for {patience:.0f} s (they died or left): start workers, or run without "
+                           "--scheduler") from None
+
+
 def describe(client: Client) -> str:
     """``2 workers (2 threads) at tcp://127.0.0.1:8786, dashboard http://127.0.0.1:8787/status``."""
     threads = client.nthreads()
@@ -156,7 +236,7 @@ def run(client: Client, fn: Callable[..., Any], calls: Sequence[tuple], *, name:
     futures = {client.submit(_pinned, fn, *args, key=f"{name}-{token}-{i}", pure=False): i
                for i, args in enumerate(calls)}
     try:
-        for future in distributed.as_completed(futures, loop=client.loop):
+        for future in completions(client, distributed.as_completed(futures, loop=client.loop)):
             result = future.result()
             if tick is not None:
                 tick(1)
@@ -271,7 +351,7 @@ def extract(client: Client, fn: Callable[[Item], Any], sources: Sequence[Item], 
 
     try:
         submit()
-        for future in completed:
+        for future in completions(client, completed):
             index, source, ship = in_flight.pop(future)
             try:
                 result, worker_version, worker = future.result()
@@ -315,10 +395,10 @@ def _scatter(client: Client, payload: Any, attempts: int) -> Future:
     """``client.scatter``, again when the worker it sent the data to died meanwhile."""
     for attempt in range(1, attempts):
         try:
-            return client.scatter(payload, hash=False)
+            return scatter(client, payload)
         except OSError:  # the dying worker's connection closed; the scheduler soon stops choosing it
             time.sleep(0.1 * attempt)
-    return client.scatter(payload, hash=False)
+    return scatter(client, payload)
 
 
 def _heavy(source: Any, ship: bool) -> bool:

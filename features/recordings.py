@@ -580,7 +580,7 @@ def _map(function: Callable, jobs: Sequence, workers: int | None, progress: bool
     workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
     results: list = [None] * len(jobs)
     if client is not None:
-        on_cluster = client.scatter(list(jobs), hash=False)  # recordings travel once, not inside the tasks
+        on_cluster = cluster.scatter(client, list(jobs))  # recordings travel once, not inside the tasks
         with contextlib.closing(cluster.run(client, function, [(job,) for job in on_cluster],
                                             name="texplorer-recording", tick=bar.update)) as done:
             for i, result in done:

@@ -455,7 +455,7 @@ def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells:
         runner = Parallel(n_jobs=workers if workers is not None else -1, return_as="generator")
         results = (pair for pair in enumerate(runner(delayed(_fold)(prepared[c], f, protocol) for c, f in jobs)))
     else:
-        on_cluster = client.scatter(prepared, hash=False)
+        on_cluster = cluster.scatter(client, prepared)
         results = cluster.run(client, _fold, [(on_cluster[c], f, protocol) for c, f in jobs], name="texplorer-fold")
     outcome: dict[tuple[int, int], _FoldOutcome] = {}
     with contextlib.closing(results):  # leaving early (Ctrl-C) cancels the cluster's remaining folds now

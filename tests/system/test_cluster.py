@@ -424,3 +424,52 @@ def test_modern_families_on_the_cluster_equal_the_local_run(local_cluster):
     local, _ = feature_space(rs, workers=1, chosen=chosen)
     remote, _ = feature_space(rs, client=local_cluster, chosen=chosen)
     assert same_bits(remote, local) and any(c.startswith("catch22.") for c in local.columns)
+
+
+def test_a_run_whose_workers_all_died_stops_naming_the_scheduler(pristine, tmp_path):
+    """``dask scheduler`` with one ``dask worker`` (nanny and worker process), both SIGKILLed while a
+    ``texplorer features`` run waits for their results: the run must stop with one line naming the scheduler
+    once it has had no worker for ``$TEXPLORER_DASK_NO_WORKERS_TIMEOUT`` s, not wait for a worker for good."""
+    home = tmp_path / "cluster"
+    home.mkdir()
+    scheduler_file = home / "scheduler.json"
+    scheduler = _start([str(DASK), "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                        "--scheduler-file", str(scheduler_file)], home, home / "scheduler.log")
+    processes = [scheduler]
+    try:
+        deadline = time.monotonic() + 120
+        while not scheduler_file.is_file() and time.monotonic() < deadline:
+            assert scheduler.poll() is None, (home / "scheduler.log").read_text()
+            time.sleep(0.1)
+        address = json.loads(scheduler_file.read_text())["address"]
+        worker = _start([str(DASK), "worker", address, "--host", "127.0.0.1", "--nthreads", "1", "--no-dashboard",
+                         "--local-directory", str(home / "w")], home, home / "worker.log")
+        processes.append(worker)
+        root = fresh_copy(pristine, tmp_path)
+        with distributed.Client(address) as client:
+            client.wait_for_workers(1, timeout=120)
+            run = subprocess.Popen([sys.executable, "-m", "scanner.cli", "features", "--db", str(root),
+                                    "--scheduler", address], cwd=tmp_path, stdout=subprocess.PIPE,
+                                   stderr=subprocess.PIPE, text=True, start_new_session=True,
+                                   env={**os.environ, "TEXPLORER_DASK_NO_WORKERS_TIMEOUT": "3"})
+            processes.append(run)
+            while not any(client.processing().values()) and run.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.02)
+            assert run.poll() is None, run.communicate()
+            os.killpg(worker.pid, signal.SIGKILL)  # the nanny and its worker: nothing restarts it
+            worker.wait()
+        try:
+            _, stderr = run.communicate(timeout=90)
+        except subprocess.TimeoutExpired:
+            pytest.fail("texplorer still waits 90 s after the cluster's only worker died")
+        last = stderr.strip().splitlines()[-1]
+        assert run.returncode == 1, stderr
+        assert re.fullmatch(rf"texplorer: error: the Dask scheduler at {re.escape(address)} has had no worker for "
+                            r"\d+ s \(they died or left\) and [1-6] task\(s\) wait: start workers, or run without "
+                            r"--scheduler", last), stderr
+        assert not (root / "features.csv").exists()
+    finally:
+        for process in reversed(processes):  # each started in a session of its own
+            if process.poll() is None:
+                os.killpg(process.pid, signal.SIGKILL)
+                process.wait()

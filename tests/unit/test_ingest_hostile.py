@@ -7,6 +7,7 @@ import datetime
 import json
 import math
 import random
+import re
 import unicodedata
 import wave
 from pathlib import Path
@@ -120,6 +121,25 @@ def test_a_label_table_and_a_pattern_match_names_in_either_normalisation(tmp_pat
     by_pattern = ingest.ingest(tmp_path, ingest.parse_mapping(
         f'[labels]\nfrom = "pattern"\n[groups]\npattern = "^(?P<label>{NFC})_"\n' + WAVS.format(glob="*.wav"), "m"))
     assert by_pattern.skipped == [] and [r.label for r in by_pattern.recordings] == [NFC]
+
+
+def test_two_files_of_one_folder_named_alike_in_nfc_are_one_recording_read_once(tmp_path):
+    write_wav(tmp_path / "cork" / f"{NFC}.wav")
+    write_wav(tmp_path / "cork" / f"{NFD}.wav", seed=1)
+    report = ingest.ingest(tmp_path, ingest.parse_mapping(WAVS.format(glob="**/*.wav"), "m"))
+    first, second = sorted([tmp_path / "cork" / f"{NFC}.wav", tmp_path / "cork" / f"{NFD}.wav"])
+    assert len(report.recordings) == 1 and report.recordings[0].meta["source"] == [f"cork/{first.name}"]
+    assert report.skipped == [f"{second}: the same recording and files entry as {first.name} (the same name in "
+                              "Unicode NFC): not read"]
+
+
+def test_values_the_import_sets_or_cannot_store_are_refused_naming_the_key():
+    for table, message in [('[meta]\nsplit = "train"\n', "MAP.toml: meta: split is set by the import"),
+                           ("[meta]\nrun = nan\n", "MAP.toml: meta.run: nan is not a finite number"),
+                           ('[labels]\nform = "csv"\n', "MAP.toml: labels: unknown key(s) form"),
+                           ("[[files]]\nglob = '*.wav'\nrate = true\n", "files[0]: rate must be a number, got True")]:
+        with pytest.raises(IngestError, match=re.escape(message)):
+            ingest.parse_mapping(table + ("" if "files" in table else WAVS.format(glob="*.wav")), "m", "MAP.toml")
 
 
 # -- a seeded fuzz of the mapping parser --------------------------------------------------------------
