@@ -258,6 +258,70 @@ def test_concurrent_feature_requests_at_a_fresh_server_all_answer(tmp_path):
             process.wait()
 
 
+def _descendants(pid: int) -> set[int]:
+    """Every running process below ``pid`` (children, their children, ...), from /proc."""
+    parents = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            parents[int(stat.parent.name)] = int(stat.read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, IndexError, ValueError):
+            continue
+    found, frontier = set(), {pid}
+    while frontier:
+        frontier = {child for child, parent in parents.items() if parent in frontier} - found
+        found |= frontier
+    return {child for child in found if _alive(child)}
+
+
+@linux_only
+def test_sigterm_during_an_export_leaves_no_worker_and_no_bundle(tmp_path):
+    """``texplorer serve`` stopped by SIGTERM while an export job extracts features: the server stops as on
+    Ctrl-C, every process it started (the fork server and its extraction workers) ends, and the job's folder
+    in $TMPDIR is deleted."""
+    import http.cookiejar
+    import json
+    import re
+    import urllib.parse
+    import urllib.request
+
+    from scanner.simulation.database import synthetic_database
+
+    synthetic_database(tmp_path / "db", materials=["oak-planed", "float-glass", "mild-steel-brushed"],
+                       scans_per_material=4, image_size=(320, 320), progress=False, workers=1).close()
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    process = subprocess.Popen([sys.executable, "-m", "scanner.cli", "serve", "--db", str(tmp_path / "db"),
+                                "--port", "0"], env={**_env(), "TMPDIR": str(scratch)}, stderr=subprocess.PIPE,
+                               text=True)
+    try:
+        url = next(line.split(" at ", 1)[1].split("/ ", 1)[0] for line in process.stderr if " at http://" in line)
+        browser = urllib.request.build_opener(urllib.request.HTTPCookieProcessor(http.cookiejar.CookieJar()))
+        with browser.open(f"{url}/db/", timeout=120) as page:
+            token = re.search(r'name="csrf_token" value="([^"]+)"', page.read().decode()).group(1)
+        form = urllib.parse.urlencode({"csrf_token": token, "label": "", "session": ""}).encode()
+        with browser.open(f"{url}/db/export", data=form, timeout=120) as page:  # redirected to the job's page
+            job = page.url.rstrip("/").rsplit("/", 1)[1]
+        deadline = time.monotonic() + 120
+        while True:
+            with browser.open(f"{url}/db/export/{job}/status", timeout=120) as answer:
+                status = json.loads(answer.read())
+            workers = _descendants(process.pid)
+            if status["phase"] == "features" and len(workers) >= 2 and list(scratch.glob("texplorer-export-*")):
+                break
+            assert status["running"] and time.monotonic() < deadline, (status, workers)
+            time.sleep(0.05)
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(60) == 0 and "texplorer: stopped" in process.stderr.read()
+        deadline = time.monotonic() + 5  # workers watch their parent and end within 0.5 s of it
+        while {pid for pid in workers if _alive(pid)} and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert {pid for pid in workers if _alive(pid)} == set()
+        assert list(scratch.iterdir()) == []
+    finally:
+        process.kill()
+        process.wait()
+
+
 # -- 3, 9. one pixel limit that cannot be dodged, and decoding bounded in time ------------------------------
 
 def progressive_jpeg(width: int, height: int, repeats: int = 0, seed: int = 0) -> bytes:
