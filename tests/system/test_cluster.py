@@ -28,7 +28,15 @@ distributed = pytest.importorskip("distributed")
 from unit.test_evaluation import labelled_space  # noqa: E402
 
 from features import FeatureSpace, ScanSource, code_version, extract_many  # noqa: E402
-from features.cluster import ClusterError, DataShipped, connect, local_workers, scheduler_address  # noqa: E402
+from features.cluster import (  # noqa: E402
+    NO_WORKERS_ENV,
+    ClusterError,
+    DataShipped,
+    connect,
+    local_workers,
+    no_workers_timeout,
+    scheduler_address,
+)
 from scanner.simulation import recordings as sim  # noqa: E402
 from scanner.simulation.database import synthetic_database  # noqa: E402
 from scanner.storage.database import Database  # noqa: E402
@@ -116,6 +124,18 @@ def test_scheduler_comes_from_the_option_then_from_dask_configuration():
     for bad in ("local:0", "local:x", "local:-1"):
         with pytest.raises(ClusterError, match="expected local:N with N >= 1"):
             local_workers(bad)
+
+
+def test_the_wait_for_a_worker_comes_from_the_environment(monkeypatch):
+    monkeypatch.delenv(NO_WORKERS_ENV, raising=False)
+    assert no_workers_timeout() == 30.0
+    monkeypatch.setenv(NO_WORKERS_ENV, "2.5")
+    assert no_workers_timeout() == 2.5
+    for text in ("0", "-1", "nan", "inf", "soon"):
+        monkeypatch.setenv(NO_WORKERS_ENV, text)
+        with pytest.raises(ClusterError, match=rf"^\$TEXPLORER_DASK_NO_WORKERS_TIMEOUT must be a positive number of "
+                                               rf"seconds, got '{text}'$"):
+            no_workers_timeout()
 
 
 def test_cli_refuses_both_workers_and_scheduler_and_an_unreachable_scheduler(pristine, capsys):

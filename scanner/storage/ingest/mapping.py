@@ -121,7 +121,7 @@ def _get(table: Mapping[str, Any], key: str, kind: type | tuple[type, ...], wher
     if value is not None and (not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds)):
         names = " or ".join(_KIND_NAMES[k] for k in kinds if k is not int or float not in kinds)
         raise _fail(where, f"{key} must be {names}, got {shown(value)}")
-    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > MAX_INDEX:
+    if isinstance(value, int) and not isinstance(value, bool) and float not in kinds and abs(value) > MAX_INDEX:
         raise _fail(where, f"{key} must be at most {MAX_INDEX} in size, got {shown(value)}")
     return value
 
@@ -129,9 +129,15 @@ def _get(table: Mapping[str, Any], key: str, kind: type | tuple[type, ...], wher
 def _finite(table: Mapping[str, Any], key: str, where: str, default: float | None = None) -> float | None:
     """A finite number at ``key`` (None if absent and no default)."""
     value = _get(table, key, (int, float), where, default)
-    if value is not None and not math.isfinite(value):
+    if value is None:
+        return None
+    try:
+        number = float(value)
+    except OverflowError:  # an integer beyond float64 (10**400)
+        number = math.inf
+    if not math.isfinite(number):
         raise _fail(where, f"{key} must be a finite number, got {shown(value)}")
-    return None if value is None else float(value)
+    return number
 
 
 def _unknown(table: Mapping[str, Any], known: set[str] | tuple[str, ...], where: str) -> None:
@@ -412,10 +418,7 @@ def with_label_pattern(mapping: IngestMapping, text: str) -> IngestMapping:
     if mapping.pattern is not None:
         raise _fail("--label-pattern", "the mapping has a groups.pattern; put the (?P<label>...) group there "
                                        "and set labels.from = 'pattern'")
-    try:
-        pattern = re.compile(text)
-    except re.error as exc:
-        raise _fail("--label-pattern", f"not a regular expression ({exc})") from None
+    pattern = _compiled(text, "the pattern", "--label-pattern")
     if "label" not in pattern.groupindex:
         raise _fail("--label-pattern", f"{text!r} needs a (?P<label>...) group, e.g. '^(?P<label>[a-z]+)_'")
     return replace(mapping, pattern=pattern, label_from="pattern")
