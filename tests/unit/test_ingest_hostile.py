@@ -259,12 +259,12 @@ RAW_ERRORS = ("TypeError", "RecursionError", "OverflowError", "AttributeError", 
 
 
 def test_fuzzed_mappings_give_one_short_line_naming_the_key_and_nothing_else(fuzz_folder, tmp_path):
-    """Seeded: 300 mappings, each BASE with one key changed. Parsing either accepts the mapping or raises
+    """Seeded: 200 mappings, each BASE with one key changed. Parsing either accepts the mapping or raises
     an IngestError of one short line naming the file and the key; an accepted mapping imports and stores
     the folder with only the project's errors and problem lines naming no raw exception."""
     rng = random.Random(33)
     accepted = 0
-    for case in range(300):
+    for case in range(200):
         table, key = mutated(rng)
         text = toml_text(table)
         try:
@@ -283,7 +283,7 @@ def test_fuzzed_mappings_give_one_short_line_naming_the_key_and_nothing_else(fuz
             continue
         raw = [line for line in report.skipped if any(f"({name}" in line for name in RAW_ERRORS)]
         assert raw == [], (case, key, raw)
-    assert 10 <= accepted <= 200  # the fuzz exercised both paths
+    assert 10 <= accepted <= 150  # the fuzz exercised both paths
 
 
 def test_a_mapping_nested_beyond_the_parser_is_one_line(tmp_path):
