@@ -141,19 +141,6 @@ def test_reliability_of_a_perfectly_calibrated_forecast():
     assert metrics.reliability(np.array([[0.9, 0.1]] * 2), np.array([1, 1])).ece == pytest.approx(0.9)
 
 
-def test_evaluation_keeps_calibrated_out_of_fold_probabilities_and_the_same_predictions():
-    from unit.test_evaluation import labelled_space
-
-    space = labelled_space()
-    plain = evaluate(space, "rf", "fine", n_features=3, folds=3, calibrate=False)
-    calibrated = evaluate(space, "rf", "fine", n_features=3, folds=3)
-    np.testing.assert_array_equal(plain.y_pred, calibrated.y_pred)
-    assert plain.probability is None and math.isnan(plain.ece)
-    np.testing.assert_allclose(calibrated.probability.sum(axis=1), 1.0)
-    assert 0 <= calibrated.ece <= 1
-    assert calibrated.to_dict()["ece"] == calibrated.ece
-
-
 # -- grouping and voting ----------------------------------------------------------------------------------
 
 

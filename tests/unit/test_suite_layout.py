@@ -78,6 +78,7 @@ SLOW_MODULES = {
     "test_modern.py": "cross-validated random-kernel evaluations and a saved MiniRocket model (4-40 s of CPU each)",
     "test_simulation_physics.py": "a simulated set of 48 whole scans, each family cross-validated (about 60 s of CPU)",
     "test_selection.py": "the studentized-range table against SciPy's numerical integration (4-6 s of CPU each)",
+    "test_metrics.py": "a cross-validated evaluation with a temperature fitted per fold (about 3 s of CPU)",
     "test_gui_operator.py": "about two thousand hostile requests through the web app (about 10 s of CPU)",
 }
 """System test modules that start nothing heavy but take seconds of CPU per test."""
