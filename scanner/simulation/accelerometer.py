@@ -9,10 +9,13 @@ effective mass on the Hertz contact stiffness, in series with the tip's own reso
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from scipy import fft
 
 from scanner.calibration import ACCEL_V_PER_G, ACCEL_ZERO_V, accel_g
+from scanner.simulation.contact import Excitation, coarse_frequencies, on_bins
 from scanner.simulation.materials import Material
 from scanner.simulation.signals import (
     DAQ_LSB_V,
@@ -98,24 +101,39 @@ def rolling_psd(f: np.ndarray, speed: float) -> np.ndarray:
     return np.where((f >= lo) & (f <= hi), level, 0.0)
 
 
-def tip_response(material: Material, tip: Tip, f: np.ndarray) -> np.ndarray:
-    """The tip-surface contact resonance (:func:`contact_frequency_hz`, :func:`damping_ratio`) at ``f``: how
-    the tip's acceleration follows the acceleration the surface imposes."""
-    return resonance(f, contact_frequency_hz(material, tip), damping_ratio(material, tip)).astype(np.complex64)
+def tip_response(material: Material, tip: Tip, n_fft: int) -> np.ndarray:
+    """The tip-surface contact resonance (:func:`contact_frequency_hz`, :func:`damping_ratio`) at the coarse
+    frequencies of an ``n_fft``-sample audio-rate grid (:func:`~scanner.simulation.contact.coarse_frequencies`):
+    how the tip's acceleration follows the acceleration the surface imposes. The same for every slide of a
+    material and tip (cached)."""
+    return _resonance_on_grid(contact_frequency_hz(material, tip), damping_ratio(material, tip), n_fft)
 
 
-def unit_vibration(stationary: np.ndarray, timed: np.ndarray, tip: Tip, envelope: np.ndarray,
-                   n_fft: int, n_out: int) -> np.ndarray:
+@lru_cache(maxsize=64)
+def _resonance_on_grid(f0: float, zeta: float, n_fft: int) -> np.ndarray:
+    response = resonance(coarse_frequencies(n_fft, FS_AUDIO), f0, zeta).astype(np.complex64)
+    response.flags.writeable = False
+    return response
+
+
+def unit_vibration(exc: Excitation, response: np.ndarray, timed: list[np.ndarray | None], tip: Tip,
+                   envelope: np.ndarray, n_fft: int, n_out: int) -> np.ndarray:
     """(n_out, 3) g at the DAQ rate: the tip's vertical (z) and lateral (x) acceleration on the unit.
 
-    ``stationary`` and ``timed`` (2, bins) are tip-acceleration spectra on the audio-rate grid of ``n_fft``
-    samples; the bins up to 1500 Hz are the same signal at 3000 Hz (``n_fft`` FS_DAQ / FS_AUDIO samples),
-    band-limited exactly as the ADXL335's 1.6 kHz bandwidth and the DAQ's anti-aliasing leave it. The
-    stationary part is scaled in time by ``envelope`` (at the DAQ rate); y sees a little of both axes.
+    The excitation's stationary spectra and the ``timed`` ones (a row of None: silent) are on the
+    audio-rate grid of ``n_fft`` samples, ``response`` the contact resonance on its coarse frequencies
+    (:func:`tip_response`); the bins up to 1500 Hz are the same signal at 3000 Hz (``n_fft`` FS_DAQ /
+    FS_AUDIO samples), band-limited exactly as the ADXL335's 1.6 kHz bandwidth and the DAQ's anti-aliasing
+    leave it. The stationary part is scaled in time by ``envelope`` (at the DAQ rate); y sees a little of
+    both axes.
     """
     n_daq = int(round(n_fft * FS_DAQ / FS_AUDIO))
     bins = n_daq // 2 + 1
-    rows = np.concatenate([stationary[:, :bins], timed[:, :bins]])
+    rows = np.zeros((4, bins), np.complex64)
+    rows[:2] = on_bins(response * exc.amplitude, n_fft, FS_AUDIO, bins) * exc.draws[:, :bins]
+    for row, spectrum in zip(rows[2:], timed, strict=True):
+        if spectrum is not None:
+            row[:] = on_bins(response, n_fft, FS_AUDIO, bins) * spectrum[:bins]
     seen = fft.irfft(rows, n_daq)[:, :n_out].astype(np.float64) * (n_daq / n_fft) * tip.gain
     z = seen[0] * envelope + seen[2]
     x = seen[1] * envelope + seen[3]

@@ -3,13 +3,14 @@ texture, with the phone's placement, lighting, focus, exposure and tone curve.""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 
 import cv2
 import numpy as np
 
 from scanner.simulation.materials import Material
-from scanner.simulation.signals import Rng
+from scanner.simulation.signals import Rng, bank_normals
 from scanner.simulation.textures import TEXTURE_FUNCTIONS
 from scanner.simulation.variability import OperatorDraw
 
@@ -43,24 +44,6 @@ SENSOR_NOISE_COUNTS = 2.0
 """Rms of the phone's pixel noise in 8-bit counts."""
 
 
-@lru_cache(maxsize=1)
-def _noise_bank() -> np.ndarray:
-    """Gaussian pixel noise to take photos' noise from (fixed; each photo reads it from a random offset)."""
-    bank = np.random.default_rng(20241127).standard_normal(3 * 2**20, dtype=np.float32) * SENSOR_NOISE_COUNTS
-    bank.flags.writeable = False
-    return bank
-
-
-def _sensor_noise(rng: Rng, shape: tuple[int, ...]) -> np.ndarray:
-    """Pixel noise of one photo: a stretch of the bank from a random offset, drawn afresh where too large."""
-    size = int(np.prod(shape))
-    bank = _noise_bank()
-    if size > bank.size // 2:
-        return rng.standard_normal(shape, dtype=np.float32) * np.float32(SENSOR_NOISE_COUNTS)
-    start = int(rng.integers(0, bank.size - size))
-    return bank[start:start + size].reshape(shape)
-
-
 @lru_cache(maxsize=8)
 def _frame(h: int, w: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Image-plane coordinates in [-1, 1] (columns, rows) and the radius over the half-diagonal, read-only."""
@@ -71,52 +54,73 @@ def _frame(h: int, w: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return cols, rows, radius
 
 
-def _view(material: Material, rng: Rng, operator: OperatorDraw, kind: str, size: tuple[int, int]) -> np.ndarray:
-    """(h, w, 2) colour field and height of the surface as the camera frames it: texture, rotation, zoom,
-    position."""
+@dataclass(frozen=True)
+class _View:
+    """The surface as the camera frames it, before light: the colour ramp's RGB (h, w, 3) in [0, 1] and the
+    height's gradient (rows, columns), read-only, shared by the photos taken from one position."""
+
+    rgb: np.ndarray
+    gradient: tuple[np.ndarray, ...]
+    """Empty for a flat surface."""
+
+
+def _view(material: Material, rng: Rng, operator: OperatorDraw, kind: str, size: tuple[int, int]) -> _View:
+    """The framed view of the surface: texture, rotation, zoom, position; its colours through the palette
+    and white balance, and the gradient of its height."""
     look = material.appearance
     h, w = size
     ppm = w / PHOTO_FOV_MM[kind] * operator.camera_zoom
     canvas = int(np.ceil(np.hypot(h, w))) + 8
     field, height = TEXTURE_FUNCTIONS[look.texture](look, rng, canvas, ppm)
-    layers = np.dstack([field, height]).astype(np.float32)
+    layers = cv2.merge([np.asarray(field, np.float32), np.asarray(height, np.float32)])
     angle = look.orientation_deg + operator.photo_rotation_deg + rng.normal(0.0, 1.0)
-    return _place(layers, angle, rng.uniform(-0.05, 0.05, 2) * w, (h, w))
-
-
-def _photo(material: Material, rng: Rng, operator: OperatorDraw, kind: str, placed: np.ndarray) -> np.ndarray:
-    """One RGB uint8 photo of a framed view: relief shading, lighting, white balance, vignetting, focus,
-    exposure control, tone curve, sensor noise."""
-    look = material.appearance
-    h, w = placed.shape[:2]
-    flash = kind == "I_illu"
+    placed = _place(layers, angle, rng.uniform(-0.05, 0.05, 2) * w, (h, w))
     palette = np.asarray(look.colors, np.float32) / 255.0 * np.asarray(operator.white_balance, np.float32)
     rgb = _ramp(palette, placed[..., 0])
+    height = placed[..., 1]
+    gradient = tuple(np.gradient(cv2.GaussianBlur(height, (0, 0), 1.0))) if look.relief and height.any() else ()
+    for array in (rgb, *gradient):
+        array.flags.writeable = False
+    return _View(rgb, gradient)
+
+
+def _photo(material: Material, rng: Rng, operator: OperatorDraw, kind: str, view: _View) -> np.ndarray:
+    """One RGB uint8 photo of a framed view: relief shading, lighting, vignetting, focus, exposure control,
+    tone curve, sensor noise."""
+    look = material.appearance
+    h, w = view.rgb.shape[:2]
+    flash = kind == "I_illu"
     relief = look.relief * (0.5 if flash else 1.0) * (1.5 if kind == "I_macro" else 1.0)
-    cols, rows, radius = _frame(h, w)
-    gain = _shading(placed[..., 1], relief, rng.uniform(-2.6, -2.0))
-    vignetting = 1 - np.float32(0.45 if kind == "I_macro" else 0.3) * radius**3
+    cols, rows, _ = _frame(h, w)
+    gain = _shading(view.gradient, relief, rng.uniform(-2.6, -2.0), (h, w))
     side = rng.uniform(0, 2 * np.pi)
     light = np.float32(operator.light_gain * rng.normal(1.0, 0.02) * (1.3 if flash else 1.0))
-    gain = gain * vignetting * (1 + np.float32(0.06 * np.cos(side)) * cols + np.float32(0.06 * np.sin(side)) * rows)
-    rgb *= (gain * light)[..., None]
+    gain *= _vignetting(h, w, 0.45 if kind == "I_macro" else 0.3)
+    gain *= light + np.float32(light * 0.06 * np.cos(side)) * cols + np.float32(light * 0.06 * np.sin(side)) * rows
+    rgb = view.rgb * gain[..., None]
     if flash:
         rgb += _highlight(look.gloss, rng, cols, rows)[..., None]
     focus = rng.uniform(0.6, 1.4) if kind == "I_macro" else rng.uniform(0.0, 0.8)
     if focus * w / 512 > 0.1:
         rgb = cv2.GaussianBlur(rgb, (0, 0), focus * w / 512)
-    counts = _tone(_auto_exposure(rgb))
-    counts *= 255
-    counts += _sensor_noise(rng, counts.shape)
-    np.rint(counts, out=counts)
-    np.clip(counts, 0, 255, out=counts)
-    return counts.astype(np.uint8)
+    rgb = _tone(_auto_exposure(rgb))
+    noise = bank_normals(rng, rgb.size).reshape(rgb.shape)
+    # 255 rgb + noise, rounded to the nearest count and saturated to 0..255 in one pass.
+    return cv2.addWeighted(rgb, 255.0, noise, SENSOR_NOISE_COUNTS, 0.0, dtype=cv2.CV_8U)
+
+
+@lru_cache(maxsize=8)
+def _vignetting(h: int, w: int, strength: float) -> np.ndarray:
+    """The lens's fall-off ``1 - strength r^3`` over the frame (radius over the half-diagonal), read-only."""
+    vignetting = 1 - np.float32(strength) * _frame(h, w)[2] ** 3
+    vignetting.flags.writeable = False
+    return vignetting
 
 
 def _auto_exposure(rgb: np.ndarray, target: float = 0.72) -> np.ndarray:
     """The phone's exposure control: a frame brighter than ``target`` on average is darkened halfway (in
     log terms) toward it, so white surfaces and flash shots stay below white but remain brighter."""
-    mean = float(rgb.mean())
+    mean = float(np.mean(cv2.mean(rgb)[:3]))
     if mean > target:
         rgb *= np.float32(np.sqrt(target / mean))
     return rgb
@@ -132,13 +136,15 @@ def _tone(rgb: np.ndarray, knee: float = 0.8) -> np.ndarray:
     return rgb
 
 
-def _shading(height: np.ndarray, relief: float, light_angle: float) -> np.ndarray:
-    """Lambert-like shading from the height gradient along the light direction, strength ``relief``."""
-    if relief == 0.0 or not np.any(height):
-        return np.ones_like(height)
-    gy, gx = np.gradient(cv2.GaussianBlur(height, (0, 0), 1.0))
+def _shading(gradient: tuple[np.ndarray, ...], relief: float, light_angle: float,
+             shape: tuple[int, int]) -> np.ndarray:
+    """Lambert-like shading from the (smoothed) height gradient (rows, columns; empty: flat) along the light
+    direction, strength ``relief``; a float32 array of ``shape`` of its own."""
+    if relief == 0.0 or not gradient:
+        return np.ones(shape, np.float32)
+    gy, gx = gradient
     slope = gx * np.float32(np.cos(light_angle)) + gy * np.float32(np.sin(light_angle))
-    spread = max(float(slope.std()), 1e-6)
+    spread = max(float(cv2.meanStdDev(slope)[1][0, 0]), 1e-6)
     return np.clip(1 + np.float32(0.35 * relief / spread) * slope, 0.3, 1.7)
 
 

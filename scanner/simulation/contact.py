@@ -37,16 +37,18 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from scanner.simulation.materials import Material
-from scanner.simulation.signals import Rng
+from scanner.simulation.signals import Rng, complex_normals
 from scanner.simulation.surface import G_MM_S2, SlidePath, Surface, Tip
 
 POISSON = 0.3
-SMOOTH_STEP = 16
-"""Frequency bins between the points where smooth spectral factors are evaluated (then interpolated)."""
+SMOOTH_STEP = 8
+"""Frequency bins between the points where smooth spectral factors are evaluated (then interpolated): 1.4 Hz
+on a slide's grid, a fraction of the narrowest resonance (a plate mode's bandwidth ``eta f``)."""
 RIDGE_SHARE = 0.05
 """Share of the finger's friction force the ridges modulate (interpretation)."""
 
@@ -85,19 +87,60 @@ def contact_mechanics(material: Material, tip: Tip, normal_n: float) -> ContactM
 
 @dataclass(frozen=True)
 class Excitation:
-    """What the surface does to the tip over one slide, on the audio-rate grid of ``n`` samples.
+    """What the surface does to the tip over one slide, on the audio-rate grid of ``n_fft`` samples.
 
-    ``stationary`` (2, n_fft//2+1): spectra of the micro-profile's vertical and lateral tip acceleration (g)
-    at the mean speed, to be scaled in time by ``envelope`` ``(v(t) / mean_speed)^2``; ``timed`` (2, n): the
+    The micro-profile's vertical and lateral tip acceleration (g) at the mean speed, to be scaled in time by
+    ``envelope`` ``(v(t) / mean_speed)^2``, has the spectrum ``amplitude * draws``: ``amplitude`` (2, m),
+    real, smooth in frequency and given every :data:`SMOOTH_STEP` bins (:func:`on_bins` interpolates it),
+    ``draws`` (2, n_fft//2+1) complex standard normals. Every linear filter after it is smooth too, so the
+    sensors multiply it in on the coarse grid and pay the fine grid once. ``timed`` (2, n) float32: the
     macro-profile's vertical acceleration and the lateral stick-slip and ridge excitation (g), already at
     their moments.
     """
 
-    stationary: np.ndarray
+    amplitude: np.ndarray
+    draws: np.ndarray
     envelope: np.ndarray
     timed: np.ndarray
     contact: ContactMechanics
     mean_speed: float
+
+
+def coarse_frequencies(n_fft: int, fs: float) -> np.ndarray:
+    """The frequencies of every :data:`SMOOTH_STEP`-th bin of an ``n_fft``-sample grid, and of its last bin
+    (so interpolation never extrapolates)."""
+    return _coarse_frequencies(n_fft, fs)
+
+
+@lru_cache(maxsize=4)
+def _coarse_frequencies(n_fft: int, fs: float) -> np.ndarray:
+    bins = n_fft // 2 + 1
+    index = np.unique(np.append(np.arange(0, bins, SMOOTH_STEP), bins - 1))
+    f = index * (fs / n_fft)
+    f.flags.writeable = False
+    return f
+
+
+def on_bins(coarse: np.ndarray, n_fft: int, fs: float, bins: int | None = None) -> np.ndarray:
+    """Values given at :func:`coarse_frequencies` (last axis), interpolated linearly onto the first
+    ``bins`` bins (default all) of the ``n_fft``-sample grid, as complex64 or float32."""
+    below, share = _interpolation(n_fft, fs)
+    below, share = below[:bins], share[:bins]
+    values = np.asarray(coarse, np.complex64 if np.iscomplexobj(coarse) else np.float32)
+    steps = np.diff(values, axis=-1)
+    return np.take(values, below, axis=-1) + np.take(steps, below, axis=-1) * share
+
+
+@lru_cache(maxsize=4)
+def _interpolation(n_fft: int, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """For every bin of the grid: the coarse point at or below it and its share of the way to the next one."""
+    grid = np.rint(_coarse_frequencies(n_fft, fs) * (n_fft / fs)).astype(np.int64)
+    bins = np.arange(n_fft // 2 + 1)
+    below = np.clip(np.searchsorted(grid, bins, side="right") - 1, 0, grid.size - 2)
+    share = ((bins - grid[below]) / (grid[below + 1] - grid[below])).astype(np.float32)
+    below = below.astype(np.intp)
+    below.flags.writeable = share.flags.writeable = False
+    return below, share
 
 
 def excitation(material: Material, rng: Rng, tip: Tip, path: SlidePath, fs: float, normal_n: float,
@@ -108,16 +151,21 @@ def excitation(material: Material, rng: Rng, tip: Tip, path: SlidePath, fs: floa
     moving = path.v > 1e-3
     mean_speed = float(path.v[moving].mean()) if moving.any() else 1.0
     contact = contact_mechanics(material, tip, normal_n)
-    micro = micro_spectra(material, rng, n_fft, fs, mean_speed, contact.averaging_mm, background)
-    envelope = (path.v / mean_speed) ** 2
-    macro = surface.acceleration(path)
-    lateral = stick_slip(rng, path, contact, material, tip) + ridges(path, material, tip, normal_n)
-    return Excitation(micro, envelope, np.vstack([macro, lateral]), contact, mean_speed)
+    amplitude = micro_amplitude(material, n_fft, fs, mean_speed, contact.averaging_mm, background)
+    draws = complex_normals(rng, (2, n_fft // 2 + 1))
+    envelope = np.square(path.v * (1 / mean_speed), dtype=np.float32)
+    timed = np.empty((2, path.x.size), np.float32)
+    timed[0] = surface.acceleration(path)
+    timed[1] = stick_slip(rng, path, contact, material, tip)
+    if tip.ridge_mm:
+        timed[1] += ridges(path, material, tip, normal_n)
+    return Excitation(amplitude, draws, envelope, timed, contact, mean_speed)
 
 
-def micro_spectra(material: Material, rng: Rng, n: int, fs: float, speed: float, contact_mm: float,
-                  background: Callable[[np.ndarray, float], np.ndarray]) -> np.ndarray:
-    """(2, n//2+1) spectra of the vertical and the lateral tip acceleration (g) over the micro-profile.
+def micro_amplitude(material: Material, n: int, fs: float, speed: float, contact_mm: float,
+                    background: Callable[[np.ndarray, float], np.ndarray]) -> np.ndarray:
+    """(2, m) amplitudes, at :func:`coarse_frequencies`, of the spectra of the vertical and the lateral tip
+    acceleration (g) over the micro-profile: times complex standard normals, a spectrum for ``irfft(., n)``.
 
     Height PSD ``S_z(k) ~ (1 + (k/k_c)^2)^(-exponent/2)`` scaled to the rms ``micro_um`` over 0.01-100 /mm,
     seen through the contact patch as ``1 / (1 + (pi k a)^2)``; temporal PSD ``S_z(f/v)/v``; the lateral
@@ -126,8 +174,7 @@ def micro_spectra(material: Material, rng: Rng, n: int, fs: float, speed: float,
     independent of both, so it adds in power and shares their Gaussian draws.
     """
     rough = material.roughness
-    f = np.fft.rfftfreq(n, 1.0 / fs)
-    coarse = f[::SMOOTH_STEP]  # every factor is smooth in f: computed on a coarse grid, interpolated
+    coarse = coarse_frequencies(n, fs)
     k = coarse / speed
     shape = (1.0 + (k / rough.cutoff_per_mm) ** 2) ** (-rough.exponent / 2)
     shape[0] = 0.0
@@ -135,13 +182,10 @@ def micro_spectra(material: Material, rng: Rng, n: int, fs: float, speed: float,
     psd = shape * (density / speed)  # mm^2 / Hz
     amplitude = np.sqrt(psd * (n * fs / 4)) / (1 + (np.pi * contact_mm * k) ** 2) * (2 * np.pi * coarse) ** 2 / G_MM_S2
     floor = background(coarse, speed) * (n * fs / 4)
-    vertical = np.interp(f, coarse, np.sqrt(amplitude**2 + floor)).astype(np.float32)
-    lateral = np.interp(f, coarse, np.sqrt((material.friction.kinetic * amplitude) ** 2 + floor)).astype(np.float32)
-    tracks = np.stack([vertical, lateral])
-    draws = rng.standard_normal((2, 2, f.size), dtype=np.float32)
-    return tracks * draws[:, 0] + 1j * (tracks * draws[:, 1])
+    return np.stack([np.sqrt(amplitude**2 + floor), np.sqrt((material.friction.kinetic * amplitude) ** 2 + floor)])
 
 
+@lru_cache(maxsize=256)
 def _shape_integral(cutoff: float, exponent: float) -> float:
     """``int (1 + (k/k_c)^2)^(-exponent/2) dk`` over 0.01-100 /mm (the micro-profile's band)."""
     k = np.geomspace(0.01, 100.0, 400)

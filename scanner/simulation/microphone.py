@@ -31,9 +31,9 @@ from functools import lru_cache
 import numpy as np
 from scipy import fft
 
-from scanner.simulation.contact import Excitation
+from scanner.simulation.contact import SMOOTH_STEP, Excitation, coarse_frequencies, on_bins
 from scanner.simulation.materials import Material
-from scanner.simulation.signals import FS_AUDIO, Rng, noise_spectrum, quantise
+from scanner.simulation.signals import FS_AUDIO, Rng, complex_normals, quantise
 from scanner.simulation.surface import G_MM_S2, Tip
 from scanner.simulation.variability import plate_thickness_mm
 
@@ -97,53 +97,65 @@ def mic_response(f: np.ndarray) -> np.ndarray:
     return 1 / np.sqrt((1 + (lo / safe) ** 4) * (1 + (f / hi) ** 4))
 
 
-def room_spectra(rng: Rng, n: int, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The room's pink background noise (Pa, spectrum) and its reverberation response (``1 + tail``)."""
+def room_spectra(rng: Rng, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The room's pink background noise (its spectrum in full scale, seen through the lavalier) on the
+    ``n``-sample grid, and its reverberation response ``1 + tail`` on the grid's coarse frequencies
+    (:func:`~scanner.simulation.contact.coarse_frequencies`)."""
     level_pa = 2e-5 * 10 ** (rng.uniform(*ROOM_DB_SPL) / 20)
-    pink = 1 / np.maximum(f, 20.0)
-    pink *= level_pa**2 / np.sum(pink[(f >= 20) & (f <= 20000)] * (f[1] - f[0]))
-    noise = noise_spectrum(rng, n, FS_AUDIO, pink)
+    noise = np.float32(level_pa) * _pink_amplitude(n) * complex_normals(rng, n // 2 + 1)
     t60 = rng.uniform(*ROOM_T60_S)
     length = int(min(t60, 0.45) * FS_AUDIO)
     t = np.arange(length) / FS_AUDIO
     tail = rng.standard_normal(length) * np.exp(-6.9 * t / t60) * (t > 0.003)
     tail *= 10 ** (rng.uniform(-18.0, -10.0) / 20) / np.sqrt(np.sum(tail**2))  # direct-to-reverberant
-    # The tail's spectrum on its own grid (it lasts `length` samples, so this grid resolves it) and
-    # interpolated onto the slide's finer one.
-    short = fft.rfft(tail)
-    grid = fft.rfftfreq(length, 1.0 / FS_AUDIO)
-    return noise, 1 + (np.interp(f, grid, short.real) + 1j * np.interp(f, grid, short.imag)).astype(np.complex64)
+    # The coarse frequencies are every SMOOTH_STEP-th bin: the tail's transform over n / SMOOTH_STEP samples
+    # (longer than the tail) is its exact spectrum there.
+    return noise, 1 + fft.rfft(tail, n // SMOOTH_STEP)
 
 
-def sound(material: Material, rng: Rng, tip: Tip, exc: Excitation, tip_spectra: np.ndarray,
-          timed_spectra: np.ndarray, n_out: int) -> np.ndarray:
+@lru_cache(maxsize=4)
+def _pink_amplitude(n: int) -> np.ndarray:
+    """Spectral amplitude (full scale per Pa rms) of pink noise of 1 Pa rms over 20-20000 Hz on the
+    ``n``-sample grid, through the lavalier (:func:`~scanner.simulation.signals.noise_spectrum`'s scaling)."""
+    f = _frequencies(n)
+    pink = 1 / np.maximum(f, 20.0)
+    pink /= np.sum(pink[(f >= 20) & (f <= 20000)] * (f[1] - f[0]))
+    amplitude = (np.sqrt(pink * (n * FS_AUDIO / 4)) * mic_response(f) / FULL_SCALE_PA).astype(np.float32)
+    amplitude.flags.writeable = False
+    return amplitude
+
+
+def sound(material: Material, rng: Rng, tip: Tip, exc: Excitation, response: np.ndarray,
+          timed: list[np.ndarray | None], n_out: int) -> np.ndarray:
     """Microphone samples (full scale) of one slide.
 
-    ``tip_spectra`` (2, bins): the stationary vertical and lateral tip acceleration (g) through the contact
-    resonance; ``timed_spectra`` the same of the timed excitation; both on the padded grid of ``n`` samples.
-    The plate's mobility is computed every :data:`COARSE` bins and interpolated (its narrowest modes are
-    several bins wide).
+    The excitation's stationary spectra (vertical, lateral tip acceleration in g) and the ``timed`` ones (a
+    row of None: silent) are on the padded grid of ``n`` samples, ``response`` the contact resonance on its
+    coarse frequencies. Every factor between the tip and the microphone (resonance, plate and housing,
+    room reverberation, lavalier) is smooth in frequency: they are multiplied on the coarse frequencies and
+    interpolated once per track onto the grid (the plate's narrowest modes are several coarse steps wide).
     """
-    n = 2 * (tip_spectra.shape[1] - 1)
-    f = _frequencies(n)
-    coarse = f[::COARSE]
+    n = 2 * (exc.draws.shape[1] - 1)
+    coarse = coarse_frequencies(n, FS_AUDIO)
     mobility = plate_mobility(material, coarse, rng.uniform(0.2, 0.8)) * radiation_efficiency(material, coarse)
-    plate = RHO_C * tip.mass_g * 1e-3 * (np.interp(f, coarse, mobility.real) + 1j * np.interp(f, coarse, mobility.imag))
+    plate = RHO_C * tip.mass_g * 1e-3 * mobility
     housing = _housing(n, tip.gain)
-    noise, reverb = room_spectra(rng, n, f)
-    to_pa = (G_MM_S2 * 1e-3 * rng.lognormal(0.0, 0.1) / FULL_SCALE_PA) * _mic(n) * reverb  # g -> m/s^2 -> FS
-    plate = plate.astype(np.complex64)
-    vertical = (plate + housing) * to_pa
-    lateral = (0.3 * plate + housing) * to_pa
-    pressure = np.empty((2, f.size), np.complex64)
-    pressure[0] = vertical * tip_spectra[0] + lateral * tip_spectra[1]
-    pressure[1] = vertical * timed_spectra[0] + lateral * timed_spectra[1] + noise * (_mic(n) / FULL_SCALE_PA)
+    noise, reverb = room_spectra(rng, n)
+    to_fs = (G_MM_S2 * 1e-3 * rng.lognormal(0.0, 0.1) / FULL_SCALE_PA) * mic_response(coarse) * reverb * response
+    vertical = (plate + housing) * to_fs  # full scale per g of the tip's vertical and lateral acceleration
+    lateral = (0.3 * plate + housing) * to_fs
+    pressure = np.empty((2, exc.draws.shape[1]), np.complex64)
+    pressure[0] = on_bins(vertical * exc.amplitude[0], n, FS_AUDIO) * exc.draws[0]
+    pressure[0] += on_bins(lateral * exc.amplitude[1], n, FS_AUDIO) * exc.draws[1]
+    pressure[1] = noise
+    for path, spectrum in zip((vertical, lateral), timed, strict=True):
+        if spectrum is not None:
+            pressure[1] += on_bins(path, n, FS_AUDIO) * spectrum
     heard = fft.irfft(pressure, n)[:, :n_out]
-    audio = heard[0] * exc.envelope + heard[1]
-    return quantise(np.clip(audio, -1.0, 1.0 - 2.0**-15), 2.0**-15)
-
-
-COARSE = 8
+    audio = heard[0] * exc.envelope
+    audio += heard[1]
+    np.clip(audio, -1.0, 1.0 - 2.0**-15, out=audio)
+    return quantise(audio, 2.0**-15)
 
 
 @lru_cache(maxsize=4)
@@ -155,16 +167,10 @@ def _frequencies(n: int) -> np.ndarray:
 
 @lru_cache(maxsize=8)
 def _housing(n: int, gain: float) -> np.ndarray:
-    """Pressure (Pa) per m/s^2 of the tip's acceleration radiated by TU1's housing (a piston of 30 mm)."""
-    w = np.maximum(2 * np.pi * _frequencies(n), 1e-3)
+    """Pressure (Pa) per m/s^2 of the tip's acceleration radiated by TU1's housing (a piston of 30 mm), at
+    the coarse frequencies of the ``n``-sample grid."""
+    w = np.maximum(2 * np.pi * coarse_frequencies(n, FS_AUDIO), 1e-3)
     ka = w * (HOUSING_RADIUS_M / C0)
-    response = ((RHO_C * gain) * ka**2 / (1 + ka**2) / (1j * w)).astype(np.complex64)
-    response.flags.writeable = False
-    return response
-
-
-@lru_cache(maxsize=4)
-def _mic(n: int) -> np.ndarray:
-    response = mic_response(_frequencies(n)).astype(np.float32)
+    response = (RHO_C * gain) * ka**2 / (1 + ka**2) / (1j * w)
     response.flags.writeable = False
     return response

@@ -1,8 +1,10 @@
 """Building blocks shared by the simulated sensors: sample rates and step lengths of the scanning procedure,
-the DAQ's quantisation, smooth ramps, band-limited noise, a contact resonance, the unit's tilt and gravity."""
+the DAQ's quantisation, smooth ramps, band-limited noise, a bank of Gaussian draws, a contact resonance, the
+unit's tilt and gravity."""
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -44,15 +46,50 @@ def band_noise(rng: Rng, n: int, fs: float, lo: float, hi: float) -> np.ndarray:
     return x / rms if rms > 0 else x
 
 
+NORMAL_BANK_SIZE = 2**23
+"""Standard normal draws in the bank (32 MB of float32) that the audio-rate spectra and the photos' pixel
+noise read their Gaussian numbers from."""
+
+
+@lru_cache(maxsize=1)
+def _normal_bank() -> np.ndarray:
+    """:data:`NORMAL_BANK_SIZE` standard normal float32 draws of a fixed seed, read-only, made once per process."""
+    bank = np.random.default_rng(20241127).standard_normal(NORMAL_BANK_SIZE, dtype=np.float32)
+    bank.flags.writeable = False
+    return bank
+
+
+def bank_normals(rng: Rng, count: int) -> np.ndarray:
+    """``count`` standard normal float32 numbers (read-only): a stretch of the bank from an even offset that
+    ``rng`` draws, or fresh draws where a stretch would exceed half the bank.
+
+    Each stretch is an exact sample of independent standard normals, and ``rng`` fixes which one, so a
+    seed still fixes the result; two stretches may overlap, shifted against each other, which no
+    feature of a scan can tell from independent draws. Drawing costs the offset, not ``count`` numbers:
+    a slide's spectra hold a million of them.
+    """
+    bank = _normal_bank()
+    if count > bank.size // 2:
+        return rng.standard_normal(count, dtype=np.float32)
+    start = 2 * int(rng.integers(0, (bank.size - count) // 2 + 1))
+    return bank[start:start + count]
+
+
+def complex_normals(rng: Rng, shape: int | tuple[int, ...]) -> np.ndarray:
+    """Complex64 numbers of ``shape`` whose real and imaginary parts are independent standard normals
+    (:func:`bank_normals`, read-only)."""
+    size = int(np.prod(shape))
+    return bank_normals(rng, 2 * size).view(np.complex64).reshape(shape)
+
+
 def noise_spectrum(rng: Rng, n: int, fs: float, psd: np.ndarray) -> np.ndarray:
     """Spectrum (``n//2+1`` bins, for ``irfft(., n)``) of Gaussian noise with the one-sided PSD ``psd``.
 
     Each bin is ``sqrt(psd n fs / 4) (a + i b)`` with ``a, b`` standard normal, so the signal's variance is
     ``sum(psd) fs / n``, the PSD integrated over the bins.
     """
-    draws = rng.standard_normal((2, n // 2 + 1), dtype=np.float32)
     scale = np.sqrt(np.asarray(psd, np.float32) * np.float32(n * fs / 4))
-    return scale * draws[0] + 1j * (scale * draws[1])
+    return scale * complex_normals(rng, n // 2 + 1)
 
 
 def resonance(f: np.ndarray, f0: float, zeta: float) -> np.ndarray:

@@ -22,8 +22,10 @@ def _noise(rng: Rng, shape: tuple[int, int], scale_px: float, stretch: float = 1
     cols = max(2, int(np.ceil(shape[1] / max(scale_px * stretch, 1.0))) + 1)
     coarse = rng.standard_normal((rows, cols)).astype(np.float32)
     field = cv2.resize(coarse, (shape[1], shape[0]), interpolation=cv2.INTER_CUBIC)
-    field = (field - field.mean()) / max(float(field.std()), 1e-6)
-    return field * min(1.0, scale_px)
+    mean, std = (float(v[0, 0]) for v in cv2.meanStdDev(field))
+    field -= np.float32(mean)
+    field *= np.float32(min(1.0, scale_px) / max(std, 1e-6))
+    return field
 
 
 def _grid(size: int) -> tuple[np.ndarray, np.ndarray]:
