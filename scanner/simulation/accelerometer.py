@@ -25,6 +25,7 @@ from scanner.simulation.signals import (
     Arrays,
     Rng,
     band_noise,
+    bank_normals,
     gravity,
     quantise,
     resonance,
@@ -39,7 +40,7 @@ ADXL_NOISE_G = np.array([0.003, 0.003, 0.005])
 """ADXL335 noise over the 1.5 kHz band (x/y 150, z 300 ug/sqrt(Hz) datasheet densities, band-limited)."""
 def adxl335(acceleration: np.ndarray, rng: Rng) -> np.ndarray:
     """Acceleration (n, 3) in g as the DAQ reads it: sensor noise, +-3.6 g rails, DAQ quantisation."""
-    noisy = acceleration + rng.standard_normal(acceleration.shape) * ADXL_NOISE_G
+    noisy = acceleration + bank_normals(rng, acceleration.size).reshape(acceleration.shape) * ADXL_NOISE_G
     volts = ACCEL_ZERO_V + ACCEL_V_PER_G * np.clip(noisy, -ADXL_RANGE_G, ADXL_RANGE_G)
     return accel_g(quantise(volts, DAQ_LSB_V))
 
@@ -56,14 +57,14 @@ def _tap_train(material: Material, rng: Rng, operator: OperatorDraw, tip: Tip) -
     onsets = 0.6 + (np.arange(count) + rng.uniform(0.1, 0.6, count)) * (3.9 / count)
     unit = np.zeros((t.size, 3))
     for onset, strength in zip(onsets, operator.tap_strength * rng.uniform(0.8, 1.2, count), strict=True):
-        since = t - onset
-        hit = since >= 0
-        ring = np.zeros(t.size)
-        ring[hit] = np.exp(-since[hit] / tau) * np.sin(2 * np.pi * f * since[hit])
+        # The hand's stop (a 30 ms Gaussian) is below 1e-9 of its peak beyond 0.2 s, the ring beyond 20 tau.
+        start, stop = np.searchsorted(t, (onset - 0.2, onset + max(0.2, 20 * tau)))
+        since = t[start:stop] - onset
+        ring = np.where(since >= 0, np.exp(-np.maximum(since, 0.0) / tau) * np.sin(2 * np.pi * f * since), 0.0)
         approach = -since / 0.03 * np.exp(-0.5 * (since / 0.03) ** 2)
         amplitude = tip.tap_g * strength * np.sqrt(f / 500.0)
         direction = np.array([rng.normal(0, 0.15), rng.normal(0, 0.15), 1.0])
-        unit += np.outer(amplitude * ring + 0.15 * strength * approach, direction)
+        unit[start:stop] += np.outer(amplitude * ring + 0.15 * strength * approach, direction)
     return unit @ tilt(*operator.tilt_deg).T + gravity(t.size, operator.tilt_deg)
 
 

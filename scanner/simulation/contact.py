@@ -155,7 +155,7 @@ def excitation(material: Material, rng: Rng, tip: Tip, path: SlidePath, fs: floa
     draws = complex_normals(rng, (2, n_fft // 2 + 1))
     envelope = np.square(path.v * (1 / mean_speed), dtype=np.float32)
     timed = np.empty((2, path.x.size), np.float32)
-    timed[0] = surface.acceleration(path)
+    timed[0] = surface.acceleration(path) if surface.slope.any() else 0.0  # a surface without macro-profile
     timed[1] = stick_slip(rng, path, contact, material, tip)
     if tip.ridge_mm:
         timed[1] += ridges(path, material, tip, normal_n)
