@@ -13,8 +13,17 @@ effective mass) drives two radiators, and the room adds its own:
   Petersson 2005, *Structure-Borne Sound*, ch. 5; modal sum, ch. 7). It radiates
   ``p = rho0 c sigma(f) v`` with the radiation efficiency 1 above the coincidence frequency
   ``f_c = c0^2 / (2 pi) sqrt(rho h / D)`` and ``(P c0 / pi^2 S f_c) sqrt(f / f_c)`` below it, the edge
-  modes of a finite plate (Fahy and Gardonio 2007, *Sound and Structural Vibration*, section 2.8). Metals
-  and glass ring at their modes, wood and stone plates sound dull, foams and fabrics barely radiate.
+  modes of a finite plate (Fahy and Gardonio 2007, *Sound and Structural Vibration*, section 2.8). Below
+  coincidence the plate also radiates from around the driving point: the bending near field there moves a
+  net volume of air, ``Q = F / (i omega m'')``, whatever the plate's size and stiffness, so the power is
+  ``W = rho0 |F|^2 / (12 pi c0 m''^2)`` with ``m'' = rho h`` the plate's mass per area (Heckl's result for
+  a point-driven plate: Cremer, Heckl and Petersson 2005, ch. 7; Fahy and Gardonio 2007, section 2.10).
+  The microphone, ``MIC_DISTANCE_M`` from the tip, hears it spread over a hemisphere:
+  ``|p| = rho0 |F| / (2 pi sqrt(6) r m'')``, in phase with the force and flat in frequency, weighted by
+  ``1 - sigma`` where the plate's own radiation takes over. This term is what makes a light sheet loud
+  and a heavy block quiet for the same scratch, and it is the same for every piece cut from one stock:
+  the piece's size moves its modes, not its mass per area. Metals and glass ring at their modes over it,
+  wood and stone plates sound dull, foams and fabrics are pushed too softly to sound.
 - **The unit** (TU1's housing, which carries the clip-on microphone): its acceleration, the accelerometer's
   signal at full band, radiated as a piston of 30 mm radius, ``sigma = (ka)^2 / (1 + (ka)^2)``.
 - **The room**: pink background noise of 30-34 dB SPL and a reverberation tail of ``T60`` 0.3-0.45 s,
@@ -39,6 +48,10 @@ from scanner.simulation.variability import plate_thickness_mm
 
 RHO_C = 415.0
 """Characteristic impedance of air at 20 degC (Pa s/m)."""
+RHO_AIR = 1.21
+"""Density of air at 20 degC (kg/m^3)."""
+MIC_DISTANCE_M = 0.05
+"""Distance from the tool or finger tip to the lavalier clipped on TU1 (interpretation: a few cm)."""
 C0 = 343.0
 """Speed of sound in air (m/s)."""
 SUPPORT_LOSS = 0.01
@@ -90,6 +103,14 @@ def radiation_efficiency(material: Material, f: np.ndarray) -> np.ndarray:
     return np.where(f >= coincidence, 1.0, np.minimum(edge, 1.0))
 
 
+def near_field(material: Material) -> float:
+    """Pressure (Pa) per newton at the microphone from the plate's bending near field around the driving
+    point: ``rho0 / (2 pi sqrt(6) r m'')``, from the radiated power ``rho0 |F|^2 / (12 pi c0 m''^2)`` of a
+    point-driven plate below coincidence spread over a hemisphere of radius ``MIC_DISTANCE_M``."""
+    mass_per_area = material.density_g_cm3 * 1e3 * plate_thickness_mm(material) * 1e-3  # kg/m^2
+    return RHO_AIR / (2 * np.pi * np.sqrt(6) * MIC_DISTANCE_M * mass_per_area)
+
+
 def mic_response(f: np.ndarray) -> np.ndarray:
     """Magnitude of the lavalier's 10-7500 Hz band (second-order Butterworth edges), zero phase."""
     lo, hi = MIC_BAND_HZ
@@ -137,8 +158,10 @@ def sound(material: Material, rng: Rng, tip: Tip, exc: Excitation, response: np.
     """
     n = 2 * (exc.draws.shape[1] - 1)
     coarse = coarse_frequencies(n, FS_AUDIO)
-    mobility = plate_mobility(material, coarse, rng.uniform(0.2, 0.8)) * radiation_efficiency(material, coarse)
-    plate = RHO_C * tip.mass_g * 1e-3 * mobility
+    sigma = radiation_efficiency(material, coarse)
+    mobility = plate_mobility(material, coarse, rng.uniform(0.2, 0.8))
+    radiated = RHO_C * sigma * mobility + (1 - sigma) * near_field(material)  # Pa per N of contact force
+    plate = tip.mass_g * 1e-3 * radiated  # Pa per m/s^2 of the tip's acceleration
     housing = _housing(n, tip.gain)
     noise, reverb = room_spectra(rng, n)
     to_fs = (G_MM_S2 * 1e-3 * rng.lognormal(0.0, 0.1) / FULL_SCALE_PA) * mic_response(coarse) * reverb * response
