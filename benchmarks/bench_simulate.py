@@ -2,17 +2,33 @@
 
 Reference, in the same process: drawing as many standard normal samples as one scan holds numbers
 (``np.random.default_rng().standard_normal``), the floor any noise-based synthesis pays. Every time is printed
-as a ratio to it, so ratios compare across machines. The simulator before the contact-excitation rewrite
-(commit 7eeaefc) took :data:`OLD_RATIO` references per demo scan, measured with this benchmark's
-``demo_ratio`` on the same machine; the speed-up printed is that ratio over today's.
+as a ratio to it, so ratios compare across machines.
 
-    PYTHONPATH=. .venv/bin/python benchmarks/bench_simulate.py
+The simulator before the contact-excitation rewrite (commit :data:`OLD_COMMIT`) runs alongside, in the same
+run: ``git archive`` extracts that commit into a temporary folder and this file runs again in a subprocess
+with it first on the path (``--ratio-only``), so the old simulator's ``demo_ratio`` is measured the same way
+(its own reference in its own process, the same jobs, OpenCV on one thread in both); the speed-up printed is
+its ratio over today's. Without git or the commit (an installed copy), the benchmark falls back to
+:data:`OLD_RATIO`, measured that way on the 2-core development machine (docs/performance.md); by hand:
+
+    git worktree add --detach /tmp/old 7eeaefc
+    PYTHONPATH=/tmp/old python benchmarks/bench_simulate.py --ratio-only 3088576
+
+Run: ``PYTHONPATH=. .venv/bin/python benchmarks/bench_simulate.py``
 """
 
 from __future__ import annotations
 
+import io
+import os
+import subprocess
+import sys
+import tarfile
+import tempfile
 import time
+from pathlib import Path
 
+import cv2
 import numpy as np
 from timing import median_time
 
@@ -22,8 +38,10 @@ from scanner.simulation.scans import scan_jobs, simulate_one
 IMAGE_SIZE = (512, 512)
 DEMO_SUBSET = 4
 """Every 4th material of the library: 8 demo scans (first piece, first scan) stand for the demo's 192."""
-OLD_RATIO = 12.5
-"""Demo-scan time over the reference of the simulator at commit 7eeaefc (see the module docstring)."""
+OLD_COMMIT = "7eeaefc"
+OLD_RATIO = 11.0
+"""Demo-scan time over the reference of the simulator at :data:`OLD_COMMIT` (10.1-11.8 in three runs on the
+2-core development machine, 2026-11-27), used when that commit cannot be run alongside."""
 
 
 def numbers_in(scan) -> int:
@@ -51,6 +69,32 @@ def demo_ratio(reference: float) -> tuple[float, float]:
     return seconds, seconds / reference
 
 
+def old_ratio(count: int) -> float | None:
+    """The demo ratio of the simulator at :data:`OLD_COMMIT`, measured now in a subprocess on that commit's
+    files (``git archive``), with the reference of ``count`` numbers; None where git or the commit is missing."""
+    root = Path(__file__).resolve().parents[1]
+    try:
+        archive = subprocess.run(["git", "-C", str(root), "archive", OLD_COMMIT], capture_output=True, check=True)
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    with tempfile.TemporaryDirectory() as folder:
+        with tarfile.open(fileobj=io.BytesIO(archive.stdout)) as tar:
+            tar.extractall(folder, filter="data")
+        environment = {**os.environ, "PYTHONPATH": folder}
+        run = subprocess.run([sys.executable, __file__, "--ratio-only", str(count)], env=environment,
+                             capture_output=True, text=True)
+    if run.returncode != 0:
+        print(f"  (the simulator of {OLD_COMMIT} did not run: {run.stderr.strip().splitlines()[-1:]})")
+        return None
+    return float(run.stdout.split()[-1])
+
+
+def ratio_only(count: int) -> None:
+    """Print this checkout's demo ratio for a reference of ``count`` numbers (the old simulator's run)."""
+    _, ratio = demo_ratio(reference_seconds(count))
+    print(f"ratio {ratio:.3f}")
+
+
 def main() -> None:
     library = sim.load_materials()
     count = numbers_in(sim.synthetic_scan("oak-planed", seed=0, image_size=IMAGE_SIZE))
@@ -60,8 +104,10 @@ def main() -> None:
     seconds, ratio = demo_ratio(reference)
     print(f"demo scans ({IMAGE_SIZE[0]}x{IMAGE_SIZE[1]} photos, every {DEMO_SUBSET}th material): "
           f"{seconds * 1e3:.0f} ms CPU each, ratio {ratio:.1f}x")
-    if OLD_RATIO:
-        print(f"  the simulator of commit 7eeaefc: ratio {OLD_RATIO:.1f}x -> {OLD_RATIO / ratio:.1f}x faster today")
+    old = old_ratio(count)
+    source = "measured now" if old is not None else "fixed, measured on the development machine"
+    old = OLD_RATIO if old is None else old
+    print(f"  the simulator of commit {OLD_COMMIT} ({source}): ratio {old:.1f}x -> {old / ratio:.1f}x faster today")
 
     draw = sim.draw_operator(np.random.default_rng(0))
     reference = median_time(lambda: np.random.default_rng(0).standard_normal(count), repeat=7)
@@ -77,5 +123,10 @@ def main() -> None:
     print(f"  {'sum of steps':14s} {total * 1e3:7.1f} ms")
 
 
+cv2.setNumThreads(1)  # as in the demo's workers; CPU time would otherwise count OpenCV's idle threads
+
 if __name__ == "__main__":
-    main()
+    if sys.argv[1:2] == ["--ratio-only"]:
+        ratio_only(int(sys.argv[2]))
+    else:
+        main()
