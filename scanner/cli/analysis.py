@@ -6,8 +6,10 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import math
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -156,10 +158,13 @@ def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
     if getattr(args, "open_set", False):
         return run_open_set(space, args, classifiers, levels, sizes, sets, group_by)
     started = time.perf_counter()
+    calibrate = not getattr(args, "no_calibration", False)
+    if calibrate and getattr(args, "calibrate_diagram_only", False):
+        calibrate = diagram_cells(levels, sizes, list(sets or present_feature_sets(space)), space.level_names)
     reports = evaluate_grid(space, classifiers, levels, sizes, sets, folds=args.folds, seed=args.seed,
                             protocol=args.protocol, workers=args.workers, progress=True, use_split=use_split,
                             client=client, single_group=getattr(args, "single_group", "train"),
-                            calibrate=not getattr(args, "no_calibration", False), group_by=group_by)
+                            calibrate=calibrate, group_by=group_by)
     if getattr(args, "vote", False):
         recordings = [recording_of(s) for s in space.scan_ids]
         if len(set(recordings)) == len(recordings):
@@ -175,6 +180,17 @@ def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
     if args.report:
         print(f"report: {write_report(args.report, space, reports)}")
     return reports
+
+
+def diagram_cells(levels: Sequence[str], sizes: Sequence[int | None], set_names: Sequence[str],
+                  level_names: Sequence[str]) -> set[tuple[str, str, int | None]]:
+    """The (level, feature set, set size) cells whose calibrated results the report's reliability diagram
+    shows (:mod:`taxonomy.reports.report`): the finest level, every feature ("all", else each set) and the
+    largest set size (``all`` above any number)."""
+    finest = max(levels, key=list(level_names).index)
+    largest = max(sizes, key=lambda n: math.inf if n is None else n)
+    names = [ALL] if ALL in set_names else list(set_names)
+    return {(finest, name, largest) for name in names}
 
 
 def run_open_set(space, args: argparse.Namespace, classifiers, levels, sizes, sets, group_by: str) -> list:

@@ -31,7 +31,7 @@ import contextlib
 import sys
 import time
 import warnings
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -334,7 +334,8 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
                   feature_sets: Mapping[str, FeatureSet] | None = None, folds: int = 5, seed: int = SEED,
                   protocol: str = "nested", workers: int | None = None,
                   progress: bool = False, use_split: bool = True, client: Client | None = None,
-                  single_group: str = "train", calibrate: bool = True, group_by: str = "sample") -> list[Result]:
+                  single_group: str = "train", calibrate: bool | Collection[tuple[str, str, int | None]] = True,
+                  group_by: str = "sample") -> list[Result]:
     """Every classifier x feature set x level x set size (the paper's Figs. 16-18), folds in parallel.
 
     Each fold of each (level, feature set, size) is one job in one of ``workers`` processes, or one task on
@@ -366,6 +367,9 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
         Use the space's own train/test split where it has one.
     client : distributed.Client, optional
         Fit the folds on this Dask cluster.
+    calibrate : bool or collection of (str, str, int or None)
+        Calibrate every cell (see :func:`evaluate`), none, or only the cells named by (level, feature set
+        name, set size); the predictions are the same either way.
 
     Returns
     -------
@@ -385,8 +389,10 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
     sets = dict(feature_sets) if feature_sets is not None else present_feature_sets(space)
     cells = [_Cell(level, name, feature_set, size)
              for name, feature_set in sets.items() for level in levels for size in set_sizes]
+    chosen = None if isinstance(calibrate, bool) else set(calibrate)
+    flags = [calibrate if chosen is None else (c.level, c.set_name, c.n_features) in chosen for c in cells]
     reports = _run(space, classifiers, cells, folds, seed, protocol, workers, progress, use_split, client,
-                   single_group, calibrate, group_by)
+                   single_group, flags, group_by)
     per_cell = len(classifiers)
     return [reports[c * per_cell + k] for k in range(per_cell) for c in range(len(cells))]
 
@@ -439,13 +445,15 @@ class _Prepared:
 
 def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells: Sequence[_Cell], folds: int,
          seed: int, protocol: str, workers: int | None, progress: bool, use_split: bool = True,
-         client: Client | None = None, single_group: str = "train", calibrate: bool = True,
+         client: Client | None = None, single_group: str = "train", calibrate: bool | Sequence[bool] = True,
          group_by: str = "sample") -> list[Result]:
-    """Results of every classifier in every cell, in that order (cells outer, classifiers inner)."""
+    """Results of every classifier in every cell, in that order (cells outer, classifiers inner);
+    ``calibrate`` for every cell or one flag per cell."""
     if protocol not in PROTOCOLS:
         raise EvaluationError(f"unknown protocol {protocol!r} (expected one of {', '.join(PROTOCOLS)})")
-    prepared = [_prepare(space, cell, classifiers, folds, seed, protocol, use_split, single_group, calibrate,
-                         group_by) for cell in cells]
+    flags = [calibrate] * len(cells) if isinstance(calibrate, bool) else list(calibrate)
+    prepared = [_prepare(space, cell, classifiers, folds, seed, protocol, use_split, single_group, flag,
+                         group_by) for cell, flag in zip(cells, flags, strict=True)]
     jobs = sorted(((c, f) for c, p in enumerate(prepared) for f in range(len(p.splits))),
                   key=lambda job: -space.level_names.index(cells[job[0]].level))
     # disable=None hides the bar when stderr is not a terminal (logs, CI).

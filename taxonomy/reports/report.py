@@ -320,6 +320,17 @@ def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: S
     return page
 
 
+def _calibrated_share(closed: Sequence[Result]) -> str:
+    """Empty when every result is calibrated, else which ones are (texplorer demo calibrates only the results
+    of the reliability diagram)."""
+    calibrated = sum(r.probability is not None for r in closed)
+    if calibrated == len(closed):
+        return ""
+    return (f" for the {calibrated} of {len(closed)} results with an ECE, those of the reliability diagram "
+            "(the others are not calibrated, which leaves their predictions unchanged; texplorer evaluate "
+            "calibrates every result)")
+
+
 def _calibration_results(reports: Sequence[Result]) -> list[Result]:
     """One calibrated result per classifier for the reliability diagram: at the finest level evaluated,
     with every feature ("all") and the larger set size where there, else its most accurate."""
@@ -489,7 +500,8 @@ def _html(space: FeatureSpace, reports: Sequence[Result], selection: Selection,
                   f"grouped by {r.group_by}" if r.grouped else "not grouped" for r in closed}
         parts.append(f'<h2 id="protocol">How the figures were computed</h2><p>Folds: {e(", ".join(sorted(splits)))}'
                      f" (groups: {e(', '.join(sorted(grouping)))}). {e(CELL_LEGEND)}. Probabilities are "
-                     "calibrated by temperature scaling inside each fold's training rows (Guo et al. 2017); "
+                     "calibrated by temperature scaling inside each fold's training rows (Guo et al. 2017)"
+                     f"{e(_calibrated_share(closed))}; "
                      "ECE: expected calibration error over 10 confidence bins. From fine: the coarse or medium "
                      "accuracy of the fine prediction cut to that level, beside the classifier trained at that "
                      "level directly.</p>")

@@ -185,3 +185,12 @@ def test_features_of_a_label_leave_the_full_table_alone(tmp_path, capsys):
            "is left as it was)" in out
     assert (tmp_path / "db" / "features.csv").read_bytes() == full
     assert list(FeatureSpace.from_csv(tmp_path / "db" / "features-C6.csv").scan_ids) == ["granite-01-001"]
+
+
+def test_the_demo_calibrates_the_cells_of_the_reliability_diagram():
+    from scanner.cli.analysis import diagram_cells
+
+    levels = ("coarse", "medium", "fine")
+    assert diagram_cells(["coarse", "fine"], [3, 10], ["tactum", "all"], levels) == {("fine", "all", 10)}
+    assert diagram_cells(["medium"], [10, None], ["audio", "image"], levels) == {("medium", "audio", None),
+                                                                                 ("medium", "image", None)}

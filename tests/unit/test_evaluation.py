@@ -259,6 +259,19 @@ def test_text_table_shows_the_report_numbers():
     assert "nan" not in text.lower()
 
 
+def test_a_grid_calibrates_only_the_cells_it_names_and_predicts_the_same():
+    space = labelled_space()
+    grid = {"classifiers": ("nb",), "levels": ("coarse", "fine"), "set_sizes": (2,), "feature_sets": {"all": None},
+            "folds": 3, "workers": 1}
+    some = evaluate_grid(space, calibrate={("fine", "all", 2)}, **grid)
+    every = evaluate_grid(space, calibrate=True, **grid)
+    assert [r.level for r in some] == ["coarse", "fine"]
+    assert some[0].probability is None and some[1].probability is not None
+    np.testing.assert_array_equal(some[1].probability, every[1].probability)
+    for mine, theirs in zip(some, every, strict=True):
+        np.testing.assert_array_equal(mine.y_pred, theirs.y_pred)
+
+
 def test_figure_labels_name_each_class_and_keep_its_code():
     from taxonomy.reports.plots import class_labels
 
