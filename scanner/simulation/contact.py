@@ -43,7 +43,7 @@ import numpy as np
 
 from scanner.simulation.materials import Material
 from scanner.simulation.signals import Rng, complex_normals
-from scanner.simulation.surface import G_MM_S2, SlidePath, Surface, Tip
+from scanner.simulation.surface import G_MM_S2, AnyPath, Surface, Tip
 
 POISSON = 0.3
 SMOOTH_STEP = 8
@@ -143,7 +143,7 @@ def _interpolation(n_fft: int, fs: float) -> tuple[np.ndarray, np.ndarray]:
     return below, share
 
 
-def excitation(material: Material, rng: Rng, tip: Tip, path: SlidePath, fs: float, normal_n: float,
+def excitation(material: Material, rng: Rng, tip: Tip, path: AnyPath, fs: float, normal_n: float,
                surface: Surface, n_fft: int, background: Callable[[np.ndarray, float], np.ndarray]) -> Excitation:
     """The slide's excitation (:class:`Excitation`) for the tip pressed with ``normal_n`` along ``path``,
     its stationary part on a grid of ``n_fft`` samples; ``background(f, mean_speed)`` is the PSD (g^2/Hz) of
@@ -154,7 +154,7 @@ def excitation(material: Material, rng: Rng, tip: Tip, path: SlidePath, fs: floa
     amplitude = micro_amplitude(material, n_fft, fs, mean_speed, contact.averaging_mm, background)
     draws = complex_normals(rng, (2, n_fft // 2 + 1))
     envelope = np.square(path.v * (1 / mean_speed), dtype=np.float32)
-    timed = np.empty((2, path.x.size), np.float32)
+    timed = np.empty((2, path.size), np.float32)
     timed[0] = surface.acceleration(path) if surface.slope.any() else 0.0  # a surface without macro-profile
     timed[1] = stick_slip(rng, path, contact, material, tip)
     if tip.ridge_mm:
@@ -193,16 +193,15 @@ def _shape_integral(cutoff: float, exponent: float) -> float:
     return float(np.sum(0.5 * (values[1:] + values[:-1]) * np.diff(k)))
 
 
-def stick_slip(rng: Rng, path: SlidePath, contact: ContactMechanics, material: Material,
+def stick_slip(rng: Rng, path: AnyPath, contact: ContactMechanics, material: Material,
                tip: Tip) -> np.ndarray:
     """Lateral tip acceleration (g) of the slips: one impulse of ``(mu_s - mu_k) F_n / m_tip`` each time
     the sliding distance crosses another stick length (+-15 % jitter), while sliding."""
-    out = np.zeros(path.x.size)
+    out = np.zeros(path.size)
     if contact.stick_slip_per_mm <= 0:
         return out
-    slips = contact.stick_slip_per_mm * path.x
-    count = int(slips[-1])
-    if count == 0 or count > path.x.size // 4:  # no slip yet, or slips faster than fs/4: broadband hiss only
+    count = int(contact.stick_slip_per_mm * path.end_mm)
+    if count == 0 or count > path.size // 4:  # no slip yet, or slips faster than fs/4: broadband hiss only
         return out
     positions = (np.arange(1, count + 1) + rng.uniform(-0.15, 0.15, count)) / contact.stick_slip_per_mm
     index = np.clip(np.searchsorted(path.x, positions), 0, path.x.size - 1)
@@ -211,10 +210,10 @@ def stick_slip(rng: Rng, path: SlidePath, contact: ContactMechanics, material: M
     return out
 
 
-def ridges(path: SlidePath, material: Material, tip: Tip, normal_n: float) -> np.ndarray:
+def ridges(path: AnyPath, material: Material, tip: Tip, normal_n: float) -> np.ndarray:
     """Lateral tip acceleration (g) of the skin's ridges: ``RIDGE_SHARE mu_k F_n / m`` at ``x / ridge``."""
     if not tip.ridge_mm:
-        return np.zeros(path.x.size)
+        return np.zeros(path.size)
     force = RIDGE_SHARE * material.friction.kinetic * normal_n
     return force / (tip.mass_g * 1e-3) / (G_MM_S2 * 1e-3) * np.sin(2 * np.pi * path.x / tip.ridge_mm) * (path.v > 0)
 

@@ -8,7 +8,7 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from scipy import signal
+from scipy import fft, signal
 
 from scanner.scan import CHANNELS
 
@@ -38,10 +38,12 @@ def times(seconds: float, fs: float) -> np.ndarray:
 
 def band_noise(rng: Rng, n: int, fs: float, lo: float, hi: float) -> np.ndarray:
     """Unit-rms Gaussian noise band-limited to [lo, hi] Hz (brick-wall in the frequency domain)."""
-    spectrum = rng.standard_normal(n // 2 + 1) + 1j * rng.standard_normal(n // 2 + 1)
     freqs = np.fft.rfftfreq(n, 1.0 / fs)
-    spectrum[(freqs < lo) | (freqs > hi)] = 0.0
-    x = np.fft.irfft(spectrum, n)
+    inside = np.flatnonzero((freqs >= lo) & (freqs <= hi))
+    spectrum = np.zeros(n // 2 + 1, np.complex128)
+    if inside.size:
+        spectrum[inside[0]:inside[-1] + 1] = complex_normals(rng, inside.size)
+    x = fft.irfft(spectrum, n)
     rms = np.sqrt(np.mean(x**2))
     return x / rms if rms > 0 else x
 

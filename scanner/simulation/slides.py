@@ -32,10 +32,10 @@ from scanner.simulation.surface import (
     FINGER,
     MACRO_DX_MM,
     TOOL,
+    ResampledPath,
     Tip,
     draw_motion,
     macro_profile,
-    path_at,
     slide_path,
     surface,
 )
@@ -74,9 +74,9 @@ def _slide(material: Material, rng: Rng, operator: OperatorDraw, tip: Tip, speed
     """Acceleration (n, 3) g at 3000 Hz, audio at 44100 Hz and IR volts at 3000 Hz of one TU1 slide."""
     motion = draw_motion(rng)
     slow = slide_path(STEP_S, FS_DAQ, start_s, speed, motion)
-    fast = path_at(slow, FS_DAQ, FS_AUDIO, round(STEP_S * FS_AUDIO))
-    n_fft = grid_length(fast.x.size)
-    length = float(fast.x[-1]) + 1.0
+    fast = ResampledPath(slow, FS_DAQ, FS_AUDIO, round(STEP_S * FS_AUDIO))
+    n_fft = grid_length(fast.size)
+    length = fast.end_mm + 1.0
     macro = macro_profile(material.roughness, rng, int(length / MACRO_DX_MM) + 8, MACRO_DX_MM)
     exc = excitation(material, rng, tip, fast, FS_AUDIO, normal_n, surface(material, tip, macro), n_fft,
                      rolling_psd)
@@ -86,7 +86,7 @@ def _slide(material: Material, rng: Rng, operator: OperatorDraw, tip: Tip, speed
     unit = (unit_vibration(exc, response, timed, tip, envelope, n_fft, slow.x.size) + hand_motion(rng, slow)
             + onset_jolt(rng, times(STEP_S, FS_DAQ), start_s))
     accel = unit @ tilt(*operator.tilt_deg).T + gravity(unit.shape[0], operator.tilt_deg)
-    audio = sound(material, rng, tip, exc, response, timed, fast.x.size)
+    audio = sound(material, rng, tip, exc, response, timed, fast.size)
     return adxl335(accel, rng), audio, reflectance(material, rng, slow.x, macro)
 
 

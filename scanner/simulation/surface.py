@@ -9,7 +9,7 @@ spectrum scales with the slide speed; the IR sensor and the friction slide see t
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
 from scipy import ndimage
@@ -120,6 +120,15 @@ class SlidePath:
     dv: np.ndarray
     x: np.ndarray
 
+    @property
+    def size(self) -> int:
+        return self.x.size
+
+    @property
+    def end_mm(self) -> float:
+        """Distance slid by the end of the step."""
+        return float(self.x[-1])
+
 
 def slide_path(seconds: float, fs: float, start_s: float, speed: float, motion: np.ndarray) -> SlidePath:
     """Rest until ``start_s``, ramp up within ``motion[0]`` s, then slide with a slow hand modulation.
@@ -136,16 +145,42 @@ def slide_path(seconds: float, fs: float, start_s: float, speed: float, motion: 
     return SlidePath(v, np.gradient(v, 1 / fs), x)
 
 
-def path_at(path: SlidePath, fs: float, rate: float, samples: int) -> SlidePath:
-    """``path``, sampled at ``fs``, at another ``rate`` over ``samples`` samples: interpolated linearly.
+class ResampledPath:
+    """``path``, sampled at ``fs``, at another ``rate`` over ``samples`` samples: ``v``, ``dv`` and ``x``
+    (as :class:`SlidePath`) interpolated linearly when first read, so a slide that needs only the speed
+    (a surface without macro-profile, a contact without audible stick-slip) pays for the speed alone.
 
     The path is smooth on the slower grid (the hand's modulation is below 2 Hz, the ramp at least 80 ms),
     so the interpolated position differs from a direct integration at ``rate`` by far less than the
-    macro-profile's grid (about 1e-4 mm); three interpolations cost less than the path's own arithmetic.
+    macro-profile's grid (about 1e-4 mm); an interpolation costs less than the path's own arithmetic.
     """
-    position, grid = _positions(samples, fs / rate, path.x.size)
-    return SlidePath(np.interp(position, grid, path.v), np.interp(position, grid, path.dv),
-                     np.interp(position, grid, path.x))
+
+    def __init__(self, path: SlidePath, fs: float, rate: float, samples: int) -> None:
+        self._path = path
+        self._position, self._grid = _positions(samples, fs / rate, path.size)
+        self.size = samples
+
+    def _at(self, values: np.ndarray) -> np.ndarray:
+        return np.interp(self._position, self._grid, values)
+
+    @cached_property
+    def v(self) -> np.ndarray:
+        return self._at(self._path.v)
+
+    @cached_property
+    def dv(self) -> np.ndarray:
+        return self._at(self._path.dv)
+
+    @cached_property
+    def x(self) -> np.ndarray:
+        return self._at(self._path.x)
+
+    @property
+    def end_mm(self) -> float:
+        return self._path.end_mm
+
+
+AnyPath = SlidePath | ResampledPath
 
 
 @lru_cache(maxsize=8)
@@ -168,7 +203,7 @@ class Surface:
     slope: np.ndarray
     curvature: np.ndarray
 
-    def acceleration(self, path: SlidePath) -> np.ndarray:
+    def acceleration(self, path: AnyPath) -> np.ndarray:
         """Vertical tip acceleration ``v^2 z''(x) + v' z'(x)`` in g."""
         both = lookup(self.curvature + 1j * self.slope, path.x / MACRO_DX_MM)
         return (path.v**2 * both.real + path.dv * both.imag) / G_MM_S2
