@@ -88,16 +88,16 @@ def _staged_scans(jobs: list[_Job], staging: Path, workers: int) -> Iterator[Sta
     if workers == 1:
         yield from (simulate_into(job, staging) for job in jobs)
         return
-    with concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=_start_worker,
-                                                initargs=(os.getpid(),)) as pool:
-        yield from pool.map(simulate_into, jobs, [staging] * len(jobs))
-
-
-def _start_worker(parent: int) -> None:
-    """A simulation worker: ends with ``parent``, and keeps OpenCV to its own core (the workers already use
-    every core; OpenCV's threads would only wait for each other)."""
-    end_with_parent(parent)
+    # The workers already use every core: OpenCV's threads in each would only wait for each other. Set in
+    # this process before forking (changing OpenCV's pool in a forked child can deadlock), restored after.
+    threads = cv2.getNumThreads()
     cv2.setNumThreads(1)
+    try:
+        with concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=end_with_parent,
+                                                    initargs=(os.getpid(),)) as pool:
+            yield from pool.map(simulate_into, jobs, [staging] * len(jobs))
+    finally:
+        cv2.setNumThreads(threads)
 
 
 def simulate_into(job: _Job, folder: Path) -> Staged:

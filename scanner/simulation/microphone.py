@@ -130,8 +130,12 @@ def room_spectra(rng: Rng, n: int) -> tuple[np.ndarray, np.ndarray]:
     tail = rng.standard_normal(length) * np.exp(-6.9 * t / t60) * (t > 0.003)
     tail *= 10 ** (rng.uniform(-18.0, -10.0) / 20) / np.sqrt(np.sum(tail**2))  # direct-to-reverberant
     # The coarse frequencies are every SMOOTH_STEP-th bin: the tail's transform over n / SMOOTH_STEP samples
-    # (longer than the tail) is its exact spectrum there.
-    return noise, 1 + fft.rfft(tail, n // SMOOTH_STEP)
+    # (longer than the tail) is its exact spectrum there (interpolated on a grid SMOOTH_STEP does not divide).
+    short = fft.rfft(tail, n // SMOOTH_STEP)
+    coarse = coarse_frequencies(n, FS_AUDIO)
+    if n % (2 * SMOOTH_STEP):
+        short = np.interp(coarse, fft.rfftfreq(n // SMOOTH_STEP, 1.0 / FS_AUDIO), short)
+    return noise, 1 + short
 
 
 @lru_cache(maxsize=4)
