@@ -101,10 +101,18 @@ def test_perforated_plate_repeats_at_spacing_over_speed(speed, library):
     ir_lag = lo + int(np.argmax(np.correlate(ir, ir, "full")[ir.size - 1:][lo:hi]))
     assert ir_lag == pytest.approx(expected, rel=0.05)
 
-    energy = np.sum(signal.sosfiltfilt(BAND, out["v_ts"], axis=0)[1800:] ** 2, axis=1)
-    energy = signal.sosfiltfilt(signal.butter(2, 100, fs=3000, output="sos"), energy)
-    energy -= energy.mean()
-    vib_lag = lo + int(np.argmax(np.correlate(energy, energy, "full")[energy.size - 1:][lo:hi]))
+    # The holes' share of the vibration's energy is small at a slow slide (their acceleration grows as v^2),
+    # so the envelope's autocorrelation is summed over three slides of independent draws: the period
+    # adds up, the noise's fluctuations do not.
+    correlation = 0.0
+    for seed in (1, 2, 3):
+        slide = out if seed == 1 else sim.tool_slide(library["perforated-steel-plate"], np.random.default_rng(seed),
+                                                     operator(seed, tool_speed_mm_s=speed, tool_slide_start_s=0.5))
+        energy = np.sum(signal.sosfiltfilt(BAND, slide["v_ts"], axis=0)[1800:] ** 2, axis=1)
+        energy = signal.sosfiltfilt(signal.butter(2, 100, fs=3000, output="sos"), energy)
+        energy -= energy.mean()
+        correlation = correlation + np.correlate(energy, energy, "full")[energy.size - 1:] / np.sum(energy**2)
+    vib_lag = lo + int(np.argmax(correlation[lo:hi]))
     assert vib_lag == pytest.approx(expected, rel=0.15)
 
 
