@@ -508,7 +508,15 @@ def start_workers_from_a_server() -> None:
     context.set_forkserver_preload(list(WORKER_SERVER_PRELOAD))
     from multiprocessing import forkserver  # noqa: PLC0415 (only where it exists)
 
-    forkserver.ensure_running()
+    try:
+        forkserver.ensure_running()
+    except OSError as exc:
+        if "AF_UNIX path too long" not in str(exc):
+            raise
+        import tempfile  # noqa: PLC0415 (only to name the folder)
+
+        raise TexplorerError(f"the worker server's socket does not fit in $TMPDIR ({tempfile.gettempdir()}): a "
+                             "Unix socket's path holds at most 107 bytes; set TMPDIR to a shorter folder") from None
     _SERVER["context"] = context
 
 

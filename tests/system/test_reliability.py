@@ -4,9 +4,11 @@ feature cache against changed files and changed code, the web app's extraction u
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import textwrap
 import time
 import warnings
@@ -288,13 +290,21 @@ def test_sigterm_during_an_export_leaves_no_worker_and_no_bundle(tmp_path):
 
     synthetic_database(tmp_path / "db", materials=["oak-planed", "float-glass", "mild-steel-brushed"],
                        scans_per_material=4, image_size=(320, 320), progress=False, workers=1).close()
-    scratch = tmp_path / "tmp"
-    scratch.mkdir()
+    # A short $TMPDIR: the fork server's socket lives in it, and a Unix socket's path holds at most 107 bytes
+    # (pytest's tmp_path under xdist is already 70 long).
+    scratch = Path(tempfile.mkdtemp(prefix="tx-", dir="/tmp"))
     process = subprocess.Popen([sys.executable, "-m", "scanner.cli", "serve", "--db", str(tmp_path / "db"),
                                 "--port", "0"], env={**_env(), "TMPDIR": str(scratch)}, stderr=subprocess.PIPE,
                                text=True)
     try:
-        url = next(line.split(" at ", 1)[1].split("/ ", 1)[0] for line in process.stderr if " at http://" in line)
+        printed = []
+        for line in process.stderr:
+            printed.append(line)
+            if " at http://" in line:
+                url = line.split(" at ", 1)[1].split("/ ", 1)[0]
+                break
+        else:
+            raise AssertionError(f"the server printed no address: {''.join(printed)}")
         browser = urllib.request.build_opener(urllib.request.HTTPCookieProcessor(http.cookiejar.CookieJar()))
         with browser.open(f"{url}/db/", timeout=120) as page:
             token = re.search(r'name="csrf_token" value="([^"]+)"', page.read().decode()).group(1)
@@ -320,6 +330,17 @@ def test_sigterm_during_an_export_leaves_no_worker_and_no_bundle(tmp_path):
     finally:
         process.kill()
         process.wait()
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+@linux_only
+def test_serve_under_a_tmpdir_too_long_for_a_socket_says_so_in_one_line(tmp_path):
+    long = tmp_path / ("t" * max(1, 100 - len(str(tmp_path))))
+    long.mkdir()
+    done = subprocess.run([sys.executable, "-m", "scanner.cli", "serve", "--db", str(tmp_path / "db"), "--port",
+                           "0"], env={**_env(), "TMPDIR": str(long)}, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1 and len(done.stderr.strip().splitlines()) == 1
+    assert "set TMPDIR to a shorter folder" in done.stderr and str(long) in done.stderr
 
 
 # -- 3, 9. one pixel limit that cannot be dodged, and decoding bounded in time ------------------------------
