@@ -107,3 +107,36 @@ def db_path(tmp_path):
                      rigid=True, drop=("f_fold", "alpha_f")))
     db.close()
     return tmp_path / "db"
+
+
+# -- the web app, for the unit and the system tests of gui/ -----------------------------------------------
+
+@pytest.fixture
+def app(tmp_path):
+    """The web app on an empty database in ``tmp_path`` (uploads up to 400 kB), shut down after the test."""
+    from unit.test_gui import make_app
+
+    app = make_app(tmp_path / "db", upload_limit=400_000)
+    yield app
+    app.extensions["texplorer"].shutdown()
+
+
+@pytest.fixture
+def client(app):
+    return app.test_client()
+
+
+@pytest.fixture
+def stocked(tmp_path):
+    """A test client of the web app on three scans: granite-01 twice (300 px photos), a rigid steel scan."""
+    from unit.test_gui import make_app
+
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0, sample_id="granite-01", scan_index=1, image_shape=(300, 300)))
+    db.add(make_scan(1, sample_id="granite-01", scan_index=2, image_shape=(300, 300)))
+    db.add(make_scan(2, label="C7S1M1P8X1", sample_id="steel-01", scan_index=1, operator="cd", rigid=True,
+                     drop=("f_fold", "alpha_f"), images=False))
+    db.close()
+    app = make_app(tmp_path / "db")
+    yield app.test_client()
+    app.extensions["texplorer"].shutdown()

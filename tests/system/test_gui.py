@@ -25,18 +25,6 @@ from unit.test_gui import (
 )
 
 
-@pytest.fixture
-def app(tmp_path):
-    app = make_app(tmp_path / "db", upload_limit=400_000)
-    yield app
-    app.extensions["texplorer"].shutdown()
-
-
-@pytest.fixture
-def client(app):
-    return app.test_client()
-
-
 def test_full_session_through_the_server(client, app):
     assert start_session(client, operator="Ann", sample_id="granite-07").headers["Location"] == "/session"
     overview = get(client, "/session").text
@@ -179,23 +167,6 @@ def test_summary_says_unknown_material_for_a_scan_unlike_every_trained_one(tmp_p
         assert "unknown material (closest: granite (igneous stone, stone), polished, plain (C6S1M1P2X1)" in page
     finally:
         app.extensions["texplorer"].shutdown()
-
-
-@pytest.fixture
-def stocked(tmp_path):
-    from conftest import make_scan
-
-    from scanner.storage.database import Database
-
-    db = Database(tmp_path / "db")
-    db.add(make_scan(0, sample_id="granite-01", scan_index=1, image_shape=(300, 300)))
-    db.add(make_scan(1, sample_id="granite-01", scan_index=2, image_shape=(300, 300)))
-    db.add(make_scan(2, label="C7S1M1P8X1", sample_id="steel-01", scan_index=1, operator="cd", rigid=True,
-                     drop=("f_fold", "alpha_f"), images=False))
-    db.close()
-    app = make_app(tmp_path / "db")
-    yield app.test_client()
-    app.extensions["texplorer"].shutdown()
 
 
 def test_browser_scan_page_traces_photos_features(stocked):

@@ -259,18 +259,6 @@ def make_app(root, config=None, **settings):
     return app
 
 
-@pytest.fixture
-def app(tmp_path):
-    app = make_app(tmp_path / "db", upload_limit=400_000)
-    yield app
-    app.extensions["texplorer"].shutdown()
-
-
-@pytest.fixture
-def client(app):
-    return app.test_client()
-
-
 def csrf(client):
     """The CSRF token of the client's browser session, as the pages embed it."""
     page = client.get("/", base_url=BASE).text
@@ -494,23 +482,6 @@ def test_status_while_recording(tmp_path):
 
 
 # -- database browser ------------------------------------------------------------------------------------
-
-
-@pytest.fixture
-def stocked(tmp_path):
-    from conftest import make_scan
-
-    from scanner.storage.database import Database
-
-    db = Database(tmp_path / "db")
-    db.add(make_scan(0, sample_id="granite-01", scan_index=1, image_shape=(300, 300)))
-    db.add(make_scan(1, sample_id="granite-01", scan_index=2, image_shape=(300, 300)))
-    db.add(make_scan(2, label="C7S1M1P8X1", sample_id="steel-01", scan_index=1, operator="cd", rigid=True,
-                     drop=("f_fold", "alpha_f"), images=False))
-    db.close()
-    app = make_app(tmp_path / "db")
-    yield app.test_client()
-    app.extensions["texplorer"].shutdown()
 
 
 def test_browser_overview_material_and_scans(stocked):

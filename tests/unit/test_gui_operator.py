@@ -29,18 +29,6 @@ PARAMETERS = ("label", "sample", "operator", "session", "q", "v", "lable", "samp
 """The query parameters the pages read, and misspellings of them."""
 
 
-@pytest.fixture
-def app(tmp_path):
-    app = make_app(tmp_path / "db", upload_limit=400_000)
-    yield app
-    app.extensions["texplorer"].shutdown()
-
-
-@pytest.fixture
-def client(app):
-    return app.test_client()
-
-
 def stock_app(db_root):
     """The web app on a database of three scans: two granite samples, one oak; operators Ann, bo, ann."""
     from conftest import make_scan
