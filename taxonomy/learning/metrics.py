@@ -45,6 +45,18 @@ def macro_f1_from_confusion(confusion: np.ndarray) -> float:
     return float(np.mean(2 * tp[occurs] / (2 * tp[occurs] + fp[occurs] + fn[occurs])))
 
 
+def macro_f1_of_counts(tp: np.ndarray, true: np.ndarray, predicted: np.ndarray) -> np.ndarray:
+    """:func:`macro_f1_from_confusion` of many confusion matrices at once, from their diagonals ``tp`` and
+    their row (``true``) and column (``predicted``) sums, one matrix per row: ``F1_c = 2 TP_c / (n_c + m_c)``
+    averaged over the classes with ``n_c + m_c > 0``; NaN for a matrix with no class."""
+    tp, denominator = np.asarray(tp, dtype=np.float64), np.asarray(true, np.float64) + np.asarray(predicted, np.float64)
+    occurs = denominator > 0
+    scores = np.divide(2 * tp, denominator, out=np.zeros_like(tp), where=occurs)
+    counted = occurs.sum(axis=-1)
+    with np.errstate(invalid="ignore"):
+        return np.where(counted > 0, scores.sum(axis=-1) / np.maximum(counted, 1), np.nan)
+
+
 def present_class_f1(y_true: Sequence[str], y_pred: Sequence[str]) -> float:
     """Macro F1 of one fold over the classes present in its true labels.
 
@@ -83,11 +95,22 @@ def bootstrap_interval(statistic: Callable[[np.ndarray], float], groups: Sequenc
     draws of G groups, a multinomial count). A single group gives the degenerate interval of the
     statistic itself.
     """
-    groups = np.asarray(groups)
-    names, inverse = np.unique(groups, return_inverse=True)
+    weights = bootstrap_weights(groups, seed, resamples)
+    return percentile_interval(np.array([statistic(row) for row in weights], dtype=np.float64), level)
+
+
+def bootstrap_weights(groups: Sequence[str], seed: int = 0, resamples: int = BOOTSTRAP_RESAMPLES) -> np.ndarray:
+    """The row weights of :func:`bootstrap_interval`'s resamples, one row per resample (``resamples`` x rows):
+    how often each row's group was drawn, the multinomial count of G draws of G groups with replacement."""
+    names, inverse = np.unique(np.asarray(groups), return_inverse=True)
     rng = np.random.default_rng(seed)
     drawn = rng.multinomial(names.size, np.full(names.size, 1 / names.size), size=resamples)
-    values = np.array([statistic(counts[inverse]) for counts in drawn], dtype=np.float64)
+    return drawn[:, inverse]
+
+
+def percentile_interval(values: np.ndarray, level: float = 0.95) -> tuple[float, float]:
+    """The central ``level`` percentile interval of the finite ``values``; NaN, NaN if none is finite."""
+    values = np.asarray(values, dtype=np.float64)
     values = values[np.isfinite(values)]
     if values.size == 0:
         return float("nan"), float("nan")

@@ -253,22 +253,16 @@ selection, and this classifier).
         y_true, y_pred, groups = self._scored_rows()
         if y_true.size == 0:
             return {"accuracy": (math.nan, math.nan), "f1": (math.nan, math.nan)}
-        # Class indices once: each of the 2000 resamples is then a weighted bincount.
+        # Every resample at once: its row weights times each row's indicators give its counts per class.
         classes, codes = np.unique(np.concatenate([y_true, y_pred]), return_inverse=True)
         true, pred = codes[:len(y_true)], codes[len(y_true):]
-        k = classes.size
-
+        one_hot = np.eye(classes.size)
         right = (true == pred).astype(np.float64)
-
-        def f1(weights: np.ndarray) -> float:
-            cells = np.bincount(true * k + pred, weights=weights, minlength=k * k)
-            return metrics.macro_f1_from_confusion(cells.reshape(k, k))
-
-        return {
-            "accuracy": metrics.bootstrap_interval(lambda weights: float(weights @ right / weights.sum()), groups,
-                                                   self.seed),
-            "f1": metrics.bootstrap_interval(f1, groups, self.seed),
-        }
+        weights = metrics.bootstrap_weights(groups, self.seed).astype(np.float64)
+        f1 = metrics.macro_f1_of_counts(weights @ (one_hot[true] * right[:, None]), weights @ one_hot[true],
+                                        weights @ one_hot[pred])
+        return {"accuracy": metrics.percentile_interval(weights @ right / weights.sum(axis=1)),
+                "f1": metrics.percentile_interval(f1)}
 
     @property
     def accuracy_ci(self) -> tuple[float, float]:
@@ -302,11 +296,11 @@ selection, and this classifier).
         if self.level != "fine" or not self.taxonomy or self.y_true is None or self.y_pred is None:
             return math.nan
         y_true, y_pred, _ = self._scored_rows()
-        try:
-            cut_true = [Label.parse(t).at(level) for t in y_true]
-            cut_pred = [Label.parse(p).at(level) for p in y_pred]
+        try:  # each distinct code parsed once
+            cut = {code: Label.parse(code).at(level) for code in set(y_true) | set(y_pred)}
         except (LabelError, ValueError):
             return math.nan
+        cut_true, cut_pred = [cut[t] for t in y_true], [cut[p] for p in y_pred]
         return metrics.accuracy(cut_true, cut_pred) if cut_true else math.nan
 
     # -- open set ------------------------------------------------------------------------------------

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 from scipy.special import expit
+from sklearn.metrics import confusion_matrix as sk_confusion
 from sklearn.metrics import f1_score
 from sklearn.naive_bayes import GaussianNB
 
@@ -217,3 +218,30 @@ def test_a_recording_is_scored_once_by_its_windows_vote():
     np.testing.assert_array_equal(voted.y_pred, ["a", "b", "c", "a"])
     assert voted.voted and voted.accuracy_pooled == pytest.approx(3 / 4)
     assert voted.confusion.sum() == 4
+
+
+def test_intervals_of_every_resample_at_once_equal_those_resample_by_resample():
+    # The result's intervals weigh all 1000 resamples in three products; the same weights through
+    # bootstrap_interval, one weighted confusion matrix per resample, give the same bounds: the counts are
+    # integers (exact in both), and a macro F1 averages at most 12 per-class scores in [0, 1], summed in
+    # another order, so the two differ by at most 12 rounding errors of a number below one.
+    rng = np.random.default_rng(1)
+    classes = np.array([f"C{c}" for c in range(12)])
+    y_true = classes[rng.integers(0, 12, 90)]
+    y_pred = np.where(rng.random(90) < 0.7, y_true, classes[rng.integers(0, 12, 90)])
+    groups = (np.arange(90) // 3).astype(str)
+    result = Result(method=OWN_METHOD, feature_set="all", classifier="rf", level="fine", protocol="nested",
+                    splitting="5 grouped folds", classes=tuple(classes), accuracy=np.array([0.7]),
+                    f1=np.array([0.6]), confusion=sk_confusion(y_true, y_pred, labels=classes), n_samples=90,
+                    seed=3, taxonomy=False, y_true=y_true, y_pred=y_pred, fold=np.zeros(90, dtype=np.int64),
+                    groups=groups)
+    index = {c: k for k, c in enumerate(classes)}
+    true, pred = np.array([index[c] for c in y_true]), np.array([index[c] for c in y_pred])
+
+    def f1(weights):
+        cells = np.bincount(true * 12 + pred, weights=weights, minlength=144)
+        return metrics.macro_f1_from_confusion(cells.reshape(12, 12))
+
+    np.testing.assert_allclose(result.f1_ci, metrics.bootstrap_interval(f1, groups, seed=3), rtol=0,
+                               atol=12 * np.finfo(np.float64).eps)
+    assert result.accuracy_ci == metrics.bootstrap_interval(lambda w: w @ (true == pred) / w.sum(), groups, seed=3)
