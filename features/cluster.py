@@ -2,8 +2,8 @@
 
 Where the work runs is decided once per command by :func:`connect`:
 
-- nothing given: processes on this machine (the process pool of ``extract_many``, joblib for the
-  evaluation grid), as without Dask;
+- nothing given: processes on this machine (the worker processes ``extract_many`` keeps, which also run
+  the evaluation grid's folds: ``worker_map``), as without Dask;
 - a running Dask scheduler, named by ``--scheduler tcp://HOST:PORT`` or by Dask's own configuration
   (``scheduler-address``: the ``DASK_SCHEDULER_ADDRESS`` environment variable or a Dask YAML file), so a
   lab that already runs Dask changes nothing;

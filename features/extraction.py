@@ -364,7 +364,7 @@ class WorkerPool:
         """This pool for work of ``key`` (:func:`extract_many`'s: the feature code's version, the column
         names and the working directory). Workers forked for another key are ended first: they would run
         the code of before (a family registered since), and their rows would be stored under the new key."""
-        if key != self._key:
+        if key is not ANY_WORK and key != self._key:
             self.close()
             self._key = key
         return self
@@ -454,6 +454,30 @@ class _KeptWorkers:
 
 
 _KEPT = _KeptWorkers()
+
+
+ANY_WORK = None
+"""The key of :meth:`_KeptWorkers.lent` that serves the kept workers as they are: work that runs no feature
+code of its own version (the evaluation's folds, :func:`worker_map`)."""
+
+
+def worker_map(fn: Callable, items: Sequence, workers: int | None = None,
+               tick: Callable[[int], object] = lambda n: None) -> Iterator[tuple[int, object]]:
+    """``(index, fn(item))`` for every item, in completion order, in the worker processes
+    :func:`extract_many` keeps (forked from this process, with everything it imported: no start-up of their
+    own), or in this process for ``workers`` 1. ``fn`` and the items are pickled to the workers.
+
+    The evaluation's folds run here after the features of the same job: a pool of fresh interpreters
+    (joblib's) would import the whole stack again in each worker first (docs/performance.md).
+    Leaving early (closing the iterator, Ctrl-C) drops the tasks not started.
+    """
+    size = workers or os.cpu_count() or 1
+    indices = range(len(items))
+    if size == 1 or len(items) <= 1:
+        yield from _run(fn, items, indices, 1, tick)
+        return
+    with _KEPT.lent(size, ANY_WORK) as pool:
+        yield from _run(fn, items, indices, size, tick, pool)
 
 
 def _working_directory() -> str | None:

@@ -36,7 +36,6 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
-from joblib import Parallel, delayed
 from sklearn.base import BaseEstimator, clone
 from sklearn.discriminant_analysis import LinearDiscriminantAnalysis
 from sklearn.ensemble import RandomForestClassifier
@@ -52,6 +51,7 @@ from sklearn.svm import SVC
 from tqdm import tqdm
 
 from features import cluster, feature_sets
+from features.extraction import worker_map
 from features.random_kernels import RandomKernels
 from features.registry import REGISTRY
 from features.selection import FQSelector, KeepAll
@@ -335,7 +335,7 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
                   protocol: str = "nested", workers: int | None = None,
                   progress: bool = False, use_split: bool = True, client: Client | None = None,
                   single_group: str = "train", calibrate: bool | Collection[tuple[str, str, int | None]] = True,
-                  group_by: str = "sample") -> list[Result]:
+                  group_by: str = "sample", pairs: Collection[tuple[str, int | None]] | None = None) -> list[Result]:
     """Every classifier x feature set x level x set size (the paper's Figs. 16-18), folds in parallel.
 
     Each fold of each (level, feature set, size) is one job in one of ``workers`` processes, or one task on
@@ -370,6 +370,9 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
     calibrate : bool or collection of (str, str, int or None)
         Calibrate every cell (see :func:`evaluate`), none, or only the cells named by (level, feature set
         name, set size); the predictions are the same either way.
+    pairs : collection of (str, int or None), optional
+        Only these (level, set size) pairs of ``levels`` x ``set_sizes`` (default: every pair), e.g. the
+        paper's figures: ``{("coarse", 10), ("fine", 10), ("fine", 3)}``.
 
     Returns
     -------
@@ -388,7 +391,11 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
     set_sizes = list(set_sizes)
     sets = dict(feature_sets) if feature_sets is not None else present_feature_sets(space)
     cells = [_Cell(level, name, feature_set, size)
-             for name, feature_set in sets.items() for level in levels for size in set_sizes]
+             for name, feature_set in sets.items() for level in levels for size in set_sizes
+             if pairs is None or (level, size) in pairs]
+    if pairs is not None and not cells:
+        raise EvaluationError(f"no (level, set size) pair of {sorted(pairs or ())} among the levels "
+                              f"{', '.join(levels)} and the set sizes {', '.join(map(str, set_sizes))}")
     chosen = None if isinstance(calibrate, bool) else set(calibrate)
     flags = [calibrate if chosen is None else (c.level, c.set_name, c.n_features) in chosen for c in cells]
     reports = _run(space, classifiers, cells, folds, seed, protocol, workers, progress, use_split, client,
@@ -460,8 +467,7 @@ def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells:
     bar = tqdm(total=len(jobs), desc="evaluating", unit="fold", file=sys.stderr, disable=None if progress else True,
                leave=False)
     if client is None:
-        runner = Parallel(n_jobs=workers if workers is not None else -1, return_as="generator")
-        results = (pair for pair in enumerate(runner(delayed(_fold)(prepared[c], f, protocol) for c, f in jobs)))
+        results = worker_map(_run_fold, [(prepared[c], f, protocol) for c, f in jobs], workers)
     else:
         on_cluster = cluster.scatter(client, prepared)
         results = cluster.run(client, _fold, [(on_cluster[c], f, protocol) for c, f in jobs], name="texplorer-fold")
@@ -545,6 +551,10 @@ class _FoldOutcome:
     notes: tuple[str, ...]
     seconds: list[float]
     probabilities: list[np.ndarray | None]
+
+
+def _run_fold(job: tuple[_Prepared, int, str]) -> _FoldOutcome:
+    return _fold(*job)
 
 
 def _fold(prepared: _Prepared, fold: int, protocol: str) -> _FoldOutcome:
