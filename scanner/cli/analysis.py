@@ -164,7 +164,7 @@ def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
     reports = evaluate_grid(space, classifiers, levels, sizes, sets, folds=args.folds, seed=args.seed,
                             protocol=args.protocol, workers=args.workers, progress=True, use_split=use_split,
                             client=client, single_group=getattr(args, "single_group", "train"),
-                            calibrate=calibrate, group_by=group_by)
+                            calibrate=calibrate, group_by=group_by, pairs=getattr(args, "pairs", None))
     if getattr(args, "vote", False):
         recordings = [recording_of(s) for s in space.scan_ids]
         if len(set(recordings)) == len(recordings):

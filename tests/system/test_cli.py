@@ -107,6 +107,22 @@ def test_classify_an_unknown_scan_id_is_one_line(demo_db, capsys):
     assert len(err.strip().splitlines()) == 1 and "no scan 'no-such-scan'" in err
 
 
+def test_demo_evaluates_the_papers_figures_unless_asked_for_the_full_grid(tmp_path, capsys):
+    # Figs. 16-18 of the paper: coarse and fine with X10, fine with X3; --full-grid adds medium and coarse X3.
+    common = ["--samples", "2", "--scans", "2", "--image-size", "64", "--materials", "polyurethane-foam",
+              "float-glass", "--classifier", "nb", "--feature-set", "tactum", "--workers", "1", "--folds", "2"]
+    assert main(["demo", "--db", str(tmp_path / "db"), *common]) == 0
+    out = capsys.readouterr().out
+    x10, x3 = out.split("X10, nested protocol")[1], out.split("X3, nested protocol")[1]
+    assert x10.splitlines()[1].split()[3:] == ["coarse", "fine"]
+    assert x3.splitlines()[1].split()[3:] == ["fine"]
+    assert "20 evaluations" not in out and "3 evaluations" in out
+    assert main(["demo", "--db", str(tmp_path / "db"), *common, "--full-grid"]) == 0
+    out = capsys.readouterr().out
+    assert out.split("X3, nested protocol")[1].splitlines()[1].split()[3:] == ["coarse", "medium", "fine"]
+    assert "6 evaluations" in out
+
+
 def test_demo_chooses_folds_that_fit_its_scans(tmp_path, capsys):
     from scanner.cli.demo import fitting_folds
 

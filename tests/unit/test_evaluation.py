@@ -272,6 +272,23 @@ def test_a_grid_calibrates_only_the_cells_it_names_and_predicts_the_same():
         np.testing.assert_array_equal(mine.y_pred, theirs.y_pred)
 
 
+def test_a_grid_evaluates_only_the_level_and_size_pairs_it_is_given():
+    # The demo's default: the paper's Figs. 16-18 (coarse X10, fine X10, fine X3), not every pair.
+    space = labelled_space()
+    grid = {"classifiers": ("nb",), "levels": ("coarse", "fine"), "set_sizes": (1, 2), "feature_sets": {"all": None},
+            "folds": 3, "workers": 1, "calibrate": False}
+    some = evaluate_grid(space, pairs={("coarse", 2), ("fine", 2), ("fine", 1)}, **grid)
+    every = evaluate_grid(space, **grid)
+    assert sorted((r.level, r.n_features) for r in some) == [("coarse", 2), ("fine", 1), ("fine", 2)]
+    for mine in some:  # the same folds and predictions as in the full grid
+        [theirs] = [r for r in every if (r.level, r.n_features) == (mine.level, mine.n_features)]
+        np.testing.assert_array_equal(mine.y_pred, theirs.y_pred)
+    text = format_table(some)
+    assert "X1, nested protocol" in text and "X2, nested protocol" in text
+    with pytest.raises(EvaluationError, match=r"no \(level, set size\) pair of \[\('medium', 10\)\]"):
+        evaluate_grid(space, pairs={("medium", 10)}, **grid)
+
+
 def test_figure_labels_name_each_class_and_keep_its_code():
     from taxonomy.reports.plots import class_labels
 
