@@ -4,6 +4,8 @@
   :class:`features.ScanSource` objects keyed by the scan's content hash; :func:`extract_database` extracts
   them with the database as the cache (a second run over unchanged scans only reads it);
   :func:`stored_features` gives one stored scan's values.
+- **Simulate a database with its features**: :func:`simulated_database` (``texplorer demo``) extracts each
+  simulated scan's features while it is in memory and fills the feature cache as the scans are stored.
 - **Export a database with its features**: :func:`export_database` writes an export bundle
   (:func:`scanner.storage.bundle.export_bundle`) whose feature tables come from the database's feature cache.
 - **The database's default model**: :func:`default_model`, where ``texplorer demo`` saved one; ``serve`` and
@@ -19,13 +21,15 @@ call it rather than wiring those layers together themselves (see ``docs/extendin
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from features import FeatureSpace, ScanSource, WorkerPool, code_version, extract, extract_many, feature_sets
 from scanner.scan import Scan
+from scanner.simulation.database import synthetic_database
 from scanner.storage.bundle import ExportReport, Progress, export_bundle
 from scanner.storage.database import Database, DatabaseError, ScanRecord
 from taxonomy.labels import LabelError
@@ -71,6 +75,33 @@ def extract_database(db: Database, *, label: str | None = None, records: Sequenc
         raise DatabaseError(f"{db.root}: no scans{f' with label {label}' if label else ''} to extract")
     return extract_many(database_sources(db, records), workers=workers, cache=db, progress=progress, client=client,
                         ship_data=ship_data, pool=pool, families=families)
+
+
+def simulated_database(root: str | os.PathLike[str], **options: Any) -> Database:
+    """:func:`scanner.simulation.database.synthetic_database` (``options`` are its own) with each scan's
+    features extracted by the process that simulated it, from the scan in memory, and stored in the
+    feature cache once the scan is catalogued: the features stage that follows (:func:`extract_database`)
+    then reads no file back, only verifies the files' hashes. The values are those an extraction from the
+    stored files gives (the ``.mat`` and PNG files are lossless), and a scan whose extraction fails here is
+    simply left to that stage, which reports it."""
+    version = code_version()
+
+    def cache(db: Database, scan_id: str, values: dict[str, float] | None) -> None:
+        if values is not None:
+            db.store_features(db.record(scan_id).content_hash, version, values)
+
+    return synthetic_database(root, analyse=_features_or_none, on_stored=cache, **options)
+
+
+def _features_or_none(scan: Scan) -> dict[str, float] | None:
+    """The default features of ``scan`` (missing-channel warnings are the features stage's to report), or
+    None if the extraction fails."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return extract(scan)
+    except Exception:  # noqa: BLE001 - the features stage extracts the scan again and names the failure
+        return None
 
 
 def stored_features(db: Database, record: ScanRecord) -> tuple[dict[str, float], str | None]:

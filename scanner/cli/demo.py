@@ -9,15 +9,20 @@ import time
 from features import REGISTRY
 from scanner.cli.analysis import report_space, run_evaluation
 from scanner.cli.base import UsageError, add_db_option
-from scanner.cli.common import add_cluster_options, add_evaluation_options, cluster
-from scanner.simulation.database import synthetic_database
-from scanner.workflows import DEFAULT_MODEL, extract_database
+from scanner.cli.common import ALL, add_cluster_options, add_evaluation_options, cluster
+from scanner.workflows import DEFAULT_MODEL, extract_database, simulated_database
 from taxonomy.learning.models import save_model, train_model
 
 DEMO_SAMPLES = 2
 
 
 DEMO_SCANS = 3
+
+
+PAPER_FIGURES = (("coarse", 10), ("fine", 10), ("fine", 3))
+"""The (level, set size) pairs the demo evaluates unless asked for more: the paper's Figs. 16 (coarse, X10),
+17 (fine, X10) and 18 (fine, X3). ``--full-grid`` (or ``--level`` / ``--n``) evaluates every level and set
+size, as ``texplorer evaluate`` does."""
 
 
 def fitting_folds(folds: int, samples: int, scans: int) -> int:
@@ -47,9 +52,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
                   file=sys.stderr)
             args.folds = folds
     started = time.perf_counter()
-    db = synthetic_database(args.db, materials=args.materials, scans_per_material=args.scans, seed=args.seed,
+    db = simulated_database(args.db, materials=args.materials, scans_per_material=args.scans, seed=args.seed,
                             image_size=(args.image_size, args.image_size), progress=True,
-                            samples_per_material=args.samples)
+                            samples_per_material=args.samples, workers=args.workers)
     summary = db.summary()
     print(f"database {args.db}: {summary['scans']} scans of {summary['materials']} materials "
           f"({summary['samples']} samples, {summary['files']} files) in {time.perf_counter() - started:.1f} s")
@@ -69,6 +74,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
         # result in one reliability diagram per classifier, so the demo calibrates those cells only (the
         # report says so; texplorer evaluate calibrates every cell).
         args.calibrate_diagram_only = True
+        if not args.full_grid and args.level == [ALL] and args.n is None:
+            args.pairs = PAPER_FIGURES
         run_evaluation(space, args, client)
 
     model = train_model(space, "fine", 10, "rf", args.seed)
@@ -92,6 +99,9 @@ def register(commands: argparse._SubParsersAction) -> None:
     demo.add_argument("--workers", type=int, help="processes for simulation, features and evaluation "
                       "(default: number of cores)")
     demo.add_argument("--no-evaluation", action="store_true", help="stop after the feature table")
+    demo.add_argument("--full-grid", action="store_true", help="evaluate every level (coarse, medium, fine) "
+                      "and set size (3, 10), as texplorer evaluate does; default: the paper's Figs. 16-18 "
+                      "(coarse X10, fine X10, fine X3)")
     add_cluster_options(demo)
     add_evaluation_options(demo, report_default="<db>/report", seed=False)
     demo.set_defaults(handler=cmd_demo)

@@ -4,22 +4,25 @@ demo``). Kept apart from the simulator's physics so that the simulated devices d
 from __future__ import annotations
 
 import concurrent.futures
+import functools
 import os
 import sys
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
+from typing import Any
 
 import cv2
 from tqdm import tqdm
 
 from scanner.processes import end_with_parent
-from scanner.scan import ScanMeta
+from scanner.scan import Scan, ScanMeta
 from scanner.simulation.scans import _Job, scan_jobs, simulate_one
 from scanner.storage.database import STAGING_PREFIX, Database, file_roles
 from scanner.storage.files import owned_folder, temp_path_for
 from scanner.storage.matfile import save_scan
 
-Staged = tuple[ScanMeta, dict[str, Path]]
+Staged = tuple[ScanMeta, dict[str, Path], Any]
+"""A written scan: its meta, its files by role, and what ``analyse`` made of it (None without)."""
 BATCH = 8
 """Scans catalogued per transaction: an interrupted demo loses at most this many finished scans."""
 
@@ -27,7 +30,8 @@ BATCH = 8
 def synthetic_database(root: str | Path, materials: Iterable[str] | None = None, scans_per_material: int = 5,
                        seed: int = 0, image_size: tuple[int, int] = (512, 512), progress: bool = True,
                        fold_skip_probability: float = 0.5, workers: int | None = None,
-                       samples_per_material: int = 1) -> Database:
+                       samples_per_material: int = 1, analyse: Callable[[Scan], Any] | None = None,
+                       on_stored: Callable[[Database, str, Any], None] | None = None) -> Database:
     """Simulate scans (see :func:`synthetic_scans`) into ``scanner.storage.database.Database(root)``.
 
     Scans are simulated and written (``.mat`` and photos, the costly encoding) in ``workers`` processes
@@ -57,6 +61,13 @@ def synthetic_database(root: str | Path, materials: Iterable[str] | None = None,
         Processes (default: the number of cores).
     samples_per_material : int
         Pieces per material (sample ids ``<slug>-01``, ``<slug>-02``, ...).
+    analyse : callable, optional
+        Run on each simulated scan in the process that simulated it, while the scan is in memory (a
+        module-level function: it is pickled to the workers), e.g. feature extraction, which then reads no
+        file back (:func:`scanner.workflows.simulated_database`).
+    on_stored : callable, optional
+        ``on_stored(database, scan_id, analysed)`` in this process once the scan is catalogued, with what
+        ``analyse`` returned (None without ``analyse``).
 
     Returns
     -------
@@ -71,22 +82,32 @@ def synthetic_database(root: str | Path, materials: Iterable[str] | None = None,
     workers = max(1, min(workers or os.cpu_count() or 1, len(jobs) or 1))
     with owned_folder(temp_path_for(database.root / STAGING_PREFIX.lstrip("."))) as staging:
         batch: list[Staged] = []
-        for staged in _staged_scans(jobs, staging, workers):
+        for staged in _staged_scans(jobs, staging, workers, analyse):
             batch.append(staged)
             bar.update(1)
             if len(batch) == BATCH:
-                database.add_written(batch)
+                _catalogue(database, batch, on_stored)
                 batch = []
         if batch:
-            database.add_written(batch)
+            _catalogue(database, batch, on_stored)
     bar.close()
     return database
 
 
-def _staged_scans(jobs: list[_Job], staging: Path, workers: int) -> Iterator[Staged]:
-    """Each job's scan written into ``staging``, in job order."""
+def _catalogue(database: Database, batch: list[Staged], on_stored: Callable[[Database, str, Any], None] | None) -> None:
+    """Catalogue a batch of written scans in one transaction, then hand each one's analysis to ``on_stored``."""
+    scan_ids = database.add_written([(meta, files) for meta, files, _ in batch])
+    if on_stored is not None:
+        for scan_id, (_, _, analysed) in zip(scan_ids, batch, strict=True):
+            on_stored(database, scan_id, analysed)
+
+
+def _staged_scans(jobs: list[_Job], staging: Path, workers: int,
+                  analyse: Callable[[Scan], Any] | None = None) -> Iterator[Staged]:
+    """Each job's scan written into ``staging`` (and analysed), in job order."""
+    work = functools.partial(simulate_into, folder=staging, analyse=analyse)
     if workers == 1:
-        yield from (simulate_into(job, staging) for job in jobs)
+        yield from map(work, jobs)
         return
     # The workers already use every core: OpenCV's threads in each would only wait for each other. Set in
     # this process before forking (changing OpenCV's pool in a forked child can deadlock), restored after.
@@ -95,14 +116,16 @@ def _staged_scans(jobs: list[_Job], staging: Path, workers: int) -> Iterator[Sta
     try:
         with concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=end_with_parent,
                                                     initargs=(os.getpid(),)) as pool:
-            yield from pool.map(simulate_into, jobs, [staging] * len(jobs))
+            yield from pool.map(work, jobs)
     finally:
         cv2.setNumThreads(threads)
 
 
-def simulate_into(job: _Job, folder: Path) -> Staged:
-    """Simulate one job's scan and write its files into ``folder``: its meta and its files by role."""
+def simulate_into(job: _Job, folder: Path, analyse: Callable[[Scan], Any] | None = None) -> Staged:
+    """Simulate one job's scan and write its files into ``folder``: its meta, its files by role, and
+    ``analyse(scan)`` (None without)."""
     scan = simulate_one(job)
     mat_path = folder / f"{scan.scan_id}.mat"
     save_scan(scan, mat_path)
-    return scan.meta, {role: path for path, role in file_roles(mat_path, scan)}
+    return (scan.meta, {role: path for path, role in file_roles(mat_path, scan)},
+            None if analyse is None else analyse(scan))

@@ -14,6 +14,7 @@ from scanner.storage.database import Database, DatabaseError
 from scanner.workflows import (
     database_sources,
     extract_database,
+    simulated_database,
     stored_features,
 )
 
@@ -61,6 +62,26 @@ def test_a_database_is_extracted_once_then_read_from_its_cache(tmp_path, monkeyp
     again = extract_database(db, workers=1, progress=False)
     assert extracted == ids  # the second time, every row came from the cache
     np.testing.assert_array_equal(again.X, space.X)
+
+
+def test_a_simulated_database_caches_the_features_its_stored_files_give(tmp_path, monkeypatch):
+    # The demo's features are extracted by the simulating workers from the scans in memory; the cache then
+    # holds exactly what an extraction from the stored .mat and PNG files gives, and the features stage
+    # extracts nothing.
+    db = simulated_database(tmp_path / "db", materials=["granite-polished", "oak-planed"], scans_per_material=2,
+                            image_size=SMALL, progress=False, workers=2)
+    records = db.records()
+    assert len(records) == 4
+    for record in records:
+        cached = db.cached_features(record.content_hash, code_version())
+        with pytest.warns(Warning):  # the 64 px photos are too small for image features
+            fresh = extract(db.get(record.scan_id))
+        assert cached is not None and list(cached) == list(fresh)
+        np.testing.assert_array_equal(np.array(list(cached.values())), np.array(list(fresh.values())))
+    extracted = []
+    monkeypatch.setattr(extraction, "extract", lambda scan, families=None: extracted.append(scan.scan_id))
+    space = extract_database(db, workers=1, progress=False)
+    assert extracted == [] and len(space.scan_ids) == 4 and not space.failed
 
 
 def test_label_filter_and_an_empty_selection(db):
