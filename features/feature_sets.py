@@ -98,6 +98,22 @@ def columns_of(columns: Sequence[str], name: str) -> list[str]:
     return [c for c in columns if c.split(".", 1)[0] in every]
 
 
+def column_parts(columns: Sequence[str], kernels: bool = False) -> tuple[int, ...] | None:
+    """The part of each column for a fused set's per-part selection (:class:`features.selection.PartwiseFQSelector`):
+    the paper's features (every default modality) are one part, each modern family another; a random-kernel
+    step's ``signal`` columns are not listed (the step replaces them by its features, which follow the
+    columns it passes through and form the last part). None when there is one part only: a set of one
+    family is selected as a whole, as the paper's is.
+
+    ``kernels``: whether a random-kernel step transforms the ``signal`` columns."""
+    passed = [c for c in columns if not (kernels and c.split(".", 1)[0] == SIGNAL_PREFIX)]
+    names = [PAPER if c.split(".", 1)[0] in REGISTRY.modalities else c.split(".", 1)[0] for c in passed]
+    index = {name: k for k, name in enumerate(dict.fromkeys(names))}
+    if len(index) + kernels < 2:
+        return None
+    return tuple(index[name] for name in names)
+
+
 def extracted_kinds(names: Iterable[str | None]) -> tuple[str, ...]:
     """The modern extraction families (``signal``, ``catch22``, ``scattering``) the sets ``names`` need."""
     needed: set[str] = set()

@@ -342,6 +342,69 @@ class FQSelector(SelectorMixin, BaseEstimator):
         return tags
 
 
+class PartwiseFQSelector(SelectorMixin, BaseEstimator):
+    """:class:`FQSelector` within each part of the columns, keeping the union: how a fused feature set
+    (``paper+catch22+scattering+minirocket``) is selected, so that no family crowds out another.
+
+    A joint FQ ranking over tens of thousands of random-kernel columns and the paper's 193 keeps mostly the
+    random-kernel ones whose FQ on the training rows is high by chance (the largest of many noisy estimates
+    is biased upwards), and the fused set then did worse than the paper's features alone. Here each part
+    keeps its own ``n_features`` best by FQ + Spearman, and the classifier sees all of them: up to
+    ``n_features`` times the number of parts.
+
+    Parameters
+    ----------
+    n_features : int, default 10
+        Features kept per part.
+    parts : tuple of int
+        The part of each leading input column; the columns after them (a random-kernel step's output, which
+        follows the columns it passes through) are one further part.
+    max_corr : float, default 0.5
+        As :class:`FQSelector`'s, within a part.
+
+    Attributes
+    ----------
+    fq_ : np.ndarray, shape (n_features_in_,)
+        FQ of every input column within its part's fit.
+    selected_ : np.ndarray of int
+        The kept columns, part after part, each part's in acceptance order.
+    n_features_in_ : int
+    """
+
+    def __init__(self, n_features: int = 10, parts: tuple[int, ...] = (), max_corr: float = 0.5) -> None:
+        self.n_features = n_features
+        self.parts = parts
+        self.max_corr = max_corr
+
+    def fit(self, X: Any, y: Any) -> PartwiseFQSelector:
+        X, y = validate_data(self, X, y, ensure_all_finite="allow-nan", dtype=np.float64)
+        labels = np.asarray(self.parts, dtype=np.int64)
+        if labels.size > X.shape[1]:
+            raise ParameterError(f"{labels.size} column parts for {X.shape[1]} columns")
+        labels = np.concatenate([labels, np.full(X.shape[1] - labels.size, labels.max(initial=-1) + 1)])
+        self.fq_ = np.full(X.shape[1], np.nan)
+        selected = []
+        for part in dict.fromkeys(labels.tolist()):
+            columns = np.flatnonzero(labels == part)
+            within = FQSelector(self.n_features, self.max_corr).fit(X[:, columns], y)
+            self.fq_[columns] = within.fq_
+            selected.extend(columns[within.selected_].tolist())
+        self.selected_ = np.asarray(selected, dtype=np.int64)
+        return self
+
+    def _get_support_mask(self) -> np.ndarray:
+        check_is_fitted(self, "selected_")
+        mask = np.zeros(self.n_features_in_, dtype=bool)
+        mask[self.selected_] = True
+        return mask
+
+    def __sklearn_tags__(self) -> Any:
+        tags = super().__sklearn_tags__()
+        tags.input_tags.allow_nan = True
+        tags.target_tags.required = True
+        return tags
+
+
 class KeepAll(SelectorMixin, BaseEstimator):
     """The selector's place in a pipeline when every feature is kept (the set size ``all``): no FQ, no
     Spearman filter. ``selected_`` lists every column, as :class:`FQSelector`'s does its choice."""

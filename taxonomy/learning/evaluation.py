@@ -54,7 +54,7 @@ from features import cluster, feature_sets
 from features.extraction import worker_map
 from features.random_kernels import RandomKernels
 from features.registry import REGISTRY
-from features.selection import FQSelector, KeepAll
+from features.selection import FQSelector, KeepAll, PartwiseFQSelector
 from features.space import FeatureSpace
 from features.threads import one_blas_thread
 from taxonomy.learning.calibration import TemperatureScaledClassifier
@@ -105,12 +105,19 @@ def classifier_estimators(seed: int) -> dict[str, BaseEstimator]:
     }
 
 
-def _pipeline(classifier: BaseEstimator, n_features: int | None, kernels: RandomKernels | None = None) -> Pipeline:
+def _pipeline(classifier: BaseEstimator, n_features: int | None, kernels: RandomKernels | None = None,
+              parts: tuple[int, ...] | None = None) -> Pipeline:
     # A random-kernel transform is the first step: fitted on the training folds, as the scaling and selection.
+    if n_features is None:
+        select = KeepAll()
+    elif parts is None:
+        select = FQSelector(n_features=n_features)
+    else:
+        select = PartwiseFQSelector(n_features=n_features, parts=parts)
     return Pipeline([
         *([("kernels", kernels)] if kernels is not None else []),
         ("scale", MinMaxScaler()),
-        ("select", KeepAll() if n_features is None else FQSelector(n_features=n_features)),
+        ("select", select),
         ("classify", classifier),
     ])
 
@@ -126,7 +133,9 @@ def make_pipeline(classifier: str | BaseEstimator = "rf", n_features: int | None
     """A fresh, unfitted ``MinMaxScaler -> FQSelector(n_features) -> classifier`` pipeline (``KeepAll``
     instead of the selector for ``n_features`` None), after a ``kernels`` step (``minirocket``,
     ``multirocket``: :class:`features.random_kernels.RandomKernels` on the ``signal`` columns of
-    ``columns``, the names of the input columns, seeded with ``seed``) where given.
+    ``columns``, the names of the input columns, seeded with ``seed``) where given. Where ``columns`` hold
+    several families (a fused set: :func:`features.feature_sets.column_parts`), the selector is a
+    :class:`~features.selection.PartwiseFQSelector`: ``n_features`` per family.
 
     ``classifier`` is a key of :data:`CLASSIFIERS` or any unfitted scikit-learn classifier (it is cloned;
     its random state is set to ``seed`` when it has one).
@@ -142,7 +151,7 @@ def make_pipeline(classifier: str | BaseEstimator = "rf", n_features: int | None
     else:
         raise EvaluationError(f"classifier must be a name or a scikit-learn estimator, got {classifier!r}")
     step = None if kernels is None else RandomKernels(kernels, tuple(columns), random_state=seed)
-    return _pipeline(estimator, n_features, step)
+    return _pipeline(estimator, n_features, step, feature_sets.column_parts(columns, kernels is not None))
 
 
 def classifier_name(classifier: str | BaseEstimator) -> str:
@@ -500,8 +509,7 @@ def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseE
             splits, grouped = cv_splits(y, subset.groups, folds, seed, grouping_labels=subset.label_text,
                                         single_group=single_group)
         kernels = _kernels(cell.feature_set, protocol)
-        pipelines = [_without_probabilities(make_pipeline(c, cell.n_features, seed) if kernels is None else
-                                            make_pipeline(c, cell.n_features, seed, kernels, subset.columns))
+        pipelines = [_without_probabilities(make_pipeline(c, cell.n_features, seed, kernels, subset.columns))
                      for c in classifiers]
         shared = None
         if protocol == "paper":
@@ -750,7 +758,7 @@ def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = 
             raise EvaluationError("an open-set evaluation needs at least two classes to hold out in turn")
 
         def fit(X: np.ndarray, y_fit: np.ndarray, g: np.ndarray) -> Pipeline:
-            return fit_pipeline(X, y_fit, g, classifier, n_features, seed, calibrate=False)
+            return fit_pipeline(X, y_fit, g, classifier, n_features, seed, calibrate=False, columns=subset.columns)
 
         classes = np.unique(y)
         rows, fold, known, score, rejected, y_pred, probability = [], [], [], [], [], [], []
@@ -762,7 +770,8 @@ def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = 
             train = np.flatnonzero(~held & ~in_test)
             test = np.flatnonzero((in_test & ~held) | held)
             pipeline = fit_pipeline(subset.X[train], y[train], groups[train], classifier, n_features, seed,
-                                    calibrate, materials=np.asarray(subset.label_text)[train])
+                                    calibrate, materials=np.asarray(subset.label_text)[train],
+                                    columns=subset.columns)
             threshold, _ = learn_rejection(subset.X[train], y[train], groups[train], fit, seed=seed,
                                            max_accuracy_drop=max_accuracy_drop)
             rule = fit_rule(pipeline, subset.X[train], y[train], groups[train], threshold)

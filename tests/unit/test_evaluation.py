@@ -131,8 +131,8 @@ class RowSpy(TransformerMixin, BaseEstimator):
 def spied(monkeypatch):
     original = evaluation.make_pipeline
 
-    def with_spy(classifier, n_features, seed):
-        return Pipeline([("spy", RowSpy()), *original(classifier, n_features, seed).steps])
+    def with_spy(classifier, n_features, seed, kernels=None, columns=()):
+        return Pipeline([("spy", RowSpy()), *original(classifier, n_features, seed, kernels, columns).steps])
 
     monkeypatch.setattr(evaluation, "make_pipeline", with_spy)
     RowSpy.log = []

@@ -218,6 +218,18 @@ def test_feature_set_names():
         feature_sets.parts("paper+rocket")
 
 
+def test_a_fused_set_is_selected_family_by_family():
+    paper = ["tactum.cdp", "image.macro.lbp_1", "audio.tool.zcr", "other.density"]
+    columns = [*paper, "signal.v_ts.00000", "signal.v_ts.00001", "catch22.v_ts.mode_5", "scattering.v_ts.s1_00"]
+    # The paper's modalities are one part; each modern family another; signal columns a kernel step replaces
+    # are not listed (its output, after the columns it passes through, is the last part).
+    assert feature_sets.column_parts(columns, kernels=True) == (0, 0, 0, 0, 1, 2)
+    assert feature_sets.column_parts([*paper, "catch22.v_ts.mode_5"]) == (0, 0, 0, 0, 1)
+    assert feature_sets.column_parts(paper) is None  # one family: selected as a whole, as the paper's
+    assert feature_sets.column_parts(["signal.v_ts.00000"], kernels=True) is None
+    assert feature_sets.column_parts([*paper, "signal.v_ts.00000"], kernels=True) == (0, 0, 0, 0)
+
+
 def test_signal_layout_refuses_a_partial_signal():
     with pytest.raises(RandomKernelError, match="expected 3000 consecutive columns"):
         signal_layout([f"signal.v_ts.{k:05d}" for k in range(2999)])

@@ -12,6 +12,7 @@ from sklearn.utils.estimator_checks import parametrize_with_checks
 
 from features.selection import (
     FQSelector,
+    PartwiseFQSelector,
     SelectionError,
     accept_uncorrelated,
     feature_quality,
@@ -198,7 +199,33 @@ def test_one_class_is_refused():
         FQSelector().fit([[1.0], [2.0]], [0, 0])
 
 
-@parametrize_with_checks([FQSelector(n_features=2)])
+def test_partwise_selection_is_fq_selection_within_each_part():
+    # Part 0 holds three informative columns, part 1 two weaker ones, the trailing columns (a random-kernel
+    # step's output) are part 2: a joint ranking would keep part 0's; each part keeps its own best here.
+    rng = np.random.default_rng(4)
+    y = np.repeat(np.arange(4), 10)
+    X = rng.standard_normal((40, 9))
+    X[:, :3] += 3.0 * y[:, None] * np.array([1.0, -1.0, 0.5])
+    X[:, 3:5] += 0.8 * y[:, None]
+    X[:, 7] += 0.5 * y
+    parts = (0, 0, 0, 1, 1)
+    selector = PartwiseFQSelector(n_features=2, parts=parts).fit(X, y)
+    expected = []
+    for columns in (np.arange(0, 3), np.arange(3, 5), np.arange(5, 9)):
+        within = FQSelector(n_features=2).fit(X[:, columns], y)
+        expected += columns[within.selected_].tolist()
+        np.testing.assert_array_equal(selector.fq_[columns], within.fq_)
+    assert selector.selected_.tolist() == expected
+    assert set(selector.selected_.tolist()) & {5, 6, 7, 8}  # the trailing part keeps its own
+    np.testing.assert_array_equal(selector.transform(X), X[:, np.sort(expected)])
+    # One part: the joint FQ selection itself.
+    one = PartwiseFQSelector(n_features=3, parts=(0,) * 9).fit(X, y)
+    assert one.selected_.tolist() == FQSelector(n_features=3).fit(X, y).selected_.tolist()
+    with pytest.raises(ValueError, match="10 column parts for 9 columns"):
+        PartwiseFQSelector(parts=(0,) * 10).fit(X, y)
+
+
+@parametrize_with_checks([FQSelector(n_features=2), PartwiseFQSelector(n_features=1)])
 def test_scikit_learn_estimator_checks(estimator, check):
     check(estimator)
 
