@@ -342,7 +342,7 @@ class FQSelector(SelectorMixin, BaseEstimator):
         return tags
 
 
-class PartwiseFQSelector(SelectorMixin, BaseEstimator):
+class PartwiseFQSelector(FQSelector):
     """:class:`FQSelector` within each part of the columns, keeping the union: how a fused feature set
     (``paper+catch22+scattering+minirocket``) is selected, so that no family crowds out another.
 
@@ -372,11 +372,12 @@ class PartwiseFQSelector(SelectorMixin, BaseEstimator):
     """
 
     def __init__(self, n_features: int = 10, parts: tuple[int, ...] = (), max_corr: float = 0.5) -> None:
-        self.n_features = n_features
+        super().__init__(n_features, max_corr)
         self.parts = parts
-        self.max_corr = max_corr
 
     def fit(self, X: Any, y: Any) -> PartwiseFQSelector:
+        """Select within each part of the columns of ``X`` for the classes ``y`` (see the class)."""
+        self._check_params()
         X, y = validate_data(self, X, y, ensure_all_finite="allow-nan", dtype=np.float64)
         labels = np.asarray(self.parts, dtype=np.int64)
         if labels.size > X.shape[1]:
@@ -391,18 +392,6 @@ class PartwiseFQSelector(SelectorMixin, BaseEstimator):
             selected.extend(columns[within.selected_].tolist())
         self.selected_ = np.asarray(selected, dtype=np.int64)
         return self
-
-    def _get_support_mask(self) -> np.ndarray:
-        check_is_fitted(self, "selected_")
-        mask = np.zeros(self.n_features_in_, dtype=bool)
-        mask[self.selected_] = True
-        return mask
-
-    def __sklearn_tags__(self) -> Any:
-        tags = super().__sklearn_tags__()
-        tags.input_tags.allow_nan = True
-        tags.target_tags.required = True
-        return tags
 
 
 class KeepAll(SelectorMixin, BaseEstimator):
