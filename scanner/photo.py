@@ -304,16 +304,13 @@ def check_file_size(size: int, name: str = "the photo", limit: int | None = None
         raise PhotoError(f"{name}: {size / 1e6:.0f} MB is more than a photo within the pixel limit can take")
 
 
-PNG_OPTIONS = (cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE)
-"""zlib level 1 with run-length matching only (``Z_RLE``): on camera photos and on the simulated ones, PNG's
-row filters leave little that longer matches find, so the files are smaller than at level 3 with the default
-strategy, and written in about half the time (docs/performance.md)."""
-
-
 def encode_png(rgb: np.ndarray) -> bytes:
-    """Lossless PNG bytes of an RGB uint8 image (:data:`PNG_OPTIONS`)."""
-    ok, buffer = cv2.imencode(".png", cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR),
-                              list(PNG_OPTIONS))
+    """Lossless PNG bytes of an RGB uint8 image, at zlib level 1 with run-length matching only (``Z_RLE``):
+    on camera photos and on the simulated ones, PNG's row filters leave little that longer matches find, so
+    the files are smaller than at level 3 with the default strategy, and written in about half the time
+    (docs/performance.md)."""
+    options = [cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE]
+    ok, buffer = cv2.imencode(".png", cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR), options)
     if not ok:
         raise PhotoError(f"cannot encode an image of shape {rgb.shape} as PNG")
     return buffer.tobytes()
