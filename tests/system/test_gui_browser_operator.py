@@ -138,7 +138,10 @@ def test_a_sent_form_is_busy_and_cannot_be_sent_twice(tab, fast_server):
     busy = json.loads(tab.evaluate("sessionStorage.getItem('busy')"))
     assert busy == {"text": "Saving the scan…", "noteShown": True, "allDisabled": True, "pageBusy": "true",
                     "note": "Saving the scan… Please wait; the page changes by itself."}
-    assert json.loads(tab.evaluate("sessionStorage.getItem('submits')")) == ["sent", "refused"]
+    # The second tap is refused by the form's guard if it comes before the buttons are disabled (a timer
+    # of 0 ms after the first submit), and swallowed by the disabled button if it comes after (a loaded
+    # machine): either way one request only.
+    assert json.loads(tab.evaluate("sessionStorage.getItem('submits')")) in (["sent", "refused"], ["sent"])
     assert posts == [base + "/session/save"]
     assert [r.scan_id for r in app.extensions["texplorer"].db.records()] == ["granite-05-001"]
     # The camera buttons still say which photo to take (the button is disabled only after the form is sent).
