@@ -757,8 +757,11 @@ def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = 
         if len(parts) < 2:
             raise EvaluationError("an open-set evaluation needs at least two classes to hold out in turn")
 
+        kernels = _kernels(feature_set, "nested")
+
         def fit(X: np.ndarray, y_fit: np.ndarray, g: np.ndarray) -> Pipeline:
-            return fit_pipeline(X, y_fit, g, classifier, n_features, seed, calibrate=False, columns=subset.columns)
+            return fit_pipeline(X, y_fit, g, classifier, n_features, seed, calibrate=False, kernels=kernels,
+                                columns=subset.columns)
 
         classes = np.unique(y)
         rows, fold, known, score, rejected, y_pred, probability = [], [], [], [], [], [], []
@@ -770,7 +773,7 @@ def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = 
             train = np.flatnonzero(~held & ~in_test)
             test = np.flatnonzero((in_test & ~held) | held)
             pipeline = fit_pipeline(subset.X[train], y[train], groups[train], classifier, n_features, seed,
-                                    calibrate, materials=np.asarray(subset.label_text)[train],
+                                    calibrate, materials=np.asarray(subset.label_text)[train], kernels=kernels,
                                     columns=subset.columns)
             threshold, _ = learn_rejection(subset.X[train], y[train], groups[train], fit, seed=seed,
                                            max_accuracy_drop=max_accuracy_drop)

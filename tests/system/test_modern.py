@@ -101,3 +101,26 @@ def test_a_minirocket_model_round_trips_and_classifies(noise_space, tmp_path):
 
     with pytest.raises(ModelError, match="missing feature value"):
         predict_top(loaded, row, 2)
+
+
+def test_an_open_set_evaluation_fits_the_kernel_step_of_its_set(monkeypatch):
+    """Whole classes held out: every pipeline of a MiniRocket set (the calibrated one of each fold and those
+    of its rejection rule) transforms the signal columns with kernels fitted on its own training rows."""
+    from scanner.simulation.contrasts import contrast_recordings
+    from taxonomy.learning import evaluation
+
+    space, _ = feature_space(contrast_recordings("timing", per_class=6), chosen=("signal.vibration",))
+    fitted = []
+    original = evaluation.fit_pipeline
+
+    def spy(*args, **kwargs):
+        pipeline = original(*args, **kwargs)
+        fitted.append(pipeline)
+        return pipeline
+
+    monkeypatch.setattr(evaluation, "fit_pipeline", spy)
+    result = evaluation.evaluate_open_set(space, "lda", space.label_level, n_features=3, folds=3,
+                                          feature_set="minirocket", calibrate=False)
+    assert fitted and all("kernels" in pipeline.named_steps for pipeline in fitted)
+    assert all(pipeline.named_steps["kernels"].widths_ for pipeline in fitted)
+    assert np.isfinite(result.auroc)
