@@ -36,13 +36,7 @@ def macro_f1_from_confusion(confusion: np.ndarray) -> float:
     Equal to scikit-learn's ``f1_score(average="macro")`` of the rows that make up the matrix.
     """
     confusion = np.asarray(confusion, dtype=np.float64)
-    tp = np.diag(confusion)
-    fp = confusion.sum(axis=0) - tp
-    fn = confusion.sum(axis=1) - tp
-    occurs = (tp + fp + fn) > 0
-    if not occurs.any():
-        return float("nan")
-    return float(np.mean(2 * tp[occurs] / (2 * tp[occurs] + fp[occurs] + fn[occurs])))
+    return float(macro_f1_of_counts(np.diag(confusion), confusion.sum(axis=1), confusion.sum(axis=0)))
 
 
 def macro_f1_of_counts(tp: np.ndarray, true: np.ndarray, predicted: np.ndarray) -> np.ndarray:
