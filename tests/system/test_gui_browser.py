@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import re
 import shutil
 import threading
 import time
@@ -134,14 +135,23 @@ def start_scan(page, base: str, sample: str) -> None:
     page.wait_for_url(base + "/session")
 
 
-def record_step(page, number: int, name: str, screenshot: bool) -> None:
+def record_step(page, number: int, name: str, screenshot: bool) -> str | None:
     """Record the step on the page; then its traces must be shown between the quality result and the
-    keep/redo buttons."""
+    keep/redo buttons. Returns the live progress text seen while recording (None when the step ended
+    before the page's first poll: a 0.6 s step on a loaded machine can)."""
     page.click("button:has-text('Start recording')")
     page.wait_for_selector("#recording")
+    progress = None
     if screenshot:
-        wait_until(page, "document.getElementById('elapsed').textContent.length > 0")
-        shot(page, f"04-step-{number:02d}-{name}-recording")
+        try:
+            wait_until(page, "!document.getElementById('elapsed') "
+                             "|| document.getElementById('elapsed').textContent.length > 0")
+            progress = page.evaluate("document.getElementById('elapsed')?.textContent ?? null")
+        except playwright.Error as error:  # the page went on to the result while being asked
+            if "context was destroyed" not in str(error):
+                raise
+        if progress is not None:
+            shot(page, f"04-step-{number:02d}-{name}-recording")
     page.wait_for_selector("#quality", timeout=30_000)
     wait_until(page, "document.querySelector('#step-traces img').complete", timeout=30)
     assert page.evaluate("document.querySelector('#step-traces img').naturalWidth") == 800
@@ -150,6 +160,7 @@ def record_step(page, number: int, name: str, screenshot: bool) -> None:
     assert boxes[0]["y"] < boxes[1]["y"] < boxes[2]["y"] and boxes[1]["height"] > 150
     if screenshot:
         shot(page, f"05-step-{number:02d}-{name}-quality")
+    return progress
 
 
 def test_full_scan_through_the_browser(page, server, tmp_path):
@@ -181,13 +192,17 @@ def test_full_scan_through_the_browser(page, server, tmp_path):
              "fold")
     chips = page.locator("nav[aria-label='Steps of this scan'] a").all_inner_texts()
     assert [chip.split(".", 1)[0] for chip in chips] == [str(n) for n in range(1, 12)]  # unique numbers
+    progress = []
     for number, name in enumerate(steps, start=1):
         page.wait_for_url(f"{base}/session/step/{name}")
         assert page.inner_text("h1").startswith(f"Step {number}: ")
-        record_step(page, number, name, screenshot=name in ("tool_slide", "thermal", "fold"))
+        progress.append(record_step(page, number, name, screenshot=name in ("tool_slide", "thermal", "fold")))
         if name == "thermal":
             assert not page.locator("#recording").count()
         page.click("text=Next step")
+    seen = [text for text in progress if text is not None]
+    assert seen, "no step showed its live progress while recording"
+    assert all(re.fullmatch(r"\d+\.\d s of \d+\.\d s", text) for text in seen), seen
 
     page.wait_for_url(base + "/session/form")
     shot(page, "06-form-empty")
