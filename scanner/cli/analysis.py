@@ -178,7 +178,7 @@ def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
     for warning in sorted({w for report in reports for w in report.notes if w.strip()}):
         print(f"texplorer: warning: {warning}", file=sys.stderr)
     if args.report:
-        print(f"report: {write_report(args.report, space, reports)}")
+        print(f"report: {write_report(args.report, space, reports, workers=getattr(args, 'workers', None))}")
     return reports
 
 
@@ -205,7 +205,7 @@ def run_open_set(space, args: argparse.Namespace, classifiers, levels, sizes, se
     print(format_open_set(reports))
     print(f"{len(reports)} open-set evaluations in {time.perf_counter() - started:.1f} s")
     if args.report:
-        print(f"report: {write_report(args.report, space, reports)}")
+        print(f"report: {write_report(args.report, space, reports, workers=getattr(args, 'workers', None))}")
     return reports
 
 

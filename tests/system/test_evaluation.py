@@ -69,6 +69,18 @@ def test_grid_in_worker_processes_equals_single_evaluations():
         assert report.selected == single.selected
 
 
+def test_report_figures_drawn_by_worker_processes_equal_those_drawn_here(tmp_path):
+    space = labelled_space()
+    reports = evaluate_grid(space, classifiers=("nb", "lda"), levels=("coarse", "medium"), set_sizes=(3,),
+                            feature_sets={"image": "image", "all": None}, folds=3, workers=1)
+    here = write_report(tmp_path / "here", space, reports, level="medium", n_features=3, workers=1)
+    there = write_report(tmp_path / "there", space, reports, level="medium", n_features=3, workers=2)
+    names = sorted(p.name for p in here.parent.iterdir())
+    assert names == sorted(p.name for p in there.parent.iterdir()) and len(names) == 10
+    for name in names:
+        assert (here.parent / name).read_bytes() == (there.parent / name).read_bytes(), name
+
+
 def test_html_report_is_one_offline_folder(tmp_path):
     space = labelled_space()
     reports = evaluate_grid(space, classifiers=("nb", "lda"), levels=("coarse", "medium"), set_sizes=(3,),
