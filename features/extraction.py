@@ -480,6 +480,29 @@ def worker_map(fn: Callable, items: Sequence, workers: int | None = None,
         yield from _run(fn, items, indices, size, tick, pool)
 
 
+def run_aside(fn: Callable[..., object], *args: object) -> concurrent.futures.Future:
+    """``fn(*args)`` in one process forked from this one now, while this process goes on (with the workers
+    of :func:`worker_map`, say): the future holds its result or its exception. The process ends with this
+    one and runs BLAS and OpenCV on one thread, as the workers do. Where this process cannot fork (no
+    ``fork``, or :func:`start_workers_from_a_server` was called: other threads hold locks), ``fn`` runs
+    here, at once, and the future is already done. ``fn`` and its result are pickled, ``args`` too.
+    """
+    if _FORK is None or _SERVER["context"] is not None:
+        done: concurrent.futures.Future = concurrent.futures.Future()
+        try:
+            done.set_result(fn(*args))
+        except Exception as exc:  # noqa: BLE001 - handed to the caller through the future, as a process would
+            done.set_exception(exc)
+        return done
+    give_back_free_memory()
+    with one_thread_each():  # a forked child must not reconfigure the pools it inherits: limit them here
+        aside = concurrent.futures.ProcessPoolExecutor(max_workers=1, mp_context=_FORK, initializer=_start_worker,
+                                                      initargs=(os.getpid(), True))
+        future = aside.submit(fn, *args)  # forks the process now (a forking pool starts its workers at once)
+    aside.shutdown(wait=False)  # the process ends once fn returns
+    return future
+
+
 def _working_directory() -> str | None:
     """This process's working directory, None where it was removed (its scans' relative paths are then
     found nowhere, by kept workers or new ones)."""

@@ -8,8 +8,9 @@
   simulated scan's features while it is in memory and fills the feature cache as the scans are stored.
 - **Export a database with its features**: :func:`export_database` writes an export bundle
   (:func:`scanner.storage.bundle.export_bundle`) whose feature tables come from the database's feature cache.
-- **The database's default model**: :func:`default_model`, where ``texplorer demo`` saved one; ``serve`` and
-  ``classify`` use it when no model is given.
+- **The database's default model**: :func:`train_default_model` trains and saves it (``texplorer demo``,
+  beside the evaluation); :func:`default_model` finds it; ``serve`` and ``classify`` use it when no model
+  is given.
 - **Predict a scan's top k with names**: :func:`predict_scan` extracts a scan's features and names the
   model's most probable labels with the taxonomy the caller gives (a database's own taxonomy, with its lab
   codes, where there is a database); :func:`name_predictions` names predictions made elsewhere.
@@ -33,7 +34,7 @@ from scanner.simulation.database import synthetic_database
 from scanner.storage.bundle import ExportReport, Progress, export_bundle
 from scanner.storage.database import Database, DatabaseError, ScanRecord
 from taxonomy.labels import LabelError
-from taxonomy.learning.models import TrainedModel, classify_values
+from taxonomy.learning.models import TrainedModel, classify_values, save_model, train_model
 from taxonomy.table import Taxonomy, UnknownLabelError
 
 if TYPE_CHECKING:
@@ -131,6 +132,19 @@ def export_database(db: Database, out: str | os.PathLike[str], *, label: str | N
 
 DEFAULT_MODEL = Path("models") / "rf-fine-X10.skops"
 """Where ``texplorer demo`` saves its model in the database folder (random forest, fine level, 10 features)."""
+
+
+DEFAULT_MODEL_SETTINGS = ("fine", 10, "rf")
+"""Level, set size and classifier of the default model (the paper's Fig. 17 setting)."""
+
+
+def train_default_model(space: FeatureSpace, db_root: str | os.PathLike[str], seed: int) -> tuple[Path, str]:
+    """Train the database's default model on every row of ``space`` (:data:`DEFAULT_MODEL_SETTINGS`,
+    :func:`taxonomy.learning.models.train_model`) and save it as ``<db_root>/``:data:`DEFAULT_MODEL`;
+    returns the file and the model's one-line description."""
+    level, n_features, classifier = DEFAULT_MODEL_SETTINGS
+    model = train_model(space, level, n_features, classifier, seed)
+    return save_model(model, Path(db_root) / DEFAULT_MODEL), model.describe()
 
 
 def default_model(db_root: str | os.PathLike[str]) -> Path | None:

@@ -7,11 +7,11 @@ import sys
 import time
 
 from features import REGISTRY
+from features.extraction import run_aside
 from scanner.cli.analysis import report_space, run_evaluation
 from scanner.cli.base import UsageError, add_db_option
 from scanner.cli.common import ALL, add_cluster_options, add_evaluation_options, cluster
-from scanner.workflows import DEFAULT_MODEL, extract_database, simulated_database
-from taxonomy.learning.models import save_model, train_model
+from scanner.workflows import extract_database, simulated_database, train_default_model
 
 DEMO_SAMPLES = 2
 
@@ -69,6 +69,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
         print(f"wrote {space.to_csv(db.root / 'features.csv')}")
         if args.no_evaluation:
             return 0
+        # The model needs only the features: trained in a process of its own while the evaluation runs (on
+        # this machine's cores; in sequence after it when the folds run on a cluster).
+        model = None if client is not None else run_aside(train_default_model, space, db.root, args.seed)
         args.report = args.report or db.root / "report"
         # Temperature scaling refits each classifier on three inner splits per fold; the report shows its
         # result in one reliability diagram per classifier, so the demo calibrates those cells only (the
@@ -78,9 +81,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
             args.pairs = PAPER_FIGURES
         run_evaluation(space, args, client)
 
-    model = train_model(space, "fine", 10, "rf", args.seed)
-    path = save_model(model, db.root / DEFAULT_MODEL)
-    print(f"model: {path} ({model.describe()})")
+    path, description = train_default_model(space, db.root, args.seed) if model is None else model.result()
+    print(f"model: {path} ({description})")
     return 0
 
 

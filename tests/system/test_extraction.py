@@ -421,3 +421,30 @@ def test_a_photo_too_small_for_image_features_gives_nan_not_an_error():
         values = extract(scan)
     assert all(math.isnan(values[n]) for n in NAMES if n.startswith("image."))
     assert any("smaller than 202 px" in str(w.message) for w in caught)
+
+
+def _pid_and_blas(value: int) -> tuple[int, int, int]:
+    from features.threads import thread_pools  # noqa: PLC0415 (in the child)
+
+    return os.getpid(), value * 2, max((p["num_threads"] for p in thread_pools().info()), default=1)
+
+
+def _refuse(value: int) -> None:
+    raise ValueError(f"no {value}")
+
+
+def test_run_aside_runs_in_a_forked_process_with_one_blas_thread_while_this_one_goes_on():
+    future = extraction.run_aside(_pid_and_blas, 21)
+    pid, doubled, blas = future.result(timeout=60)
+    assert pid != os.getpid() and doubled == 42 and blas == 1
+    failed = extraction.run_aside(_refuse, 7)
+    with pytest.raises(ValueError, match="no 7"):
+        failed.result(timeout=60)
+
+
+def test_run_aside_runs_here_where_a_worker_server_serves_this_process(monkeypatch):
+    monkeypatch.setitem(extraction._SERVER, "context", multiprocessing.get_context())
+    future = extraction.run_aside(_pid_and_blas, 1)
+    assert future.done() and future.result()[:2] == (os.getpid(), 2)
+    with pytest.raises(ValueError, match="no 3"):
+        extraction.run_aside(_refuse, 3).result()
