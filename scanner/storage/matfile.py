@@ -31,12 +31,12 @@ import math
 import os
 import struct
 import warnings
-import zlib
 from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 import scipy  # scipy.io loads at its first use (scipy's submodules load when first read)
+from isal import isal_zlib
 
 from scanner import photo
 from scanner.photo import PhotoError, encode_png, read_photo
@@ -133,9 +133,11 @@ _HEADER = f"MATLAB 5.0 MAT-file, texplorer scan, schema {SCHEMA_VERSION}".encode
 _MI_COMPRESSED = 15
 """The v5 data type of a zlib-compressed element."""
 COMPRESSION_LEVEL = 1
-"""zlib level of every variable. MATLAB reads any level; on a scan's noisy float64 traces level 1 takes
-about a fifth of the CPU of zlib's default 6 (``scipy.io.savemat``'s) for files about a quarter larger
-(docs/performance.md)."""
+"""Compression level of every variable's zlib stream, written by ISA-L (``isal.isal_zlib``, Intel's
+deflate, levels 0-3). On a scan's float64 traces its level 1 takes about a quarter of the CPU of zlib's
+level 1 for files of the same size, which are about a quarter larger than at zlib's default 6
+(``scipy.io.savemat``'s, five times zlib 1's CPU; docs/performance.md). The streams are ordinary zlib
+streams: MATLAB, scipy and zlib read them."""
 
 
 def encode_mat(variables: dict[str, Any]) -> bytes:
@@ -144,7 +146,7 @@ def encode_mat(variables: dict[str, Any]) -> bytes:
     ``savemat`` writes its creation time into the 116-byte descriptive header, which MATLAB only
     displays; replacing it makes files content-addressable (same scan -> same SHA-256). Each top-level
     variable is then compressed as ``savemat(do_compression=True)`` does (one ``miCOMPRESSED`` element
-    holding the zlib stream of the variable's element), at :data:`COMPRESSION_LEVEL`.
+    holding the zlib stream of the variable's element), by ISA-L at :data:`COMPRESSION_LEVEL`.
     """
     buffer = io.BytesIO()
     scipy.io.savemat(buffer, variables, long_field_names=True, do_compression=False, oned_as="column")
@@ -154,7 +156,7 @@ def encode_mat(variables: dict[str, Any]) -> bytes:
     position = 128
     while position < len(data):
         _, size = struct.unpack_from(order + "II", data, position)
-        packed = zlib.compress(data[position:position + 8 + size], COMPRESSION_LEVEL)
+        packed = isal_zlib.compress(data[position:position + 8 + size], COMPRESSION_LEVEL)
         out += struct.pack(order + "II", _MI_COMPRESSED, len(packed)) + packed
         position += 8 + size
     return bytes(out)
