@@ -260,6 +260,8 @@ _lock = threading.RLock()
 _closures: dict[tuple[str, ...], tuple[str, ...]] = {}
 _sources: dict[str, bytes] = {}
 """Each module's source as this process read it, when the module (or a family importing it) was fixed."""
+_imports: dict[str, frozenset[str]] = {}
+"""The project modules each module imports, from its source in :data:`_sources`."""
 
 
 def fix_code_version(*modules: str) -> None:
@@ -301,9 +303,17 @@ def _source_bytes(module: str) -> bytes:
         return _sources[module]
 
 
-def _imported(module: str) -> set[str]:
-    """Project modules that ``module`` imports (modules only import at their top, see docs/extending.md)."""
-    tree = ast.parse(_source_bytes(module).decode("utf-8"))
+def _imported(module: str) -> frozenset[str]:
+    """Project modules that ``module`` imports (modules only import at their top, see docs/extending.md),
+    found once per process: a module is in the closure of many families."""
+    with _lock:
+        if module not in _imports:
+            _imports[module] = _imports_in(_source_bytes(module))
+        return _imports[module]
+
+
+def _imports_in(source: bytes) -> frozenset[str]:
+    tree = ast.parse(source.decode("utf-8"))
     found = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
@@ -311,7 +321,7 @@ def _imported(module: str) -> set[str]:
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             found.add(node.module)
             found.update(f"{node.module}.{alias.name}" for alias in node.names)
-    return {name for name in found if name.split(".")[0] in PROJECT_PACKAGES and _is_module(name)}
+    return frozenset(name for name in found if name.split(".")[0] in PROJECT_PACKAGES and _is_module(name))
 
 
 def _is_module(name: str) -> bool:
