@@ -160,9 +160,12 @@ def studentized_range_sf(q: np.ndarray, k: int) -> np.ndarray:
     """``P(Q > q)`` for the studentized range of ``k`` groups with infinite degrees of freedom.
 
     Equal to ``scipy.stats.studentized_range.sf(q, k, inf)`` within :data:`SF_TOLERANCE` absolute.
-    scipy integrates numerically (~50 us per value), so when there are many ``q`` they are read from a
-    cubic Hermite table of the sf and its derivative -pdf (built once per k, see :func:`_sf_table`);
-    otherwise scipy is called on the distinct values. Values with ``q`` beyond the Bonferroni cut
+    scipy integrates numerically (~50 us per value), so when there are more ``q`` than the table has nodes
+    they are read from a cubic Hermite table of the sf and its derivative -pdf (built once per process and
+    k, about three scipy values per node, see :func:`_sf_table`; cross-validation asks for the same k in
+    every fold, so the table pays for itself over a few calls); otherwise scipy is called on the distinct
+    values. The path depends on ``q`` and ``k`` only, never on earlier calls. Values with ``q`` beyond the
+    Bonferroni cut
     ``P(Q > q) <= k (k - 1) / 2 * erfc(q / 2) <= 1e-12`` are 0.
     """
     q = np.asarray(q, dtype=np.float64)
@@ -170,7 +173,7 @@ def studentized_range_sf(q: np.ndarray, k: int) -> np.ndarray:
     p = np.zeros(q.shape)
     inside = q < cut
     wanted = q[inside]
-    table = _sf_table(k) if wanted.size > 3 * cut / _SF_FIRST_STEP else None
+    table = _sf_table(k) if wanted.size > cut / _SF_FIRST_STEP else None
     if table is not None:
         p[inside] = table(wanted)
     elif wanted.size:
