@@ -20,11 +20,11 @@ from __future__ import annotations
 import base64
 import html
 import math
+import operator
 import os
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from functools import partial
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -291,50 +291,40 @@ def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: S
     space = space.subset([c for c in space.columns if not c.startswith("signal.")])
     selection = select_features(space, level, n_features)
     plan = _figures(folder, space, reports, selection, level, feature, top, max_classes)
-    drawn = dict(worker_map(_draw, plan, workers))
-    figures = [(figure.caption, drawn[k]) for k, figure in enumerate(plan)]
+    drawn = dict(worker_map(operator.call, [plot for _, plot in plan], workers))
+    figures = [(caption, drawn[k]) for k, (caption, _) in enumerate(plan)]
     page = folder / "index.html"
     atomic_write_bytes(page, _html(space, reports, selection, figures).encode("utf-8"))
     return page
 
 
-@dataclass(frozen=True)
-class _Figure:
-    """One figure of the report: its caption, and the plotting call that draws it and returns its file."""
-
-    caption: str
-    plot: Callable[..., Path]
-    args: tuple[Any, ...]
-    options: Mapping[str, Any] = field(default_factory=dict)
-
-
-def _draw(figure: _Figure) -> Path:
-    return figure.plot(*figure.args, **figure.options)
+Figure = tuple[str, partial]
+"""A figure of the report: its caption, and the plotting call that draws it and returns its file."""
 
 
 def _figures(folder: Path, space: FeatureSpace, reports: Sequence[Result], selection: Selection, level: str,
-             feature: str | None, top: int, max_classes: int) -> list[_Figure]:
+             feature: str | None, top: int, max_classes: int) -> list[Figure]:
     """The report's figures in page order: scores per (level, set size), FQ ranking and Spearman heat map,
     PCA, box plots, reliability diagrams, open-set scores, and the best confusion matrix per level."""
-    figures: list[_Figure] = []
+    figures: list[Figure] = []
     order = _level_order(reports)
     for lvl, size in sorted(dict.fromkeys((r.level, r.n_features) for r in reports),
                             key=lambda key: (math.inf if key[1] is None else key[1], order.index(key[0]))):
-        figures.append(_Figure(f"{lvl} classification with {size_name(size)}: accuracy and macro F1 per feature set",
-                               plot_scores, (reports, lvl, size, folder / f"scores_{lvl}_{size_name(size)}.png")))
+        figures.append((f"{lvl} classification with {size_name(size)}: accuracy and macro F1 per feature set",
+                        partial(plot_scores, reports, lvl, size, folder / f"scores_{lvl}_{size_name(size)}.png")))
     figures += _selection_figures(folder, space, selection, top)
-    figures.append(_Figure("explained variance over the principal components (Fig. 15)", plot_pca_variance,
-                           (space.X, folder / "pca.png")))
+    figures.append(("explained variance over the principal components (Fig. 15)",
+                    partial(plot_pca_variance, space.X, folder / "pca.png")))
     figures.append(_boxes(folder, space, feature or selection.ranking[0][0], level, max_classes))
     calibrated = _calibration_results(reports)
     if calibrated:
-        figures.append(_Figure("reliability diagrams of the calibrated probabilities, one per classifier (accuracy "
-                               "against confidence per bin; diagonal: calibrated; dashed: chance); ECE in each title",
-                               plot_reliability, (calibrated, folder / "reliability.png")))
+        figures.append(("reliability diagrams of the calibrated probabilities, one per classifier (accuracy "
+                        "against confidence per bin; diagonal: calibrated; dashed: chance); ECE in each title",
+                        partial(plot_reliability, calibrated, folder / "reliability.png")))
     for k, r in enumerate(x for x in reports if x.open_set):
-        figures.append(_Figure(f"open set, {r.classifier} {r.feature_set} {r.level} {size_name(r.n_features)}: "
-                               "rejection score of known and held-out materials, and the ROC curve (dashed: chance)",
-                               plot_open_set, (r, folder / f"open_set_{k}.png")))
+        figures.append((f"open set, {r.classifier} {r.feature_set} {r.level} {size_name(r.n_features)}: rejection "
+                        "score of known and held-out materials, and the ROC curve (dashed: chance)",
+                        partial(plot_open_set, r, folder / f"open_set_{k}.png")))
     for lvl in order:
         at_level = [r for r in reports if r.level == lvl]
         if at_level:
@@ -342,9 +332,9 @@ def _figures(folder: Path, space: FeatureSpace, reports: Sequence[Result], selec
             r_c = "" if math.isnan(best.r_c) else f", r_C {best.r_c:.2f}"
             title = (f"{lvl}: {best.classifier}, {best.feature_set}, {size_name(best.n_features)}; accuracy "
                      f"{100 * best.accuracy_mean:.1f} %{r_c}")
-            figures.append(_Figure(f"confusion matrix of the best classifier at the {lvl} level ({title})",
-                                   plot_confusion, (best.confusion, best.classes, folder / f"confusion_{lvl}.png"),
-                                   {"title": title, "max_labels": max_classes}))
+            figures.append((f"confusion matrix of the best classifier at the {lvl} level ({title})",
+                            partial(plot_confusion, best.confusion, best.classes, folder / f"confusion_{lvl}.png",
+                                    title=title, max_labels=max_classes)))
     return figures
 
 
@@ -375,17 +365,18 @@ def _calibration_results(reports: Sequence[Result]) -> list[Result]:
     return chosen
 
 
-def _selection_figures(folder: Path, space: FeatureSpace, selection: Selection, top: int) -> list[_Figure]:
-    figures = [_Figure(f"feature quality FQ at the {selection.level} level; orange: the {len(selection.selected)} "
-                       f"features FQSelector keeps on all rows (|Spearman rho| < {selection.max_corr:g})",
-                       plot_fq_ranking, (selection.ranking, selection.selected, folder / "fq_ranking.png", top))]
+def _selection_figures(folder: Path, space: FeatureSpace, selection: Selection, top: int) -> list[Figure]:
+    figures = [(f"feature quality FQ at the {selection.level} level; orange: the {len(selection.selected)} "
+                f"features FQSelector keeps on all rows (|Spearman rho| < {selection.max_corr:g})",
+                partial(plot_fq_ranking, selection.ranking, selection.selected, folder / "fq_ranking.png", top))]
     if len(selection.selected) >= 2:
-        figures.append(_Figure("Spearman correlation of the selected features", plot_spearman,
-                               (space.subset(selection.selected).X, selection.selected, folder / "spearman.png")))
+        figures.append(("Spearman correlation of the selected features",
+                        partial(plot_spearman, space.subset(selection.selected).X, selection.selected,
+                                folder / "spearman.png")))
     return figures
 
 
-def _boxes(folder: Path, space: FeatureSpace, feature: str, level: str, max_classes: int) -> _Figure:
+def _boxes(folder: Path, space: FeatureSpace, feature: str, level: str, max_classes: int) -> Figure:
     """Box plots of ``feature`` per class; too many classes: those of the major class with the most."""
     classes = space.y(level)
     values = space.subset([feature]).X[:, 0]
@@ -397,9 +388,9 @@ def _boxes(folder: Path, space: FeatureSpace, feature: str, level: str, max_clas
         chosen = names[int(np.argmax(counts))]
         keep = majors == chosen
         classes, values, scope = classes[keep], values[keep], f" within {chosen}"
-    return _Figure(f"{feature} per class at the {level} level{scope} (Fig. 14)", plot_feature_boxes,
-                   (values, classes, feature, folder / "boxes.png"),
-                   {"max_classes": max_classes, "title": f"{feature} per {level} class{scope}"})
+    return (f"{feature} per class at the {level} level{scope} (Fig. 14)",
+            partial(plot_feature_boxes, values, classes, feature, folder / "boxes.png", max_classes=max_classes,
+                    title=f"{feature} per {level} class{scope}"))
 
 
 RESULT_COLUMNS = ("classifier", "feature set", "level", "accuracy %", "95 % CI", "fold mean +- sd",
