@@ -11,6 +11,8 @@
 - **The database's default model**: :func:`train_default_model` trains and saves it (``texplorer demo``,
   beside the evaluation); :func:`default_model` finds it; ``serve`` and ``classify`` use it when no model
   is given.
+- **Compile the feature kernels once**: :func:`compile_kernels` (``make install``) extracts simulated
+  scans so that numba writes every kernel the features use into its cache before the first command needs it.
 - **Predict a scan's top k with names**: :func:`predict_scan` extracts a scan's features and names the
   model's most probable labels with the taxonomy the caller gives (a database's own taxonomy, with its lab
   codes, where there is a database); :func:`name_predictions` names predictions made elsewhere.
@@ -22,6 +24,8 @@ call it rather than wiring those layers together themselves (see ``docs/extendin
 from __future__ import annotations
 
 import os
+import tempfile
+import time
 import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -31,8 +35,10 @@ from typing import TYPE_CHECKING, Any
 from features import FeatureSpace, ScanSource, WorkerPool, code_version, extract, extract_many, feature_sets
 from scanner.scan import Scan
 from scanner.simulation.database import synthetic_database
+from scanner.simulation.scans import synthetic_scan
 from scanner.storage.bundle import ExportReport, Progress, export_bundle
 from scanner.storage.database import Database, DatabaseError, ScanRecord
+from scanner.storage.matfile import load_scan, save_scan
 from taxonomy.labels import LabelError
 from taxonomy.learning.models import TrainedModel, classify_values, save_model, train_model
 from taxonomy.table import Taxonomy, UnknownLabelError
@@ -112,6 +118,34 @@ def stored_features(db: Database, record: ScanRecord) -> tuple[dict[str, float],
     if space.failed:
         return {}, space.failed[0][1]
     return dict(zip(space.columns, space.X[0].tolist(), strict=True)), None
+
+
+# -- compile the feature kernels once ---------------------------------------------------------------
+
+KERNEL_SCANS = (("cotton-woven", 0.0), ("granite-polished", 1.0))
+"""The simulated scans :func:`compile_kernels` extracts: (material, probability that the fold step is
+skipped), a folded textile and a rigid stone whose fold step is skipped, between them every step's kernels."""
+
+
+def compile_kernels(image_size: int = 384) -> float:
+    """Extract the features of the :data:`KERNEL_SCANS`, each in memory and read back from its stored files,
+    so that numba compiles every kernel the features use (for the array layouts of both paths) and writes it
+    into its cache (``__pycache__`` beside the code); returns the seconds it took.
+
+    Compiling takes about 20 s on one core the first time; a later process loads the machine code in well
+    under a second. ``make install`` runs this, so that the first ``make demo`` does not compile in each of
+    its worker processes at once."""
+    started = time.perf_counter()
+    with tempfile.TemporaryDirectory() as folder, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for index, (material, skip) in enumerate(KERNEL_SCANS):
+            scan = synthetic_scan(material, seed=index, image_size=(image_size, image_size),
+                                  fold_skip_probability=skip)
+            path = Path(folder) / f"{material}.mat"
+            save_scan(scan, path)
+            extract(scan)
+            extract(load_scan(path))
+    return time.perf_counter() - started
 
 
 # -- export a database with its features -----------------------------------------------------------

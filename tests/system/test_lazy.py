@@ -75,3 +75,41 @@ def test_preload_imports_the_libraries_waiting_behind_stand_ins():
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
     assert run.stdout.splitlines() == ["[]", "['cv2', 'numba', 'pywt', 'scipy.signal']"]
+
+
+def test_compile_kernels_leaves_nothing_for_a_database_of_scans_to_compile():
+    # A fresh interpreter, so that what is compiled is what compile_kernels asked for: afterwards the scans
+    # of other materials, photo sizes and fold outcomes, in memory and read back, add no signature to any
+    # kernel (each added one would be a compilation in every worker of the first texplorer demo).
+    code = textwrap.dedent("""
+        import sys, tempfile, warnings, pathlib
+        import numba
+        from features import extract
+        from scanner.simulation import synthetic_scan
+        from scanner.storage.matfile import load_scan, save_scan
+        from scanner.workflows import compile_kernels
+
+        def signatures():
+            return {f"{name}.{key}": len(value.signatures) for name, module in list(sys.modules.items())
+                    if name.split(".")[0] in ("scanner", "features") and module is not None
+                    for key, value in vars(module).items() if isinstance(value, numba.core.dispatcher.Dispatcher)}
+
+        compile_kernels()
+        before = signatures()
+        warnings.simplefilter("ignore")
+        folder = pathlib.Path(tempfile.mkdtemp())
+        for seed, (material, size, skip) in enumerate([("oak-planed", 512, 0.0), ("float-glass", 384, 0.0),
+                                                       ("polyurethane-foam", 384, 0.5), ("C2S3M1P1X1", 400, 1.0)]):
+            scan = synthetic_scan(material, seed=seed + 7, image_size=(size, size), fold_skip_probability=skip)
+            save_scan(scan, folder / f"{seed}.mat")
+            extract(scan)
+            extract(load_scan(folder / f"{seed}.mat"))
+        after = signatures()
+        added = {k: (before.get(k), n) for k, n in after.items() if n != before.get(k)}
+        print(sum(n > 0 for n in before.values()), added)
+    """)
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    compiled, added = run.stdout.split(maxsplit=1)
+    assert int(compiled) >= 15  # the feature and preprocessing kernels (inlined helpers compile inside their callers)
+    assert added.strip() == "{}"
