@@ -11,6 +11,7 @@ Classification happens at three levels (paper section V-C): coarse = C, medium =
 
 from __future__ import annotations
 
+import functools
 import operator
 import re
 import reprlib
@@ -220,7 +221,7 @@ class Label:
         """The label written in ``text`` (a :class:`Label` is returned as is); see :func:`parse_code`."""
         if isinstance(text, Label):
             return text
-        return cls(*parse_code(text, LABEL_PARTS))
+        return _parse_label(text) if cls is Label and isinstance(text, str) else cls(*parse_code(text, LABEL_PARTS))
 
     def numbers(self) -> tuple[int, int, int, int, int]:
         """The integer tuple (c, s, m, p, x)."""
@@ -245,3 +246,10 @@ class Label:
         if level == "medium":
             return f"C{self.c}S{self.s}"
         return self.format()
+
+
+@functools.lru_cache(maxsize=4096)
+def _parse_label(text: str) -> Label:
+    """:meth:`Label.parse` of a string, remembered: labels are immutable, and an evaluation's reports parse
+    the same few class codes thousands of times."""
+    return Label(*parse_code(text, LABEL_PARTS))

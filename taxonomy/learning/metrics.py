@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -97,9 +98,17 @@ def bootstrap_weights(groups: Sequence[str], seed: int = 0, resamples: int = BOO
     """The row weights of :func:`bootstrap_interval`'s resamples, one row per resample (``resamples`` x rows):
     how often each row's group was drawn, the multinomial count of G draws of G groups with replacement."""
     names, inverse = np.unique(np.asarray(groups), return_inverse=True)
+    return _group_draws(names.size, seed, resamples)[:, inverse]
+
+
+@functools.lru_cache(maxsize=64)
+def _group_draws(n_groups: int, seed: int, resamples: int) -> np.ndarray:
+    """How often each of ``n_groups`` groups is drawn in each resample (read-only): the same for every
+    result of one evaluation, so drawn once (a report's 105 results share their groups and seed)."""
     rng = np.random.default_rng(seed)
-    drawn = rng.multinomial(names.size, np.full(names.size, 1 / names.size), size=resamples)
-    return drawn[:, inverse]
+    drawn = rng.multinomial(n_groups, np.full(n_groups, 1 / n_groups), size=resamples)
+    drawn.setflags(write=False)
+    return drawn
 
 
 def percentile_interval(values: np.ndarray, level: float = 0.95) -> tuple[float, float]:
