@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from features import FeatureSpace, ScanSource, WorkerPool, code_version, extract, extract_many, feature_sets
+from features.memory import keep_freed_memory
 from scanner.scan import Scan
 from scanner.simulation.database import synthetic_database
 from scanner.simulation.scans import synthetic_scan
@@ -88,7 +89,9 @@ def simulated_database(root: str | os.PathLike[str], **options: Any) -> Database
     """:func:`scanner.simulation.database.synthetic_database` (``options`` are its own) with each scan's
     features extracted by the process that simulated it, from the scan in memory, and stored in the
     feature cache once the scan is catalogued: the features stage that follows (:func:`extract_database`)
-    then reads no file back, only verifies the files' hashes. The values are those an extraction from the
+    then reads no file back, only verifies the files' hashes. The workers keep the memory a scan frees for
+    the next (:func:`features.memory.keep_freed_memory`: a tenth of the page faults and about 7 % less CPU
+    per scan, docs/performance.md). The values are those an extraction from the
     stored files gives (the ``.mat`` and PNG files are lossless), and a scan whose extraction fails here is
     simply left to that stage, which reports it."""
     version = code_version()
@@ -97,7 +100,8 @@ def simulated_database(root: str | os.PathLike[str], **options: Any) -> Database
         if values is not None:
             db.store_features(db.record(scan_id).content_hash, version, values)
 
-    return synthetic_database(root, analyse=_features_or_none, on_stored=cache, **options)
+    return synthetic_database(root, analyse=_features_or_none, on_stored=cache, worker_start=keep_freed_memory,
+                              **options)
 
 
 def _features_or_none(scan: Scan) -> dict[str, float] | None:

@@ -31,7 +31,8 @@ def synthetic_database(root: str | Path, materials: Iterable[str] | None = None,
                        seed: int = 0, image_size: tuple[int, int] = (512, 512), progress: bool = True,
                        fold_skip_probability: float = 0.5, workers: int | None = None,
                        samples_per_material: int = 1, analyse: Callable[[Scan], Any] | None = None,
-                       on_stored: Callable[[Database, str, Any], None] | None = None) -> Database:
+                       on_stored: Callable[[Database, str, Any], None] | None = None,
+                       worker_start: Callable[[], object] | None = None) -> Database:
     """Simulate scans (see :func:`synthetic_scans`) into ``scanner.storage.database.Database(root)``.
 
     Scans are simulated and written (``.mat`` and photos, the costly encoding) in ``workers`` processes
@@ -68,6 +69,9 @@ def synthetic_database(root: str | Path, materials: Iterable[str] | None = None,
     on_stored : callable, optional
         ``on_stored(database, scan_id, analysed)`` in this process once the scan is catalogued, with what
         ``analyse`` returned (None without ``analyse``).
+    worker_start : callable, optional
+        Run once in each worker process before its first scan (a module-level function), e.g. telling the
+        allocator to keep the memory a scan frees for the next one (:func:`scanner.workflows.simulated_database`).
 
     Returns
     -------
@@ -82,7 +86,7 @@ def synthetic_database(root: str | Path, materials: Iterable[str] | None = None,
     workers = max(1, min(workers or os.cpu_count() or 1, len(jobs) or 1))
     with owned_folder(temp_path_for(database.root / STAGING_PREFIX.lstrip("."))) as staging:
         batch: list[Staged] = []
-        for staged in _staged_scans(jobs, staging, workers, analyse):
+        for staged in _staged_scans(jobs, staging, workers, analyse, worker_start):
             batch.append(staged)
             bar.update(1)
             if len(batch) == BATCH:
@@ -102,9 +106,10 @@ def _catalogue(database: Database, batch: list[Staged], on_stored: Callable[[Dat
             on_stored(database, scan_id, analysed)
 
 
-def _staged_scans(jobs: list[_Job], staging: Path, workers: int,
-                  analyse: Callable[[Scan], Any] | None = None) -> Iterator[Staged]:
-    """Each job's scan written into ``staging`` (and analysed), in job order."""
+def _staged_scans(jobs: list[_Job], staging: Path, workers: int, analyse: Callable[[Scan], Any] | None = None,
+                  worker_start: Callable[[], object] | None = None) -> Iterator[Staged]:
+    """Each job's scan written into ``staging`` (and analysed), in job order; ``worker_start`` runs first in
+    each worker process (not in this process when ``workers`` is 1: it would outlive the call)."""
     work = functools.partial(simulate_into, folder=staging, analyse=analyse)
     if workers == 1:
         yield from map(work, jobs)
@@ -114,11 +119,18 @@ def _staged_scans(jobs: list[_Job], staging: Path, workers: int,
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)
     try:
-        with concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=end_with_parent,
-                                                    initargs=(os.getpid(),)) as pool:
+        with concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=_start_worker,
+                                                    initargs=(os.getpid(), worker_start)) as pool:
             yield from pool.map(work, jobs)
     finally:
         cv2.setNumThreads(threads)
+
+
+def _start_worker(parent: int, worker_start: Callable[[], object] | None) -> None:
+    """A simulation worker's first step: end with ``parent``, then ``worker_start()``."""
+    end_with_parent(parent)
+    if worker_start is not None:
+        worker_start()
 
 
 def simulate_into(job: _Job, folder: Path, analyse: Callable[[Scan], Any] | None = None) -> Staged:

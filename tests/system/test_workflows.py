@@ -4,11 +4,12 @@ system tests (simulated databases)."""
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
 
-from features import code_version, extract, extraction
+from features import code_version, extract, extraction, memory
 from scanner.simulation.database import synthetic_database
 from scanner.storage.database import Database, DatabaseError
 from scanner.workflows import (
@@ -82,6 +83,28 @@ def test_a_simulated_database_caches_the_features_its_stored_files_give(tmp_path
     monkeypatch.setattr(extraction, "extract", lambda scan, families=None: extracted.append(scan.scan_id))
     space = extract_database(db, workers=1, progress=False)
     assert extracted == [] and len(space.scan_ids) == 4 and not space.failed
+
+
+def _memory_kept(scan) -> tuple[int, bool]:
+    """An ``analyse`` step reporting its process and whether it keeps the memory it frees."""
+    return os.getpid(), memory._state["for_good"]
+
+
+def test_the_simulating_workers_keep_the_memory_a_scan_frees(tmp_path):
+    # simulated_database starts each worker with keep_freed_memory (the next scan reuses the last one's
+    # temporaries); every scan was simulated in a worker with that setting, none in this process.
+    seen = []
+    synthetic_database(tmp_path / "db", materials=["granite-polished", "oak-planed"], scans_per_material=2,
+                       image_size=SMALL, progress=False, workers=2, analyse=_memory_kept,
+                       on_stored=lambda db, scan_id, analysed: seen.append(analysed),
+                       worker_start=memory.keep_freed_memory)
+    assert len(seen) == 4 and all(kept for _, kept in seen)
+    assert os.getpid() not in {pid for pid, _ in seen} and not memory._state["for_good"]
+    seen.clear()
+    synthetic_database(tmp_path / "plain", materials=["granite-polished"], scans_per_material=2, image_size=SMALL,
+                       progress=False, workers=2, analyse=_memory_kept,
+                       on_stored=lambda db, scan_id, analysed: seen.append(analysed))
+    assert len(seen) == 2 and not any(kept for _, kept in seen)
 
 
 def test_label_filter_and_an_empty_selection(db):
