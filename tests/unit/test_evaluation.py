@@ -273,7 +273,7 @@ def test_a_grid_calibrates_only_the_cells_it_names_and_predicts_the_same():
 
 
 def test_a_grid_evaluates_only_the_level_and_size_pairs_it_is_given():
-    # The demo's default: the paper's Figs. 16-18 (coarse X10, fine X10, fine X3), not every pair.
+    # As the demo's default (the paper's Figs. 16 and 17, coarse X10 and fine X10): only the pairs given.
     space = labelled_space()
     grid = {"classifiers": ("nb",), "levels": ("coarse", "fine"), "set_sizes": (1, 2), "feature_sets": {"all": None},
             "folds": 3, "workers": 1, "calibrate": False}
