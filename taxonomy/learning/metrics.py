@@ -101,10 +101,12 @@ def bootstrap_weights(groups: Sequence[str], seed: int = 0, resamples: int = BOO
     return _group_draws(names.size, seed, resamples)[:, inverse]
 
 
-@functools.lru_cache(maxsize=64)
+@functools.lru_cache(maxsize=2)
 def _group_draws(n_groups: int, seed: int, resamples: int) -> np.ndarray:
     """How often each of ``n_groups`` groups is drawn in each resample (read-only): the same for every
-    result of one evaluation, so drawn once (a report's 105 results share their groups and seed)."""
+    result of one evaluation, so drawn once (a report's 70 results share their groups and seed). Two are
+    kept (8 bytes per group and resample each: a data set of 10,000 groups holds 80 MB per entry, as much
+    as one result's weights)."""
     rng = np.random.default_rng(seed)
     drawn = rng.multinomial(n_groups, np.full(n_groups, 1 / n_groups), size=resamples)
     drawn.setflags(write=False)

@@ -81,6 +81,17 @@ def test_bootstrap_interval_over_groups_holds_the_pooled_figure():
     assert all(w[1] + w[2] + w[3] == 3 and w[0] == w[1] for w in seen)  # group a's two rows drawn together
 
 
+def test_bootstrap_weights_are_drawn_once_and_each_call_gets_its_own_copy():
+    groups = ["b", "a", "b", "c", "a"]
+    first = metrics.bootstrap_weights(groups, seed=3, resamples=40)
+    # The draws are those of one multinomial sample of the groups (a, b, c in sorted order) per resample.
+    drawn = np.random.default_rng(3).multinomial(3, np.full(3, 1 / 3), size=40)
+    np.testing.assert_array_equal(first, drawn[:, [1, 0, 1, 2, 0]])
+    first[:] = -1  # the caller's copy: the next call is unchanged
+    np.testing.assert_array_equal(metrics.bootstrap_weights(groups, seed=3, resamples=40), drawn[:, [1, 0, 1, 2, 0]])
+    assert not metrics._group_draws(3, 3, 40).flags.writeable
+
+
 def test_auroc_is_the_mann_whitney_probability_with_ties_halved():
     assert metrics.auroc([1, 2, 3, 4], [False, False, True, True]) == 1.0
     assert metrics.auroc([4, 3, 2, 1], [False, False, True, True]) == 0.0
