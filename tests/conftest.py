@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import signal
 import struct
 import sys
 import zlib
@@ -41,6 +42,16 @@ def make_scan(seed: int = 0, *, seconds: float = 0.2, images: bool = True, drop:
         photos = {v: rng.integers(0, 256, (h, w, 3), dtype=np.uint8) for v in ("I_disp", "I_macro", "I_illu")}
     raw_volts = {"v_ts": Trace(rng.uniform(0, 3.3, traces["v_ts"].data.shape), 3000.0, "V")} if raw else {}
     return Scan(make_meta(**meta), traces, photos, raw_volts)
+
+
+def pytest_configure(config):
+    """Ctrl-C handled as Python's default, in this process and every program it starts: a shell that starts
+    the suite in the background (``make test &`` without job control) starts it with SIGINT ignored, which
+    the children inherit, and then the tests of Ctrl-C (the recorder switching off, ``serve`` and the
+    emulators stopping, a cluster run cancelled) could not send it. A handler, unlike ``SIG_IGN``, is reset
+    to the default by ``exec``."""
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def pytest_collection_modifyitems(config, items):
