@@ -90,10 +90,9 @@ def simulated_database(root: str | os.PathLike[str], **options: Any) -> Database
     features extracted by the process that simulated it, from the scan in memory, and stored in the
     feature cache once the scan is catalogued: the features stage that follows (:func:`extract_database`)
     then reads no file back, only verifies the files' hashes. The workers keep the memory a scan frees for
-    the next (:func:`features.memory.keep_freed_memory`: a tenth of the page faults and about 7 % less CPU
-    per scan, docs/performance.md). The values are those an extraction from the
-    stored files gives (the ``.mat`` and PNG files are lossless), and a scan whose extraction fails here is
-    simply left to that stage, which reports it."""
+    the next (:func:`features.memory.keep_freed_memory`; docs/performance.md). The values are those an
+    extraction from the stored files gives (the ``.mat`` and PNG files are lossless), and a scan whose
+    extraction fails here is simply left to that stage, which reports it."""
     version = code_version()
 
     def cache(db: Database, scan_id: str, values: dict[str, float] | None) -> None:
@@ -136,9 +135,8 @@ def compile_kernels(image_size: int = 384) -> float:
     so that numba compiles every kernel the features use (for the array layouts of both paths) and writes it
     into its cache (``__pycache__`` beside the code); returns the seconds it took.
 
-    Compiling takes about 20 s on one core the first time; a later process loads the machine code in well
-    under a second. ``make install`` runs this, so that the first ``make demo`` does not compile in each of
-    its worker processes at once."""
+    ``make install`` runs this, so that the first ``make demo`` does not compile in each of its worker
+    processes at once (docs/performance.md); a later process loads the cached machine code."""
     started = time.perf_counter()
     with tempfile.TemporaryDirectory() as folder, warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -27,8 +27,8 @@ within their intervals (docs/simulator.md), for 0.56x the pixels to simulate, en
 
 PAPER_FIGURES = (("coarse", 10), ("fine", 10))
 """The (level, set size) pairs the demo evaluates unless asked for more: the paper's Figs. 16 (coarse, X10)
-and 17 (fine, X10, the paper's headline). Its Fig. 18 (fine, X3) would cost as much again as Fig. 17, a
-third of the demo's evaluation CPU (docs/performance.md); ``--full-grid`` (or ``--level`` / ``--n``)
+and 17 (fine, X10, the paper's headline). Its Fig. 18 (fine, X3) would cost as much again as Fig. 17
+(docs/performance.md); ``--full-grid`` (or ``--level`` / ``--n``)
 evaluates it with every other level and set size, as ``texplorer evaluate`` does."""
 
 
