@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from features import code_version, extract, extraction, memory
+from scanner import workflows
 from scanner.simulation.database import synthetic_database
 from scanner.storage.database import Database, DatabaseError
 from scanner.workflows import (
@@ -90,9 +91,15 @@ def _memory_kept(scan) -> tuple[int, bool]:
     return os.getpid(), memory._state["for_good"]
 
 
-def test_the_simulating_workers_keep_the_memory_a_scan_frees(tmp_path):
+def test_the_simulating_workers_keep_the_memory_a_scan_frees(tmp_path, monkeypatch):
     # simulated_database starts each worker with keep_freed_memory (the next scan reuses the last one's
-    # temporaries); every scan was simulated in a worker with that setting, none in this process.
+    # temporaries); with worker_start, every scan is simulated in a worker with that setting, none in this
+    # process, and without it in workers without.
+    asked = {}
+    monkeypatch.setattr(workflows, "synthetic_database", lambda root, **options: asked.update(options))
+    simulated_database(tmp_path / "spy", workers=2)
+    assert asked["worker_start"] is memory.keep_freed_memory and asked["workers"] == 2
+    monkeypatch.undo()
     seen = []
     synthetic_database(tmp_path / "db", materials=["granite-polished", "oak-planed"], scans_per_material=2,
                        image_size=SMALL, progress=False, workers=2, analyse=_memory_kept,
