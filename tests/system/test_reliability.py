@@ -469,7 +469,7 @@ def hostile_recordings(folder: Path) -> dict[str, str]:
 
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "jump.csv").write_text("t,p\n0,1\n0.01,2\n0.02,3\n4000000000,4\n4000000000.01,5\n")
-    (folder / "nudge.csv").write_text("t,p\n0,1\n0.01,2\n0.02,3\n30,4\n30.01,5\n")  # 3000 from 5
+    (folder / "nudge.csv").write_text("t,p\n0,1\n0.01,2\n0.02,3\n50000000,4\n50000000.01,5\n")  # 5e9 samples
     (folder / "empty_rate.wav").write_bytes(
         b"RIFF\x24\x00\x00\x00WAVEfmt \x10\x00\x00\x00\x01\x00\x00\x00\x44\xac\x00\x00\x88\x58\x01\x00"
         b"\x02\x00\x10\x00data\x00\x00\x00\x00")  # no channels: the standard library divides by zero
@@ -500,20 +500,55 @@ def test_one_hostile_file_of_each_kind_is_named_and_skipped_and_the_good_one_sto
         assert lines and any(word in line for line in lines), (name, out)
 
 
-def test_a_gap_within_the_bridging_limit_is_bridged_and_one_beyond_it_refused(tmp_path):
+def _gapped_stream(path: Path, rate: float, seconds: float, gaps: int, gap_s: tuple[float, float], seed: int) -> int:
+    """A timestamped CSV shaped like a USB force sensor's log: ``rate`` Hz over ``seconds`` with ``gaps``
+    pauses of ``gap_s`` seconds each (uniform); returns its number of rows."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, seconds, 1.0 / rate)
+    for start in np.sort(rng.choice(t.size - 1, size=gaps, replace=False))[::-1]:
+        t[start + 1:] += rng.uniform(*gap_s)  # every later sample moves back by the pause
+    path.write_text("t,p\n" + "".join(f"{a:.6f},{np.sin(a):.6f}\n" for a in t))
+    return int(t.size)
+
+
+def test_a_stream_bridged_many_times_over_is_kept_and_a_clock_jump_refused(tmp_path):
     from scanner.storage import ingest
-    from scanner.storage.ingest.alignment import MAX_BRIDGED_SHARE
+    from scanner.storage.ingest.alignment import MAX_BRIDGED_BYTES
 
     lab = tmp_path / "lab" / "cork"
     lab.mkdir(parents=True)
-    n = 40  # real samples at 100 Hz: a gap may add at most MAX_BRIDGED_SHARE * n grid samples
-    within = int(MAX_BRIDGED_SHARE * n)
-    for name, missing in (("within", within), ("beyond", within + 2)):
-        t = [i / 100 for i in range(n // 2)] + [(i + missing) / 100 for i in range(n // 2, n)]
+    # 150 Hz for 6 s of samples with 70 pauses of 0.6-0.9 s: ~7,900 grid samples from 900 real ones, bridged
+    # nine times over (the old rule refused more than once), but a few kB: kept, with a note.
+    real = _gapped_stream(lab / "usb.csv", 150.0, 6.0, 70, (0.6, 0.9), seed=1)
+    # A jump of the clock: 40 real samples at 100 Hz, then one step of 5e7 s (5e9 samples, 40 GB).
+    t = [i / 100 for i in range(20)] + [5e7 + i / 100 for i in range(20)]
+    (lab / "jump.csv").write_text("t,p\n" + "".join(f"{a!r},1.0\n" for a in t))
+    report = ingest.ingest(lab.parent, ingest.parse_mapping(INGEST_MAPPING, "lab"))
+    assert [r.name for r in report.recordings] == ["usb"]
+    kept = report.recordings[0]
+    info = kept.meta["time_base"]["channels"]["pdc"]
+    assert info["gaps"] == 70 and kept.channels["pdc"].data.size > 8 * real
+    assert any(note.kind == "gap" and "usb.csv" in note.text for note in report.notes)
+    assert len(report.skipped) == 1 and report.skipped[0].startswith("cork/jump: recording skipped: jump.csv")
+    assert "5e+07 s" in report.skipped[0] and f"{MAX_BRIDGED_BYTES >> 20} MiB" in report.skipped[0]
+
+
+def test_the_bridging_bound_is_in_bytes_per_channel_not_relative_to_the_stream(tmp_path, monkeypatch):
+    from scanner.storage import ingest
+    from scanner.storage.ingest import alignment
+
+    lab = tmp_path / "lab" / "cork"
+    lab.mkdir(parents=True)
+    monkeypatch.setattr(alignment, "MAX_BRIDGED_BYTES", 8 * 5000)  # the rule, at a size a test can hold
+    limit = alignment.MAX_BRIDGED_BYTES // 8  # samples of one column the gaps may add: 125x the 40 real ones
+    for name, missing in (("within", limit - 10), ("beyond", limit + 10)):
+        t = [i / 100 for i in range(20)] + [(i + missing) / 100 for i in range(20, 40)]
         (lab / f"{name}.csv").write_text("t,p\n" + "".join(f"{a!r},1.0\n" for a in t))
     report = ingest.ingest(lab.parent, ingest.parse_mapping(INGEST_MAPPING, "lab"))
     assert [r.name for r in report.recordings] == ["within"]
-    assert report.recordings[0].channels["pdc"].data.size == n + within
+    assert report.recordings[0].channels["pdc"].data.size == 40 + limit - 10
     assert len(report.skipped) == 1 and report.skipped[0].startswith("cork/beyond: recording skipped: beyond.csv")
 
 

@@ -14,27 +14,32 @@ import numpy as np
 
 from scanner.scan import ScanError, Trace
 from scanner.storage.ingest.mapping import IngestError
-from scanner.storage.ingest.readers import RATE_TOLERANCE, Note, Stream
+from scanner.storage.ingest.readers import HELD_ITEMSIZE, RATE_TOLERANCE, Note, Stream
 
 GAP_STEPS = 1.5
 """A time step longer than this many sample periods is a gap: at least one sample is missing."""
-MAX_BRIDGED_SHARE = 1.0
-"""Bridging may at most double a stream: its samples on the common grid are at most ``1 + this`` times the
-samples it really has. Gaps longer than that (a jump of the clock: 5 CSV lines asked for hundreds of
-millions of samples) refuse the file instead of being filled."""
+MAX_BRIDGED_BYTES = 1 << 28
+"""Bridging is bounded in memory, not relative to the stream: the samples a channel's gaps add to the
+common grid may take at most 256 MiB as held (float64, every column counted), 33.5 million samples of a
+one-column channel (93 hours at 100 Hz, 12.7 minutes at 44.1 kHz). A USB sensor's stream with a gap every
+few samples is kept however much it is bridged; a jump of the clock (a 5-line CSV whose timestamps jump by
+4e9 s would ask for 3.2 TB) refuses the file, naming the gap."""
 
 
 def check_bridged_length(name: str, stream: Stream, count: int, file: str) -> None:
-    """Refuse a stream whose ``count`` samples on the common grid exceed what its real samples may be
-    bridged into (:data:`MAX_BRIDGED_SHARE`), before any grid is made."""
+    """Refuse a stream whose gaps would add more than :data:`MAX_BRIDGED_BYTES` of samples to its
+    ``count`` samples on the common grid, before any grid is made."""
     assert stream.times is not None
     real = int(stream.times.size)
-    if count > (1.0 + MAX_BRIDGED_SHARE) * real + 1:
+    width = int(np.prod(stream.data.shape[1:], dtype=np.int64)) if stream.data.ndim > 1 else 1
+    added = count - real
+    if added * width * HELD_ITEMSIZE > MAX_BRIDGED_BYTES:
         steps = np.diff(stream.times)
         at = int(np.argmax(steps)) if steps.size else 0
         raise IngestError(f"{file}: channel {name}: a gap of {float(steps[at]) if steps.size else 0.0:.6g} s at "
-                          f"t = {float(stream.times[at]):.6g} s would bridge {count - real:,} samples into "
-                          f"{real:,} real ones (at most {MAX_BRIDGED_SHARE:g} x the real ones are bridged)")
+                          f"t = {float(stream.times[at]):.6g} s would bridge {added:,} samples into "
+                          f"{real:,} real ones (at most {MAX_BRIDGED_BYTES >> 20} MiB of bridged samples "
+                          "per channel)")
 
 
 EPOCH_AFTER_S = 1e8
@@ -96,7 +101,7 @@ def align(streams: Mapping[str, Stream], files: Mapping[str, str], missing: str 
     k of every stream then means the same moment. A stream whose samples already lie on that grid (to
     1e-6 of a period) is taken as it is; otherwise it is resampled by linear interpolation, with a note.
     A step longer than 1.5 periods is a gap: the grid samples inside it are bridged by the interpolation
-    (at most as many as the stream has, :data:`MAX_BRIDGED_SHARE`; more refuse the file) and reported
+    (at most :data:`MAX_BRIDGED_BYTES` per channel; more refuse the file) and reported
     (``missing = "interpolate"``) or the recording is refused (``missing = "error"``), never
     filled silently. Streams without timestamps are taken as they are. ``files`` names each stream's file.
     """
