@@ -21,6 +21,7 @@ from scanner.storage.ingest import (
     safe_name,
     set_folder,
     summarise_notes,
+    with_excluded,
     with_grid,
     with_label_pattern,
 )
@@ -39,6 +40,8 @@ def ingest_mapping(args: argparse.Namespace):
         mapping = load_mapping(args.mapping)
     if args.label_pattern:
         mapping = with_label_pattern(mapping, args.label_pattern)
+    if args.exclude_label:
+        mapping = with_excluded(mapping, args.exclude_label)
     return with_grid(mapping, parse_grid(args.grid, "--grid")) if args.grid else mapping
 
 
@@ -149,6 +152,9 @@ def register(commands: argparse._SubParsersAction) -> None:
                            help="labels from the file names: the (?P<label>...) group of REGEX searched in each "
                            "file's stem, e.g. '^(?P<label>[a-z]+)_' for cork_01.png (other named groups become "
                            "group ids); for a flat folder of files")
+    ingesting.add_argument("--exclude-label", metavar="CLASS", action="append", default=[],
+                           help="leave out the recordings of this class (a label folder such as MIXED); "
+                           "repeat for more; adds to the mapping's [labels] exclude")
     ingesting.add_argument("--verbose", action="store_true", help="print every note, not a summary per kind")
     ingesting.add_argument("--replace", action="store_true", help="replace an existing set of that name")
     ingesting.set_defaults(handler=cmd_ingest)

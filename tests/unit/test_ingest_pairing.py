@@ -157,3 +157,56 @@ def test_ingest_lists_recordings_lacking_a_role_the_others_have(tmp_path):
     report = ingest.ingest(tmp_path, ingest.parse_mapping(TERRAIN, "terrain"))
     assert len(report.recordings) == 6 and report.skipped == []
     assert "1 of 6 recording(s) lack the role signal_current that the others have: 11" in map(str, report.notes)
+
+
+def _wheel_only(root) -> None:
+    """A folder holding one wheel file and no IMU file, as BorealTC's MIXED."""
+    folder = root / "MIXED"
+    folder.mkdir(parents=True)
+    (folder / "pro_90.csv").write_text("i_motor\n" + "".join(f"{2.0 + 0.01 * k!r}\n" for k in range(200)))
+
+
+def test_files_of_a_required_entry_pair_a_recording_and_the_unpaired_are_named(tmp_path):
+    write_terrain(tmp_path, runs=2)
+    (tmp_path / "grass" / "imu_10.csv").unlink()  # grass run 10 keeps only its wheel file
+    _wheel_only(tmp_path)
+    loose = ingest.ingest(tmp_path, ingest.parse_mapping(TERRAIN, "terrain"))
+    assert len(loose.recordings) == 5 and loose.skipped == []  # not required: a recording of one file each
+    required = TERRAIN.replace('glob = "**/imu_*.csv"', 'glob = "**/imu_*.csv"\nrequired = true')
+    report = ingest.ingest(tmp_path, ingest.parse_mapping(required, "terrain"))
+    assert sorted(r.name for r in report.recordings) == ["00", "01", "11"]
+    assert sorted(report.skipped) == [
+        f"{where}: unpaired: no file of the required [[files]] '**/imu_*.csv' with the stem '{stem}' in its "
+        "folder; not read" for where, stem in (("MIXED/pro_90.csv", "90"), ("grass/pro_10.csv", "10"))]
+
+
+def test_a_class_without_a_role_every_other_class_has_is_named_and_can_be_left_out(tmp_path):
+    write_terrain(tmp_path, runs=2)
+    _wheel_only(tmp_path)
+    report = ingest.ingest(tmp_path, ingest.parse_mapping(TERRAIN, "terrain"))
+    lines = [n.text for n in report.notes if n.kind == "class_roles"]
+    assert lines == ["class MIXED: none of its 1 recording(s) has the role(s) signal_gyro that every other class "
+                     "has; leave it out with [labels] exclude = ['MIXED'] or --exclude-label MIXED"]
+    for mapping in (ingest.parse_mapping(TERRAIN + '[labels]\nexclude = ["MIXED"]\n', "terrain"),
+                    ingest.with_excluded(ingest.parse_mapping(TERRAIN, "terrain"), ["MIXED"])):
+        left = ingest.ingest(tmp_path, mapping)
+        assert sorted({r.label for r in left.recordings}) == ["grass", "gravel"] and left.skipped == []
+        assert [n.text for n in left.notes if n.kind == "excluded"] == [
+            "class MIXED: 1 file(s) not read (MIXED/pro_90.csv), as asked"]
+        assert not [n for n in left.notes if n.kind == "class_roles"]
+    with pytest.raises(IngestError, match="exclude must be a class name or a list of class names"):
+        ingest.parse_mapping(TERRAIN + "[labels]\nexclude = [1]\n", "terrain")
+
+
+def test_a_channel_mapped_without_a_role_is_a_generic_signal_with_a_note(tmp_path):
+    write_terrain(tmp_path, runs=1)
+    unroled = TERRAIN.replace('  role = "signal"\n  columns = ["gx", "gy", "gz"]', '  columns = ["gx", "gy", "gz"]')
+    assert unroled != TERRAIN
+    report = ingest.ingest(tmp_path, ingest.parse_mapping(unroled, "terrain"))
+    first = report.recordings[0]
+    assert first.roles["signal_gyro"] == "gyro" and first.channels["gyro"].data.shape == (400, 3)
+    notes = [n.text for n in report.notes if n.kind == "role"]
+    assert notes and notes[0].endswith("channel gyro has no role: read as the generic role signal (signal_gyro); "
+                                       "give it role = ... in the mapping to say otherwise")
+    space, _ = feature_space(report.recordings)
+    assert any(c.startswith("generic.signal_gyro.") for c in space.columns)

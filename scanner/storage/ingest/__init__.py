@@ -48,6 +48,7 @@ from scanner.storage.ingest.mapping import (
     load_mapping,
     parse_grid,
     parse_mapping,
+    with_excluded,
     with_grid,
     with_label_pattern,
 )
@@ -83,7 +84,8 @@ from scanner.storage.ingest.sets import (
 __all__ = [
     "FORMATS", "IMAGE_EXTENSIONS", "TIME_UNITS", "MISSING", "SPLIT_NAMES", "IngestError", "ChannelMap", "FileMap",
     "IngestMapping", "DEFAULT_CHANNELS", "format_of", "parse_grid", "parse_mapping", "default_mapping",
-    "with_grid", "with_label_pattern", "load_mapping", "NAN_TOKENS", "MAX_ARRAY_BYTES", "RATE_TOLERANCE",
+    "with_grid", "with_label_pattern", "with_excluded", "load_mapping", "NAN_TOKENS", "MAX_ARRAY_BYTES",
+    "RATE_TOLERANCE",
     "read_table", "Note",
     "NOTE_KINDS", "summarise_notes", "seconds_of", "rate_from_times", "read_image", "file_format", "Stream",
     "read_streams", "read_file", "GAP_STEPS", "gaps", "Aligned", "align", "IngestReport", "stem_of",

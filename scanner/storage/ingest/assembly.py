@@ -43,10 +43,11 @@ class Made:
     name: str
     roles: tuple[str, ...]
     split: str | None
+    label: str = ""
 
     @classmethod
     def of(cls, recording: Recording) -> Made:
-        return cls(recording.name, tuple(recording.roles), recording.meta.get("split"))
+        return cls(recording.name, tuple(recording.roles), recording.meta.get("split"), str(recording.label))
 
 
 def nfc(text: str) -> str:
@@ -260,8 +261,14 @@ def _read_parts(key: Path, files: list[tuple[Path, FileMap]], root: Path, mappin
         streams.update(read)
         images.update(pictures)
         origin.update(dict.fromkeys([*read, *pictures], path.name))
-        roles.update({role_key(c.role, c.name) if c.role else "photo": c.name for c in spec.channels
-                      if c.role or c.name in pictures})
+        for channel in spec.channels:
+            if channel.role or channel.name in pictures:
+                roles[role_key(channel.role, channel.name) if channel.role else "photo"] = channel.name
+            elif channel.name in read:  # mapped without a role: a generic channel, never dropped silently
+                roles[role_key("signal", channel.name)] = channel.name
+                report.notes.append(Note("role", path.name, 1.0, f"{path.name}: channel {channel.name} has no "
+                                         f"role: read as the generic role signal ({role_key('signal', channel.name)})"
+                                         "; give it role = ... in the mapping to say otherwise"))
         grid = spec.grid or grid
     return _Parts(streams, images, roles, origin, grid)
 
@@ -276,12 +283,20 @@ def _recordings(key: Path, name: str, files: list[tuple[Path, FileMap]], root: P
             report.skipped.extend(f"{path}: name does not match groups.pattern" for path, _ in files)
             return []
         groups = {k: v for k, v in match.groupdict().items() if v is not None}
+    try:
+        label, levels = _label(key, root, mapping, table, groups)
+    except IngestError as exc:
+        report.skipped.append(f"{key.relative_to(root)}: recording skipped: {exc}")
+        return []
+    if label in mapping.exclude:
+        report.notes.append(Note("excluded", label, len(files), f"class {label}: {len(files)} file(s) not read "
+                                 f"({', '.join(str(p.relative_to(root)) for p, _ in files[:3])}), as asked"))
+        return []
     parts = _read_parts(key, files, root, mapping, report)
     if parts is None:
         return []
     try:
         aligned = align(parts.streams, parts.files, mapping.missing)
-        label, levels = _label(key, root, mapping, table, groups)
         split = split_of(key, root, mapping, groups)
         meta = {**mapping.meta, "label_level": mapping.label_level, "levels": levels,
                 "source": [str(path.relative_to(root)) for path, _ in files]}
@@ -329,6 +344,57 @@ def lacking_roles(recordings: Sequence[Recording | Made], first: int = 3) -> lis
     return notes
 
 
+def _label_of(key: Path, root: Path, mapping: IngestMapping, table: Mapping[str, Mapping[str, str]]) -> str | None:
+    """The label of a recording key, or None where it has none (reported when the recording is made)."""
+    groups = {}
+    if mapping.pattern is not None:
+        match = mapping.pattern.search(key.name)
+        groups = {k: v for k, v in match.groupdict().items() if v is not None} if match else {}
+    try:
+        return _label(key, root, mapping, table, groups)[0]
+    except (IngestError, KeyError):
+        return None
+
+
+def unpaired(matched: dict[Path, list[tuple[Path, FileMap]]], root: Path, mapping: IngestMapping,
+             report: IngestReport, excluded: Callable[[Path], bool] = lambda key: False,
+             ) -> dict[Path, list[tuple[Path, FileMap]]]:
+    """The recording keys that have a file of every ``required`` [[files]] entry; the files of the others
+    are reported by name in ``report.skipped`` (an IMU file without its wheel file, say) and not read.
+    Keys of a class left out (``excluded``) are kept: their recording notes them and reads nothing."""
+    required = [spec for spec in mapping.files if spec.required]
+    kept = {}
+    for key, files in matched.items():
+        absent = [spec for spec in required if not any(kind is spec for _, kind in files)]
+        if not absent or excluded(key):
+            kept[key] = files
+            continue
+        globs = ", ".join(repr(spec.glob) for spec in absent)
+        report.skipped.extend(f"{path.relative_to(root)}: unpaired: no file of the required [[files]] {globs} "
+                              f"with the stem {key.name!r} in its folder; not read" for path, _ in files)
+    return kept
+
+
+def classes_lacking_roles(made: Sequence[Made]) -> list[Note]:
+    """A note per class none of whose recordings has a role that every other class has (a folder holding
+    only the wheel files of a set of IMU and wheel recordings, say): its features are NaN there."""
+    by_class: dict[str, list[Made]] = {}
+    for recording in made:
+        by_class.setdefault(recording.label, []).append(recording)
+    if len(by_class) < 2:
+        return []
+    notes = []
+    for label, members in by_class.items():
+        own = {role for r in members for role in r.roles}
+        others = [{role for r in rows for role in r.roles} for name, rows in by_class.items() if name != label]
+        common = set.intersection(*others) - own
+        if common:
+            notes.append(Note("class_roles", label, len(common), f"class {label}: none of its {len(members)} "
+                              f"recording(s) has the role(s) {', '.join(sorted(common))} that every other class "
+                              f"has; leave it out with [labels] exclude = [{label!r}] or --exclude-label {label}"))
+    return notes
+
+
 def ingest(path: str | os.PathLike[str], mapping: IngestMapping,
            progress: Callable[[Iterable[Any]], Iterable[Any]] = iter, sink: Sink | None = None) -> IngestReport:
     """Recordings from the files under ``path`` as ``mapping`` describes them.
@@ -352,7 +418,8 @@ def ingest(path: str | os.PathLike[str], mapping: IngestMapping,
         raise IngestError(f"{root}: not a folder")
     table = _label_table(root, mapping)
     report = IngestReport()
-    matched = _matched(root, mapping, report)
+    matched = unpaired(_matched(root, mapping, report), root, mapping, report,
+                       lambda key: _label_of(key, root, mapping, table) in mapping.exclude)
     names = recording_names(list(matched), root)
     for key, files in progress(list(matched.items())):
         report.files += len(files)
@@ -363,6 +430,7 @@ def ingest(path: str | os.PathLike[str], mapping: IngestMapping,
             else:
                 sink.add(recording)  # written now: memory does not grow with the number of files
     report.notes.extend(lacking_roles(report.made))
+    report.notes.extend(classes_lacking_roles(report.made))
     splits = {made.split for made in report.made}
     if mapping.split_from == "auto" and splits != {"train", "test"} and splits != {None}:
         # Folders named train or test hold only some recordings, or one part: not a split of the set.

@@ -75,6 +75,8 @@ class FileMap:
     rate_variable: str | None = None
     grid: tuple[int, int] | None = None
     stem_pattern: re.Pattern[str] | None = None
+    required: bool = False
+    """Every recording needs a file of this entry: one without it is not made, its files reported by name."""
 
 
 @dataclass(frozen=True)
@@ -95,6 +97,8 @@ class IngestMapping:
     meta: Mapping[str, Any] = field(default_factory=dict)
     split_from: str = "auto"
     split_names: Mapping[str, tuple[str, ...]] = field(default_factory=lambda: dict(SPLIT_NAMES))
+    exclude: tuple[str, ...] = ()
+    """Labels (classes, label folders) left out of the import: their files are not read, and a note counts them."""
 
 
 def _fail(where: str, reason: str) -> IngestError:
@@ -200,7 +204,7 @@ def _channel(table: Mapping[str, Any], where: str) -> ChannelMap:
 
 
 _FILE_KEYS = {"glob", "suffix", "format", "channels", "delimiter", "header", "comment", "skip_rows", "rate",
-              "time_column", "time_unit", "rate_variable", "grid", "stem_pattern"}
+              "time_column", "time_unit", "rate_variable", "grid", "stem_pattern", "required"}
 
 DEFAULT_CHANNELS = {"wav": ChannelMap("audio", "audio", unit="FS"), "image": ChannelMap("photo", "photo")}
 """The channel of a WAV or image file whose mapping lists none."""
@@ -273,7 +277,8 @@ def _file(table: Mapping[str, Any], where: str) -> FileMap:
         raise _fail(where, f"time_column must be a name or an index >= 0, got {time_column}")
     return FileMap(glob, _get(table, "suffix", str, where), fmt, maps, delimiter,
                    bool(_get(table, "header", bool, where, True)), _get(table, "comment", str, where, "#") or None,
-                   skip, rate, time_column, time_unit, _get(table, "rate_variable", str, where), grid, stem_pattern)
+                   skip, rate, time_column, time_unit, _get(table, "rate_variable", str, where), grid, stem_pattern,
+                   bool(_get(table, "required", bool, where, False)))
 
 
 def _stem_pattern(text: str | None, where: str) -> re.Pattern[str] | None:
@@ -292,7 +297,7 @@ def _labels(table: Any, where: str) -> dict[str, Any]:
         return {}
     if not isinstance(table, Mapping):
         raise _fail(where, "must be a table")
-    _unknown(table, ("from", "depth", "csv", "key", "column", "levels"), where)
+    _unknown(table, ("from", "depth", "csv", "key", "column", "levels", "exclude"), where)
     source = _get(table, "from", str, where, "folder")
     if source not in ("folder", "csv", "pattern"):
         raise _fail(where, f"from must be 'folder', 'csv' or 'pattern', got {shown(source)}")
@@ -308,9 +313,24 @@ def _labels(table: Any, where: str) -> dict[str, Any]:
     if not isinstance(levels, list) or not all(isinstance(level, str) for level in levels):
         raise _fail(where, f"levels must be a list of column names, got {shown(levels)}")
     return {"label_from": source, "label_depth": depth, "label_csv": csv_file,
+            "exclude": label_list(table.get("exclude", []), "exclude", where),
             "label_key": nfc(_get(table, "key", str, where, "recording")),
             "label_column": nfc(_get(table, "column", str, where, "label")),
             "label_levels": tuple(map(nfc, levels))}
+
+
+def label_list(value: Any, key: str, where: str) -> tuple[str, ...]:
+    """A list of class names (or one name) in NFC: ``[labels] exclude`` or ``--exclude-label``."""
+    value = [value] if isinstance(value, str) else value
+    if not isinstance(value, list) or not all(isinstance(v, str) and v.strip() for v in value):
+        raise _fail(where, f"{key} must be a class name or a list of class names, got {shown(value)}")
+    return tuple(dict.fromkeys(nfc(v.strip()) for v in value))
+
+
+def with_excluded(mapping: IngestMapping, labels: list[str]) -> IngestMapping:
+    """The mapping leaving out the classes ``labels`` too (``texplorer ingest --exclude-label``)."""
+    return replace(mapping, exclude=tuple(dict.fromkeys((*mapping.exclude,
+                                                         *label_list(labels, "--exclude-label", "--exclude-label")))))
 
 
 def _split(table: Any, where: str) -> dict[str, Any]:

@@ -199,7 +199,10 @@ NOTE_KINDS = {"missing": "missing samples interpolated", "irregular": "irregular
               "gap": "gaps in the timestamps bridged", "aligned": "streams cut to their common time span",
               "clock": "jittered timestamps of a regular clock kept as regular streams",
               "text": "text columns not in the mapping ignored",
-              "roles": "recordings lacking a role the others have"}
+              "roles": "recordings lacking a role the others have",
+              "role": "channels without a role read as the generic role signal",
+              "excluded": "classes left out as asked",
+              "class_roles": "classes lacking every recording of a role the other classes have"}
 
 
 def summarise_notes(notes: Sequence[Note], first: int = 3) -> list[str]:
