@@ -20,7 +20,10 @@ family             role                   features
 ``tactum``         ``force_xyz``          TacTUM's friction features FST and FRS (eqs. 16, 17) with the
                                           normal force z and the tangential force ``|(x, y)|``
 ``generic``        ``signal_<channel>``,  statistics, band energies on a rate-aware band plan and the
-                   ``vibration`` < 1 kHz  spectral shape of every column (:func:`signal_features`)
+                   ``vibration`` < 1 kHz  spectral shape of every column (:func:`signal_features`); below
+                                          20 Hz level, spread, slope and rate of change instead
+                                          (:func:`slow_features`) and the level ratios of two such
+                                          channels (:func:`log_ratio`)
 =================  =====================  =================================================================
 
 ``v`` of a recording is its vibration as the preprocessing makes the scanner's: each axis band-limited (4th-order
@@ -257,6 +260,54 @@ def signal_features(x: np.ndarray, fs: float) -> list[float]:
     return stats + bands + [centroid, spread, flatness, rolloff, float(frequencies[int(np.argmax(power))])]
 
 
+SLOW_MAX_HZ = 20.0
+"""Generic channels sampled below this rate (a robot's wheel service data at 6.5 Hz, a thermometer at 1 Hz)
+get the slow family (:func:`slow_features`) instead of spectra: a 5 s window of a 6.5 Hz channel holds 32
+samples, whose Welch spectrum resolves 0.2 Hz, so octave bands from fs/128 would all be its lowest bin."""
+
+SLOW_NAMES = ("mean", "std", "p05", "p95", "slope", "change")
+"""The features of one column of a slow generic channel (:func:`slow_features`)."""
+
+SLOW_MIN_SAMPLES = 4
+"""Fewest samples of a window the slow features are computed on."""
+
+RATIO_BOUND = 3.0
+"""The log10 ratio of two channels' levels is bounded to +-3 (where one of them is 0, a robot standing still)."""
+
+
+def slow_features(x: np.ndarray, fs: float) -> list[float]:
+    """The features of one column of a slow generic channel, in :data:`SLOW_NAMES` order: its level (mean),
+    spread (standard deviation), 5th and 95th percentiles, slope (least-squares line over the window, units
+    per second) and rate of change (mean absolute difference of neighbouring samples times fs, units per
+    second: how much it moves within the window, which a slope misses when it goes up and down).
+
+    Raises
+    ------
+    RecordingFeatureError
+        If the window has fewer than :data:`SLOW_MIN_SAMPLES` samples.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    if x.size < SLOW_MIN_SAMPLES:
+        raise RecordingFeatureError(f"a window of {x.size} samples is too short for the slow features "
+                                    f"(needs {SLOW_MIN_SAMPLES})")
+    t = np.arange(x.size) / fs
+    centred_t = t - t.mean()
+    slope = float(np.dot(centred_t, x - x.mean()) / np.dot(centred_t, centred_t))
+    return [float(x.mean()), float(x.std()), *np.percentile(x, [5, 95]).tolist(), slope,
+            float(np.mean(np.abs(np.diff(x))) * fs)]
+
+
+def log_ratio(a: np.ndarray, b: np.ndarray) -> float:
+    """``log10(mean|a| / mean|b|)`` of two windows (motor current per wheel speed: the power a terrain
+    takes per unit of speed), bounded to +-:data:`RATIO_BOUND`: each level is floored at 10^-3 of the
+    larger one, so a window where one is 0 gives the bound, and one where both are 0 gives 0."""
+    level_a, level_b = float(np.mean(np.abs(a))), float(np.mean(np.abs(b)))
+    floor = 10.0 ** -RATIO_BOUND * max(level_a, level_b)
+    if floor == 0:
+        return 0.0
+    return float(np.log10(max(level_a, floor) / max(level_b, floor)))
+
+
 def generic_columns(role: str, width: int) -> tuple[str, ...]:
     """Columns of the generic family on a channel of ``width`` columns: ``generic.<role>.<feature>``, with
     ``c<k>_`` before the feature for each column of a multi-column channel."""
@@ -265,13 +316,33 @@ def generic_columns(role: str, width: int) -> tuple[str, ...]:
     return tuple(f"generic.{role}.c{k}_{name}" for k in range(width) for name in SIGNAL_NAMES)
 
 
+def slow_columns(role: str, width: int) -> tuple[str, ...]:
+    """Columns of the slow family on a channel of ``width`` columns, named as :func:`generic_columns`."""
+    if width == 1:
+        return tuple(f"generic.{role}.{name}" for name in SLOW_NAMES)
+    return tuple(f"generic.{role}.c{k}_{name}" for k in range(width) for name in SLOW_NAMES)
+
+
 def _generic(window: np.ndarray, fs: float) -> list[float]:
     columns = window.reshape(window.shape[0], -1)
     return [value for k in range(columns.shape[1]) for value in signal_features(columns[:, k], fs)]
 
 
+def _slow(window: np.ndarray, fs: float) -> list[float]:
+    columns = window.reshape(window.shape[0], -1)
+    return [value for k in range(columns.shape[1]) for value in slow_features(columns[:, k], fs)]
+
+
 def _below_vibration_audio(fs: float) -> bool:
-    return fs < VIBRATION_AUDIO_MIN_FS
+    return SLOW_MAX_HZ <= fs < VIBRATION_AUDIO_MIN_FS
+
+
+def _not_slow(fs: float) -> bool:
+    return fs >= SLOW_MAX_HZ
+
+
+def _slow_rate(fs: float) -> bool:
+    return fs < SLOW_MAX_HZ
 
 
 @lru_cache(maxsize=256)
@@ -282,15 +353,65 @@ def generic_family(role: str, width: int) -> RoleFamily:
     follow the channel's width, so a set's families are made for the channels it has."""
     name = f"generic.{role}" if width == 1 else f"generic.{role}:{width}"
     return RoleFamily(name, role, generic_columns(role, width), _generic,
-                      applies=_below_vibration_audio if role == "vibration" else (lambda fs: True))
+                      applies=_below_vibration_audio if role == "vibration" else _not_slow)
+
+
+@lru_cache(maxsize=256)
+def slow_family(role: str, width: int) -> RoleFamily:
+    """The slow family of a generic channel (or vibration) sampled below :data:`SLOW_MAX_HZ`
+    (:func:`slow_features`): level, spread, slope and rate of change, no spectra. Named ``slow.<role>``;
+    its columns are ``generic.<role>.<feature>`` like the generic family's, which it replaces there."""
+    name = f"slow.{role}" if width == 1 else f"slow.{role}:{width}"
+    return RoleFamily(name, role, slow_columns(role, width), _slow, applies=_slow_rate)
+
+
+def _channel_word(role: str) -> str:
+    return role.removeprefix("signal_")
+
+
+def ratio_columns(role: str, other: str, width: int, other_width: int) -> tuple[str, ...]:
+    """Columns of the ratios of ``role`` to ``other``: ``generic.<role>.c<k>_log_per_<other channel>`` column
+    by column where both have ``width`` columns (left current per left speed, ...), else one
+    ``generic.<role>.log_per_<other channel>`` of their levels over all columns."""
+    word = _channel_word(other)
+    if width == other_width and width > 1:
+        return tuple(f"generic.{role}.c{k}_log_per_{word}" for k in range(width))
+    return (f"generic.{role}.log_per_{word}",)
+
+
+@lru_cache(maxsize=256)
+def ratio_family(role: str, other: str, width: int, other_width: int) -> RoleFamily:
+    """The level ratios (:func:`log_ratio`) of two slow channels of one recording sampled at the same rate:
+    motor current per wheel speed, say. Named ``ratio.<role>.<other>:<width>x<other width>``; its window is
+    both channels side by side (:func:`recording_rows` prepares it)."""
+
+    def compute(window: np.ndarray, fs: float) -> list[float]:
+        a, b = window[:, :width], window[:, width:]
+        if width == other_width and width > 1:
+            return [log_ratio(a[:, k], b[:, k]) for k in range(width)]
+        return [log_ratio(a, b)]
+
+    return RoleFamily(f"ratio.{role}.{other}:{width}x{other_width}", role,
+                      ratio_columns(role, other, width, other_width), compute, applies=_slow_rate)
 
 
 def _family(name: str) -> RoleFamily:
-    """A registered family, or the generic family a name of :func:`generic_family` stands for."""
+    """A registered family, or the generic, slow or ratio family a name stands for."""
     if name in ROLE_REGISTRY:
         return ROLE_REGISTRY[name]
-    role, _, width = name.removeprefix("generic.").partition(":")
-    return generic_family(role, int(width or 1))
+    kind, _, rest = name.partition(".")
+    if kind == "ratio":
+        roles, _, widths = rest.partition(":")
+        role, other = roles.split(".")
+        width, other_width = (int(w) for w in widths.split("x"))
+        return ratio_family(role, other, width, other_width)
+    role, _, width = rest.partition(":")
+    return (slow_family if kind == "slow" else generic_family)(role, int(width or 1))
+
+
+def _ratio_other(name: str) -> str | None:
+    """The second role of a ratio family's name, else None."""
+    return name.partition(":")[0].split(".")[2] if name.startswith("ratio.") else None
 
 
 def _width(trace: Trace) -> int:
@@ -358,12 +479,18 @@ def families(recording: Recording, chosen: Sequence[str] | None = None) -> list[
             applies = trace is not None and family.applies(trace.fs)
         if applies:
             found.append(family.name)
+    slow = []
     for role in sorted(recording.roles):
         trace = recording.role(role)
         if trace is not None and (is_generic(role) or role == "vibration"):
-            family = generic_family(role, _width(trace))
-            if family.applies(trace.fs):
-                found.append(family.name)
+            for family in (generic_family(role, _width(trace)), slow_family(role, _width(trace))):
+                if family.applies(trace.fs):
+                    found.append(family.name)
+                    slow += [(role, trace)] if family.name.startswith("slow.") else []
+    for k, (role, trace) in enumerate(slow):
+        for second, second_trace in slow[k + 1:]:
+            if math.isclose(trace.fs, second_trace.fs, rel_tol=1e-6):
+                found.append(ratio_family(role, second, _width(trace), _width(second_trace)).name)
     return found
 
 
@@ -418,6 +545,10 @@ def recording_rows(recording: Recording, windowing: Windowing = Windowing(), bor
         try:
             if family.role in IMAGE_ROLES:
                 fixed.update(zip(family.columns, family.compute(recording.image(family.role), border), strict=True))
+            elif _ratio_other(name) is not None:  # both channels side by side, cut to the shorter
+                a, b = (recording.role(role).data for role in (family.role, _ratio_other(name)))
+                n = min(a.shape[0], b.shape[0])
+                prepared[name] = np.column_stack([a[:n].reshape(n, -1), b[:n].reshape(n, -1)])
             else:
                 trace = recording.role(family.role)
                 prepared[name] = trace.data if family.prepare is None else family.prepare(trace.data, trace.fs)
@@ -534,20 +665,25 @@ def _applied(present: set[str], chosen: Sequence[str] | None = None) -> tuple[st
     """The families of a set: the registered ones present (of the default ones or ``chosen``), in registry
     order, then one generic family per generic role, as wide as its widest channel (a narrower one fills
     the columns it has)."""
-    widest: dict[str, int] = {}
-    for name in present - {f.name for f in ROLE_REGISTRY.every}:
-        family = _family(name)
-        widest[family.role] = max(widest.get(family.role, 0), len(family.columns) // len(SIGNAL_NAMES))
+    widest: dict[tuple[str, str], int] = {}
+    unregistered = present - {f.name for f in ROLE_REGISTRY.every}
+    for name in unregistered - {n for n in unregistered if n.startswith("ratio.")}:
+        family, kind = _family(name), name.partition(".")[0]
+        per_column = len(SLOW_NAMES if kind == "slow" else SIGNAL_NAMES)
+        widest[kind, family.role] = max(widest.get((kind, family.role), 0), len(family.columns) // per_column)
+    made = {"generic": generic_family, "slow": slow_family}
     return (*(f.name for f in ROLE_REGISTRY.chosen(chosen) if f.name in present),
-            *(generic_family(role, width).name for role, width in sorted(widest.items())))
+            *(made[kind](role, width).name for (kind, role), width in sorted(widest.items())),
+            *sorted(n for n in unregistered if n.startswith("ratio.")))
 
 
 def _has(own: Sequence[str], name: str) -> bool:
-    """Whether families ``own`` (a recording's) cover ``name``: by name, or a generic family by its role."""
-    if name in ROLE_REGISTRY:
+    """Whether families ``own`` (a recording's) cover ``name``: by name, or a generic or slow family by its
+    kind and role."""
+    if name in ROLE_REGISTRY or name.startswith("ratio."):
         return name in own
-    role = _family(name).role
-    return any(f not in ROLE_REGISTRY and _family(f).role == role for f in own)
+    kind, role = name.partition(".")[0], _family(name).role
+    return any(f not in ROLE_REGISTRY and f.partition(".")[0] == kind and _family(f).role == role for f in own)
 
 
 def _own(recording: Recording, applied: Sequence[str]) -> list[str]:

@@ -210,3 +210,50 @@ def test_a_channel_mapped_without_a_role_is_a_generic_signal_with_a_note(tmp_pat
                                        "give it role = ... in the mapping to say otherwise")
     space, _ = feature_space(report.recordings)
     assert any(c.startswith("generic.signal_gyro.") for c in space.columns)
+
+
+def test_slow_features_of_a_ramp_and_a_square_wave_are_their_closed_forms():
+    from features.recordings import SLOW_NAMES, slow_features
+
+    fs = 6.5
+    t = np.arange(33) / fs
+    ramp = dict(zip(SLOW_NAMES, slow_features(2.0 + 0.5 * t, fs), strict=True))
+    assert ramp["slope"] == pytest.approx(0.5, rel=1e-12) and ramp["change"] == pytest.approx(0.5, rel=1e-12)
+    assert ramp["mean"] == pytest.approx(2.0 + 0.5 * t.mean(), rel=1e-12)
+    assert ramp["std"] == pytest.approx(0.5 * t.std(), rel=1e-12)
+    square = dict(zip(SLOW_NAMES, slow_features(np.tile([1.0, -1.0, -1.0, 1.0], 8), fs), strict=True))
+    # Up and down, symmetric in every block of four: no trend, but 16 of its 31 steps move by 2.
+    assert square["slope"] == pytest.approx(0.0, abs=1e-12)
+    assert square["change"] == pytest.approx(2 * 16 / 31 * fs, rel=1e-12)
+    with pytest.raises(ValueError, match="too short for the slow features"):
+        slow_features(np.ones(3), fs)
+
+
+def test_the_level_ratio_is_the_log_of_current_per_speed_and_bounded_where_one_is_zero():
+    from features.recordings import RATIO_BOUND, log_ratio
+
+    assert log_ratio(np.full(30, 4.0), np.full(30, -0.4)) == pytest.approx(1.0, rel=1e-12)  # 4 A per 0.4 m/s
+    assert log_ratio(np.full(30, 4.0), np.zeros(30)) == RATIO_BOUND  # standing still: the bound, not inf
+    assert log_ratio(np.zeros(30), np.full(30, 2.0)) == -RATIO_BOUND
+    assert log_ratio(np.zeros(30), np.zeros(30)) == 0.0
+
+
+def test_channels_at_a_few_hz_get_slow_features_and_ratios_not_spectra():
+    from features.recordings import SLOW_NAMES
+
+    rng = np.random.default_rng(3)
+    imu = Trace(rng.normal(size=(1000, 3)), 100.0, "rad/s")
+    current = Trace(2.0 + 0.1 * rng.normal(size=(65, 2)), 6.5, "A")
+    speed = Trace(np.full((65, 2), 0.5), 6.5, "m/s")
+    recording = Recording("run", {"gyro": imu, "current": current, "speed": speed},
+                          {"signal_gyro": "gyro", "signal_current": "current", "signal_speed": "speed"}, "snow")
+    assert families(recording) == ["slow.signal_current:2", "generic.signal_gyro:3", "slow.signal_speed:2",
+                                   "ratio.signal_current.signal_speed:2x2"]
+    space, notes = feature_space([recording])
+    columns = list(space.columns)
+    assert notes == [] and len(columns) == 3 * len(SIGNAL_NAMES) + 2 * 2 * len(SLOW_NAMES) + 2
+    assert not any(c.startswith("generic.signal_current.") and "band" in c for c in columns)
+    row = dict(zip(columns, space.X[0], strict=True))
+    level = np.log10(np.abs(current.data[:, 0]).mean() / 0.5)
+    assert row["generic.signal_current.c0_log_per_speed"] == pytest.approx(level, rel=1e-12)
+    assert row["generic.signal_speed.c1_mean"] == pytest.approx(0.5) and row["generic.signal_speed.c1_slope"] == 0
