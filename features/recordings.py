@@ -571,8 +571,9 @@ def recording_rows(recording: Recording, windowing: Windowing = Windowing(), bor
 
 def fold_group(recording: Recording, group_by: str | None = "auto") -> str:
     """The cross-validation group of a recording: its group ``group_by``; with ``auto`` the ``object``,
-    else the ``photo`` its patch was cut from, else the recording itself; None: every recording alone."""
-    if group_by is None or group_by == "none":
+    else the ``photo`` its patch was cut from, else the recording itself; ``recording`` (or None): every
+    recording alone, with its windows. (``none``, every row alone, is :func:`feature_space`'s.)"""
+    if group_by is None or group_by in ("none", "recording"):
         return recording.name
     if group_by == "auto":
         return recording.group.get("object") or recording.group.get("photo") or recording.name
@@ -614,9 +615,12 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     Columns are every family that applies to at least one recording (:func:`families`), in the order of
     the registry (:data:`features.registry.ROLE_REGISTRY`); a recording without a family's role has NaN
     there (evaluation then leaves the column out). Rows are in recording order (windows in time order with
-    ``combine = "rows"``). ``workers`` processes (1: in this process, None: one per core), or the Dask
-    cluster of ``client`` (:mod:`features.cluster`; the recordings are sent from here, the values are the
-    same). ``chosen`` names the registered families to compute (default: the default ones), opt-in ones too
+    ``combine = "rows"``). ``group_by`` names the rows' cross-validation groups (:func:`fold_group`); ``none``
+    makes every row its own group, so the windows of one recording fall in training and test (the
+    protocol of published results that cut windows from runs, which leaks between them). ``workers``
+    processes (1: in this process, None: one per core), or the Dask cluster of ``client``
+    (:mod:`features.cluster`; the recordings are sent from here, the values are the same). ``chosen``
+    names the registered families to compute (default: the default ones), opt-in ones too
     (``catch22.audio``, ...: docs/modern-features.md).
 
     Raises
@@ -651,7 +655,7 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
             X.append([row.get(name, math.nan) for name in columns])
             ids.append(recording.name if len(rows) == 1 else f"{recording.name}#w{k:03d}")
             labels.append(str(recording.label))
-            groups.append(fold_group(recording, group_by))
+            groups.append(ids[-1] if group_by == "none" else fold_group(recording, group_by))
             for name in levels:
                 level_rows[name].append(levels[name][index])
             if has_split:

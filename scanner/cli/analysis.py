@@ -4,6 +4,7 @@ selection, cross-validated evaluation and trained models, of the database's scan
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import hashlib
 import json
 import math
@@ -53,7 +54,7 @@ from taxonomy.learning.evaluation import (
 )
 from taxonomy.learning.models import load_model, save_model, train_model
 from taxonomy.learning.results import one_line
-from taxonomy.reports.report import format_open_set, format_table, write_report
+from taxonomy.reports.report import format_open_set, format_protocols, format_table, write_report
 from taxonomy.table import load_taxonomy
 
 
@@ -117,8 +118,6 @@ def scan_grouping(args: argparse.Namespace) -> str:
 def regroup_scans(space, args: argparse.Namespace):
     """The space with ``groups`` replaced by each scan's session, operator or scan id (``--group-by``), read
     from the database's catalog; the space itself for ``sample``."""
-    import dataclasses
-
     group_by = scan_grouping(args)
     if group_by == "sample":
         return space
@@ -136,7 +135,7 @@ def regroup_scans(space, args: argparse.Namespace):
 def set_grouping(args: argparse.Namespace) -> str:
     """The ``--group-by`` of a set, as the report names it (``recording`` for each recording alone)."""
     group_by = getattr(args, "group_by", "auto")
-    return {"auto": "the set's groups", "none": "recording"}.get(group_by, group_by)
+    return {"auto": "the set's groups"}.get(group_by, group_by)
 
 
 def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
@@ -233,8 +232,7 @@ def set_space(args: argparse.Namespace, client=None):
     windowing = Windowing(args.window, args.combine)
     started = time.perf_counter()
     wanted = args.feature_set if isinstance(args.feature_set, list) else [args.feature_set]
-    group_by = "none" if args.group_by == "recording" else args.group_by
-    space, notes = feature_space(recordings, windowing, args.border, group_by, workers=args.workers,
+    space, notes = feature_space(recordings, windowing, args.border, args.group_by, workers=args.workers,
                                  progress=True, client=client, chosen=feature_sets.role_families_for(wanted))
     for note in notes if args.verbose else notes[:3]:
         print(f"texplorer: warning: {one_line(note)}", file=sys.stderr)
@@ -316,6 +314,15 @@ def cmd_set_evaluate(args: argparse.Namespace) -> int:
     with cluster(args) as client:
         space = FeatureSpace.from_csv(table) if table else set_space(args, client)
         reports = run_evaluation(space, args, client)
+        if reports and getattr(args, "leakage", False):
+            print()
+            print("the same evaluation with --group-by none: every row its own group, so the windows of one "
+                  "recording fall in training and test (the published protocol)")
+            ungrouped = run_evaluation(dataclasses.replace(space, groups=space.scan_ids),
+                                       argparse.Namespace(**{**vars(args), "group_by": "none", "report": None}),
+                                       client)
+            print()
+            print(format_protocols(reports, ungrouped))
     return 0 if reports else EXIT_ERROR
 
 
@@ -423,6 +430,9 @@ def register(commands: argparse._SubParsersAction) -> None:
                                    "its own train/test split when it has one.")
     add_space_options(evaluate)
     _add_set_options(evaluate)
+    evaluate.add_argument("--leakage", action="store_true", help="sets: evaluate again with every row its own "
+                        "group (--group-by none: windows of one recording in training and test, as published "
+                        "window-level results do) and print both figures side by side")
     add_evaluation_options(evaluate, report_default=None)
     evaluate.add_argument("--ignore-split", action="store_true", help="sets: cross-validate over every "
                           "recording even if the set has its own train/test split")

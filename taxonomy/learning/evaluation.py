@@ -508,6 +508,7 @@ def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseE
         else:
             splits, grouped = cv_splits(y, subset.groups, folds, seed, grouping_labels=subset.label_text,
                                         single_group=single_group)
+            grouped = grouped and group_by != "none"  # every row its own group: not grouped, as asked
         kernels = _kernels(cell.feature_set, protocol)
         pipelines = [_without_probabilities(make_pipeline(c, cell.n_features, seed, kernels, subset.columns))
                      for c in classifiers]

@@ -143,12 +143,18 @@ def _level_order(reports: Sequence[Result]) -> list[str]:
             if any(r.level == level for r in reports)]
 
 
+UNGROUPED_SENTENCE = ("NOT grouped: every row its own group, so windows of one recording are in training "
+                      "and test (the protocol of published window-level results; neighbouring windows leak)")
+
+
 def _block_title(chosen: Sequence[Result]) -> str:
     first = chosen[0]
     unit = first.group_by if first.taxonomy or first.group_by != "sample" else "the set's groups"
     split = (f"grouped by {unit}" if all(r.grouped for r in chosen)
              else f"NOT grouped by {unit}: {'scans of one ' + unit if first.taxonomy else 'a group'} "
                   "in training and test")
+    if first.group_by == "none" and not first.taxonomy:
+        split = UNGROUPED_SENTENCE
     splits = "the set's train/test split" if first.given_split else f"{first.folds} folds {split}"
     voted = ", recordings voted by their windows" if first.voted else ""
     return f"{size_name(first.n_features)}, {first.protocol} protocol, {splits}{voted}, seed {first.seed}"
@@ -222,6 +228,41 @@ def format_table(reports: Sequence[Result]) -> str:
                          "directly above):")
             lines += [f"  {c:<{width_c}}  {fs:<{width_s}}  coarse {a:>5}  medium {b:>5}" for c, fs, (a, b) in derived]
     return "\n".join(lines)
+
+
+def format_protocols(grouped: Sequence[Result], ungrouped: Sequence[Result]) -> str:
+    """The grouped and the ungrouped (``--group-by none``) accuracy of the same cells side by side: how much
+    of a window-level figure is leakage between the windows of one recording.
+
+    Parameters
+    ----------
+    grouped, ungrouped : sequence of Result
+        The same grid evaluated with the set's groups and with every row its own group.
+
+    Returns
+    -------
+    str
+        One line per cell (classifier, feature set, level, set size): both pooled accuracies and their
+        difference in points.
+    """
+    other = {(r.classifier, r.feature_set, r.level, r.n_features): r for r in ungrouped}
+    rows = [("classifier", "feature set", "level", "features", f"grouped by {_unit(grouped[0])} %",
+             "NOT grouped %", "difference")]
+    for r in grouped:
+        twin = other.get((r.classifier, r.feature_set, r.level, r.n_features))
+        if twin is not None:
+            rows.append((r.classifier, r.feature_set, r.level, size_name(r.n_features),
+                         f"{100 * r.accuracy_pooled:.1f}", f"{100 * twin.accuracy_pooled:.1f}",
+                         f"{100 * (twin.accuracy_pooled - r.accuracy_pooled):+.1f} points"))
+    widths = [max(len(row[k]) for row in rows) for k in range(len(rows[0]))]
+    lines = ["side by side: pooled accuracy with the recordings' windows kept together (leakage-free) and "
+             "split over the folds (published protocol)"]
+    lines += ["  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip() for row in rows]
+    return "\n".join(lines)
+
+
+def _unit(report: Result) -> str:
+    return "the set's groups" if report.group_by in ("sample", "the set's groups") else report.group_by
 
 
 OPEN_SET_COLUMNS = ("classifier", "feature set", "level", "features", "AUROC", "95 % CI", "known accuracy %",

@@ -257,3 +257,42 @@ def test_channels_at_a_few_hz_get_slow_features_and_ratios_not_spectra():
     level = np.log10(np.abs(current.data[:, 0]).mean() / 0.5)
     assert row["generic.signal_current.c0_log_per_speed"] == pytest.approx(level, rel=1e-12)
     assert row["generic.signal_speed.c1_mean"] == pytest.approx(0.5) and row["generic.signal_speed.c1_slope"] == 0
+
+
+def _runs_with_their_own_level(runs: int = 6) -> list[Recording]:
+    """Two classes whose slow channel differs only by a level each run has of its own (a sensor's drift):
+    the windows of one run share it, so a test window is matched by its run's training windows."""
+    rng = np.random.default_rng(7)
+    recordings = []
+    for label in ("asphalt", "snow"):
+        for run in range(runs):
+            level = rng.normal(0.0, 5.0)
+            data = level + 0.05 * rng.normal(size=(60 * 10,))
+            recordings.append(Recording(f"{label}-{run}", {"current": Trace(data, 10.0, "A")},
+                                        {"signal_current": "current"}, label))
+    return recordings
+
+
+def test_group_by_none_splits_the_windows_of_one_run_and_shows_the_leakage_beside_the_grouped_figure():
+    from features.recordings import Windowing
+    from taxonomy.learning.evaluation import evaluate_grid
+    from taxonomy.reports.report import format_protocols, format_table
+
+    recordings = _runs_with_their_own_level()
+    grouped, _ = feature_space(recordings, Windowing(5.0, "rows"))
+    alone, _ = feature_space(recordings, Windowing(5.0, "rows"), group_by="none")
+    assert len(set(grouped.groups)) == 12 and len(set(alone.groups)) == len(alone) == 12 * 12
+    cells = {"classifiers": ["rf"], "set_sizes": [None], "feature_sets": {"all": None}, "calibrate": False}
+    kept, = evaluate_grid(grouped, group_by="recording", **cells)
+    leaked, = evaluate_grid(alone, group_by="none", **cells)
+    # A run's level names its class only through its own other windows: held out, it is a coin toss.
+    assert leaked.accuracy_pooled >= 0.95 and kept.accuracy_pooled < 0.8
+    assert kept.grouped and not leaked.grouped and leaked.splitting == "5 ungrouped folds"
+    assert "NOT grouped: every row its own group, so windows of one recording are in training and test" in (
+        format_table([leaked]))
+    side = format_protocols([kept], [leaked]).splitlines()
+    assert side[1].split() == ["classifier", "feature", "set", "level", "features", "grouped", "by", "recording",
+                               "%", "NOT", "grouped", "%", "difference"]
+    difference = f"{100 * (leaked.accuracy_pooled - kept.accuracy_pooled):+.1f}"
+    assert side[2].split() == ["rf", "all", "label", "all", f"{100 * kept.accuracy_pooled:.1f}",
+                               f"{100 * leaked.accuracy_pooled:.1f}", difference, "points"]
