@@ -33,6 +33,10 @@ FUSION_PARTS = (PAPER, "catch22", "scattering", "minirocket")
 MODERN_SETS = ("catch22", "scattering", *FITTED_KINDS)
 """The modern families as feature sets."""
 
+OWN_PREFIXES = (*REGISTRY.modalities, "generic")
+"""The column prefixes of ``paper``: the paper's modalities and, on imported recordings, the generic
+family of any sensor channel (``generic.signal_gyro.std``, slow channels and their ratios too)."""
+
 
 class FeatureSetError(TexplorerError, ValueError):
     """A feature set name that names nothing, or two random-kernel transforms in one set."""
@@ -85,7 +89,7 @@ def columns_of(columns: Sequence[str], name: str) -> list[str]:
     prefixes: dict[str, tuple[str, ...]] = {}
     for part in parts(name):
         if part == PAPER:
-            prefixes[part] = REGISTRY.modalities
+            prefixes[part] = OWN_PREFIXES
         elif part in FITTED_KINDS:
             prefixes[part] = (SIGNAL_PREFIX,)
         else:
@@ -107,7 +111,7 @@ def column_parts(columns: Sequence[str], kernels: bool = False) -> tuple[int, ..
 
     ``kernels``: whether a random-kernel step transforms the ``signal`` columns."""
     passed = [c for c in columns if not (kernels and c.split(".", 1)[0] == SIGNAL_PREFIX)]
-    names = [PAPER if c.split(".", 1)[0] in REGISTRY.modalities else c.split(".", 1)[0] for c in passed]
+    names = [PAPER if c.split(".", 1)[0] in OWN_PREFIXES else c.split(".", 1)[0] for c in passed]
     index = {name: k for k, name in enumerate(dict.fromkeys(names))}
     if len(index) + kernels < 2:
         return None

@@ -58,7 +58,7 @@ kymatio_1d = library("kymatio.scattering1d.frontend.numpy_frontend")
 LIBRARIES = {"catch22": "pycatch22", "scattering": "kymatio"}
 """The library each family needs (the random-kernel transforms need sktime: features.random_kernels)."""
 
-SCATTERING_SIZES = {9: (62, 237), 8: (54, 179)}
+SCATTERING_SIZES = {9: (62, 237), 8: (54, 179), 6: (38, 87)}
 """Coefficients of orders 1 and 2 of kymatio's ``Scattering1D`` with Q = 8, by J: the column names are
 known without building the filter bank (tests check them against kymatio)."""
 
@@ -161,8 +161,10 @@ def catch22(windows: np.ndarray) -> np.ndarray:
 
 def scattering_octaves(length: int) -> int:
     """J, the octaves of the scattering's averaging scale 2^J: the largest with 2^J <= length / 4, at most 9
-    (a quarter of the instance leaves room for the filters' support at the edges)."""
-    return max(1, min(9, int(math.floor(math.log2(length / 4)))))
+    (a quarter of the instance leaves room for the filters' support at the edges); below 1024 samples an
+    eighth (512 samples: J = 6), as kymatio's filters at J = 7 no longer fit 512 samples without border
+    effects (it warns)."""
+    return max(1, min(9, int(math.floor(math.log2(length / (4 if length >= 1024 else 8))))))
 
 
 @lru_cache(maxsize=8)
@@ -384,6 +386,48 @@ if available("catch22"):
 if available("scattering"):
     _register_roles("scattering", lambda rule: scattering_names(rule.length), scattering,
                     {"Q": SCATTERING_Q, "log_floor": SCATTERING_LOG_FLOOR})
+
+GENERIC_RULE = LengthRule(512, windows=4)
+"""The length rule of a generic channel (``signal_<channel>``, any rate from 20 Hz up): four instances of 512
+samples at the channel's own rate spread over the window (5.12 s each at 100 Hz: a 5 s window is one
+instance, zero-padded by 12 samples), its columns combined by DFT321 (:func:`scanner.preprocess.dft321`:
+one signal with their spectral energy, as for a vibration)."""
+
+
+def _combined(data: np.ndarray) -> np.ndarray:
+    """A generic channel's window as one signal: its columns combined by DFT321, each minus its mean (the
+    level is the generic family's; these families describe the signal's shape)."""
+    values = np.asarray(data, dtype=np.float64)
+    values = values.reshape(values.shape[0], -1) - values.reshape(values.shape[0], -1).mean(axis=0)
+    return values[:, 0] if values.shape[1] == 1 else dft321(values)
+
+
+def _generic_factory(kind: str, features: Sequence[str], transform: Callable[[np.ndarray], np.ndarray],
+                     params: Mapping[str, object]) -> Callable[[str], RoleFamily]:
+    """The ``kind`` family of any generic channel (``catch22.signal_gyro``), for
+    :data:`features.recordings.GENERIC_KINDS`; channels below :data:`features.recordings.SLOW_MAX_HZ` are
+    left to the slow family (a 5 s window at 6.5 Hz is 32 samples)."""
+
+    @lru_cache(maxsize=256)
+    def family(role: str) -> RoleFamily:
+        def compute(window: np.ndarray, fs: float) -> list[float]:
+            return np.asarray(transform(instances(_combined(window), fs, GENERIC_RULE)), dtype=np.float64).tolist()
+
+        return RoleFamily(f"{kind}.{role}", role, tuple(f"{kind}.{role}.{f}" for f in features), compute,
+                          applies=lambda fs: fs >= recordings.SLOW_MAX_HZ, params={"rule": GENERIC_RULE, **params},
+                          opt_in=True)
+
+    return family
+
+
+recordings.GENERIC_KINDS["signal"] = _generic_factory(
+    "signal", [f"{k:05d}" for k in range(GENERIC_RULE.samples)], _flat, {})
+if available("catch22"):
+    recordings.GENERIC_KINDS["catch22"] = _generic_factory("catch22", CATCH22_NAMES, catch22, {})
+if available("scattering"):
+    recordings.GENERIC_KINDS["scattering"] = _generic_factory(
+        "scattering", scattering_names(GENERIC_RULE.length), scattering,
+        {"Q": SCATTERING_Q, "log_floor": SCATTERING_LOG_FLOOR})
 
 FITTED_KINDS = ("minirocket", "multirocket")
 """The random-kernel transforms, fitted inside the folds on the ``signal`` columns (features.random_kernels)."""

@@ -25,7 +25,8 @@ import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted
 
-from features.modern import EXTRA, FITTED_KINDS, ROLE_RULES, SCAN_SIGNALS, SIGNAL_PREFIX, LengthRule
+from features.modern import EXTRA, FITTED_KINDS, GENERIC_RULE, ROLE_RULES, SCAN_SIGNALS, SIGNAL_PREFIX, LengthRule
+from scanner.scan import is_generic
 from taxonomy.errors import TexplorerError
 
 KINDS = FITTED_KINDS
@@ -57,6 +58,8 @@ def signal_rule(name: str) -> LengthRule:
         return SCAN_SIGNALS[name].rule
     if name in ROLE_RULES:
         return ROLE_RULES[name].rule
+    if is_generic(name):  # a generic channel, signal_<channel>
+        return GENERIC_RULE
     raise RandomKernelError(f"no length rule for the signal {name!r}")
 
 

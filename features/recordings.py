@@ -271,6 +271,11 @@ SLOW_NAMES = ("mean", "std", "p05", "p95", "slope", "change")
 SLOW_MIN_SAMPLES = 4
 """Fewest samples of a window the slow features are computed on."""
 
+GENERIC_KINDS: dict[str, Callable[[str], RoleFamily]] = {}
+"""Opt-in families made for any generic channel ``signal_<channel>`` by kind (``catch22`` -> the family
+``catch22.signal_gyro``): :mod:`features.modern` registers its kinds here, as their libraries allow. They are
+computed where a registered family of the same kind is chosen (``--feature-set catch22``)."""
+
 RATIO_BOUND = 3.0
 """The log10 ratio of two channels' levels is bounded to +-3 (where one of them is 0, a robot standing still)."""
 
@@ -396,10 +401,12 @@ def ratio_family(role: str, other: str, width: int, other_width: int) -> RoleFam
 
 
 def _family(name: str) -> RoleFamily:
-    """A registered family, or the generic, slow or ratio family a name stands for."""
+    """A registered family, or the generic, slow, ratio or modern generic family a name stands for."""
     if name in ROLE_REGISTRY:
         return ROLE_REGISTRY[name]
     kind, _, rest = name.partition(".")
+    if kind in GENERIC_KINDS:
+        return GENERIC_KINDS[kind](rest)
     if kind == "ratio":
         roles, _, widths = rest.partition(":")
         role, other = roles.split(".")
@@ -407,6 +414,18 @@ def _family(name: str) -> RoleFamily:
         return ratio_family(role, other, width, other_width)
     role, _, width = rest.partition(":")
     return (slow_family if kind == "slow" else generic_family)(role, int(width or 1))
+
+
+def _as_is(name: str) -> bool:
+    """Whether a family's name is kept as it is in a set's families: a ratio or a modern generic family
+    (no width to widen)."""
+    return name.startswith("ratio.") or name.partition(".")[0] in GENERIC_KINDS
+
+
+def _generic_kinds(chosen: Sequence[str] | None) -> list[str]:
+    """The kinds of :data:`GENERIC_KINDS` that ``chosen`` names a family of (``catch22.audio`` -> catch22)."""
+    named = {name.partition(".")[0] for name in chosen or ()}
+    return [kind for kind in GENERIC_KINDS if kind in named]
 
 
 def _ratio_other(name: str) -> str | None:
@@ -471,6 +490,8 @@ def families(recording: Recording, chosen: Sequence[str] | None = None) -> list[
     in order, among the default ones or those named in ``chosen`` (opt-in ones too: docs/modern-features.md),
     then the generic family of each generic channel and of a vibration below 1 kHz."""
     found = []
+    kinds = _generic_kinds(chosen)
+    chosen = None if chosen is None else [n for n in chosen if n in ROLE_REGISTRY]
     for family in ROLE_REGISTRY.chosen(chosen):
         if family.role in IMAGE_ROLES:
             applies = recording.image(family.role) is not None
@@ -491,6 +512,11 @@ def families(recording: Recording, chosen: Sequence[str] | None = None) -> list[
         for second, second_trace in slow[k + 1:]:
             if math.isclose(trace.fs, second_trace.fs, rel_tol=1e-6):
                 found.append(ratio_family(role, second, _width(trace), _width(second_trace)).name)
+    for kind in kinds:
+        for role in sorted(r for r in recording.roles if is_generic(r)):
+            family, trace = GENERIC_KINDS[kind](role), recording.role(role)
+            if trace is not None and family.applies(trace.fs):
+                found.append(family.name)
     return found
 
 
@@ -671,20 +697,20 @@ def _applied(present: set[str], chosen: Sequence[str] | None = None) -> tuple[st
     the columns it has)."""
     widest: dict[tuple[str, str], int] = {}
     unregistered = present - {f.name for f in ROLE_REGISTRY.every}
-    for name in unregistered - {n for n in unregistered if n.startswith("ratio.")}:
+    for name in {n for n in unregistered if not _as_is(n)}:
         family, kind = _family(name), name.partition(".")[0]
         per_column = len(SLOW_NAMES if kind == "slow" else SIGNAL_NAMES)
         widest[kind, family.role] = max(widest.get((kind, family.role), 0), len(family.columns) // per_column)
     made = {"generic": generic_family, "slow": slow_family}
     return (*(f.name for f in ROLE_REGISTRY.chosen(chosen) if f.name in present),
             *(made[kind](role, width).name for (kind, role), width in sorted(widest.items())),
-            *sorted(n for n in unregistered if n.startswith("ratio.")))
+            *sorted(n for n in unregistered if _as_is(n)))
 
 
 def _has(own: Sequence[str], name: str) -> bool:
     """Whether families ``own`` (a recording's) cover ``name``: by name, or a generic or slow family by its
     kind and role."""
-    if name in ROLE_REGISTRY or name.startswith("ratio."):
+    if name in ROLE_REGISTRY or _as_is(name):
         return name in own
     kind, role = name.partition(".")[0], _family(name).role
     return any(f not in ROLE_REGISTRY and f.partition(".")[0] == kind and _family(f).role == role for f in own)
@@ -692,8 +718,7 @@ def _has(own: Sequence[str], name: str) -> bool:
 
 def _own(recording: Recording, applied: Sequence[str]) -> list[str]:
     """The families of a recording that cover one of ``applied``."""
-    registered = [name for name in applied if name in ROLE_REGISTRY]
-    return [f for f in families(recording, registered) if any(_has([f], name) for name in applied)]
+    return [f for f in families(recording, list(applied)) if any(_has([f], name) for name in applied)]
 
 
 def lacking(recordings: Sequence[Recording], found: Sequence[Sequence[str]], applied: Sequence[str],

@@ -105,7 +105,7 @@ def test_scattering_is_kymatio_on_the_slide_signal(scan, values):
     np.testing.assert_array_equal(got, expected)
 
 
-@pytest.mark.parametrize("length", [3000, 2048, 1024])
+@pytest.mark.parametrize("length", [3000, 2048, 1024, 512])
 def test_scattering_names_follow_kymatios_coefficients(length):
     order = np.asarray(modern.scattering_transform(length).meta()["order"])
     names = modern.scattering_names(length)
@@ -279,3 +279,46 @@ def test_walked_selection_equals_the_whole_matrix_selection():
     np.testing.assert_allclose(walked, rho[np.ix_(expected, expected)], rtol=0, atol=1e-12)
 
 
+
+
+def _robot_run(label: str, rng: np.random.Generator) -> Recording:
+    """A terrain run: a 3-axis gyroscope at 100 Hz and a 2-column wheel current at 6.5 Hz, 12 s."""
+    gyro = rng.normal(size=(1200, 3)) * (1.0 if label == "snow" else 0.3)
+    current = 2.0 + 0.1 * rng.normal(size=(78, 2))
+    return Recording(f"{label}-{rng.integers(1 << 30)}", {"gyro": Trace(gyro, 100.0, "rad/s"),
+                                                          "current": Trace(current, 6.5, "A")},
+                     {"signal_gyro": "gyro", "signal_current": "current"}, label)
+
+
+def test_modern_families_run_on_a_generic_channel_but_not_on_one_at_a_few_hz():
+    from features.recordings import Windowing
+
+    recording = _robot_run("snow", np.random.default_rng(5))
+    chosen = feature_sets.role_families_for(["fusion"])
+    space, notes = feature_space([recording], Windowing(5.0, "rows"), chosen=chosen)
+    assert notes == [] and len(space) == 2
+    columns = list(space.columns)
+    for kind, width in (("catch22", 22), ("scattering", len(modern.scattering_names(512))),
+                        ("signal", modern.GENERIC_RULE.samples)):
+        assert sum(c.startswith(f"{kind}.signal_gyro.") for c in columns) == width
+        assert not any(c.startswith(f"{kind}.signal_current.") for c in columns)  # 6.5 Hz: the slow family's
+    # catch22 of the first 5 s window: its three axes, each minus its mean, combined by DFT321, one 512-sample
+    # instance zero-padded at its end (four spread over a window that short are the same instance).
+    window = recording.channels["gyro"].data[:500]
+    combined = np.pad(dft321(window - window.mean(axis=0)), (0, 12))
+    expected = pycatch22.catch22_all(combined.tolist())["values"]
+    got = space.X[0, [columns.index(f"catch22.signal_gyro.{name}") for name in modern.CATCH22_NAMES]]
+    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-12)
+
+
+def test_minirocket_reads_a_generic_channels_signal_by_its_rule():
+    from features.random_kernels import signal_rule
+    from taxonomy.learning.evaluation import evaluate_grid
+
+    assert signal_rule("signal_gyro") == modern.GENERIC_RULE
+    rng = np.random.default_rng(6)
+    space, _ = feature_space([_robot_run(label, rng) for label in ("snow", "ice") for _ in range(5)],
+                             chosen=feature_sets.role_families_for(["minirocket"]))
+    result, = evaluate_grid(space, classifiers=["lda"], set_sizes=[None], feature_sets={"minirocket": "minirocket"},
+                            calibrate=False, group_by="recording", workers=1)
+    assert result.accuracy_pooled >= 0.9  # the gyroscope's level of noise tells the two apart
