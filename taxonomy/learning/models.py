@@ -94,6 +94,15 @@ _META_TYPES: dict[str, type | tuple[type, ...]] = {
 }
 
 
+MAX_MODEL_BYTES = 1 << 29
+"""The most a model file's arrays may take once unpacked (512 MiB, every member of the archive counted, read
+from the archive's directory before anything is unpacked): a small file cannot make loading take gigabytes."""
+MAX_TREES = 10_000
+"""The most trees a forest in a model file may have."""
+MAX_TREE_NODES = 1 << 22
+"""The most nodes one tree in a model file may have (4.2 million; the demo's trees have a few hundred)."""
+
+
 class ModelError(TexplorerError, ValueError):
     """A model file that cannot be used, or feature values a model cannot classify; one line saying why."""
 
@@ -288,6 +297,7 @@ def load_model(path: str | os.PathLike[str]) -> TrainedModel:
     except OSError as exc:
         raise ModelError(f"{path}: cannot read the model file ({exc.strerror or exc})") from None
     _check_types(path, data)
+    _check_unpacked_size(path, data)
     try:
         payload = _skops().loads(data, trusted=list(TRUSTED_TYPES))
     except Exception as exc:  # skops raises many types for damaged archives
@@ -311,6 +321,18 @@ def _check_types(path: Path, data: bytes) -> None:
     if foreign:
         raise ModelError(f"{path}: refused, it holds types a texplorer model never contains: "
                          f"{', '.join(foreign[:5])}")
+
+
+def _check_unpacked_size(path: Path, data: bytes) -> None:
+    """Refuse an archive whose members would unpack to more than :data:`MAX_MODEL_BYTES` (the sizes its
+    directory declares; the zip reader stops a member at its declared size), before any array is made."""
+    import io
+
+    with zipfile.ZipFile(io.BytesIO(data)) as archive:
+        unpacked = sum(info.file_size for info in archive.infolist())
+    if unpacked > MAX_MODEL_BYTES:
+        raise ModelError(f"{path}: refused, its arrays would take {unpacked / 2**20:,.0f} MiB once unpacked "
+                         f"(a model may take at most {MAX_MODEL_BYTES >> 20} MiB)")
 
 
 def _first_line(exc: BaseException) -> str:
@@ -363,8 +385,10 @@ def _rule_from(path: Path, stored: Any, pipeline: Pipeline) -> RejectionRule:
             or not (np.isfinite(means).all() and np.isfinite(precision).all()):
         raise ModelError(f"{path}: the open-set class means and precision must be finite, of "
                          f"{len(pipeline.classes_)} classes x {width} selected features")
-    if not stored["distance_scale"] > 0 or math.isnan(stored["threshold"]):
-        raise ModelError(f"{path}: the open-set distance scale must be positive and the threshold a number")
+    if not (math.isfinite(stored["distance_scale"]) and stored["distance_scale"] > 0) \
+            or not math.isfinite(stored["threshold"]):
+        raise ModelError(f"{path}: the open-set distance scale must be a positive number and the threshold a "
+                         f"finite one, got {stored['distance_scale']!r} and {stored['threshold']!r}")
     return RejectionRule(means, precision, stored["distance_scale"], stored["threshold"], stored["max_accuracy_drop"],
                          stored["inner_auroc"])
 
@@ -387,6 +411,107 @@ def _check_pipeline(path: Path, pipeline: Any) -> None:
         raise ModelError(f"{path}: the classifier's calibration in the file is not fitted")
     if not all(hasattr(step, "n_features_in_") for step in (scale, select, classify)):
         raise ModelError(f"{path}: the pipeline in the file is not fitted")
+    _check_fitted_values(path, pipeline, scale, select, classify)
+
+
+def _check_fitted_values(path: Path, pipeline: Pipeline, scale: MinMaxScaler, select: FQSelector,
+                         classify: Any) -> None:
+    """Refuse fitted parameters that prediction cannot use safely, whoever wrote the file: a NaN or infinite
+    scale or weight (oak named "100 % metal"), a calibration temperature that is not a positive number, a
+    selector index outside its input, and trees or neighbour indexes whose arrays point outside themselves
+    (scikit-learn's compiled prediction follows them unchecked: a crash or an endless loop)."""
+    width = int(select.n_features_in_)
+    for name in ("scale_", "min_"):
+        values = np.asarray(getattr(scale, name, np.nan), dtype=np.float64)
+        if values.shape != (scale.n_features_in_,) or not np.isfinite(values).all():
+            raise ModelError(f"{path}: the scaler's {name} must hold {scale.n_features_in_} finite numbers")
+    selected = np.asarray(getattr(select, "selected_", ()))
+    if (selected.dtype.kind not in "iu" or selected.ndim != 1 or np.unique(selected).size != selected.size
+            or np.any(selected < 0) or np.any(selected >= width)):
+        raise ModelError(f"{path}: the selector's selected_ must be distinct column indices below {width}")
+    calibrated = pipeline.steps[-1][1]
+    if isinstance(calibrated, TemperatureScaledClassifier):
+        beta = calibrated.beta_
+        if not (math.isfinite(beta) and beta > 0):
+            raise ModelError(f"{path}: the calibration temperature must be a positive number, got {beta!r}")
+    inputs = int(classify.n_features_in_)
+    if inputs != selected.size:
+        raise ModelError(f"{path}: the classifier reads {inputs} features, the selector keeps {selected.size}")
+    bad = _non_finite(classify, type(classify).__name__)
+    if bad:
+        raise ModelError(f"{path}: the classifier's {bad} must be finite numbers")
+    forest = getattr(classify, "estimators_", None)
+    if forest is not None:
+        if len(forest) > MAX_TREES:
+            raise ModelError(f"{path}: a forest of {len(forest)} trees (at most {MAX_TREES})")
+        for k, estimator in enumerate(forest):
+            _check_tree(path, f"tree {k}", estimator.tree_, inputs, len(classify.classes_))
+    index = getattr(classify, "_tree", None)
+    if index is not None:
+        _check_index(path, index, inputs)
+    points = getattr(classify, "_fit_X", None)
+    if points is not None and (np.ndim(points) != 2 or np.shape(points)[1] != inputs
+                               or not np.isfinite(points).all()):
+        raise ModelError(f"{path}: the neighbour classifier's points must be finite, of {inputs} features")
+
+
+def _non_finite(estimator: Any, name: str, depth: int = 0) -> str | None:
+    """The first fitted float parameter of ``estimator`` (attributes ``*_``, lists of arrays) that holds NaN
+    or infinity, as ``SVC.dual_coef_``; None when every one is finite."""
+    for key, value in vars(estimator).items():
+        if not key.endswith("_") or key.startswith("_") or key == "estimators_":
+            continue
+        values = value if isinstance(value, list | tuple) else [value]
+        for item in values:
+            if isinstance(item, float | np.floating) and not math.isfinite(item):
+                return f"{name}.{key}"
+            if isinstance(item, np.ndarray) and item.dtype.kind == "f" and not np.isfinite(item).all():
+                return f"{name}.{key}"
+    return None
+
+
+def _check_tree(path: Path, where: str, tree: Any, inputs: int, classes: int) -> None:
+    """A fitted tree's node arrays, checked as scikit-learn's builder makes them: every inner node's two
+    children after it and inside the tree (so every path ends at a leaf), its split feature below the
+    model's input width and its threshold finite, every leaf's values finite, at most
+    :data:`MAX_TREE_NODES` nodes."""
+    count = int(tree.node_count)
+    if not 0 < count <= MAX_TREE_NODES:
+        raise ModelError(f"{path}: {where} has {count:,} nodes (1 to {MAX_TREE_NODES:,})")
+    state = tree.__getstate__()
+    nodes, values = state["nodes"], np.asarray(state["values"])
+    if nodes.shape != (count,) or values.shape[0] != count or int(tree.n_features) != inputs \
+            or values.shape[-1] != classes:
+        raise ModelError(f"{path}: {where}'s arrays do not match its {count} nodes, {inputs} inputs and "
+                         f"{classes} classes")
+    left, right = nodes["left_child"], nodes["right_child"]
+    leaf = left == -1
+    inner = np.flatnonzero(~leaf)
+    if np.any(leaf != (right == -1)) or np.any(left[inner] <= inner) or np.any(right[inner] <= inner) \
+            or np.any(left[inner] >= count) or np.any(right[inner] >= count):
+        node = int(inner[0]) if inner.size else 0
+        raise ModelError(f"{path}: {where}: a child index points back, to itself or outside the {count} "
+                         f"nodes (from node {node} on)")
+    feature = nodes["feature"][inner]
+    if np.any(feature < 0) or np.any(feature >= inputs):
+        raise ModelError(f"{path}: {where} splits on feature {int(feature[(feature < 0) | (feature >= inputs)][0])} "
+                         f"of a model with {inputs} inputs")
+    if not np.isfinite(nodes["threshold"][inner]).all() or not np.isfinite(values).all():
+        raise ModelError(f"{path}: {where}'s thresholds and leaf values must be finite")
+
+
+def _check_index(path: Path, index: Any, inputs: int) -> None:
+    """A neighbour classifier's KD-tree: its points finite and of the model's width, its index array a
+    permutation of them, its node ranges inside it."""
+    data, order, nodes, _ = index.get_arrays()
+    data, order = np.asarray(data), np.asarray(order)
+    if data.ndim != 2 or data.shape[1] != inputs or not np.isfinite(data).all() \
+            or np.sort(order).tolist() != list(range(data.shape[0])):
+        raise ModelError(f"{path}: the neighbour index's points or order do not fit its {inputs} inputs")
+    ranges = np.asarray(nodes)
+    if ranges.size and (np.any(ranges["idx_start"] < 0) or np.any(ranges["idx_end"] > data.shape[0])
+                        or np.any(ranges["idx_start"] > ranges["idx_end"])):
+        raise ModelError(f"{path}: the neighbour index's nodes point outside its {data.shape[0]} points")
 
 
 def _check_consistent(path: Path, payload: dict[str, Any], pipeline: Pipeline) -> None:

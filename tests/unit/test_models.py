@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import warnings
+import zipfile
 from dataclasses import replace
 from pathlib import Path
 
@@ -197,3 +198,78 @@ def test_unselected_features_may_be_undefined(space, model):
     del holes["audio.tool.zcr"]
     assert predict_top(model, holes) == predict_top(model, values)
 
+
+
+# -- fitted values checked on load: files from strangers -------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def forest(space) -> TrainedModel:
+    return train_model(space, level="fine", n_features=2, classifier="rf")
+
+
+def tampered(model: TrainedModel, folder: Path, change) -> Path:
+    """A genuine model file, loaded as skops loads it, changed by ``change(payload)`` and written back."""
+    from taxonomy.learning.models import TRUSTED_TYPES
+
+    genuine = save_model(model, folder / "genuine.skops")
+    payload = skops.io.loads(genuine.read_bytes(), trusted=list(TRUSTED_TYPES))
+    change(payload)
+    path = folder / "tampered.skops"
+    path.write_bytes(skops.io.dumps(payload, compression=zipfile.ZIP_DEFLATED))
+    return path
+
+
+def _first_tree(payload):
+    return payload["pipeline"].steps[-1][1].estimator_.estimators_[0].tree_
+
+
+def _set(array, index, value):
+    array[index] = value
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    (lambda p: _set(_first_tree(p).children_left, 0, 2**40),
+     r"tree 0: a child index points back, to itself or outside the \d+ nodes"),
+    (lambda p: _set(_first_tree(p).children_left, 0, 0), "tree 0: a child index points back, to itself"),
+    (lambda p: _set(_first_tree(p).feature, 0, 10**9), "tree 0 splits on feature 1000000000 of a model with 2"),
+    (lambda p: _set(_first_tree(p).threshold, 0, np.nan), "tree 0's thresholds and leaf values must be finite"),
+    (lambda p: setattr(p["pipeline"].steps[-1][1], "beta_", float("nan")),
+     "the calibration temperature must be a positive number, got nan"),
+    (lambda p: _set(p["pipeline"].named_steps["scale"].scale_, slice(None), np.nan),
+     "the scaler's scale_ must hold 6 finite numbers"),
+    (lambda p: p["open_set"].update(threshold=float("-inf")), "the threshold a finite one, got .* and -inf"),
+    (lambda p: _set(p["pipeline"].named_steps["select"].selected_, 0, 99), "selected_ must be distinct column"),
+])
+def test_a_model_with_parameters_prediction_cannot_use_is_refused_naming_the_part(forest, tmp_path, change,
+                                                                                  message):
+    path = tampered(forest, tmp_path, change)
+    with pytest.raises(ModelError, match=message) as refused:
+        load_model(path)
+    assert str(refused.value).startswith(f"{path}: ") and "\n" not in str(refused.value)
+
+
+def test_a_neighbour_model_with_an_index_outside_its_points_is_refused(space, tmp_path):
+    knn = train_model(space, level="fine", n_features=2, classifier="knn")
+    load_model(save_model(knn, tmp_path / "knn.skops"))  # genuine: loads
+
+    def outside(payload):
+        points = payload["pipeline"].steps[-1][1].estimator_
+        points._fit_X[0, 0] = np.inf
+
+    with pytest.raises(ModelError, match="neighbour"):
+        load_model(tampered(knn, tmp_path, outside))
+
+
+def test_a_small_file_that_would_unpack_to_more_than_the_limit_is_refused_before_loading(forest, tmp_path,
+                                                                                         monkeypatch):
+    from taxonomy.learning import models
+
+    genuine = save_model(forest, tmp_path / "genuine.skops")
+    load_model(genuine)
+    # The rule at a size a test can hold: a zeros array of 8 MiB (a few kB compressed) against 4 MiB.
+    monkeypatch.setattr(models, "MAX_MODEL_BYTES", 4 << 20)
+    path = tampered(forest, tmp_path, lambda p: p.update(dropped=np.zeros(1 << 20)))
+    assert path.stat().st_size < 1 << 20
+    with pytest.raises(ModelError, match=r"refused, its arrays would take 1\d MiB once unpacked \(a model may take "
+                                         r"at most 4 MiB\)"):
+        load_model(path)
