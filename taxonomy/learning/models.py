@@ -487,11 +487,12 @@ def _check_tree(path: Path, where: str, tree: Any, inputs: int, classes: int) ->
     left, right = nodes["left_child"], nodes["right_child"]
     leaf = left == -1
     inner = np.flatnonzero(~leaf)
-    if np.any(leaf != (right == -1)) or np.any(left[inner] <= inner) or np.any(right[inner] <= inner) \
-            or np.any(left[inner] >= count) or np.any(right[inner] >= count):
-        node = int(inner[0]) if inner.size else 0
+    wrong = (leaf != (right == -1))
+    wrong[inner] |= (left[inner] <= inner) | (right[inner] <= inner) | (left[inner] >= count) | (right[inner] >= count)
+    if wrong.any():
+        node = int(np.flatnonzero(wrong)[0])
         raise ModelError(f"{path}: {where}: a child index points back, to itself or outside the {count} "
-                         f"nodes (from node {node} on)")
+                         f"nodes (node {node}: children {int(left[node])} and {int(right[node])})")
     feature = nodes["feature"][inner]
     if np.any(feature < 0) or np.any(feature >= inputs):
         raise ModelError(f"{path}: {where} splits on feature {int(feature[(feature < 0) | (feature >= inputs)][0])} "
