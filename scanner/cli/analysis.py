@@ -254,11 +254,26 @@ code version and the recordings it read, so ``evaluate set:NAME`` can tell wheth
 
 
 def recordings_fingerprint(folder: Path) -> str:
-    """A hash of the set's recording files (name, size, modification time): a re-ingested set differs."""
+    """A hash of the set's recording files' stat records: name, size, modification time, inode and inode
+    change time. The change time is the kernel's: an edit of the same size whose modification time is put
+    back (``cp -p``, ``rsync -t``, ``touch -r``, a backup restored) still changes it."""
     digest = hashlib.sha256()
     for path in sorted(folder.glob("*.mat")):
         stat = path.stat()
-        digest.update(f"{path.name}\0{stat.st_size}\0{stat.st_mtime_ns}\n".encode())
+        digest.update(f"{path.name}\0{stat.st_size}\0{stat.st_mtime_ns}\0{stat.st_ino}\0{stat.st_ctime_ns}\n"
+                      .encode())
+    return digest.hexdigest()
+
+
+def recordings_content(folder: Path) -> str:
+    """A hash of the set's recording files' names and contents: what a feature table was computed from.
+    Asked only when the stat records differ (a set copied, restored or touched), so an unchanged set is not
+    read in full."""
+    digest = hashlib.sha256()
+    for path in sorted(folder.glob("*.mat")):
+        digest.update(f"{path.name}\0".encode())
+        with path.open("rb") as stream:
+            digest.update(hashlib.file_digest(stream, "sha256").digest())
     return digest.hexdigest()
 
 
@@ -288,6 +303,8 @@ def stored_set_table(args: argparse.Namespace, folder: Path) -> tuple[Path | Non
         return None, f"extracting the features ({written} cannot be read)"
     wanted = set_table_options(args, folder)
     differ = [OPTION_WORDS[key] for key in wanted if stored.get(key) != wanted[key]]
+    if differ == [OPTION_WORDS["recordings"]] and stored.get("content") == recordings_content(folder):
+        differ = []  # the files were copied or touched, not changed: their contents prove it
     if differ:
         return None, f"extracting the features ({table} was written with other {', '.join(differ)})"
     return table, f"using {table} (written by 'texplorer features {args.dataset}' with the same options)"
@@ -300,7 +317,8 @@ def cmd_set_features(args: argparse.Namespace) -> int:
     out = args.out or folder / SET_TABLE
     print(f"wrote {space.to_csv(out)}")
     if args.out is None:
-        atomic_write_bytes(folder / SET_TABLE_OPTIONS, json.dumps(set_table_options(args, folder)).encode())
+        atomic_write_bytes(folder / SET_TABLE_OPTIONS, json.dumps(
+            {**set_table_options(args, folder), "content": recordings_content(folder)}).encode())
     if args.mat:
         print(f"wrote {space.to_mat(args.mat)}")
     return 0

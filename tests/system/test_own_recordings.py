@@ -243,6 +243,39 @@ def test_evaluate_uses_the_sets_table_written_with_the_same_options(tmp_path, ca
     assert table(again) == table(same)
 
 
+def test_a_set_table_is_reused_only_while_the_recordings_hold_what_it_was_computed_from(tmp_path, capsys):
+    import os
+    import shutil
+
+    root, db = tmp_path / "sounds", tmp_path / "db"
+    write_sounds(root, {(m, o): m for m in SOUND_CLASSES for o in range(6)})
+    (tmp_path / "sounds.toml").write_text(SOUND_MAPPING)
+    cli(capsys, "ingest", root, "--mapping", tmp_path / "sounds.toml", "--db", db)
+    cli(capsys, "features", "set:sounds", "--db", db)
+    folder = set_folder(db, "sounds")
+    quick = ("--classifier", "nb", "--n", "3", "--level", "material", "--workers", 1)
+    using = f"set:sounds: using {folder / 'features.csv'}"
+    assert using in cli(capsys, "evaluate", "set:sounds", "--db", db, *quick)
+    # The whole set copied as a backup restore does (cp -p: new inodes, times put back): contents equal.
+    shutil.copytree(folder, tmp_path / "backup", copy_function=shutil.copy2)
+    shutil.rmtree(folder)
+    shutil.copytree(tmp_path / "backup", folder, copy_function=shutil.copy2)
+    assert using in cli(capsys, "evaluate", "set:sounds", "--db", db, *quick)
+    # One recording edited in place, same size, its modification time put back (rsync -t, touch -r): here
+    # a letter of the MAT header's descriptive text, so the file stays readable and only its bytes tell.
+    victim = sorted(folder.glob("*.mat"))[0]
+    stat = victim.stat()
+    data = bytearray(victim.read_bytes())
+    assert data[:6] == b"MATLAB"
+    data[1] = ord("a")
+    victim.write_bytes(bytes(data))
+    os.utime(victim, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    assert victim.stat().st_size == stat.st_size and victim.stat().st_mtime_ns == stat.st_mtime_ns
+    out = cli(capsys, "evaluate", "set:sounds", "--db", db, *quick)
+    assert f"set:sounds: extracting the features ({folder / 'features.csv'} was written with other the " \
+           "recordings)" in out
+
+
 def test_a_set_with_the_modern_families(tmp_path, capsys):
     """features and evaluate of set:NAME with --feature-set: the modern columns are extracted only when
     asked for, and each set, alone and fused, is evaluated on the same folds and shown side by side."""
