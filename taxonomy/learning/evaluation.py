@@ -270,11 +270,31 @@ def drop_nan_columns(space: FeatureSpace) -> tuple[FeatureSpace, tuple[str, ...]
     has_nan = np.isnan(space.X).any(axis=0)
     dropped = tuple(c for c, bad in zip(space.columns, has_nan, strict=True) if bad)
     if not dropped:
-        return space, ()
+        return check_degenerate(space), ()
     kept = [c for c, bad in zip(space.columns, has_nan, strict=True) if not bad]
     if not kept:
-        return _without_rows(space, np.isnan(space.X).any(axis=1), "hold NaN in some column"), ()
-    return space.subset(kept), dropped
+        return check_degenerate(_without_rows(space, np.isnan(space.X).any(axis=1), "hold NaN in some column")), ()
+    return check_degenerate(space.subset(kept)), dropped
+
+
+def check_degenerate(space: FeatureSpace, first: int = 3) -> FeatureSpace:
+    """``space`` itself if its values can be scaled and tell rows apart; else an :class:`EvaluationError`
+    saying what is wrong with the data: a column whose values are infinite or span more than float64 holds
+    (+-1e308: the scaler's range overflows and every value becomes NaN), or every column constant."""
+    X = space.X
+    with np.errstate(over="ignore", invalid="ignore"):
+        span = X.max(axis=0) - X.min(axis=0) if X.size else np.zeros(X.shape[1])
+    overflowing = np.flatnonzero(~np.isfinite(span))
+    if overflowing.size:
+        shown = ", ".join(f"{space.columns[k]} ({X[:, k].min():.3g} to {X[:, k].max():.3g})"
+                          for k in overflowing[:first])
+        raise EvaluationError(f"{overflowing.size} feature column(s) hold infinite values or span more than a "
+                              f"64-bit float can scale: {shown}; check the data's units or scale")
+    if X.shape[1] and not np.any(span > 0):
+        raise EvaluationError(f"every one of the {X.shape[1]} feature column(s) is constant over the "
+                              f"{X.shape[0]} rows ({space.columns[0]} = {X[0, 0]:.6g}, ...): no feature can tell "
+                              "the classes apart")
+    return space
 
 
 def _without_rows(space: FeatureSpace, bad: np.ndarray, why: str, first: int = 3) -> FeatureSpace:

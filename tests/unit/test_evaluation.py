@@ -309,3 +309,29 @@ def test_levels_of_one_space_share_the_split_policy():
     assert not grouped
     _, grouped_alone = cv_splits(coarse, groups, folds=2, seed=0)
     assert grouped_alone  # each major class has two samples: on its own the coarse level could be grouped
+
+
+def _two_materials(X: np.ndarray) -> FeatureSpace:
+    n = X.shape[0]
+    return FeatureSpace(X, ("other.density", "other.metal", "tactum.matx"), tuple(f"x{i}" for i in range(n)),
+                        tuple(("C6S1M1P2X1", "C7S1M1P1X1")[i % 2] for i in range(n)),
+                        tuple(f"s{i % 6}" for i in range(n)))
+
+
+def test_constant_or_overflowing_features_are_named_instead_of_a_library_error():
+    from taxonomy.learning.evaluation import EvaluationError, evaluate
+
+    with pytest.raises(EvaluationError, match=r"every one of the 3 feature column\(s\) is constant over the 24 "
+                                              r"rows \(other.density = 1, ...\): no feature can tell the classes"):
+        evaluate(_two_materials(np.ones((24, 3))), classifier="lda", level="fine", n_features=2)
+    # +-1e308: the scaler's range (max - min) overflows to inf, and every scaled value becomes NaN.
+    rng = np.random.default_rng(0)
+    huge = rng.normal(size=(24, 3))
+    huge[:, 1] = np.where(np.arange(24) % 2, -1e308, 1e308) * (1 - 0.1 * rng.random(24))
+    with pytest.raises(EvaluationError, match=r"1 feature column\(s\) hold infinite values or span more than "
+                                              r"a 64-bit float can scale: other.metal \(-9.\d+e\+307 to "
+                                              r"9.\d+e\+307\); check the data's units or scale"):
+        evaluate(_two_materials(huge), classifier="lda", level="fine", n_features=2)
+    usable = huge.copy()
+    usable[:, 1] /= 1e300  # the same data in other units: evaluated
+    assert evaluate(_two_materials(usable), classifier="lda", level="fine", n_features=1).accuracy_pooled == 1.0
