@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from scanner.cli.base import EXIT_PROBLEMS, add_db_option, open_db, progress, table_lines
 
@@ -46,6 +47,11 @@ def cmd_db_show(args: argparse.Namespace) -> int:
 
 
 def cmd_db_check(args: argparse.Namespace) -> int:
+    from scanner.storage.database import CATALOG, RECORDINGS, SCANS
+
+    root = Path(args.db)
+    if (root / RECORDINGS).is_dir() and not (root / CATALOG).is_file() and not (root / SCANS).is_dir():
+        return _check_recordings_only(root, args.repair)
     db = open_db(args)
     if args.repair:
         for path in db.repair():
@@ -59,6 +65,24 @@ def cmd_db_check(args: argparse.Namespace) -> int:
           f"{len(report.unknown)} unknown" + (f"; {len(report.leftovers)} crash leftover(s), which "
                                               "'texplorer db check --repair' removes" if report.leftovers else ""))
     return 0 if report.ok else EXIT_PROBLEMS
+
+
+def _check_recordings_only(root: Path, repair: bool) -> int:
+    """``db check`` of a folder that holds recording sets and no scans: the leftovers of killed ingests and
+    trainings, removed with ``--repair``."""
+    from scanner.storage.database import RECORDINGS, recording_leftovers, repair_recordings
+
+    if repair:
+        for line in repair_recordings(root):
+            print(f"removed  {line}")
+    leftovers = recording_leftovers(root)
+    for path in leftovers:
+        print(f"leftover {path}")
+    sets = sorted(p.name for p in (root / RECORDINGS).iterdir() if p.is_dir() and not p.name.startswith("."))
+    print(f"{root}: recording sets only ({len(sets)}: {', '.join(sets[:5]) or 'none'}), no scans to check"
+          + (f"; {len(leftovers)} crash leftover(s), which 'texplorer db check --repair' removes" if leftovers
+             else ""))
+    return 0  # leftovers are not damage (as for a scan database): listed, and removed with --repair
 
 
 def cmd_db_rebuild(args: argparse.Namespace) -> int:

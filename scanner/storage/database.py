@@ -53,6 +53,7 @@ from scanner.storage.files import (
     is_temp_file,
     recover_swaps,
     sha256_file,
+    stale_temp_files,
     swap_leftovers,
     temp_path_for,
 )
@@ -67,6 +68,8 @@ SCANS = "scans"
 RECORDINGS = "recordings"
 """Imported recording sets (``texplorer ingest``, :mod:`scanner.storage.ingest`): checked for the leftovers
 of killed ingests, not catalogued."""
+MODELS = "models"
+"""Trained models (``texplorer train``, the demo's): checked for the temporary files of killed writes."""
 TAXONOMY = "taxonomy.csv"
 PENDING = ".pending"
 QUARANTINE = "quarantine"
@@ -662,6 +665,7 @@ class Database:
         report.unknown = [p for p in stored if p not in known and p not in leftovers]
         report.leftovers = sorted(leftovers) + [f"{folder.name}/" for folder in self._abandoned_staging()]
         report.leftovers += [f"{RECORDINGS}/{folder.name}/" for folder in swap_leftovers(self.root / RECORDINGS)]
+        report.leftovers += [f"{MODELS}/{path.name}" for path in stale_temp_files(self.root / MODELS)]
         return report
 
     def _leftovers(self, stored: list[str], catalogued: set[str], ids: set[str] | None) -> list[str]:
@@ -692,7 +696,8 @@ class Database:
         are not leftovers stay."""
         with self._transaction() as conn:
             removed = self._remove_leftovers(conn)
-        return removed + [f"{RECORDINGS}/{line}" for line in recover_swaps(self.root / RECORDINGS)]
+        return removed + [f"{RECORDINGS}/{line}" for line in recover_swaps(self.root / RECORDINGS)] + \
+            remove_stale_models(self.root)
 
     def _remove_leftovers(self, conn: sqlite3.Connection) -> list[str]:
         removed = self._discard_uncommitted(conn)
@@ -915,3 +920,29 @@ def _record(row: sqlite3.Row) -> ScanRecord:
     values = dict(row)
     values["rigid"] = bool(values["rigid"])
     return ScanRecord(**values)
+
+
+def recording_leftovers(root: str | os.PathLike[str]) -> list[str]:
+    """What killed ingests and trainings left in a database folder outside its catalog, as paths relative to
+    it: staging and swap folders of recording sets, temporary model files (:func:`stale_temp_files`). Works
+    on a folder holding only recording sets (no catalog)."""
+    root = Path(root)
+    return ([f"{RECORDINGS}/{folder.name}/" for folder in swap_leftovers(root / RECORDINGS)]
+            + [f"{MODELS}/{path.name}" for path in stale_temp_files(root / MODELS)])
+
+
+def remove_stale_models(root: str | os.PathLike[str]) -> list[str]:
+    """Remove the temporary files killed model writes left in ``<root>/models``; returns their paths."""
+    removed = []
+    for path in stale_temp_files(Path(root) / MODELS):
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
+            removed.append(f"{MODELS}/{path.name}")
+    return removed
+
+
+def repair_recordings(root: str | os.PathLike[str]) -> list[str]:
+    """:meth:`Database.repair`'s part outside the catalog, for a folder holding only recording sets: finish
+    or undo interrupted set replacements and remove stale model temporaries; returns what was done."""
+    root = Path(root)
+    return [f"{RECORDINGS}/{line}" for line in recover_swaps(root / RECORDINGS)] + remove_stale_models(root)

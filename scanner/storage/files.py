@@ -14,6 +14,7 @@ import re
 import secrets
 import shutil
 import sqlite3
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import BinaryIO
@@ -32,6 +33,32 @@ def is_temp_file(path: Path) -> bool:
     """True for a name :func:`temp_path_for` makes: the temporary file (or folder) of a write in progress or
     interrupted by a crash."""
     return bool(_TEMP_NAME.fullmatch(path.name))
+
+
+STALE_TEMP_S = 600.0
+"""A temporary file of :func:`atomic_writer` untouched for this long is a leftover of a killed writer: a
+write holds its temporary file for the time of writing and one fsync (a model file: well under a second)."""
+
+
+def stale_temp_files(folder: str | os.PathLike[str], name: str | None = None,
+                     older_than_s: float = STALE_TEMP_S) -> list[Path]:
+    """Temporary files of killed atomic writes in ``folder`` (of the target ``name`` only, if given): named
+    by :func:`temp_path_for` and not modified for ``older_than_s`` seconds, so a write in progress is left
+    alone."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return []
+    now = time.time()
+    found = []
+    for path in sorted(folder.iterdir()):
+        if not (path.is_file() and is_temp_file(path)):
+            continue
+        if name is not None and not path.name.startswith(f".{name}{TEMP_MARK}"):
+            continue
+        with contextlib.suppress(OSError):
+            if now - path.stat().st_mtime >= older_than_s:
+                found.append(path)
+    return found
 
 
 @contextlib.contextmanager
@@ -155,7 +182,7 @@ def swap_in(content: Path, target: Path) -> None:
     new = target.with_name(f".{target.name}.new-{token}")
     old = target.with_name(f".{target.name}.old-{token}")
     with _swap_lock(target.parent):
-        _recover(target.parent, target.name)
+        _recover(target.parent)  # every set's: a killed ingest of another set leaves nothing behind either
         os.replace(content, new)
         fsync_dir(target.parent)
         if target.exists():

@@ -24,6 +24,7 @@ refused with a one-line :class:`ModelError` naming the file and the reason.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import warnings
@@ -43,7 +44,7 @@ from features import feature_sets
 from features.random_kernels import SIGNAL_PREFIX, RandomKernels
 from features.selection import FQSelector
 from features.space import FeatureSpace
-from scanner.storage.files import atomic_write_bytes
+from scanner.storage.files import atomic_write_bytes, stale_temp_files
 from scanner.version import __version__
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import LEVELS, check_level
@@ -239,7 +240,8 @@ def _skops() -> ModuleType:
 
 
 def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
-    """Write ``model`` to ``path`` as a skops archive, atomically (temp file + fsync + rename).
+    """Write ``model`` to ``path`` as a skops archive, atomically (temp file + fsync + rename); the temporary
+    files of earlier writes of ``path`` that were killed (untouched for 10 minutes) are removed.
 
     Parameters
     ----------
@@ -272,6 +274,9 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
     _check_types(path, data)
     _model_from(path, _skops().loads(data, trusted=list(TRUSTED_TYPES)))
     atomic_write_bytes(path, data)
+    for stale in stale_temp_files(path.parent, path.name):  # a train killed at its rename left it
+        with contextlib.suppress(FileNotFoundError):
+            stale.unlink()
     return path
 
 
