@@ -567,6 +567,29 @@ def start_workers_from_a_server() -> None:
     _SERVER["context"] = context
 
 
+def revive_worker_server() -> bool:
+    """Start the worker server again if its socket was deleted (a ``/tmp`` cleaner removes a file it has not
+    seen used for days): the server still runs but no worker can be started from it, and every pool would
+    fail. Stops the orphaned server and starts a new one at a new socket; True if it did. (A killed server
+    is restarted by multiprocessing itself.)"""
+    if _SERVER["context"] is None or _SERVER["context"].get_start_method() != "forkserver":
+        return False
+    from multiprocessing import forkserver, util  # noqa: PLC0415 (only where it exists)
+
+    server = forkserver._forkserver  # multiprocessing's one instance; its state is what pools connect to
+    with server._lock:
+        address = server._forkserver_address
+        if server._forkserver_pid is None or address is None or util.is_abstract_socket_namespace(address) \
+                or os.path.exists(address):
+            return False
+        os.close(server._forkserver_alive_fd)  # the server ends when its "alive" pipe closes
+        with contextlib.suppress(ChildProcessError):
+            os.waitpid(server._forkserver_pid, 0)
+        server._forkserver_pid = server._forkserver_alive_fd = server._forkserver_address = None
+    server.ensure_running()
+    return True
+
+
 def _start_worker(parent: int | None, forked: bool) -> None:
     """A worker's first step: end with ``parent`` (None: the server that forked it, which ends with this
     process; :func:`scanner.processes.end_with_parent`), then keep the memory it frees. A worker not
@@ -584,6 +607,7 @@ def _forked_pool(workers: int) -> concurrent.futures.ProcessPoolExecutor:
     :func:`start_workers_from_a_server` was called."""
     server = _SERVER["context"]
     if server is not None:
+        revive_worker_server()
         return concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=server,
                                                       initializer=_start_worker, initargs=(None, False))
     give_back_free_memory()

@@ -1,5 +1,6 @@
 """What killed ingests and trainings leave behind: listed by ``db check``, removed by ``--repair`` or by the
-next run, also in a database folder that holds only recording sets."""
+next run, also in a database folder that holds only recording sets; and the worker server of a long-running
+process, whose socket a ``/tmp`` cleaner deleted, started again."""
 
 from __future__ import annotations
 
@@ -88,3 +89,30 @@ def test_the_next_ingest_of_any_set_removes_what_a_killed_one_left(tmp_path):
                                                      {"vibration": "v"}, "cork")])
     assert not staging.exists()
     assert sorted(p.name for p in (db / "recordings").iterdir() if not p.name.startswith(".swap")) == ["slides"]
+
+
+WORKER_SERVER_SCRIPT = """
+import os, sys
+from multiprocessing import forkserver
+from features import extraction
+
+extraction.start_workers_from_a_server()
+first = sorted(v for _, v in extraction.worker_map(abs, [-1, -2, -3, -4], workers=2))
+extraction.release_workers()
+address = forkserver._forkserver._forkserver_address
+os.unlink(address)  # what a /tmp cleaner does to a socket it has not seen used for days
+second = sorted(v for _, v in extraction.worker_map(abs, [-5, -6, -7, -8], workers=2))
+print(first, second, forkserver._forkserver._forkserver_address != address,
+      os.path.exists(forkserver._forkserver._forkserver_address))
+"""
+
+
+def test_the_worker_server_comes_back_after_its_socket_was_deleted():
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[2]
+    run = subprocess.run([sys.executable, "-c", WORKER_SERVER_SCRIPT], cwd=root, capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.split("\n")[0] == "[1, 2, 3, 4] [5, 6, 7, 8] True True", run.stdout
