@@ -290,3 +290,27 @@ def test_a_mapping_nested_beyond_the_parser_is_one_line(tmp_path):
     with pytest.raises(IngestError, match=r"^MAP.toml: not valid TOML \(nested more than") as info:
         ingest.parse_mapping("x = " + "[" * 100_000 + "]" * 100_000 + "\n", "m", "MAP.toml")
     assert "\n" not in str(info.value)
+
+
+def test_a_csv_line_longer_than_the_budget_is_refused_before_it_is_held(tmp_path):
+    import tracemalloc
+
+    from scanner.storage.ingest.readers import MAX_LINE_CHARS, read_table
+
+    path = tmp_path / "wide.csv"
+    fields = 16 * MAX_LINE_CHARS // 2  # 64 MiB of "1," on one line: 33.5 million fields
+    with path.open("w") as handle:
+        handle.write("t,p\n0,1\n")
+        for _ in range(16):
+            handle.write("1," * (MAX_LINE_CHARS // 2))
+        handle.write("\n")
+    tracemalloc.start()
+    try:
+        with pytest.raises(IngestError, match=rf"wide.csv: line 3 is longer than {MAX_LINE_CHARS:,} characters"):
+            read_table(path, ",", True)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    # At most one bounded line is held (4 MiB of text; the decoder's buffers as much again), never the
+    # 64 MiB line or its 33.5 million fields as strings (about 1.9 GB).
+    assert peak < 4 * MAX_LINE_CHARS, (peak, fields)
