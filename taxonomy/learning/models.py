@@ -390,10 +390,12 @@ def _rule_from(path: Path, stored: Any, pipeline: Pipeline) -> RejectionRule:
             or not (np.isfinite(means).all() and np.isfinite(precision).all()):
         raise ModelError(f"{path}: the open-set class means and precision must be finite, of "
                          f"{len(pipeline.classes_)} classes x {width} selected features")
+    # +inf is a rule that never rejects (no threshold could be learned); -inf would reject every scan.
     if not (math.isfinite(stored["distance_scale"]) and stored["distance_scale"] > 0) \
-            or not math.isfinite(stored["threshold"]):
+            or not stored["threshold"] > -math.inf:
         raise ModelError(f"{path}: the open-set distance scale must be a positive number and the threshold a "
-                         f"finite one, got {stored['distance_scale']!r} and {stored['threshold']!r}")
+                         f"number or +inf (never reject), got {stored['distance_scale']!r} and "
+                         f"{stored['threshold']!r}")
     return RejectionRule(means, precision, stored["distance_scale"], stored["threshold"], stored["max_accuracy_drop"],
                          stored["inner_auroc"])
 

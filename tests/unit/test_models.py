@@ -237,7 +237,9 @@ def _set(array, index, value):
      "the calibration temperature must be a positive number, got nan"),
     (lambda p: _set(p["pipeline"].named_steps["scale"].scale_, slice(None), np.nan),
      "the scaler's scale_ must hold 6 finite numbers"),
-    (lambda p: p["open_set"].update(threshold=float("-inf")), "the threshold a finite one, got .* and -inf"),
+    (lambda p: p["open_set"].update(threshold=float("-inf")), r"the threshold a number or \+inf \(never reject\), "
+                                                              r"got .* and -inf"),
+    (lambda p: p["open_set"].update(threshold=float("nan")), r"the threshold a number or \+inf .* and nan"),
     (lambda p: _set(p["pipeline"].named_steps["select"].selected_, 0, 99), "selected_ must be distinct column"),
 ])
 def test_a_model_with_parameters_prediction_cannot_use_is_refused_naming_the_part(forest, tmp_path, change,
@@ -273,3 +275,8 @@ def test_a_small_file_that_would_unpack_to_more_than_the_limit_is_refused_before
     with pytest.raises(ModelError, match=r"refused, its arrays would take 1\d MiB once unpacked \(a model may take "
                                          r"at most 4 MiB\)"):
         load_model(path)
+
+
+def test_an_open_set_rule_that_never_rejects_loads(forest, tmp_path):
+    path = tampered(forest, tmp_path, lambda p: p["open_set"].update(threshold=float("inf")))
+    assert load_model(path).rejection.threshold == float("inf")
