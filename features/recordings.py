@@ -217,6 +217,15 @@ def signal_bands(fs: float) -> np.ndarray:
     return np.concatenate(([0.0], fs / 2.0 ** np.arange(SIGNAL_BANDS, 0, -1)))
 
 
+def _window_of(x: np.ndarray, fewest: int, family: str) -> np.ndarray:
+    """``x`` as float64; a :class:`RecordingFeatureError` if it has fewer than ``fewest`` samples."""
+    x = np.asarray(x, dtype=np.float64)
+    if x.size < fewest:
+        raise RecordingFeatureError(f"a window of {x.size} samples is too short for the {family} features "
+                                    f"(needs {fewest})")
+    return x
+
+
 def signal_features(x: np.ndarray, fs: float) -> list[float]:
     """The features of one column of a generic channel (docs/features.md#generic-signals), in
     :data:`SIGNAL_NAMES` order.
@@ -235,10 +244,7 @@ def signal_features(x: np.ndarray, fs: float) -> list[float]:
     RecordingFeatureError
         If the window has fewer than :data:`SIGNAL_MIN_SAMPLES` samples.
     """
-    x = np.asarray(x, dtype=np.float64)
-    if x.size < SIGNAL_MIN_SAMPLES:
-        raise RecordingFeatureError(f"a window of {x.size} samples is too short for the generic features "
-                                    f"(needs {SIGNAL_MIN_SAMPLES})")
+    x = _window_of(x, SIGNAL_MIN_SAMPLES, "generic")
     mean, std = float(x.mean()), float(x.std())
     centred = x - mean
     moments = [math.nan, math.nan] if std == 0 else [float(np.mean(centred ** 3) / std ** 3),
@@ -291,10 +297,7 @@ def slow_features(x: np.ndarray, fs: float) -> list[float]:
     RecordingFeatureError
         If the window has fewer than :data:`SLOW_MIN_SAMPLES` samples.
     """
-    x = np.asarray(x, dtype=np.float64)
-    if x.size < SLOW_MIN_SAMPLES:
-        raise RecordingFeatureError(f"a window of {x.size} samples is too short for the slow features "
-                                    f"(needs {SLOW_MIN_SAMPLES})")
+    x = _window_of(x, SLOW_MIN_SAMPLES, "slow")
     t = np.arange(x.size) / fs
     centred_t = t - t.mean()
     slope = float(np.dot(centred_t, x - x.mean()) / np.dot(centred_t, centred_t))
