@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from scanner.cli.base import EXIT_PROBLEMS, add_db_option, open_db, progress, table_lines
+from scanner.storage.database import CATALOG, RECORDINGS, SCANS, recording_leftovers, repair_recordings
 
 
 def cmd_db_list(args: argparse.Namespace) -> int:
@@ -47,8 +48,6 @@ def cmd_db_show(args: argparse.Namespace) -> int:
 
 
 def cmd_db_check(args: argparse.Namespace) -> int:
-    from scanner.storage.database import CATALOG, RECORDINGS, SCANS
-
     root = Path(args.db)
     if (root / RECORDINGS).is_dir() and not (root / CATALOG).is_file() and not (root / SCANS).is_dir():
         return _check_recordings_only(root, args.repair)
@@ -70,8 +69,6 @@ def cmd_db_check(args: argparse.Namespace) -> int:
 def _check_recordings_only(root: Path, repair: bool) -> int:
     """``db check`` of a folder that holds recording sets and no scans: the leftovers of killed ingests and
     trainings, removed with ``--repair``."""
-    from scanner.storage.database import RECORDINGS, recording_leftovers, repair_recordings
-
     if repair:
         for line in repair_recordings(root):
             print(f"removed  {line}")
