@@ -30,7 +30,7 @@ from scanner.cli.common import (
     set_sizes,
     space_for,
 )
-from scanner.storage.files import atomic_write_bytes
+from scanner.storage.files import atomic_write_bytes, sha256_file
 from scanner.storage.ingest import load_recordings, set_folder
 from scanner.storage.matfile import load_scan
 from scanner.workflows import (
@@ -271,9 +271,7 @@ def recordings_content(folder: Path) -> str:
     read in full."""
     digest = hashlib.sha256()
     for path in sorted(folder.glob("*.mat")):
-        digest.update(f"{path.name}\0".encode())
-        with path.open("rb") as stream:
-            digest.update(hashlib.file_digest(stream, "sha256").digest())
+        digest.update(f"{path.name}\0{sha256_file(path)}\n".encode())
     return digest.hexdigest()
 
 

@@ -52,6 +52,7 @@ from scanner.storage.files import (
     is_abandoned,
     is_temp_file,
     recover_swaps,
+    remove_stale_temp_files,
     sha256_file,
     stale_temp_files,
     swap_leftovers,
@@ -664,8 +665,7 @@ class Database:
         leftovers = set(self._leftovers(stored, set(known), ids))
         report.unknown = [p for p in stored if p not in known and p not in leftovers]
         report.leftovers = sorted(leftovers) + [f"{folder.name}/" for folder in self._abandoned_staging()]
-        report.leftovers += [f"{RECORDINGS}/{folder.name}/" for folder in swap_leftovers(self.root / RECORDINGS)]
-        report.leftovers += [f"{MODELS}/{path.name}" for path in stale_temp_files(self.root / MODELS)]
+        report.leftovers += recording_leftovers(self.root)
         return report
 
     def _leftovers(self, stored: list[str], catalogued: set[str], ids: set[str] | None) -> list[str]:
@@ -696,8 +696,7 @@ class Database:
         are not leftovers stay."""
         with self._transaction() as conn:
             removed = self._remove_leftovers(conn)
-        return removed + [f"{RECORDINGS}/{line}" for line in recover_swaps(self.root / RECORDINGS)] + \
-            remove_stale_models(self.root)
+        return removed + repair_recordings(self.root)
 
     def _remove_leftovers(self, conn: sqlite3.Connection) -> list[str]:
         removed = self._discard_uncommitted(conn)
@@ -931,18 +930,9 @@ def recording_leftovers(root: str | os.PathLike[str]) -> list[str]:
             + [f"{MODELS}/{path.name}" for path in stale_temp_files(root / MODELS)])
 
 
-def remove_stale_models(root: str | os.PathLike[str]) -> list[str]:
-    """Remove the temporary files killed model writes left in ``<root>/models``; returns their paths."""
-    removed = []
-    for path in stale_temp_files(Path(root) / MODELS):
-        with contextlib.suppress(FileNotFoundError):
-            path.unlink()
-            removed.append(f"{MODELS}/{path.name}")
-    return removed
-
-
 def repair_recordings(root: str | os.PathLike[str]) -> list[str]:
     """:meth:`Database.repair`'s part outside the catalog, for a folder holding only recording sets: finish
     or undo interrupted set replacements and remove stale model temporaries; returns what was done."""
     root = Path(root)
-    return [f"{RECORDINGS}/{line}" for line in recover_swaps(root / RECORDINGS)] + remove_stale_models(root)
+    return ([f"{RECORDINGS}/{line}" for line in recover_swaps(root / RECORDINGS)]
+            + [f"{MODELS}/{path.name}" for path in remove_stale_temp_files(root / MODELS)])

@@ -61,6 +61,16 @@ def stale_temp_files(folder: str | os.PathLike[str], name: str | None = None,
     return found
 
 
+def remove_stale_temp_files(folder: str | os.PathLike[str], name: str | None = None) -> list[Path]:
+    """Remove :func:`stale_temp_files`; returns the ones removed (another process may have removed some)."""
+    removed = []
+    for path in stale_temp_files(folder, name):
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
+            removed.append(path)
+    return removed
+
+
 @contextlib.contextmanager
 def owned_folder(path: str | os.PathLike[str]) -> Iterator[Path]:
     """A new folder that counts as in use while this ``with`` block runs in a live process; removed after.

@@ -24,7 +24,7 @@ refused with a one-line :class:`ModelError` naming the file and the reason.
 
 from __future__ import annotations
 
-import contextlib
+import io
 import math
 import os
 import warnings
@@ -44,7 +44,7 @@ from features import feature_sets
 from features.random_kernels import SIGNAL_PREFIX, RandomKernels
 from features.selection import FQSelector
 from features.space import FeatureSpace
-from scanner.storage.files import atomic_write_bytes, stale_temp_files
+from scanner.storage.files import atomic_write_bytes, remove_stale_temp_files
 from scanner.version import __version__
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import LEVELS, check_level
@@ -274,9 +274,7 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
     _check_types(path, data)
     _model_from(path, _skops().loads(data, trusted=list(TRUSTED_TYPES)))
     atomic_write_bytes(path, data)
-    for stale in stale_temp_files(path.parent, path.name):  # a train killed at its rename left it
-        with contextlib.suppress(FileNotFoundError):
-            stale.unlink()
+    remove_stale_temp_files(path.parent, path.name)  # a train killed at its rename left one
     return path
 
 
@@ -331,8 +329,6 @@ def _check_types(path: Path, data: bytes) -> None:
 def _check_unpacked_size(path: Path, data: bytes) -> None:
     """Refuse an archive whose members would unpack to more than :data:`MAX_MODEL_BYTES` (the sizes its
     directory declares; the zip reader stops a member at its declared size), before any array is made."""
-    import io
-
     with zipfile.ZipFile(io.BytesIO(data)) as archive:
         unpacked = sum(info.file_size for info in archive.infolist())
     if unpacked > MAX_MODEL_BYTES:
