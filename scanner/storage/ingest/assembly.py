@@ -288,10 +288,6 @@ def _recordings(key: Path, name: str, files: list[tuple[Path, FileMap]], root: P
     except IngestError as exc:
         report.skipped.append(f"{key.relative_to(root)}: recording skipped: {exc}")
         return []
-    if label in mapping.exclude:
-        report.notes.append(Note("excluded", label, len(files), f"class {label}: {len(files)} file(s) not read "
-                                 f"({', '.join(str(p.relative_to(root)) for p, _ in files[:3])}), as asked"))
-        return []
     parts = _read_parts(key, files, root, mapping, report)
     if parts is None:
         return []
@@ -356,17 +352,38 @@ def _label_of(key: Path, root: Path, mapping: IngestMapping, table: Mapping[str,
         return None
 
 
+def without_excluded(matched: dict[Path, list[tuple[Path, FileMap]]], root: Path, mapping: IngestMapping,
+                     table: Mapping[str, Mapping[str, str]],
+                     report: IngestReport) -> dict[Path, list[tuple[Path, FileMap]]]:
+    """The recording keys whose class the mapping does not leave out (``[labels] exclude``); one note per
+    class left out, counting its files, which are not read."""
+    if not mapping.exclude:
+        return matched
+    kept: dict[Path, list[tuple[Path, FileMap]]] = {}
+    left: dict[str, list[Path]] = {}
+    for key, files in matched.items():
+        label = _label_of(key, root, mapping, table)
+        if label in mapping.exclude:
+            left.setdefault(label, []).extend(path for path, _ in files)
+        else:
+            kept[key] = files
+    for label, paths in left.items():
+        report.files += len(paths)  # matched by the mapping, as the files of the recordings made
+        shown = ", ".join(str(p.relative_to(root)) for p in paths[:3]) + (" and more" if len(paths) > 3 else "")
+        report.notes.append(Note("excluded", label, len(paths), f"class {label}: {len(paths)} file(s) not read "
+                                 f"({shown}), as asked"))
+    return kept
+
+
 def unpaired(matched: dict[Path, list[tuple[Path, FileMap]]], root: Path, mapping: IngestMapping,
-             report: IngestReport, excluded: Callable[[Path], bool] = lambda key: False,
-             ) -> dict[Path, list[tuple[Path, FileMap]]]:
+             report: IngestReport) -> dict[Path, list[tuple[Path, FileMap]]]:
     """The recording keys that have a file of every ``required`` [[files]] entry; the files of the others
-    are reported by name in ``report.skipped`` (an IMU file without its wheel file, say) and not read.
-    Keys of a class left out (``excluded``) are kept: their recording notes them and reads nothing."""
+    are reported by name in ``report.skipped`` (an IMU file without its wheel file, say) and not read."""
     required = [spec for spec in mapping.files if spec.required]
     kept = {}
     for key, files in matched.items():
         absent = [spec for spec in required if not any(kind is spec for _, kind in files)]
-        if not absent or excluded(key):
+        if not absent:
             kept[key] = files
             continue
         globs = ", ".join(repr(spec.glob) for spec in absent)
@@ -418,8 +435,8 @@ def ingest(path: str | os.PathLike[str], mapping: IngestMapping,
         raise IngestError(f"{root}: not a folder")
     table = _label_table(root, mapping)
     report = IngestReport()
-    matched = unpaired(_matched(root, mapping, report), root, mapping, report,
-                       lambda key: _label_of(key, root, mapping, table) in mapping.exclude)
+    matched = unpaired(without_excluded(_matched(root, mapping, report), root, mapping, table, report), root,
+                       mapping, report)
     names = recording_names(list(matched), root)
     for key, files in progress(list(matched.items())):
         report.files += len(files)
