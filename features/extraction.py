@@ -254,7 +254,9 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     >>> space.X.shape, space.y("coarse").tolist()
     ((4, 193), ['C1', 'C1', 'C2', 'C2'])
     """
-    if pool is not None and workers not in (None, pool.size):
+    if pool is None or not pool.shared:
+        pool = _SHARED["pool"] or pool
+    if pool is not None and not pool.shared and workers not in (None, pool.size):
         raise ParameterError(f"workers={workers} with a pool of {pool.size} workers")
     sources = [s if isinstance(s, ScanSource) else source_of(s) for s in scans]
     families = None if families is None else tuple(f.name for f in REGISTRY.chosen(families))
@@ -275,7 +277,7 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     bar = _Bar(total=len(todo), desc="features", unit="scan", file=sys.stderr, disable=None if progress else True,
                leave=False)
     size = (pool.size if pool else workers) or os.cpu_count() or 1
-    workers = max(1, min(size, len(todo) or 1))
+    workers = size if pool is not None and pool.shared else max(1, min(size, len(todo) or 1))
     with contextlib.ExitStack() as stack:
         if client is not None:
             results = cluster.extract(client, work, [sources[i] for i in todo], todo, bar.update,
@@ -287,7 +289,8 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
             elif workers > 1:  # this function's own, kept between calls (None: another thread's call has them)
                 pool = stack.enter_context(_KEPT.lent(size, key))
             fn = work if workers == 1 else functools.partial(_extract_with_code, version, families)
-            results = _run(fn, [sources[i] for i in todo], todo, workers, bar.update, pool)
+            keys = [(version, sources[i].cache_key) if sources[i].cache_key else None for i in todo]
+            results = _run(fn, [sources[i] for i in todo], todo, workers, bar.update, pool, keys)
         # leaving early (Ctrl-C) ends the workers' tasks now, not at exit
         for i, (row, error) in stack.enter_context(contextlib.closing(results)):
             if error is not None:
@@ -320,6 +323,11 @@ def _drop_tasks_not_started(futures: Iterable[concurrent.futures.Future]) -> Non
         future.cancel()
 
 
+SHARED_WORKER_NICENESS = 10
+"""How much lower the scheduling priority of :class:`SharedWorkers` is than the server's (``nice``): with every
+core extracting, a page request is answered at once rather than after a worker's time slice."""
+
+
 class WorkerPool:
     """Worker processes kept across several :func:`extract_many` calls: a job that extracts in batches
     (the web app's export warms the feature cache 16 scans at a time, checking for cancellation between)
@@ -341,10 +349,16 @@ class WorkerPool:
     threads.
     """
 
+    shared = False
+    """True for a process's :class:`SharedWorkers`: many threads' batches at once, never closed by one."""
+    niceness = 0
+    """How much lower the workers' scheduling priority is than this process's."""
+
     def __init__(self, workers: int | None = None) -> None:
         self.size = max(1, workers or os.cpu_count() or 1)
         self._executor: concurrent.futures.ProcessPoolExecutor | None = None
         self._key: Hashable = None
+        self._lock = threading.RLock()  # a SharedWorkers holds it across its own bookkeeping and the submission
 
     def __enter__(self) -> WorkerPool:
         return self
@@ -356,9 +370,10 @@ class WorkerPool:
         """Let the workers end. Tasks not started were dropped by their batch; the workers end by
         themselves once a task already handed to them is done, and the executor's thread collects them
         (waiting here for each to tear down its address space would only delay the caller)."""
-        if self._executor is not None:
-            self._executor.shutdown(wait=False)
-            self._executor = None
+        with self._lock:
+            if self._executor is not None:
+                self._executor.shutdown(wait=False)
+                self._executor = None
 
     def serving(self, key: Hashable) -> WorkerPool:
         """This pool for work of ``key`` (:func:`extract_many`'s: the feature code's version, the column
@@ -369,15 +384,74 @@ class WorkerPool:
             self._key = key
         return self
 
-    def _submit(self, fn: Callable, item: object) -> concurrent.futures.Future:
-        if self._executor is None:  # the first submission forks every worker
-            self._executor = _forked_pool(self.size)
-        try:
-            return self._executor.submit(fn, item)
-        except concurrent.futures.BrokenExecutor:  # a worker died between batches (killed while idle)
-            self.close()
-            self._executor = _forked_pool(self.size)
-            return self._executor.submit(fn, item)
+    def _submit(self, fn: Callable, item: object, key: Hashable = None) -> concurrent.futures.Future:
+        """``fn(item)`` on a worker; ``key`` names the work for :class:`SharedWorkers` (unused here)."""
+        with self._lock:
+            if self._executor is None:  # the first submission forks every worker
+                self._executor = _forked_pool(self.size, self.niceness)
+            try:
+                return self._executor.submit(fn, item)
+            except concurrent.futures.BrokenExecutor:  # a worker died between batches (killed while idle)
+                self._executor.shutdown(wait=False)
+                self._executor = _forked_pool(self.size, self.niceness)
+                return self._executor.submit(fn, item)
+
+    def _done_with(self, futures: Iterable[concurrent.futures.Future]) -> None:
+        """A batch leaves early (Ctrl-C, an error): its tasks not started are dropped."""
+        _drop_tasks_not_started(futures)
+
+
+class SharedWorkers(WorkerPool):
+    """The one set of workers of a process that extracts for many threads at once (the web app: every
+    request and export job of a server): ``size`` processes, started when first needed, whatever the number of
+    concurrent calls; their tasks queue in the order they were submitted. Work already queued or running for
+    the same ``key`` (a scan's content and the feature code) is not submitted again: a second request for the
+    same uncached scans waits for the first one's results. A batch that leaves early drops only the tasks
+    no other batch waits for. A worker that dies fails the batches that were waiting on it; the next
+    submission starts new workers. Set up by :func:`share_workers`; :func:`extract_many` uses them for every
+    call of the process from then on."""
+
+    shared = True
+    niceness = SHARED_WORKER_NICENESS
+
+    def __init__(self, workers: int | None = None) -> None:
+        super().__init__(workers)
+        self._waiting: dict[Hashable, tuple[concurrent.futures.Future, int]] = {}
+
+    def _submit(self, fn: Callable, item: object, key: Hashable = None) -> concurrent.futures.Future:
+        if key is None:
+            return super()._submit(fn, item)
+        with self._lock:  # one thread at a time looks for the work and submits it
+            queued = self._waiting.get(key)
+            if queued is not None and not queued[0].cancelled():
+                self._waiting[key] = (queued[0], queued[1] + 1)
+                return queued[0]
+            future = super()._submit(fn, item)
+            self._waiting[key] = (future, 1)
+        future.add_done_callback(functools.partial(self._finished, key))
+        return future
+
+    def _finished(self, key: Hashable, future: concurrent.futures.Future) -> None:
+        with self._lock:
+            if key in self._waiting and self._waiting[key][0] is future:
+                del self._waiting[key]
+
+    def _done_with(self, futures: Iterable[concurrent.futures.Future]) -> None:
+        with self._lock:
+            waiters = {id(future): (key, n) for key, (future, n) in self._waiting.items()}
+            alone = []
+            for future in futures:
+                key, n = waiters.get(id(future), (None, 1))
+                if n > 1:
+                    self._waiting[key] = (future, n - 1)
+                else:
+                    alone.append(future)
+        _drop_tasks_not_started(alone)
+
+    def serving(self, key: Hashable) -> WorkerPool:
+        """These workers, whatever the work: they are started by the worker server, and each checks that it
+        runs the caller's feature code (:func:`_extract_with_code`)."""
+        return self
 
 
 KEEP_WORKERS_S = 10.0
@@ -503,6 +577,40 @@ def run_aside(fn: Callable[..., object], *args: object) -> concurrent.futures.Fu
     return future
 
 
+_SHARED: dict[str, SharedWorkers | None] = {"pool": None}
+
+
+def share_workers(workers: int | None = None) -> SharedWorkers:
+    """Make every later extraction of this process, from any thread, run on one :class:`SharedWorkers` of
+    ``workers`` processes (default: the number of cores), started by the worker server: call
+    :func:`start_workers_from_a_server` first. A server that extracts for concurrent requests then holds
+    at most ``workers`` worker processes, not a pool per request. :func:`end_shared_workers` ends them."""
+    if _SERVER["context"] is None:
+        raise TexplorerError("share_workers() needs the worker server: call start_workers_from_a_server() first")
+    if _SHARED["pool"] is None or _SHARED["pool"].size != max(1, workers or os.cpu_count() or 1):
+        end_shared_workers()
+        _SHARED["pool"] = SharedWorkers(workers)
+    return _SHARED["pool"]
+
+
+def end_shared_workers() -> None:
+    """End the workers of :func:`share_workers`; later extractions start their own again."""
+    pool, _SHARED["pool"] = _SHARED["pool"], None
+    if pool is not None:
+        pool.close()
+
+
+@contextlib.contextmanager
+def job_workers(workers: int | None = None) -> Iterator[WorkerPool]:
+    """Workers for a job that extracts in batches: the process's :class:`SharedWorkers` where it has them
+    (a server's job shares them with its requests), else a :class:`WorkerPool` of ``workers``, ended after."""
+    if _SHARED["pool"] is not None:
+        yield _SHARED["pool"]
+        return
+    with WorkerPool(workers) as pool:
+        yield pool
+
+
 def _working_directory() -> str | None:
     """This process's working directory, None where it was removed (its scans' relative paths are then
     found nowhere, by kept workers or new ones)."""
@@ -590,17 +698,20 @@ def revive_worker_server() -> bool:
     return True
 
 
-def _start_worker(parent: int | None, forked: bool) -> None:
+def _start_worker(parent: int | None, forked: bool, niceness: int = 0) -> None:
     """A worker's first step: end with ``parent`` (None: the server that forked it, which ends with this
     process; :func:`scanner.processes.end_with_parent`), then keep the memory it frees. A worker not
-    ``forked`` from this process limits its own thread pools (a forked one inherited the limits)."""
+    ``forked`` from this process limits its own thread pools (a forked one inherited the limits); one
+    with a ``niceness`` lowers its scheduling priority by it."""
     end_with_parent(parent)
     if not forked:
         one_thread_for_good()
+    if niceness:
+        os.nice(niceness)
     keep_freed_memory()
 
 
-def _forked_pool(workers: int) -> concurrent.futures.ProcessPoolExecutor:
+def _forked_pool(workers: int, niceness: int = 0) -> concurrent.futures.ProcessPoolExecutor:
     """``workers`` processes that end with this process and keep the memory they free
     (:func:`_start_worker`): forked where possible, after this process gave its free memory back
     (:func:`give_back_free_memory`: a lighter fork), or started by the worker server once
@@ -609,17 +720,19 @@ def _forked_pool(workers: int) -> concurrent.futures.ProcessPoolExecutor:
     if server is not None:
         revive_worker_server()
         return concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=server,
-                                                      initializer=_start_worker, initargs=(None, False))
+                                                      initializer=_start_worker, initargs=(None, False, niceness))
     give_back_free_memory()
     preload()  # the workers share the libraries the features compute with instead of each importing its own
     return concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=_FORK, initializer=_start_worker,
-                                                  initargs=(os.getpid(), _FORK is not None))
+                                                  initargs=(os.getpid(), _FORK is not None, niceness))
 
 
 def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,
-         tick: Callable[[int], object], pool: WorkerPool | None = None) -> Iterable[tuple[int, tuple]]:
+         tick: Callable[[int], object], pool: WorkerPool | None = None,
+         keys: Sequence[Hashable] | None = None) -> Iterable[tuple[int, tuple]]:
     """``(index, fn(item))`` for every item, in this process (``workers`` 1) or worker processes
-    (completion order): those of ``pool``, else a pool of ``workers`` for this call only."""
+    (completion order): those of ``pool``, else a pool of ``workers`` for this call only. ``keys`` name the
+    items' work for a :class:`SharedWorkers` pool, which runs the same work once for every batch waiting on it."""
     if workers == 1:
         for index, item in zip(indices, items, strict=True):
             result = fn(item)
@@ -628,20 +741,24 @@ def _run(fn: Callable, items: Sequence, indices: Sequence[int], workers: int,
         return
     own = pool is None
     workers_here = WorkerPool(workers) if pool is None else pool
+    keys = [None] * len(items) if keys is None else keys
     # OpenCV's threads are restored only once every result is in: restarted at once, they would spin-wait
     # on the cores the workers need. The workers forked in here inherit the one-thread setting.
     with one_thread_each():
-        futures: dict[concurrent.futures.Future, int] = {}
+        futures: dict[concurrent.futures.Future, list[int]] = {}
         try:
-            for index, item in zip(indices, items, strict=True):
-                futures[workers_here._submit(fn, item)] = index
+            for index, item, key in zip(indices, items, keys, strict=True):
+                futures.setdefault(workers_here._submit(fn, item, key), []).append(index)
             for future in concurrent.futures.as_completed(futures):
-                tick(1)
-                yield futures[future], future.result()
+                result = future.result()
+                for index in futures[future]:
+                    tick(1)
+                    yield index, result
         except concurrent.futures.BrokenExecutor:
-            workers_here.close()  # a worker died: this batch fails, the pool's next batch forks new ones
+            if not workers_here.shared:  # a worker died: this batch fails, the pool's next batch forks new ones
+                workers_here.close()
             raise
         finally:
-            _drop_tasks_not_started(futures)
+            workers_here._done_with(futures)
             if own:
                 workers_here.close()

@@ -11,6 +11,8 @@ The app holds no business logic. Pages call ``scanner`` (database, guided sessio
 Extraction for its requests runs in workers started by a fork server that :func:`serve` starts before any
 request thread exists (:func:`features.start_workers_from_a_server`): a worker forked from the threaded
 server would inherit locks other request threads held (SQLite's memory mutex: a request hung for good).
+Every request and export job shares one bounded set of those workers (:func:`features.share_workers`,
+``--workers``): a busy lab's concurrent requests queue for them rather than each starting its own.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from flask import Flask, Response, render_template
 from flask.globals import request_ctx
 from werkzeug.exceptions import HTTPException, RequestEntityTooLarge
 
-from features import start_workers_from_a_server
+from features import end_shared_workers, share_workers, start_workers_from_a_server
 from gui import browser, operate, security
 from gui.context import LOOPBACK_HOSTS, Context, Settings, context
 
@@ -138,6 +140,7 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None
         print(f"texplorer: warning: {warning}", file=sys.stderr)
     app = create_app(settings)
     start_workers_from_a_server()  # before the first request thread
+    share_workers(settings.workers)  # one bounded set of workers for every request and export job
     signal.signal(signal.SIGTERM, _stop)  # as Ctrl-C: a running scan aborted, an export's bundle deleted
     threading.Thread(target=app.extensions["texplorer"].warm_up, name="warm-up", daemon=True).start()
     server = make_server(host, port, app, threaded=True)
@@ -147,5 +150,6 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None
     finally:
         server.server_close()
         app.extensions["texplorer"].shutdown()
+        end_shared_workers()
     print("texplorer: stopped", file=sys.stderr)
 

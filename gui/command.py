@@ -14,14 +14,21 @@ from scanner.acquisition.config import load_config
 from scanner.cli.base import UsageError, add_db_option
 from scanner.photo import max_pixels
 
+MAX_PORT = 65535
+"""The largest TCP port: a larger number would be taken modulo 65536 by the system (70000 listens on 4464)."""
+
 
 def cmd_serve(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     if not args.upload_limit_mb > 0:
         raise UsageError(f"--upload-limit-mb must be positive, got {args.upload_limit_mb:g}")
+    if not 0 <= args.port <= MAX_PORT:
+        raise UsageError(f"--port must be 1-{MAX_PORT} (or 0 for any free port), got {args.port}")
+    if args.workers is not None and args.workers < 1:
+        raise UsageError(f"--workers must be at least 1, got {args.workers}")
     limit = int(args.upload_limit_mb * 1024 * 1024)
     settings = Settings(db=args.db, model=args.model, device_config=config, upload_limit=limit,
-                        max_photo_pixels=max_pixels())
+                        max_photo_pixels=max_pixels(), workers=args.workers)
     serve(settings, args.host, args.port)
     return 0
 
@@ -42,4 +49,6 @@ def register(commands: argparse._SubParsersAction) -> None:
                          "<db>/models/rf-fine-X10.skops if 'texplorer demo' made one)")
     serving.add_argument("--upload-limit-mb", type=float, default=20.0, help="largest photo upload in MB "
                          "(default 20)")
+    serving.add_argument("--workers", type=int, help="worker processes every request and export shares for "
+                         "feature extraction (default: number of cores); concurrent requests queue for them")
     serving.set_defaults(handler=cmd_serve)

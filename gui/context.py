@@ -34,7 +34,9 @@ class Settings:
     DNS rebinding when bound to the loopback interface; None accepts any Host header. ``export_dir`` is
     where export bundles are built before they are streamed (default: the system's temporary folder,
     ``$TMPDIR``); an export nobody has asked about for ``export_abandon_s`` is cancelled and its file
-    deleted. Paths are made absolute when the settings are made.
+    deleted. ``prediction_timeout_s`` bounds the summary's wait for the model (loading it and predicting):
+    past it the summary says so in one line and the scan can be saved without a prediction. Paths are made
+    absolute when the settings are made.
     """
 
     db: Path
@@ -48,6 +50,7 @@ class Settings:
     workers: int | None = None
     export_dir: Path | None = None
     export_abandon_s: float = 120.0
+    prediction_timeout_s: float = 30.0
 
     def __post_init__(self) -> None:
         # Resolved once here: Flask's send_file reads a relative path against the package folder, not the

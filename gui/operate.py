@@ -122,7 +122,7 @@ def render_page(template: str, http_status: int = 200, **values: Any) -> tuple[s
 
 def session_error(exc: Exception) -> str:
     """A session or device refusal as one line for the page."""
-    return str(exc).strip().splitlines()[0]
+    return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
 
 
 # -- start ---------------------------------------------------------------------------------------------
@@ -497,29 +497,62 @@ def summarise(op: Operation) -> Summary:
     return summary
 
 
+def within(seconds: float, fn: Callable[[], Any]) -> Any:
+    """``fn()``, waited for at most ``seconds``: run in a thread of its own, so that a model that is slow to
+    load or to predict (or never returns) cannot hold the summary page; raises :class:`TimeoutError` then
+    (the thread is left to finish, as a daemon). Exceptions of ``fn`` are raised here."""
+    outcome: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            outcome["value"] = fn()
+        except BaseException as exc:  # noqa: BLE001 - handed to the waiting request below
+            outcome["error"] = exc
+
+    thread = threading.Thread(target=run, name="prediction", daemon=True)
+    thread.start()
+    thread.join(seconds)
+    if thread.is_alive():
+        raise TimeoutError(f"the model did not answer within {seconds:g} s")
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome["value"]
+
+
 def _model_families() -> tuple[str, ...] | None:
     """The families the model's inputs need beside the paper's (a model of modern features,
-    docs/modern-features.md); None without a usable model."""
+    docs/modern-features.md); None without a usable model (one that cannot be loaded in time included:
+    :func:`_predict` says why)."""
+    ctx = context()
     try:
-        model = context().model
-    except ModelError:
+        model = within(ctx.settings.prediction_timeout_s, lambda: ctx.model)
+    except (ModelError, TimeoutError):
         return None
     return None if model is None else feature_sets.families_of(model.feature_names)
 
 
 def _predict(values: dict[str, float]) -> tuple[list[tuple[str, float, str]] | None, str, str]:
-    """The top three, a note on the model, and "unknown material (closest: ...)" when its rule rejects."""
+    """The top three, a note on the model, and "unknown material (closest: ...)" when its rule rejects.
+    A model that fails or takes longer than ``prediction_timeout_s`` gives no prediction and a one-line note
+    instead; the scan stays ready to save."""
     ctx = context()
     try:
-        model = ctx.model
+        model = within(ctx.settings.prediction_timeout_s, lambda: ctx.model)
     except ModelError as exc:
         return None, f"the model cannot be used: {session_error(exc)}", ""
+    except TimeoutError as exc:
+        return None, f"no prediction: {exc} (loading it); the scan can be saved without one", ""
     if model is None:
         return None, "no trained model: run 'texplorer train' (or 'texplorer demo') to see predictions here", ""
+    taxonomy = ctx.db.taxonomy()  # read here: the database's connection belongs to this thread
     try:
-        prediction = predict_values(model, values, 3, ctx.db.taxonomy())
+        prediction = within(ctx.settings.prediction_timeout_s, lambda: predict_values(model, values, 3, taxonomy))
     except ModelError as exc:
         return None, f"no prediction: {session_error(exc)}", ""
+    except TimeoutError as exc:
+        return None, f"no prediction: {exc}; the scan can be saved without one", ""
+    except Exception as exc:  # noqa: BLE001 - a model from elsewhere may fail in any way; the scan must stay
+        return None, f"no prediction: the model failed ({type(exc).__name__}: {session_error(exc)})", ""
     named = [(p.label, p.probability, p.names) for p in prediction.predictions]
     unknown = prediction.headline() if prediction.unknown else ""
     return named, f"{model.classifier} at level {model.level}, trained on {model.n_rows} scans", unknown

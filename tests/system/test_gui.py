@@ -4,6 +4,7 @@ subprocess, exports and whole sessions)."""
 
 from __future__ import annotations
 
+import contextlib
 import re
 import struct
 
@@ -121,14 +122,7 @@ def test_summary_shows_the_models_top_predictions(tmp_path):
     app = make_app(tmp_path / "db")
     client = app.test_client()
     try:
-        start_session(client)
-        record_all(client, app)
-        for name in ("I_disp", "I_macro", "I_illu"):
-            post(client, "/session/form", {"capture": name})
-        # density 512.5 g / 190 cm^3 = 2.697 g/cm^3: inside the granite range
-        post(client, "/session/form", {"atk": "0", "cyd": "0", "mass_g": "512.5", "volume_cm3": "190",
-                                       "volume_method": "water"})
-        page = get(client, "/session/summary").text
+        page = summary_after_a_full_scan(client, app)  # 2.697 g/cm^3: inside the granite range
         ranking = page.split('<ol class="predictions">', 1)[1].split("</ol>", 1)[0]
         assert ranking.index("C6S1M1P2X1") < ranking.index("C1S1M1P4X1")
         # every tree splits between 0.8 and 2.6, so all of them vote granite
@@ -156,13 +150,7 @@ def test_summary_says_unknown_material_for_a_scan_unlike_every_trained_one(tmp_p
     app = make_app(tmp_path / "db")
     client = app.test_client()
     try:
-        start_session(client)
-        record_all(client, app)
-        for name in ("I_disp", "I_macro", "I_illu"):
-            post(client, "/session/form", {"capture": name})
-        post(client, "/session/form", {"atk": "0", "cyd": "0", "mass_g": "1520", "volume_cm3": "190",
-                                       "volume_method": "water"})
-        page = get(client, "/session/summary").text
+        page = summary_after_a_full_scan(client, app, mass_g="1520")
         assert 'id="unknown-material"' in page
         assert "unknown material (closest: granite (igneous stone, stone), polished, plain (C6S1M1P2X1)" in page
     finally:
@@ -513,3 +501,118 @@ def test_peltier_off_when_the_browser_goes_silent_while_heating(tmp_path):
         assert session.status("thermal").state == "recorded" and time.monotonic() - started > 3.0
     finally:
         app.extensions["texplorer"].shutdown()
+
+
+def summary_after_a_full_scan(client, app, mass_g="512.5"):
+    """Record every step and fill the form; the summary page's text (with 190 cm^3: 512.5 g is 2.697 g/cm^3,
+    granite by density)."""
+    start_session(client)
+    record_all(client, app)
+    for name in ("I_disp", "I_macro", "I_illu"):
+        post(client, "/session/form", {"capture": name})
+    post(client, "/session/form", {"atk": "0", "cyd": "0", "mass_g": mass_g, "volume_cm3": "190",
+                                   "volume_method": "water"})
+    return get(client, "/session/summary").text
+
+
+@pytest.mark.parametrize("failure", ["slow", "raises"])
+def test_a_slow_or_failing_prediction_answers_the_summary_and_the_scan_can_be_saved(tmp_path, monkeypatch,
+                                                                                      failure):
+    import threading
+    import time
+
+    import gui.operate
+
+    density_model(tmp_path / "db" / "models" / "rf-fine-X10.skops")
+    release = threading.Event()
+
+    def broken(*args, **kwargs):
+        if failure == "slow":
+            release.wait(60)  # a model that never answers (released at the end, not to outlive the test)
+        raise IndexError()
+
+    monkeypatch.setattr(gui.operate, "predict_values", broken)
+    app = make_app(tmp_path / "db", prediction_timeout_s=1.0)
+    client = app.test_client()
+    try:
+        started = time.monotonic()
+        page = summary_after_a_full_scan(client, app)
+        if failure == "slow":
+            assert '<p class="notice">no prediction: the model did not answer within 1 s; the scan can be saved ' \
+                   'without one.</p>' in page
+        else:
+            assert '<p class="notice">no prediction: the model failed (IndexError: IndexError).</p>' in page
+        assert time.monotonic() - started < 60
+        answer = post(client, "/session/save")
+        assert answer.status_code == 302
+        assert [r.sample_id for r in app.extensions["texplorer"].db.records()] == ["granite-01"]
+    finally:
+        release.set()
+        app.extensions["texplorer"].shutdown()
+
+
+@pytest.mark.parametrize(("option", "value", "message"), [
+    ("--port", "70000", "--port must be 1-65535 (or 0 for any free port), got 70000"),
+    ("--port", "-1", "--port must be 1-65535 (or 0 for any free port), got -1"),
+    ("--workers", "0", "--workers must be at least 1, got 0"),
+])
+def test_texplorer_serve_refuses_a_port_or_worker_count_out_of_range(tmp_path, option, value, message):
+    import subprocess
+    import sys
+
+    answer = subprocess.run([sys.executable, "-m", "scanner.cli", "serve", "--db", str(tmp_path / "db"), option,
+                             value], capture_output=True, text=True, timeout=120)
+    assert answer.returncode == 1  # the usage errors the command itself finds (argparse's own exit 2)
+    assert answer.stderr.strip().splitlines()[-1] == f"texplorer: error: {message}"
+
+
+def test_concurrent_requests_share_one_bounded_set_of_workers(tmp_path):
+    """A real server with 2 workers and 12 uncached scans: the features export and the scan pages asked by
+    12 threads at once are answered from one queue, never more than 2 workers (+ the worker server and the
+    resource tracker) beside the server, and every export holds every scan's features."""
+    import concurrent.futures
+    import csv
+    import io
+    import threading
+    import urllib.request
+
+    import psutil
+
+    from scanner.simulation.database import synthetic_database
+    from scanner.storage.database import Database
+
+    synthetic_database(tmp_path / "db", materials=["oak-planed", "cork-board", "granite-polished", "pvc-sheet"],
+                       scans_per_material=3, image_size=(200, 200), progress=False).close()
+    ids = [r.scan_id for r in Database(tmp_path / "db").records()]
+    process = serve_process(tmp_path, "--workers", "2")
+    try:
+        url, _ = served_url(process)
+        threading.Thread(target=process.stderr.read, daemon=True).start()
+        server = psutil.Process(process.pid)
+        stop, peak = threading.Event(), [0]
+
+        def watch():
+            while not stop.wait(0.02):
+                with contextlib.suppress(psutil.Error):
+                    peak[0] = max(peak[0], len(server.children(recursive=True)))
+
+        watcher = threading.Thread(target=watch, daemon=True)
+        watcher.start()
+
+        def fetch(path):
+            with urllib.request.urlopen(url + path, timeout=300) as answer:
+                return answer.status, answer.read()
+
+        paths = [f"/db/scan/{scan_id}" for scan_id in ids] + ["/db/export/features.csv"] * 6
+        with concurrent.futures.ThreadPoolExecutor(12) as pool:
+            answers = list(pool.map(fetch, paths))
+        stop.set()
+        watcher.join()
+        assert [status for status, _ in answers] == [200] * len(paths)
+        for _, body in answers[len(ids):]:
+            rows = list(csv.DictReader(io.StringIO(body.decode())))
+            assert sorted(row["scan_id"] for row in rows) == sorted(ids)
+        assert 3 <= peak[0] <= 2 + 2, peak[0]
+    finally:
+        process.terminate()
+        process.wait(30)

@@ -183,3 +183,117 @@ def test_leaving_a_parallel_run_early_drops_the_tasks_not_started(tmp_path):
 # -- extract_many's own workers, kept for its next call ------------------------------------------------------
 
 
+
+
+# -- one bounded set of workers shared by a server's threads ---------------------------------------------------
+
+
+def _gated_run(path: str) -> str:
+    """Leave a mark of this run (one file per run), then wait for the gate beside the marks' folder."""
+    folder = os.path.dirname(path)
+    with open(os.path.join(folder, f"{os.path.basename(path)}-{os.getpid()}-{time.monotonic_ns()}"), "w"):
+        pass
+    gate = os.path.join(os.path.dirname(folder), "gate")
+    deadline = time.monotonic() + 20
+    while not os.path.exists(gate) and time.monotonic() < deadline:
+        time.sleep(0.005)
+    return os.path.basename(path)
+
+
+def test_concurrent_batches_of_the_same_work_share_one_run_of_it(tmp_path):
+    import threading
+
+    (tmp_path / "marks").mkdir()
+    items = [str(tmp_path / "marks" / f"scan-{i}") for i in range(5)]
+    pool = extraction.SharedWorkers(2)
+    results: dict[str, list] = {}
+
+    def batch(name):
+        results[name] = sorted(extraction._run(_gated_run, items, range(5), 2, lambda n: None, pool, keys=items))
+
+    try:
+        threads = [threading.Thread(target=batch, args=(name,)) for name in ("a", "b")]
+        for thread in threads:
+            thread.start()
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and not (len(pool._waiting) == 5
+                                                   and all(n == 2 for _, n in pool._waiting.values())):
+            time.sleep(0.01)
+        (tmp_path / "gate").touch()
+        for thread in threads:
+            thread.join(60)
+    finally:
+        pool.close()
+    expected = [(i, f"scan-{i}") for i in range(5)]
+    assert results == {"a": expected, "b": expected}
+    runs = sorted(p.name.split("-")[1] for p in (tmp_path / "marks").iterdir())
+    assert runs == ["0", "1", "2", "3", "4"]  # each scan ran once for both batches
+    assert pool._waiting == {}
+
+
+def test_a_batch_that_leaves_early_drops_only_the_work_no_other_batch_waits_for(tmp_path):
+    (tmp_path / "marks").mkdir()
+    pool = extraction.SharedWorkers(2)
+    try:
+        # six tasks fill the two workers, the call queue (workers + 1) and the queue behind it
+        busy = [pool._submit(_gated_run, str(tmp_path / "marks" / f"busy-{i}")) for i in range(6)]
+        shared = pool._submit(_gated_run, str(tmp_path / "marks" / "shared"), "shared")
+        assert pool._submit(_gated_run, str(tmp_path / "marks" / "shared"), "shared") is shared
+        pool._done_with([shared])  # one of the two batches leaves
+        assert not shared.cancelled() and pool._waiting["shared"][1] == 1
+        pool._done_with([shared])  # the other one too: nobody waits for it any more
+        assert shared.cancelled()
+        (tmp_path / "gate").touch()
+        assert [f.result(timeout=60) for f in busy] == [f"busy-{i}" for i in range(6)]
+    finally:
+        pool.close()
+
+
+def test_the_same_work_twice_in_one_batch_answers_both_rows(tmp_path):
+    import threading
+
+    (tmp_path / "marks").mkdir()
+    pool = extraction.SharedWorkers(2)
+    item = str(tmp_path / "marks" / "scan")
+
+    def open_gate_once_both_wait():  # (an open gate could let the first finish before the second is queued)
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and pool._waiting.get("k", (None, 0))[1] < 2:
+            time.sleep(0.005)
+        (tmp_path / "gate").touch()
+
+    opener = threading.Thread(target=open_gate_once_both_wait)
+    opener.start()
+    try:
+        got = sorted(extraction._run(_gated_run, [item, item], [3, 7], 2, lambda n: None, pool, keys=["k", "k"]))
+    finally:
+        opener.join()
+        pool.close()
+    assert got == [(3, "scan"), (7, "scan")]
+    assert len(list((tmp_path / "marks").iterdir())) == 1
+
+
+def test_sharing_workers_needs_the_worker_server(monkeypatch):
+    from taxonomy.errors import TexplorerError
+
+    monkeypatch.setitem(extraction._SERVER, "context", None)
+    with pytest.raises(TexplorerError, match=r"share_workers\(\) needs the worker server"):
+        features.share_workers(2)
+
+
+def _pid_or_die(item: str) -> int:
+    if item == "die":
+        os._exit(1)  # a worker killed mid-task (out of memory, say)
+    return os.getpid()
+
+
+def test_shared_workers_start_again_after_one_died():
+    import concurrent.futures
+
+    pool = extraction.SharedWorkers(2)
+    try:
+        with pytest.raises(concurrent.futures.BrokenExecutor):
+            list(extraction._run(_pid_or_die, ["die", "a"], [0, 1], 2, lambda n: None, pool))
+        assert len(dict(extraction._run(_pid_or_die, ["a", "b"], [0, 1], 2, lambda n: None, pool))) == 2
+    finally:
+        pool.close()
