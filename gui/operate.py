@@ -499,7 +499,7 @@ def summarise(op: Operation) -> Summary:
 
 def within(seconds: float, fn: Callable[[], Any]) -> Any:
     """``fn()``, waited for at most ``seconds``: run in a thread of its own, so that a model that is slow to
-    load or to predict (or never returns) cannot hold the summary page; raises :class:`TimeoutError` then
+    load or to predict (or never returns) cannot hold the summary page; raises :class:`ModelError` then
     (the thread is left to finish, as a daemon). Exceptions of ``fn`` are raised here."""
     outcome: dict[str, Any] = {}
 
@@ -513,7 +513,8 @@ def within(seconds: float, fn: Callable[[], Any]) -> Any:
     thread.start()
     thread.join(seconds)
     if thread.is_alive():
-        raise TimeoutError(f"the model did not answer within {seconds:g} s")
+        raise ModelError(f"the model did not answer within {seconds:g} s; the scan can be saved without a "
+                         "prediction")
     if "error" in outcome:
         raise outcome["error"]
     return outcome["value"]
@@ -526,7 +527,7 @@ def _model_families() -> tuple[str, ...] | None:
     ctx = context()
     try:
         model = within(ctx.settings.prediction_timeout_s, lambda: ctx.model)
-    except (ModelError, TimeoutError):
+    except ModelError:
         return None
     return None if model is None else feature_sets.families_of(model.feature_names)
 
@@ -540,8 +541,6 @@ def _predict(values: dict[str, float]) -> tuple[list[tuple[str, float, str]] | N
         model = within(ctx.settings.prediction_timeout_s, lambda: ctx.model)
     except ModelError as exc:
         return None, f"the model cannot be used: {session_error(exc)}", ""
-    except TimeoutError as exc:
-        return None, f"no prediction: {exc} (loading it); the scan can be saved without one", ""
     if model is None:
         return None, "no trained model: run 'texplorer train' (or 'texplorer demo') to see predictions here", ""
     taxonomy = ctx.db.taxonomy()  # read here: the database's connection belongs to this thread
@@ -549,8 +548,6 @@ def _predict(values: dict[str, float]) -> tuple[list[tuple[str, float, str]] | N
         prediction = within(ctx.settings.prediction_timeout_s, lambda: predict_values(model, values, 3, taxonomy))
     except ModelError as exc:
         return None, f"no prediction: {session_error(exc)}", ""
-    except TimeoutError as exc:
-        return None, f"no prediction: {exc}; the scan can be saved without one", ""
     except Exception as exc:  # noqa: BLE001 - a model from elsewhere may fail in any way; the scan must stay
         return None, f"no prediction: the model failed ({type(exc).__name__}: {session_error(exc)})", ""
     named = [(p.label, p.probability, p.names) for p in prediction.predictions]

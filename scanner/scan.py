@@ -142,6 +142,20 @@ _FIELD = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,62}")
 """MATLAB struct field names: device and calibration keys become fields of ``meta``."""
 
 
+def _taken_as_is(data: object) -> bool:
+    """Whether a :class:`Trace` takes ``data`` without copying it: a float64 array that owns its memory and
+    is read-only (another trace's data, or an array :func:`handed_over`) cannot change under the trace."""
+    return (isinstance(data, np.ndarray) and data.dtype == np.float64 and data.flags.owndata
+            and not data.flags.writeable)
+
+
+def handed_over(array: np.ndarray) -> np.ndarray:
+    """``array``, made read-only so that a :class:`Trace` takes it without a copy (a reader's 320 MB channel
+    would otherwise be held twice). Only for an array its caller just made and keeps no writeable view of."""
+    array.flags.writeable = False
+    return array
+
+
 @dataclass(frozen=True)
 class Trace:
     """A uniformly sampled signal.
@@ -176,7 +190,7 @@ class Trace:
 
     def __post_init__(self) -> None:
         try:
-            array = np.array(self.data, dtype=np.float64, copy=True)
+            array = self.data if _taken_as_is(self.data) else np.array(self.data, dtype=np.float64, copy=True)
         except (TypeError, ValueError) as exc:
             raise ScanError(f"trace data is not numeric: {exc}") from None
         if array.ndim not in (1, 2, 3):

@@ -1,4 +1,5 @@
-"""Reading MATLAB v5 ``.mat`` files with bounded memory, whatever their bytes.
+"""Reading MATLAB v5 ``.mat`` files with bounded memory, whatever their bytes; writing large arrays without
+copies of them (:func:`write_variables`).
 
 ``scipy.io.loadmat`` trusts the file: a compressed variable of a few kilobytes can inflate to gigabytes of
 zeros, and a cell or struct array allocates one Python object per element its header announces before
@@ -13,13 +14,16 @@ fails scipy's own reshape instead of allocating.
 from __future__ import annotations
 
 import io
+import itertools
 import math
 import os
 import struct
 import zlib
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, BinaryIO
 
+import numpy as np
 import scipy  # scipy.io loads at its first use (scipy's submodules load when first read)
 
 from taxonomy.errors import TexplorerError
@@ -222,3 +226,85 @@ def _loadmat(stream: io.BytesIO, options: dict[str, Any]) -> dict[str, Any]:
     except Exception as exc:  # scipy raises many types for malformed content; the bytes are bounded here
         reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise MatFileError(reason) from None
+
+
+# -- writing, with bounded memory --------------------------------------------------------------------------------
+
+MI_DOUBLE, MX_DOUBLE = 9, 6
+STREAMED_BYTES = 1 << 20
+"""A real float64 variable of at least this many bytes is written by :func:`write_variables` itself, its
+column-major data compressed in blocks of this size; smaller ones and every other kind by ``savemat``."""
+
+
+def _element(kind: int, payload: bytes, order: str) -> bytes:
+    """A (normal, not small) data element: tag, payload, padding to 8 bytes."""
+    return struct.pack(order + "II", kind, len(payload)) + payload + b"\0" * (-len(payload) % 8)
+
+
+def _double_matrix_head(name: str, shape: tuple[int, ...], order: str) -> bytes:
+    """The ``miMATRIX`` element of a real double array up to its data's tag ("MAT-File Format", 2021, table
+    1-5): array flags (class ``mxDOUBLE_CLASS``), dimensions, name; the column-major data follows."""
+    data_bytes = 8 * math.prod(shape)
+    flags = _element(MI_UINT32, struct.pack(order + "II", MX_DOUBLE, 0), order)
+    dims = _element(MI_INT32, struct.pack(order + f"{len(shape)}i", *shape), order)
+    label = _element(MI_INT8, name.encode("ascii"), order)
+    size = len(flags) + len(dims) + len(label) + 8 + data_bytes
+    if size >= 1 << 32:
+        raise MatFileError(f"variable {name}: {data_bytes} bytes do not fit a MATLAB v5 element (4 GiB)")
+    return (struct.pack(order + "II", MI_MATRIX, size) + flags + dims + label
+            + struct.pack(order + "II", MI_DOUBLE, data_bytes))
+
+
+def _column_major_blocks(array: np.ndarray, block: int, order: str) -> Iterator[bytes]:
+    """The bytes of a 1-D or 2-D float64 array in MATLAB's (column-major) order and the file's byte order,
+    ``block`` bytes or fewer at a time: never a copy of the whole array."""
+    columns = array.reshape(len(array), -1)
+    rows = max(1, block // 8)
+    for column in range(columns.shape[1]):
+        for start in range(0, columns.shape[0], rows):
+            yield np.ascontiguousarray(columns[start:start + rows, column], dtype=order + "f8").tobytes()
+
+
+def _streamed(value: Any) -> bool:
+    return (getattr(value, "dtype", None) is not None and value.dtype.kind == "f" and value.dtype.itemsize == 8
+            and value.ndim in (1, 2) and value.nbytes >= STREAMED_BYTES)
+
+
+def write_variables(handle: BinaryIO, variables: dict[str, Any], compress: Any, level: int) -> None:
+    """``variables`` as a MATLAB v5 file (each variable one compressed element, vectors as columns, long field
+    names) written to ``handle``, holding no more than a block of a large array at a time: ``savemat`` builds
+    each variable's whole element in memory, and then its compressed copy (a 320 MB trace peaked at three times
+    its size). Large real float64 arrays (:data:`STREAMED_BYTES`) are written here, their data compressed as it
+    is read; everything else by ``savemat``, one variable at a time. ``compress`` is a zlib-compatible module
+    (``zlib``, ``isal.isal_zlib``) and ``level`` its level. ``handle`` must be seekable (the compressed size is
+    written once known)."""
+    small = io.BytesIO()
+    scipy.io.savemat(small, {}, long_field_names=True, oned_as="column")
+    header = small.getvalue()[:HEADER_BYTES]
+    order = "<" if header[126:128] == b"IM" else ">"
+    handle.write(header)
+    for name, value in variables.items():
+        if not _streamed(value):
+            one = io.BytesIO()
+            scipy.io.savemat(one, {name: value}, long_field_names=True, do_compression=False, oned_as="column")
+            element = one.getbuffer()[HEADER_BYTES:]
+            packed = compress.compress(element, level)
+            handle.write(struct.pack(order + "II", MI_COMPRESSED, len(packed)) + packed)
+            continue
+        shape = tuple(value.shape) if value.ndim == 2 else (len(value), 1)
+        tag_at = handle.tell()
+        handle.write(b"\0" * 8)
+        packer = compress.compressobj(level)
+        size = 0
+        head = _double_matrix_head(name, shape, order)
+        for chunk in itertools.chain([head], _column_major_blocks(value, STREAMED_BYTES, order)):
+            packed = packer.compress(chunk)
+            size += len(packed)
+            handle.write(packed)
+        packed = packer.flush()
+        size += len(packed)
+        handle.write(packed)
+        end = handle.tell()
+        handle.seek(tag_at)
+        handle.write(struct.pack(order + "II", MI_COMPRESSED, size))
+        handle.seek(end)

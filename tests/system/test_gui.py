@@ -539,7 +539,7 @@ def test_a_slow_or_failing_prediction_answers_the_summary_and_the_scan_can_be_sa
         page = summary_after_a_full_scan(client, app)
         if failure == "slow":
             assert '<p class="notice">no prediction: the model did not answer within 1 s; the scan can be saved ' \
-                   'without one.</p>' in page
+                   'without a prediction.</p>' in page
         else:
             assert '<p class="notice">no prediction: the model failed (IndexError: IndexError).</p>' in page
         assert time.monotonic() - started < 60

@@ -71,7 +71,6 @@ from scanner.storage.ingest.readers import (
 from scanner.storage.ingest.sets import (
     RECORDINGS,
     SetWriter,
-    encode_recording,
     load_recordings,
     read_recording,
     recording_sets,
@@ -79,6 +78,7 @@ from scanner.storage.ingest.sets import (
     recover_sets,
     set_folder,
     store_recordings,
+    write_recording,
 )
 
 __all__ = [
@@ -90,6 +90,6 @@ __all__ = [
     "NOTE_KINDS", "summarise_notes", "seconds_of", "rate_from_times", "read_image", "file_format", "Stream",
     "read_streams", "read_file", "GAP_STEPS", "gaps", "Aligned", "align", "IngestReport", "stem_of",
     "recording_names", "split_of", "safe_name", "patches", "ingest", "RECORDINGS", "recording_variables",
-    "encode_recording", "read_recording", "set_folder", "store_recordings", "load_recordings", "recording_sets",
+    "read_recording", "write_recording", "set_folder", "store_recordings", "load_recordings", "recording_sets",
     "SetWriter", "recover_sets", "Made",
 ]

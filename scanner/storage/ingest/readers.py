@@ -19,7 +19,7 @@ import numpy as np
 from scipy.io import wavfile
 
 from scanner.photo import PhotoError, check_pixels, image_size, max_file_bytes
-from scanner.scan import ScanError, Trace
+from scanner.scan import ScanError, Trace, handed_over
 from scanner.storage.ingest.clock import Clock, on_slots, regular_clock
 from scanner.storage.ingest.mapping import FORMATS, TIME_UNITS, ChannelMap, FileMap, IngestError, format_of
 from scanner.storage.mat5 import MatFileError, read_mat
@@ -539,11 +539,16 @@ def read_streams(path: Path, spec: FileMap,
     read = readers.get(fmt, lambda: _array_file(path, spec, fmt))()
     streams, notes = {}, list(read.notes)
     for name, (data, rate, channel, times) in read.arrays.items():
-        data, filled = _fill(data * channel.scale, missing, f"{path}: channel {name}")
+        data = np.asarray(data, dtype=np.float64)
+        if channel.scale != 1 and data.flags.writeable:
+            data *= channel.scale  # in place: each channel's array is its own (a copy would double a large file)
+        elif channel.scale != 1:
+            data = data * channel.scale
+        data, filled = _fill(data, missing, f"{path}: channel {name}")
         if filled:
             notes.append(Note("missing", path.name, filled, f"{path.name}: channel {name}: {filled} missing "
                               "sample(s) interpolated"))
-        streams[name] = Stream(data, rate, channel.unit, times, read.clock)
+        streams[name] = Stream(handed_over(data), rate, channel.unit, times, read.clock)
     return streams, read.images, notes
 
 

@@ -6,7 +6,6 @@ place, so a set is either complete or absent.
 from __future__ import annotations
 
 import contextlib
-import io
 import json
 import os
 from collections.abc import Callable, Iterable, Mapping
@@ -15,10 +14,13 @@ from typing import Any
 
 import numpy as np
 import scipy.io
+from isal import isal_zlib
 
 from scanner.scan import Recording, Trace
-from scanner.storage.files import atomic_write_bytes, recover_swaps, staging_folder, swap_in
+from scanner.storage.files import atomic_writer, recover_swaps, staging_folder, swap_in
 from scanner.storage.ingest.mapping import _NAME, _SET, IngestError
+from scanner.storage.mat5 import write_variables
+from scanner.storage.matfile import COMPRESSION_LEVEL
 
 RECORDINGS = "recordings"
 """Folder of imported recording sets inside a database."""
@@ -50,11 +52,11 @@ def recording_variables(recording: Recording) -> dict[str, Any]:
     return {**{n: t.data for n, t in recording.channels.items()}, **recording.images, "meta": meta}
 
 
-def encode_recording(recording: Recording) -> bytes:
-    buffer = io.BytesIO()
-    scipy.io.savemat(buffer, recording_variables(recording), long_field_names=True, do_compression=True,
-                     oned_as="column")
-    return buffer.getvalue()
+def write_recording(recording: Recording, path: str | os.PathLike[str]) -> None:
+    """The recording as a MATLAB v5 file at ``path`` (atomic), holding no copy of its traces while writing
+    (:func:`scanner.storage.mat5.write_variables`, at the scans' compression level)."""
+    with atomic_writer(path) as handle:
+        write_variables(handle, recording_variables(recording), isal_zlib, COMPRESSION_LEVEL)
 
 
 def _plain(value: Any) -> Any:
@@ -131,14 +133,14 @@ class SetWriter:
     def add(self, recording: Recording) -> None:
         """Write one recording into the staging folder."""
         assert self._content is not None, "add() inside the with block"
-        atomic_write_bytes(self._content / f"{recording.name}.mat", encode_recording(recording))
+        write_recording(recording, self._content / f"{recording.name}.mat")
         self.count += 1
 
     def rewrite(self, change: Callable[[Recording], Recording]) -> None:
         """Replace every written recording by ``change(recording)``, one at a time."""
         assert self._content is not None, "rewrite() inside the with block"
         for path in sorted(self._content.glob("*.mat")):
-            atomic_write_bytes(path, encode_recording(change(read_recording(path))))
+            write_recording(change(read_recording(path)), path)
 
     def commit(self) -> Path:
         """Swap the written set into place; returns its folder."""
