@@ -26,15 +26,13 @@ from features import REGISTRY
 from gui import figures
 from gui.context import context
 from gui.exports import ExportBusy, ExportError, ExportJob
-from gui.forms import parse_label_filter
 from scanner.scan import CHANNELS, IMAGES
 from scanner.storage.database import DatabaseError, ScanRecord
 from scanner.storage.files import temp_path_for
 from scanner.workflows import extract_database, stored_features
-from taxonomy.errors import ParameterError
 from taxonomy.labels import Label, LabelError
 from taxonomy.reports.plots import plot_scan
-from taxonomy.table import Taxonomy
+from taxonomy.table import Taxonomy, material_code, select_labels
 
 blueprint = Blueprint("database", __name__)
 
@@ -106,31 +104,16 @@ LabelMatch = Callable[[str], bool]
 def label_filter(text: str, taxonomy: Taxonomy) -> tuple[str | None, LabelMatch | None]:
     """What the scans page's label field selects: ``(code prefix, None)`` for a label or class prefix
     (``C6`` = every stone, as ``texplorer export --label``), ``(None, match)`` for part of a material, sub-class
-    or class name (``granite``, ``Oak``, ``stone``: the taxonomy picker's search), ``(None, None)`` when empty.
+    or class name (``granite``, ``Oak``, ``stone``: the taxonomy picker's search), ``(None, None)`` when empty
+    (``taxonomy.table.select_labels``, which the command line's ``--label`` reads too).
 
     Raises
     ------
-    ValueError
+    LabelError
         One line: the text is neither a prefix nor part of any name in the taxonomy.
     """
-    text = text.strip()
-    if not text:
-        return None, None
-    try:
-        return parse_label_filter(text), None
-    except LabelError as exc:
-        reason = str(exc)
-    codes = {material.code for material in taxonomy.search(text)}
-    if not codes:
-        raise ParameterError(f"{reason}; or part of a material name, e.g. granite")
-    return None, lambda label: _material_code(label) in codes
-
-
-def _material_code(label: str) -> str:
-    try:
-        return Label.parse(label).codes()[2]
-    except LabelError:  # a row written by hand into the catalog; it matches no name
-        return ""
+    prefix, materials = select_labels(text, taxonomy)
+    return prefix, None if materials is None else (lambda label: material_code(label) in materials)
 
 
 def starts_like(value: str, typed: str) -> bool:
@@ -271,9 +254,10 @@ def start_export() -> tuple[str, int] | Response:
     """Start a background export of the scans matching the form's label and session (``texplorer export``)."""
     form = {key: request.form.get(key, "").strip()[:64] for key in ("label", "session")}
     try:
-        label = parse_label_filter(form["label"])
+        select_labels(form["label"], context().db.taxonomy())  # a prefix or part of a name, as texplorer export
     except ValueError as exc:
         return render_overview(form, {"label": str(exc)}, 422)
+    label = form["label"] or None
     try:
         job = context().exports.start(label=label, session=form["session"] or None)
     except ExportBusy as exc:

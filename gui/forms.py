@@ -28,11 +28,11 @@ from scanner.acquisition.entries import (
 )
 from scanner.scan import ScanError, ScanMeta, check_sample_id
 from taxonomy.errors import ParameterError, TexplorerError
-from taxonomy.labels import LabelError, parse_prefix
+from taxonomy.labels import LabelError
 from taxonomy.table import Taxonomy, UnknownLabelError
 
 __all__ = ["MASS_UNITS", "TACK_CHOICES", "VOLUME_METHOD_WORDS", "VOLUME_UNITS", "YIELDING_CHOICES", "FormErrors",
-           "OperatorValues", "StartValues", "parse_ambient", "parse_judged", "parse_label_filter", "parse_quantity",
+           "OperatorValues", "StartValues", "parse_ambient", "parse_judged", "parse_quantity",
            "validate_operator", "validate_start"]
 
 NOTES_MAX_CHARS = 2000
@@ -167,13 +167,3 @@ def validate_operator(form: Mapping[str, str]) -> OperatorValues:
     return OperatorValues(**values)
 
 
-def parse_label_filter(text: str) -> str | None:
-    """A label or class prefix to filter scans by, in canonical spelling (``" c6s1 "`` -> ``"C6S1"``); None
-    for an empty field. ``C6`` selects every stone (not C60), as ``texplorer export --label`` does.
-
-    Raises
-    ------
-    LabelError
-        One line naming the text and the forms a filter may take (``taxonomy.labels.parse_prefix``).
-    """
-    return parse_prefix(text) if text.strip() else None

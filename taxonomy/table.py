@@ -26,7 +26,7 @@ from types import MappingProxyType
 from typing import NamedTuple
 
 from taxonomy.errors import ParameterError, TexplorerError
-from taxonomy.labels import Label, LabelError, format_code, parse_code
+from taxonomy.labels import Label, LabelError, format_code, parse_code, parse_prefix
 
 KINDS = ("C", "S", "M", "P", "X")
 """Row kinds: major class, sub-class, material, processing shape, extra attribute."""
@@ -312,6 +312,38 @@ class Taxonomy:
             Path(handle.name).unlink(missing_ok=True)
             raise
         return path
+
+
+def select_labels(text: str, taxonomy: Taxonomy) -> tuple[str | None, frozenset[str] | None]:
+    """What a ``--label`` option or the web app's label field selects: ``(code prefix, None)`` for a label or
+    class prefix (``C6`` = every stone, not C60), ``(None, materials)`` for part of a material, sub-class or
+    class name (``granite``, ``Oak``, ``stone``: the taxonomy picker's search; the C/S/M codes it finds), and
+    ``(None, None)`` for empty text.
+
+    Raises
+    ------
+    LabelError
+        One line: the text is neither a prefix nor part of any name in the taxonomy.
+    """
+    text = text.strip()
+    if not text:
+        return None, None
+    try:
+        return parse_prefix(text), None
+    except LabelError as exc:
+        reason = str(exc)
+    codes = frozenset(material.code for material in taxonomy.search(text)) if _code_prefix(text) is None else None
+    if not codes:  # a code typed wrong ("C7S") is refused as a code, not searched as a name
+        raise LabelError(f"{reason}; or part of a material name, e.g. granite")
+    return None, codes
+
+
+def material_code(label: str) -> str:
+    """The C/S/M code of a full label (``C6S1M1P2X1`` -> ``C6S1M1``); empty if it is not one."""
+    try:
+        return Label.parse(label).codes()[2]
+    except LabelError:  # a row written by hand into a catalog; it matches no name
+        return ""
 
 
 def _code_prefix(query: str) -> str | None:

@@ -425,7 +425,8 @@ def register(commands: argparse._SubParsersAction) -> None:
                           "<db>/features-<LABEL>.csv; for a set <db>/recordings/<set>/features.csv, which "
                           "'evaluate set:NAME' then uses when given the same options)")
     features.add_argument("--mat", type=Path, help="also write the feature space as a .mat file")
-    features.add_argument("--label", help="only scans with this label or class prefix")
+    features.add_argument("--label", help="only scans with this label, class prefix (C6 = every stone) or part "
+                          "of a material name (granite)")
     add_cluster_options(features)
     features.set_defaults(handler=cmd_features)
 

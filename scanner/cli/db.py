@@ -100,7 +100,7 @@ def register(commands: argparse._SubParsersAction) -> None:
     db_commands = db.add_subparsers(dest="db_command", metavar="ACTION", required=True)
     listing = db_commands.add_parser("list", help="list scans, optionally filtered")
     add_db_option(listing)
-    listing.add_argument("--label", help="label or label prefix, e.g. C6 for every stone")
+    listing.add_argument("--label", help="label, class prefix (C6 = every stone) or part of a material name (granite)")
     listing.add_argument("--sample", help="sample id")
     listing.add_argument("--session", help="session id")
     listing.add_argument("--operator", help="operator")

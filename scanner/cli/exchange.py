@@ -132,7 +132,8 @@ def register(commands: argparse._SubParsersAction) -> None:
         "of every file) and MATLAB/Python loaders, as a folder or a .zip that appears only when complete.")
     add_db_option(export)
     export.add_argument("out", type=Path, metavar="OUT", help="new bundle folder, or a file ending in .zip")
-    export.add_argument("--label", help="only this label or class prefix (C6 = every stone)")
+    export.add_argument("--label", help="only this label, class prefix (C6 = every stone) or part of a material "
+                        "name (granite)")
     export.add_argument("--session", help="only this session id")
     export.add_argument("--workers", type=int, help="processes for uncached features (default: cores)")
     export.set_defaults(handler=cmd_export)

@@ -61,8 +61,7 @@ from scanner.storage.files import (
 from scanner.storage.matfile import ScanFormatError, load_scan, photo_file_name, save_scan, scan_files
 from scanner.storage.stored import StoredScan
 from taxonomy.errors import TexplorerError
-from taxonomy.labels import parse_prefix
-from taxonomy.table import Taxonomy, load_taxonomy
+from taxonomy.table import Taxonomy, load_taxonomy, material_code, select_labels
 
 CATALOG = "catalog.sqlite"
 SCANS = "scans"
@@ -563,21 +562,24 @@ class Database:
     @_catalog
     def records(self, *, label: str | None = None, sample: str | None = None, session: str | None = None,
                 operator: str | None = None) -> list[ScanRecord]:
-        """Catalog rows, optionally filtered; ``label`` may be a class prefix ("C6" = every stone, not C60).
+        """Catalog rows, optionally filtered; ``label`` may be a class prefix ("C6" = every stone, not C60) or
+        part of a material, sub-class or class name ("granite", "stone"), as the web app's label field.
 
-        A malformed ``label`` raises ``LabelError`` naming the valid forms; lower-case letters are accepted.
+        A ``label`` that is neither raises ``LabelError`` naming the valid forms; lower-case letters are accepted.
         """
         clauses, params = [], []
-        if label:
+        prefix, materials = select_labels(label or "", self.taxonomy()) if label else (None, None)
+        if prefix:
             clauses.append("label >= ? AND label < ?")
-            params.extend(_label_range(parse_prefix(label)))
+            params.extend(_label_range(prefix))
         for column, value in (("sample_id", sample), ("session_id", session), ("operator", operator)):
             if value:
                 clauses.append(f"{column} = ?")
                 params.append(value)
         where = f"WHERE {' AND '.join(clauses)}" if clauses else ""
         rows = self._conn.execute(f"SELECT * FROM scans {where} ORDER BY label, sample_id, scan_index", params)
-        return [_record(row) for row in rows]
+        records = [_record(row) for row in rows]
+        return records if materials is None else [r for r in records if material_code(r.label) in materials]
 
     @_catalog
     def record(self, scan_id: str) -> ScanRecord:

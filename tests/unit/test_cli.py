@@ -89,6 +89,18 @@ def test_label_filters_are_case_normalised_and_malformed_codes_refused(db_path, 
         assert "e.g. C6, C6S1 or C6S1M1P2X1" in err
 
 
+def test_label_options_take_names_as_the_web_search_does(db_path, capsys):
+    for name in ("steel", "Steel", "metal"):  # a material, in any case, and a major class's name
+        assert main(["db", "list", "--db", str(db_path), "--label", name]) == 0
+        out = capsys.readouterr().out
+        assert "steel-01-001" in out and "granite" not in out, name
+    assert main(["db", "list", "--db", str(db_path), "--label", "unobtainium"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == ("texplorer: error: 'unobtainium' is not a label or class prefix: unexpected 'u' at character 1 "
+                   "where C<number> was expected (expected C<n>, C<n>S<n>, ... up to a full label, e.g. C6, C6S1 or "
+                   "C6S1M1P2X1); or part of a material name, e.g. granite")
+
+
 def _subparsers(parser):
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
