@@ -27,7 +27,7 @@ import numpy as np
 
 from features import kernels
 from scanner.lazy import library
-from scanner.preprocess import IMAGE_BORDER_PX, crop_image
+from scanner.preprocess import IMAGE_BORDER_PX, MIN_CROPPED_SIDE_PX, crop_image
 from taxonomy.errors import ParameterError
 
 cv2 = library("cv2")
@@ -64,7 +64,7 @@ TAMURA_KMAX = kernels.TAMURA_KERNEL_KMAX
 """Tamura coarseness's largest window, 2^5 px (Tamura et al. 1978; docs/features.md#image): the compiled kernel that
 ``compute`` runs is written out for exactly this value, so it is defined there."""
 
-MIN_SIDE_PX = 2
+MIN_SIDE_PX = MIN_CROPPED_SIDE_PX
 """Smallest side of the cropped image any feature is defined on: a GLCM needs a pair of neighbours."""
 
 FEATURE_MIN_SIDE_PX: dict[str, int] = {

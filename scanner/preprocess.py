@@ -27,6 +27,22 @@ signal = library("scipy.signal")
 IMAGE_BORDER_PX = 100
 """Pixels cropped from every border of a photo before any image feature (docs/features.md#preprocessing)."""
 
+MIN_CROPPED_SIDE_PX = 2
+"""Smallest side of the cropped photo any image feature is defined on: a GLCM needs a pair of neighbours."""
+
+MIN_PHOTO_SIDE_PX = 2 * IMAGE_BORDER_PX + MIN_CROPPED_SIDE_PX
+"""Smallest side of a photo with image features (202 px): below it the image family and TacTUM's macro
+features of the photos are missing."""
+
+
+def small_photo_note(height: int, width: int) -> str | None:
+    """One line when photos of ``height`` x ``width`` px are too small for any image feature, else None."""
+    if min(height, width) >= MIN_PHOTO_SIDE_PX:
+        return None
+    return (f"photos of {width} x {height} px leave nothing for the image features after the {IMAGE_BORDER_PX} px "
+            f"border crop: they need at least {MIN_PHOTO_SIDE_PX} x {MIN_PHOTO_SIDE_PX} px, so the image features "
+            "and TacTUM's MaCo and MaRG will be missing")
+
 VIBRATION_FS = 3000.0
 """Sample rate of the DAQ channels (accelerometer, IR, FSR, flex, metal), Hz."""
 

@@ -55,6 +55,7 @@ from scanner.acquisition.devices.protocols import DeviceError
 from scanner.acquisition.devices.sources import Specimen
 from scanner.acquisition.recorder import Level, Recorder, StepResult, build_scan
 from scanner.photo import PhotoError, check_size
+from scanner.preprocess import small_photo_note
 from scanner.scan import (
     CHANNELS,
     IMAGES,
@@ -203,6 +204,8 @@ class Session:
         self.steps = procedure(config)
         self.state = SessionState.OPEN
         self.warnings: list[str] = []
+        if config.implementation("camera") == "simulated":
+            self._warn_small_photos(*config.simulated.image_size)
         self.level: Level | None = None
         self._steps = {step.id: _Step() for step in self.steps}
         self._photos: dict[str, np.ndarray] = {}
@@ -507,7 +510,14 @@ class Session:
             check_size(array.shape[1], array.shape[0], name=name)  # the photo limit, or it could not be saved
         except PhotoError as exc:
             raise SessionError(str(exc)) from None
+        self._warn_small_photos(*array.shape[:2])
         self._photos[name] = array.copy()
+
+    def _warn_small_photos(self, height: int, width: int) -> None:
+        """A warning (once) when the photos are too small for the image features (``small_photo_note``)."""
+        note = small_photo_note(height, width)
+        if note is not None and note not in self.warnings:
+            self.warnings.append(note)
 
     def capture_photo(self, name: str) -> np.ndarray:
         """Take photo ``name`` with the camera; returns it."""

@@ -51,6 +51,7 @@ from taxonomy.learning.evaluation import (
     present_feature_sets,
     recording_of,
     vote,
+    with_values,
 )
 from taxonomy.learning.models import load_model, save_model, train_model
 from taxonomy.learning.results import one_line
@@ -156,6 +157,9 @@ def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
     group_by = set_grouping(args) if space.label_level is not None else scan_grouping(args)
     if getattr(args, "open_set", False):
         return run_open_set(space, args, classifiers, levels, sizes, sets, group_by)
+    sets, left_out = with_values(space, sets if sets is not None else present_feature_sets(space))
+    for line in left_out:
+        print(f"texplorer: note: {line}", file=sys.stderr)
     started = time.perf_counter()
     calibrate = not getattr(args, "no_calibration", False)
     if calibrate and getattr(args, "calibrate_diagram_only", False):

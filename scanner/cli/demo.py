@@ -11,6 +11,7 @@ from features.extraction import run_aside
 from scanner.cli.analysis import report_space, run_evaluation
 from scanner.cli.base import UsageError, add_db_option
 from scanner.cli.common import ALL, add_cluster_options, add_evaluation_options, cluster
+from scanner.preprocess import small_photo_note
 from scanner.workflows import extract_database, simulated_database, train_default_model
 
 DEMO_SAMPLES = 2
@@ -58,6 +59,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
                   f"{args.scans} = {args.samples * args.scans} scans (more with --samples or --scans)",
                   file=sys.stderr)
             args.folds = folds
+    if (note := small_photo_note(args.image_size, args.image_size)) is not None:
+        print(f"texplorer: note: {note}", file=sys.stderr)
     started = time.perf_counter()
     db = simulated_database(args.db, materials=args.materials, scans_per_material=args.scans, seed=args.seed,
                             image_size=(args.image_size, args.image_size), progress=True,

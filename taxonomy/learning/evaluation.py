@@ -39,6 +39,7 @@ import numpy as np
 from sklearn.base import BaseEstimator, clone
 from sklearn.discriminant_analysis import LinearDiscriminantAnalysis
 from sklearn.ensemble import RandomForestClassifier
+from sklearn.exceptions import ConvergenceWarning
 from sklearn.linear_model import RidgeClassifierCV
 from sklearn.metrics import confusion_matrix
 from sklearn.model_selection import StratifiedGroupKFold, StratifiedKFold
@@ -73,6 +74,9 @@ SEED = 0
 FeatureSet = str | Sequence[str] | None
 """Columns to evaluate: None or ``"all"`` (every column), a modality name, or an explicit list of names."""
 
+MLP_MAX_ITER = 200
+"""The paper's MLP's limit of L-BFGS iterations (:func:`classifier_estimators`)."""
+
 
 
 def default_feature_sets() -> dict[str, FeatureSet]:
@@ -98,7 +102,8 @@ def classifier_estimators(seed: int) -> dict[str, BaseEstimator]:
         "svm": SVC(kernel="rbf", probability=True, random_state=seed),
         "lda": LinearDiscriminantAnalysis(),
         "knn": KNeighborsClassifier(n_neighbors=3, weights="distance"),
-        "mlp": MLPClassifier(hidden_layer_sizes=(100,), solver="lbfgs", max_iter=200, random_state=seed),
+        "mlp": MLPClassifier(hidden_layer_sizes=(100,), solver="lbfgs", max_iter=MLP_MAX_ITER,
+                             random_state=seed),
         "rf": RandomForestClassifier(n_estimators=100, random_state=seed, n_jobs=1),
         "nb": GaussianNB(),
         "ridge": RidgeClassifierCV(alphas=np.logspace(-3, 3, 10)),
@@ -156,6 +161,34 @@ def make_pipeline(classifier: str | BaseEstimator = "rf", n_features: int | None
 
 def classifier_name(classifier: str | BaseEstimator) -> str:
     return classifier if isinstance(classifier, str) else type(classifier).__name__
+
+
+def iteration_limit_stops(estimator: BaseEstimator,
+                          caught: Sequence[warnings.WarningMessage]) -> tuple[int, list[warnings.WarningMessage]]:
+    """How many fits of the paper's MLP stopped at its L-BFGS iteration limit before converging, counted from
+    the warnings ``caught`` while fitting ``estimator`` (unfitted), and the other warnings.
+
+    With the paper's 200 iterations the MLP stops before converging in many fits: an expected outcome of
+    the setting, which the report states once with this count
+    (:func:`taxonomy.reports.report.convergence_note`) instead of a ConvergenceWarning per fit, whose advice
+    to scale the data does not apply (the pipeline scales every feature to [0, 1]). Every other warning
+    stays a warning, an MLP's that stopped for another reason (a failed line search) or with other
+    settings included. The stop is recognised by scipy's L-BFGS-B message, which scikit-learn's warning quotes.
+    """
+    stops = [w for w in caught if paper_mlp(estimator) and issubclass(w.category, ConvergenceWarning)
+             and "ITERATIONS REACHED LIMIT" in str(w.message).upper()]
+    return len(stops), [w for w in caught if not any(w is stop for stop in stops)]
+
+
+def paper_mlp(estimator: BaseEstimator) -> bool:
+    """Whether ``estimator`` is an MLP trained as the paper's: by L-BFGS for at most 200 iterations."""
+    return (isinstance(estimator, MLPClassifier) and estimator.solver == "lbfgs"
+            and estimator.max_iter == MLP_MAX_ITER)
+
+
+def _fits(classifier: BaseEstimator) -> int:
+    """The fits a fitted classifier took: one, or with calibration one on every row and one per inner split."""
+    return classifier.n_fits_ if isinstance(classifier, TemperatureScaledClassifier) else 1
 
 
 # -- splits ------------------------------------------------------------------------------------------
@@ -349,8 +382,10 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
     Returns
     -------
     Result
-        Identical on every rerun with the same arguments. Warnings raised while fitting (an MLP that did
-        not converge, the fallback to ungrouped folds) are collected in ``Result.notes``.
+        Identical on every rerun with the same arguments. Warnings raised while fitting (the fallback to
+        ungrouped folds, an MLP of other settings that did not converge) are collected in ``Result.notes``;
+        the fits of the paper's MLP that stopped at its 200 iterations are counted in ``Result.unconverged``
+        (:func:`iteration_limit_stops`).
     """
     cell = _Cell(space.check_level(level), _set_name(feature_set), feature_set, n_features)
     return _run(space, [classifier], [cell], folds, seed, protocol, workers=1, progress=False,
@@ -438,6 +473,30 @@ def present_feature_sets(space: FeatureSpace) -> dict[str, FeatureSet]:
     prefixes = {c.split(".", 1)[0] for c in space.columns}
     present = {name: fs for name, fs in default_feature_sets().items() if fs in prefixes}
     return present if len(present) == 1 else {**present, "all": None}
+
+
+def with_values(space: FeatureSpace, sets: dict[str, FeatureSet]) -> tuple[dict[str, FeatureSet], list[str]]:
+    """The feature sets of ``sets`` that hold a value somewhere, and one line for each left out because
+    every one of its columns is missing in every row (photos smaller than the border crop leave the image
+    family without a value): such a set cannot be evaluated, the others can.
+
+    Raises
+    ------
+    EvaluationError
+        No set has a value.
+    """
+    kept, left_out = {}, []
+    for name, feature_set in sets.items():
+        subset, _ = resolve_feature_set(space, feature_set)
+        if subset.X.size and np.isnan(subset.X).all():
+            left_out.append(f"feature set {name} left out: none of its {len(subset.columns)} columns has a value "
+                            f"in any of the {len(subset.X)} rows")
+        else:
+            kept[name] = feature_set
+    if not kept:
+        raise EvaluationError(f"every one of the {len(space.X)} rows holds only NaN in every feature set "
+                              f"({', '.join(sets)}): no feature could be computed")
+    return kept, left_out
 
 
 def _set_name(feature_set: FeatureSet) -> str:
@@ -573,13 +632,15 @@ def _without_probabilities(pipeline: Pipeline) -> Pipeline:
 class _FoldOutcome:
     """One fold's predictions per classifier, the selected column names, the warnings, the seconds per
     classifier (the shared part's time included), and the test rows' calibrated probabilities per classifier
-    (columns in the order of the cell's classes; None without calibration)."""
+    (columns in the order of the cell's classes; None without calibration), and per classifier the fits of
+    the paper's MLP that stopped at its iteration limit and all its fits (``Result.unconverged``)."""
 
     predictions: list[np.ndarray]
     selected: tuple[str, ...]
     notes: tuple[str, ...]
     seconds: list[float]
     probabilities: list[np.ndarray | None]
+    unconverged: list[tuple[int, int]]
 
 
 def _run_fold(job: tuple[_Prepared, int, str]) -> _FoldOutcome:
@@ -609,7 +670,7 @@ def _fold(prepared: _Prepared, fold: int, protocol: str) -> _FoldOutcome:
     shared_seconds = time.perf_counter() - started
     messages = warning_notes(caught)
     classes = np.unique(y)
-    predictions, seconds, probabilities = [], [], []
+    predictions, seconds, probabilities, unconverged = [], [], [], []
     for pipeline in prepared.pipelines:
         started = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught, one_blas_thread():
@@ -627,9 +688,11 @@ def _fold(prepared: _Prepared, fold: int, protocol: str) -> _FoldOutcome:
                 probabilities.append(None)
             predictions.append(classifier.predict(X_test))
         seconds.append(shared_seconds + time.perf_counter() - started)
-        messages += warning_notes(caught, f"{name}: ")
+        stopped, others = iteration_limit_stops(pipeline[-1], caught)
+        unconverged.append((stopped, _fits(classifier)) if paper_mlp(pipeline[-1]) else (0, 0))
+        messages += warning_notes(others, f"{name}: ")
     return _FoldOutcome(predictions, _selected_names(shared, prepared.columns), tuple(dict.fromkeys(messages)),
-                        seconds, probabilities)
+                        seconds, probabilities, unconverged)
 
 
 def _selected_names(shared: Pipeline, columns: tuple[str, ...]) -> tuple[str, ...]:
@@ -667,6 +730,7 @@ def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],
             grouped=prepared.grouped, given_split=prepared.given_split, columns=prepared.columns,
             dropped=prepared.dropped, selected=selected, y_true=y, y_pred=y_pred, fold=fold_of_row,
             seconds=float(sum(outcome.seconds[k] for outcome in per_fold)),
+            unconverged=(sum(o.unconverged[k][0] for o in per_fold), sum(o.unconverged[k][1] for o in per_fold)),
             groups=prepared.groups, probability=probability, group_by=prepared.group_by,
         ))
     return reports
@@ -779,8 +843,11 @@ def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = 
             raise EvaluationError("an open-set evaluation needs at least two classes to hold out in turn")
 
         kernels = _kernels(feature_set, "nested")
+        fits = 0  # of the classifier, for Result.unconverged
 
         def fit(X: np.ndarray, y_fit: np.ndarray, g: np.ndarray) -> Pipeline:
+            nonlocal fits
+            fits += 1
             return fit_pipeline(X, y_fit, g, classifier, n_features, seed, calibrate=False, kernels=kernels,
                                 columns=subset.columns)
 
@@ -796,6 +863,7 @@ def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = 
             pipeline = fit_pipeline(subset.X[train], y[train], groups[train], classifier, n_features, seed,
                                     calibrate, materials=np.asarray(subset.label_text)[train], kernels=kernels,
                                     columns=subset.columns)
+            fits += _fits(pipeline.steps[-1][1])
             threshold, _ = learn_rejection(subset.X[train], y[train], groups[train], fit, seed=seed,
                                            max_accuracy_drop=max_accuracy_drop)
             rule = fit_rule(pipeline, subset.X[train], y[train], groups[train], threshold)
@@ -815,13 +883,16 @@ def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = 
             f1.append(present_class_f1(y[test][is_known], predicted[is_known]))
     rows_a, known_a, y_pred_a = np.concatenate(rows), np.concatenate(known), np.concatenate(y_pred)
     y_true = y[rows_a]
+    estimator = make_pipeline(classifier, n_features, seed)[-1]
+    stopped, others = iteration_limit_stops(estimator, caught)
     return Result(
         method=OWN_METHOD, feature_set=_set_name(feature_set), classifier=classifier_name(classifier), level=level,
         protocol="nested", splitting=f"{len(splits)} {'grouped' if grouped else 'ungrouped'} folds, "
         f"1/{len(parts)} of the classes held out per fold", classes=tuple(classes.tolist()),
         accuracy=np.array(accuracy), f1=np.array(f1),
         confusion=confusion_matrix(y_true[known_a], y_pred_a[known_a], labels=classes), n_samples=len(y),
-        seed=seed, notes=warning_notes(caught), taxonomy=subset.label_level is None, n_features=n_features,
+        seed=seed, notes=warning_notes(others), taxonomy=subset.label_level is None, n_features=n_features,
+        unconverged=(stopped, fits) if paper_mlp(estimator) else (0, 0),
         grouped=grouped, columns=subset.columns, dropped=dropped, y_true=y_true, y_pred=y_pred_a,
         fold=np.concatenate(fold), groups=groups[rows_a],
         probability=np.concatenate(probability) if calibrate else None,

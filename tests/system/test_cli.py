@@ -3,12 +3,15 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
+from features.space import FeatureSpace
 from scanner.cli import EXIT_PIPE, main
 from scanner.cli.base import UsageError
 from scanner.storage.database import Database
@@ -79,6 +82,32 @@ def test_select_evaluate_train_classify(demo_db, tmp_path, capsys):
     assert main(["classify", str(scan), "--model", str(model), "--k", "2"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[1].split()[:2] == ["1.", "C3"]
+
+
+def test_a_feature_set_without_any_value_is_left_out_and_the_rest_evaluated(demo_db, tmp_path, capsys):
+    # photos below the border crop leave the whole image family NaN; that set is named and left out
+    space = FeatureSpace.from_csv(demo_db / "features.csv")
+    image = np.array([c.startswith("image.") for c in space.columns])
+    X = space.X.copy()
+    X[:, image] = np.nan
+    table = dataclasses.replace(space, X=X).to_csv(tmp_path / "no-photos.csv")
+    capsys.readouterr()
+    assert main(["evaluate", "--db", str(demo_db), "--features", str(table), "--classifier", "rf", "--level",
+                 "coarse", "--n", "3", "--folds", "3", "--report", str(tmp_path / "r")]) == 0
+    captured = capsys.readouterr()
+    assert (f"texplorer: note: feature set image left out: none of its {image.sum()} columns has a value in any "
+            f"of the {len(X)} rows") in captured.err
+    table_lines = captured.out.splitlines()
+    assert any(line.startswith("rf") and "all" in line for line in table_lines)
+    assert not any(" image " in f" {line} " for line in table_lines if line.startswith("rf"))
+    assert (tmp_path / "r" / "index.html").is_file()
+
+
+def test_the_demo_notes_photos_too_small_for_the_image_features(tmp_path, capsys):
+    assert main(["demo", "--db", str(tmp_path / "db"), "--materials", "oak-planed", "--samples", "1", "--scans",
+                 "1", "--image-size", "200", "--no-evaluation", "--workers", "1"]) == 0
+    assert ("texplorer: note: photos of 200 x 200 px leave nothing for the image features after the 100 px border "
+            "crop: they need at least 202 x 202 px") in capsys.readouterr().err
 
 
 def test_classify_refuses_a_foreign_model(demo_db, tmp_path, capsys):

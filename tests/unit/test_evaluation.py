@@ -19,6 +19,7 @@ from taxonomy.learning.evaluation import (
     cv_splits,
     evaluate,
     evaluate_grid,
+    with_values,
 )
 from taxonomy.learning.results import major_class, one_line, r_c
 from taxonomy.reports.report import cell_text, format_table
@@ -335,3 +336,14 @@ def test_constant_or_overflowing_features_are_named_instead_of_a_library_error()
     usable = huge.copy()
     usable[:, 1] /= 1e300  # the same data in other units: evaluated
     assert evaluate(_two_materials(usable), classifier="lda", level="fine", n_features=1).accuracy_pooled == 1.0
+
+
+def test_with_values_leaves_out_a_set_without_any_value():
+    X = np.array([[1.0, np.nan, np.nan], [2.0, np.nan, np.nan]])
+    space = FeatureSpace(X=X, columns=("other.a", "image.b", "image.c"), scan_ids=["s1", "s2"],
+                         label_text=["C1S1M1P1X1", "C6S1M1P2X1"], groups=["g1", "g2"])
+    kept, left_out = with_values(space, {"other": "other", "image": "image", "all": None})
+    assert list(kept) == ["other", "all"]
+    assert left_out == ["feature set image left out: none of its 2 columns has a value in any of the 2 rows"]
+    with pytest.raises(EvaluationError, match=r"every one of the 2 rows holds only NaN in every feature set \(image\)"):
+        with_values(space, {"image": "image"})

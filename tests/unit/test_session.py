@@ -342,3 +342,18 @@ def test_texplorer_scan_abort_asks_first_and_says_how_to_start_again(tmp_path, m
                      f"--operator 'Ann B' --config {config}")
 
 
+
+
+def test_photos_too_small_for_the_image_features_are_warned_about_at_the_start_and_when_set():
+    small = {**FAST, "simulated": {"realtime": False, "image_size": [200, 240]}}
+    with Session.open(parse_config(small), label="C6S1M1P2X1", sample_id="granite-01", operator="ab") as s:
+        assert s.warnings == ["photos of 240 x 200 px leave nothing for the image features after the 100 px "
+                              "border crop: they need at least 202 x 202 px, so the image features and TacTUM's "
+                              "MaCo and MaRG will be missing"]
+    with Session.open(parse_config(FAST), label="C6S1M1P2X1", sample_id="granite-01", operator="ab") as s:
+        assert s.warnings == []
+        s.set_photo("I_disp", np.zeros((202, 202, 3), np.uint8))  # the smallest photo with image features
+        assert s.warnings == []
+        s.set_photo("I_macro", np.zeros((150, 400, 3), np.uint8))
+        s.set_photo("I_illu", np.zeros((150, 400, 3), np.uint8))
+        assert len(s.warnings) == 1 and s.warnings[0].startswith("photos of 400 x 150 px leave nothing")
