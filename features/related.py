@@ -463,8 +463,15 @@ def spectral_moments(frequency: np.ndarray, energy: np.ndarray) -> np.ndarray:
                      _ratio(float(p @ deviation**4), variance**2)])
 
 
+MAX_EXPONENT = math.log(np.finfo(np.float64).max) / 2
+"""The largest exponent :func:`time_constant`'s model takes, 354.9: half of float64's range, so the curve times
+any step a signal can have (below 1e154) stays finite."""
+
+
 def _exponential(t: np.ndarray, final: float, step: float, tau: float) -> np.ndarray:
-    return final + step * np.exp(-t / tau)
+    # t >= 0, so a positive exponent means tau < 0: a growing curve the optimiser tries on its way, which
+    # it rejects whether its value is 1e154 times the step or infinite; it is capped, not let overflow.
+    return final + step * np.exp(np.minimum(-t / tau, MAX_EXPONENT))
 
 
 def time_constant(x: np.ndarray, fs: float) -> float:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -256,6 +257,23 @@ def test_time_constant_of_an_exponential():
     t = np.arange(1500) / 100.0
     assert related.time_constant(30.0 + 5.0 * np.exp(-t / 2.5), 100.0) == pytest.approx(2.5, rel=1e-6)
     assert math.isnan(related.time_constant(np.full(100, 3.0), 100.0))
+
+
+def test_time_constant_far_below_the_start_fits_without_overflow():
+    # tau = 0.05 s against a start of duration / 3 = 4.3 s: on its way the optimiser tries growing curves
+    # (tau < 0) whose exp(-t / tau) overflowed to inf ("overflow encountered in exp").
+    t = np.arange(130) / 10.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tau = related.time_constant(20.0 + 10.0 * np.exp(-t / 0.05), 10.0)
+    # Exact samples: the fit ends on the generating tau within curve_fit's xtol, its relative step at the end.
+    assert tau == pytest.approx(0.05, rel=1.49012e-8)
+    # The capped model is the formula itself wherever exp does not overflow, and finite where it would.
+    np.testing.assert_array_equal(related._exponential(t, 20.0, 10.0, 0.05), 20.0 + 10.0 * np.exp(-t / 0.05))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        growing = related._exponential(np.array([0.0, 1000.0]), 20.0, 10.0, -1.0)
+    assert growing[0] == 30.0 and growing[1] == 20.0 + 10.0 * math.exp(related.MAX_EXPONENT)
 
 
 def test_electrode_polynomials_of_known_components():
