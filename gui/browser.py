@@ -253,8 +253,8 @@ def render_overview(form: dict[str, str], errors: dict[str, str], status: int = 
 def start_export() -> tuple[str, int] | Response:
     """Start a background export of the scans matching the form's label and session (``texplorer export``)."""
     form = {key: request.form.get(key, "").strip()[:64] for key in ("label", "session")}
-    try:
-        select_labels(form["label"], context().db.taxonomy())  # a prefix or part of a name, as texplorer export
+    try:  # a label or class prefix or part of a name, as texplorer export --label
+        select_labels(form["label"], context().db.taxonomy())
     except ValueError as exc:
         return render_overview(form, {"label": str(exc)}, 422)
     label = form["label"] or None
@@ -277,11 +277,15 @@ def _job(job_id: str) -> ExportJob:
     return job
 
 
+def render_job(job: ExportJob, refused: str = "", status: int = 200) -> tuple[str, int]:
+    """The job's page: its progress, its bundle to download, or (taken, cancelled, failed) a new export."""
+    return render_template("db_export.html", job=job, status=job.status(), refused=refused,
+                           config_abandon=context().settings.export_abandon_s), status
+
+
 @blueprint.get("/export/<job_id>")
-def export_job(job_id: str) -> str:
-    job = _job(job_id)
-    return render_template("db_export.html", job=job, status=job.status(),
-                           config_abandon=context().settings.export_abandon_s)
+def export_job(job_id: str) -> tuple[str, int]:
+    return render_job(_job(job_id))
 
 
 @blueprint.get("/export/<job_id>/status")
@@ -295,13 +299,17 @@ def export_status(job_id: str) -> Response:
 
 
 @blueprint.get("/export/<job_id>/bundle.zip")
-def export_download(job_id: str) -> Response:
-    """Stream the finished bundle; it is deleted here as the download starts (it can be taken once)."""
+def export_download(job_id: str) -> tuple[str, int] | Response:
+    """Stream the finished bundle; it is deleted here as the download starts (it can be taken once).
+
+    A bundle already taken (the page's automatic download, then a tap on its link; a page without script
+    still shows the link) answers 409 with the job's page, which says why and offers to export again.
+    """
     job = _job(job_id)
     try:
         handle, name, size = context().exports.take(job)
     except ExportError as exc:
-        abort(409, description=str(exc))
+        return render_job(job, refused=str(exc), status=409)
     response = send_file(handle, mimetype="application/zip", as_attachment=True, download_name=name, max_age=0)
     response.content_length = size
     return response

@@ -45,7 +45,7 @@ from scanner.acquisition.session import VOLUME_METHODS, Session, SessionError, S
 from scanner.scan import CHANNELS, IMAGES
 from scanner.simulation import is_hand_set
 from scanner.storage.database import DatabaseError, ScanRecord
-from scanner.workflows import predict_values
+from scanner.workflows import LabelCheck, check_label, predict_values
 from taxonomy.learning.models import ModelError
 from taxonomy.reports.plots import plot_scan
 
@@ -471,6 +471,7 @@ class Summary:
     prediction_note: str
     notes: list[str]
     unknown: str = ""
+    label_check: LabelCheck | None = None
 
 
 def _format(value: float) -> str:
@@ -489,8 +490,8 @@ def summarise(op: Operation) -> Summary:
         values = extract(scan, _model_families())
     notes = sorted({str(w.message) for w in caught})
     tactum = [(TACTUM_TITLES[name], _format(values[name])) for name in TACTUM_TITLES]
-    predictions, note, unknown = _predict(values)
-    summary = Summary(tactum, predictions, note, notes, unknown)
+    predictions, note, unknown, check = _predict(values, op.session.label)
+    summary = Summary(tactum, predictions, note, notes, unknown, check)
     op.summary_cache["summary"] = summary
     op.summary_cache["scan"] = scan
     op.summary_cache["values"] = values
@@ -532,27 +533,32 @@ def _model_families() -> tuple[str, ...] | None:
     return None if model is None else feature_sets.families_of(model.feature_names)
 
 
-def _predict(values: dict[str, float]) -> tuple[list[tuple[str, float, str]] | None, str, str]:
-    """The top three, a note on the model, and "unknown material (closest: ...)" when its rule rejects.
+Predicted = tuple[list[tuple[str, float, str]] | None, str, str, LabelCheck | None]
+
+
+def _predict(values: dict[str, float], label: str) -> Predicted:
+    """The top three, a note on the model, "unknown material (closest: ...)" when its rule rejects, and where
+    the operator's ``label`` disagrees with the model (:func:`scanner.workflows.check_label`).
     A model that fails or takes longer than ``prediction_timeout_s`` gives no prediction and a one-line note
     instead; the scan stays ready to save."""
     ctx = context()
     try:
         model = within(ctx.settings.prediction_timeout_s, lambda: ctx.model)
     except ModelError as exc:
-        return None, f"the model cannot be used: {session_error(exc)}", ""
+        return None, f"the model cannot be used: {session_error(exc)}", "", None
     if model is None:
-        return None, "no trained model: run 'texplorer train' (or 'texplorer demo') to see predictions here", ""
+        return None, "no trained model: run 'texplorer train' (or 'texplorer demo') to see predictions here", "", None
     taxonomy = ctx.db.taxonomy()  # read here: the database's connection belongs to this thread
     try:
         prediction = within(ctx.settings.prediction_timeout_s, lambda: predict_values(model, values, 3, taxonomy))
     except ModelError as exc:
-        return None, f"no prediction: {session_error(exc)}", ""
+        return None, f"no prediction: {session_error(exc)}", "", None
     except Exception as exc:  # noqa: BLE001 - a model from elsewhere may fail in any way; the scan must stay
-        return None, f"no prediction: the model failed ({type(exc).__name__}: {session_error(exc)})", ""
+        return None, f"no prediction: the model failed ({type(exc).__name__}: {session_error(exc)})", "", None
     named = [(p.label, p.probability, p.names) for p in prediction.predictions]
     unknown = prediction.headline() if prediction.unknown else ""
-    return named, f"{model.classifier} at level {model.level}, trained on {model.n_rows} scans", unknown
+    note = f"{model.classifier} at level {model.level}, trained on {model.n_rows} scans"
+    return named, note, unknown, check_label(label, prediction, model, taxonomy)
 
 
 def session_figures(session: Session) -> list[figures.StepFigure]:
@@ -576,7 +582,8 @@ def summary() -> tuple[str, int] | Response:
     return render_page("summary.html", current=None, missing=[], result=result, session=session,
                        values=session.values, rigid=session.rigid, figures=session_figures(session),
                        photos=[(name, PHOTO_TITLES[name], op.photos.get(name)) for name in IMAGES],
-                       description=context().db.taxonomy().describe(session.label))
+                       description=context().db.taxonomy().describe(session.label),
+                       label_check=None if op.summary_cache.get("label_kept") else result.label_check)
 
 
 def _png(draw: Callable[[io.BytesIO], None]) -> bytes:
@@ -649,6 +656,34 @@ def keep_for_the_scan_page(op: Operation, record: ScanRecord) -> None:
     if scan is not None and values is not None and scan.scan_id == record.scan_id:
         with contextlib.suppress(DatabaseError):
             ctx.db.store_features(record.content_hash, code_version(), values)
+
+
+@blueprint.post("/session/label")
+def relabel() -> tuple[str, int] | Response:
+    """The summary's answer to a label check: keep the operator's label, take the predicted one, or another
+    (checked as on the start page: known to the taxonomy, and the sample's own material)."""
+    ctx = context()
+    op = operation()
+    choice = request.form.get("choice", "")[:16]
+    text = {"mine": op.session.label, "predicted": request.form.get("predicted", ""),
+            "other": request.form.get("label", "")}.get(choice)
+    if text is None:
+        abort(400, description=f"choice must be mine, predicted or other, got {choice!r}")
+    form = {"operator": op.session.operator, "label": text[:200], "sample_id": op.session.sample_id}
+    try:
+        label = validate_start(form, ctx.db.taxonomy(), sample_owner).label
+        op.session.relabel(label)
+    except FormErrors as exc:
+        flash(f"The label was not changed: {next(iter(exc.errors.values()))}", "bad")
+        return redirect(url_for("operate.summary"))
+    except SessionError as exc:
+        flash(f"The label was not changed: {session_error(exc)}", "bad")
+        return redirect(url_for("operate.summary"))
+    op.summary_cache["label_kept"] = choice == "mine"
+    if choice != "mine":
+        op.changed()
+        flash(f"The scan will be saved as {label}.", "good")
+    return redirect(url_for("operate.summary"))
 
 
 @blueprint.post("/session/save")

@@ -40,7 +40,7 @@ from scanner.simulation.scans import synthetic_scan
 from scanner.storage.bundle import ExportReport, Progress, export_bundle
 from scanner.storage.database import Database, DatabaseError, ScanRecord
 from scanner.storage.matfile import load_scan, save_scan
-from taxonomy.labels import LabelError
+from taxonomy.labels import Label, LabelError
 from taxonomy.learning.models import TrainedModel, classify_values, save_model, train_model
 from taxonomy.table import Taxonomy, UnknownLabelError
 
@@ -259,6 +259,49 @@ def predict_values(model: TrainedModel, values: dict[str, float], k: int, taxono
     """As :func:`predict_scan`, from the scan's feature values already extracted."""
     verdict = classify_values(model, values, k)
     return ScanPrediction(name_predictions(verdict.top, taxonomy), verdict.unknown, verdict.score, verdict.threshold)
+
+
+MODEL_LEVELS = ("coarse", "medium", "fine")
+"""The levels of the taxonomy a model of scans predicts; a label's class at each is ``Label.at(level)``."""
+
+
+@dataclass(frozen=True)
+class LabelCheck:
+    """Why the operator's label and the model's prediction disagree (one line), and the label the model
+    predicts where it predicts whole labels (level ``fine``), offered in place of the operator's."""
+
+    message: str
+    predicted: str | None
+
+
+def _named(label: str, taxonomy: Taxonomy) -> str:
+    try:
+        return f"{taxonomy.describe(label)} ({label})"
+    except (LabelError, UnknownLabelError):
+        return label
+
+
+def check_label(label: str, prediction: ScanPrediction, model: TrainedModel, taxonomy: Taxonomy) -> LabelCheck | None:
+    """The operator's ``label`` against the model's ``prediction`` of the scan, at the level the model
+    predicts: None where they agree (or the scan is an unknown material, which the prediction says itself, or
+    the model predicts free labels), else a :class:`LabelCheck` when the label names a class the model was
+    never trained on, or differs from its most probable class."""
+    if model.level not in MODEL_LEVELS or not prediction.predictions:
+        return None
+    try:
+        mine = Label.parse(label).at(model.level)
+    except LabelError:
+        return None
+    best = prediction.predictions[0]
+    offered = best.label if model.level == "fine" else None
+    predicted = f"the model predicts {best.names} ({best.label}) at {100 * best.probability:.1f} %"
+    if mine not in model.classes:
+        return LabelCheck(f"your label {_named(label, taxonomy)} names a class the model was never trained on "
+                          f"({mine} at level {model.level}); {predicted}", offered)
+    if prediction.unknown or best.label == mine:
+        return None
+    return LabelCheck(f"your label {_named(label, taxonomy)} differs from the prediction at level {model.level}: "
+                      f"{predicted}", offered)
 
 
 def format_predictions(prediction: ScanPrediction | Sequence[Prediction]) -> str:

@@ -513,6 +513,17 @@ class Session:
         self._warn_small_photos(*array.shape[:2])
         self._photos[name] = array.copy()
 
+    def relabel(self, label: str) -> None:
+        """Store the scan under ``label`` instead (the operator corrects the label at the summary, say
+        after the model's prediction disagreed); checked as the label given when the session opened."""
+        self._check_open()
+        try:
+            probe = ScanMeta(label=label, operator=self.operator, sample_id=self.sample_id, scan_index=1,
+                             session_id=self.session_id, started=self.started)
+        except ScanError as exc:
+            raise SessionError(str(exc)) from None
+        self.label = probe.label
+
     def _warn_small_photos(self, height: int, width: int) -> None:
         """A warning (once) when the photos are too small for the image features (``small_photo_note``)."""
         note = small_photo_note(height, width)

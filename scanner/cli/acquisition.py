@@ -27,9 +27,11 @@ from scanner.acquisition.session import VOLUME_METHODS, Session, SessionError, S
 from scanner.cli.base import EXIT_ERROR, add_db_option, open_db
 from scanner.scan import IMAGES
 from scanner.storage.database import DatabaseError, is_database
-from scanner.workflows import format_predictions, predict_scan
+from scanner.workflows import check_label, format_predictions, predict_scan
 from taxonomy.errors import TexplorerError
-from taxonomy.learning.models import load_model
+from taxonomy.labels import LabelError
+from taxonomy.learning.models import TrainedModel, load_model
+from taxonomy.table import UnknownLabelError, load_taxonomy
 
 try:  # pseudo-terminals: POSIX only
     from scanner.acquisition.emulators.board import BoardEmulator, FaultPlan
@@ -149,8 +151,34 @@ def _tu4(session: Session) -> None:
     _ask_value(session, "  notes (optional): ", "notes", str, optional=True)
 
 
-def _guide(session, args: argparse.Namespace) -> str | None:
-    """Walk the operator through every step; the saved scan id, or None if not saved."""
+def _check_label(session: Session, model: TrainedModel, args: argparse.Namespace) -> None:
+    """Before saving: the model's prediction of the scan as it would be saved, and where the operator's label
+    disagrees with it (:func:`scanner.workflows.check_label`), the choice of the predicted label, the
+    operator's, or another."""
+    db = open_db(args) if is_database(args.db) else None
+    taxonomy = db.taxonomy() if db is not None else load_taxonomy()
+    scan = session.scan(db.next_scan_index(session.sample_id) if db is not None else 1)
+    prediction = predict_scan(model, scan, 3, taxonomy)
+    print("\n" + format_predictions(prediction))
+    check = check_label(session.label, prediction, model, taxonomy)
+    if check is None:
+        return
+    print(f"check the label: {check.message}")
+    offer = f"[p] save as {check.predicted}, " if check.predicted else ""
+    while answer := _ask(session, f"{offer}[Enter] keep {session.label}, or type another label: ").strip():
+        label = check.predicted if answer.lower() == "p" and check.predicted else answer
+        try:
+            session.relabel(taxonomy.check(label).format())
+        except (LabelError, UnknownLabelError, SessionError) as exc:
+            print(f"  {exc}")
+            continue
+        print(f"the scan will be saved as {session.label}")
+        return
+
+
+def _guide(session, args: argparse.Namespace, model: TrainedModel | None = None) -> str | None:
+    """Walk the operator through every step, check the label against ``model`` if given; the saved scan id,
+    or None if not saved."""
     answer = _ask(session, f"ambient temperature {session.t_amb:.2f} degC: [Enter] keep, or type degC: ")
     while answer:
         try:
@@ -169,6 +197,8 @@ def _guide(session, args: argparse.Namespace) -> str | None:
             _take_photos(session)
         else:
             _tu4(session)
+    if model is not None:
+        _check_label(session, model, args)
     while _ask(session, "\nsave the scan? [Y/n] ").lower() in ("n", "no"):
         if _confirm_discard(session, "not saving"):
             return None
@@ -209,7 +239,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
             print(f"  {name:<13} {description}")
         for warning in session.warnings:
             print(f"texplorer: warning: {warning}", file=sys.stderr)
-        scan_id = _guide(session, args)
+        scan_id = _guide(session, args, model)
     except _Aborted as reason:
         print(f"scan aborted ({reason}): nothing was saved")
         print(f"to scan this sample again: {again(args, session)}")
@@ -221,9 +251,6 @@ def cmd_scan(args: argparse.Namespace) -> int:
         print(f"to scan this sample again: {again(args, session)}")
         return EXIT_ERROR
     print(f"saved {scan_id} in {args.db}")
-    if model is not None:
-        db = open_db(args)
-        print(format_predictions(predict_scan(model, db.get(scan_id), 3, db.taxonomy())))
     return 0
 
 
@@ -280,7 +307,8 @@ def register(commands: argparse._SubParsersAction) -> None:
                           "Device Server")
     scanning.add_argument("--board", metavar="PORT", help="use the real sensor board on this serial port "
                           "(COM3, /dev/ttyACM0)")
-    scanning.add_argument("--model", type=Path, help="after saving, print the prediction of this model")
+    scanning.add_argument("--model", type=Path, help="before saving, print the prediction of this model and "
+                          "check the label against it")
     scanning.set_defaults(handler=cmd_scan)
 
     emulate = commands.add_parser("emulate", help="run a device emulator to try the app without hardware",

@@ -66,7 +66,7 @@ from scanner.storage.matfile import ScanFormatError, load_scan, photo_file_name
 from scanner.version import __version__
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import Label
-from taxonomy.table import HEADER, Taxonomy, TaxonomyError, read_table
+from taxonomy.table import HEADER, Taxonomy, TaxonomyError, read_table, select_labels
 
 BUNDLE_FORMAT = "texplorer-bundle"
 BUNDLE_SCHEMA = 1
@@ -171,6 +171,8 @@ def export_bundle(db: Database, out: str | os.PathLike[str], features: Features,
     if out.exists():
         raise BundleError(f"{out} already exists; export to a new name")
     records = sorted(db.records(label=label, session=session), key=lambda r: (r.started, r.scan_id))
+    if label:  # a prefix in its canonical spelling (" c7 " -> C7); part of a name as given
+        label = select_labels(label, db.taxonomy())[0] or label.strip()
     if not records:
         raise BundleError(f"{db.root}: no scans{_filter_text(label, session)} to export")
     space = features(records)

@@ -14,6 +14,7 @@ from unit.test_gui import (
     RECORDED_STEPS,
     active,
     database,
+    density_model,
     fast_config,  # noqa: E402
     field_error,
     get,
@@ -102,19 +103,6 @@ def scanner_channels():
     from scanner.scan import CHANNELS
 
     return CHANNELS
-
-
-def density_model(path):
-    """A random forest on density alone: granite (2.6-2.8 g/cm^3) against oak (0.6-0.8 g/cm^3)."""
-    from features.space import FeatureSpace
-    from taxonomy.learning.models import save_model, train_model
-
-    density = np.concatenate([np.linspace(2.6, 2.8, 6), np.linspace(0.6, 0.8, 6)])
-    labels = ["C6S1M1P2X1"] * 6 + ["C1S1M1P4X1"] * 6
-    space = FeatureSpace(X=density[:, None], columns=("other.density",),
-                         scan_ids=[f"s-{i}" for i in range(12)], label_text=labels,
-                         groups=[f"g-{i}" for i in range(12)])
-    return save_model(train_model(space, "fine", 1, "rf"), path)
 
 
 def test_summary_shows_the_models_top_predictions(tmp_path):
@@ -503,10 +491,10 @@ def test_peltier_off_when_the_browser_goes_silent_while_heating(tmp_path):
         app.extensions["texplorer"].shutdown()
 
 
-def summary_after_a_full_scan(client, app, mass_g="512.5"):
+def summary_after_a_full_scan(client, app, mass_g="512.5", label="C6S1M1P2X1"):
     """Record every step and fill the form; the summary page's text (with 190 cm^3: 512.5 g is 2.697 g/cm^3,
     granite by density)."""
-    start_session(client)
+    start_session(client, label=label)
     record_all(client, app)
     for name in ("I_disp", "I_macro", "I_illu"):
         post(client, "/session/form", {"capture": name})
@@ -616,3 +604,45 @@ def test_concurrent_requests_share_one_bounded_set_of_workers(tmp_path):
     finally:
         process.terminate()
         process.wait(30)
+
+
+def test_the_summary_checks_the_label_against_the_model_and_takes_the_predicted_one(tmp_path):
+    density_model(tmp_path / "db" / "models" / "rf-fine-X10.skops")  # granite polished vs oak, by density
+    app = make_app(tmp_path / "db")
+    client = app.test_client()
+    try:
+        # oak by its label, granite by its density (2.697 g/cm^3)
+        page = summary_after_a_full_scan(client, app, label="C1S1M1P4X1")
+        assert ("Check the label: your label oak (hardwood, wood), planed, plain (C1S1M1P4X1) differs from the "
+                "prediction at level fine: the model predicts granite (igneous stone, stone), polished, plain "
+                "(C6S1M1P2X1) at 100.0 %.") in page
+        assert '<button type="submit" name="choice" value="predicted">Save as <code>C6S1M1P2X1</code>' in page
+        answer = post(client, "/session/label", {"choice": "predicted", "predicted": "C6S1M1P2X1"})
+        assert answer.status_code == 302
+        page = get(client, "/session/summary").text
+        assert "Check the label" not in page and "The scan will be saved as C6S1M1P2X1." in page
+        post(client, "/session/save")
+        assert [r.label for r in app.extensions["texplorer"].db.records()] == ["C6S1M1P2X1"]
+    finally:
+        app.extensions["texplorer"].shutdown()
+
+
+def test_a_label_the_model_never_saw_is_named_and_can_be_kept_or_replaced(tmp_path):
+    density_model(tmp_path / "db" / "models" / "rf-fine-X10.skops")
+    app = make_app(tmp_path / "db")
+    client = app.test_client()
+    try:
+        page = summary_after_a_full_scan(client, app, label="C6S1M1P1X1")  # granite, natural: not trained
+        assert ("your label granite (igneous stone, stone), natural, plain (C6S1M1P1X1) names a class the model "
+                "was never trained on (C6S1M1P1X1 at level fine)") in page
+        answer = post(client, "/session/label", {"choice": "other", "label": "C99"})
+        assert answer.status_code == 302
+        page = get(client, "/session/summary").text
+        assert "The label was not changed: " in page and "Check the label" in page
+        post(client, "/session/label", {"choice": "mine"})
+        page = get(client, "/session/summary").text
+        assert "Check the label" not in page
+        post(client, "/session/save")
+        assert [r.label for r in app.extensions["texplorer"].db.records()] == ["C6S1M1P1X1"]
+    finally:
+        app.extensions["texplorer"].shutdown()

@@ -11,6 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
+from features.space import FeatureSpace
 from gui.forms import (
     TACK_CHOICES,
     YIELDING_CHOICES,
@@ -26,6 +27,7 @@ from gui.photos import PhotoStore, UploadError, check_upload
 from scanner.acquisition.devices.camera import PhotoError, decode_photo
 from scanner.photo import image_size
 from scanner.storage.matfile import encode_png
+from taxonomy.learning.models import save_model, train_model
 from taxonomy.table import load_taxonomy
 
 # -- forms --------------------------------------------------------------------------------------------
@@ -554,3 +556,13 @@ def test_export_folder_missing_is_one_line(tmp_path):
         assert f"cannot build the bundle in {tmp_path / 'no-such-folder'}: No such file or directory" in answer.text
     finally:
         app.extensions["texplorer"].shutdown()
+
+
+def density_model(path):
+    """A random forest on density alone: granite (2.6-2.8 g/cm^3) against oak (0.6-0.8 g/cm^3)."""
+    density = np.concatenate([np.linspace(2.6, 2.8, 6), np.linspace(0.6, 0.8, 6)])
+    labels = ["C6S1M1P2X1"] * 6 + ["C1S1M1P4X1"] * 6
+    space = FeatureSpace(X=density[:, None], columns=("other.density",),
+                         scan_ids=[f"s-{i}" for i in range(12)], label_text=labels,
+                         groups=[f"g-{i}" for i in range(12)])
+    return save_model(train_model(space, "fine", 1, "rf"), path)

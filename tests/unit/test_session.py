@@ -17,6 +17,7 @@ from scanner.acquisition.config import ConfigError, parse_config
 from scanner.acquisition.session import Session, SessionError, SessionState, StepState, procedure
 from scanner.cli import main
 from scanner.storage.database import Database
+from unit.test_gui import density_model
 
 FAST = {"steps": {"finger_tap": 2.0, "finger_slide": 2.0, "tool_tap": 2.0, "tool_slide": 2.0, "static": 0.5,
                   "heat": 0.1, "thermal": 1.0, "friction": 1.5, "press": 1.5, "fold": 1.5},
@@ -357,3 +358,22 @@ def test_photos_too_small_for_the_image_features_are_warned_about_at_the_start_a
         s.set_photo("I_macro", np.zeros((150, 400, 3), np.uint8))
         s.set_photo("I_illu", np.zeros((150, 400, 3), np.uint8))
         assert len(s.warnings) == 1 and s.warnings[0].startswith("photos of 400 x 150 px leave nothing")
+
+
+def test_texplorer_scan_checks_the_label_against_the_model_before_saving(tmp_path, monkeypatch, capsys):
+    model = density_model(tmp_path / "density.skops")  # granite polished vs oak, by density
+    config = fast_toml(tmp_path / "fast.toml")
+    argv = ["scan", "--db", str(tmp_path / "db"), "--label", "C1S1M1P4X1", "--sample", "oak-01", "--operator", "ab",
+            "--config", config, "--model", str(model)]
+    # oak by its label, granite by its density (512 g in 190 cm^3); an unknown label first, then the predicted
+    text = answers().replace("\n0.25\n\ny\n", "\n0.25\n\nC99S1\np\ny\n")
+    code, out = run_cli(monkeypatch, capsys, argv, text)
+    assert code == 0, out
+    assert "1. C6S1M1P2X1  100.0 %  granite (igneous stone, stone), polished, plain" in out
+    assert ("check the label: your label oak (hardwood, wood), planed, plain (C1S1M1P4X1) differs from the "
+            "prediction at level fine: the model predicts granite (igneous stone, stone), polished, plain "
+            "(C6S1M1P2X1) at 100.0 %") in out
+    assert "[p] save as C6S1M1P2X1, [Enter] keep C1S1M1P4X1, or type another label: " in out
+    assert "  'C99S1' is not a label: missing M<number>" in out  # refused in one line, and asked again
+    assert "the scan will be saved as C6S1M1P2X1" in out
+    assert [r.label for r in Database(tmp_path / "db").records()] == ["C6S1M1P2X1"]
