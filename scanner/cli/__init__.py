@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import difflib
 import importlib
 import importlib.util
 import os
@@ -115,11 +116,44 @@ def command_of(argv: Sequence[str]) -> str | None:
     return next((word for word in argv if not word.startswith("-")), None)
 
 
+def parse_command_line(parser: argparse.ArgumentParser, argv: Sequence[str]) -> argparse.Namespace:
+    """``parser.parse_args(argv)``, except that a word no option of the command knows is refused by the
+    command's own parser (its usage, not the top level's) with the closest option it has: ``texplorer
+    evaluate --clasifier rf`` -> "unrecognized arguments: --clasifier (did you mean --classifier?)"."""
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:
+        command = command_parser(parser, argv)
+        command.error(f"unrecognized arguments: {' '.join(unknown)}{did_you_mean(unknown, command)}")
+    return args
+
+
+def command_parser(parser: argparse.ArgumentParser, argv: Sequence[str]) -> argparse.ArgumentParser:
+    """The parser of the (sub-)command ``argv`` names: ``db list ...`` -> the parser of ``texplorer db list``."""
+    for word in argv:
+        subparsers = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)
+        if subparsers is None:
+            break
+        if not word.startswith("-") and word in subparsers.choices:
+            parser = subparsers.choices[word]
+    return parser
+
+
+def did_you_mean(words: Sequence[str], parser: argparse.ArgumentParser) -> str:
+    """`` (did you mean --classifier?)`` for the first option-like word close to an option of ``parser``."""
+    options = [option for action in parser._actions for option in action.option_strings]
+    for word in words:
+        if word.startswith("-"):
+            close = difflib.get_close_matches(word.split("=", 1)[0], options, n=1, cutoff=0.6)
+            if close:
+                return f" (did you mean {close[0]}?)"
+    return ""
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     command = command_of(argv)
     parser = build_parser([command] if command else [])
-    args = parser.parse_args(argv)
+    args = parse_command_line(parser, argv)
     args.debug = getattr(args, "debug", False)
     try:
         status = args.handler(args)

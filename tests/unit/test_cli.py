@@ -206,3 +206,18 @@ def test_the_demo_calibrates_the_cells_of_the_reliability_diagram():
     assert diagram_cells(["coarse", "fine"], [3, 10], ["tactum", "all"], levels) == {("fine", "all", 10)}
     assert diagram_cells(["medium"], [10, None], ["audio", "image"], levels) == {("medium", "audio", None),
                                                                                  ("medium", "image", None)}
+
+
+@pytest.mark.parametrize(("argv", "usage", "error"), [
+    (["db", "list", "--lable", "C6"], "usage: texplorer db list ",
+     "texplorer db list: error: unrecognized arguments: --lable C6 (did you mean --label?)"),
+    (["demo", "--image-sise=300"], "usage: texplorer demo ",
+     "texplorer demo: error: unrecognized arguments: --image-sise=300 (did you mean --image-size?)"),
+    (["db", "list", "--zzz"], "usage: texplorer db list ", "texplorer db list: error: unrecognized arguments: --zzz"),
+])
+def test_a_misspelled_option_gets_the_commands_usage_and_the_closest_option(argv, usage, error, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith(usage) and err.strip().splitlines()[-1] == error
