@@ -9,6 +9,9 @@ port, steps shortened so the walk through a scan takes seconds), runs one scan o
 the browser the way an operator does, and photographs the start page, a recorded step, the operator form,
 the summary with the prediction, one scan in the database browser, and the evaluation report
 (``<db>/report/index.html``). The scan is aborted at the summary, so the database is left as it was.
+Before each photograph the page is checked against :data:`SHOTS`, what the docs' caption of that
+screenshot says it shows: a page whose structure changed stops the run naming what is missing
+(``tests/system/test_docs.py`` runs the walk, and checks that the docs use these captions).
 
 Needs Playwright (a development dependency) and Debian's ``chromium`` (``apt-get install chromium``).
 """
@@ -23,6 +26,7 @@ import sys
 import tempfile
 import time
 import urllib.request
+from dataclasses import dataclass
 from pathlib import Path
 
 from playwright.sync_api import Error, Page, sync_playwright
@@ -51,6 +55,44 @@ fold = 0.8
 realtime = true
 image_size = [320, 320]
 """
+
+
+@dataclass(frozen=True)
+class Shot:
+    """One screenshot: its caption in the docs (``![caption](screenshots/NAME.png)``) and what the page must
+    show for that caption to describe it (Playwright selectors, each matching at least one element)."""
+
+    caption: str
+    shows: tuple[str, ...]
+
+
+SHOTS = {
+    "start": Shot("The start page with the taxonomy picker",
+                  ("#operator", "#picker-search", "#picker-p", "#sample_id", "button:has-text('Start the scan')")),
+    "step": Shot("A recorded step: its traces and the quality check",
+                 ("#quality", "#step-traces img", "text=Next step", "text=Redo")),
+    "form": Shot("The operator form",
+                 ("#I_disp-preview", "#mass_g", "#volume_cm3", "input[name=atk]", "input[name=cyd]")),
+    "summary": Shot("The summary with the prediction",
+                    ("ol.predictions", "button:has-text('Save the scan')", "a:has-text('Abort the scan')")),
+    "browser": Shot("One scan in the database browser",
+                    ("main h1:has-text('Scan')", "main img", "main table")),
+    "report": Shot("The evaluation report of the small demo database below", ("table", "img")),
+}
+"""Every screenshot of the docs; :func:`take` checks each page against its entry before photographing it."""
+
+
+class StructureChanged(AssertionError):
+    """A page no longer shows what its screenshot's caption says."""
+
+
+def check_shows(page: Page, name: str) -> None:
+    """Raise :class:`StructureChanged` naming the first thing of ``SHOTS[name]`` the page does not show."""
+    for selector in SHOTS[name].shows:
+        if page.locator(selector).count() == 0:
+            raise StructureChanged(f"{name}.png: the page shows no {selector!r}, so the caption "
+                                   f"{SHOTS[name].caption!r} no longer describes it; update the page, the caption "
+                                   "and docs/screenshots.py together")
 
 
 def free_port() -> int:
@@ -115,6 +157,7 @@ def take(db: Path, out: Path) -> list[Path]:
                 page.set_default_timeout(30_000)
 
                 def shot(name: str, full_page: bool = False) -> None:
+                    check_shows(page, name)
                     path = out / f"{name}.png"
                     page.screenshot(path=str(path), full_page=full_page)
                     shots.append(path)
@@ -148,7 +191,9 @@ def take(db: Path, out: Path) -> list[Path]:
                 page.click("button:has-text('Continue to the summary')")
                 page.wait_for_url(base + "/session/summary", timeout=300_000)  # features and prediction
                 shot("summary", full_page=True)
-                page.click("button:has-text('Abort the scan') >> nth=0")
+                page.click("a:has-text('Abort the scan') >> nth=0")  # asks first, on a page of its own
+                page.click("button:has-text('Discard and abort the scan')")
+                page.wait_for_url(base + "/")
 
                 page.goto(base + "/db/")
                 page.click("main table >> text=C6S1M1P2X1")

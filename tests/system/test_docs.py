@@ -262,3 +262,39 @@ def test_the_site_navigates_and_searches_in_a_browser(opened, site, request):
             browser.close()
     assert not errors, f"script errors: {errors}"
     assert not elsewhere, f"fetched from outside the site: {elsewhere}"
+
+
+def _screenshots_module():
+    """docs/screenshots.py, which is not a package module (it needs Playwright)."""
+    pytest.importorskip("playwright.sync_api", reason="Playwright for Python is not installed")
+    spec = importlib.util.spec_from_file_location("docs_screenshots", ROOT / "docs" / "screenshots.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_docs_show_every_screenshot_with_the_caption_its_page_is_checked_against():
+    shots = _screenshots_module().SHOTS
+    shown = {}
+    for page in (ROOT / "docs").glob("*.md"):
+        for caption, name in re.findall(r"!\[([^\]]*)\]\(screenshots/([\w-]+)\.png\)", page.read_text()):
+            shown[name] = caption
+    assert shown == {name: shot.caption for name, shot in shots.items()}
+    assert sorted(p.stem for p in (ROOT / "docs" / "screenshots").glob("*.png")) == sorted(shots)
+
+
+@pytest.mark.slow
+def test_every_page_still_shows_what_its_screenshots_caption_says(tmp_path):
+    """The walk of docs/screenshots.py (a scan through the browser, the database browser, the report) on a
+    small database: each page is checked against its caption's elements before it is photographed, so a
+    layout change that leaves a screenshot describing a page that no longer exists fails here."""
+    screenshots = _screenshots_module()
+    if not Path(screenshots.CHROMIUM).is_file():
+        pytest.skip("Debian's chromium is not installed (apt-get install chromium)")
+    db = tmp_path / "db"
+    assert subprocess.run([_texplorer(), "demo", "--db", str(db), "--materials", "granite-polished", "oak-planed",
+                           "--samples", "2", "--scans", "2", "--image-size", "320", "--classifier", "rf",
+                           "--folds", "2", "--workers", "2"], capture_output=True, timeout=900).returncode == 0
+    taken = screenshots.take(db, tmp_path / "shots")
+    assert sorted(p.stem for p in taken) == sorted(screenshots.SHOTS)
