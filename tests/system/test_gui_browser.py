@@ -109,9 +109,10 @@ def error_text(page, field: str) -> str:
     return page.text_content(f"#{field}-error").removeprefix("Error: ")
 
 
-def shot(page, name: str) -> None:
+def shot(page, name: str, full_page: bool = True) -> None:
+    """The whole page, or with ``full_page=False`` what the screen shows (a sticky bar where it sticks)."""
     if SCREENSHOTS is not None:
-        page.screenshot(path=str(SCREENSHOTS / f"{name}.png"), full_page=True)
+        page.screenshot(path=str(SCREENSHOTS / f"{name}.png"), full_page=full_page)
 
 
 def database(app):

@@ -14,7 +14,17 @@ from urllib.parse import quote
 import pytest
 
 from scanner.scan import IMAGES
-from system.test_gui_browser import SCREENSHOTS, browser, page, playwright, shot, wait_until  # noqa: F401 - fixtures
+from system.test_gui_browser import (  # noqa: F401 - fixtures
+    SCREENSHOTS,
+    browser,
+    page,
+    playwright,
+    record_step,
+    server,
+    shot,
+    start_scan,
+    wait_until,
+)
 
 TABLET = {"width": 768, "height": 1024}
 DESKTOP = {"width": 1280, "height": 800}
@@ -30,6 +40,13 @@ def tab(request):
 def chromium(request):
     """The headless Chromium of ``test_gui_browser``."""
     return request.getfixturevalue("browser")
+
+
+@pytest.fixture
+def paced_server(request):
+    """The app with simulated devices paced in real time (``test_gui_browser.server``): its steps record
+    long enough for the page to show them recording."""
+    return request.getfixturevalue("server")
 
 
 @pytest.fixture
@@ -66,7 +83,7 @@ def complete(app) -> None:
     session = op.session
     viewer = app.test_client()
     for step in session.steps:
-        if step.kind == "record":
+        if step.kind == "record" and session.status(step.id).state != "recorded":
             op.touch()  # the page that polls while a step records (else the Peltier watchdog stops the heating)
             status = session.record(step.id)
             assert status.state == "recorded", status
@@ -242,3 +259,65 @@ def test_no_page_answers_a_server_error_in_the_browser(tab, fast_server):
     tab.fill("#f-label", "Granite")
     tab.click("button:has-text('Filter')")
     assert "1 scan(s)." in tab.inner_text("main")
+
+
+# -- in reach on a tablet ------------------------------------------------------------------------------------
+
+CONTROLS = """() => [...document.querySelectorAll(
+        '.top a, button, .button, input:not([type=hidden]), select, textarea, summary, .steps a')]
+    .map(el => el.matches('input[type=radio], input[type=checkbox]') ? el.closest('label') || el : el)
+    .filter(el => el.getClientRects().length && el.getBoundingClientRect().right > 0
+                  && getComputedStyle(el).visibility !== 'hidden')
+    .map(el => ({control: `${el.tagName.toLowerCase()}${el.id ? '#' + el.id : ''} ${el.type || ''} `
+                          + (el.textContent || el.name || '').trim().slice(0, 30),
+                 height: Math.round(10 * el.getBoundingClientRect().height) / 10}))"""
+"""Every control a finger taps on the page, with its height in px: a radio button's label is its target."""
+
+
+def short_controls(tab) -> list[dict]:
+    """The visible controls of the page under 44 px tall (WCAG 2.5.5: a target of 44 x 44 CSS px)."""
+    return [control for control in tab.evaluate(CONTROLS) if control["height"] < 44]
+
+
+IN_VIEW = """(el) => {
+    const box = el.getBoundingClientRect();
+    const hit = document.elementFromPoint(box.left + box.width / 2, box.top + box.height / 2);
+    return {top: Math.round(box.top), bottom: Math.round(box.bottom), scrolled: window.scrollY,
+            inside: box.top >= 0 && box.left >= 0 && box.bottom <= innerHeight && box.right <= innerWidth,
+            uncovered: el.contains(hit)};
+}"""
+"""Where an element is on the screen as the page opened, and whether it lies inside it, not covered."""
+
+
+@pytest.mark.parametrize(("screen", "viewport"), [("tablet", TABLET), ("desktop", DESKTOP)])
+def test_step_result_and_actions_in_reach_and_every_control_tall_enough(tab, paced_server, screen,
+                                                                        viewport):
+    """After a recording the verdict, Next step and Redo are on the screen as the page opens, on a tablet
+    and a laptop, a tap step (short figure) and a slide step (tall figure); every control is 44 px tall."""
+    base, app = paced_server
+    tab.set_viewport_size(viewport)
+    short = {}
+    tab.goto(base + "/")
+    tab.fill("#picker-search", "granite")
+    tab.wait_for_selector("#picker-results button")
+    short["start"] = short_controls(tab)
+    start_scan(tab, base, f"granite-{screen}")
+    short["session"] = short_controls(tab)
+    places = {}
+    for number, name in ((1, "finger_tap"), (2, "finger_slide")):
+        tab.goto(f"{base}/session/step/{name}")
+        short[name] = short_controls(tab)
+        places[f"{name}, to record"] = {"start": tab.locator("text=Start recording").evaluate(IN_VIEW)}
+        record_step(tab, number, name, screenshot=False)
+        shot(tab, f"24-step-{number:02d}-{name}-{screen}", full_page=False)
+        places[name] = {what: tab.locator(selector).first.evaluate(IN_VIEW) for what, selector in (
+            ("verdict", "#quality + *"), ("next", "a:has-text('Next step')"), ("redo", "text=Redo this step"))}
+        short[f"{name}, recorded"] = short_controls(tab)
+    assert all(place["inside"] and place["uncovered"] and not place["scrolled"]
+               for where in places.values() for place in where.values()), places
+    complete(app)
+    for name in ("form", "summary"):
+        tab.goto(f"{base}/session/{name}")
+        short[name] = short_controls(tab)
+        shot(tab, f"25-{name}-controls-{screen}", full_page=False)
+    assert short == dict.fromkeys(short, []), short
