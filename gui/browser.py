@@ -302,8 +302,9 @@ def export_status(job_id: str) -> Response:
 def export_download(job_id: str) -> tuple[str, int] | Response:
     """Stream the finished bundle; it is deleted here as the download starts (it can be taken once).
 
-    A bundle already taken (the page's automatic download, then a tap on its link; a page without script
-    still shows the link) answers 409 with the job's page, which says why and offers to export again.
+    Without a bundle to take (taken already: the page's automatic download, then a tap on its link, which a
+    page without script still shows; not built yet; deleted) the answer is 409 with the job's page: why,
+    and once the job has ended a new export instead of the dead link.
     """
     job = _job(job_id)
     try:

@@ -181,6 +181,7 @@ function setupExport() {
   const error = document.getElementById("export-error");
   const download = document.getElementById("export-download");
   const cancel = document.getElementById("export-cancel");
+  const again = document.getElementById("export-again");
   let started = false;
   const poll = async () => {
     let answer;
@@ -189,6 +190,7 @@ function setupExport() {
       if (response.status === 404) {
         phase.textContent = "This export is gone (replaced by a newer one, or the server was restarted).";
         download.hidden = cancel.hidden = true;
+        again.hidden = false;
         return;
       }
       answer = await response.json();
@@ -203,8 +205,10 @@ function setupExport() {
     count.textContent = answer.count_text;
     error.textContent = answer.error;
     error.hidden = !answer.error;
+    // Once the bundle is taken (the download below) or gone, a new export is what the page offers.
     download.hidden = !answer.ready;
     cancel.hidden = !(answer.running || answer.ready);
+    again.hidden = answer.running || answer.ready;
     if (answer.ready && !started) {
       started = true;  // the download deletes the bundle on the server; the link stays for a failed start
       window.location.assign(answer.download);

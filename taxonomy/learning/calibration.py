@@ -92,7 +92,8 @@ class TemperatureScaledClassifier(ClassifierMixin, BaseEstimator):
     Attributes
     ----------
     estimator_ : the fitted classifier;  beta_ : float, the inverse temperature;  classes_ : array;
-    n_calibration_ : int, the out-of-fold rows the temperature was fitted on.
+    n_calibration_ : int, the out-of-fold rows the temperature was fitted on;  n_fits_ : int, the fits of the
+    classifier, one on every row and one per inner split.
     """
 
     def __init__(self, estimator: BaseEstimator, inner_folds: int = 3, seed: int = 0) -> None:
@@ -111,7 +112,8 @@ class TemperatureScaledClassifier(ClassifierMixin, BaseEstimator):
         self.classes_ = self.estimator_.classes_
         index = {c: k for k, c in enumerate(self.classes_)}
         held_z, held_true = [], []
-        for train, test in grouped_splits(y, groups, self.inner_folds, self.seed):
+        splits = grouped_splits(y, groups, self.inner_folds, self.seed)
+        for train, test in splits:
             inner = clone(self.estimator).fit(X[train], y[train])
             columns = np.array([index[c] for c in inner.classes_])
             known = np.isin(y[test], inner.classes_) & np.isin(materials[test], materials[train])
@@ -125,6 +127,7 @@ class TemperatureScaledClassifier(ClassifierMixin, BaseEstimator):
         true = np.concatenate(held_true).astype(int) if held_true else np.empty(0, dtype=int)
         self.beta_ = fit_temperature(z, true)
         self.n_calibration_ = len(true)
+        self.n_fits_ = 1 + len(splits)
         return self
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:

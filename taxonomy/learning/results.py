@@ -128,7 +128,9 @@ class Result:
     class probabilities, columns in the order of ``classes``; None when not calibrated). ``voted``: each row
     is a recording scored by the vote of its windows (:func:`taxonomy.learning.evaluation.vote`).
 ``seconds``: the wall time of fitting and predicting over all splits (the shared transform, scaling and
-selection, and this classifier).
+selection, and this classifier). ``unconverged``: ``(n, m)``, n of the classifier's m fits (calibration's
+inner fits included) stopped at the paper's L-BFGS iteration limit before converging; counted for the paper's
+MLP only, ``(0, 0)`` for every other classifier (:func:`taxonomy.learning.evaluation.iteration_limit_stops`).
 
     An open-set evaluation's own (:func:`taxonomy.learning.evaluation.evaluate_open_set`): the arrays above
     are per test *instance* (a scan is tested once as an unknown, in the fold that holds out its class,
@@ -179,6 +181,7 @@ selection, and this classifier).
     known: np.ndarray | None = None
     open_score: np.ndarray | None = None
     rejected: np.ndarray | None = None
+    unconverged: tuple[int, int] = (0, 0)
 
     @property
     def folds(self) -> int:
@@ -429,7 +432,7 @@ selection, and this classifier).
             "known_accuracy": number(self.known_accuracy), "unknown_rejected": number(self.unknown_rejected),
             "classes": list(self.classes), "confusion": self.confusion.tolist(),
             "selected": [list(s) for s in self.selected], "columns": list(self.columns),
-            "dropped": list(self.dropped), "notes": list(self.notes),
+            "dropped": list(self.dropped), "notes": list(self.notes), "unconverged": list(self.unconverged),
             "feature_seconds": number(self.feature_seconds), "classify_seconds": number(self.classify_seconds),
             "paper": self.paper, "detail": self.detail,
         }

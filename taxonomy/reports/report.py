@@ -33,6 +33,7 @@ from features.selection import Selection, select_features
 from features.space import FeatureSpace
 from scanner.storage.files import atomic_write_bytes
 from taxonomy.labels import LEVELS
+from taxonomy.learning.evaluation import MLP_MAX_ITER
 from taxonomy.learning.metrics import auroc, bootstrap_interval
 from taxonomy.learning.results import COLUMNS, Result, best_per_method, format_r_c, major_class, result_notes, size_name
 from taxonomy.reports.plots import (
@@ -74,6 +75,28 @@ SORT_SCRIPT = ("document.querySelectorAll('th[data-sort]').forEach(function(th){
                "rows.forEach(function(r){body.insertBefore(r,body.querySelector('tr.chance'))})})})")
 """Sorts a table by the column whose header is clicked (ascending, then descending); the chance row stays
 last. Inline, so the page still opens offline as one file."""
+
+
+def convergence_note(reports: Sequence[Result]) -> str:
+    """One sentence on the fits of the paper's MLP that stopped at its L-BFGS iteration limit before
+    converging, over every result (``Result.unconverged``); empty when none did.
+
+    The paper's setting makes these stops expected, so the report states them once, with their count,
+    instead of a ConvergenceWarning per fit (:func:`taxonomy.learning.evaluation.iteration_limit_stops`).
+    """
+    stopped = sum(r.unconverged[0] for r in reports)
+    if not stopped:
+        return ""
+    fits = sum(r.unconverged[1] for r in reports)
+    return (f"The MLP stopped at the paper's {MLP_MAX_ITER} L-BFGS iterations before converging in {stopped} of "
+            f"{fits} fits, as the paper's setting implies; scikit-learn's ConvergenceWarning about it, which "
+            "suggests scaling the data, is not repeated per fit: the pipeline scales every feature to [0, 1] "
+            "already.")
+
+
+def _note_lines(reports: Sequence[Result]) -> list[str]:
+    note = convergence_note(reports)
+    return [f"note: {note}"] if note else []
 
 
 def _percent(value: float) -> str:
@@ -207,7 +230,7 @@ def format_table(reports: Sequence[Result]) -> str:
     """
     if not reports:
         return "no results"
-    lines = [f"cells: {CELL_LEGEND}", F1_SENTENCE]
+    lines = [f"cells: {CELL_LEGEND}", F1_SENTENCE, *_note_lines(reports)]
     for chosen, (title, levels, rows) in zip(_block_results(reports), _blocks(reports), strict=True):
         width_c = max(len("classifier"), *(len(r[0]) for r in rows))
         width_s = max(len("feature set"), *(len(r[1]) for r in rows))
@@ -298,7 +321,7 @@ def format_open_set(reports: Sequence[Result]) -> str:
              f"accuracy on known materials with the rejection rule (a rejected scan counts as wrong) and "
              f"without it, share of held-out materials' scans rejected"]
     lines += ["  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip() for row in rows]
-    return "\n".join(lines)
+    return "\n".join([*lines, *_note_lines(reports)])
 
 
 # -- HTML page ---------------------------------------------------------------------------------------
@@ -507,6 +530,7 @@ def _html(space: FeatureSpace, reports: Sequence[Result], selection: Selection,
              if space.split else "")
     closed = [r for r in reports if not r.open_set]
     open_set = [r for r in reports if r.open_set]
+    mlp_note = convergence_note(reports)  # stated once, in the protocol section or else under the open set
     blocks = _block_results(closed)
     toc = [(f"results-{k}", _block_title(chosen)) for k, chosen in enumerate(blocks)]
     if open_set:
@@ -551,6 +575,8 @@ def _html(space: FeatureSpace, reports: Sequence[Result], selection: Selection,
                      "fold's model learned inside its training scans; closed-set accuracy: the same scans "
                      "without rejection. Unknown rejected: the share of held-out materials' scans the rule "
                      "calls unknown.</p>" + _open_set_table(open_set))
+        if mlp_note and not closed:
+            parts.append(f"<p>{e(mlp_note)}</p>")
     if closed:
         grouping = {r.group_by for r in closed}
         splits = {"the set's own train/test split" if r.given_split else
@@ -562,6 +588,8 @@ def _html(space: FeatureSpace, reports: Sequence[Result], selection: Selection,
                      "ECE: expected calibration error over 10 confidence bins. From fine: the coarse or medium "
                      "accuracy of the fine prediction cut to that level, beside the classifier trained at that "
                      "level directly.</p>")
+        if mlp_note:
+            parts.append(f"<p>{e(mlp_note)}</p>")
         notes = list(dict.fromkeys(note for r in reports for note in r.notes))
         dropped = sorted({c for r in reports for c in r.dropped})
         if dropped:

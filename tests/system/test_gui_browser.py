@@ -449,3 +449,51 @@ def test_export_job_with_progress_and_filter(page, server, tmp_path, monkeypatch
     assert set(manifest["files"]) | {"manifest.json", "manifest.json.sha256"} == names
     gui_files = [p for p in (db.root / ".gui").rglob("*") if p.is_file()]
     assert gui_files == [] and not list((tmp_path / "exports").iterdir())
+
+
+def test_a_taken_bundle_leaves_a_new_export_not_a_dead_link(page, server, browser):
+    """After the automatic download the page offers a new export of the same scans; the bundle's link, tapped
+    again (a page without script keeps showing it), answers with that page, not a bare refusal."""
+    from conftest import make_scan
+
+    base, app = server
+    db = database(app)
+    for index in (1, 2):
+        db.add(make_scan(index, sample_id="granite-01", scan_index=index, image_shape=(64, 64)))
+    page.goto(base + "/db/")
+    page.fill("#export-label", "C6")
+    with page.expect_download(timeout=60_000) as download:
+        page.click("button:has-text('Export bundle (ZIP)')")
+    assert zipfile.is_zipfile(download.value.path())
+    wait_until(page, "document.getElementById('export-phase').textContent.startsWith('Downloaded')")
+    assert page.is_hidden("#export-download") and page.is_hidden("#export-cancel")
+    assert page.get_attribute("#export-again", "href") == "/db/?label=C6#export-form"
+    shot(page, "26-export-taken")
+    bundle = page.get_attribute("#export-download", "href")
+    taken = page.goto(base + bundle)  # the link of a page that did not update, tapped after the download
+    assert taken.status == 409
+    assert "This export has no bundle to download (downloaded, and no longer kept here)." in page.inner_text("main")
+    assert page.is_hidden("#export-download") and page.is_visible("#export-again")
+    shot(page, "27-export-taken-again")
+    page.click("#export-again")
+    page.wait_for_url(base + "/db/?label=C6#export-form")
+    assert page.input_value("#export-label") == "C6"
+
+    # Without script the page refreshes itself while the job runs, then shows the link; a second tap on it
+    # (the page cannot know the first one downloaded the bundle) leads on to a new export.
+    context = browser.new_context(viewport=LAPTOP, java_script_enabled=False, accept_downloads=True)
+    plain = context.new_page()
+    try:
+        plain.goto(base + "/db/")
+        plain.click("button:has-text('Export bundle (ZIP)')")
+        plain.wait_for_selector("#export-download:not([hidden])", timeout=60_000)
+        with plain.expect_download() as download:
+            plain.click("#export-download")
+        assert zipfile.is_zipfile(download.value.path())
+        assert plain.is_visible("#export-download")
+        plain.click("#export-download")
+        plain.wait_for_selector("#export-again:not([hidden])")
+        assert plain.get_attribute("#export-again", "href") == "/db/#export-form"
+        shot(plain, "28-export-taken-no-script")
+    finally:
+        context.close()

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import pytest
 from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.exceptions import ConvergenceWarning
 from sklearn.model_selection import StratifiedKFold
 from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import MinMaxScaler
@@ -15,14 +17,16 @@ from features.selection import FQSelector
 from features.space import FeatureSpace, FeatureSpaceError
 from taxonomy.learning import evaluation
 from taxonomy.learning.evaluation import (
+    MLP_MAX_ITER,
     EvaluationError,
     cv_splits,
     evaluate,
     evaluate_grid,
+    make_pipeline,
     with_values,
 )
 from taxonomy.learning.results import major_class, one_line, r_c
-from taxonomy.reports.report import cell_text, format_table
+from taxonomy.reports.report import cell_text, convergence_note, format_table
 
 MODALITIES = ("tactum", "image", "audio", "other")
 
@@ -210,6 +214,30 @@ def test_warnings_name_their_classifier_and_are_whole_on_one_line():
     assert warning.startswith("MLPClassifier: ConvergenceWarning: Stochastic Optimizer: Maximum iterations (2)")
     assert warning.endswith("the optimization hasn't converged yet.") and "\n" not in warning
     assert one_line("a\nb:\n  c\n\nadvice.") == "a b: c advice."
+    assert report.unconverged == (0, 0)  # other settings than the paper's: a warning as any other
+
+
+def test_the_paper_mlp_stopping_at_its_iterations_is_counted_not_warned():
+    # 16 materials: the paper's MLP (L-BFGS, 200 iterations) stops before converging in some folds.
+    space = labelled_space(materials=16)
+    y = space.y("fine")
+    report = evaluate(space, "mlp", level="fine", n_features=3, folds=3, calibrate=False)
+    splits, _ = cv_splits(y, space.groups, folds=3, grouping_labels=space.label_text)
+    stopped = 0
+    for train, _ in splits:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)  # counted here by the iterations it ran
+            fitted = make_pipeline("mlp", 3).fit(space.X[train], y[train])  # the fold's fit, repeated
+        stopped += fitted[-1].n_iter_ == MLP_MAX_ITER
+    assert stopped > 0 and report.unconverged == (stopped, len(splits))
+    assert not any("ConvergenceWarning" in note for note in report.notes)
+    note = f"note: {convergence_note([report])}"
+    assert note == (f"note: The MLP stopped at the paper's 200 L-BFGS iterations before converging in {stopped} of "
+                    f"{len(splits)} fits, as the paper's setting implies; scikit-learn's ConvergenceWarning about "
+                    "it, which suggests scaling the data, is not repeated per fit: the pipeline scales every "
+                    "feature to [0, 1] already.")
+    assert format_table([report]).splitlines().count(note) == 1
+    assert convergence_note([evaluate(space, "nb", level="fine", n_features=3, folds=3)]) == ""
 
 
 @pytest.mark.parametrize(("kwargs", "error", "message"), [

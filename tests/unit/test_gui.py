@@ -4,6 +4,7 @@ session driven through Flask's test client with simulated devices."""
 from __future__ import annotations
 
 import math
+import re
 import struct
 import zlib
 
@@ -12,6 +13,7 @@ import numpy as np
 import pytest
 
 from features.space import FeatureSpace
+from gui.exports import ExportJob
 from gui.forms import (
     TACK_CHOICES,
     YIELDING_CHOICES,
@@ -503,6 +505,36 @@ def test_empty_database_pages(client):
     assert "The database is empty" in get(client, "/db/").text
     assert get(client, "/db/export/features.csv").status_code == 404
     assert post(client, "/db/export", {}).status_code == 409
+
+
+def export_links(page: str) -> dict[str, tuple[str, bool]]:
+    """The export page's download and export-again links: their address and whether they are shown."""
+    links = re.findall(r'<a class="button big" id="export-(download|again)" href="([^"]*)"( hidden)?>', page)
+    return {name: (href, not hidden) for name, href, hidden in links}
+
+
+@pytest.mark.parametrize(("phase", "offered"), [("done", "download"), ("downloaded", "again"),
+                                                ("cancelled", "again"), ("failed", "again")])
+def test_export_page_offers_the_bundle_or_a_new_export(app, tmp_path, phase, offered):
+    exports = app.extensions["texplorer"].exports
+    exports.job = ExportJob("job-1", database(app), [], "C6", None, tmp_path / "gone", phase=phase,
+                            name="texplorer-export-x.zip", size=2**20)
+    page = get(app.test_client(), "/db/export/job-1").text
+    assert export_links(page) == {"download": ("/db/export/job-1/bundle.zip", offered == "download"),
+                                  "again": ("/db/?label=C6#export-form", offered == "again")}
+
+
+def test_a_taken_bundle_answers_with_its_page_offering_a_new_export(app, tmp_path):
+    """The bundle's link tapped after its download (a page without script still shows it): 409 with the job's
+    page, which says why and offers the export form with the same filters, not a bare refusal."""
+    exports = app.extensions["texplorer"].exports
+    exports.job = ExportJob("job-1", database(app), [], "C6", "s-2", tmp_path / "gone", phase="downloaded",
+                            name="texplorer-export-x.zip", size=2**20)
+    answer = get(app.test_client(), "/db/export/job-1/bundle.zip")
+    assert answer.status_code == 409 and answer.mimetype == "text/html"
+    assert "This export has no bundle to download (downloaded, and no longer kept here)." in answer.text
+    assert export_links(answer.text) == {"download": ("/db/export/job-1/bundle.zip", False),
+                                         "again": ("/db/?label=C6&amp;session=s-2#export-form", True)}
 
 
 # -- texplorer serve ----------------------------------------------------------------------------------
