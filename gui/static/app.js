@@ -1,6 +1,6 @@
 // texplorer operator pages: progressive enhancement only. Every form also works without this script;
-// it adds the taxonomy picker, photo previews, the live level display while a step records, and the busy
-// state of a sent form.
+// it adds the taxonomy picker, photo previews, the live level display while a step records, the busy
+// state of a sent form, and takes a field's error away once the field is corrected.
 "use strict";
 
 function debounce(fn, ms) {
@@ -29,6 +29,7 @@ function setupLabel() {
     }
     out.textContent = answer.ok ? answer.description : answer.error;
     out.classList.toggle("bad", !answer.ok);
+    if (answer.ok && input.value.trim() === value) clearError(input);
   }, 250);
   input.addEventListener("input", describe);
   return describe;
@@ -115,6 +116,53 @@ function setupPicker(describe) {
       if (first) first.focus();
     }
   });
+}
+
+// -- field errors: a corrected field loses its error ------------------------------------------------------
+//
+// The reason shown beside a field is about the value the server refused. Once the operator has changed it
+// into a value the browser finds valid (required, pattern, maxlength; a photo file that is a PNG or JPEG;
+// a choice picked; the label by the server's own check as it is typed, in setupLabel), the reason no
+// longer describes the field and is taken away. The server checks every field again when the form is sent.
+
+function clearError(field) {
+  if (field.getAttribute("aria-invalid") !== "true") return;
+  const described = (field.getAttribute("aria-describedby") || "").split(/\s+/).filter(Boolean);
+  for (const id of described.filter((name) => name.endsWith("-error"))) {
+    const reason = document.getElementById(id);
+    if (reason) reason.remove();
+  }
+  const rest = described.filter((name) => !name.endsWith("-error"));
+  if (rest.length) field.setAttribute("aria-describedby", rest.join(" "));
+  else field.removeAttribute("aria-describedby");
+  field.removeAttribute("aria-invalid");
+  const box = field.closest(".invalid");
+  if (box) box.classList.remove("invalid");
+}
+
+const PHOTO_HEADERS = [[0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a], [0xff, 0xd8, 0xff]];  // PNG, JPEG
+
+async function isPhoto(file) {
+  const head = new Uint8Array(await file.slice(0, 8).arrayBuffer());
+  return PHOTO_HEADERS.some((magic) => magic.every((byte, i) => head[i] === byte));
+}
+
+async function corrected(field, refused) {
+  if (field.tagName === "FIELDSET") return field.querySelector("input:checked") !== null;
+  if (field.type === "file") return field.files.length === 1 && isPhoto(field.files[0]);
+  return field.value !== refused && (!field.required || field.value.trim() !== "") && field.checkValidity();
+}
+
+function setupFieldErrors() {
+  for (const field of document.querySelectorAll("[aria-invalid='true']")) {
+    if (field.dataset.describe) continue;  // the label: the server's answer to what is typed decides
+    const refused = field.value;
+    const check = async () => {
+      if (await corrected(field, refused)) clearError(field);
+    };
+    field.addEventListener("input", check);
+    field.addEventListener("change", check);
+  }
 }
 
 // -- photo previews ------------------------------------------------------------------------------------
@@ -267,6 +315,7 @@ function setupBusy() {
 
 document.addEventListener("DOMContentLoaded", () => {
   setupBusy();
+  setupFieldErrors();
   setupPicker(setupLabel());
   setupPreviews();
   setupRecording();

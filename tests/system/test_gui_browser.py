@@ -497,3 +497,75 @@ def test_a_taken_bundle_leaves_a_new_export_not_a_dead_link(page, server, browse
         shot(plain, "28-export-taken-no-script")
     finally:
         context.close()
+
+
+def field_state(page, field: str) -> dict:
+    """Whether ``field`` is marked invalid: its aria-invalid, its reason beside it, its red box."""
+    return page.evaluate("""(name) => {
+        const field = document.getElementById(name);
+        return {invalid: field.getAttribute('aria-invalid'), reason: Boolean(document.getElementById(name + '-error')),
+                box: Boolean(field.closest('.invalid')), described: field.getAttribute('aria-describedby')};
+    }""", field)
+
+
+MARKED = {"invalid": "true", "reason": True, "box": True}
+
+
+def marked(page, field: str) -> bool:
+    state = field_state(page, field)
+    return {key: state[key] for key in MARKED} == MARKED
+
+
+def test_a_corrected_field_loses_its_error_and_the_server_still_checks(page, server, tmp_path):
+    base, _ = server
+    page.goto(base + "/")
+    page.click("button:has-text('Start the scan')")
+    assert all(marked(page, name) for name in ("operator", "sample_id", "label"))
+    page.fill("#sample_id", "granite 01")  # still not a sample id: the reason stays
+    assert marked(page, "sample_id")
+    page.fill("#sample_id", "granite-01")
+    assert field_state(page, "sample_id") == {"invalid": None, "reason": False, "box": False,
+                                              "described": "sample_id-hint"}
+    page.fill("#operator", "Ann")
+    assert not field_state(page, "operator")["invalid"] and marked(page, "label")
+    page.fill("#label", "C6S1M1PX1")  # the server's label check, as it is typed, refuses it
+    wait_until(page, "document.getElementById('label-description').classList.contains('bad')")
+    assert marked(page, "label")
+    page.fill("#label", "C6S1M1P2X1")
+    wait_until(page, "!document.getElementById('label-error')")
+    assert field_state(page, "label")["invalid"] is None
+    shot(page, "29-start-corrected")
+    page.click("button:has-text('Start the scan')")
+    page.wait_for_url(base + "/session")
+
+    page.goto(base + "/session/form")
+    not_image = tmp_path / "photo.png"
+    not_image.write_text("this is a text file called photo.png")
+    page.set_input_files("#I_illu", str(not_image))
+    page.fill("#mass_g", "-5")
+    page.fill("#volume_cm3", "12 l")
+    page.click("button:has-text('Continue to the summary')")
+    page.wait_for_selector("#mass_g-error")
+    assert all(marked(page, name) for name in ("mass_g", "volume_cm3", "I_illu", "I_disp"))
+    assert all(field_state(page, name)["invalid"] == "true" for name in ("atk", "cyd"))
+    shot(page, "30-form-errors")
+    page.fill("#mass_g", "-6")  # a sign: the reason stays
+    page.fill("#volume_cm3", "12 ")  # the volume's unit typed again: the reason goes as it changes
+    assert marked(page, "mass_g") and not field_state(page, "volume_cm3")["invalid"]
+    page.fill("#mass_g", "0")  # looks like a number to the browser; the server refuses it again below
+    assert not field_state(page, "mass_g")["invalid"]
+    page.check("label.choice:has-text('slightly adhesive') input")
+    assert field_state(page, "atk") == {"invalid": None, "reason": False, "box": False, "described": None}
+    assert field_state(page, "cyd")["invalid"] == "true"
+    page.set_input_files("#I_illu", str(not_image))  # again not a photo: the reason stays
+    page.evaluate("() => new Promise(done => setTimeout(done, 300))")
+    assert marked(page, "I_illu")
+    photo, _ = photo_file(tmp_path)
+    page.set_input_files("#I_illu", str(photo))
+    wait_until(page, "!document.getElementById('I_illu-error')")
+    assert not field_state(page, "I_illu")["invalid"] and marked(page, "I_disp")
+    shot(page, "31-form-corrected")
+    page.click("button:has-text('Continue to the summary')")
+    page.wait_for_selector("#mass_g-error")
+    assert error_text(page, "mass_g") == "the mass must be positive (in g), got 0"
+    assert not page.locator("#atk-error").count() and not page.locator("#I_illu-error").count()
