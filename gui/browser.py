@@ -253,11 +253,11 @@ def render_overview(form: dict[str, str], errors: dict[str, str], status: int = 
 def start_export() -> tuple[str, int] | Response:
     """Start a background export of the scans matching the form's label and session (``texplorer export``)."""
     form = {key: request.form.get(key, "").strip()[:64] for key in ("label", "session")}
-    try:  # a label or class prefix or part of a name, as texplorer export --label
-        select_labels(form["label"], context().db.taxonomy())
+    try:  # a label or class prefix (spelled canonically: c6 -> C6) or part of a name, as texplorer export --label
+        prefix, _ = select_labels(form["label"], context().db.taxonomy())
     except ValueError as exc:
         return render_overview(form, {"label": str(exc)}, 422)
-    label = form["label"] or None
+    label = prefix or form["label"] or None
     try:
         job = context().exports.start(label=label, session=form["session"] or None)
     except ExportBusy as exc:
