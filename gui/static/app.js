@@ -45,8 +45,16 @@ function setupPicker(describe) {
   const extra = document.getElementById("picker-x");
   let material = null;
 
+  // The processing shape has no sensible default (the first, P1, would make polished granite natural): the
+  // label stays empty until the operator chooses one. The extra attribute starts at X1, "no extra attribute".
   const compose = () => {
     if (!material) return;
+    if (!shape.value) {
+      label.value = "";
+      const out = document.getElementById("label-description");
+      if (out) { out.textContent = `${material}: now choose its processing shape (P)`; out.classList.remove("bad"); }
+      return;
+    }
     label.value = material + shape.value + extra.value;
     if (describe) describe();
   };

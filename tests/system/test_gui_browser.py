@@ -348,8 +348,11 @@ def test_keyboard_only_picker(page, server):
     assert page.evaluate("document.activeElement.closest('#picker-results') !== null")
     page.keyboard.press("Enter")  # pick it; focus moves on to the processing shape
     assert page.evaluate("document.activeElement.id") == "picker-p"
-    assert page.input_value("#label") == "C1S1M1P1X1"
-    page.keyboard.press("ArrowDown")  # P1 -> P2 on a focused select
+    # no processing shape is taken for the operator (P1 would make planed oak natural): the label waits
+    assert page.input_value("#label") == ""
+    assert page.text_content("#label-description") == "C1S1M1: now choose its processing shape (P)"
+    page.keyboard.press("ArrowDown")  # the prompt -> P1 on a focused select
+    page.keyboard.press("ArrowDown")  # P1 -> P2
     wait_until(page, "document.getElementById('label').value === 'C1S1M1P2X1'")
     unlabelled = page.evaluate("""[...document.querySelectorAll('input:not([type=hidden]), select, textarea')]
         .filter(el => !(el.labels && el.labels.length) && !el.getAttribute('aria-label')).map(el => el.id)""")
