@@ -52,6 +52,10 @@ CELL_LEGEND = ("accuracy % of the pooled out-of-fold predictions, its 95 % inter
                "the classes present in the fold, r_C (paper eq. 32; - where undefined: no misclassification, "
                "or the coarse level, where every misclassification leaves the major class); chance: accuracy of "
                "always answering the most frequent class, and 1 / K for macro F1")
+INTERVAL_SENTENCE = ("Every accuracy interval of this report, in the tables, the side-by-side section and the "
+                     "charts, is this bootstrap: the scans of one group (a sample, by default) are not independent "
+                     "trials, the groups are, so an interval that counts every scan as a trial (Wilson's) would be "
+                     "narrower than the data support.")
 F1_SENTENCE = ("Macro F1 is computed once over all out-of-fold predictions pooled (the headline); the per-fold "
                "figure averages each fold's F1 over the classes present in that fold, since a fold grouped by "
                "sample holds only some classes and a class absent from it would otherwise count as F1 0.")
@@ -119,25 +123,10 @@ def cell_text(report: Result) -> str:
             f"{report.f1_mean:4.2f}  {format_r_c(report.r_c):>4}")
 
 
-WILSON_Z = 1.959963984540054
-"""The 97.5 % quantile of the standard normal: a two-sided 95 % interval."""
-
-
-def wilson_interval(correct: int, total: int) -> tuple[float, float]:
-    """The 95 % Wilson score interval of a proportion ``correct / total`` (Wilson 1927): the interval of
-    the out-of-fold accuracy, every classified row one trial."""
-    if total <= 0:
-        return math.nan, math.nan
-    p, z2 = correct / total, WILSON_Z**2
-    centre = (p + z2 / (2 * total)) / (1 + z2 / total)
-    half = WILSON_Z * math.sqrt(p * (1 - p) / total + z2 / (4 * total**2)) / (1 + z2 / total)
-    return max(0.0, centre - half), min(1.0, centre + half)
-
-
 def side_by_side(reports: Sequence[Result]) -> list[tuple[str, list[str], list[tuple[str, list[str]]]]]:
     """Per level: the column heads (classifier, set size) and a row per feature set, each cell the pooled
-    out-of-fold accuracy with its 95 % interval and the seconds the evaluation took
-    (``"91.2 [87.0, 94.3]  12.1 s"``). Empty with a single feature set."""
+    out-of-fold accuracy with the 95 % interval of the results table (``Result.accuracy_ci``) and the seconds
+    the evaluation took (``"91.2 (87.0-94.3)  12.1 s"``). Empty with a single feature set."""
     if len({r.feature_set for r in reports}) < 2:
         return []
     blocks = []
@@ -154,10 +143,8 @@ def side_by_side(reports: Sequence[Result]) -> list[tuple[str, list[str], list[t
 
 
 def _side_cell(report: Result) -> str:
-    tested = report.confusion.sum()
-    low, high = wilson_interval(int(np.trace(report.confusion)), int(tested))
     seconds = "" if math.isnan(report.seconds) else f"  {report.seconds:.1f} s"
-    return f"{100 * np.trace(report.confusion) / max(tested, 1):5.1f} [{100 * low:.1f}, {100 * high:.1f}]{seconds}"
+    return f"{_percent(report.accuracy_pooled):>5} ({_interval(report.accuracy_ci)}){seconds}"
 
 
 def _level_order(reports: Sequence[Result]) -> list[str]:
@@ -558,8 +545,9 @@ def _html(space: FeatureSpace, reports: Sequence[Result], selection: Selection,
         compared = side_by_side(closed)
         if compared:
             parts.append("<h2>Feature sets side by side</h2><p>Per level, every feature set on the same folds: "
-                         "out-of-fold accuracy % [95 % Wilson interval] and the seconds its folds took (fitting "
-                         "the transform, scaling, selection and the classifier, summed over folds).</p>")
+                         "pooled out-of-fold accuracy % (its 95 % interval, the bootstrap over the folds' groups of "
+                         "the tables above) and the seconds its folds took (fitting the transform, scaling, "
+                         "selection and the classifier, summed over folds).</p>")
             for level, heads, set_rows in compared:
                 parts.append(f"<h3>{e(level)}</h3><table><tr><th>feature set</th>"
                              + "".join(f"<th>{e(head)}</th>" for head in heads) + "</tr>")
@@ -582,8 +570,9 @@ def _html(space: FeatureSpace, reports: Sequence[Result], selection: Selection,
         splits = {"the set's own train/test split" if r.given_split else
                   f"grouped by {r.group_by}" if r.grouped else "not grouped" for r in closed}
         parts.append(f'<h2 id="protocol">How the figures were computed</h2><p>Folds: {e(", ".join(sorted(splits)))}'
-                     f" (groups: {e(', '.join(sorted(grouping)))}). {e(CELL_LEGEND)}. Probabilities are "
-                     "calibrated by temperature scaling inside each fold's training rows (Guo et al. 2017)"
+                     f" (groups: {e(', '.join(sorted(grouping)))}). {e(CELL_LEGEND)}. {e(INTERVAL_SENTENCE)} "
+                     "Probabilities are calibrated by temperature scaling inside each fold's training rows "
+                     "(Guo et al. 2017)"
                      f"{e(_calibrated_share(closed))}; "
                      "ECE: expected calibration error over 10 confidence bins. From fine: the coarse or medium "
                      "accuracy of the fine prediction cut to that level, beside the classifier trained at that "

@@ -1,0 +1,37 @@
+"""The figures of an evaluation report agree with its tables: one kind of interval."""
+
+from __future__ import annotations
+
+import re
+
+from taxonomy.learning.evaluation import evaluate_grid
+from taxonomy.learning.results import Result
+from taxonomy.reports.report import cell_text, format_table, side_by_side
+from unit.test_evaluation import labelled_space
+
+INTERVAL = re.compile(r"\b(\d+\.\d)-(\d+\.\d)\b")
+
+
+def _bootstrap_text(result: Result) -> str:
+    low, high = result.accuracy_ci
+    return f"{100 * low:.1f}-{100 * high:.1f}"
+
+
+def test_every_accuracy_interval_is_the_bootstrap_over_groups_of_the_table():
+    space = labelled_space()
+    reports = evaluate_grid(space, classifiers=("nb", "lda"), levels=("coarse", "fine"), set_sizes=(3,),
+                            feature_sets={"tactum": "tactum", "all": None}, folds=3, workers=1, calibrate=False)
+    result = {(r.classifier, r.feature_set, r.level): r for r in reports}
+    blocks = side_by_side(reports)
+    assert [level for level, _, _ in blocks] == ["coarse", "fine"]
+    for level, heads, rows in blocks:
+        for feature_set, cells in rows:
+            for head, cell in zip(heads, cells, strict=True):
+                r = result[(head.split(",")[0], feature_set, level)]
+                # "91.2 (87.0-94.3)  0.1 s": the table's accuracy and interval, the same digits
+                accuracy, interval = cell.split()[:2]
+                assert (accuracy, interval) == (cell_text(r).split()[0], f"({_bootstrap_text(r)})")
+    # The text table: every interval in it is a result's bootstrap interval, and every result's is there.
+    table = "\n".join(line for line in format_table(reports).splitlines() if line.startswith(("nb", "lda")))
+    found = {m.group(0) for m in INTERVAL.finditer(table)}
+    assert found == {_bootstrap_text(r) for r in reports}
