@@ -379,14 +379,20 @@ def _figures(folder: Path, space: FeatureSpace, reports: Sequence[Result], selec
     for lvl in order:
         at_level = [r for r in reports if r.level == lvl]
         if at_level:
-            best = max(at_level, key=lambda r: r.accuracy_mean)
-            r_c = "" if math.isnan(best.r_c) else f", r_C {best.r_c:.2f}"
-            title = (f"{lvl}: {best.classifier}, {best.feature_set}, {size_name(best.n_features)}; accuracy "
-                     f"{100 * best.accuracy_mean:.1f} %{r_c}")
+            best = max(at_level, key=lambda r: r.accuracy_pooled)
+            title = confusion_title(best)
             figures.append((f"confusion matrix of the best classifier at the {lvl} level ({title})",
                             partial(plot_confusion, best.confusion, best.classes, folder / f"confusion_{lvl}.png",
                                     title=title, max_labels=max_classes)))
     return figures
+
+
+def confusion_title(report: Result) -> str:
+    """The title of a result's confusion matrix: what ran, and the pooled accuracy and r_C as the results
+    table gives them (the matrix sums the pooled out-of-fold predictions)."""
+    r_c = "" if math.isnan(report.r_c) else f", r_C {format_r_c(report.r_c)}"
+    return (f"{report.level}: {report.classifier}, {report.feature_set}, {size_name(report.n_features)}; accuracy "
+            f"{_percent(report.accuracy_pooled)} %{r_c}")
 
 
 def _calibrated_share(closed: Sequence[Result]) -> str:

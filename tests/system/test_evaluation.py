@@ -3,7 +3,10 @@ the system tests (worker processes and cross-validation of every classifier)."""
 
 from __future__ import annotations
 
+import html
 import re
+import subprocess
+import sys
 import warnings
 
 import numpy as np
@@ -102,3 +105,39 @@ def test_html_report_is_one_offline_folder(tmp_path):
     assert len(coarse_rows) == 4 and all('<td class="num">-</td>' in row for row in coarse_rows)  # r_C
     words = re.sub(r'src="data:image/png;base64,[^"]*"|<script>.*?</script>', "", text, flags=re.S)
     assert "nan" not in words.lower() and "r_C" not in words.split("coarse level (", 1)[1].split(")", 1)[0]
+
+
+def test_a_cli_report_states_the_mlp_stops_once_and_its_figures_agree(tmp_path):
+    # 16 materials: the paper's MLP stops at its 200 L-BFGS iterations in some fits (tests/unit/test_evaluation.py).
+    table = labelled_space(materials=16).to_csv(tmp_path / "features.csv")
+    run = subprocess.run([sys.executable, "-m", "scanner.cli", "evaluate", "--db", str(tmp_path / "db"), "--features",
+                          str(table), "--classifier", "mlp", "nb", "--level", "fine", "--n", "3", "--feature-set",
+                          "tactum", "audio", "--folds", "3", "--workers", "1", "--report", str(tmp_path / "r")],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert "ConvergenceWarning" not in run.stderr
+    [note] = [line for line in run.stdout.splitlines() if "L-BFGS" in line]
+    assert re.fullmatch(r"note: The MLP stopped at the paper's 200 L-BFGS iterations before converging in \d+ of "
+                        r"\d+ fits, .*", note)
+    page = (tmp_path / "r" / "index.html").read_text(encoding="utf-8")
+    words = html.unescape(re.sub(r'src="data:image/png;base64,[^"]*"', "", page))
+    assert words.count("L-BFGS") == 1 and note.removeprefix("note: ") in words
+    # The results table: accuracy and 95 % interval per (classifier, feature set, level).
+    cells = {row[:3]: row[3:] for row in re.findall(
+        r'<tr><td>(\w+)</td><td>(\w+)</td><td>(\w+)</td><td class="num"[^>]*>([\d.]+)</td>'
+        r'<td class="num"[^>]*>([\d.]+-[\d.]+)</td>', words)}
+    assert len(cells) == 4
+    # Side by side: the same accuracy and interval, the one kind of interval of the report.
+    heads = re.findall(r"<th>(\w+), X3</th>", words)
+    side = re.findall(r"<tr><td>(\w+)</td>((?:<td>[^<]*</td>)+)</tr>", words.split("Feature sets side by side")[1])
+    assert heads == ["mlp", "nb"] and [s for s, _ in side] == ["tactum", "audio"]
+    for feature_set, row in side:
+        for classifier, cell in zip(heads, re.findall(r"<td>([^<]*)</td>", row), strict=True):
+            accuracy, interval = cells[(classifier, feature_set, "fine")]
+            assert cell.split()[:2] == [accuracy, f"({interval})"]
+    assert "Wilson interval" not in words
+    # The confusion matrix's title: the table's accuracy of the result it shows, to the decimal.
+    shown = re.search(r"confusion matrix of the best classifier at the fine level \(fine: (\w+), (\w+), X3; "
+                      r"accuracy ([\d.]+) %", words)
+    assert shown.group(3) == cells[(shown.group(1), shown.group(2), "fine")][0]
+    assert float(shown.group(3)) == max(float(accuracy) for accuracy, _ in cells.values())

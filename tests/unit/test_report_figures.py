@@ -1,12 +1,16 @@
-"""The figures of an evaluation report agree with its tables: one kind of interval."""
+"""The figures of an evaluation report agree with its tables: one kind of interval, titles that give the table's
+numbers."""
 
 from __future__ import annotations
 
 import re
 
+import numpy as np
+import pytest
+
 from taxonomy.learning.evaluation import evaluate_grid
 from taxonomy.learning.results import Result
-from taxonomy.reports.report import cell_text, format_table, side_by_side
+from taxonomy.reports.report import cell_text, confusion_title, format_table, side_by_side
 from unit.test_evaluation import labelled_space
 
 INTERVAL = re.compile(r"\b(\d+\.\d)-(\d+\.\d)\b")
@@ -35,3 +39,21 @@ def test_every_accuracy_interval_is_the_bootstrap_over_groups_of_the_table():
     table = "\n".join(line for line in format_table(reports).splitlines() if line.startswith(("nb", "lda")))
     found = {m.group(0) for m in INTERVAL.finditer(table)}
     assert found == {_bootstrap_text(r) for r in reports}
+
+
+def _result(confusion: np.ndarray, accuracy: list[float]) -> Result:
+    classes = ("C1S1M1P1X1", "C2S1M1P1X1")
+    return Result(method="texplorer", feature_set="all", classifier="rf", level="fine", protocol="nested",
+                  splitting="2 grouped folds", classes=classes, accuracy=np.array(accuracy),
+                  f1=np.ones(len(accuracy)), confusion=confusion, n_samples=int(confusion.sum()), seed=0,
+                  n_features=10)
+
+
+def test_the_confusion_matrix_title_gives_the_accuracy_of_the_table():
+    # Folds of 50 and 3 scans, 47 and 3 right: the mean over folds is 97.0 %, the pooled accuracy of the
+    # table and of the matrix (its trace over its sum) 50 / 53 = 94.3 %.
+    report = _result(np.array([[27, 3], [0, 23]]), [47 / 50, 3 / 3])
+    assert report.accuracy_mean == pytest.approx(0.97)
+    assert cell_text(report).split()[0] == "94.3"
+    # Three misclassifications, all from C1 to C2: r_C = 1.
+    assert confusion_title(report) == "fine: rf, all, X10; accuracy 94.3 %, r_C 1.00"
