@@ -379,7 +379,10 @@ def plot_fq_ranking(ranking: Sequence[tuple[str, float]], selected: Sequence[str
     ax.invert_yaxis()
     ax.set_xlim(0, 100)
     ax.set_xlabel("feature quality FQ (%)")
-    ax.set_title(f"top {len(shown)} of {len(ranking)} features by FQ; selected in orange [acceptance order]")
+    # Over the figure, not the axes: long feature names leave the axes narrow, and a title centred on them
+    # ran off the figure's edge.
+    figure.suptitle(_wrap(f"top {len(shown)} of {len(ranking)} features by FQ; selected in orange [acceptance "
+                          "order]", 72))
     return _save(figure, path)
 
 

@@ -1,5 +1,5 @@
 """The figures of an evaluation report agree with its tables: one kind of interval, titles that give the table's
-numbers."""
+numbers, titles inside their figure."""
 
 from __future__ import annotations
 
@@ -7,9 +7,11 @@ import re
 
 import numpy as np
 import pytest
+from matplotlib.image import imread
 
 from taxonomy.learning.evaluation import evaluate_grid
 from taxonomy.learning.results import Result
+from taxonomy.reports.plots import plot_fq_ranking
 from taxonomy.reports.report import cell_text, confusion_title, format_table, side_by_side
 from unit.test_evaluation import labelled_space
 
@@ -57,3 +59,13 @@ def test_the_confusion_matrix_title_gives_the_accuracy_of_the_table():
     assert cell_text(report).split()[0] == "94.3"
     # Three misclassifications, all from C1 to C2: r_C = 1.
     assert confusion_title(report) == "fine: rf, all, X10; accuracy 94.3 %, r_C 1.00"
+
+
+def test_the_fq_title_stays_inside_the_figure(tmp_path):
+    # Long feature names (the catch22 family's) leave the axes narrow; the title once ran off the right edge.
+    names = [f"catch22.a_fs.SB_MotifThree_quantile_hh_{k:02d}" for k in range(40)]
+    ranking = [(name, 90.0 - k) for k, name in enumerate(names)]
+    path = plot_fq_ranking(ranking, names[:10:3], tmp_path / "fq.png")
+    pixels = imread(path)[:, :, :3]
+    edges = np.concatenate([pixels[0], pixels[-1], pixels[:, 0], pixels[:, -1]])
+    assert np.all(edges == 1.0)  # nothing drawn on the image's border: white, as the figure's background
