@@ -168,6 +168,7 @@ def take(db: Path, out: Path) -> list[Path]:
                 page.fill("#picker-search", "granite")
                 page.click("#picker-results button:has-text('C6S1M1')")
                 page.select_option("#picker-p", "P2")
+                wait_until(page, "document.getElementById('label-description').textContent.includes('polished')")
                 shot("start")
                 page.click("button:has-text('Start the scan')")
                 page.wait_for_url(base + "/session")

@@ -49,13 +49,14 @@ function setupPicker(describe) {
   // label stays empty until the operator chooses one. The extra attribute starts at X1, "no extra attribute".
   const compose = () => {
     if (!material) return;
+    const out = document.getElementById("label-description");
     if (!shape.value) {
       label.value = "";
-      const out = document.getElementById("label-description");
       if (out) { out.textContent = `${material}: now choose its processing shape (P)`; out.classList.remove("bad"); }
       return;
     }
     label.value = material + shape.value + extra.value;
+    if (out) out.textContent = "";  // until the label's own description arrives
     if (describe) describe();
   };
   shape.addEventListener("change", compose);
