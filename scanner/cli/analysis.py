@@ -10,6 +10,7 @@ import json
 import math
 import sys
 import time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -45,9 +46,12 @@ from scanner.workflows import (
 from taxonomy.labels import LEVELS, parse_prefix
 from taxonomy.learning.evaluation import (
     CLASSIFIERS,
+    MLP_MAX_ITER,
+    classifier_estimators,
     default_feature_sets,
     evaluate_grid,
     evaluate_open_set,
+    iteration_limit_stops,
     present_feature_sets,
     recording_of,
     vote,
@@ -367,8 +371,17 @@ def _add_set_options(parser: argparse.ArgumentParser) -> None:
 def cmd_train(args: argparse.Namespace) -> int:
     with cluster(args) as client:
         space = space_for(args, client)
-    model = train_model(space, args.level, args.n, args.classifier, args.seed,
-                        None if args.feature_set == ALL else args.feature_set)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model = train_model(space, args.level, args.n, args.classifier, args.seed,
+                            None if args.feature_set == ALL else args.feature_set)
+    stops, others = iteration_limit_stops(classifier_estimators(args.seed)[args.classifier], caught)
+    for warning in others:  # as they would have been shown
+        warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
+    if stops:
+        print(f"texplorer: note: the MLP stopped at the paper's {MLP_MAX_ITER} L-BFGS iterations before "
+              f"converging in {stops} of its fits, as the paper's setting does (not a fault; the features are "
+              "scaled)", file=sys.stderr)
     save_model(model, args.out)
     print(model.describe())
     print(f"wrote {args.out}")

@@ -5,9 +5,11 @@ from __future__ import annotations
 import argparse
 import re
 
+import numpy as np
 import pytest
 from conftest import make_scan
 
+from features.space import FeatureSpace
 from scanner.cli import COMMANDS, ENTRY_POINTS, EXIT_PROBLEMS, build_parser, main, plugin_summary
 from scanner.storage.database import Database
 
@@ -221,3 +223,19 @@ def test_a_misspelled_option_gets_the_commands_usage_and_the_closest_option(argv
     assert stop.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith(usage) and err.strip().splitlines()[-1] == error
+
+
+def test_train_states_the_paper_mlps_iteration_stops_once_instead_of_warning(tmp_path, capsys):
+    # random features of three classes: L-BFGS is still improving the fit at the paper's 200 iterations
+    rng = np.random.default_rng(0)
+    labels = [f"C{1 + i % 3}S1M1P1X1" for i in range(60)]
+    space = FeatureSpace(X=rng.standard_normal((60, 12)), columns=tuple(f"other.f{i}" for i in range(12)),
+                         scan_ids=[f"s{i}" for i in range(60)], label_text=labels,
+                         groups=[f"g{i}" for i in range(60)])
+    table = space.to_csv(tmp_path / "space.csv")
+    assert main(["train", "--features", str(table), "--classifier", "mlp", "--out", str(tmp_path / "m.skops"),
+                 "--db", str(tmp_path / "db")]) == 0
+    err = capsys.readouterr().err
+    assert "ConvergenceWarning" not in err
+    (note,) = [line for line in err.splitlines() if "L-BFGS" in line]
+    assert note.startswith("texplorer: note: the MLP stopped at the paper's 200 L-BFGS iterations before converging")
