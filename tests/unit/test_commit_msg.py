@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import importlib.machinery
 import importlib.util
-import shutil
-import subprocess
 from pathlib import Path
 
 import pytest
@@ -13,12 +11,17 @@ import pytest
 HOOK = Path(__file__).resolve().parents[2] / ".githooks" / "commit-msg"
 
 
-@pytest.fixture(scope="module")
-def hook():
+def load_hook():
+    """The hook's module (a script without the .py suffix)."""
     loader = importlib.machinery.SourceFileLoader("commit_msg", str(HOOK))
     module = importlib.util.module_from_spec(importlib.util.spec_from_loader("commit_msg", loader))
     loader.exec_module(module)
     return module
+
+
+@pytest.fixture(scope="module")
+def hook():
+    return load_hook()
 
 
 @pytest.mark.parametrize("message", [
@@ -54,29 +57,3 @@ def test_the_hook_exits_non_zero_on_a_bad_message(hook, tmp_path, capsys):
     path.write_text("Add things\n")
     assert hook.main(str(path)) == 0
 
-
-CHECKED_SINCE = "1e5fc98c2a9becc21b5a5f48368483b82d345bd0"
-"""Commits after this one are checked by :func:`test_every_commit_since_the_check_keeps_the_convention`
-(the hook was opt-in before; the subjects of that time stay as they are)."""
-
-
-def _git(*args: str) -> str:
-    return subprocess.run(["git", *args], cwd=HOOK.parents[1], capture_output=True, text=True, check=True).stdout
-
-
-def test_every_commit_since_the_check_keeps_the_convention(hook):
-    """The convention checked by machine, not by the hook a clone may not have installed: every commit of
-    the history after :data:`CHECKED_SINCE` (in a shallow clone, every commit it holds that is not before it)."""
-    if shutil.which("git") is None or not (HOOK.parents[1] / ".git").exists():
-        pytest.skip("not a git checkout (an unpacked archive): no history to check")
-    known = subprocess.run(["git", "cat-file", "-e", f"{CHECKED_SINCE}^{{commit}}"], cwd=HOOK.parents[1],
-                           capture_output=True).returncode == 0  # absent from a shallow clone: check all it has
-    commits = _git("rev-list", "HEAD", *([f"^{CHECKED_SINCE}"] if known else [])).split()
-    assert commits or known, "no commit to check"
-    broken = {}
-    for commit in commits:
-        found = hook.problems(_git("log", "-1", "--format=%B", commit))
-        if found:
-            broken[commit[:7] + " " + _git("log", "-1", "--format=%s", commit).strip()] = found
-    assert not broken, "commits that break CONTRIBUTING.md's message convention: " + "; ".join(
-        f"{commit}: {', '.join(found)}" for commit, found in broken.items())
