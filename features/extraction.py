@@ -254,8 +254,7 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     >>> space.X.shape, space.y("coarse").tolist()
     ((4, 193), ['C1', 'C1', 'C2', 'C2'])
     """
-    if pool is None or not pool.shared:
-        pool = _SHARED["pool"] or pool
+    pool = pool or _SHARED["pool"]  # a job's own pool, else the process's shared workers (job_workers gives both)
     if pool is not None and not pool.shared and workers not in (None, pool.size):
         raise ParameterError(f"workers={workers} with a pool of {pool.size} workers")
     sources = [s if isinstance(s, ScanSource) else source_of(s) for s in scans]

@@ -112,7 +112,7 @@ def label_filter(text: str, taxonomy: Taxonomy) -> tuple[str | None, LabelMatch 
     LabelError
         One line: the text is neither a prefix nor part of any name in the taxonomy.
     """
-    prefix, materials = select_labels(text, taxonomy)
+    prefix, materials = select_labels(text, lambda: taxonomy)
     return prefix, None if materials is None else (lambda label: material_code(label) in materials)
 
 
@@ -254,7 +254,7 @@ def start_export() -> tuple[str, int] | Response:
     """Start a background export of the scans matching the form's label and session (``texplorer export``)."""
     form = {key: request.form.get(key, "").strip()[:64] for key in ("label", "session")}
     try:  # a label or class prefix (spelled canonically: c6 -> C6) or part of a name, as texplorer export --label
-        prefix, _ = select_labels(form["label"], context().db.taxonomy())
+        prefix, _ = select_labels(form["label"], context().db.taxonomy)
     except ValueError as exc:
         return render_overview(form, {"label": str(exc)}, 422)
     label = prefix or form["label"] or None

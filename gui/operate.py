@@ -46,7 +46,7 @@ from scanner.scan import CHANNELS, IMAGES
 from scanner.simulation import is_hand_set
 from scanner.storage.database import DatabaseError, ScanRecord
 from scanner.workflows import LabelCheck, check_label, predict_values
-from taxonomy.learning.models import ModelError
+from taxonomy.learning.models import ModelError, TrainedModel
 from taxonomy.reports.plots import plot_scan
 
 blueprint = Blueprint("operate", __name__)
@@ -485,12 +485,16 @@ def summarise(op: Operation) -> Summary:
         return cached
     ctx = context()
     scan = op.session.scan(ctx.db.next_scan_index(op.session.sample_id))
+    model, problem = _loaded_model()
+    # the families the model's inputs need beside the paper's (a model of modern features)
+    families = None if model is None else feature_sets.families_of(model.feature_names)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        values = extract(scan, _model_families())
+        values = extract(scan, families)
     notes = sorted({str(w.message) for w in caught})
     tactum = [(TACTUM_TITLES[name], _format(values[name])) for name in TACTUM_TITLES]
-    predictions, note, unknown, check = _predict(values, op.session.label)
+    predictions, note, unknown, check = (None, problem, "", None) if model is None else \
+        _predict(model, values, op.session.label)
     summary = Summary(tactum, predictions, note, notes, unknown, check)
     op.summary_cache["summary"] = summary
     op.summary_cache["scan"] = scan
@@ -521,33 +525,27 @@ def within(seconds: float, fn: Callable[[], Any]) -> Any:
     return outcome["value"]
 
 
-def _model_families() -> tuple[str, ...] | None:
-    """The families the model's inputs need beside the paper's (a model of modern features,
-    docs/modern-features.md); None without a usable model (one that cannot be loaded in time included:
-    :func:`_predict` says why)."""
+def _loaded_model() -> tuple[TrainedModel | None, str]:
+    """The model (loaded once per server, waited for at most ``prediction_timeout_s``), or None and why."""
     ctx = context()
     try:
         model = within(ctx.settings.prediction_timeout_s, lambda: ctx.model)
-    except ModelError:
-        return None
-    return None if model is None else feature_sets.families_of(model.feature_names)
+    except ModelError as exc:
+        return None, f"the model cannot be used: {session_error(exc)}"
+    if model is None:
+        return None, "no trained model: run 'texplorer train' (or 'texplorer demo') to see predictions here"
+    return model, ""
 
 
 Predicted = tuple[list[tuple[str, float, str]] | None, str, str, LabelCheck | None]
 
 
-def _predict(values: dict[str, float], label: str) -> Predicted:
+def _predict(model: TrainedModel, values: dict[str, float], label: str) -> Predicted:
     """The top three, a note on the model, "unknown material (closest: ...)" when its rule rejects, and where
     the operator's ``label`` disagrees with the model (:func:`scanner.workflows.check_label`).
     A model that fails or takes longer than ``prediction_timeout_s`` gives no prediction and a one-line note
     instead; the scan stays ready to save."""
     ctx = context()
-    try:
-        model = within(ctx.settings.prediction_timeout_s, lambda: ctx.model)
-    except ModelError as exc:
-        return None, f"the model cannot be used: {session_error(exc)}", "", None
-    if model is None:
-        return None, "no trained model: run 'texplorer train' (or 'texplorer demo') to see predictions here", "", None
     taxonomy = ctx.db.taxonomy()  # read here: the database's connection belongs to this thread
     try:
         prediction = within(ctx.settings.prediction_timeout_s, lambda: predict_values(model, values, 3, taxonomy))

@@ -19,7 +19,7 @@ import io
 import os
 import re
 import tempfile
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -314,11 +314,11 @@ class Taxonomy:
         return path
 
 
-def select_labels(text: str, taxonomy: Taxonomy) -> tuple[str | None, frozenset[str] | None]:
+def select_labels(text: str, taxonomy: Callable[[], Taxonomy]) -> tuple[str | None, frozenset[str] | None]:
     """What a ``--label`` option or the web app's label field selects: ``(code prefix, None)`` for a label or
     class prefix (``C6`` = every stone, not C60), ``(None, materials)`` for part of a material, sub-class or
     class name (``granite``, ``Oak``, ``stone``: the taxonomy picker's search; the C/S/M codes it finds), and
-    ``(None, None)`` for empty text.
+    ``(None, None)`` for empty text. ``taxonomy`` gives the table, read only for a name (not for a prefix).
 
     Raises
     ------
@@ -332,7 +332,7 @@ def select_labels(text: str, taxonomy: Taxonomy) -> tuple[str | None, frozenset[
         return parse_prefix(text), None
     except LabelError as exc:
         reason = str(exc)
-    codes = frozenset(material.code for material in taxonomy.search(text)) if _code_prefix(text) is None else None
+    codes = frozenset(material.code for material in taxonomy().search(text)) if _code_prefix(text) is None else None
     if not codes:  # a code typed wrong ("C7S") is refused as a code, not searched as a name
         raise LabelError(f"{reason}; or part of a material name, e.g. granite")
     return None, codes

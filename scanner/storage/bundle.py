@@ -172,7 +172,7 @@ def export_bundle(db: Database, out: str | os.PathLike[str], features: Features,
         raise BundleError(f"{out} already exists; export to a new name")
     records = sorted(db.records(label=label, session=session), key=lambda r: (r.started, r.scan_id))
     if label:  # a prefix in its canonical spelling (" c7 " -> C7); part of a name as given
-        label = select_labels(label, db.taxonomy())[0] or label.strip()
+        label = select_labels(label, db.taxonomy)[0] or label.strip()
     if not records:
         raise BundleError(f"{db.root}: no scans{_filter_text(label, session)} to export")
     space = features(records)

@@ -568,7 +568,7 @@ class Database:
         A ``label`` that is neither raises ``LabelError`` naming the valid forms; lower-case letters are accepted.
         """
         clauses, params = [], []
-        prefix, materials = select_labels(label or "", self.taxonomy()) if label else (None, None)
+        prefix, materials = select_labels(label or "", self.taxonomy)
         if prefix:
             clauses.append("label >= ? AND label < ?")
             params.extend(_label_range(prefix))
