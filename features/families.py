@@ -106,14 +106,31 @@ def _other(prepared: PreparedScan) -> dict[str, float]:
     return other.compute(prepared.scan, prepared=prepared)
 
 
-TACTUM = REGISTRY.register(Family("tactum", "TacTUM (paper section IV-A)", tactum.NAMES, _tactum))
+TACTUM_UNITS = {"mico": "Hz", "ccp": "N/mm", "cdf": "deg", "cdp": "N.s/deg", "crx": "N", "tco": "K", "tpr": "K"}
+"""Units of the TacTUM features that have one (docs/features.md#tactum; ``matx``, ``maco`` and ``marg`` mix units)."""
+IMAGE_UNITS = {"color": "deg", "dft_80": "gray level", "dft_85": "gray level", "tamura_coarseness": "px",
+               "tamura_contrast": "gray level"}
+"""Units of one photo's features that have one (docs/features.md#image)."""
+AUDIO_UNITS = {"zcr": "1/sample", "energy": "FS^2", "energy_entropy": "bit", "spectral_entropy": "bit", "f0": "Hz"}
+"""Units of one slide's audio features that have one (docs/features.md#audio)."""
+OTHER_UNITS = {"density": "g/cm^3", "magnet_mean": "uT", "magnet_peak": "uT", "reflect_static": "V",
+               "reflect_mean": "V", "cooling_rate": "1/s", "vib_std": "g", "vib_energy": "g^2",
+               "finger_vib_energy": "g^2", "finger_vib_centroid": "Hz", "tap_peak": "g", "tap_centroid": "Hz",
+               "tap_decay": "s"}
+"""Units of the other features that have one (docs/features.md#other)."""
+
+TACTUM = REGISTRY.register(Family("tactum", "TacTUM (paper section IV-A)", tactum.NAMES, _tactum,
+                                  units={f"tactum.{name}": unit for name, unit in TACTUM_UNITS.items()}))
 IMAGE = REGISTRY.register(Family(
     "image", "image", tuple(f"image.{short}.{name}" for short in IMAGES.values() for name in image.NAMES), _image,
-    groups=tuple((f"image.{short}", PHOTO_TITLES[short]) for short in IMAGES.values())))
+    groups=tuple((f"image.{short}", PHOTO_TITLES[short]) for short in IMAGES.values()),
+    units={f"image.{short}.{name}": unit for short in IMAGES.values() for name, unit in IMAGE_UNITS.items()}))
 AUDIO = REGISTRY.register(Family(
     "audio", "audio", tuple(f"audio.{which}.{name}" for which in AUDIO_SIGNALS for name in audio.NAMES), _audio,
-    groups=tuple((f"audio.{which}", SLIDE_TITLES[which]) for which in AUDIO_SIGNALS)))
-OTHER = REGISTRY.register(Family("other", "other", other.NAMES, _other, solver_rtol=other.SOLVER_RTOL))
+    groups=tuple((f"audio.{which}", SLIDE_TITLES[which]) for which in AUDIO_SIGNALS),
+    units={f"audio.{which}.{name}": unit for which in AUDIO_SIGNALS for name, unit in AUDIO_UNITS.items()}))
+OTHER = REGISTRY.register(Family("other", "other", other.NAMES, _other, solver_rtol=other.SOLVER_RTOL,
+                                 units={f"other.{name}": unit for name, unit in OTHER_UNITS.items()}))
 
 NAMES: tuple[str, ...] = REGISTRY.names
 """The paper's 193 feature names in the order of docs/features.md: 15 TacTUM, 93 image (disp, macro, illu x 31), 70

@@ -78,6 +78,9 @@ class Family(_Code):
     solver_rtol: Mapping[str, float] = field(default_factory=dict)
     params: Mapping[str, object] = field(default_factory=dict)
     opt_in: bool = False
+    units: Mapping[str, str] = field(default_factory=dict)
+    """Physical unit of each column that has one (``"Hz"``, ``"N/mm"``); dimensionless columns are absent.
+    Descriptive only (export metadata, docs/features.md): it does not count towards the code version."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "columns", tuple(self.columns))
@@ -86,6 +89,9 @@ class Family(_Code):
         if not self.name or "." in self.name:
             raise RegistryError(f"family name must be a non-empty word without dots, got {self.name!r}")
         _check_columns(self, lambda c: not c.startswith(self.name + "."), f"start with '{self.name}.'")
+        strays = sorted(set(self.units) - set(self.columns))
+        if strays:
+            raise RegistryError(f"family {self.name}: units given for columns it does not have: {', '.join(strays)}")
 
 
 @dataclass(frozen=True)
@@ -240,6 +246,11 @@ class ScanRegistry(Registry[Family]):
     def solver_rtol(self) -> dict[str, float]:
         """Relative tolerance of every column computed by an iterative fit."""
         return {column: rtol for family in self for column, rtol in family.solver_rtol.items()}
+
+    @property
+    def units(self) -> dict[str, str]:
+        """The unit of every column that has one (:attr:`Family.units`)."""
+        return {column: unit for family in self for column, unit in family.units.items()}
 
 
 REGISTRY = ScanRegistry()

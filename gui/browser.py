@@ -29,6 +29,8 @@ from gui.exports import ExportBusy, ExportError, ExportJob
 from scanner.scan import CHANNELS, IMAGES
 from scanner.storage.database import DatabaseError, ScanRecord
 from scanner.storage.files import temp_path_for
+from scanner.storage.metadata import MetadataError, checked_creator, license_url
+from scanner.storage.settings import read_settings
 from scanner.workflows import extract_database, stored_features
 from taxonomy.labels import Label, LabelError
 from taxonomy.reports.plots import plot_scan
@@ -78,8 +80,14 @@ def _record(scan_id: str) -> ScanRecord:
 
 @blueprint.get("/")
 def overview() -> tuple[str, int]:
+    try:
+        settings = read_settings(context().db.root)
+    except MetadataError as exc:
+        flash(f"{exc}.", "bad")
+        settings = {}
     return render_overview({"label": request.args.get("label", "")[:64],
-                            "session": request.args.get("session", "")[:64]}, {})
+                            "session": request.args.get("session", "")[:64],
+                            "license": settings.get("license", ""), "creator": settings.get("creator", "")}, {})
 
 
 @blueprint.get("/material/<label>")
@@ -232,6 +240,27 @@ def export_features() -> Response:
                      max_age=0)
 
 
+LICENSE_CHARS = 500
+"""Longest license URL or creator the export form takes."""
+
+
+def license_errors(license: str, creator: str) -> dict[str, str]:
+    """The export form's license and creator errors by field (``texplorer export --license/--creator``)."""
+    errors = {}
+    if not license:
+        errors["license"] = "give the bundle a license: an SPDX identifier (CC-BY-4.0, CC0-1.0), a URL, or none"
+    else:
+        try:
+            license_url(license)
+        except MetadataError as exc:
+            errors["license"] = str(exc).replace("--license none", "none")
+    try:
+        checked_creator(creator)
+    except MetadataError as exc:
+        errors["creator"] = str(exc)
+    return errors
+
+
 def export_form(records: Iterable[ScanRecord]) -> dict[str, Any]:
     """What the export form offers: the sessions of the database, newest first, for the session field."""
     sessions: dict[str, ScanRecord] = {}
@@ -253,13 +282,18 @@ def render_overview(form: dict[str, str], errors: dict[str, str], status: int = 
 def start_export() -> tuple[str, int] | Response:
     """Start a background export of the scans matching the form's label and session (``texplorer export``)."""
     form = {key: request.form.get(key, "").strip()[:64] for key in ("label", "session")}
+    form |= {key: request.form.get(key, "").strip()[:LICENSE_CHARS] for key in ("license", "creator")}
     try:  # a label or class prefix (spelled canonically: c6 -> C6) or part of a name, as texplorer export --label
         prefix, _ = select_labels(form["label"], context().db.taxonomy)
     except ValueError as exc:
         return render_overview(form, {"label": str(exc)}, 422)
+    errors = license_errors(form["license"], form["creator"])
+    if errors:
+        return render_overview(form, errors, 422)
     label = prefix or form["label"] or None
     try:
-        job = context().exports.start(label=label, session=form["session"] or None)
+        job = context().exports.start(label=label, session=form["session"] or None, license=form["license"],
+                                      creator=form["creator"] or None)
     except ExportBusy as exc:
         flash(f"{exc}.", "bad")
         return redirect(url_for("database.export_job", job_id=exc.job.id))

@@ -90,6 +90,9 @@ class ExportJob:
     session: str | None
     folder: Path
     workers: int | None = None
+    license: str | None = None
+    """As ``texplorer export --license``; None takes the database's setting."""
+    creator: str | None = None
     phase: str = "features"
     done: int = 0
     error: str = ""
@@ -145,7 +148,8 @@ class ExportJob:
             self.phase, self.done = "copying", 0
             stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
             report = export_database(self.db, self.folder / f"texplorer-export-{stamp}.zip", label=self.label,
-                                     session=self.session, workers=self.workers,
+                                     session=self.session, license=self.license, creator=self.creator,
+                                     workers=self.workers,
                                      progress=functools.partial(self._count, abandon_after_s=abandon_after_s))
             self.path, self.name, self.size = report.path, report.path.name, report.path.stat().st_size
             self.phase = "done"
@@ -201,7 +205,8 @@ class Exports:
         self.job: ExportJob | None = None
         self._lock = threading.Lock()
 
-    def start(self, label: str | None = None, session: str | None = None) -> ExportJob:
+    def start(self, label: str | None = None, session: str | None = None, license: str | None = None,
+              creator: str | None = None) -> ExportJob:
         """Start exporting the scans matching the filters; refuses when another export is running, no scan
         matches, or the temporary folder has too little space."""
         with self._lock:
@@ -219,7 +224,8 @@ class Exports:
                 folder = Path(tempfile.mkdtemp(prefix="texplorer-export-", dir=root))
             except OSError as exc:
                 raise ExportError(f"cannot build the bundle in {root}: {exc.strerror or exc}") from None
-            job = ExportJob(secrets.token_urlsafe(16), self.db, records, label, session, folder, self.workers)
+            job = ExportJob(secrets.token_urlsafe(16), self.db, records, label, session, folder, self.workers,
+                            license, creator)
             job.thread = threading.Thread(target=job.run, args=(self.abandon_after_s,), name="export",
                                           daemon=True)
             self.job = job

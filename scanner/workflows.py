@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from features import FeatureSpace, ScanSource, WorkerPool, code_version, extract, extract_many, feature_sets
+from features import REGISTRY, FeatureSpace, ScanSource, WorkerPool, code_version, extract, extract_many, feature_sets
 from features.memory import keep_freed_memory
 from scanner.scan import Scan
 from scanner.simulation.database import synthetic_database
@@ -40,6 +40,7 @@ from scanner.simulation.scans import synthetic_scan
 from scanner.storage.bundle import ExportReport, Progress, export_bundle
 from scanner.storage.database import Database, DatabaseError, ScanRecord
 from scanner.storage.matfile import load_scan, save_scan
+from scanner.storage.settings import read_settings
 from taxonomy.labels import Label, LabelError
 from taxonomy.learning.models import TrainedModel, classify_values, save_model, train_model
 from taxonomy.table import Taxonomy, UnknownLabelError
@@ -153,15 +154,21 @@ def compile_kernels(image_size: int = 384) -> float:
 # -- export a database with its features -----------------------------------------------------------
 
 def export_database(db: Database, out: str | os.PathLike[str], *, label: str | None = None,
-                    session: str | None = None, workers: int | None = None, progress: Progress = iter) -> ExportReport:
+                    session: str | None = None, license: str | None = None, creator: str | None = None,
+                    workers: int | None = None, progress: Progress = iter) -> ExportReport:
     """Write the scans of ``db`` (optionally a label or class prefix, or one session) as an export bundle
     with their features, read from the feature cache where possible (``workers`` processes extract the
-    rest); see :func:`scanner.storage.bundle.export_bundle` for the bundle and its errors."""
+    rest); see :func:`scanner.storage.bundle.export_bundle` for the bundle and its errors.
+
+    ``license`` and ``creator`` default to the database's settings (``texplorer db settings``); without a
+    license from either the export is refused (``"none"`` exports without one)."""
     def features(records: Sequence[ScanRecord]) -> FeatureSpace:
         return extract_database(db, records=records, workers=workers)
 
-    return export_bundle(db, out, features, feature_code_version=code_version(), label=label, session=session,
-                         progress=progress)
+    settings = read_settings(db.root)
+    return export_bundle(db, out, features, feature_code_version=code_version(),
+                         license=license or settings.get("license"), creator=creator or settings.get("creator"),
+                         feature_units=REGISTRY.units, label=label, session=session, progress=progress)
 
 
 # -- the database's default model -------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""``texplorer db``: inspect and repair the database (list, show, check, rebuild)."""
+"""``texplorer db``: inspect and repair the database (list, show, check, rebuild) and set its settings."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from pathlib import Path
 
 from scanner.cli.base import EXIT_PROBLEMS, add_db_option, open_db, progress, table_lines
 from scanner.storage.database import CATALOG, RECORDINGS, SCANS, recording_leftovers, repair_recordings
+from scanner.storage.settings import KEYS, read_settings, write_settings
 
 
 def cmd_db_list(args: argparse.Namespace) -> int:
@@ -94,6 +95,19 @@ def cmd_db_rebuild(args: argparse.Namespace) -> int:
     return EXIT_PROBLEMS if report.skipped else 0
 
 
+def cmd_db_settings(args: argparse.Namespace) -> int:
+    root = Path(args.db)
+    if not (root / CATALOG).is_file() and not (root / RECORDINGS).is_dir():
+        open_db(args)  # its one-line error: no database here
+    changes = {key: value for key, value in (("license", args.license), ("creator", args.creator))
+               if value is not None}
+    changes.update(dict.fromkeys(args.unset or (), None))
+    settings = write_settings(root, **changes) if changes else read_settings(root)
+    for key in KEYS:
+        print(f"{key:<8} {settings.get(key, '(not set)')}")
+    return 0
+
+
 def register(commands: argparse._SubParsersAction) -> None:
     db = commands.add_parser("db", help="inspect and repair the database", description="Inspect and repair the "
                              "scan database (catalog.sqlite + .mat files).")
@@ -119,4 +133,13 @@ def register(commands: argparse._SubParsersAction) -> None:
                                      "that cannot be catalogued go to <db>/quarantine/ (exit 3)")
     add_db_option(rebuild)
     rebuild.set_defaults(handler=cmd_db_rebuild)
+    settings = db_commands.add_parser("settings", help="show or set the database's export license and creator",
+                                      description="Show the database's settings, or set them: the license and "
+                                      "creator that 'texplorer export' and the web application's export write "
+                                      "into a bundle's metadata when not given (kept in <db>/settings.json).")
+    add_db_option(settings)
+    settings.add_argument("--license", help="SPDX identifier (CC-BY-4.0, CC0-1.0), a license URL, or none")
+    settings.add_argument("--creator", help="a person's or lab's name, or an ORCID URL")
+    settings.add_argument("--unset", action="append", choices=KEYS, help="remove a setting (repeatable)")
+    settings.set_defaults(handler=cmd_db_settings)
 

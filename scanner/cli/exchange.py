@@ -35,7 +35,8 @@ EXIT_MISMATCH = 4
 
 def cmd_export(args: argparse.Namespace) -> int:
     report = export_database(open_db(args), args.out, label=args.label, session=args.session,
-                             workers=args.workers, progress=progress("exporting"))
+                             license=args.license, creator=args.creator, workers=args.workers,
+                             progress=progress("exporting"))
     for scan_id, reason in report.feature_failures:
         print(f"texplorer: warning: no feature row for {scan_id}: {reason}", file=sys.stderr)
     print(f"exported {report.scans} scan(s), {report.files} files, {report.bytes / 1e6:.1f} MB "
@@ -128,13 +129,18 @@ def register(commands: argparse._SubParsersAction) -> None:
     count = len(REGISTRY.names)
     export = commands.add_parser(
         "export", help="write scans, features, taxonomy and a checksummed manifest as a bundle for a lab",
-        description="Export scans with their photos, features.csv/.mat, taxonomy.csv, manifest.json (SHA-256 "
-        "of every file) and MATLAB/Python loaders, as a folder or a .zip that appears only when complete.")
+        description="Export scans with their photos, features.csv/.mat, taxonomy.csv, scans.csv, manifest.json "
+        "(SHA-256 of every file), MATLAB/Python loaders and standard metadata (RO-Crate, Croissant, Frictionless "
+        "table schemas, BIDS-style channel tables), as a folder or a .zip that appears only when complete.")
     add_db_option(export)
     export.add_argument("out", type=Path, metavar="OUT", help="new bundle folder, or a file ending in .zip")
     export.add_argument("--label", help="only this label, class prefix (C6 = every stone) or part of a material "
                         "name (granite)")
     export.add_argument("--session", help="only this session id")
+    export.add_argument("--license", help="the bundle's license: SPDX identifier (CC-BY-4.0, CC0-1.0) or URL; "
+                        "'none' exports without one (default: 'texplorer db settings'; refused if neither)")
+    export.add_argument("--creator", help="who made the data: a person's or lab's name, or an ORCID URL "
+                        "(default: 'texplorer db settings')")
     export.add_argument("--workers", type=int, help="processes for uncached features (default: cores)")
     export.set_defaults(handler=cmd_export)
 

@@ -59,10 +59,29 @@ from typing import IO, Any, Protocol
 
 import scipy.io
 
-from scanner.scan import IMAGES, SCHEMA_VERSION, ScanMeta
+from scanner.scan import CHANNELS, IMAGES, SCHEMA_VERSION, ScanMeta
 from scanner.storage.database import STAGING_PREFIX, Database, FileEntry, ScanRecord, content_hash
 from scanner.storage.files import atomic_write_bytes, fsync_dir, owned_folder, temp_path_for
 from scanner.storage.matfile import ScanFormatError, load_scan, photo_file_name
+from scanner.storage.metadata import (
+    CROISSANT,
+    DATAPACKAGE,
+    RO_CRATE,
+    SCANS_CSV,
+    Provenance,
+    as_bytes,
+    checked_creator,
+    croissant,
+    croissant_file_sets,
+    describe_tables,
+    license_url,
+    metadata_problems,
+    ro_crate,
+    scan_bundle_tables,
+    scan_channels,
+    sessions_of,
+    taxonomy_table,
+)
 from scanner.version import __version__
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import Label
@@ -153,23 +172,31 @@ class ImportReport:
 # -- export ------------------------------------------------------------------------------------------
 
 def export_bundle(db: Database, out: str | os.PathLike[str], features: Features, *, feature_code_version: str,
+                  license: str | None, creator: str | None = None, feature_units: Mapping[str, str] | None = None,
                   label: str | None = None, session: str | None = None, progress: Progress = iter) -> ExportReport:
     """Write the scans of ``db`` (optionally only a label or class prefix, or one session) as a bundle.
 
     ``out`` ending in ``.zip`` gives a zip file, anything else a folder; it must not exist yet. The feature
     tables are ``features(records)``, the caller's feature space of the scans in export order, computed by
-    ``feature_code_version`` (recorded in the manifest).
+    ``feature_code_version`` (recorded in the manifest); ``feature_units`` gives the unit of each feature
+    that has one (the Frictionless schema of ``features.csv``). ``license`` is an SPDX identifier or a URL,
+    or ``"none"`` to export without one; ``creator`` a name or URL (:mod:`scanner.storage.metadata`).
 
     Raises
     ------
     BundleError
-        ``out`` exists, no scan matches the filters, or a database file no longer matches its catalog
-        SHA-256 (run ``texplorer db check``). Nothing is left at ``out`` then.
+        ``out`` exists, no license was given, no scan matches the filters, or a database file no longer
+        matches its catalog SHA-256 (run ``texplorer db check``). Nothing is left at ``out`` then.
+    MetadataError
+        A license or creator that cannot be written.
     """
     started = time.perf_counter()
     out = Path(out)
     if out.exists():
         raise BundleError(f"{out} already exists; export to a new name")
+    if license is None:
+        raise BundleError(NO_LICENSE_TEXT)
+    license, creator = license_url(license), checked_creator(creator)
     records = sorted(db.records(label=label, session=session), key=lambda r: (r.started, r.scan_id))
     if label:  # a prefix in its canonical spelling (" c7 " -> C7); part of a name as given
         label = select_labels(label, db.taxonomy)[0] or label.strip()
@@ -186,9 +213,18 @@ def export_bundle(db: Database, out: str | os.PathLike[str], features: Features,
             for entry in entries:
                 files[entry.path] = _copy_checked(db, entry, writer)
             scans.append(_scan_entry(record, entries))
-        for name, data in _generated_files(db, space).items():
+        generated = _generated_files(db, space)
+        for name, data in generated.items():
             files[name] = writer.add(name, io.BytesIO(data))
+        provenance = Provenance(license, creator, created, __version__, feature_code_version,
+                                f"texplorer scans{_filter_text(label, session)}")
+        scan_files = {scan["scan_id"]: scan["files"] for scan in scans}
+        for name, data in _scan_metadata(records, scan_files, generated, feature_units or {}, provenance).items():
+            files[name] = writer.add(name, io.BytesIO(data))
+        crate = ro_crate(files, provenance, sessions_of(records, scan_files), _DESCRIPTION, ABOUT)
+        files[RO_CRATE] = writer.add(RO_CRATE, io.BytesIO(as_bytes(crate)))
         manifest = _manifest(db, records, scans, files, space, created, label, session, feature_code_version)
+        manifest["license"], manifest["creator"] = license, creator
         manifest_bytes = json.dumps(manifest, indent=1, allow_nan=False).encode("utf-8") + b"\n"
         writer.add(MANIFEST, io.BytesIO(manifest_bytes))
         writer.add(MANIFEST_SUM, io.BytesIO(_manifest_sum(manifest_bytes)))
@@ -198,6 +234,46 @@ def export_bundle(db: Database, out: str | os.PathLike[str], features: Features,
         raise
     size = sum(f["size"] for f in files.values()) + len(manifest_bytes) + len(_manifest_sum(manifest_bytes))
     return ExportReport(out, len(records), len(files) + 2, size, time.perf_counter() - started, space.failed)
+
+
+_DESCRIPTION = ("Multimodal material scans of a Texplorer2 scanner (acceleration, sound, IR reflectance, force, "
+                "flex, temperature, magnetic field, metal contact, three photos, mass and volume) as MATLAB v5 "
+                "files, with their features and material taxonomy; see README.md")
+ABOUT = {
+    README: "how to load the scans and features in MATLAB/Octave or Python", MANIFEST: "texplorer's own manifest: "
+    "versions, counts, calibrations, scans and the SHA-256 of every file", "load_texplorer.m": "MATLAB/Octave loader",
+    "load_texplorer.py": "Python loader (numpy and scipy)", FEATURES_CSV: "feature table, one row per scan",
+    FEATURES_MAT: "the feature table as a MATLAB file", TAXONOMY_CSV: "the material taxonomy (C/S/M/P/X codes)",
+    SCANS_CSV: "one row per scan: label codes, sample, session, operator, files",
+    CROISSANT: "Croissant 1.1 description for machine-learning loaders",
+    DATAPACKAGE: "Frictionless Data Package of the CSV tables",
+}
+"""What the bundle's own files are, for the RO-Crate description."""
+
+NO_LICENSE_TEXT = ("no license for the bundle: give --license with an SPDX identifier (CC-BY-4.0, CC0-1.0) or a "
+                   "license URL, set the database's with 'texplorer db settings --license', or give --license none")
+
+
+def _scan_metadata(records: Sequence[ScanRecord], scan_files: Mapping[str, Mapping[str, str]],
+                   generated: Mapping[str, bytes], feature_units: Mapping[str, str],
+                   provenance: Provenance) -> dict[str, bytes]:
+    """The standard metadata of a bundle of scans (:mod:`scanner.storage.metadata`), in writing order: the
+    tables and schemas, then Croissant (which lists the tables' checksums), then RO-Crate (every file's)."""
+    tables = [*scan_bundle_tables(records, scan_files, generated[FEATURES_CSV], feature_units),
+              taxonomy_table(generated[TAXONOMY_CSV])]
+    out = {SCANS_CSV: tables[0][1], **describe_tables(tables, scan_channels(), provenance)}
+    checksums = {name: _checksum(data) for name, data in {**generated, **out}.items()}
+    photo_kinds = sorted({IMAGES[v] for roles in scan_files.values() for v in roles if v in IMAGES})
+    file_sets = croissant_file_sets(photo_kinds, "scans/**/*.mat", "one MATLAB v5 file per scan (docs/database.md): "
+                                    "one variable per channel (channels record set) and a meta struct")
+    out[CROISSANT] = as_bytes(croissant([table for table, _ in tables], checksums, provenance, file_sets,
+                                        photo_kinds))
+    checksums[CROISSANT] = _checksum(out[CROISSANT])
+    return out
+
+
+def _checksum(data: bytes) -> dict[str, Any]:
+    return {"sha256": hashlib.sha256(data).hexdigest(), "size": len(data)}
 
 
 def _filter_text(label: str | None, session: str | None) -> str:
@@ -519,6 +595,8 @@ def verify_bundle(bundle: str | os.PathLike[str], staging: str | os.PathLike[str
         reader.close()
     taxonomy, taxonomy_problems = _check_taxonomy(staging, staged_ok)
     problems += taxonomy_problems
+    problems += metadata_problems(staged_ok, manifest, lambda name: (staging / name).read_bytes(),
+                                  {name: spec.unit for name, spec in CHANNELS.items()})
     if problems:
         raise _refuse(bundle, problems)
     return VerifiedBundle(manifest, scans, taxonomy, sum(f["size"] for f in listed.values()))

@@ -34,6 +34,8 @@ from scanner.storage.bundle import (
 )
 from scanner.storage.database import Database, DatabaseError
 from scanner.storage.matfile import save_scan
+from scanner.storage.metadata import CHANNEL_COLUMNS
+from scanner.storage.settings import write_settings
 from scanner.workflows import export_database
 from taxonomy.table import Taxonomy, load_taxonomy
 
@@ -58,6 +60,7 @@ def _fill(db: Database) -> None:
     db.add(make_scan(3, label="C9S1M1P1X1", sample_id="mycelium-01", session_id="s-3", images=False,
                      calibration={"accel_zero_V": 1.62}, started=_started(30)))
     db.taxonomy_path.write_text(LAB_TAXONOMY, encoding="utf-8")
+    write_settings(db.root, license="CC-BY-4.0", creator="Haptics Lab")
 
 
 @pytest.fixture(scope="module")
@@ -121,8 +124,16 @@ def test_bundle_holds_scans_features_taxonomy_loaders_and_a_manifest_of_every_fi
     names = {p.relative_to(bundle).as_posix() for p in bundle.rglob("*") if p.is_file()}
     scan_files = {entry.path for r in source.records() for entry in source.files(r.scan_id)}
     assert len(scan_files) == 3 * 4 + 1  # three scans with three photos, one without photos
-    assert names == scan_files | {"README.md", "load_texplorer.m", "load_texplorer.py", "features.csv",
-                                  "features.mat", "taxonomy.csv", MANIFEST, MANIFEST_SUM}
+    channel_tables = {f"channels/{m}_channels.{ext}" for m in ("audio", "flex", "force", "magnetic", "metal",
+                                                              "reflectance", "thermal", "vibration")
+                      for ext in ("tsv", "json")}
+    assert names == scan_files | channel_tables | {
+        "README.md", "load_texplorer.m", "load_texplorer.py", "features.csv", "features.mat", "taxonomy.csv",
+        "scans.csv", "ro-crate-metadata.json", "croissant.json", "datapackage.json", "schemas/scans.schema.json",
+        "schemas/features.schema.json", "schemas/taxonomy.schema.json", MANIFEST, MANIFEST_SUM}
+    assert (bundle / "channels/thermal_channels.tsv").read_text().splitlines() == [
+        "\t".join(CHANNEL_COLUMNS), "t_cool\tTEMP\tdegC\t20\tTU2 MLX90614 infrared thermometer on the sensor "
+        "board\tt_cool\tn/a\tMLX90614 object temperature after heating (step thermal)"]
     for path in scan_files:
         assert (bundle / path).read_bytes() == (source.root / path).read_bytes()
 
@@ -183,13 +194,13 @@ def test_export_refuses_a_database_file_changed_since_it_was_catalogued(tmp_path
     db = Database(tmp_path / "db")
     db.add(make_scan(0, images=False))
     mat = tmp_path / "db/scans/C6S1M1P2X1/granite-01/granite-01-001.mat"
-    extract_first = export_database(db, tmp_path / "ok", workers=1)  # fills the feature cache
+    extract_first = export_database(db, tmp_path / "ok", license="CC0-1.0", workers=1)  # fills the feature cache
     assert extract_first.scans == 1
     data = bytearray(mat.read_bytes())
     data[-1] ^= 0xFF
     mat.write_bytes(bytes(data))
     with pytest.raises(BundleError, match="differs from the catalog's SHA-256"):
-        export_database(db, tmp_path / "bad.zip", workers=1)
+        export_database(db, tmp_path / "bad.zip", license="CC0-1.0", workers=1)
     assert not any(p.name.startswith(".bad.zip") or p.name == "bad.zip" for p in tmp_path.iterdir())
 
 
@@ -227,7 +238,7 @@ def test_every_changed_byte_or_missing_file_is_refused_and_the_database_is_uncha
     before = _snapshot(target.root)
     rng = random.Random(11)
     files = sorted(p for p in copy.rglob("*") if p.is_file())
-    assert len(files) == 21
+    assert len(files) == 21 + 23  # 23 files of standard metadata (docs/export.md)
     for path in files:
         name = path.relative_to(copy).as_posix()
         original = path.read_bytes()
@@ -274,7 +285,7 @@ def test_a_changed_byte_in_any_zip_member_or_a_truncated_zip_is_refused(bundle_z
     before = _snapshot(target.root)
     original = bundle_zip.read_bytes()
     offsets = _member_data_offsets(bundle_zip)
-    assert len(offsets) == 21
+    assert len(offsets) == 21 + 23
     damaged = tmp_path / "damaged.zip"
     for name, offset in offsets.items():
         data = bytearray(original)
@@ -410,7 +421,11 @@ def test_forged_scans_with_consistent_checksums_are_refused_before_anything_move
                                "1..9999, got 9.22337e+18")
     assert _snapshot(target.root) == before
     error = _refused(target, bomb, "I_disp: photo granite-10-001_disp.png: the image has 400,000,000 pixels")
-    assert len(error.problems) == 1 and _snapshot(target.root) == before
+    own = [p for p in error.problems if not p.startswith(("ro-crate-metadata.json: ", "scans.csv: "))]
+    assert len(own) == 1 and _snapshot(target.root) == before
+    # The forged scan is in none of the metadata the exporter wrote, which says so too.
+    assert "scans.csv: 4 scans, the manifest lists 5" in error.problems
+    assert "ro-crate-metadata.json: does not describe scans/C6S1M1P2X1/granite-10/granite-10-001.mat" in error.problems
 
 
 def test_a_zip_entry_nested_under_a_file_is_refused_with_the_list_of_problems(bundle_zip, target, tmp_path):
@@ -525,7 +540,7 @@ def test_a_taxonomy_code_named_differently_here_is_a_conflict(bundle, tmp_path):
 def test_labels_no_taxonomy_knows_are_imported_and_listed(tmp_path):
     source = Database(tmp_path / "source")
     source.add(make_scan(0, label="C9S9M9P1X1", sample_id="odd-01", images=False))
-    export_database(source, tmp_path / "b", workers=1)
+    export_database(source, tmp_path / "b", license="none", workers=1)
     db = Database(tmp_path / "lab")
     report = import_bundle(db, tmp_path / "b")
     assert report.added == ["odd-01-001"] and report.unknown_labels == ["C9S9M9P1X1"]
@@ -535,7 +550,7 @@ def test_labels_no_taxonomy_knows_are_imported_and_listed(tmp_path):
 def test_cli_export_and_import_print_summaries_and_list_problems(source, tmp_path, capsys):
     out = tmp_path / "cli.zip"
     assert main(["export", str(out), "--db", str(source.root), "--label", "C7", "--workers", "1"]) == 0
-    assert "exported 1 scan(s), 12 files" in capsys.readouterr().out
+    assert "exported 1 scan(s), 35 files" in capsys.readouterr().out
     assert main(["import", str(out), "--db", str(tmp_path / "new")]) == 0
     assert "imported" in capsys.readouterr().out and len(Database(tmp_path / "new")) == 1
     data = bytearray(out.read_bytes())
@@ -703,7 +718,7 @@ def _isolated(script_args: list[str], cwd: Path) -> subprocess.CompletedProcess:
 def test_the_python_loader_reads_the_bundle_without_the_project(source, bundle, tmp_path):
     probe = _isolated([str(bundle / "load_texplorer.py"), str(bundle)], tmp_path)
     assert probe.returncode == 0, probe.stderr
-    assert "verified 19 files: 0 problem(s)" in probe.stdout
+    assert "verified 42 files: 0 problem(s)" in probe.stdout
     assert "bundle of 4 scans, 3 materials" in probe.stdout
     assert "scan granite-01-001: label C6S1M1P2X1, v_ts (600, 3) at 3000 Hz, photos I_disp, I_illu, I_macro" \
         in probe.stdout

@@ -172,7 +172,7 @@ def export_in_browser_session(client, form, timeout=60.0):
     """Start an export from the database page, poll it as the page does, download the bundle."""
     import time
 
-    answer = post(client, "/db/export", form)
+    answer = post(client, "/db/export", {"license": "CC-BY-4.0", **form})
     assert answer.status_code == 302, answer.text
     job_url = answer.headers["Location"]
     assert get(client, job_url).status_code == 200
@@ -240,10 +240,15 @@ def test_export_job_filters_like_the_cli(exporter, form, filters, scans):
 
 def test_export_job_refusals(exporter, tmp_path):
     client = exporter.test_client()
-    answer = post(client, "/db/export", {"label": "Z9"})
+    answer = post(client, "/db/export", {"label": "Z9", "license": "CC0-1.0"})
     assert answer.status_code == 422
     assert field_error(answer.text, "label").startswith("'Z9' is not a label or class prefix")
-    answer = post(client, "/db/export", {"label": "C1"})
+    answer = post(client, "/db/export", {"label": "C7"})
+    assert answer.status_code == 422 and field_error(answer.text, "license").startswith("give the bundle a license")
+    answer = post(client, "/db/export", {"label": "C7", "license": "CC BY", "creator": "lab\nx"})
+    assert answer.status_code == 422 and "neither an SPDX identifier" in field_error(answer.text, "license")
+    assert field_error(answer.text, "creator") == "creator must be one line of at most 200 printable characters"
+    answer = post(client, "/db/export", {"label": "C1", "license": "CC0-1.0"})
     assert answer.status_code == 409 and "no scans with label C1 to export" in answer.text
     assert exporter.extensions["texplorer"].exports.job is None and not list((tmp_path / "tmp").iterdir())
 
@@ -278,10 +283,10 @@ def test_second_export_while_one_runs_is_refused_and_cancel_deletes(exporter, tm
     exports.extract_database = held
     try:
         client = exporter.test_client()
-        first = post(client, "/db/export", {})
+        first = post(client, "/db/export", {"license": "none"})
         job = exports_.job
         assert job.running and len(list((tmp_path / "tmp").iterdir())) == 1
-        second = post(client, "/db/export", {"label": "C7"})
+        second = post(client, "/db/export", {"label": "C7", "license": "none"})
         assert second.status_code == 302 and second.headers["Location"].endswith(f"/db/export/{job.id}")
         assert "an export of every scan is running" in get(client, second.headers["Location"]).text
         assert exports_.job is job
@@ -300,11 +305,11 @@ def test_abandoned_export_and_server_stop_delete_the_bundle(tmp_path, exporter):
 
     db = exporter.extensions["texplorer"].db
     exports = Exports(db, tmp_path / "tmp", abandon_after_s=0.3)
-    job = exports.start()
+    job = exports.start(license="CC0-1.0")
     job.thread.join(60)
     assert job.phase == "cancelled" and job.path is None  # built, then nobody came for it
     assert not list((tmp_path / "tmp").iterdir())
-    job = exports.start(label="C7")
+    job = exports.start(label="C7", license="CC0-1.0")
     deadline = time.monotonic() + 30
     while job.phase != "done":
         job.touch()
@@ -342,7 +347,7 @@ def test_export_chunks_share_one_set_of_worker_processes(tmp_path, monkeypatch):
     (tmp_path / "tmp").mkdir()
     jobs = Exports(db, tmp_path / "tmp", workers=2)
     try:
-        job = jobs.start()
+        job = jobs.start(license="CC0-1.0")
         deadline = time.monotonic() + 120
         while job.phase in exports.RUNNING and time.monotonic() < deadline:
             job.touch()
@@ -362,7 +367,7 @@ def test_export_needs_free_space(exporter, tmp_path, monkeypatch):
 
     usage = namedtuple("usage", "total used free")
     monkeypatch.setattr(shutil, "disk_usage", lambda path: usage(10 << 20, 9 << 20, 1 << 20))
-    answer = post(exporter.test_client(), "/db/export", {})
+    answer = post(exporter.test_client(), "/db/export", {"license": "CC0-1.0"})
     assert answer.status_code == 409 and "not enough free space in" in answer.text
     assert "1 MB free" in answer.text and not list((tmp_path / "tmp").iterdir())
 

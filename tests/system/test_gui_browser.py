@@ -427,6 +427,7 @@ def test_export_job_with_progress_and_filter(page, server, tmp_path, monkeypatch
     page.set_viewport_size({"width": 800, "height": 900})
     page.goto(base + "/db/")
     page.fill("#export-label", "c6")
+    page.fill("#export-license", "CC-BY-4.0")
     shot(page, "17-export-form")
     with page.expect_download(timeout=60_000) as download:
         page.click("button:has-text('Export bundle (ZIP)')")

@@ -504,7 +504,7 @@ def test_browser_overview_material_and_scans(stocked):
 def test_empty_database_pages(client):
     assert "The database is empty" in get(client, "/db/").text
     assert get(client, "/db/export/features.csv").status_code == 404
-    assert post(client, "/db/export", {}).status_code == 409
+    assert post(client, "/db/export", {"license": "CC0-1.0"}).status_code == 409
 
 
 def export_links(page: str) -> dict[str, tuple[str, bool]]:
@@ -583,7 +583,7 @@ def test_export_folder_missing_is_one_line(tmp_path):
     Database(tmp_path / "db").add(make_scan(0))
     app = make_app(tmp_path / "db", export_dir=tmp_path / "no-such-folder")
     try:
-        answer = post(app.test_client(), "/db/export", {})
+        answer = post(app.test_client(), "/db/export", {"license": "CC0-1.0"})
         assert answer.status_code == 409
         assert f"cannot build the bundle in {tmp_path / 'no-such-folder'}: No such file or directory" in answer.text
     finally:
