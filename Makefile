@@ -4,7 +4,8 @@ PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 LOCK   := constraints.txt
-STAMP  := $(VENV)/.installed-$(shell $(PYTHON) -c "import hashlib;print(hashlib.sha256(open('pyproject.toml','rb').read()+open('$(LOCK)','rb').read()).hexdigest()[:12])")
+TOOLS_LOCK := constraints-rocrate.txt
+STAMP  := $(VENV)/.installed-$(shell $(PYTHON) -c "import hashlib;print(hashlib.sha256(open('pyproject.toml','rb').read()+open('$(LOCK)','rb').read()+open('$(TOOLS_LOCK)','rb').read()).hexdigest()[:12])")
 DB     ?= texplorer-data
 JOBS   ?= 2
 
@@ -12,10 +13,14 @@ JOBS   ?= 2
 
 install: $(STAMP)
 
-$(STAMP): pyproject.toml $(LOCK)
+$(STAMP): pyproject.toml $(LOCK) $(TOOLS_LOCK)
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -c $(LOCK) -e '.[dev,docs]'
+	# The RO-Crate validator the export tests run, in an environment of its own: it requires rich < 14,
+	# import-linter rich >= 14.2 (constraints-rocrate.txt)
+	$(PYTHON) -m venv $(VENV)/tools/rocrate
+	$(VENV)/tools/rocrate/bin/python -m pip install --quiet -r $(TOOLS_LOCK)
 	# numba's machine code of the feature kernels into its cache now, once, instead of in every process of
 	# the first command that extracts features (scanner.workflows.compile_kernels); a warm-up only: if it
 	# fails, the install stands and the tests name what is broken
@@ -60,6 +65,13 @@ lock:
 	  echo "# Python $$(.venv-lock/bin/python -c 'import platform; print(platform.python_version())'), $$(date -u +%Y-%m-%d)"; \
 	  .venv-lock/bin/python -m pip freeze --exclude-editable --all | grep -v '^pip=='; } > $(LOCK).new
 	mv $(LOCK).new $(LOCK)
+	rm -rf .venv-lock
+	$(PYTHON) -m venv .venv-lock
+	.venv-lock/bin/python -m pip install --quiet --upgrade pip
+	.venv-lock/bin/python -m pip install --quiet roc-validator rocrate
+	{ sed -n '1,3p' $(TOOLS_LOCK); .venv-lock/bin/python -m pip freeze --all | grep -v '^\(pip\|setuptools\)=='; } \
+	  > $(TOOLS_LOCK).new
+	mv $(TOOLS_LOCK).new $(TOOLS_LOCK)
 	rm -rf .venv-lock
 
 clean:

@@ -555,7 +555,7 @@ def ro_crate(checksums: Mapping[str, Mapping[str, Any]], provenance: Provenance,
                "startTime": s.started, "endTime": s.ended,
                "agent": _one_or_list([{"@id": _operator_id(op)} for op in s.operators]),
                "instrument": [{"@id": ident} for ident in INSTRUMENTS],
-               "result": [{"@id": path} for path in s.files]} for s in sessions]
+               "result": _one_or_list([{"@id": path} for path in s.files])} for s in sessions]
     graph.append({"@id": "#texplorer", "@type": "SoftwareApplication", "name": "texplorer",
                   "version": provenance.software_version, "url": "README.md",
                   "description": f"feature code version {provenance.feature_code_version}"})
