@@ -316,6 +316,24 @@ def stored_set_table(args: argparse.Namespace, folder: Path) -> tuple[Path | Non
     return table, f"using {table} (written by 'texplorer features {args.dataset}' with the same options)"
 
 
+def current_set_table(folder: Path) -> tuple[Path | None, str]:
+    """The set's feature table if the current feature code computed it from the recordings the set holds now
+    (whatever its options, which its ``features.json`` records), else None; and why not."""
+    table, written = folder / SET_TABLE, folder / SET_TABLE_OPTIONS
+    if not table.is_file() or not written.is_file():
+        return None, f"no feature table in {folder} ('texplorer features set:{folder.name}' writes one)"
+    try:
+        stored = json.loads(written.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None, f"{written} cannot be read"
+    if stored.get("code_version") != code_version():
+        return None, f"{table} was written by other feature code"
+    if stored.get("recordings") != recordings_fingerprint(folder) and stored.get("content") != \
+            recordings_content(folder):
+        return None, f"{table} was written from other recordings"
+    return table, ""
+
+
 def cmd_set_features(args: argparse.Namespace) -> int:
     folder = set_folder(args.db, args.dataset[4:])
     with cluster(args) as client:

@@ -9,7 +9,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from features import REGISTRY, SOLVER_RTOL, FeatureSpace
-from scanner.cli.base import EXIT_ERROR, EXIT_PROBLEMS, add_db_option, created_db, open_db, progress
+from scanner.cli.analysis import current_set_table
+from scanner.cli.base import EXIT_ERROR, EXIT_PROBLEMS, UsageError, add_db_option, created_db, open_db, progress
 from scanner.cli.common import add_cluster_options, cluster
 from scanner.replay import (
     DEFAULT_ATOL,
@@ -24,7 +25,10 @@ from scanner.replay import (
     scan_paths,
 )
 from scanner.storage.bundle import BundleError, import_bundle
+from scanner.storage.ingest import set_folder
 from scanner.storage.matfile import load_scan
+from scanner.storage.set_bundle import KIND, bundle_kind, export_set, import_set_bundle
+from scanner.storage.settings import read_settings
 from scanner.workflows import export_database
 from taxonomy.labels import Label
 from taxonomy.learning.models import load_model
@@ -34,6 +38,8 @@ EXIT_MISMATCH = 4
 
 
 def cmd_export(args: argparse.Namespace) -> int:
+    if args.set:
+        return _export_set(args)
     report = export_database(open_db(args), args.out, label=args.label, session=args.session,
                              license=args.license, creator=args.creator, workers=args.workers,
                              progress=progress("exporting"))
@@ -44,14 +50,50 @@ def cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _export_set(args: argparse.Namespace) -> int:
+    if args.label or args.session:
+        raise UsageError("--label and --session choose scans; --set exports a whole recording set")
+    name = args.set.removeprefix("set:")
+    table, why = current_set_table(set_folder(args.db, name))
+    if table is None:
+        print(f"texplorer: warning: no features.csv in the bundle: {why}", file=sys.stderr)
+    settings = read_settings(args.db)
+    report = export_set(args.db, name, args.out, license=args.license or settings.get("license"),
+                        creator=args.creator or settings.get("creator"), features=table,
+                        progress=progress("exporting", unit="recording"))
+    print(f"exported set {name}: {report.recordings} recording(s), {report.files} files, "
+          f"{report.bytes / 1e6:.1f} MB to {report.path} in {report.seconds:.1f} s"
+          + ("" if report.mapping else " (the set kept no mapping file: ingested before sets kept it)"))
+    return 0
+
+
+def _listing_problems(error: BundleError) -> BundleError:
+    for problem in error.problems:
+        print(f"problem  {problem}", file=sys.stderr)
+    return error
+
+
+def _import_set(args: argparse.Namespace) -> int:
+    try:
+        report = import_set_bundle(args.db, args.bundle, name=args.name, replace=args.replace,
+                                   progress=progress("verifying", unit="recording"))
+    except BundleError as exc:
+        raise _listing_problems(exc) from None
+    print(f"imported {report.bundle}: set {report.name}, {report.recordings} recording(s) -> {report.folder}, "
+          f"{report.bytes / 1e6:.1f} MB verified in {report.seconds:.1f} s")
+    return 0
+
+
 def cmd_import(args: argparse.Namespace) -> int:
+    if bundle_kind(args.bundle) == KIND:
+        return _import_set(args)
+    if args.name or args.replace:
+        raise UsageError("--name and --replace apply to a recording-set bundle; this bundle holds scans")
     with created_db(args) as db:
         try:
             report = import_bundle(db, args.bundle, progress=progress("verifying"))
         except BundleError as exc:
-            for problem in exc.problems:
-                print(f"problem  {problem}", file=sys.stderr)
-            raise
+            raise _listing_problems(exc) from None
     for line in report.conflicts:
         print(f"conflict {line}")
     for label in report.unknown_labels:
@@ -134,6 +176,8 @@ def register(commands: argparse._SubParsersAction) -> None:
         "table schemas, BIDS-style channel tables), as a folder or a .zip that appears only when complete.")
     add_db_option(export)
     export.add_argument("out", type=Path, metavar="OUT", help="new bundle folder, or a file ending in .zip")
+    export.add_argument("--set", metavar="NAME", help="export the recording set NAME (set:NAME; 'texplorer "
+                        "ingest') with its mapping, channel roles and feature table, instead of scans")
     export.add_argument("--label", help="only this label, class prefix (C6 = every stone) or part of a material "
                         "name (granite)")
     export.add_argument("--session", help="only this session id")
@@ -152,6 +196,9 @@ def register(commands: argparse._SubParsersAction) -> None:
         "overwritten (exit 3); new material codes go to <db>/taxonomy.csv.")
     add_db_option(importing)
     importing.add_argument("bundle", type=Path, metavar="BUNDLE", help="folder or .zip of 'texplorer export'")
+    importing.add_argument("--name", help="a recording-set bundle: store the set under this name (default: its own)")
+    importing.add_argument("--replace", action="store_true", help="a recording-set bundle: replace a set of the "
+                           "same name")
     importing.set_defaults(handler=cmd_import)
 
     replaying = commands.add_parser(

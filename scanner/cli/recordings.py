@@ -11,6 +11,7 @@ from scanner.cli.common import add_cluster_options, cluster
 from scanner.simulation.recordings import simulate_recordings
 from scanner.storage.database import Database, DatabaseError
 from scanner.storage.ingest import (
+    MAPPING,
     IngestError,
     SetWriter,
     default_mapping,
@@ -50,6 +51,8 @@ def cmd_ingest(args: argparse.Namespace) -> int:
     # Each recording is written as it is read (the set swapped in at the end): memory does not grow with
     # the number of files, and an interrupted import leaves the database as it was.
     with SetWriter(args.db, args.name or mapping.name, replace=args.replace) as writer:
+        if args.mapping is not None:  # kept with the set: an export sends it along (docs/export.md)
+            writer.keep(MAPPING, args.mapping.read_bytes())
         report = ingest(args.path, mapping, progress=progress("reading", unit="recording"), sink=writer)
         for line in report.skipped:
             print(f"skipped  {line}")

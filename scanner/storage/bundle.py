@@ -205,7 +205,7 @@ def export_bundle(db: Database, out: str | os.PathLike[str], features: Features,
     space = features(records)
     out.parent.mkdir(parents=True, exist_ok=True)
     created = datetime.now(UTC).replace(microsecond=0)
-    writer = _ZipWriter(out, created) if out.suffix.lower() == ".zip" else _FolderWriter(out)
+    writer = bundle_writer(out, created)
     try:
         files, scans = {}, []
         for record in progress(records):
@@ -227,12 +227,12 @@ def export_bundle(db: Database, out: str | os.PathLike[str], features: Features,
         manifest["license"], manifest["creator"] = license, creator
         manifest_bytes = json.dumps(manifest, indent=1, allow_nan=False).encode("utf-8") + b"\n"
         writer.add(MANIFEST, io.BytesIO(manifest_bytes))
-        writer.add(MANIFEST_SUM, io.BytesIO(_manifest_sum(manifest_bytes)))
+        writer.add(MANIFEST_SUM, io.BytesIO(manifest_sum(manifest_bytes)))
         writer.commit()
     except BaseException:
         writer.discard()
         raise
-    size = sum(f["size"] for f in files.values()) + len(manifest_bytes) + len(_manifest_sum(manifest_bytes))
+    size = sum(f["size"] for f in files.values()) + len(manifest_bytes) + len(manifest_sum(manifest_bytes))
     return ExportReport(out, len(records), len(files) + 2, size, time.perf_counter() - started, space.failed)
 
 
@@ -355,7 +355,7 @@ def _manifest(db: Database, records: Sequence[ScanRecord], scans: list[dict[str,
     }
 
 
-def _manifest_sum(manifest: bytes) -> bytes:
+def manifest_sum(manifest: bytes) -> bytes:
     return f"{hashlib.sha256(manifest).hexdigest()}  {MANIFEST}\n".encode("ascii")
 
 
@@ -423,6 +423,12 @@ class _ZipWriter:
         with contextlib.suppress(Exception):
             self.archive.close()
         self.temp.unlink(missing_ok=True)
+
+
+def bundle_writer(out: Path, created: datetime) -> _FolderWriter | _ZipWriter:
+    """The writer of a new bundle at ``out``: a zip file if it ends in ``.zip``, else a folder; both build it
+    under a temporary name and rename it on ``commit()`` (``discard()`` removes it)."""
+    return _ZipWriter(out, created) if out.suffix.lower() == ".zip" else _FolderWriter(out)
 
 
 # -- reading bundles ---------------------------------------------------------------------------------
@@ -505,7 +511,7 @@ class _ZipReader:
         self.archive.close()
 
 
-def _open_bundle(path: Path) -> _FolderReader | _ZipReader:
+def open_bundle(path: Path) -> _FolderReader | _ZipReader:
     if path.is_dir():
         return _FolderReader(path)
     if not path.is_file():
@@ -538,7 +544,7 @@ class VerifiedBundle:
     bytes: int
 
 
-def _refuse(bundle: Path, problems: Sequence[str]) -> BundleError:
+def refuse(bundle: Path, problems: Sequence[str]) -> BundleError:
     count = f"{len(problems)} problem{'s' if len(problems) != 1 else ''}"
     return BundleError(f"{bundle}: refused ({count}, first: {problems[0]}); the database was not changed",
                        problems)
@@ -554,23 +560,23 @@ def verify_bundle(bundle: str | os.PathLike[str], staging: str | os.PathLike[str
     broken taxonomy.
     """
     bundle, staging = Path(bundle), Path(staging)
-    reader = _open_bundle(bundle)
+    reader = open_bundle(bundle)
     try:
         names, problems = reader.members()
         problems += nested_names(names)
         if problems:
-            raise _refuse(bundle, problems)
+            raise refuse(bundle, problems)
         present = set(names)
         if MANIFEST not in present:
-            raise _refuse(bundle, [f"{MANIFEST}: missing (not a texplorer bundle, or an incomplete one)"])
-        manifest_bytes, unreadable = _read_small(reader, MANIFEST)
+            raise refuse(bundle, [f"{MANIFEST}: missing (not a texplorer bundle, or an incomplete one)"])
+        manifest_bytes, unreadable = read_small(reader, MANIFEST)
         if unreadable:
-            raise _refuse(bundle, [unreadable])
-        problems += _check_manifest_sum(reader, present, manifest_bytes)
+            raise refuse(bundle, [unreadable])
+        problems += check_manifest_sum(reader, present, manifest_bytes)
         manifest, manifest_problems = parse_manifest(manifest_bytes)
         problems += manifest_problems
         if manifest is None:
-            raise _refuse(bundle, problems)
+            raise refuse(bundle, problems)
         listed: dict[str, dict[str, Any]] = manifest["files"]
         problems += [f"{name}: not listed in the manifest" for name in sorted(present - set(listed))
                      if name not in (MANIFEST, MANIFEST_SUM)]
@@ -579,11 +585,11 @@ def verify_bundle(bundle: str | os.PathLike[str], staging: str | os.PathLike[str
         problems += [f"{name}: belongs to no scan of the manifest" for name in sorted(listed)
                      if name.startswith("scans/") and name not in owned]
         staged_ok = {name for name in sorted((set(listed) - owned) & present)
-                     if not _stage_noting(reader, name, listed[name], staging, problems)}
+                     if not stage_noting(reader, name, listed[name], staging, problems)}
         scans = []
         for entry in progress(manifest["scans"]):
             paths = [path for path in entry["files"].values() if path in present]
-            failed = [path for path in paths if _stage_noting(reader, path, listed[path], staging, problems)]
+            failed = [path for path in paths if stage_noting(reader, path, listed[path], staging, problems)]
             if failed or len(paths) < len(entry["files"]):
                 continue  # its problems are listed already
             checked = _validated_scan(entry, listed, staging)
@@ -598,11 +604,11 @@ def verify_bundle(bundle: str | os.PathLike[str], staging: str | os.PathLike[str
     problems += metadata_problems(staged_ok, manifest, lambda name: (staging / name).read_bytes(),
                                   {name: spec.unit for name, spec in CHANNELS.items()})
     if problems:
-        raise _refuse(bundle, problems)
+        raise refuse(bundle, problems)
     return VerifiedBundle(manifest, scans, taxonomy, sum(f["size"] for f in listed.values()))
 
 
-def _read_small(reader: _FolderReader | _ZipReader, name: str) -> tuple[bytes, str | None]:
+def read_small(reader: _FolderReader | _ZipReader, name: str) -> tuple[bytes, str | None]:
     """Up to one byte more than :data:`MAX_MANIFEST_BYTES` of a member, or the reason it cannot be read."""
     try:
         with reader.open(name) as handle:
@@ -611,13 +617,13 @@ def _read_small(reader: _FolderReader | _ZipReader, name: str) -> tuple[bytes, s
         return b"", f"{name}: cannot be read ({exc})"
 
 
-def _check_manifest_sum(reader: _FolderReader | _ZipReader, present: set[str], manifest: bytes) -> list[str]:
+def check_manifest_sum(reader: _FolderReader | _ZipReader, present: set[str], manifest: bytes) -> list[str]:
     if MANIFEST_SUM not in present:
         return [f"{MANIFEST_SUM}: missing, so the manifest cannot be checked"]
-    data, unreadable = _read_small(reader, MANIFEST_SUM)
+    data, unreadable = read_small(reader, MANIFEST_SUM)
     if unreadable:
         return [unreadable]
-    if data != _manifest_sum(manifest):
+    if data != manifest_sum(manifest):
         return [f"{MANIFEST}: does not match {MANIFEST_SUM} (changed or damaged)"]
     return []
 
@@ -721,7 +727,7 @@ def _stage(reader: _FolderReader | _ZipReader, name: str, expected: Mapping[str,
     return None
 
 
-def _stage_noting(reader: _FolderReader | _ZipReader, name: str, expected: Mapping[str, Any], staging: Path,
+def stage_noting(reader: _FolderReader | _ZipReader, name: str, expected: Mapping[str, Any], staging: Path,
                   problems: list[str]) -> bool:
     """Stage one member; True (and the problem appended to ``problems``) if it failed its checks."""
     problem = _stage(reader, name, expected, staging)

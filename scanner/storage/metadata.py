@@ -32,6 +32,8 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
+import numpy as np
+
 from scanner.scan import CHANNELS, IMAGES, Recording
 from scanner.storage.database import ScanRecord
 from taxonomy.errors import TexplorerError
@@ -224,25 +226,38 @@ def recording_channels(recordings: Sequence[Recording]) -> list[ChannelRow]:
     for recording in recordings:
         roles = {channel: role for role, channel in recording.roles.items()}
         for name, trace in recording.channels.items():
-            role = roles.get(name, "unmapped")
-            role = "signal" if role.startswith("signal_") else role
-            entry = seen.setdefault((role, name), {"units": set(), "fs": set(),
+            key = roles.get(name, "unmapped")
+            role = "signal" if key.startswith("signal_") else key
+            entry = seen.setdefault((role, name), {"units": set(), "fs": set(), "key": key,
                                                    "columns": trace.data.shape[1] if trace.data.ndim == 2 else 0})
             entry["units"].add(trace.unit)
-            entry["fs"].add(trace.fs)
+            entry["fs"].add(float(f"{trace.fs:.9g}"))  # rates computed from timestamps differ in the last bits
     rows = []
     for (role, name), entry in sorted(seen.items()):
-        rates = sorted(entry["fs"])
-        fs = rates[0] if len(rates) == 1 else math.nan
-        spread = "" if len(rates) == 1 else f"; {rates[0]:g} to {rates[-1]:g} Hz across recordings"
+        fs, spread = _common_rate(sorted(entry["fs"]))
         units = "/".join(sorted(entry["units"]))
         kind = _ROLE_TYPES.get(role, "MISC")
-        description = f"role {role}{spread}"
+        description = f"role {entry['key']}{spread}"
         count = entry["columns"]
         columns = [(f"{name}_{i + 1}", i + 1) for i in range(count)] if count else [(name, 0)]
         rows += [ChannelRow(role, channel, name, column, kind, units, fs, "", description)
                  for channel, column in columns]
     return rows
+
+
+RATE_SPREAD = 0.01
+"""Rates of one channel across a set's recordings within this fraction of their median are one rate (clocks
+fitted per recording differ in the last digits); wider, the table says ``n/a`` and gives the range."""
+
+
+def _common_rate(rates: Sequence[float]) -> tuple[float, str]:
+    """The one rate of a channel across recordings (the median, when they agree within :data:`RATE_SPREAD`)
+    or NaN, and a note of their range when they are not all equal."""
+    if len(rates) == 1:
+        return rates[0], ""
+    median = float(np.median(rates))
+    note = f"; {len(rates)} rates across recordings, {rates[0]:.6g} to {rates[-1]:.6g} Hz"
+    return (median if rates[-1] - rates[0] <= RATE_SPREAD * median else math.nan), note
 
 
 CHANNEL_COLUMNS = ("name", "type", "units", "sampling_frequency", "device", "variable", "column", "description")
@@ -301,10 +316,12 @@ def scans_schema() -> dict[str, Any]:
                             for code in codes]}
 
 
-def features_schema(header: Sequence[str], units: Mapping[str, str], scans_resource: str = "scans") -> dict[str, Any]:
+def features_schema(header: Sequence[str], units: Mapping[str, str],
+                    scans_resource: str | None = "scans") -> dict[str, Any]:
     """Table Schema of ``features.csv`` from its header: identifiers and label as strings, the label's parts
     as integers (-1 outside the taxonomy's format), every feature a number (``NaN`` where undefined) with its
-    unit where it has one; the scan id the primary key and a foreign key into ``scans_resource``."""
+    unit where it has one; the scan id the primary key and, with ``scans_resource``, the scan id and label a
+    foreign key into that table (a recording set's rows are windows of recordings: none)."""
     integers = {"C", "S", "M", "P", "X"}
     fields = []
     for name in header:
@@ -316,9 +333,11 @@ def features_schema(header: Sequence[str], units: Mapping[str, str], scans_resou
             unit = units.get(name)
             fields.append(_field(name, "number", extra_unit(unit)) | ({"unit": unit} if unit else {}))
     key = header[0]
-    return {"fields": fields, "primaryKey": [key], "missingValues": [""],
-            "foreignKeys": [{"fields": [key, header[2]],
-                             "reference": {"resource": scans_resource, "fields": [key, "label"]}}]}
+    schema: dict[str, Any] = {"fields": fields, "primaryKey": [key], "missingValues": [""]}
+    if scans_resource:
+        schema["foreignKeys"] = [{"fields": [key, header[2]],
+                                  "reference": {"resource": scans_resource, "fields": [key, "label"]}}]
+    return schema
 
 
 def extra_unit(unit: str | None) -> str:

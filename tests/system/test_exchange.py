@@ -303,3 +303,95 @@ def test_the_bundle_readme_and_channel_tables_read_without_texplorer(bundle):
         scans = list(csv.DictReader(handle))
     assert [s["material_code"] for s in scans] == ["C6S1M1", "C6S1M1", "C7S1M1", "C1S1M1"]
     assert scans[3]["photo_disp"] == "" and scans[2]["rigid"] == "true"
+
+
+# -- recording sets ------------------------------------------------------------------------------------
+
+FIXTURES = ROOT / "tests" / "fixtures" / "ingest"
+BOREALTC = ROOT.parent / "shared" / "realdata" / "borealtc"
+
+
+def _croissant_counts(folder: Path, names: tuple[str, ...]) -> dict[str, int]:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        dataset = mlcroissant.Dataset(jsonld=folder / CROISSANT)
+        return {name: sum(1 for _ in dataset.records(record_set=name)) for name in names}
+
+
+def test_a_recording_set_goes_out_as_it_came_in_and_imports_back(tmp_path, capsys):
+    db, other = tmp_path / "lab", tmp_path / "other"
+    assert main(["ingest", str(FIXTURES / "lab-a"), "--mapping", str(FIXTURES / "lab-a.toml"), "--db", str(db)]) == 3
+    assert main(["features", "set:lab-a", "--db", str(db)]) == 0
+    capsys.readouterr()
+    assert main(["export", str(tmp_path / "b"), "--set", "lab-a", "--db", str(db), "--license", "CC-BY-4.0"]) == 0
+    assert "exported set lab-a: 2 recording(s), 22 files" in capsys.readouterr().out
+    bundle = tmp_path / "b"
+    assert (bundle / "mapping.toml").read_bytes() == (FIXTURES / "lab-a.toml").read_bytes()
+    manifest = _manifest(bundle)
+    assert manifest["kind"] == "recordings" and manifest["set"] == "lab-a"
+    assert manifest["recordings"][0]["roles"] == {"vibration": "pac", "pressure_dc": "pdc", "electrodes": "electrodes",
+                                                  "temperature": "tdc"}
+    tables = {name.removeprefix("channels/").removesuffix("_channels.tsv"): _rows(bundle / name, "\t")
+              for name in manifest["files"] if name.endswith("_channels.tsv")}
+    assert sorted(tables) == ["electrodes", "pressure_dc", "temperature", "vibration"]
+    assert [(r["name"], r["units"], r["sampling_frequency"]) for r in tables["temperature"]] == [("tdc", "degC", "50")]
+    assert frictionless.validate(bundle / DATAPACKAGE).valid
+    assert _croissant_counts(bundle, ("recordings", "features", "channels")) == {
+        "recordings": 2, "features": 2, "channels": sum(len(rows) for rows in tables.values())}
+    report = _validate_crate(bundle, tmp_path / "cache")
+    assert report["passed"] and report["issues"] == []
+
+    assert main(["import", str(bundle), "--db", str(other)]) == 0
+    assert "set lab-a, 2 recording(s)" in capsys.readouterr().out
+    for path in (db / "recordings/lab-a").iterdir():
+        assert (other / "recordings/lab-a" / path.name).read_bytes() == path.read_bytes(), path.name
+    assert main(["import", str(bundle), "--db", str(other)]) == 1
+    assert "the set 'lab-a' exists; choose another name or replace it" in capsys.readouterr().err
+    assert main(["import", str(bundle), "--db", str(other), "--name", "lab-a2"]) == 0
+    assert sorted(p.name for p in (other / "recordings").iterdir() if p.name[0] != ".") == ["lab-a", "lab-a2"]
+    with pytest.raises(SystemExit):  # import has no --label: argparse's usage error
+        main(["import", str(bundle), "--db", str(other), "--name", "x", "--label", "C6"])
+    assert "unrecognized arguments: --label C6" in capsys.readouterr().err
+
+    # A unit changed and re-summed: refused with the list, nothing stored.
+    table = bundle / "channels/temperature_channels.tsv"
+    table.write_text(table.read_text().replace("\tdegC\t", "\tK\t"))
+    _resum(bundle, "channels/temperature_channels.tsv")
+    assert main(["import", str(bundle), "--db", str(other), "--name", "lab-a3"]) == 1
+    err = capsys.readouterr().err
+    assert "problem  channels/temperature_channels.tsv: channel tdc in 'K', but the scans store tdc in 'degC'" in err
+    assert not (other / "recordings/lab-a3").exists()
+    assert main(["export", str(tmp_path / "c"), "--set", "nope", "--db", str(db), "--license", "none"]) == 1
+    assert "no recording set 'nope' to export" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not BOREALTC.is_dir(), reason=f"the real recordings are not at {BOREALTC} (a clone outside "
+                    "the project's workspace); CI has them there")
+def test_the_borealtc_set_exports_with_its_features_validates_and_evaluates_after_import(tmp_path, capsys):
+    from system.test_realdata import docs_mapping
+
+    mapping, db, other = tmp_path / "borealtc.toml", tmp_path / "lab", tmp_path / "other"
+    mapping.write_text(docs_mapping())
+    assert main(["ingest", str(BOREALTC), "--mapping", str(mapping), "--db", str(db)]) == 3
+    options = ["--window", "5", "--combine", "rows"]
+    assert main(["features", "set:borealtc", "--db", str(db), *options]) == 0
+    capsys.readouterr()
+    out = tmp_path / "borealtc.zip"
+    assert main(["export", str(out), "--set", "set:borealtc", "--db", str(db), "--license", "CC0-1.0",
+                 "--creator", "BorealTC authors (re-exported)"]) == 0
+    assert "exported set borealtc: 68 recording(s)" in capsys.readouterr().out
+    folder = tmp_path / "unzipped"
+    with zipfile.ZipFile(out) as archive:
+        archive.extractall(folder)
+    signal = {row["variable"]: row for row in _rows(folder / "channels/signal_channels.tsv", "\t")}
+    assert (signal["current"]["units"], signal["current"]["sampling_frequency"]) == ("A", "6.5")
+    assert (signal["gyro"]["units"], signal["gyro"]["sampling_frequency"]) == ("rad/s", "100")
+    assert frictionless.validate(folder / DATAPACKAGE).valid
+    assert _croissant_counts(folder, ("recordings", "features")) == {"recordings": 68, "features": 896}
+    assert _validate_crate(folder, tmp_path / "cache")["passed"]
+
+    assert main(["import", str(out), "--db", str(other)]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", "set:borealtc", "--db", str(other), *options, "--classifier", "rf",
+                 "--no-calibration"]) == 0
+    assert f"using {other / 'recordings/borealtc/features.csv'}" in capsys.readouterr().out

@@ -91,7 +91,10 @@ def test_recording_channels_follow_roles_and_say_when_rates_differ():
     assert [names[f"acc_{i}"].column for i in (1, 2, 3)] == [1, 2, 3]
     assert names["acc_1"].modality == "vibration" and names["acc_1"].type == "ACCEL"
     assert names["cur"].modality == "signal" and math.isnan(names["cur"].sampling_frequency)
-    assert "6.5 to 7 Hz across recordings" in names["cur"].description
+    assert "2 rates across recordings, 6.5 to 7 Hz" in names["cur"].description
+    # Clocks fitted per recording differ in the last digits: one rate, the median, with the range said.
+    close = {r.name: r for r in recording_channels([recording(f"r{i}", 6.5 + 0.001 * i) for i in range(3)])}
+    assert close["cur"].sampling_frequency == 6.501 and "6.5 to 6.502 Hz" in close["cur"].description
     assert names["spare"].modality == "unmapped" and names["spare"].sampling_frequency == 5.0
     table = channel_tables(rows)["channels/signal_channels.tsv"].decode()
     assert "\tn/a\t" in table  # BIDS's n/a for a rate that differs between recordings

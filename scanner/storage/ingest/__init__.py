@@ -69,6 +69,7 @@ from scanner.storage.ingest.readers import (
     summarise_notes,
 )
 from scanner.storage.ingest.sets import (
+    MAPPING,
     RECORDINGS,
     SetWriter,
     load_recordings,
@@ -91,5 +92,5 @@ __all__ = [
     "read_streams", "read_file", "GAP_STEPS", "gaps", "Aligned", "align", "IngestReport", "stem_of",
     "recording_names", "split_of", "safe_name", "patches", "ingest", "RECORDINGS", "recording_variables",
     "read_recording", "write_recording", "set_folder", "store_recordings", "load_recordings", "recording_sets",
-    "SetWriter", "recover_sets", "Made",
+    "SetWriter", "recover_sets", "Made", "MAPPING",
 ]

@@ -17,13 +17,16 @@ import scipy.io
 from isal import isal_zlib
 
 from scanner.scan import Recording, Trace
-from scanner.storage.files import atomic_writer, recover_swaps, staging_folder, swap_in
+from scanner.storage.files import atomic_write_bytes, atomic_writer, recover_swaps, staging_folder, swap_in
 from scanner.storage.ingest.mapping import _NAME, _SET, IngestError
 from scanner.storage.mat5 import write_variables
 from scanner.storage.matfile import COMPRESSION_LEVEL
 
 RECORDINGS = "recordings"
 """Folder of imported recording sets inside a database."""
+
+MAPPING = "mapping.toml"
+"""The mapping file a set was ingested with, kept in the set's folder (docs/ingest.md)."""
 
 
 def _struct(mapping: Mapping[str, Any]) -> dict[str, Any]:
@@ -134,6 +137,20 @@ class SetWriter:
         """Write one recording into the staging folder."""
         assert self._content is not None, "add() inside the with block"
         write_recording(recording, self._content / f"{recording.name}.mat")
+        self.count += 1
+
+    def keep(self, name: str, data: bytes) -> None:
+        """Keep a file of the set beside its recordings (the mapping it was ingested with, :data:`MAPPING`)."""
+        assert self._content is not None, "keep() inside the with block"
+        if not _NAME.match(name.replace(".", "_")) or name.endswith(".mat"):
+            raise IngestError(f"set {self.name!r}: {name!r} cannot be kept beside the recordings")
+        atomic_write_bytes(self._content / name, data)
+
+    def adopt(self, path: Path) -> None:
+        """Move a recording file written and checked elsewhere (an import's staging folder, on the same file
+        system) into the set, unchanged."""
+        assert self._content is not None, "adopt() inside the with block"
+        os.replace(path, self._content / path.name)
         self.count += 1
 
     def rewrite(self, change: Callable[[Recording], Recording]) -> None:
