@@ -152,6 +152,8 @@ class ExportReport:
     bytes: int
     seconds: float
     feature_failures: tuple[tuple[str, str], ...] = ()
+    metadata_seconds: float = 0.0
+    """Of ``seconds``, the time spent on the standard metadata (:mod:`scanner.storage.metadata`)."""
 
 
 @dataclass
@@ -216,6 +218,7 @@ def export_bundle(db: Database, out: str | os.PathLike[str], features: Features,
         generated = _generated_files(db, space)
         for name, data in generated.items():
             files[name] = writer.add(name, io.BytesIO(data))
+        metadata_started = time.perf_counter()
         provenance = Provenance(license, creator, created, __version__, feature_code_version,
                                 f"texplorer scans{_filter_text(label, session)}")
         scan_files = {scan["scan_id"]: scan["files"] for scan in scans}
@@ -223,6 +226,7 @@ def export_bundle(db: Database, out: str | os.PathLike[str], features: Features,
             files[name] = writer.add(name, io.BytesIO(data))
         crate = ro_crate(files, provenance, sessions_of(records, scan_files), _DESCRIPTION, ABOUT)
         files[RO_CRATE] = writer.add(RO_CRATE, io.BytesIO(as_bytes(crate)))
+        metadata_seconds = time.perf_counter() - metadata_started
         manifest = _manifest(db, records, scans, files, space, created, label, session, feature_code_version)
         manifest["license"], manifest["creator"] = license, creator
         manifest_bytes = json.dumps(manifest, indent=1, allow_nan=False).encode("utf-8") + b"\n"
@@ -233,7 +237,8 @@ def export_bundle(db: Database, out: str | os.PathLike[str], features: Features,
         writer.discard()
         raise
     size = sum(f["size"] for f in files.values()) + len(manifest_bytes) + len(manifest_sum(manifest_bytes))
-    return ExportReport(out, len(records), len(files) + 2, size, time.perf_counter() - started, space.failed)
+    return ExportReport(out, len(records), len(files) + 2, size, time.perf_counter() - started, space.failed,
+                        metadata_seconds)
 
 
 _DESCRIPTION = ("Multimodal material scans of a Texplorer2 scanner (acceleration, sound, IR reflectance, force, "
