@@ -598,3 +598,17 @@ def density_model(path):
                          scan_ids=[f"s-{i}" for i in range(12)], label_text=labels,
                          groups=[f"g-{i}" for i in range(12)])
     return save_model(train_model(space, "fine", 1, "rf"), path)
+
+
+def test_export_form_offers_the_database_license_and_creator(stocked, tmp_path):
+    from scanner.storage.settings import write_settings
+
+    page = get(stocked, "/db/").text
+    assert 'id="export-license" name="license" value=""' in page and "required" in page
+    write_settings(tmp_path / "db", license="CC-BY-4.0", creator="Haptics <Lab>")
+    page = get(stocked, "/db/").text
+    assert 'id="export-license" name="license" value="CC-BY-4.0"' in page
+    assert 'id="export-creator" name="creator" value="Haptics &lt;Lab&gt;"' in page  # escaped, as typed
+    (tmp_path / "db" / "settings.json").write_text("{broken")
+    page = get(stocked, "/db/").text
+    assert "settings.json: not valid JSON" in page and 'name="license" value=""' in page
