@@ -13,6 +13,7 @@ from gui.app import Settings, serve
 from scanner.acquisition.config import load_config
 from scanner.cli.base import UsageError, add_db_option
 from scanner.photo import max_pixels
+from scanner.workflows import model_file
 
 MAX_PORT = 65535
 """The largest TCP port: a larger number would be taken modulo 65536 by the system (70000 listens on 4464)."""
@@ -27,7 +28,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise UsageError(f"--workers must be at least 1, got {args.workers}")
     limit = int(args.upload_limit_mb * 1024 * 1024)
-    settings = Settings(db=args.db, model=args.model, device_config=config, upload_limit=limit,
+    model = model_file(args.db, args.model) if args.model is not None else None  # None: the current version
+    settings = Settings(db=args.db, model=model, device_config=config, upload_limit=limit,
                         max_photo_pixels=max_pixels(), workers=args.workers)
     serve(settings, args.host, args.port)
     return 0
@@ -45,8 +47,8 @@ def register(commands: argparse._SubParsersAction) -> None:
     serving.add_argument("--port", type=int, default=8080, help="port (default 8080; 0 = any free port)")
     serving.add_argument("--config", type=Path, help="device configuration TOML (default: the simulated "
                          "scanner; see docs/texplorer.example.toml)")
-    serving.add_argument("--model", type=Path, help="model for the prediction on the summary page (default: "
-                         "<db>/models/rf-fine-X10.skops if 'texplorer demo' made one)")
+    serving.add_argument("--model", help="model for the prediction on the summary page: a model version of the "
+                         "database (3 or v3, 'texplorer models') or a file (default: the current version, if any)")
     serving.add_argument("--upload-limit-mb", type=float, default=20.0, help="largest photo upload in MB "
                          "(default 20)")
     serving.add_argument("--workers", type=int, help="worker processes every request and export shares for "

@@ -83,7 +83,7 @@ class Context:
 
     @property
     def model_path(self) -> Path | None:
-        """``--model``, else the demo's model in the database folder if it exists, else None."""
+        """``--model``, else the database's current model version (``texplorer models``) if any, else None."""
         if self.settings.model is not None:
             return Path(self.settings.model)
         return default_model(self.settings.db)

@@ -8,9 +8,10 @@
   simulated scan's features while it is in memory and fills the feature cache as the scans are stored.
 - **Export a database with its features**: :func:`export_database` writes an export bundle
   (:func:`scanner.storage.bundle.export_bundle`) whose feature tables come from the database's feature cache.
-- **The database's default model**: :func:`train_default_model` trains and saves it (``texplorer demo``,
-  beside the evaluation); :func:`default_model` finds it; ``serve`` and ``classify`` use it when no model
-  is given.
+- **The database's models**: :func:`train_default_model` trains the default one (``texplorer demo``, beside
+  the evaluation), :func:`save_model_version` keeps a model as the database's next version;
+  :func:`default_model` finds the current version, which ``serve`` and ``classify`` use when no model is
+  given, and :func:`model_file` resolves a ``--model`` value (a version or a file).
 - **Compile the feature kernels once**: :func:`compile_kernels` (``make install``) extracts simulated
   scans so that numba writes every kernel the features use into its cache before the first command needs it.
 - **Predict a scan's top k with names**: :func:`predict_scan` extracts a scan's features and names the
@@ -42,7 +43,16 @@ from scanner.storage.database import Database, DatabaseError, ScanRecord
 from scanner.storage.matfile import load_scan, save_scan
 from scanner.storage.settings import read_settings
 from taxonomy.labels import Label, LabelError
-from taxonomy.learning.models import TrainedModel, classify_values, save_model, train_model
+from taxonomy.learning.models import TrainedModel, classify_values, train_model
+from taxonomy.learning.versions import (
+    ModelVersion,
+    add_version,
+    current_version,
+    find_version,
+    is_version,
+    training_fingerprint,
+    version_file,
+)
 from taxonomy.table import Taxonomy, UnknownLabelError
 
 if TYPE_CHECKING:
@@ -174,24 +184,35 @@ def export_database(db: Database, out: str | os.PathLike[str], *, label: str | N
 # -- the database's default model -------------------------------------------------------------------
 
 DEFAULT_MODEL = Path("models") / "rf-fine-X10.skops"
-"""Where ``texplorer demo`` saves its model in the database folder (random forest, fine level, 10 features)."""
+"""Where ``texplorer demo`` saved its model before model versions (``taxonomy.learning.versions``: version 0)."""
 
 
 DEFAULT_MODEL_SETTINGS = ("fine", 10, "rf")
 """Level, set size and classifier of the default model (the paper's Fig. 17 setting)."""
 
 
-def train_default_model(space: FeatureSpace, db_root: str | os.PathLike[str], seed: int) -> tuple[Path, str]:
+def train_default_model(space: FeatureSpace, seed: int) -> TrainedModel:
     """Train the database's default model on every row of ``space`` (:data:`DEFAULT_MODEL_SETTINGS`,
-    :func:`taxonomy.learning.models.train_model`) and save it as ``<db_root>/``:data:`DEFAULT_MODEL`;
-    returns the file and the model's one-line description."""
+    :func:`taxonomy.learning.models.train_model`); :func:`save_model_version` keeps it."""
     level, n_features, classifier = DEFAULT_MODEL_SETTINGS
-    model = train_model(space, level, n_features, classifier, seed)
-    return save_model(model, Path(db_root) / DEFAULT_MODEL), model.describe()
+    return train_model(space, level, n_features, classifier, seed)
+
+
+def save_model_version(db: Database, model: TrainedModel, space: FeatureSpace,
+                       figures: dict[str, float] | None = None, note: str = "",
+                       make_current: bool = True) -> ModelVersion:
+    """Keep ``model``, trained on ``space`` (the database's scans), as the database's next model version
+    (:func:`taxonomy.learning.versions.add_version`), with the fingerprint of its training scans (their ids
+    and content hashes) and the feature code version; the current version unless ``make_current`` is false."""
+    stored = {record.scan_id: record.content_hash for record in db.records()}
+    version = code_version()
+    fingerprint = training_fingerprint(((scan_id, stored.get(scan_id, "")) for scan_id in space.scan_ids), version)
+    return add_version(db.root, model, fingerprint=fingerprint, feature_code_version=version, figures=figures,
+                       note=note, make_current=make_current)
 
 
 def default_model(db_root: str | os.PathLike[str]) -> Path | None:
-    """The database's default model: ``<db_root>/models/rf-fine-X10.skops`` if that file exists, else None.
+    """The database's current model (``texplorer models``): the file of its current version, else None.
 
     Parameters
     ----------
@@ -201,10 +222,26 @@ def default_model(db_root: str | os.PathLike[str]) -> Path | None:
     Returns
     -------
     pathlib.Path or None
-        The model file, or None if the database has none (``texplorer demo`` makes one).
+        The model file, or None if the database has none (``texplorer demo`` and ``train`` make one).
     """
-    path = Path(db_root) / DEFAULT_MODEL
-    return path if path.is_file() else None
+    current = current_version(db_root)
+    return None if current is None else version_file(db_root, current)
+
+
+def model_file(db_root: str | os.PathLike[str], spec: str | os.PathLike[str] | None) -> Path | None:
+    """The model a ``--model`` value names: a version of the database (``3``, ``v3``), a file, or with None
+    the database's current model (None if it has none).
+
+    Raises
+    ------
+    VersionError
+        A version the database does not have.
+    """
+    if spec is None:
+        return default_model(db_root)
+    if is_version(spec):
+        return version_file(db_root, find_version(db_root, str(spec)))
+    return Path(spec)
 
 
 # -- predict a scan's top k with names ---------------------------------------------------------------

@@ -34,6 +34,7 @@ COMMANDS = {
     "select": ("analysis", "print the FQ ranking and the selected feature set"),
     "evaluate": ("analysis", "cross-validate classifiers x feature sets x levels; table and HTML report"),
     "train": ("analysis", "train a classifier on all scans and save it (skops)"),
+    "models": ("analysis", "list the database's model versions; make one current"),
     "classify": ("analysis", "predict the material of a stored scan (its id in the database, or a .mat file)"),
     "db": ("db", "inspect and repair the database"),
     "export": ("exchange", "write scans, features, taxonomy and a checksummed manifest as a bundle for a lab"),

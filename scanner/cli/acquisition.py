@@ -27,7 +27,7 @@ from scanner.acquisition.session import VOLUME_METHODS, Session, SessionError, S
 from scanner.cli.base import EXIT_ERROR, add_db_option, open_db
 from scanner.scan import IMAGES
 from scanner.storage.database import DatabaseError, is_database
-from scanner.workflows import check_label, format_predictions, predict_scan
+from scanner.workflows import check_label, format_predictions, model_file, predict_scan
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import LabelError
 from taxonomy.learning.models import TrainedModel, load_model
@@ -224,7 +224,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     model = None
     if args.model:
-        model = load_model(args.model)
+        model = load_model(model_file(args.db, args.model))
     if args.daq:
         config = config.with_daq_server(args.daq)
     if args.board:
@@ -307,7 +307,8 @@ def register(commands: argparse._SubParsersAction) -> None:
                           "Device Server")
     scanning.add_argument("--board", metavar="PORT", help="use the real sensor board on this serial port "
                           "(COM3, /dev/ttyACM0)")
-    scanning.add_argument("--model", type=Path, help="before saving, print the prediction of this model and "
+    scanning.add_argument("--model", help="before saving, print the prediction of this model (a version of the "
+                          "database, 3 or v3, or a file) and "
                           "check the label against it")
     scanning.set_defaults(handler=cmd_scan)
 

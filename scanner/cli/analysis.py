@@ -18,7 +18,7 @@ from typing import Any
 from features import REGISTRY, FeatureSpace, code_version, feature_sets
 from features.recordings import Windowing, describe_families, feature_space
 from features.selection import select_features
-from scanner.cli.base import EXIT_ERROR, UsageError, add_db_option, open_db
+from scanner.cli.base import EXIT_ERROR, UsageError, add_db_option, open_db, table_lines
 from scanner.cli.common import (
     ALL,
     CLASSIFIER_NAMES,
@@ -35,12 +35,12 @@ from scanner.storage.files import atomic_write_bytes, sha256_file
 from scanner.storage.ingest import load_recordings, set_folder
 from scanner.storage.matfile import load_scan
 from scanner.workflows import (
-    DEFAULT_MODEL,
-    default_model,
     extract_database,
     format_predictions,
+    model_file,
     predict_scan,
     predict_values,
+    save_model_version,
     stored_features,
 )
 from taxonomy.labels import LEVELS, parse_prefix
@@ -49,6 +49,7 @@ from taxonomy.learning.evaluation import (
     MLP_MAX_ITER,
     classifier_estimators,
     default_feature_sets,
+    evaluate,
     evaluate_grid,
     evaluate_open_set,
     iteration_limit_stops,
@@ -58,7 +59,8 @@ from taxonomy.learning.evaluation import (
     with_values,
 )
 from taxonomy.learning.models import load_model, save_model, train_model
-from taxonomy.learning.results import one_line
+from taxonomy.learning.results import EvaluationError, one_line
+from taxonomy.learning.versions import current_version, use_version, version_file, versions
 from taxonomy.reports.report import format_open_set, format_protocols, format_table, write_report
 from taxonomy.table import load_taxonomy
 
@@ -400,9 +402,54 @@ def cmd_train(args: argparse.Namespace) -> int:
         print(f"texplorer: note: the MLP stopped at the paper's {MLP_MAX_ITER} L-BFGS iterations before "
               f"converging in {stops} of its fits, as the paper's setting does (not a fault; the features are "
               "scaled)", file=sys.stderr)
-    save_model(model, args.out)
     print(model.describe())
-    print(f"wrote {args.out}")
+    if args.out is not None:
+        if args.out.exists():
+            raise UsageError(f"{args.out} exists: a trained model is never overwritten; give a new name, or leave "
+                             "out --out to keep it as the database's next model version")
+        save_model(model, args.out)
+        print(f"wrote {args.out}")
+        return 0
+    figures = {}
+    if not args.no_cv:
+        started = time.perf_counter()
+        try:
+            result = evaluate(space, args.classifier, args.level, args.n, seed=args.seed, calibrate=False,
+                              feature_set=None if args.feature_set == ALL else args.feature_set)
+        except EvaluationError as exc:  # too few scans to cross-validate: the model is still kept
+            print(f"texplorer: note: no cross-validated accuracy for this version: {exc}", file=sys.stderr)
+        else:
+            figures["cv_accuracy"] = float(result.accuracy_pooled)
+            print(f"cross-validated accuracy of these settings: {100 * result.accuracy_pooled:.1f} % "
+                  f"({result.splitting}, {time.perf_counter() - started:.1f} s)")
+    before = current_version(args.db)
+    version = save_model_version(open_db(args), model, space, figures, note="texplorer train",
+                                 make_current=not args.keep_current)
+    now = current_version(args.db)
+    print(f"model version {version.version}: {version_file(args.db, version)}; the web application and classify "
+          f"use version {now.version if now else '-'}" + (f" (before: {before.version})" if before and now and
+                                                          before.version != now.version else ""))
+    return 0
+
+
+def cmd_models(args: argparse.Namespace) -> int:
+    if args.use is not None:
+        chosen = use_version(args.db, args.use)
+        print(f"version {chosen.version} is current: the web application (when it next loads the model) and "
+              "classify use it")
+    found = versions(args.db)
+    if not found:
+        print(f"no models in {args.db / 'models'}: 'texplorer train' or 'texplorer demo' makes one")
+        return 0
+    current = current_version(args.db)
+    rows = [(("* " if current and v.version == current.version else "  ") + f"v{v.version}", v.created[:16],
+             v.protocol(), str(len(v.classes) or "?"), str(v.rows or "?"), v.fingerprint[:12] or "-",
+             v.feature_code_version[:8] or "-", v.figures_text(), v.file) for v in found]
+    for line in table_lines(("version", "created", "protocol", "classes", "scans", "training data",
+                             "features", "figures", "file"), rows):
+        print(line)
+    print("* current: the model serve, classify and scan use when not given --model; 'texplorer models --use N' "
+          "makes another current")
     return 0
 
 
@@ -438,12 +485,10 @@ def model_path(args: argparse.Namespace) -> Path:
     UsageError
         No ``--model`` given and the database has no default model.
     """
-    if args.model is not None:
-        return args.model
-    found = default_model(args.db)
+    found = model_file(args.db, args.model)
     if found is None:
-        raise UsageError(f"no --model given and {args.db / DEFAULT_MODEL} does not exist: train one with "
-                         "'texplorer train --out MODEL' or run 'texplorer demo'")
+        raise UsageError(f"no --model given and {args.db / 'models'} holds no model: train one with "
+                         "'texplorer train' or run 'texplorer demo'")
     return found
 
 
@@ -504,13 +549,25 @@ def register(commands: argparse._SubParsersAction) -> None:
                                 description="Fit scaler -> FQ selector -> classifier on every scan and save "
                                 "the model in a format that cannot execute code when loaded.")
     add_space_options(train)
-    train.add_argument("--out", type=Path, required=True, help="model file (.skops)")
+    train.add_argument("--out", type=Path, help="write the model to this new file (.skops) instead of keeping it as "
+                       "the database's next model version ('texplorer models')")
+    train.add_argument("--keep-current", action="store_true", help="keep the current model version current (the "
+                       "new version is kept, and 'texplorer models --use N' makes it current later)")
+    train.add_argument("--no-cv", action="store_true", help="skip the cross-validated accuracy the version records")
     train.add_argument("--level", choices=LEVELS, default="fine", help="classification level (default fine)")
     train.add_argument("--n", type=int, default=10, help="selected features (default 10)")
     train.add_argument("--classifier", choices=CLASSIFIER_NAMES, default="rf", help="classifier (default rf)")
     train.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     add_feature_set_option(train, many=False)
     train.set_defaults(handler=cmd_train)
+
+    models = commands.add_parser("models", help="list the database's model versions; make one current",
+                                 description="List every model 'texplorer train' and 'texplorer demo' kept, with "
+                                 "its date, protocol, classes, training-data fingerprint (scans and feature code) "
+                                 "and headline figures; --use N makes version N the current one.")
+    add_db_option(models)
+    models.add_argument("--use", metavar="N", help="make version N current (3 or v3)")
+    models.set_defaults(handler=cmd_models)
 
     classify = commands.add_parser("classify", help="predict the material of a stored scan (its id in the "
                                    "database, or a .mat file)", description="Extract the features of a scan "
@@ -519,7 +576,7 @@ def register(commands: argparse._SubParsersAction) -> None:
                                    "trained model.")
     classify.add_argument("scan", help="scan id in the database, or a scan file (.mat)")
     add_db_option(classify)
-    classify.add_argument("--model", type=Path, help="model file written by 'texplorer train' (default: "
-                          "<db>/models/rf-fine-X10.skops, the model 'texplorer demo' made)")
+    classify.add_argument("--model", help="a model version of the database (3 or v3, as 'texplorer models' lists "
+                          "them) or a model file (default: the current version)")
     classify.add_argument("--k", type=int, default=3, help="how many labels to print (default 3)")
     classify.set_defaults(handler=cmd_classify)

@@ -12,7 +12,14 @@ from scanner.cli.analysis import report_space, run_evaluation
 from scanner.cli.base import UsageError, add_db_option
 from scanner.cli.common import ALL, add_cluster_options, add_evaluation_options, cluster
 from scanner.preprocess import small_photo_note
-from scanner.workflows import extract_database, simulated_database, train_default_model
+from scanner.workflows import (
+    DEFAULT_MODEL_SETTINGS,
+    extract_database,
+    save_model_version,
+    simulated_database,
+    train_default_model,
+)
+from taxonomy.learning.versions import version_file
 
 DEMO_SAMPLES = 2
 
@@ -81,7 +88,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
             return 0
         # The model needs only the features: trained in a process of its own while the evaluation runs (on
         # this machine's cores; in sequence after it when the folds run on a cluster).
-        model = None if client is not None else run_aside(train_default_model, space, db.root, args.seed)
+        model = None if client is not None else run_aside(train_default_model, space, args.seed)
         args.report = args.report or db.root / "report"
         # Temperature scaling refits each classifier on three inner splits per fold; the report shows its
         # result in one reliability diagram per classifier, so the demo calibrates those cells only (the
@@ -89,10 +96,16 @@ def cmd_demo(args: argparse.Namespace) -> int:
         args.calibrate_diagram_only = True
         if not args.full_grid and args.level == [ALL] and args.n is None:
             args.pairs = PAPER_FIGURES
-        run_evaluation(space, args, client)
+        reports = run_evaluation(space, args, client)
 
-    path, description = train_default_model(space, db.root, args.seed) if model is None else model.result()
-    print(f"model: {path} ({description})")
+    trained = train_default_model(space, args.seed) if model is None else model.result()
+    level, n_features, classifier = DEFAULT_MODEL_SETTINGS
+    same = [r for r in reports if (r.level, r.n_features, r.classifier, r.feature_set) ==
+            (level, n_features, classifier, "all")]
+    figures = {"cv_accuracy": float(same[0].accuracy_pooled)} if same else {}
+    version = save_model_version(db, trained, space, figures, note="texplorer demo")
+    print(f"model: version {version.version}, {version_file(db.root, version)} ({trained.describe()}); "
+          f"the web application and classify use version {version.version} ('texplorer models' lists them all)")
     return 0
 
 

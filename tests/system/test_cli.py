@@ -4,7 +4,10 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
+import re
+import shutil
 import subprocess
 import sys
 
@@ -60,7 +63,8 @@ def test_demo_runs_the_whole_chain(demo_db):
     assert len(database) == 12 and len({r.sample_id for r in database.records()}) == 6
     assert (demo_db / "features.csv").is_file()
     assert (demo_db / "report" / "index.html").is_file() and (demo_db / "report" / "fq_ranking.png").is_file()
-    assert (demo_db / "models" / "rf-fine-X10.skops").is_file()
+    assert (demo_db / "models" / "v001-rf-fine-X10.skops").is_file()  # the demo's model is the first version
+    assert json.loads((demo_db / "models" / "versions.json").read_text())["current"] == 1
 
 
 def test_select_evaluate_train_classify(demo_db, tmp_path, capsys):
@@ -82,6 +86,47 @@ def test_select_evaluate_train_classify(demo_db, tmp_path, capsys):
     assert main(["classify", str(scan), "--model", str(model), "--k", "2"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[1].split()[:2] == ["1.", "C3"]
+
+
+def test_train_keeps_every_model_version_and_models_lists_and_switches_them(demo_db, tmp_path, capsys):
+    db = tmp_path / "db"
+    shutil.copytree(demo_db, db)
+    demo_model = (db / "models" / "v001-rf-fine-X10.skops").read_bytes()
+    scan = next(db.glob("scans/C3*/*/*-001.mat"))
+    capsys.readouterr()
+    assert main(["train", "--db", str(db), "--level", "coarse", "--n", "3"]) == 0
+    captured = capsys.readouterr()
+    # Four scans per major class cannot fill five folds: said, and the model is kept all the same.
+    assert "no cross-validated accuracy for this version: 5 folds need a class with at least 5 rows" in captured.err
+    assert "model version 2: " in captured.out and "use version 2 (before: 1)" in captured.out
+    assert main(["train", "--db", str(db), "--level", "coarse", "--n", "3", "--no-cv", "--keep-current"]) == 0
+    assert "model version 3: " in capsys.readouterr().out
+    assert (db / "models" / "v001-rf-fine-X10.skops").read_bytes() == demo_model  # a second train keeps the first
+    assert sorted(p.name for p in (db / "models").glob("*.skops")) == [
+        "v001-rf-fine-X10.skops", "v002-rf-coarse-X3.skops", "v003-rf-coarse-X3.skops"]
+
+    assert main(["models", "--db", str(db)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].split()[:3] == ["version", "created", "protocol"]
+    rows = {line.split()[0 if line.startswith(" ") else 1]: line for line in lines[1:4]}
+    assert rows["v2"].startswith("* v2") and "rf, coarse level, 3 features" in rows["v2"]
+    assert "rejection AUROC" in rows["v2"] and "CV accuracy" not in rows["v2"]
+    fingerprints = {v: re.findall(r" ([0-9a-f]{12}) ", rows[v]) for v in ("v1", "v2", "v3")}
+    assert fingerprints["v2"] == fingerprints["v3"] == fingerprints["v1"]  # the same scans and feature code
+
+    assert main(["classify", str(scan), "--db", str(db)]) == 0  # the current version: coarse
+    assert "rf at level coarse" in capsys.readouterr().out
+    assert main(["classify", str(scan), "--db", str(db), "--model", "v1"]) == 0
+    assert "rf at level fine" in capsys.readouterr().out
+    assert main(["models", "--db", str(db), "--use", "1"]) == 0
+    assert "version 1 is current" in capsys.readouterr().out
+    assert main(["classify", str(scan), "--db", str(db)]) == 0
+    assert "rf at level fine" in capsys.readouterr().out
+    assert main(["models", "--db", str(db), "--use", "9"]) == 1
+    assert "no model version 9 (versions: v1, v2, v3)" in capsys.readouterr().err
+    assert main(["train", "--db", str(db), "--out", str(db / "models" / "v001-rf-fine-X10.skops")]) == 1
+    assert "exists: a trained model is never overwritten" in capsys.readouterr().err
+    assert (db / "models" / "v001-rf-fine-X10.skops").read_bytes() == demo_model
 
 
 def test_a_feature_set_without_any_value_is_left_out_and_the_rest_evaluated(demo_db, tmp_path, capsys):

@@ -1,0 +1,240 @@
+"""Model versions of a database: every trained model kept, one of them current (docs/evaluation.md#models).
+
+A database's models live in ``<db>/models/``: each training writes a new file
+``v<NNN>-<classifier>-<level>-X<n>.skops`` (never over an existing one) and a row in the index
+``models/versions.json``, which also names the current version, the one ``texplorer serve``, ``classify``
+and the terminal scan use when not told otherwise. A row records when the model was made, its protocol
+(classifier, level, features), its classes, the training data's fingerprint (a SHA-256 over the scans' ids
+and content hashes, and the feature code version that computed their features) and its headline figures
+(cross-validated accuracy of the same settings when the trainer measured it, the rejection rule's
+leave-classes-out AUROC inside training), so a lab can tell which data a model saw and go back to an
+older one (:func:`use_version`).
+
+The index is rewritten atomically under an exclusive lock (``models/.versions.lock``), so two trainings
+that finish together both get a version. A model file written before versions existed
+(``models/rf-fine-X10.skops``, made by ``texplorer demo``) is listed as version 0 and is current while the
+index names no other.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import hashlib
+import json
+import math
+import os
+import re
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import asdict, dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from scanner.storage.files import atomic_write_bytes
+from taxonomy.errors import TexplorerError
+from taxonomy.learning.models import TrainedModel, save_model
+
+MODELS = "models"
+INDEX = "versions.json"
+LOCK = ".versions.lock"
+LEGACY = "rf-fine-X10.skops"
+"""The file ``texplorer demo`` wrote before model versions: version 0 when present."""
+MAX_INDEX_BYTES = 16 << 20
+_VERSION = re.compile(r"v?(\d{1,6})")
+
+
+class VersionError(TexplorerError, ValueError):
+    """A model version that does not exist, or an index that cannot be read."""
+
+
+@dataclass(frozen=True)
+class ModelVersion:
+    """One trained model of a database, as its index row records it."""
+
+    version: int
+    file: str
+    created: str
+    classifier: str
+    level: str
+    n_features: int
+    classes: tuple[str, ...]
+    rows: int
+    fingerprint: str
+    feature_code_version: str
+    figures: Mapping[str, float] = field(default_factory=dict)
+    note: str = ""
+
+    def protocol(self) -> str:
+        """``rf, fine level, 10 features``."""
+        return f"{self.classifier}, {self.level} level, {self.n_features} features"
+
+    def figures_text(self) -> str:
+        """The headline figures in words (``CV accuracy 93.2 %, rejection AUROC 0.91``)."""
+        words = {"cv_accuracy": ("CV accuracy", lambda v: f"{100 * v:.1f} %"),
+                 "inner_auroc": ("rejection AUROC", lambda v: f"{v:.2f}")}
+        return ", ".join(f"{words[k][0]} {words[k][1](v)}" for k, v in self.figures.items() if k in words) or "-"
+
+
+def training_fingerprint(rows: Iterable[tuple[str, str]], feature_code_version: str) -> str:
+    """SHA-256 over the training rows' ``(scan id, content hash)`` pairs in order and the feature code
+    version: two models share it exactly when they were trained on the same stored scans' same features."""
+    digest = hashlib.sha256(f"{feature_code_version}\n".encode())
+    for scan_id, content in sorted(rows):
+        digest.update(f"{scan_id}\0{content}\n".encode())
+    return digest.hexdigest()
+
+
+def models_folder(db_root: str | os.PathLike[str]) -> Path:
+    return Path(db_root) / MODELS
+
+
+@contextlib.contextmanager
+def _locked(folder: Path) -> Iterator[None]:
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / LOCK, "a+b") as handle:
+        fcntl.flock(handle.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle.fileno(), fcntl.LOCK_UN)
+
+
+def _read_index(folder: Path) -> dict[str, Any]:
+    path = folder / INDEX
+    try:
+        with open(path, "rb") as handle:
+            data = handle.read(MAX_INDEX_BYTES + 1)
+    except FileNotFoundError:
+        return {"current": None, "versions": []}
+    except OSError as exc:
+        raise VersionError(f"{path}: cannot be read ({exc.strerror})") from None
+    if len(data) > MAX_INDEX_BYTES:
+        raise VersionError(f"{path}: larger than {MAX_INDEX_BYTES} bytes")
+    try:
+        index = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise VersionError(f"{path}: not valid JSON ({exc}); the model files beside it are intact") from None
+    if not isinstance(index, dict) or not isinstance(index.get("versions"), list):
+        raise VersionError(f"{path}: not a model index (an object with a 'versions' list)")
+    return index
+
+
+def _row(path: Path, entry: Any) -> ModelVersion:
+    try:
+        row = dict(entry)
+        row["classes"] = tuple(str(c) for c in row["classes"])
+        row["figures"] = {str(k): float(v) for k, v in dict(row.get("figures") or {}).items()}
+        version = ModelVersion(**row)
+    except (TypeError, ValueError, KeyError) as exc:
+        raise VersionError(f"{path}: a version entry cannot be read ({exc})") from None
+    if not isinstance(version.version, int) or "/" in version.file or version.file.startswith("."):
+        raise VersionError(f"{path}: version entry {entry!r} names no model file of {path.parent}")
+    return version
+
+
+def _legacy(folder: Path) -> ModelVersion | None:
+    path = folder / LEGACY
+    if not path.is_file():
+        return None
+    created = datetime.fromtimestamp(path.stat().st_mtime, UTC).replace(microsecond=0).isoformat()
+    return ModelVersion(0, LEGACY, created, "rf", "fine", 10, (), 0, "", "", {},
+                        "written by 'texplorer demo' before model versions")
+
+
+def versions(db_root: str | os.PathLike[str]) -> list[ModelVersion]:
+    """Every model version of the database, oldest first (version 0: a model from before versions)."""
+    folder = models_folder(db_root)
+    rows = [_row(folder / INDEX, entry) for entry in _read_index(folder)["versions"]]
+    legacy = _legacy(folder)
+    return ([legacy] if legacy else []) + sorted(rows, key=lambda v: v.version)
+
+
+def current_version(db_root: str | os.PathLike[str]) -> ModelVersion | None:
+    """The version the web application and ``classify`` use by default: the index's current one, else the
+    newest, else a model from before versions, else None."""
+    folder = models_folder(db_root)
+    index = _read_index(folder)
+    found = versions(db_root)
+    chosen = [v for v in found if v.version == index.get("current")]
+    return chosen[0] if chosen else (found[-1] if found else None)
+
+
+def version_file(db_root: str | os.PathLike[str], version: ModelVersion) -> Path:
+    return models_folder(db_root) / version.file
+
+
+def add_version(db_root: str | os.PathLike[str], model: TrainedModel, *, fingerprint: str,
+                feature_code_version: str, figures: Mapping[str, float] | None = None, note: str = "",
+                make_current: bool = True) -> ModelVersion:
+    """Save ``model`` as the database's next version (a new file; nothing is overwritten) and record it in
+    the index, as the current version unless ``make_current`` is false."""
+    folder = models_folder(db_root)
+    with _locked(folder):
+        index = _read_index(folder)
+        taken = [int(e.get("version", 0)) for e in index["versions"] if isinstance(e, dict)]
+        number = max([0, *taken]) + 1
+        name = f"v{number:03d}-{model.classifier}-{model.level}-X{model.n_features}.skops"
+        if (folder / name).exists():  # a file nobody indexed (a copy, a crash before the index): keep it
+            raise VersionError(f"{folder / name} exists but is not in {folder / INDEX}; move it away first")
+        figures = dict(figures or {})
+        if model.rejection is not None:
+            figures.setdefault("inner_auroc", float(model.rejection.inner_auroc))
+        figures = {key: float(value) for key, value in figures.items() if math.isfinite(value)}
+        row = ModelVersion(number, name, datetime.now(UTC).replace(microsecond=0).isoformat(), model.classifier,
+                           model.level, int(model.n_features), tuple(model.classes), int(model.n_rows),
+                           fingerprint, feature_code_version, figures, note)
+        save_model(model, folder / name)
+        index["versions"].append(_plain(row))
+        if make_current or index.get("current") is None:
+            index["current"] = number
+        _write_index(folder, index)
+    return row
+
+
+def use_version(db_root: str | os.PathLike[str], spec: str | int) -> ModelVersion:
+    """Make an existing version current again; returns it."""
+    folder = models_folder(db_root)
+    with _locked(folder):
+        chosen = find_version(db_root, spec)
+        index = _read_index(folder)
+        index["current"] = chosen.version
+        _write_index(folder, index)
+    return chosen
+
+
+def find_version(db_root: str | os.PathLike[str], spec: str | int) -> ModelVersion:
+    """The version ``spec`` names (``3``, ``"v3"``, ``"v003"``).
+
+    Raises
+    ------
+    VersionError
+        No such version, or its file is gone.
+    """
+    match = _VERSION.fullmatch(str(spec).strip())
+    if match is None:
+        raise VersionError(f"{spec!r} is not a model version (give its number, as 'texplorer models' lists them)")
+    number = int(match[1])
+    found = {v.version: v for v in versions(db_root)}
+    if number not in found:
+        known = ", ".join(f"v{n}" for n in sorted(found)) or "none: train one with 'texplorer train'"
+        raise VersionError(f"{models_folder(db_root)}: no model version {number} (versions: {known})")
+    if not version_file(db_root, found[number]).is_file():
+        raise VersionError(f"{version_file(db_root, found[number])}: the file of version {number} is missing")
+    return found[number]
+
+
+def is_version(spec: str | os.PathLike[str]) -> bool:
+    """Whether a ``--model`` value names a version (``3``, ``v3``) rather than a file."""
+    return _VERSION.fullmatch(str(spec).strip()) is not None and not Path(spec).exists()
+
+
+def _plain(row: ModelVersion) -> dict[str, Any]:
+    plain = asdict(row)
+    plain["classes"] = list(row.classes)
+    plain["figures"] = dict(row.figures)
+    return plain
+
+
+def _write_index(folder: Path, index: Mapping[str, Any]) -> None:
+    atomic_write_bytes(folder / INDEX, (json.dumps(index, indent=1, allow_nan=False) + "\n").encode("utf-8"))
