@@ -309,6 +309,8 @@ def stored_set_table(args: argparse.Namespace, folder: Path) -> tuple[Path | Non
         stored = json.loads(written.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None, f"extracting the features ({written} cannot be read)"
+    if not isinstance(stored, dict):
+        return None, f"extracting the features ({written} holds no table options)"
     wanted = set_table_options(args, folder)
     differ = [OPTION_WORDS[key] for key in wanted if stored.get(key) != wanted[key]]
     if differ == [OPTION_WORDS["recordings"]] and stored.get("content") == recordings_content(folder):
@@ -328,6 +330,8 @@ def current_set_table(folder: Path) -> tuple[Path | None, str]:
         stored = json.loads(written.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None, f"{written} cannot be read"
+    if not isinstance(stored, dict):
+        return None, f"{written} holds no table options"
     if stored.get("code_version") != code_version():
         return None, f"{table} was written by other feature code"
     if stored.get("recordings") != recordings_fingerprint(folder) and stored.get("content") != \
@@ -389,6 +393,9 @@ def _add_set_options(parser: argparse.ArgumentParser) -> None:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
+    if args.out is not None and args.out.exists():  # said before the training, not after
+        raise UsageError(f"{args.out} exists: a trained model is never overwritten; give a new name, or leave "
+                         "out --out to keep it as the database's next model version")
     with cluster(args) as client:
         space = space_for(args, client)
     with warnings.catch_warnings(record=True) as caught:
@@ -404,9 +411,6 @@ def cmd_train(args: argparse.Namespace) -> int:
               "scaled)", file=sys.stderr)
     print(model.describe())
     if args.out is not None:
-        if args.out.exists():
-            raise UsageError(f"{args.out} exists: a trained model is never overwritten; give a new name, or leave "
-                             "out --out to keep it as the database's next model version")
         save_model(model, args.out)
         print(f"wrote {args.out}")
         return 0

@@ -54,7 +54,10 @@ def _export_set(args: argparse.Namespace) -> int:
     if args.label or args.session:
         raise UsageError("--label and --session choose scans; --set exports a whole recording set")
     name = args.set.removeprefix("set:")
-    table, why = current_set_table(set_folder(args.db, name))
+    folder = set_folder(args.db, name)
+    if not folder.is_dir():
+        raise UsageError(f"{args.db}: no recording set {name!r} to export (see 'texplorer ingest')")
+    table, why = current_set_table(folder)
     if table is None:
         print(f"texplorer: warning: no features.csv in the bundle: {why}", file=sys.stderr)
     settings = read_settings(args.db)

@@ -618,8 +618,8 @@ def read_small(reader: _FolderReader | _ZipReader, name: str) -> tuple[bytes, st
     try:
         with reader.open(name) as handle:
             return handle.read(MAX_MANIFEST_BYTES + 1), None
-    except (zipfile.BadZipFile, zlib.error, OSError, EOFError) as exc:
-        return b"", f"{name}: cannot be read ({exc})"
+    except (zipfile.BadZipFile, zlib.error, OSError, EOFError, RuntimeError, NotImplementedError) as exc:
+        return b"", f"{name}: cannot be read ({exc})"  # RuntimeError: encrypted; NotImplementedError: a compression
 
 
 def check_manifest_sum(reader: _FolderReader | _ZipReader, present: set[str], manifest: bytes) -> list[str]:
@@ -723,8 +723,8 @@ def _stage(reader: _FolderReader | _ZipReader, name: str, expected: Mapping[str,
                 out.write(block)
             out.flush()
             os.fsync(out.fileno())
-    except (zipfile.BadZipFile, zlib.error, EOFError, OSError) as exc:
-        return f"{name}: cannot be read ({exc})"
+    except (zipfile.BadZipFile, zlib.error, EOFError, OSError, RuntimeError, NotImplementedError) as exc:
+        return f"{name}: cannot be read ({exc})"  # RuntimeError: an encrypted member; NotImplementedError: a method
     if size != limit:
         return f"{name}: {size} bytes, the manifest says {limit}"
     if digest.hexdigest() != expected["sha256"]:

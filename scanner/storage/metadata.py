@@ -697,59 +697,87 @@ def channel_record_set() -> dict[str, Any]:
 # -- checking a bundle's metadata against its files (import) -------------------------------------------
 
 MAX_METADATA_BYTES = 256 << 20
-"""A metadata file larger than this is refused unread."""
+"""A metadata file the manifest lists as larger than this is refused unread (RO-Crate of about 150,000 scans)."""
+
+TABLES = (SCANS_CSV, FEATURES_CSV, TAXONOMY_CSV, RECORDINGS_CSV)
+"""The CSV tables a Data Package of a bundle may describe."""
 
 
-def metadata_problems(staged: Mapping[str, Any], manifest: Mapping[str, Any],
-                      read: Any, units: Mapping[str, str] | None = None) -> list[str]:
+def metadata_problems(staged: Iterable[str], manifest: Mapping[str, Any], read: Any,
+                      units: Mapping[str, str] | None = None, holder: str = "scans") -> list[str]:
     """Where the standard metadata of a bundle disagree with its files, one line each; empty for a bundle
     written before they existed (none of them present).
 
-    ``staged`` are the bundle's verified non-scan files (names), ``manifest`` its parsed manifest (whose
-    ``files`` sizes and SHA-256 were checked against the files), ``read(name)`` gives a file's bytes, and
-    ``units`` the unit each ``.mat`` variable must have (the scanner's channels; None skips that check).
-    Checked: every RO-Crate ``File`` and Croissant ``FileObject`` against the manifest's size and SHA-256,
-    every file the manifest lists against the RO-Crate's parts, each Data Package table's row count, the
-    scans of ``scans.csv`` against the manifest's, and the channel tables' units against ``units``.
+    ``staged`` are the bundle's verified files outside its scans or recordings (names), ``manifest`` its
+    parsed manifest (whose ``files`` sizes and SHA-256 were checked against the files), ``read(name)`` gives
+    a file's bytes, ``units`` the unit each ``.mat`` variable must have (None skips that check) and ``holder``
+    what holds the variables (``scans`` or ``recordings``, for the messages). Checked: every RO-Crate
+    ``File`` and Croissant ``FileObject`` against the manifest's size and SHA-256, every file the manifest
+    lists against the RO-Crate's parts, each Data Package table's row count, the scans of ``scans.csv``
+    against the manifest's, and the channel tables' units against ``units``. Metadata of the wrong shape are
+    problems too, never exceptions.
     """
+    staged = set(staged)
     listed: Mapping[str, Mapping[str, Any]] = manifest["files"]
     problems: list[str] = []
     if RO_CRATE in staged:
-        problems += _crate_problems(_load(read, RO_CRATE, problems), listed)
+        problems += _crate_problems(_load(read, RO_CRATE, listed, problems), listed)
     if CROISSANT in staged:
-        problems += _croissant_problems(_load(read, CROISSANT, problems), listed)
+        problems += _croissant_problems(_load(read, CROISSANT, listed, problems), listed)
     if DATAPACKAGE in staged:
-        problems += _package_problems(_load(read, DATAPACKAGE, problems), staged, read)
-    if SCANS_CSV in staged:
-        problems += _scans_problems(read(SCANS_CSV), manifest)
+        problems += _package_problems(_load(read, DATAPACKAGE, listed, problems), staged, listed, read)
+    if SCANS_CSV in staged and isinstance(manifest.get("scans"), list):
+        problems += _scans_problems(_text(read, SCANS_CSV, listed, problems), manifest)
     if units is not None:
         for name in sorted(n for n in staged if n.startswith(f"{CHANNELS_FOLDER}/") and n.endswith(".tsv")):
-            problems += _unit_problems(name, read(name), units)
+            problems += _unit_problems(name, _text(read, name, listed, problems), units, holder)
     return problems
 
 
-def _load(read: Any, name: str, problems: list[str]) -> Any:
-    data = read(name)
-    if len(data) > MAX_METADATA_BYTES:
-        problems.append(f"{name}: larger than {MAX_METADATA_BYTES} bytes")
+def _too_large(name: str, listed: Mapping[str, Mapping[str, Any]], problems: list[str]) -> bool:
+    if listed.get(name, {}).get("size", 0) > MAX_METADATA_BYTES:
+        problems.append(f"{name}: larger than {MAX_METADATA_BYTES} bytes (not read)")
+        return True
+    return False
+
+
+def _refuse_constant(token: str) -> float:
+    raise MetadataError(f"{token} is not a JSON number")
+
+
+def _load(read: Any, name: str, listed: Mapping[str, Mapping[str, Any]], problems: list[str]) -> Any:
+    if _too_large(name, listed, problems):
         return None
     try:
-        return json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as exc:
-        problems.append(f"{name}: not valid JSON ({exc})")
+        return json.loads(read(name).decode("utf-8"), parse_constant=_refuse_constant)
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        problems.append(f"{name}: not valid JSON ({str(exc)[:200]})")
         return None
+
+
+def _text(read: Any, name: str, listed: Mapping[str, Mapping[str, Any]], problems: list[str]) -> str:
+    return "" if _too_large(name, listed, problems) else read(name).decode("utf-8", errors="replace")
+
+
+def _csv_rows(text: str, name: str, problems: list[str], delimiter: str = ",") -> list[dict[str, str]]:
+    try:
+        return list(csv.DictReader(io.StringIO(text), delimiter=delimiter))
+    except csv.Error as exc:
+        problems.append(f"{name}: not a readable table ({exc})")
+        return []
 
 
 def _disagreement(where: str, path: str, entry: Mapping[str, Any], listed: Mapping[str, Mapping[str, Any]],
                   size_key: str, size_of: Any) -> list[str]:
     if path not in listed:
-        return [f"{where}: describes {path}, which the bundle does not hold"]
+        return [f"{where}: describes {path[:200]}, which the bundle does not hold"]
     problems = []
     if "sha256" in entry and entry["sha256"] != listed[path]["sha256"]:
         problems.append(f"{where}: SHA-256 of {path} is {str(entry['sha256'])[:16]}..., the file's is "
                         f"{listed[path]['sha256'][:16]}...")
     if size_key in entry and size_of(entry[size_key]) != listed[path]["size"]:
-        problems.append(f"{where}: size of {path} is {entry[size_key]!r}, the file has {listed[path]['size']} bytes")
+        problems.append(f"{where}: size of {path} is {str(entry[size_key])[:40]!r}, the file has "
+                        f"{listed[path]['size']} bytes")
     return problems
 
 
@@ -760,12 +788,17 @@ def _crate_problems(crate: Any, listed: Mapping[str, Mapping[str, Any]]) -> list
     if not isinstance(graph, list) or not all(isinstance(e, dict) for e in graph):
         return [f"{RO_CRATE}: no @graph of entities"]
     problems = []
-    files = {e.get("@id"): e for e in graph if e.get("@type") == "File" or e.get("@type") == ["File"]}
+    files = {}
+    for entity in graph:
+        if entity.get("@type") in ("File", ["File"]):
+            if not isinstance(entity.get("@id"), str):
+                problems.append(f"{RO_CRATE}: a File entity without a text @id")
+                continue
+            files[entity["@id"]] = entity
     for path, entry in files.items():
-        problems += _disagreement(RO_CRATE, str(path), entry, listed, "contentSize", _int_or_none)
-    described = set(files)
+        problems += _disagreement(RO_CRATE, path, entry, listed, "contentSize", _int_or_none)
     problems += [f"{RO_CRATE}: does not describe {path}" for path in sorted(listed)
-                 if path not in described and path != RO_CRATE]
+                 if path not in files and path != RO_CRATE]
     return problems
 
 
@@ -786,47 +819,61 @@ def _croissant_problems(description: Any, listed: Mapping[str, Mapping[str, Any]
 def _int_or_none(value: Any) -> int | None:
     try:
         return int(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return None
 
 
-def _package_problems(package: Any, staged: Mapping[str, Any], read: Any) -> list[str]:
+def _package_problems(package: Any, staged: set[str], listed: Mapping[str, Mapping[str, Any]],
+                      read: Any) -> list[str]:
     if package is None:
         return []
     resources = package.get("resources") if isinstance(package, dict) else None
     if not isinstance(resources, list):
         return [f"{DATAPACKAGE}: no resources list"]
-    problems = []
+    problems: list[str] = []
+    seen: set[str] = set()
     for resource in resources:
         path = resource.get("path") if isinstance(resource, dict) else None
-        if not isinstance(path, str) or path not in staged:
-            problems.append(f"{DATAPACKAGE}: resource {path!r} is not a table of the bundle")
+        if not isinstance(path, str) or path not in staged or path not in TABLES or path in seen:
+            problems.append(f"{DATAPACKAGE}: resource {str(path)[:200]!r} is not a table of the bundle "
+                            "(or is listed twice)")
             continue
-        rows = (resource.get("stats") or {}).get("rows")
-        actual = _rows(read(path))
+        seen.add(path)
+        stats = resource.get("stats")
+        rows = stats.get("rows") if isinstance(stats, dict) else None
+        actual = _rows_of(_text(read, path, listed, problems), path, problems)
         if rows is not None and rows != actual:
-            problems.append(f"{DATAPACKAGE}: {path} has {actual} rows, the package says {rows}")
+            problems.append(f"{DATAPACKAGE}: {path} has {actual} rows, the package says {str(rows)[:40]}")
     return problems
 
 
-def _scans_problems(data: bytes, manifest: Mapping[str, Any]) -> list[str]:
-    rows = list(csv.DictReader(io.StringIO(data.decode("utf-8", errors="replace"))))
-    ids = [row.get("scan_id") for row in rows]
-    expected = [scan["scan_id"] for scan in manifest["scans"]]
-    if sorted(map(str, ids)) == sorted(expected):
-        return []
+def _rows_of(text: str, name: str, problems: list[str]) -> int:
+    try:
+        return max(sum(1 for _ in csv.reader(io.StringIO(text))) - 1, 0)
+    except csv.Error as exc:
+        problems.append(f"{name}: not a readable table ({exc})")
+        return 0
+
+
+def _scans_problems(text: str, manifest: Mapping[str, Any]) -> list[str]:
+    problems: list[str] = []
+    ids = [str(row.get("scan_id")) for row in _csv_rows(text, SCANS_CSV, problems)]
+    expected = [str(scan.get("scan_id")) for scan in manifest["scans"] if isinstance(scan, dict)]
+    if problems or sorted(ids) == sorted(expected):
+        return problems
+    extra = sorted(set(ids) - set(expected))
     return [f"{SCANS_CSV}: {len(ids)} scans, the manifest lists {len(expected)}"
-            + (f" (not in the manifest: {', '.join(sorted(set(map(str, ids)) - set(expected))[:5])})"
-               if set(map(str, ids)) - set(expected) else "")]
+            + (f" (not in the manifest: {', '.join(extra[:5])})" if extra else "")]
 
 
-def _unit_problems(name: str, data: bytes, units: Mapping[str, str]) -> list[str]:
-    problems = []
-    for row in csv.DictReader(io.StringIO(data.decode("utf-8", errors="replace")), delimiter="\t"):
+def _unit_problems(name: str, text: str, units: Mapping[str, str], holder: str) -> list[str]:
+    problems: list[str] = []
+    for row in _csv_rows(text, name, problems, "\t"):
         variable, unit = row.get("variable"), row.get("units")
         if variable not in units:
-            problems.append(f"{name}: channel {row.get('name')!r} names variable {variable!r}, which scans do not hold")
+            problems.append(f"{name}: channel {str(row.get('name'))[:64]!r} names variable {str(variable)[:64]!r}, "
+                            f"which the {holder} do not hold")
         elif unit != units[variable]:
-            problems.append(f"{name}: channel {row.get('name')} in {unit!r}, but the scans store {variable} in "
-                            f"{units[variable]!r}")
+            problems.append(f"{name}: channel {row.get('name')} in {str(unit)[:32]!r}, but the {holder} store "
+                            f"{variable} in {units[variable]!r}")
     return problems

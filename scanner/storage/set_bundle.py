@@ -24,6 +24,7 @@ import hashlib
 import io
 import json
 import os
+import shutil
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -53,7 +54,7 @@ from scanner.storage.bundle import (
 )
 from scanner.storage.database import STAGING_PREFIX
 from scanner.storage.files import owned_folder, temp_path_for
-from scanner.storage.ingest import MAPPING, IngestError, SetWriter, read_recording, set_folder
+from scanner.storage.ingest import MAPPING, RECORDINGS, IngestError, SetWriter, read_recording, set_folder
 from scanner.storage.metadata import (
     CROISSANT,
     DATAPACKAGE,
@@ -282,24 +283,44 @@ def import_set_bundle(db_root: str | os.PathLike[str], bundle: str | os.PathLike
     """
     started = time.perf_counter()
     bundle, root = Path(bundle), Path(db_root)
-    root.mkdir(parents=True, exist_ok=True)
-    # On the database's file system, so the verified files are moved into the set, not copied; a killed
-    # import leaves a folder 'texplorer db check' lists and --repair removes (as a scan import's).
-    with owned_folder(temp_path_for(root / STAGING_PREFIX.lstrip("."))) as owned:
-        manifest, staged = _verify(bundle, owned / "bundle", progress)
-        target = name or manifest["set"]
-        try:
-            with SetWriter(root, target, replace=replace) as writer:
-                for kept in (MAPPING, FEATURES_CSV, FEATURES_JSON):  # the feature table: current if the bytes are
-                    if (owned / "bundle" / kept).is_file():        # (its features.json holds their hash)
-                        writer.keep(kept, (owned / "bundle" / kept).read_bytes())
-                for path in staged:
-                    writer.adopt(path)
-                folder = writer.commit()
-        except IngestError as exc:
-            raise BundleError(f"{bundle}: {exc}; the database was not changed") from None
+    made = [path for path in (root, root / RECORDINGS) if not path.exists()]  # removed again if refused
+    try:
+        if name is not None:
+            _check_target(bundle, root, name, replace)  # before a large bundle is read
+        root.mkdir(parents=True, exist_ok=True)
+        # On the database's file system, so the verified files are moved into the set, not copied; a killed
+        # import leaves a folder 'texplorer db check' lists and --repair removes (as a scan import's).
+        with owned_folder(temp_path_for(root / STAGING_PREFIX.lstrip("."))) as owned:
+            manifest, staged = _verify(bundle, owned / "bundle", progress)
+            target = name or manifest["set"]
+            _check_target(bundle, root, target, replace)
+            try:
+                with SetWriter(root, target, replace=replace) as writer:
+                    for kept in (MAPPING, FEATURES_CSV, FEATURES_JSON):  # the feature table: current if the
+                        if (owned / "bundle" / kept).is_file():        # bytes are (features.json has their hash)
+                            writer.keep(kept, (owned / "bundle" / kept).read_bytes())
+                    for path in staged:
+                        writer.adopt(path)
+                    folder = writer.commit()
+            except IngestError as exc:
+                raise BundleError(f"{bundle}: {exc}; the database was not changed") from None
+    except BaseException:
+        for path in reversed(made):
+            shutil.rmtree(path, ignore_errors=True)
+        raise
     return SetImportReport(bundle, target, folder, len(staged),
                            sum(f["size"] for f in manifest["files"].values()), time.perf_counter() - started)
+
+
+def _check_target(bundle: Path, root: Path, name: str, replace: bool) -> None:
+    """Refuse a set name that cannot be stored, or an existing set without ``replace``."""
+    try:
+        folder = set_folder(root, name)
+    except IngestError as exc:
+        raise BundleError(f"{bundle}: {exc}; the database was not changed") from None
+    if folder.exists() and not replace:
+        raise BundleError(f"{bundle}: the set {name!r} exists in {root}; give --name for another name or "
+                          "--replace to replace it; the database was not changed")
 
 
 def _verify(bundle: Path, staging: Path, progress: Progress) -> tuple[dict[str, Any], list[Path]]:
@@ -330,11 +351,19 @@ def _verify(bundle: Path, staging: Path, progress: Progress) -> tuple[dict[str, 
     staged: list[Path] = []
     units: dict[str, set[str]] = {}
     prefix = f"{_FOLDER}/{manifest['set']}/"
+    owned: set[str] = set()
     for entry in progress(manifest["recordings"]):
         member = entry.get("file") if isinstance(entry, dict) else None
         if not isinstance(member, str) or not member.startswith(prefix) or member.count("/") != 2:
-            problems.append(f"{MANIFEST}: recording entry {entry!r} does not name a file of recordings/"
-                            f"{manifest['set']}/")
+            problems.append(f"{MANIFEST}: recording entry {str(entry)[:200]} does not name a file of "
+                            f"recordings/{manifest['set']}/")
+            continue
+        if member in owned:
+            problems.append(f"{MANIFEST}: {member} is named by two recording entries")
+            continue
+        owned.add(member)
+        if member not in listed:
+            problems.append(f"{MANIFEST}: recording file {member} is not in its 'files'")
             continue
         if member not in ok:
             continue  # its problem is listed already
@@ -346,11 +375,26 @@ def _verify(bundle: Path, staging: Path, progress: Progress) -> tuple[dict[str, 
         for channel, trace in recording.channels.items():
             units.setdefault(channel, set()).add(trace.unit)
         staged.append(staging / member)
-    problems += metadata_problems(ok, manifest, lambda n: (staging / n).read_bytes(),
-                                  {channel: "/".join(sorted(found)) for channel, found in units.items()})
+    problems += [f"{name}: belongs to no recording of the manifest" for name in sorted(listed)
+                 if name.startswith(f"{_FOLDER}/") and name not in owned]
+    problems += _options_problems(staging, ok)
+    problems += metadata_problems(ok - owned, manifest, lambda n: (staging / n).read_bytes(),
+                                  {channel: "/".join(sorted(found)) for channel, found in units.items()},
+                                  holder="recordings")
     if problems:
         raise refuse(bundle, problems)
     return manifest, staged
+
+
+def _options_problems(staging: Path, ok: set[str]) -> list[str]:
+    """``features.json`` must be the JSON object ``texplorer features set:NAME`` writes."""
+    if FEATURES_JSON not in ok:
+        return []
+    try:
+        options = json.loads((staging / FEATURES_JSON).read_bytes().decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        return [f"{FEATURES_JSON}: not valid JSON ({str(exc)[:200]})"]
+    return [] if isinstance(options, dict) else [f"{FEATURES_JSON}: not the options of a feature table"]
 
 
 def _parse(data: bytes) -> tuple[dict[str, Any] | None, list[str]]:
@@ -371,9 +415,12 @@ def _parse(data: bytes) -> tuple[dict[str, Any] | None, list[str]]:
                                               and isinstance(e.get("size"), int) and e["size"] >= 0
                                               for e in files.values()):
         problems.append(f"{MANIFEST}: 'files' must be an object of path -> sha256 and size")
+    counts = manifest.get("counts")
     if not isinstance(recordings, list) or not recordings:
         problems.append(f"{MANIFEST}: 'recordings' must be a non-empty list")
-    elif (manifest.get("counts") or {}).get("recordings") != len(recordings):
-        problems.append(f"{MANIFEST}: counts.recordings is {(manifest.get('counts') or {}).get('recordings')!r}, "
-                        f"but {len(recordings)} are listed")
+    elif not isinstance(counts, dict):
+        problems.append(f"{MANIFEST}: 'counts' must be an object")
+    elif counts.get("recordings") != len(recordings):
+        problems.append(f"{MANIFEST}: counts.recordings is {str(counts.get('recordings'))[:40]}, but "
+                        f"{len(recordings)} are listed")
     return (None if problems else manifest), problems

@@ -120,6 +120,9 @@ def _read_index(folder: Path) -> dict[str, Any]:
     return index
 
 
+_TEXT_FIELDS = ("file", "created", "classifier", "level", "fingerprint", "feature_code_version", "note")
+
+
 def _row(path: Path, entry: Any) -> ModelVersion:
     try:
         row = dict(entry)
@@ -127,9 +130,14 @@ def _row(path: Path, entry: Any) -> ModelVersion:
         row["figures"] = {str(k): float(v) for k, v in dict(row.get("figures") or {}).items()}
         version = ModelVersion(**row)
     except (TypeError, ValueError, KeyError) as exc:
-        raise VersionError(f"{path}: a version entry cannot be read ({exc})") from None
-    if not isinstance(version.version, int) or "/" in version.file or version.file.startswith("."):
-        raise VersionError(f"{path}: version entry {entry!r} names no model file of {path.parent}")
+        raise VersionError(f"{path}: a version entry cannot be read ({str(exc)[:200]})") from None
+    numbers = (version.version, version.n_features, version.rows)
+    if not all(isinstance(n, int) and not isinstance(n, bool) and n >= 0 for n in numbers) \
+            or not all(isinstance(getattr(version, f), str) for f in _TEXT_FIELDS) \
+            or not all(math.isfinite(v) for v in version.figures.values()):
+        raise VersionError(f"{path}: version entry {str(entry)[:200]} has a field of the wrong type")
+    if "/" in version.file or "\\" in version.file or version.file.startswith("."):
+        raise VersionError(f"{path}: version entry {str(entry)[:200]} names no model file of {path.parent}")
     return version
 
 
@@ -172,7 +180,7 @@ def add_version(db_root: str | os.PathLike[str], model: TrainedModel, *, fingerp
     folder = models_folder(db_root)
     with _locked(folder):
         index = _read_index(folder)
-        taken = [int(e.get("version", 0)) for e in index["versions"] if isinstance(e, dict)]
+        taken = [_row(folder / INDEX, entry).version for entry in index["versions"]]
         number = max([0, *taken]) + 1
         name = f"v{number:03d}-{model.classifier}-{model.level}-X{model.n_features}.skops"
         if (folder / name).exists():  # a file nobody indexed (a copy, a crash before the index): keep it
@@ -184,11 +192,16 @@ def add_version(db_root: str | os.PathLike[str], model: TrainedModel, *, fingerp
         row = ModelVersion(number, name, datetime.now(UTC).replace(microsecond=0).isoformat(), model.classifier,
                            model.level, int(model.n_features), tuple(model.classes), int(model.n_rows),
                            fingerprint, feature_code_version, figures, note)
-        save_model(model, folder / name)
         index["versions"].append(_plain(row))
         if make_current or index.get("current") is None:
             index["current"] = number
-        _write_index(folder, index)
+        text = _index_bytes(index)  # before the model is written: an index that cannot be written leaves nothing
+        save_model(model, folder / name)
+        try:
+            atomic_write_bytes(folder / INDEX, text)
+        except BaseException:
+            (folder / name).unlink(missing_ok=True)  # no model file the index does not name
+            raise
     return row
 
 
@@ -236,5 +249,9 @@ def _plain(row: ModelVersion) -> dict[str, Any]:
     return plain
 
 
+def _index_bytes(index: Mapping[str, Any]) -> bytes:
+    return (json.dumps(index, indent=1, allow_nan=False) + "\n").encode("utf-8")
+
+
 def _write_index(folder: Path, index: Mapping[str, Any]) -> None:
-    atomic_write_bytes(folder / INDEX, (json.dumps(index, indent=1, allow_nan=False) + "\n").encode("utf-8"))
+    atomic_write_bytes(folder / INDEX, _index_bytes(index))

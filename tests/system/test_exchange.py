@@ -346,7 +346,7 @@ def test_a_recording_set_goes_out_as_it_came_in_and_imports_back(tmp_path, capsy
     for path in (db / "recordings/lab-a").iterdir():
         assert (other / "recordings/lab-a" / path.name).read_bytes() == path.read_bytes(), path.name
     assert main(["import", str(bundle), "--db", str(other)]) == 1
-    assert "the set 'lab-a' exists; choose another name or replace it" in capsys.readouterr().err
+    assert "the set 'lab-a' exists in" in capsys.readouterr().err
     assert main(["import", str(bundle), "--db", str(other), "--name", "lab-a2"]) == 0
     assert sorted(p.name for p in (other / "recordings").iterdir() if p.name[0] != ".") == ["lab-a", "lab-a2"]
     with pytest.raises(SystemExit):  # import has no --label: argparse's usage error
@@ -359,8 +359,20 @@ def test_a_recording_set_goes_out_as_it_came_in_and_imports_back(tmp_path, capsy
     _resum(bundle, "channels/temperature_channels.tsv")
     assert main(["import", str(bundle), "--db", str(other), "--name", "lab-a3"]) == 1
     err = capsys.readouterr().err
-    assert "problem  channels/temperature_channels.tsv: channel tdc in 'K', but the scans store tdc in 'degC'" in err
+    assert ("problem  channels/temperature_channels.tsv: channel tdc in 'K', but the recordings store tdc in "
+            "'degC'") in err
     assert not (other / "recordings/lab-a3").exists()
+    # A recording file the manifest lists but no recording entry owns would be dropped silently: refused.
+    (bundle / "channels/temperature_channels.tsv").write_text(table.read_text().replace("\tK\t", "\tdegC\t"))
+    manifest = _manifest(bundle)
+    dropped = manifest["recordings"].pop()
+    manifest["counts"]["recordings"] -= 1
+    text = json.dumps(manifest, indent=1).encode() + b"\n"
+    (bundle / MANIFEST).write_bytes(text)
+    (bundle / MANIFEST_SUM).write_text(f"{hashlib.sha256(text).hexdigest()}  manifest.json\n")
+    _resum(bundle, "channels/temperature_channels.tsv")
+    assert main(["import", str(bundle), "--db", str(other), "--name", "lab-a4"]) == 1
+    assert f"problem  {dropped['file']}: belongs to no recording of the manifest" in capsys.readouterr().err
     assert main(["export", str(tmp_path / "c"), "--set", "nope", "--db", str(db), "--license", "none"]) == 1
     assert "no recording set 'nope' to export" in capsys.readouterr().err
 
@@ -395,3 +407,76 @@ def test_the_borealtc_set_exports_with_its_features_validates_and_evaluates_afte
     assert main(["evaluate", "set:borealtc", "--db", str(other), *options, "--classifier", "rf",
                  "--no-calibration"]) == 0
     assert f"using {other / 'recordings/borealtc/features.csv'}" in capsys.readouterr().out
+
+
+def _set_bundle(tmp_path: Path) -> Path:
+    db = tmp_path / "lab"
+    assert main(["ingest", str(FIXTURES / "lab-a"), "--mapping", str(FIXTURES / "lab-a.toml"), "--db", str(db)]) == 3
+    assert main(["features", "set:lab-a", "--db", str(db)]) == 0
+    assert main(["export", str(tmp_path / "b"), "--set", "lab-a", "--db", str(db), "--license", "none"]) == 0
+    return tmp_path / "b"
+
+
+def _rewrite(bundle: Path, change) -> None:
+    manifest = _manifest(bundle)
+    change(manifest)
+    text = json.dumps(manifest, indent=1).encode() + b"\n"
+    (bundle / MANIFEST).write_bytes(text)
+    (bundle / MANIFEST_SUM).write_text(f"{hashlib.sha256(text).hexdigest()}  manifest.json\n")
+
+
+def test_a_hostile_set_bundle_is_refused_with_its_problems_and_leaves_no_database(tmp_path, capsys):
+    bundle = _set_bundle(tmp_path)
+    capsys.readouterr()
+
+    def refused(change, expected: str) -> None:
+        copy = tmp_path / f"copy-{len(list(tmp_path.glob('copy-*')))}"
+        shutil.copytree(bundle, copy)
+        change(copy)
+        target = tmp_path / "new-db"
+        assert main(["import", str(copy), "--db", str(target)]) == 1
+        err = capsys.readouterr().err
+        assert expected in err, err
+        assert err.splitlines()[-1].startswith("texplorer: error: ") and "Traceback" not in err
+        assert not target.exists()  # a refused import made no database folder
+
+    first = "recordings/lab-a/metal-1_t01_static.mat"
+    refused(lambda b: _rewrite(b, lambda m: m["recordings"].append(dict(m["recordings"][0])) or
+                               m["counts"].update(recordings=3)), f"{first} is named by two recording entries")
+    refused(lambda b: _rewrite(b, lambda m: m["recordings"][0].update(file="recordings/lab-a/ghost.mat")),
+            "recording file recordings/lab-a/ghost.mat is not in its 'files'")
+    refused(lambda b: _rewrite(b, lambda m: m.update(counts=[1])), "manifest.json: 'counts' must be an object")
+    refused(lambda b: _rewrite(b, lambda m: m["recordings"][0].update(file=["x"])), "does not name a file of")
+
+    def options(copy: Path) -> None:
+        (copy / "features.json").write_text("[]")
+        _resum(copy, "features.json")
+    refused(options, "features.json: not the options of a feature table")
+
+    # An existing set is refused before the bundle is read; with --replace it is replaced.
+    other = tmp_path / "other"
+    assert main(["import", str(bundle), "--db", str(other)]) == 0
+    capsys.readouterr()
+    assert main(["import", str(bundle), "--db", str(other), "--name", "lab-a"]) == 1
+    assert "the set 'lab-a' exists in" in capsys.readouterr().err
+    assert main(["import", str(bundle), "--db", str(other), "--replace"]) == 0
+
+
+def test_an_encrypted_member_is_one_line_naming_it(bundle, tmp_path, capsys):
+    archive = tmp_path / "bundle.zip"
+    with zipfile.ZipFile(archive, "w") as out:
+        for path in sorted(p for p in bundle.rglob("*") if p.is_file()):
+            out.write(path, path.relative_to(bundle).as_posix())
+    data = bytearray(archive.read_bytes())
+    with zipfile.ZipFile(archive) as listing:
+        info = listing.getinfo(MANIFEST)
+    central = data.find(b"PK\x01\x02")  # the central directory's entries, until manifest.json's
+    while data[central + 46:central + 46 + len(MANIFEST)] != MANIFEST.encode():
+        central = data.find(b"PK\x01\x02", central + 4)
+    data[central + 8] |= 0x01  # the general-purpose flag's "encrypted" bit of manifest.json's central entry
+    archive.write_bytes(bytes(data))
+    assert info.filename == MANIFEST
+    assert main(["import", str(archive), "--db", str(tmp_path / "db")]) == 1
+    err = capsys.readouterr().err
+    assert "manifest.json: cannot be read (File 'manifest.json' is encrypted, password required" in err
+    assert "Traceback" not in err and not (tmp_path / "db").exists()

@@ -180,7 +180,7 @@ def test_metadata_problems_compare_descriptions_with_the_files():
         "ro-crate-metadata.json: describes c.png, which the bundle does not hold",
         "ro-crate-metadata.json: does not describe b.mat",
         "channels/x_channels.tsv: channel dB in 'mT', but the scans store dB in 'uT'",
-        "channels/x_channels.tsv: channel 'q' names variable 'q', which scans do not hold"]
+        "channels/x_channels.tsv: channel 'q' names variable 'q', which the scans do not hold"]
     assert metadata_problems({"ro-crate-metadata.json"}, {"files": listed, "scans": []},
                              lambda name: b"{", None)[0].startswith("ro-crate-metadata.json: not valid JSON")
     assert metadata_problems(set(), {"files": listed, "scans": []}, None) == []  # a bundle from before
@@ -201,3 +201,36 @@ def test_settings_round_trip_refuse_bad_values_and_bound_their_file(tmp_path):
         (tmp_path / "settings.json").write_text(text)
         with pytest.raises(MetadataError, match=match):
             read_settings(tmp_path)
+
+
+@pytest.mark.parametrize(("name", "content", "expected"), [
+    ("ro-crate-metadata.json", b'{"@graph": [{"@id": ["a"], "@type": "File"}]}', "a File entity without a text @id"),
+    ("ro-crate-metadata.json", b'{"@graph": [{"@id": "a.csv", "@type": "File", "contentSize": Infinity}]}',
+     "not valid JSON (Infinity is not a JSON number)"),
+    ("ro-crate-metadata.json", b'{"@graph": 3}', "no @graph of entities"),
+    ("ro-crate-metadata.json", b"[" * 100_000, "not valid JSON"),
+    ("datapackage.json", b'{"resources": [{"path": "a.csv", "stats": [1]}]}', "is not a table of the bundle"),
+    ("datapackage.json", b'{"resources": [{"path": "features.mat"}]}', "'features.mat' is not a table"),
+    ("datapackage.json", b'{"resources": [{"path": "scans.csv", "stats": [1]}, {"path": "scans.csv"}]}',
+     "is listed twice"),
+    ("croissant.json", b'{"distribution": [{"@type": "cr:FileObject", "contentUrl": "a.csv", '
+                       b'"contentSize": "1e999 B"}]}', "size of a.csv is '1e999 B'"),
+    ("scans.csv", b'scan_id\n"' + b"x" * 200_000 + b'"\n', "scans.csv: not a readable table"),
+])
+def test_metadata_of_the_wrong_shape_are_problems_never_exceptions(name, content, expected):
+    files = {name: content, "features.mat": b"\x00\xff", "a.csv": b"x\n1\n"}
+    listed = {n: {"sha256": "0" * 64, "size": len(data)} for n, data in files.items()}
+    problems = metadata_problems(set(files), {"files": listed, "scans": [{"scan_id": "a"}]}, files.__getitem__)
+    assert any(expected in p for p in problems), problems
+    assert all("\n" not in p and len(p) < 400 for p in problems)
+
+
+def test_a_recording_set_manifest_has_no_scans_and_huge_metadata_are_not_read():
+    listed = {"scans.csv": {"sha256": "0" * 64, "size": 10}, "ro-crate-metadata.json": {"sha256": "", "size": 1 << 40}}
+
+    def read(name):
+        assert name != "ro-crate-metadata.json", "a file listed as 1 TiB is not read"
+        return b"scan_id\na\n"
+
+    problems = metadata_problems(set(listed), {"files": listed}, read)  # a set bundle's manifest: no 'scans'
+    assert problems == ["ro-crate-metadata.json: larger than 268435456 bytes (not read)"]

@@ -109,3 +109,17 @@ def test_the_training_fingerprint_covers_the_scans_and_the_feature_code():
     assert training_fingerprint(rows, "v1") != training_fingerprint(rows, "v2")
     assert training_fingerprint(rows, "v1") != training_fingerprint([rows[0], ("b-001", "3" * 64)], "v1")
     assert training_fingerprint(rows, "v1") != training_fingerprint(rows[:1], "v1")
+
+
+@pytest.mark.parametrize("entry", [
+    {"file": 5}, {"version": "x"}, {"version": True}, {"rows": -1}, {"figures": {"cv_accuracy": float("nan")}},
+    {"file": "..\\\\evil.skops"}])
+def test_an_index_entry_of_the_wrong_type_is_refused_and_nothing_is_added(tmp_path, model, entry):
+    add_version(tmp_path, model, fingerprint="", feature_code_version="")
+    index = json.loads((tmp_path / "models/versions.json").read_text())
+    index["versions"][0].update(entry)
+    (tmp_path / "models/versions.json").write_text(json.dumps(index))
+    before = sorted(p.name for p in (tmp_path / "models").iterdir())
+    with pytest.raises(VersionError, match="versions.json: version entry|versions.json: a version entry"):
+        add_version(tmp_path, model, fingerprint="", feature_code_version="")
+    assert sorted(p.name for p in (tmp_path / "models").iterdir()) == before  # no model file without its row
