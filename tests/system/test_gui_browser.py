@@ -466,6 +466,7 @@ def test_a_taken_bundle_leaves_a_new_export_not_a_dead_link(page, server, browse
         db.add(make_scan(index, sample_id="granite-01", scan_index=index, image_shape=(64, 64)))
     page.goto(base + "/db/")
     page.fill("#export-label", "C6")
+    page.fill("#export-license", "CC0-1.0")
     with page.expect_download(timeout=60_000) as download:
         page.click("button:has-text('Export bundle (ZIP)')")
     assert zipfile.is_zipfile(download.value.path())
@@ -489,6 +490,7 @@ def test_a_taken_bundle_leaves_a_new_export_not_a_dead_link(page, server, browse
     plain = context.new_page()
     try:
         plain.goto(base + "/db/")
+        plain.fill("#export-license", "CC0-1.0")
         plain.click("button:has-text('Export bundle (ZIP)')")
         plain.wait_for_selector("#export-download:not([hidden])", timeout=60_000)
         with plain.expect_download() as download:

@@ -308,7 +308,7 @@ def test_sigterm_during_an_export_leaves_no_worker_and_no_bundle(tmp_path):
         browser = urllib.request.build_opener(urllib.request.HTTPCookieProcessor(http.cookiejar.CookieJar()))
         with browser.open(f"{url}/db/", timeout=120) as page:
             token = re.search(r'name="csrf_token" value="([^"]+)"', page.read().decode()).group(1)
-        form = urllib.parse.urlencode({"csrf_token": token, "label": "", "session": ""}).encode()
+        form = urllib.parse.urlencode({"csrf_token": token, "label": "", "session": "", "license": "CC0-1.0"}).encode()
         with browser.open(f"{url}/db/export", data=form, timeout=120) as page:  # redirected to the job's page
             job = page.url.rstrip("/").rsplit("/", 1)[1]
         deadline = time.monotonic() + 120
