@@ -863,7 +863,7 @@ def _scans_problems(text: str, manifest: Mapping[str, Any]) -> list[str]:
         return problems
     extra = sorted(set(ids) - set(expected))
     return [f"{SCANS_CSV}: {len(ids)} scans, the manifest lists {len(expected)}"
-            + (f" (not in the manifest: {', '.join(extra[:5])})" if extra else "")]
+            + (f" (not in the manifest: {', '.join(e[:64] for e in extra[:5])})" if extra else "")]
 
 
 def _unit_problems(name: str, text: str, units: Mapping[str, str], holder: str) -> list[str]:
