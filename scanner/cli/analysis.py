@@ -299,18 +299,24 @@ OPTION_WORDS = {"window": "--window", "combine": "--combine", "border": "--borde
                 "code_version": "the feature code", "recordings": "the recordings"}
 
 
-def stored_set_table(args: argparse.Namespace, folder: Path) -> tuple[Path | None, str]:
-    """The set's feature table if it was written with the options of ``args`` (and the same recordings and
-    feature code), else None; and one line saying which table ``evaluate`` uses and why."""
+def _table_options(folder: Path) -> tuple[Path, dict[str, Any] | None, str]:
+    """A set's feature table, the options its ``features.json`` records (None if there are none), and why not."""
     table, written = folder / SET_TABLE, folder / SET_TABLE_OPTIONS
     if not table.is_file() or not written.is_file():
-        return None, f"extracting the features (no table written by 'texplorer features {args.dataset}')"
+        return table, None, f"no table written by 'texplorer features set:{folder.name}'"
     try:
         stored = json.loads(written.read_text(encoding="utf-8"))
     except (OSError, ValueError):
-        return None, f"extracting the features ({written} cannot be read)"
-    if not isinstance(stored, dict):
-        return None, f"extracting the features ({written} holds no table options)"
+        return table, None, f"{written} cannot be read"
+    return (table, stored, "") if isinstance(stored, dict) else (table, None, f"{written} holds no table options")
+
+
+def stored_set_table(args: argparse.Namespace, folder: Path) -> tuple[Path | None, str]:
+    """The set's feature table if it was written with the options of ``args`` (and the same recordings and
+    feature code), else None; and one line saying which table ``evaluate`` uses and why."""
+    table, stored, why = _table_options(folder)
+    if stored is None:
+        return None, f"extracting the features ({why})"
     wanted = set_table_options(args, folder)
     differ = [OPTION_WORDS[key] for key in wanted if stored.get(key) != wanted[key]]
     if differ == [OPTION_WORDS["recordings"]] and stored.get("content") == recordings_content(folder):
@@ -323,15 +329,9 @@ def stored_set_table(args: argparse.Namespace, folder: Path) -> tuple[Path | Non
 def current_set_table(folder: Path) -> tuple[Path | None, str]:
     """The set's feature table if the current feature code computed it from the recordings the set holds now
     (whatever its options, which its ``features.json`` records), else None; and why not."""
-    table, written = folder / SET_TABLE, folder / SET_TABLE_OPTIONS
-    if not table.is_file() or not written.is_file():
-        return None, f"no feature table in {folder} ('texplorer features set:{folder.name}' writes one)"
-    try:
-        stored = json.loads(written.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None, f"{written} cannot be read"
-    if not isinstance(stored, dict):
-        return None, f"{written} holds no table options"
+    table, stored, why = _table_options(folder)
+    if stored is None:
+        return None, why
     if stored.get("code_version") != code_version():
         return None, f"{table} was written by other feature code"
     if stored.get("recordings") != recordings_fingerprint(folder) and stored.get("content") != \

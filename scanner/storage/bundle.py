@@ -193,12 +193,7 @@ def export_bundle(db: Database, out: str | os.PathLike[str], features: Features,
         A license or creator that cannot be written.
     """
     started = time.perf_counter()
-    out = Path(out)
-    if out.exists():
-        raise BundleError(f"{out} already exists; export to a new name")
-    if license is None:
-        raise BundleError(NO_LICENSE_TEXT)
-    license, creator = license_url(license), checked_creator(creator)
+    out, license, creator = export_target(out, license, creator)
     records = sorted(db.records(label=label, session=session), key=lambda r: (r.started, r.scan_id))
     if label:  # a prefix in its canonical spelling (" c7 " -> C7); part of a name as given
         label = select_labels(label, db.taxonomy)[0] or label.strip()
@@ -222,21 +217,18 @@ def export_bundle(db: Database, out: str | os.PathLike[str], features: Features,
         provenance = Provenance(license, creator, created, __version__, feature_code_version,
                                 f"texplorer scans{_filter_text(label, session)}")
         scan_files = {scan["scan_id"]: scan["files"] for scan in scans}
-        for name, data in _scan_metadata(records, scan_files, generated, feature_units or {}, provenance).items():
+        for name, data in _scan_metadata(records, scan_files, generated, files, feature_units or {},
+                                         provenance).items():
             files[name] = writer.add(name, io.BytesIO(data))
         crate = ro_crate(files, provenance, sessions_of(records, scan_files), _DESCRIPTION, ABOUT)
         files[RO_CRATE] = writer.add(RO_CRATE, io.BytesIO(as_bytes(crate)))
         metadata_seconds = time.perf_counter() - metadata_started
         manifest = _manifest(db, records, scans, files, space, created, label, session, feature_code_version)
         manifest["license"], manifest["creator"] = license, creator
-        manifest_bytes = json.dumps(manifest, indent=1, allow_nan=False).encode("utf-8") + b"\n"
-        writer.add(MANIFEST, io.BytesIO(manifest_bytes))
-        writer.add(MANIFEST_SUM, io.BytesIO(manifest_sum(manifest_bytes)))
-        writer.commit()
+        size = finish_bundle(writer, files, manifest)
     except BaseException:
         writer.discard()
         raise
-    size = sum(f["size"] for f in files.values()) + len(manifest_bytes) + len(manifest_sum(manifest_bytes))
     return ExportReport(out, len(records), len(files) + 2, size, time.perf_counter() - started, space.failed,
                         metadata_seconds)
 
@@ -260,25 +252,54 @@ NO_LICENSE_TEXT = ("no license for the bundle: give --license with an SPDX ident
 
 
 def _scan_metadata(records: Sequence[ScanRecord], scan_files: Mapping[str, Mapping[str, str]],
-                   generated: Mapping[str, bytes], feature_units: Mapping[str, str],
-                   provenance: Provenance) -> dict[str, bytes]:
+                   generated: Mapping[str, bytes], written: Mapping[str, Mapping[str, Any]],
+                   feature_units: Mapping[str, str], provenance: Provenance) -> dict[str, bytes]:
     """The standard metadata of a bundle of scans (:mod:`scanner.storage.metadata`), in writing order: the
     tables and schemas, then Croissant (which lists the tables' checksums), then RO-Crate (every file's)."""
     tables = [*scan_bundle_tables(records, scan_files, generated[FEATURES_CSV], feature_units),
               taxonomy_table(generated[TAXONOMY_CSV])]
     out = {SCANS_CSV: tables[0][1], **describe_tables(tables, scan_channels(), provenance)}
-    checksums = {name: _checksum(data) for name, data in {**generated, **out}.items()}
+    checksums = {**written, **{name: checksum(data) for name, data in out.items()}}  # the written ones hashed once
     photo_kinds = sorted({IMAGES[v] for roles in scan_files.values() for v in roles if v in IMAGES})
     file_sets = croissant_file_sets(photo_kinds, "scans/**/*.mat", "one MATLAB v5 file per scan (docs/database.md): "
                                     "one variable per channel (channels record set) and a meta struct")
     out[CROISSANT] = as_bytes(croissant([table for table, _ in tables], checksums, provenance, file_sets,
                                         photo_kinds))
-    checksums[CROISSANT] = _checksum(out[CROISSANT])
     return out
 
 
-def _checksum(data: bytes) -> dict[str, Any]:
+def checksum(data: bytes) -> dict[str, Any]:
+    """A generated file's manifest entry: its SHA-256 and size."""
     return {"sha256": hashlib.sha256(data).hexdigest(), "size": len(data)}
+
+
+def export_target(out: str | os.PathLike[str], license: str | None,
+                  creator: str | None) -> tuple[Path, str | None, str | None]:
+    """The new bundle's path and its license URL and creator, checked before anything is written.
+
+    Raises
+    ------
+    BundleError
+        ``out`` exists, or no license was given (``"none"`` is one).
+    MetadataError
+        A license or creator that cannot be written.
+    """
+    out = Path(out)
+    if out.exists():
+        raise BundleError(f"{out} already exists; export to a new name")
+    if license is None:
+        raise BundleError(NO_LICENSE_TEXT)
+    return out, license_url(license), checked_creator(creator)
+
+
+def finish_bundle(writer: _FolderWriter | _ZipWriter, files: Mapping[str, Mapping[str, Any]],
+                  manifest: Mapping[str, Any]) -> int:
+    """Write ``manifest.json`` and its checksum file, then commit the bundle; returns the bundle's bytes."""
+    manifest_bytes = json.dumps(manifest, indent=1, allow_nan=False).encode("utf-8") + b"\n"
+    writer.add(MANIFEST, io.BytesIO(manifest_bytes))
+    writer.add(MANIFEST_SUM, io.BytesIO(manifest_sum(manifest_bytes)))
+    writer.commit()
+    return sum(f["size"] for f in files.values()) + len(manifest_bytes) + len(manifest_sum(manifest_bytes))
 
 
 def _filter_text(label: str | None, session: str | None) -> str:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import json
 import os
 import re
 import secrets
@@ -17,7 +18,7 @@ import sqlite3
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 TEMP_MARK = ".tmp-"
 """Temporary files are named ``.<name>.tmp-<12 hex digits>``; a crash may leave them behind, never a target."""
@@ -146,6 +147,26 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
     """Write ``data`` to ``path`` atomically."""
     with atomic_writer(path) as handle:
         handle.write(data)
+
+
+def read_json(path: str | os.PathLike[str], limit: int, error: type[Exception], missing: Any = None,
+               hint: str = "") -> Any:
+    """The JSON value of a small file, ``missing`` if there is none; ``error`` (one line naming the file) if
+    it cannot be read, is larger than ``limit`` bytes (never read further) or is not JSON (``hint`` appended)."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as handle:
+            data = handle.read(limit + 1)
+    except FileNotFoundError:
+        return missing
+    except OSError as exc:
+        raise error(f"{path}: cannot be read ({exc.strerror})") from None
+    if len(data) > limit:
+        raise error(f"{path}: larger than {limit} bytes")
+    try:
+        return json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise error(f"{path}: not valid JSON ({str(exc)[:200]}){hint}") from None
 
 
 def sha256_file(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:

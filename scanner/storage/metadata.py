@@ -273,7 +273,7 @@ def channel_tables(rows: Sequence[ChannelRow]) -> dict[str, bytes]:
                    row.variable, row.column or "n/a", row.description] for row in mine]
         stem = f"{CHANNELS_FOLDER}/{modality}_channels"
         tables[f"{stem}.tsv"] = _csv(lines, "\t")
-        tables[f"{stem}.json"] = _json(_channel_sidecar(mine))
+        tables[f"{stem}.json"] = as_bytes(_channel_sidecar(mine))
     return tables
 
 
@@ -331,7 +331,7 @@ def features_schema(header: Sequence[str], units: Mapping[str, str],
             fields.append(_field(name, "string"))
         else:
             unit = units.get(name)
-            fields.append(_field(name, "number", extra_unit(unit)) | ({"unit": unit} if unit else {}))
+            fields.append(_field(name, "number", _unit_text(unit)) | ({"unit": unit} if unit else {}))
     key = header[0]
     schema: dict[str, Any] = {"fields": fields, "primaryKey": [key], "missingValues": [""]}
     if scans_resource:
@@ -340,7 +340,7 @@ def features_schema(header: Sequence[str], units: Mapping[str, str],
     return schema
 
 
-def extra_unit(unit: str | None) -> str:
+def _unit_text(unit: str | None) -> str:
     return f"unit {unit} ({UNITS.get(unit, unit)})" if unit else ""
 
 
@@ -618,13 +618,9 @@ def _crate_creator(creator: str) -> dict[str, Any]:
     return {"@id": "#creator", "@type": "Person", "name": creator}
 
 
-def _json(value: Any) -> bytes:
-    return json.dumps(value, indent=1, ensure_ascii=False, allow_nan=False).encode("utf-8") + b"\n"
-
-
 def as_bytes(value: Any) -> bytes:
     """A metadata document as the bundle stores it (UTF-8 JSON, indented, no NaN)."""
-    return _json(value)
+    return json.dumps(value, indent=1, ensure_ascii=False, allow_nan=False).encode("utf-8") + b"\n"
 
 
 # -- a bundle's metadata, assembled ---------------------------------------------------------------------
@@ -637,21 +633,24 @@ def _schema_path(name: str) -> str:
     return f"{SCHEMAS}/{name}.schema.json"
 
 
-def _header(table: bytes) -> list[str]:
+def csv_header(table: bytes) -> list[str]:
+    """The column names of a CSV table (its first line)."""
     return next(csv.reader(io.StringIO(table.split(b"\n", 1)[0].decode("utf-8"))))
 
 
-def _rows(table: bytes) -> int:
-    return max(sum(1 for _ in csv.reader(io.StringIO(table.decode("utf-8")))) - 1, 0)
+def _rows(text: str) -> int:
+    """Data rows of a CSV table (its records after the header); csv.Error for one the csv module refuses."""
+    return max(sum(1 for _ in csv.reader(io.StringIO(text))) - 1, 0)
 
 
 def describe_tables(tables: Sequence[tuple[Table, bytes]], channels: Sequence[ChannelRow],
                     provenance: Provenance) -> dict[str, bytes]:
     """The schema files, ``datapackage.json`` and channel tables of a bundle whose CSV tables are ``tables``
     (each with its bytes, to count its rows)."""
-    files = {_schema_path(table.name): _json(table.schema) for table, _ in tables}
-    resources = [(table.name, table.path, _schema_path(table.name), _rows(data)) for table, data in tables]
-    files[DATAPACKAGE] = _json(data_package(resources, provenance))
+    files = {_schema_path(table.name): as_bytes(table.schema) for table, _ in tables}
+    resources = [(table.name, table.path, _schema_path(table.name), _rows(data.decode("utf-8")))
+                 for table, data in tables]
+    files[DATAPACKAGE] = as_bytes(data_package(resources, provenance))
     files.update(channel_tables(channels))
     return files
 
@@ -664,7 +663,7 @@ def scan_bundle_tables(records: Sequence[ScanRecord], scan_files: Mapping[str, M
     return [
         (Table("scans", SCANS_CSV, scans_schema(), "one row per scan: its label, the label's five taxonomy "
                "codes, sample, session, operator, time and files (mat_file: the scan's MATLAB file)"), scans),
-        (Table("features", FEATURES_CSV, features_schema(_header(features_csv), feature_units),
+        (Table("features", FEATURES_CSV, features_schema(csv_header(features_csv), feature_units),
                "the features of each scan (docs/features.md); NaN where a feature is undefined"), features_csv),
     ]
 
@@ -849,7 +848,7 @@ def _package_problems(package: Any, staged: set[str], listed: Mapping[str, Mappi
 
 def _rows_of(text: str, name: str, problems: list[str]) -> int:
     try:
-        return max(sum(1 for _ in csv.reader(io.StringIO(text))) - 1, 0)
+        return _rows(text)
     except csv.Error as exc:
         problems.append(f"{name}: not a readable table ({exc})")
         return 0

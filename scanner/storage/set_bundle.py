@@ -20,7 +20,6 @@ set is stored (:class:`scanner.storage.ingest.SetWriter`: complete or absent, an
 
 from __future__ import annotations
 
-import hashlib
 import io
 import json
 import os
@@ -39,13 +38,14 @@ from scanner.storage.bundle import (
     MANIFEST,
     MANIFEST_SUM,
     MAX_MANIFEST_BYTES,
-    NO_LICENSE_TEXT,
     README,
     BundleError,
     Progress,
     bundle_writer,
     check_manifest_sum,
-    manifest_sum,
+    checksum,
+    export_target,
+    finish_bundle,
     nested_names,
     open_bundle,
     read_small,
@@ -63,12 +63,11 @@ from scanner.storage.metadata import (
     Provenance,
     Table,
     as_bytes,
-    checked_creator,
     croissant,
     croissant_file_sets,
+    csv_header,
     describe_tables,
     features_schema,
-    license_url,
     metadata_problems,
     recording_channels,
     recordings_schema,
@@ -114,12 +113,7 @@ def export_set(db_root: str | os.PathLike[str], name: str, out: str | os.PathLik
         A license or creator that cannot be written.
     """
     started = time.perf_counter()
-    out = Path(out)
-    if out.exists():
-        raise BundleError(f"{out} already exists; export to a new name")
-    if license is None:
-        raise BundleError(NO_LICENSE_TEXT)
-    license, creator = license_url(license), checked_creator(creator)
+    out, license, creator = export_target(out, license, creator)
     try:
         folder = set_folder(db_root, name)
     except IngestError as exc:
@@ -161,14 +155,10 @@ def export_set(db_root: str | os.PathLike[str], name: str, out: str | os.PathLik
                     "creator": creator, "counts": {"recordings": len(entries), "files": len(files),
                                                    "bytes": sum(f["size"] for f in files.values())},
                     "recordings": entries, "files": dict(sorted(files.items()))}
-        manifest_bytes = json.dumps(manifest, indent=1, allow_nan=False).encode("utf-8") + b"\n"
-        writer.add(MANIFEST, io.BytesIO(manifest_bytes))
-        writer.add(MANIFEST_SUM, io.BytesIO(manifest_sum(manifest_bytes)))
-        writer.commit()
+        size = finish_bundle(writer, files, manifest)
     except BaseException:
         writer.discard()
         raise
-    size = sum(f["size"] for f in files.values()) + len(manifest_bytes) + len(manifest_sum(manifest_bytes))
     return SetExportReport(out, len(entries), len(files) + 2, size, time.perf_counter() - started,
                            FEATURES_CSV in files, MAPPING in files)
 
@@ -194,21 +184,17 @@ def _set_files(name: str, recordings: Sequence[Recording], entries: Sequence[Map
                      "one row per recording: its name, label, groups and MATLAB file"), listing)]
     if FEATURES_CSV in files:
         data = extra[FEATURES_CSV].read_bytes()
-        header = data.split(b"\n", 1)[0].decode("utf-8").split(",")
+        header = csv_header(data)
         tables.append((Table("features", FEATURES_CSV, features_schema(header, feature_units, None),
                              "the set's feature table (texplorer features set:NAME; options in features.json)"),
                        data))
     out = {README: _readme(name, len(recordings), FEATURES_CSV in files, MAPPING in files).encode("utf-8"),
            RECORDINGS_CSV: listing, **describe_tables(tables, recording_channels(recordings), provenance)}
-    checksums = {**files, **{member: _checksum(data) for member, data in out.items()}}
+    checksums = {**files, **{member: checksum(data) for member, data in out.items()}}
     file_sets = croissant_file_sets([], f"{_FOLDER}/{name}/*.mat", "one MATLAB v5 file per recording: one "
                                     "variable per channel (channels record set) and a meta struct")
     out[CROISSANT] = as_bytes(croissant([table for table, _ in tables], checksums, provenance, file_sets))
     return out
-
-
-def _checksum(data: bytes) -> dict[str, Any]:
-    return {"sha256": hashlib.sha256(data).hexdigest(), "size": len(data)}
 
 
 def _readme(name: str, count: int, features: bool, mapping: bool) -> str:

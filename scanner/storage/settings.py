@@ -12,7 +12,7 @@ import json
 import os
 from pathlib import Path
 
-from scanner.storage.files import atomic_write_bytes
+from scanner.storage.files import atomic_write_bytes, read_json
 from scanner.storage.metadata import MetadataError, checked_creator, license_url
 
 SETTINGS = "settings.json"
@@ -29,19 +29,7 @@ def read_settings(db_root: str | os.PathLike[str]) -> dict[str, str]:
         The file is larger than 64 KiB, not a JSON object of strings, or holds a value that cannot be used.
     """
     path = Path(db_root) / SETTINGS
-    try:
-        with open(path, "rb") as handle:
-            data = handle.read(MAX_BYTES + 1)
-    except FileNotFoundError:
-        return {}
-    except OSError as exc:
-        raise MetadataError(f"{path}: cannot read ({exc.strerror})") from None
-    if len(data) > MAX_BYTES:
-        raise MetadataError(f"{path}: larger than {MAX_BYTES} bytes")
-    try:
-        values = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise MetadataError(f"{path}: not valid JSON ({exc}); fix or delete it") from None
+    values = read_json(path, MAX_BYTES, MetadataError, {}, "; fix or delete it")
     if not isinstance(values, dict) or not all(isinstance(v, str) for v in values.values()):
         raise MetadataError(f"{path}: must be a JSON object of strings")
     settings = {key: values[key] for key in KEYS if key in values}

@@ -31,7 +31,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from scanner.storage.files import atomic_write_bytes
+from scanner.storage.files import atomic_write_bytes, read_json
 from taxonomy.errors import TexplorerError
 from taxonomy.learning.models import TrainedModel, save_model
 
@@ -102,19 +102,8 @@ def _locked(folder: Path) -> Iterator[None]:
 
 def _read_index(folder: Path) -> dict[str, Any]:
     path = folder / INDEX
-    try:
-        with open(path, "rb") as handle:
-            data = handle.read(MAX_INDEX_BYTES + 1)
-    except FileNotFoundError:
-        return {"current": None, "versions": []}
-    except OSError as exc:
-        raise VersionError(f"{path}: cannot be read ({exc.strerror})") from None
-    if len(data) > MAX_INDEX_BYTES:
-        raise VersionError(f"{path}: larger than {MAX_INDEX_BYTES} bytes")
-    try:
-        index = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise VersionError(f"{path}: not valid JSON ({exc}); the model files beside it are intact") from None
+    index = read_json(path, MAX_INDEX_BYTES, VersionError, {"current": None, "versions": []},
+                      "; the model files beside it are intact")
     if not isinstance(index, dict) or not isinstance(index.get("versions"), list):
         raise VersionError(f"{path}: not a model index (an object with a 'versions' list)")
     return index

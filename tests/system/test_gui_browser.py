@@ -209,10 +209,10 @@ def test_full_scan_through_the_browser(page, server, tmp_path):
     shot(page, "06-form-empty")
     upload, pixels = photo_file(tmp_path)
     page.set_input_files("#I_disp", str(upload))
-    wait_until(page, "document.getElementById('I_disp-preview').naturalWidth > 0")
+    wait_until(page, "document.getElementById('I_disp-preview')?.naturalWidth > 0")
     page.click("button[name=capture][value=I_macro]")
     page.click("button[name=capture][value=I_illu]")
-    wait_until(page, "document.getElementById('I_illu-preview').naturalWidth > 0")
+    wait_until(page, "document.getElementById('I_illu-preview')?.naturalWidth > 0")
     assert page.locator("#I_disp-preview").get_attribute("src").startswith("/session/photo/I_disp")
     page.fill("#mass_g", "512,5")
     page.fill("#volume_cm3", "190")
@@ -224,7 +224,7 @@ def test_full_scan_through_the_browser(page, server, tmp_path):
     page.click("button:has-text('Continue to the summary')")
 
     page.wait_for_url(base + "/session/summary")
-    wait_until(page, "document.querySelector('.plot img').naturalWidth > 0", timeout=30)
+    wait_until(page, "document.querySelector('.plot img')?.naturalWidth > 0", timeout=30)
     text = page.inner_text("main")
     assert "thermal cooling TCO (K)" in text and "no trained model" in text
     assert len(database(app)) == 0
