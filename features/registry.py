@@ -252,6 +252,25 @@ class ScanRegistry(Registry[Family]):
         """The unit of every column that has one (:attr:`Family.units`)."""
         return {column: unit for family in self for column, unit in family.units.items()}
 
+    def column_groups(self, columns: Sequence[str]) -> list[tuple[str, tuple[int, ...]]]:
+        """``columns`` by the sensing step that measured them: ``[(title, column indices), ...]`` in order of
+        first appearance.
+
+        A column under one of :attr:`groups`' prefixes takes its title (the longest prefix wins: ``image.disp``
+        is "image: photo"); a recording's column ``<modality>.<role>.<feature>`` is grouped by modality and
+        role ("generic: vibration"); any other column by its first name part.
+        """
+        titles = {prefix: title.split(" (", 1)[0] for prefix, title in self.groups}
+        grouped: dict[str, list[int]] = {}
+        for index, column in enumerate(columns):
+            parts = column.split(".")
+            prefixes = [".".join(parts[:k]) for k in range(len(parts) - 1, 0, -1)]
+            title = next((titles[p] for p in prefixes if p in titles), None)
+            if title is None:
+                title = f"{parts[0]}: {parts[1]}" if len(parts) == 3 else parts[0]
+            grouped.setdefault(title, []).append(index)
+        return [(title, tuple(indices)) for title, indices in grouped.items()]
+
 
 REGISTRY = ScanRegistry()
 """The families every extraction computes (the paper's four, registered by :mod:`features.families`)."""

@@ -541,7 +541,7 @@ Predicted = tuple[list[tuple[str, float, str]] | None, str, str, LabelCheck | No
 
 
 def _predict(model: TrainedModel, values: dict[str, float], label: str) -> Predicted:
-    """The top three, a note on the model, "unknown material (closest: ...)" when its rule rejects, and where
+    """The top three, a note on the model, "unknown material (closest: ...): why" when its rule rejects, and where
     the operator's ``label`` disagrees with the model (:func:`scanner.workflows.check_label`).
     A model that fails or takes longer than ``prediction_timeout_s`` gives no prediction and a one-line note
     instead; the scan stays ready to save."""

@@ -44,6 +44,7 @@ from scanner.storage.matfile import load_scan, save_scan
 from scanner.storage.settings import read_settings
 from taxonomy.labels import Label, LabelError
 from taxonomy.learning.models import TrainedModel, classify_values, train_model
+from taxonomy.learning.openset import Explanation
 from taxonomy.learning.versions import (
     ModelVersion,
     add_version,
@@ -269,22 +270,44 @@ def _names(label: str, taxonomy: Taxonomy) -> str:
 
 @dataclass(frozen=True)
 class ScanPrediction:
-    """A model's ``k`` most probable labels for a scan (``predictions``, most probable first) and whether its
-    rejection rule calls the scan an unknown material (:mod:`taxonomy.learning.openset`)."""
+    """A model's ``k`` most probable labels for a scan (``predictions``, most probable first), whether its
+    rejection rule calls the scan an unknown material (:mod:`taxonomy.learning.openset`), and why: the
+    trained material closest to the scan (``closest``, named) and the rule's explanation."""
 
     predictions: list[Prediction]
     unknown: bool = False
     score: float = float("nan")
     threshold: float = float("inf")
+    closest: Prediction | None = None
+    explanation: Explanation | None = None
 
     def headline(self) -> str:
-        """``unknown material (closest: granite, polished 45.0 %)`` when rejected, else the best label's
-        name and probability."""
+        """``unknown material (closest: granite, polished (C6S1M1P2X1)): image: photo unlike every trained
+        material`` when rejected, else the best label's name and probability."""
         if not self.predictions:
             return "no prediction"
         best = self.predictions[0]
-        named = f"{best.names} ({best.label}) {100 * best.probability:.1f} %"
-        return f"unknown material (closest: {named})" if self.unknown else named
+        if not self.unknown:
+            return f"{best.names} ({best.label}) {100 * best.probability:.1f} %"
+        closest = self.closest or best
+        return f"unknown material (closest: {closest.names} ({closest.label})): {self.reason()}"
+
+    def reason(self) -> str:
+        """Why the rule finds the scan unlike the trained materials, in words: the sensing steps whose
+        features are unlike every trained material's, else what the largest term of the score says."""
+        explanation = self.explanation
+        if explanation is None:
+            return "its rejection score is above the model's threshold"
+        if explanation.unlike:
+            steps = " and ".join(filter(None, (", ".join(explanation.unlike[:-1]), explanation.unlike[-1])))
+            return f"{steps} {'is' if len(explanation.unlike) == 1 else 'are'} unlike every trained material"
+        if explanation.largest == "surprisal" and len(self.predictions) > 1:
+            first, second = self.predictions[:2]
+            return (f"the model is split between {first.names} ({100 * first.probability:.0f} %) and "
+                    f"{second.names} ({100 * second.probability:.0f} %)")
+        if explanation.largest == "distance":
+            return "the features the model classifies by lie outside every trained material's"
+        return "its features as a whole are unlike every trained material's"
 
 
 def predict_scan(model: TrainedModel, scan: Scan, k: int, taxonomy: Taxonomy) -> ScanPrediction:
@@ -302,7 +325,11 @@ def predict_scan(model: TrainedModel, scan: Scan, k: int, taxonomy: Taxonomy) ->
 def predict_values(model: TrainedModel, values: dict[str, float], k: int, taxonomy: Taxonomy) -> ScanPrediction:
     """As :func:`predict_scan`, from the scan's feature values already extracted."""
     verdict = classify_values(model, values, k)
-    return ScanPrediction(name_predictions(verdict.top, taxonomy), verdict.unknown, verdict.score, verdict.threshold)
+    explanation = verdict.explanation
+    closest = None if explanation is None else Prediction(explanation.closest, float("nan"),
+                                                          _names(explanation.closest, taxonomy))
+    return ScanPrediction(name_predictions(verdict.top, taxonomy), verdict.unknown, verdict.score, verdict.threshold,
+                          closest, explanation)
 
 
 MODEL_LEVELS = ("coarse", "medium", "fine")
@@ -350,7 +377,7 @@ def check_label(label: str, prediction: ScanPrediction, model: TrainedModel, tax
 
 def format_predictions(prediction: ScanPrediction | Sequence[Prediction]) -> str:
     """Lines like ``1. C6S1M1P2X1   82.0 %  granite (igneous stone, stone), polished, plain``, after a first
-    line ``unknown material (closest: ...)`` when the model's rule rejects the scan."""
+    line ``unknown material (closest: ...): <why>`` when the model's rule rejects the scan."""
     head = []
     if isinstance(prediction, ScanPrediction):
         if prediction.unknown:

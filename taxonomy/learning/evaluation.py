@@ -864,9 +864,11 @@ def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = 
                                     calibrate, materials=np.asarray(subset.label_text)[train], kernels=kernels,
                                     columns=subset.columns)
             fits += _fits(pipeline.steps[-1][1])
-            threshold, _ = learn_rejection(subset.X[train], y[train], groups[train], fit, seed=seed,
-                                           max_accuracy_drop=max_accuracy_drop)
-            rule = fit_rule(pipeline, subset.X[train], y[train], groups[train], threshold)
+            learned = learn_rejection(subset.X[train], y[train], groups[train], fit, subset.columns, seed=seed,
+                                      max_accuracy_drop=max_accuracy_drop)
+            rule = fit_rule(pipeline, subset.X[train], y[train], groups[train], learned, subset.columns,
+                            max_accuracy_drop)
+            threshold = learned.threshold
             s = rule.score(pipeline, subset.X[test])
             predicted = pipeline.predict(subset.X[test])
             p = np.zeros((len(test), classes.size))

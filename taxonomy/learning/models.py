@@ -3,17 +3,21 @@
 A model file is a skops archive (``skops.io``), a format that rebuilds objects from a declared schema and
 never executes code on load. It holds one dict::
 
-    format "texplorer-model", format_version 2, pipeline (MinMaxScaler -> FQSelector -> classifier),
+    format "texplorer-model", format_version 3, pipeline (MinMaxScaler -> FQSelector -> classifier),
     feature_names (input columns in order), level, classifier, n_features, selected (kept feature names,
     best FQ first), classes, seed, software_version, sklearn_version, dropped, n_rows,
-    open_set (means, precision, distance_scale, threshold, max_accuracy_drop, inner_auroc)
+    open_set (means, precision, distance_scale, threshold, max_accuracy_drop, inner_auroc, group_titles,
+              group_of, fill, centre, spread, reference, reference_classes, group_mean, group_sd,
+              group_limit, term_mean, term_sd)
 
 The classifier is a :class:`~taxonomy.learning.calibration.TemperatureScaledClassifier`: its probabilities are
 calibrated on grouped out-of-fold scores inside the training scans. ``open_set`` is the rejection rule
 of :mod:`taxonomy.learning.openset`: the class means and shared precision matrix of the training scans in the
-model's feature space, the distance scale ``M_0`` and the threshold ``t`` learned by leave-classes-out
-inside the training scans; a scan scoring above ``t`` is an unknown material. A version 1 file (before
-calibration and the rule) still loads, as a model that never rejects.
+model's feature space, the distance scale ``M_0``, the standardised training scans of the neighbour term with
+their feature groups, the scales of the three terms and the threshold ``t`` learned by leave-classes-out
+inside the training scans; a scan scoring above ``t`` is an unknown material. A version 2 file (before the
+neighbour term) loads with its previous score; a version 1 file (before calibration and the rule) as a model
+that never rejects.
 
 Loading first lists the file's types that skops does not trust by default and refuses the file unless
 they are all in :data:`TRUSTED_TYPES`; then it checks that the dict has exactly this shape and that the
@@ -58,13 +62,22 @@ from taxonomy.learning.evaluation import (
     fit_pipeline,
     resolve_feature_set,
 )
-from taxonomy.learning.openset import MAX_ACCURACY_DROP, RejectionRule, fit_rule, learn_rejection
+from taxonomy.learning.openset import (
+    MAX_ACCURACY_DROP,
+    Explanation,
+    Neighbours,
+    RejectionRule,
+    Scales,
+    fit_rule,
+    learn_rejection,
+)
 from taxonomy.table import Taxonomy
 
 MODEL_FORMAT = "texplorer-model"
-MODEL_FORMAT_VERSION = 2
-READABLE_VERSIONS = (1, 2)
-"""Version 1 files have no calibration and no rejection rule; they load as models that never reject."""
+MODEL_FORMAT_VERSION = 3
+READABLE_VERSIONS = (1, 2, 3)
+"""Version 1 files have no calibration and no rejection rule; they load as models that never reject. Version 2
+files have the rule's previous score (distance ratio and surprisal, without the neighbour term)."""
 
 TRUSTED_TYPES = (
     "features.modern.LengthRule",
@@ -86,6 +99,11 @@ MODEL_TYPES = (MinMaxScaler, FQSelector, *(type(est) for est in classifier_estim
 classifier bare, in a version 1 file, or inside a :class:`TemperatureScaledClassifier`)."""
 _OPEN_SET_TYPES = {"means": np.ndarray, "precision": np.ndarray, "distance_scale": float, "threshold": float,
                    "max_accuracy_drop": float, "inner_auroc": float}
+_NEIGHBOUR_TYPES = {"group_titles": list, "group_of": np.ndarray, "fill": np.ndarray, "centre": np.ndarray,
+                    "spread": np.ndarray, "reference": np.ndarray, "reference_classes": np.ndarray,
+                    "group_mean": np.ndarray, "group_sd": np.ndarray, "group_limit": np.ndarray,
+                    "term_mean": np.ndarray, "term_sd": np.ndarray}
+"""The open-set fields a version 3 file adds (:class:`taxonomy.learning.openset.Neighbours` and ``Scales``)."""
 
 _STEPS = ("scale", "select", "classify")
 _META_TYPES: dict[str, type | tuple[type, ...]] = {
@@ -217,9 +235,9 @@ def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, 
         return fit_pipeline(X, y_fit, g, classifier, n_features, seed, calibrate=False, kernels=kernels,
                             columns=subset.columns)
 
-    threshold, inner_auroc = learn_rejection(subset.X, y, groups, fit, seed=seed,
-                                             max_accuracy_drop=max_accuracy_drop)
-    rule = fit_rule(pipeline, subset.X, y, groups, threshold, max_accuracy_drop, inner_auroc)
+    learned = learn_rejection(subset.X, y, groups, fit, subset.columns, seed=seed,
+                              max_accuracy_drop=max_accuracy_drop)
+    rule = fit_rule(pipeline, subset.X, y, groups, learned, subset.columns, max_accuracy_drop)
     return TrainedModel(
         pipeline=pipeline, feature_names=subset.columns, level=level, classifier=classifier,
         n_features=n_features, selected=selected_names(pipeline, subset.columns),
@@ -268,6 +286,8 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
     }
     if model.rejection is not None:
         payload["open_set"] = model.rejection.to_dict()
+        if model.rejection.scales is None:  # fewer than three classes: nothing to learn the neighbour term on
+            payload["format_version"] = 2
     else:
         payload["format_version"] = 1
     data = _skops().dumps(payload)
@@ -363,7 +383,8 @@ def _model_from(path: Path, payload: Any) -> TrainedModel:
     pipeline = payload["pipeline"]
     _check_pipeline(path, pipeline)
     _check_consistent(path, payload, pipeline)
-    rule = _rule_from(path, payload["open_set"], pipeline) if version >= 2 else None
+    rule = _rule_from(path, payload["open_set"], pipeline, payload["feature_names"], version) if version >= 2 \
+        else None
     return TrainedModel(
         pipeline=pipeline, feature_names=tuple(payload["feature_names"]), level=payload["level"],
         classifier=payload["classifier"], n_features=payload["n_features"],
@@ -373,11 +394,12 @@ def _model_from(path: Path, payload: Any) -> TrainedModel:
     )
 
 
-def _rule_from(path: Path, stored: Any, pipeline: Pipeline) -> RejectionRule:
-    """The rejection rule of a version 2 file, after checking its fields' types and the arrays' shapes."""
-    if not isinstance(stored, dict) or set(stored) != set(_OPEN_SET_TYPES):
-        raise ModelError(f"{path}: the open_set field must hold {', '.join(_OPEN_SET_TYPES)}")
-    for key, kind in _OPEN_SET_TYPES.items():
+def _rule_from(path: Path, stored: Any, pipeline: Pipeline, inputs: Sequence[str], version: int) -> RejectionRule:
+    """The rejection rule of a version 2 or 3 file, after checking its fields' types and the arrays' shapes."""
+    kinds = _OPEN_SET_TYPES | (_NEIGHBOUR_TYPES if version >= 3 else {})
+    if not isinstance(stored, dict) or set(stored) != set(kinds):
+        raise ModelError(f"{path}: the open_set field must hold {', '.join(kinds)}")
+    for key, kind in kinds.items():
         if not isinstance(stored[key], kind):
             raise ModelError(f"{path}: open_set field {key!r} must be {kind.__name__}")
     means, precision = stored["means"], stored["precision"]
@@ -392,8 +414,47 @@ def _rule_from(path: Path, stored: Any, pipeline: Pipeline) -> RejectionRule:
         raise ModelError(f"{path}: the open-set distance scale must be a positive number and the threshold a "
                          f"number or +inf (never reject), got {stored['distance_scale']!r} and "
                          f"{stored['threshold']!r}")
+    neighbours, scales = (_neighbours_from(path, stored, len(inputs), len(pipeline.classes_)) if version >= 3
+                          else (None, None))
     return RejectionRule(means, precision, stored["distance_scale"], stored["threshold"], stored["max_accuracy_drop"],
-                         stored["inner_auroc"])
+                         stored["inner_auroc"], neighbours, scales)
+
+
+def _neighbours_from(path: Path, stored: dict[str, Any], inputs: int, classes: int) -> tuple[Neighbours, Scales]:
+    """The neighbour model and scales of a version 3 rule: every array of the shape the model's ``inputs``
+    columns, its groups and ``classes`` give, finite (a group's limit may be +inf), spreads and standard
+    deviations positive, indices inside what they index."""
+    titles = stored["group_titles"]
+    groups = len(titles)
+    if not all(isinstance(t, str) for t in titles):
+        raise ModelError(f"{path}: the open-set group titles must be text")
+    shapes = {"group_of": (inputs,), "fill": (inputs,), "centre": (inputs,), "spread": (inputs,),
+              "group_mean": (groups,), "group_sd": (groups,), "group_limit": (groups,), "term_mean": (3,),
+              "term_sd": (3,)}
+    reference, owners = stored["reference"], stored["reference_classes"]
+    wrong = [key for key, shape in shapes.items() if stored[key].shape != shape]
+    if reference.ndim != 2 or reference.shape[1:] != (inputs,) or owners.shape != reference.shape[:1] \
+            or not len(owners):
+        wrong.append("reference")
+    if wrong:
+        raise ModelError(f"{path}: open-set field(s) {', '.join(wrong)} do not fit {inputs} inputs, {groups} "
+                         f"groups and the reference scans")
+    finite = [key for key in (*shapes, "reference") if key not in ("group_of", "group_limit")
+              and not (stored[key].dtype.kind == "f" and np.isfinite(stored[key]).all())]
+    positive = [key for key in ("spread", "group_sd", "term_sd") if not np.all(stored[key] > 0)]
+    if finite or positive or np.isnan(stored["group_limit"]).any():
+        raise ModelError(f"{path}: open-set field(s) {', '.join(finite + positive) or 'group_limit'} must hold "
+                         f"finite (spreads: positive) numbers")
+    group_of = stored["group_of"]
+    if group_of.dtype.kind not in "iu" or owners.dtype.kind not in "iu" or np.any(group_of < -1) \
+            or np.any(group_of >= groups) or np.any(owners < 0) or np.any(owners >= classes):
+        raise ModelError(f"{path}: open-set group or class indices outside their {groups} groups and {classes} "
+                         f"classes")
+    neighbours = Neighbours(tuple(titles), group_of, stored["fill"], stored["centre"], stored["spread"], reference,
+                            owners)
+    scales = Scales(stored["group_mean"], stored["group_sd"], stored["group_limit"], stored["term_mean"],
+                    stored["term_sd"])
+    return neighbours, scales
 
 
 def _check_pipeline(path: Path, pipeline: Any) -> None:
@@ -535,11 +596,13 @@ def _check_consistent(path: Path, payload: dict[str, Any], pipeline: Pipeline) -
 @dataclass(frozen=True)
 class Verdict:
     """A model's answer for one scan: its ``k`` most probable classes, the rejection score and threshold
-    (NaN and +inf for a model without a rule) and whether the rule rejects the scan as an unknown material."""
+    (NaN and +inf for a model without a rule), whether the rule rejects the scan as an unknown material, and
+    the rule's :class:`~taxonomy.learning.openset.Explanation` (None without a rule)."""
 
     top: list[tuple[str, float]]
     score: float
     threshold: float
+    explanation: Explanation | None = None
 
     @property
     def unknown(self) -> bool:
@@ -553,7 +616,7 @@ def classify_values(model: TrainedModel, feature_values: Mapping[str, float], k:
         return Verdict(top, math.nan, math.inf)
     row = _row(model, feature_values)
     score = float(model.rejection.score(model.pipeline, row)[0])
-    return Verdict(top, score, model.rejection.threshold)
+    return Verdict(top, score, model.rejection.threshold, model.rejection.explain(model.pipeline, row)[0])
 
 
 def _row(model: TrainedModel, feature_values: Mapping[str, float]) -> np.ndarray:

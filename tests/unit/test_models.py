@@ -241,6 +241,13 @@ def _set(array, index, value):
                                                               r"got .* and -inf"),
     (lambda p: p["open_set"].update(threshold=float("nan")), r"the threshold a number or \+inf .* and nan"),
     (lambda p: _set(p["pipeline"].named_steps["select"].selected_, 0, 99), "selected_ must be distinct column"),
+    (lambda p: p["open_set"].update(reference=np.zeros((3, 2))), "open-set field.* reference do not fit 6 inputs"),
+    (lambda p: _set(p["open_set"]["reference"], (0, 0), np.nan), "open-set field.* reference must hold finite"),
+    (lambda p: _set(p["open_set"]["term_sd"], 1, 0.0), "open-set field.* term_sd must hold finite"),
+    (lambda p: _set(p["open_set"]["group_of"], 0, 50), "group or class indices outside their"),
+    (lambda p: _set(p["open_set"]["reference_classes"], 0, -3), "group or class indices outside their"),
+    (lambda p: p["open_set"].update(group_titles=[1]), "group titles must be text"),
+    (lambda p: p["open_set"].pop("fill"), "the open_set field must hold"),
 ])
 def test_a_model_with_parameters_prediction_cannot_use_is_refused_naming_the_part(forest, tmp_path, change,
                                                                                   message):
