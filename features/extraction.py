@@ -395,6 +395,13 @@ class WorkerPool:
                 self._executor = _forked_pool(self.size, self.niceness)
                 return self._executor.submit(fn, item)
 
+    def submit(self, fn: Callable[..., object], *args: object) -> concurrent.futures.Future:
+        """``fn(*args)`` on one of these workers, as ``concurrent.futures.Executor.submit``: a job's work
+        other than extraction (the web app trains a model version there, at the workers' lower priority,
+        while the server answers the operator). ``fn`` must be importable by name; it, ``args`` and the
+        result are pickled."""
+        return self._submit(_call, (fn, args))
+
     def _done_with(self, futures: Iterable[concurrent.futures.Future]) -> None:
         """A batch leaves early (Ctrl-C, an error): its tasks not started are dropped."""
         _drop_tasks_not_started(futures)
@@ -695,6 +702,12 @@ def revive_worker_server() -> bool:
         server._forkserver_pid = server._forkserver_alive_fd = server._forkserver_address = None
     server.ensure_running()
     return True
+
+
+def _call(task: tuple[Callable[..., object], tuple[object, ...]]) -> object:
+    """A :meth:`WorkerPool.submit` task in a worker: ``fn(*args)``."""
+    fn, args = task
+    return fn(*args)
 
 
 def _start_worker(parent: int | None, forked: bool, niceness: int = 0) -> None:

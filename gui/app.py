@@ -49,6 +49,15 @@ def when(started: str) -> str:
     return f"{date} {clock[:5]}".strip()
 
 
+def _training_notice() -> dict[str, tuple[str, str] | None]:
+    """Every page's line on the background training (:mod:`gui.training`): ``(css class, text)`` or None."""
+    job = context().trainings.recent()
+    if job is None:
+        return {"training_notice": None}
+    kind = "busy" if job.running else ("good" if job.change is not None else "bad")
+    return {"training_notice": (kind, job.notice(context().db.taxonomy()))}
+
+
 def _error_page(error: HTTPException) -> tuple[str, int] | Response:
     if request_ctx.url_adapter is None:  # refused before routing (a malformed Host header): no page links
         text = f"{error.code} {error.name}: {error.description}\n"
@@ -88,6 +97,7 @@ def create_app(settings: Settings) -> Flask:
     app.register_error_handler(RequestEntityTooLarge, _too_large)
     app.register_error_handler(HTTPException, _error_page)
 
+    app.context_processor(_training_notice)
     app.register_blueprint(operate.blueprint)
     app.register_blueprint(browser.blueprint, url_prefix="/db")
     return app

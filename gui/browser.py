@@ -33,6 +33,7 @@ from scanner.storage.metadata import MetadataError, checked_creator, license_url
 from scanner.storage.settings import read_settings
 from scanner.workflows import extract_database, stored_features
 from taxonomy.labels import Label, LabelError
+from taxonomy.learning.versions import VersionError, current_version, use_version, versions
 from taxonomy.reports.plots import plot_scan
 from taxonomy.table import Taxonomy, material_code, select_labels
 
@@ -356,3 +357,47 @@ def export_cancel(job_id: str) -> Response:
     context().exports.cancel(job)
     flash(f"The export of {job.filters} was cancelled; nothing was kept.", "good")
     return redirect(url_for("database.overview"))
+
+
+# -- model versions -----------------------------------------------------------------------------------
+
+
+@blueprint.get("/models")
+def models() -> tuple[str, int]:
+    """The database's model versions (as ``texplorer models``), the background training and its queue."""
+    ctx = context()
+    try:
+        found, current = versions(ctx.db.root), current_version(ctx.db.root)
+    except VersionError as exc:
+        flash(f"{exc}.", "bad")
+        found, current = [], None
+    fixed = ctx.settings.model  # serve --model: that file, whatever the database's current version
+    return render_template("db_models.html", versions=list(reversed(found)), current=current, fixed=fixed,
+                           job=ctx.trainings.job, queued=ctx.trainings.queued,
+                           taxonomy=ctx.db.taxonomy()), 200
+
+
+@blueprint.post("/models/train")
+def train_model() -> Response:
+    """Train a new model version on every scan now, in the background (:mod:`gui.training`)."""
+    ctx = context()
+    if not ctx.db.records():
+        flash("There are no scans to train a model on.", "bad")
+    else:
+        started = ctx.trainings.start("asked for on the models page")
+        flash("A new model version is being trained in the background" + ("" if started else
+              ", after the one running now") + ".", "good")
+    return redirect(url_for("database.models"))
+
+
+@blueprint.post("/models/use")
+def use_model() -> Response:
+    """Make an older (or newer) model version current again: the next prediction uses it."""
+    wanted = request.form.get("version", "")[:12]
+    try:
+        chosen = use_version(context().db.root, wanted)
+    except VersionError as exc:
+        flash(f"No version was made current: {exc}.", "bad")
+    else:
+        flash(f"Version {chosen.version} is current: the next prediction uses it.", "good")
+    return redirect(url_for("database.models"))

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import contextlib
 import secrets
+import threading
 from dataclasses import dataclass, field
-from functools import cached_property
 from pathlib import Path
 
 from flask import current_app
@@ -16,6 +16,7 @@ from gui.exports import Exports
 from gui.figures import Keeper
 from gui.live_session import Operations
 from gui.photos import DEFAULT_MAX_BYTES, DEFAULT_MAX_PIXELS, PhotoStore
+from gui.training import Trainings
 from scanner.acquisition.config import Config
 from scanner.storage.database import Database
 from scanner.workflows import default_model
@@ -68,7 +69,7 @@ class Settings:
 
 class Context:
     """What every request needs: settings, database, device configuration, staged photos, the running scan,
-    the export job, the model."""
+    the export job, the background trainings, the model."""
 
     def __init__(self, settings: Settings) -> None:
         self.settings = settings
@@ -80,6 +81,9 @@ class Context:
         self.operations = Operations(self.photos, settings.heartbeat_timeout_s)
         self.exports = Exports(self.db, settings.export_dir, workers=settings.workers,
                                abandon_after_s=settings.export_abandon_s)
+        self.trainings = Trainings(self.db, workers=settings.workers)
+        self._model: tuple[tuple[Path, int], TrainedModel] | None = None
+        self._model_lock = threading.Lock()
 
     @property
     def model_path(self) -> Path | None:
@@ -88,11 +92,21 @@ class Context:
             return Path(self.settings.model)
         return default_model(self.settings.db)
 
-    @cached_property
+    @property
     def model(self) -> TrainedModel | None:
-        """The trained model (loaded on first use), or None."""
+        """The trained model, or None: loaded on first use, and again when the current version changed
+        (a training of this app or of ``texplorer train``, ``texplorer models --use``) or its file did."""
         path = self.model_path
-        return None if path is None else load_model(path)
+        if path is None:
+            return None
+        try:
+            key = (path, path.stat().st_mtime_ns)
+        except OSError:
+            key = (path, -1)  # load_model says why it cannot be read
+        with self._model_lock:  # one load at a time; a request during it gets the same model
+            if self._model is None or self._model[0] != key:
+                self._model = (key, load_model(path))
+            return self._model[1]
 
     def warm_up(self) -> None:
         """Load the model while the operator scans, so the summary page does not wait for it (seconds, the

@@ -686,15 +686,52 @@ def relabel() -> tuple[str, int] | Response:
 
 @blueprint.post("/session/save")
 def save() -> tuple[str, int] | Response:
-    ctx = context()
     op = operation()
+    scan_id = _save(op)
+    if scan_id is None:
+        return redirect(url_for("operate.summary"))
+    flash(f"Scan {scan_id} was saved.", "good")
+    return redirect(url_for("database.scan", scan_id=scan_id))
+
+
+def _save(op: Operation) -> str | None:
+    """Save the session's scan and end the session; None (and a message) when the save was refused."""
+    ctx = context()
     try:
         scan_id = op.session.save(ctx.db)
     except (SessionError, DatabaseError, ValueError) as exc:
         flash(f"The scan was not saved: {session_error(exc)}", "bad")
-        return redirect(url_for("operate.summary"))
+        return None
     keep_for_the_scan_page(op, ctx.db.record(scan_id))
     keep_start_form(op.session, ("operator",))
     ctx.operations.end(op)
-    flash(f"Scan {scan_id} was saved.", "good")
+    return scan_id
+
+
+@blueprint.post("/session/enrol")
+def enrol() -> tuple[str, int] | Response:
+    """Enrolment from the summary: save the scan under the label given (a new material's, or the corrected
+    one; checked as on the start page) and train a new model version with it in the background
+    (:mod:`gui.training`); scanning goes on meanwhile."""
+    ctx = context()
+    op = operation()
+    text = request.form.get("label", "").strip()[:200] or op.session.label
+    if text != op.session.label:
+        form = {"operator": op.session.operator, "label": text, "sample_id": op.session.sample_id}
+        try:
+            op.session.relabel(validate_start(form, ctx.db.taxonomy(), sample_owner).label)
+        except FormErrors as exc:
+            flash(f"Nothing was saved: {next(iter(exc.errors.values()))}", "bad")
+            return redirect(url_for("operate.summary"))
+        except SessionError as exc:
+            flash(f"Nothing was saved: {session_error(exc)}", "bad")
+            return redirect(url_for("operate.summary"))
+        op.changed()
+    label = op.session.label
+    scan_id = _save(op)
+    if scan_id is None:
+        return redirect(url_for("operate.summary"))
+    started = ctx.trainings.start(f"{scan_id} enrolled as {label}")
+    flash(f"Scan {scan_id} was saved as {label}. A new model version with it is being trained in the background"
+          + ("" if started else ", after the one running now") + "; every page says when it is ready.", "good")
     return redirect(url_for("database.scan", scan_id=scan_id))

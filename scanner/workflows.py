@@ -43,6 +43,7 @@ from scanner.storage.database import Database, DatabaseError, ScanRecord
 from scanner.storage.matfile import load_scan, save_scan
 from scanner.storage.settings import read_settings
 from taxonomy.labels import Label, LabelError
+from taxonomy.learning.evaluation import EvaluationError, evaluate
 from taxonomy.learning.models import TrainedModel, classify_values, train_model
 from taxonomy.learning.openset import Explanation
 from taxonomy.learning.versions import (
@@ -197,6 +198,98 @@ def train_default_model(space: FeatureSpace, seed: int) -> TrainedModel:
     :func:`taxonomy.learning.models.train_model`); :func:`save_model_version` keeps it."""
     level, n_features, classifier = DEFAULT_MODEL_SETTINGS
     return train_model(space, level, n_features, classifier, seed)
+
+
+def train_and_measure(space: FeatureSpace, level: str, n_features: int, classifier: str, seed: int,
+                      cv: bool = True) -> tuple[TrainedModel, dict[str, float], str]:
+    """A model of ``space`` and the headline figures its version records: the pooled accuracy of the same
+    settings cross-validated over the space's samples (``cv``; left out, with a note, where there are too
+    few scans to cross-validate). Returns the model, the figures and a note for people."""
+    model = train_model(space, level, n_features, classifier, seed)
+    if not cv:
+        return model, {}, ""
+    started = time.perf_counter()
+    try:
+        result = evaluate(space, classifier, level, n_features, seed=seed, calibrate=False)
+    except EvaluationError as exc:  # too few scans to cross-validate: the model is still kept
+        return model, {}, f"no cross-validated accuracy for this version: {exc}"
+    return model, {"cv_accuracy": float(result.accuracy_pooled)}, (
+        f"cross-validated accuracy of these settings: {100 * result.accuracy_pooled:.1f} % "
+        f"({result.splitting}, {time.perf_counter() - started:.1f} s)")
+
+
+@dataclass(frozen=True)
+class ModelChange:
+    """What a new model version changed against the version that was current before it."""
+
+    after: ModelVersion
+    before: ModelVersion | None
+    current: ModelVersion | None
+
+    @property
+    def added(self) -> tuple[str, ...]:
+        """Classes the new version predicts that the one before did not (all of them after a first model)."""
+        known = set(self.before.classes) if self.before is not None else set()
+        return tuple(c for c in self.after.classes if c not in known)
+
+    @property
+    def removed(self) -> tuple[str, ...]:
+        """Classes the version before predicted and the new one does not."""
+        if self.before is None or not self.before.classes:  # version 0 records no classes
+            return ()
+        return tuple(c for c in self.before.classes if c not in set(self.after.classes))
+
+    def describe(self, taxonomy: Taxonomy | None = None) -> str:
+        """``model version 5 (rf, fine level, 10 features; 198 scans) is current: 1 class added, granite ...
+        (C6S1M1P2X1); cross-validated accuracy 95.1 % (version 4) -> 95.3 %``."""
+        def named(labels: tuple[str, ...]) -> str:
+            return ", ".join(f"{_names(c, taxonomy)} ({c})" if taxonomy is not None else c for c in labels[:5]) \
+                + (f" and {len(labels) - 5} more" if len(labels) > 5 else "")
+
+        after, before = self.after, self.before
+        in_use = self.current is not None and self.current.version == after.version
+        parts = [f"model version {after.version} ({after.protocol()}; {after.rows} scans) "
+                 + ("is current" if in_use else f"is kept; version {self.current.version if self.current else '-'} "
+                    "stays current")]
+        if before is None:
+            parts.append(f"{len(after.classes)} classes")
+        else:
+            changed = [f"{len(labels)} class{'es' if len(labels) > 1 else ''} {kind}: {named(labels)}"
+                       for kind, labels in (("added", self.added), ("removed", self.removed)) if labels]
+            parts.append("; ".join(changed) or f"the same {len(after.classes)} classes as version {before.version}")
+        old, new = (None if before is None else before.figures.get("cv_accuracy")), after.figures.get("cv_accuracy")
+        if new is not None:
+            parts.append("cross-validated accuracy " + (f"{100 * old:.1f} % (version {before.version}) -> "
+                                                         if old is not None and before is not None else "")
+                         + f"{100 * new:.1f} %")
+        return "; ".join(parts)
+
+
+def retrain(db: Database, *, seed: int = 0, pool: WorkerPool | None = None, cv: bool = True, note: str = "",
+            make_current: bool = True) -> ModelChange:
+    """Train a new model version on every scan of ``db`` with the current version's classifier, level and
+    number of features (:data:`DEFAULT_MODEL_SETTINGS` without one, or after a version 0), its figures
+    measured as :func:`train_and_measure`; the features of ``pool`` (a job's workers, read from the feature
+    cache where they are current), the training too where a pool is given (on one of its workers, at their
+    priority). Returns what changed against the version current before.
+
+    Raises
+    ------
+    DatabaseError
+        No scans.
+    taxonomy.learning.evaluation.EvaluationError
+        Scans the model cannot be trained on (a single class).
+    """
+    before = current_version(db.root)
+    level, n_features, classifier = DEFAULT_MODEL_SETTINGS
+    if before is not None and before.version > 0:
+        level, n_features, classifier = before.level, before.n_features, before.classifier
+    space = extract_database(db, pool=pool, progress=False)
+    arguments = (space, level, n_features, classifier, seed, cv)
+    model, figures, _ = (pool.submit(train_and_measure, *arguments).result() if pool is not None
+                         else train_and_measure(*arguments))
+    version = save_model_version(db, model, space, figures, note=note, make_current=make_current)
+    return ModelChange(version, before, current_version(db.root))
 
 
 def save_model_version(db: Database, model: TrainedModel, space: FeatureSpace,

@@ -160,6 +160,9 @@ def _check_label(session: Session, model: TrainedModel, args: argparse.Namespace
     scan = session.scan(db.next_scan_index(session.sample_id) if db is not None else 1)
     prediction = predict_scan(model, scan, 3, taxonomy)
     print("\n" + format_predictions(prediction))
+    if prediction.unknown:
+        print("to teach the model this material: save the scan under its label, then 'texplorer train' makes a new "
+              "model version with it ('texplorer models' lists the versions)")
     check = check_label(session.label, prediction, model, taxonomy)
     if check is None:
         return

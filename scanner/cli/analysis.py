@@ -35,6 +35,7 @@ from scanner.storage.files import atomic_write_bytes, sha256_file
 from scanner.storage.ingest import load_recordings, set_folder
 from scanner.storage.matfile import load_scan
 from scanner.workflows import (
+    ModelChange,
     extract_database,
     format_predictions,
     model_file,
@@ -430,9 +431,9 @@ def cmd_train(args: argparse.Namespace) -> int:
     version = save_model_version(open_db(args), model, space, figures, note="texplorer train",
                                  make_current=not args.keep_current)
     now = current_version(args.db)
-    print(f"model version {version.version}: {version_file(args.db, version)}; the web application and classify "
-          f"use version {now.version if now else '-'}" + (f" (before: {before.version})" if before and now and
-                                                          before.version != now.version else ""))
+    print(ModelChange(version, before, now).describe(load_taxonomy()))
+    print(f"wrote {version_file(args.db, version)}; the web application (at its next prediction) and classify use "
+          f"version {now.version if now else '-'}")
     return 0
 
 

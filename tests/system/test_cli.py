@@ -98,9 +98,13 @@ def test_train_keeps_every_model_version_and_models_lists_and_switches_them(demo
     captured = capsys.readouterr()
     # Four scans per major class cannot fill five folds: said, and the model is kept all the same.
     assert "no cross-validated accuracy for this version: 5 folds need a class with at least 5 rows" in captured.err
-    assert "model version 2: " in captured.out and "use version 2 (before: 1)" in captured.out
+    # What changed against the version before: the coarse classes added, the fine ones of the demo removed.
+    assert "model version 2 (rf, coarse level, 3 features; " in captured.out and ") is current; " in captured.out
+    assert re.search(r"\d+ classes added: [^;]*\(C\d\)", captured.out) and "classes removed: " in captured.out
+    assert "use version 2" in captured.out
     assert main(["train", "--db", str(db), "--level", "coarse", "--n", "3", "--no-cv", "--keep-current"]) == 0
-    assert "model version 3: " in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "model version 3 (" in out and "is kept; version 2 stays current; the same " in out
     assert (db / "models" / "v001-rf-fine-X10.skops").read_bytes() == demo_model  # a second train keeps the first
     assert sorted(p.name for p in (db / "models").glob("*.skops")) == [
         "v001-rf-fine-X10.skops", "v002-rf-coarse-X3.skops", "v003-rf-coarse-X3.skops"]

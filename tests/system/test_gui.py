@@ -651,3 +651,50 @@ def test_a_label_the_model_never_saw_is_named_and_can_be_kept_or_replaced(tmp_pa
         assert [r.label for r in app.extensions["texplorer"].db.records()] == ["C6S1M1P1X1"]
     finally:
         app.extensions["texplorer"].shutdown()
+
+
+def test_an_unknown_material_is_enrolled_from_the_summary_into_a_new_model_version(tmp_path):
+    """A database of three materials and its model (version 1); a scan of granite, which the model never
+    saw, is saved from the summary as granite and trained into version 2 in the background."""
+    from scanner.workflows import retrain, simulated_database
+    from taxonomy.learning.versions import current_version, versions
+
+    db = simulated_database(tmp_path / "db", materials=["oak-planed", "mild-steel-brushed", "cork-board"],
+                            scans_per_material=2, samples_per_material=2, image_size=(300, 300), progress=False,
+                            workers=2)
+    first = retrain(db, note="the first model")
+    assert first.after.version == 1 and "C6S1M1P2X1" not in first.after.classes
+    app = make_app(tmp_path / "db", long_enough_config())
+    client = app.test_client()
+    ctx = app.extensions["texplorer"]
+    try:
+        page = summary_after_a_full_scan(client, app)
+        assert 'id="enrol"' in page and "never trained on" in page
+        assert post(client, "/session/enrol", {"label": "C7S1M1P1X1x"}).headers["Location"] == "/session/summary"
+        assert "Nothing was saved" in get(client, "/session/summary").text and len(database(app)) == 12
+        answer = post(client, "/session/enrol", {"label": "C6S1M1P2X1"})
+        assert answer.headers["Location"] == "/db/scan/granite-01-001"
+        assert "is being trained in the background" in get(client, answer.headers["Location"]).text
+        assert ctx.trainings.wait(600)
+        job = ctx.trainings.job
+        assert job.phase == "done", job.error
+        assert job.change.added == ("C6S1M1P2X1",) and job.change.before.version == 1
+        assert current_version(db.root).version == 2 and [v.version for v in versions(db.root)] == [1, 2]
+        assert "C6S1M1P2X1" in ctx.model.classes and ctx.model.n_rows == 13
+        notice = get(client, "/").text.split('id="training"', 1)[1].split("</p>", 1)[0]
+        assert "model version 2" in notice and "1 class added: granite" in notice
+        listing = get(client, "/db/models").text
+        assert "v2 (current)" in listing and "granite-01-001 enrolled as C6S1M1P2X1" in listing
+        # an older version can be made current again, and the next prediction uses it
+        post(client, "/db/models/use", {"version": "1"})
+        assert current_version(db.root).version == 1 and "C6S1M1P2X1" not in ctx.model.classes
+    finally:
+        ctx.shutdown()
+
+
+def long_enough_config():
+    """Simulated devices with slides long enough for every feature (a second of sound and vibration after the slide starts)."""
+    from dataclasses import replace
+
+    config = fast_config()
+    return replace(config, steps=replace(config.steps, finger_slide=2.5, tool_slide=2.5))
