@@ -693,7 +693,8 @@ def test_an_unknown_material_is_enrolled_from_the_summary_into_a_new_model_versi
 
 
 def long_enough_config():
-    """Simulated devices with slides long enough for every feature (a second of sound and vibration after the slide starts)."""
+    """Simulated devices with slides long enough for every feature (a second of sound and vibration after the
+    slide starts)."""
     from dataclasses import replace
 
     config = fast_config()
