@@ -457,7 +457,7 @@ def check_label(label: str, prediction: ScanPrediction, model: TrainedModel, tax
     except LabelError:
         return None
     best = prediction.predictions[0]
-    offered = best.label if model.level == "fine" else None
+    offered = best.label if model.level == "fine" and not prediction.unknown else None  # not a material it rejects
     predicted = f"the model predicts {best.names} ({best.label}) at {100 * best.probability:.1f} %"
     if mine not in model.classes:
         return LabelCheck(f"your label {_named(label, taxonomy)} names a class the model was never trained on "

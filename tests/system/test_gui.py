@@ -670,6 +670,8 @@ def test_an_unknown_material_is_enrolled_from_the_summary_into_a_new_model_versi
     try:
         page = summary_after_a_full_scan(client, app)
         assert 'id="enrol"' in page and "never trained on" in page
+        # an unknown material: no offer to save it as the trained material the forest would name
+        assert 'id="unknown-material"' in page and 'value="predicted">Save as' not in page
         assert post(client, "/session/enrol", {"label": "C7S1M1P1X1x"}).headers["Location"] == "/session/summary"
         assert "Nothing was saved" in get(client, "/session/summary").text and len(database(app)) == 12
         answer = post(client, "/session/enrol", {"label": "C6S1M1P2X1"})
