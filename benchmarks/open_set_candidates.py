@@ -7,9 +7,11 @@ outer folds are those of :func:`taxonomy.learning.evaluation.evaluate_open_set` 
 10 FQ features, 5 folds grouped by the table's ``sample_id``, a fifth of the classes held out per fold, seed
 0) and the inner rounds those of :func:`taxonomy.learning.openset.learn_rejection`. Every candidate score is
 computed on the same inner rounds and outer test rows; each combination averages its parts after
-standardising them on the inner rounds' known rows; each threshold is learned on the inner rounds only
-(:func:`taxonomy.learning.openset.choose_threshold`, the product's rule). The previous rule's row uses its own
-threshold, a normal fit. A final row is the product's ``evaluate_open_set`` itself. Prints one markdown
+standardising them on the inner rounds' known rows; each threshold is learned inside the training rows as the
+product's rule learns its own (:func:`taxonomy.learning.openset.choose_threshold` on the scores of grouped
+folds that keep every training class, :func:`taxonomy.learning.openset.known_scores`). The previous rule's row
+uses its own threshold, a normal fit to the leave-classes-out rounds' known rows. A final row is the
+product's ``evaluate_open_set`` itself. Prints one markdown
 table per file; it takes a few minutes per file on two cores.
 
 Candidates: ``u`` surprisal of the forest's top class (Hendrycks and Gimpel 2017); ``m`` Mahalanobis
@@ -160,11 +162,21 @@ def compare(path: str) -> None:
                                 subset.columns))
             inner_unknown.append(~np.isin(y[rows_test], y[rows_train]))
             inner_correct.append(pipeline.predict(X[rows_test]) == y[rows_test])
+        known, known_unknown, known_correct = [], [], []
+        for part_train, part_test in grouped_splits(y[train], groups[train], ROUNDS, SEED):
+            rows_train, rows_test = train[part_train], train[part_test]
+            pipeline = fit(rows_train, False)
+            known.append(scores(pipeline, X[rows_train], y[rows_train], groups[rows_train], X[rows_test],
+                                subset.columns))
+            known_unknown.append(~np.isin(y[rows_test], y[rows_train]))
+            known_correct.append(pipeline.predict(X[rows_test]) == y[rows_test])
         pipeline = fit(train, True)
         fold = {"inner": {n: np.concatenate([s[n] for s in inner]) for n in inner[0]},
                 "unknown": np.concatenate(inner_unknown), "correct": np.concatenate(inner_correct),
+                "known": {n: np.concatenate([s[n] for s in known]) for n in known[0]},
+                "known_unknown": np.concatenate(known_unknown), "known_correct": np.concatenate(known_correct),
                 "outer": scores(pipeline, X[train], y[train], groups[train], X[test], subset.columns),
-                "known": ~held[test], "right": pipeline.predict(X[test]) == y[test]}
+                "is_known": ~held[test], "right": pipeline.predict(X[test]) == y[test]}
         _add_group_scores(fold)
         folds.append(fold)
     print(f"\n{path}: {len(y)} rows, {np.unique(y).size} classes, {int(group_of.max()) + 1} feature groups")
@@ -196,7 +208,7 @@ def _add_group_scores(fold: dict) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         mean, sd = np.nanmean(known, axis=0), np.maximum(np.nanstd(known, axis=0, ddof=1), 1e-12)
-        for side in ("inner", "outer"):
+        for side in ("inner", "known", "outer"):
             z = (fold[side]["groups"] - mean) / sd
             fold[side]["groups-mean"], fold[side]["groups-max"] = np.nanmean(z, axis=1), np.nanmax(z, axis=1)
 
@@ -215,11 +227,11 @@ def _row(name: str, folds: list[dict], score: Callable[[dict, str], np.ndarray],
             kept = inner[~fold["unknown"] & fold["correct"]]
             q = MAX_ACCURACY_DROP * int((~fold["unknown"]).sum()) / kept.size
             threshold = kept.mean() + kept.std(ddof=1) * norm.ppf(1 - q)
-        else:
-            threshold = choose_threshold(inner, fold["unknown"], fold["correct"])
+        else:  # the rule's: the known rows of grouped folds that keep every class
+            threshold = choose_threshold(score(fold, "known"), fold["known_unknown"], fold["known_correct"])
         s = score(fold, "outer")
         outer.append(s)
-        unknown.append(~fold["known"])
+        unknown.append(~fold["is_known"])
         right.append(fold["right"])
         rejected.append(s > threshold)
     s, u, c, r = map(np.concatenate, (outer, unknown, right, rejected))
