@@ -660,28 +660,34 @@ def keep_for_the_scan_page(op: Operation, record: ScanRecord) -> None:
 def relabel() -> tuple[str, int] | Response:
     """The summary's answer to a label check: keep the operator's label, take the predicted one, or another
     (checked as on the start page: known to the taxonomy, and the sample's own material)."""
-    ctx = context()
     op = operation()
     choice = request.form.get("choice", "")[:16]
     text = {"mine": op.session.label, "predicted": request.form.get("predicted", ""),
             "other": request.form.get("label", "")}.get(choice)
     if text is None:
         abort(400, description=f"choice must be mine, predicted or other, got {choice!r}")
-    form = {"operator": op.session.operator, "label": text[:200], "sample_id": op.session.sample_id}
-    try:
-        label = validate_start(form, ctx.db.taxonomy(), sample_owner).label
-        op.session.relabel(label)
-    except FormErrors as exc:
-        flash(f"The label was not changed: {next(iter(exc.errors.values()))}", "bad")
-        return redirect(url_for("operate.summary"))
-    except SessionError as exc:
-        flash(f"The label was not changed: {session_error(exc)}", "bad")
+    refused = _relabel(op, text[:200])
+    if refused:
+        flash(f"The label was not changed: {refused}", "bad")
         return redirect(url_for("operate.summary"))
     op.summary_cache["label_kept"] = choice == "mine"
     if choice != "mine":
         op.changed()
-        flash(f"The scan will be saved as {label}.", "good")
+        flash(f"The scan will be saved as {op.session.label}.", "good")
     return redirect(url_for("operate.summary"))
+
+
+def _relabel(op: Operation, text: str) -> str:
+    """Give the session's scan the label ``text``, checked as on the start page (known to the taxonomy, and
+    the sample's own material); "" when done, else why not (one line)."""
+    form = {"operator": op.session.operator, "label": text, "sample_id": op.session.sample_id}
+    try:
+        op.session.relabel(validate_start(form, context().db.taxonomy(), sample_owner).label)
+    except FormErrors as exc:
+        return str(next(iter(exc.errors.values())))
+    except SessionError as exc:
+        return session_error(exc)
+    return ""
 
 
 @blueprint.post("/session/save")
@@ -717,14 +723,9 @@ def enrol() -> tuple[str, int] | Response:
     op = operation()
     text = request.form.get("label", "").strip()[:200] or op.session.label
     if text != op.session.label:
-        form = {"operator": op.session.operator, "label": text, "sample_id": op.session.sample_id}
-        try:
-            op.session.relabel(validate_start(form, ctx.db.taxonomy(), sample_owner).label)
-        except FormErrors as exc:
-            flash(f"Nothing was saved: {next(iter(exc.errors.values()))}", "bad")
-            return redirect(url_for("operate.summary"))
-        except SessionError as exc:
-            flash(f"Nothing was saved: {session_error(exc)}", "bad")
+        refused = _relabel(op, text)
+        if refused:
+            flash(f"Nothing was saved: {refused}", "bad")
             return redirect(url_for("operate.summary"))
         op.changed()
     label = op.session.label
