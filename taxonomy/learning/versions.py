@@ -195,8 +195,10 @@ def add_version(db_root: str | os.PathLike[str], model: TrainedModel, *, fingerp
 
 
 def use_version(db_root: str | os.PathLike[str], spec: str | int) -> ModelVersion:
-    """Make an existing version current again; returns it."""
+    """Make an existing version current again; returns it. A version that does not exist is refused before
+    anything is written (the lock file included)."""
     folder = models_folder(db_root)
+    find_version(db_root, spec)
     with _locked(folder):
         chosen = find_version(db_root, spec)
         index = _read_index(folder)

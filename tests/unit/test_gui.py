@@ -612,3 +612,20 @@ def test_export_form_offers_the_database_license_and_creator(stocked, tmp_path):
     (tmp_path / "db" / "settings.json").write_text("{broken")
     page = get(stocked, "/db/").text
     assert "settings.json: not valid JSON" in page and 'name="license" value=""' in page
+
+
+def test_the_models_page_refuses_hostile_or_empty_requests_in_one_line(client, app):
+    page = get(client, "/db/models")
+    assert page.status_code == 200 and "No model yet" in page.text
+    for url in ("/db/models/train", "/db/models/use", "/session/enrol"):
+        assert client.post(url, data={"version": "1"}, base_url=BASE).status_code == 400  # no CSRF token
+    assert "There are no scans to train a model on" in get(client, post(client, "/db/models/train").location).text
+    assert app.extensions["texplorer"].trainings.job is None
+    for version in ("7", "v1x", "../../etc/passwd", "1" * 5000, "\x00"):
+        answer = post(client, "/db/models/use", {"version": version})
+        text = get(client, answer.location).text
+        assert answer.status_code == 302 and "No version was made current" in text, version
+    assert not (app.extensions["texplorer"].settings.db / "models").exists()  # nothing written
+    # no scan running: the start page, nothing saved, nothing trained
+    assert post(client, "/session/enrol", {"label": "C6S1M1P2X1"}).location == "/"
+    assert len(database(app)) == 0 and app.extensions["texplorer"].trainings.job is None
