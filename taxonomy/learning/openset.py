@@ -118,18 +118,17 @@ class Neighbours:
         filled = np.where(present, X, self.fill)
         return (filled - self.centre) / self.spread, present
 
-    def log_distances(self, X: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
-        """``log d_g`` of every row of ``X`` (n, groups) to the nearest reference row (of ``rows`` only,
-        a boolean mask, where given); NaN in a group where the row has no finite value."""
+    def log_distances(self, X: np.ndarray) -> np.ndarray:
+        """``log d_g`` of every row of ``X`` (n, groups) to the nearest reference row; NaN in a group where
+        the row has no finite value."""
         Z, present = self.standardise(X)
-        reference = self.reference if rows is None else self.reference[rows]
         out = np.full((len(Z), len(self.titles)), np.nan)
         for g in range(len(self.titles)):
             columns = self.group_of == g
             has = present[:, columns].any(axis=1)
-            if has.any() and len(reference):
+            if has.any() and len(self.reference):
                 _, nearest = pairwise_distances_argmin_min(unit_rows(Z[has][:, columns]),
-                                                           unit_rows(reference[:, columns]))
+                                                           unit_rows(self.reference[:, columns]))
                 out[has, g] = np.log(np.maximum(nearest, 1e-12))
         return out
 
@@ -233,24 +232,25 @@ class RejectionRule:
         return self.scales.combine(terms)
 
     def explain(self, pipeline: Pipeline, X: np.ndarray) -> list[Explanation]:
-        """An :class:`Explanation` of every row of ``X``; the closest class is the classifier's top one and
-        no group is named in a rule of the previous format."""
+        """An :class:`Explanation` of every row of ``X``. The closest class is the classifier's top one in a
+        rule of the previous format (which names no group) and for a row without a value in any group."""
         terms = self.terms(pipeline, X)
         classes = [str(c) for c in pipeline.classes_]
+        top = pipeline.predict_proba(X).argmax(axis=1)
         if self.neighbours is None or self.scales is None:
-            best = pipeline.predict_proba(X).argmax(axis=1)
             largest = np.where(terms[:, 0] > terms[:, 1], TERMS[0], TERMS[1])
-            return [Explanation(classes[b], (), str(w)) for b, w in zip(best, largest, strict=True)]
+            return [Explanation(classes[b], (), str(w)) for b, w in zip(top, largest, strict=True)]
         z_terms = (terms - self.scales.term_mean) / self.scales.term_sd
         z_groups = self.scales.group_z(self.neighbours.log_distances(X))
         by_class = self.scales.group_z(self.neighbours.class_log_distances(X).transpose(2, 0, 1))
-        closest = np.nanmean(by_class, axis=2).T  # (n, classes)
+        with warnings_ignored():  # a scan without a value in any group has no closest by distance
+            closest = np.nanmean(by_class, axis=2).T  # (n, classes)
         out = []
         for i in range(len(terms)):
             over = np.flatnonzero(z_groups[i] > self.scales.group_limit)
             over = over[np.argsort(-z_groups[i][over], kind="stable")]
             finite = np.where(np.isfinite(z_terms[i]), z_terms[i], -np.inf)
-            nearest = classes[int(np.nanargmin(closest[i]))] if np.isfinite(closest[i]).any() else classes[0]
+            nearest = classes[int(np.nanargmin(closest[i]) if np.isfinite(closest[i]).any() else top[i])]
             out.append(Explanation(nearest, tuple(self.neighbours.titles[g] for g in over),
                                    TERMS[int(np.argmax(finite))]))
         return out
