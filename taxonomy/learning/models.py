@@ -614,9 +614,8 @@ def classify_values(model: TrainedModel, feature_values: Mapping[str, float], k:
     top = predict_top(model, feature_values, k)
     if model.rejection is None:
         return Verdict(top, math.nan, math.inf)
-    row = _row(model, feature_values)
-    score = float(model.rejection.score(model.pipeline, row)[0])
-    return Verdict(top, score, model.rejection.threshold, model.rejection.explain(model.pipeline, row)[0])
+    score, explanation = model.rejection.assess(model.pipeline, _row(model, feature_values))
+    return Verdict(top, float(score[0]), model.rejection.threshold, explanation[0])
 
 
 def _row(model: TrainedModel, feature_values: Mapping[str, float]) -> np.ndarray:

@@ -121,32 +121,31 @@ class Neighbours:
     def log_distances(self, X: np.ndarray) -> np.ndarray:
         """``log d_g`` of every row of ``X`` (n, groups) to the nearest reference row; NaN in a group where
         the row has no finite value."""
-        Z, present = self.standardise(X)
-        out = np.full((len(Z), len(self.titles)), np.nan)
-        for g in range(len(self.titles)):
-            columns = self.group_of == g
-            has = present[:, columns].any(axis=1)
-            if has.any() and len(self.reference):
-                _, nearest = pairwise_distances_argmin_min(unit_rows(Z[has][:, columns]),
-                                                           unit_rows(self.reference[:, columns]))
-                out[has, g] = np.log(np.maximum(nearest, 1e-12))
+        out = np.full((len(X), len(self.titles)), np.nan)
+        for g, has, query, reference in self._groups(X):
+            out[has, g] = np.log(np.maximum(pairwise_distances_argmin_min(query, reference)[1], 1e-12))
         return out
 
     def class_log_distances(self, X: np.ndarray) -> np.ndarray:
         """``log d_g`` of every row of ``X`` to the nearest reference row of each class: (n, groups,
         classes); for a few rows (it holds their distances to every reference row)."""
-        Z, present = self.standardise(X)
         classes = int(self.classes.max(initial=-1)) + 1
-        out = np.full((len(Z), len(self.titles), classes), np.nan)
+        out = np.full((len(X), len(self.titles), classes), np.nan)
+        for g, has, query, reference in self._groups(X):
+            d = euclidean_distances(query, reference)
+            nearest = np.stack([d[:, self.classes == c].min(axis=1, initial=np.inf) for c in range(classes)], axis=-1)
+            out[has, g] = np.log(np.maximum(nearest, 1e-12))
+        return out
+
+    def _groups(self, X: np.ndarray) -> Iterator[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+        """Per group ``g`` with a value in some row of ``X``: the rows that have one, their group vectors and
+        the reference rows', standardised and scaled to unit length."""
+        Z, present = self.standardise(X)
         for g in range(len(self.titles)):
             columns = self.group_of == g
             has = present[:, columns].any(axis=1)
-            if has.any():
-                d = euclidean_distances(unit_rows(Z[has][:, columns]), unit_rows(self.reference[:, columns]))
-                nearest = np.stack([d[:, self.classes == c].min(axis=1, initial=np.inf) for c in range(classes)],
-                                   axis=-1)
-                out[has, g] = np.log(np.maximum(nearest, 1e-12))
-        return out
+            if has.any() and len(self.reference):
+                yield g, has, unit_rows(Z[has][:, columns]), unit_rows(self.reference[:, columns])
 
 
 @dataclass(frozen=True)
@@ -167,9 +166,7 @@ class Scales:
     def combine(self, terms: np.ndarray) -> np.ndarray:
         """``s = mean_i (t_i - alpha_i) / beta_i`` of rows of terms (n, 3); a missing term (a scan with no
         value in any group) is left out of the mean."""
-        z = (terms - self.term_mean) / self.term_sd
-        counts = np.isfinite(z).sum(axis=1)
-        return np.where(counts > 0, np.nansum(z, axis=1) / np.maximum(counts, 1), np.nan)
+        return _mean_present((terms - self.term_mean) / self.term_sd)
 
 
 @dataclass(frozen=True)
@@ -231,29 +228,37 @@ class RejectionRule:
             return terms[:, 0] + terms[:, 1]
         return self.scales.combine(terms)
 
-    def explain(self, pipeline: Pipeline, X: np.ndarray) -> list[Explanation]:
-        """An :class:`Explanation` of every row of ``X``. The closest class is the classifier's top one in a
-        rule of the previous format (which names no group) and for a row without a value in any group."""
-        terms = self.terms(pipeline, X)
+    def assess(self, pipeline: Pipeline, X: np.ndarray) -> tuple[np.ndarray, list[Explanation]]:
+        """``s(x)`` and an :class:`Explanation` of every row of ``X``, from one computation of the terms (a
+        scan being classified needs both). The closest class is the classifier's top one in a rule of the
+        previous format (which names no group) and for a row without a value in any group."""
         classes = [str(c) for c in pipeline.classes_]
-        top = pipeline.predict_proba(X).argmax(axis=1)
         if self.neighbours is None or self.scales is None:
+            top = pipeline.predict_proba(X).argmax(axis=1)
+            terms = self.terms(pipeline, X)
             largest = np.where(terms[:, 0] > terms[:, 1], TERMS[0], TERMS[1])
-            return [Explanation(classes[b], (), str(w)) for b, w in zip(top, largest, strict=True)]
-        z_terms = (terms - self.scales.term_mean) / self.scales.term_sd
+            return terms[:, 0] + terms[:, 1], [Explanation(classes[b], (), str(w))
+                                               for b, w in zip(top, largest, strict=True)]
+        distance = Distance(self.means, self.precision, self.distance_scale)
+        terms = score_terms(pipeline, X, distance, None, None)
         z_groups = self.scales.group_z(self.neighbours.log_distances(X))
+        terms[:, 2] = _mean_present(z_groups)
+        z_terms = (terms - self.scales.term_mean) / self.scales.term_sd
         by_class = self.scales.group_z(self.neighbours.class_log_distances(X).transpose(2, 0, 1))
         with warnings_ignored():  # a scan without a value in any group has no closest by distance
             closest = np.nanmean(by_class, axis=2).T  # (n, classes)
+        unplaced = ~np.isfinite(closest).any(axis=1)
+        if unplaced.any():
+            closest[unplaced] = -pipeline.predict_proba(X[unplaced])  # the classifier's top class is closest
         out = []
         for i in range(len(terms)):
             over = np.flatnonzero(z_groups[i] > self.scales.group_limit)
             over = over[np.argsort(-z_groups[i][over], kind="stable")]
             finite = np.where(np.isfinite(z_terms[i]), z_terms[i], -np.inf)
-            nearest = classes[int(np.nanargmin(closest[i]) if np.isfinite(closest[i]).any() else top[i])]
+            nearest = classes[int(np.nanargmin(closest[i]))]
             out.append(Explanation(nearest, tuple(self.neighbours.titles[g] for g in over),
                                    TERMS[int(np.argmax(finite))]))
-        return out
+        return self.scales.combine(terms), out
 
 
 def unit_rows(Z: np.ndarray) -> np.ndarray:
@@ -316,12 +321,10 @@ def fit_neighbours(X: np.ndarray, y: np.ndarray, classes: Sequence[str], columns
     finite = np.isfinite(X)
     fill = np.array([np.median(X[finite[:, j], j]) if finite[:, j].any() else 0.0 for j in range(X.shape[1])])
     filled = np.where(finite, X, fill)
-    spread = filled.std(axis=0)
-    neighbours = Neighbours(titles, group_of, fill, filled.mean(axis=0), np.where(spread > 1e-12, spread, 1.0),
-                            np.empty((0, X.shape[1])), np.empty(0, dtype=np.int64))
-    reference, _ = neighbours.standardise(X)
-    index = np.searchsorted(np.asarray(classes), np.asarray(y))
-    return Neighbours(titles, group_of, neighbours.fill, neighbours.centre, neighbours.spread, reference, index)
+    centre, spread = filled.mean(axis=0), filled.std(axis=0)
+    spread = np.where(spread > 1e-12, spread, 1.0)
+    return Neighbours(titles, group_of, fill, centre, spread, (filled - centre) / spread,
+                      np.searchsorted(np.asarray(classes), np.asarray(y)))
 
 
 def confidence(pipeline: Pipeline, X: np.ndarray) -> np.ndarray:
@@ -388,7 +391,8 @@ def class_folds(y: np.ndarray, folds: int, seed: int) -> list[np.ndarray]:
 
 @dataclass(frozen=True)
 class Learned:
-    """What the leave-classes-out rounds give: the threshold, the inner AUROC and the scales."""
+    """What :func:`learn_rejection` learns inside the training rows: the threshold (from folds that keep every
+    class), the inner AUROC and the scales (from the leave-classes-out rounds)."""
 
     threshold: float
     inner_auroc: float
@@ -420,12 +424,18 @@ def warnings_ignored() -> Iterator[None]:
         yield
 
 
+def fit_models(pipeline: Pipeline, X: np.ndarray, y: np.ndarray, groups: np.ndarray,
+               columns: Sequence[str]) -> tuple[Distance, Neighbours]:
+    """The distance and neighbour models of a fitted ``pipeline``'s training rows (input ``columns``)."""
+    return (fit_distance(pipeline[:-1].transform(X), y, groups),
+            fit_neighbours(X, y, [str(c) for c in pipeline.classes_], columns))
+
+
 def fit_rule(pipeline: Pipeline, X: np.ndarray, y: np.ndarray, groups: np.ndarray, learned: Learned,
              columns: Sequence[str], max_accuracy_drop: float = MAX_ACCURACY_DROP) -> RejectionRule:
     """The rule of a fitted ``pipeline``: its distance and neighbour models on its training rows (input
-    ``columns``), and the threshold and scales of the rounds."""
-    distance = fit_distance(pipeline[:-1].transform(X), y, groups)
-    neighbours = fit_neighbours(X, y, [str(c) for c in pipeline.classes_], columns)
+    ``columns``), and the threshold and scales that :func:`learn_rejection` learned."""
+    distance, neighbours = fit_models(pipeline, X, y, groups, columns)
     return RejectionRule(distance.means, distance.precision, distance.scale, learned.threshold, max_accuracy_drop,
                          learned.inner_auroc, neighbours if learned.scales is not None else None, learned.scales)
 
@@ -457,8 +467,7 @@ def learn_rejection(X: np.ndarray, y: np.ndarray, groups: np.ndarray, fit: FitPi
             continue
         pipeline = fit(X[train], y[train], groups[train])
         test = np.concatenate([test_known, np.flatnonzero(is_held)])
-        distance = fit_distance(pipeline[:-1].transform(X[train]), y[train], groups[train])
-        neighbours = fit_neighbours(X[train], y[train], [str(c) for c in pipeline.classes_], columns)
+        distance, neighbours = fit_models(pipeline, X[train], y[train], groups[train], columns)
         terms.append(score_terms(pipeline, X[test], distance, None, None)[:, :2])
         distances.append(neighbours.log_distances(X[test]))
         # A held-out "known" row whose class lost its only sample to the held-out part is unknown to this model.
@@ -496,8 +505,7 @@ def known_scores(X: np.ndarray, y: np.ndarray, groups: np.ndarray, fit: FitPipel
         if np.unique(y[train]).size < 2:
             continue
         pipeline = fit(X[train], y[train], groups[train])
-        distance = fit_distance(pipeline[:-1].transform(X[train]), y[train], groups[train])
-        neighbours = fit_neighbours(X[train], y[train], [str(c) for c in pipeline.classes_], columns)
+        distance, neighbours = fit_models(pipeline, X[train], y[train], groups[train], columns)
         scores.append(scales.combine(score_terms(pipeline, X[test], distance, neighbours, scales)))
         unknowns.append(~np.isin(y[test], y[train]))
         corrects.append(pipeline.predict(X[test]) == y[test])

@@ -254,3 +254,15 @@ def test_a_model_of_the_previous_format_keeps_its_score(tmp_path):
     current = load_model(save_model(model, tmp_path / "v3.skops"))
     np.testing.assert_array_equal(current.rejection.score(current.pipeline, space.X),
                                   model.rejection.score(model.pipeline, space.X))
+
+
+def test_one_pass_gives_the_score_and_a_closest_class_even_without_group_values():
+    space, material, sample, model = known_and_new()
+    rule, rows = model.rejection, space.X[::7]
+    score, explanations = rule.assess(model.pipeline, rows)
+    np.testing.assert_allclose(score, rule.score(model.pipeline, rows), rtol=1e-12)
+    # No value in any group: no distance to place the scan, so the classifier's top class is the closest.
+    empty = np.full((1, space.X.shape[1]), np.nan)
+    score, (explanation,) = rule.assess(model.pipeline, empty)
+    top = model.pipeline.classes_[model.pipeline.predict_proba(empty).argmax()]
+    assert explanation.closest == top and explanation.unlike == () and np.isfinite(score[0])
