@@ -55,7 +55,7 @@ def _training_notice() -> dict[str, tuple[str, str] | None]:
     if job is None:
         return {"training_notice": None}
     kind = "busy" if job.running else ("good" if job.change is not None else "bad")
-    return {"training_notice": (kind, job.notice(context().db.taxonomy()))}
+    return {"training_notice": (kind, job.notice())}
 
 
 def _error_page(error: HTTPException) -> tuple[str, int] | Response:

@@ -373,8 +373,7 @@ def models() -> tuple[str, int]:
         found, current = [], None
     fixed = ctx.settings.model  # serve --model: that file, whatever the database's current version
     return render_template("db_models.html", versions=list(reversed(found)), current=current, fixed=fixed,
-                           job=ctx.trainings.job, queued=ctx.trainings.queued,
-                           taxonomy=ctx.db.taxonomy()), 200
+                           job=ctx.trainings.job, queued=ctx.trainings.queued), 200
 
 
 @blueprint.post("/models/train")

@@ -22,7 +22,6 @@ from dataclasses import dataclass, field
 from features import job_workers
 from scanner.storage.database import Database
 from scanner.workflows import ModelChange, retrain
-from taxonomy.table import Taxonomy
 
 RECENT_S = 15 * 60.0
 """How long every page says that a new model version is ready (or that a training failed)."""
@@ -35,7 +34,8 @@ class TrainingJob:
     reasons: list[str]
     phase: str = "training"
     change: ModelChange | None = None
-    error: str = ""
+    outcome: str = ""
+    """What the pages say once the job ended: what changed, in the taxonomy's words, or why it failed."""
     started: float = field(default_factory=time.monotonic)
     finished: float | None = None
 
@@ -43,15 +43,13 @@ class TrainingJob:
     def running(self) -> bool:
         return self.phase == "training"
 
-    def notice(self, taxonomy: Taxonomy | None = None) -> str:
+    def notice(self) -> str:
         """One line for every page: running, ready (what changed) or failed."""
         if self.running:
             return (f"A new model version is being trained in the background ({', '.join(self.reasons[:3])}"
                     f"{' and more' if len(self.reasons) > 3 else ''}; {time.monotonic() - self.started:.0f} s so "
                     "far); scanning goes on, predictions use the current version until it is ready.")
-        if self.change is not None:
-            return f"Ready: {self.change.describe(taxonomy)}."
-        return f"The model training failed: {self.error}; the model versions before it are unchanged."
+        return self.outcome
 
 
 class Trainings:
@@ -112,9 +110,12 @@ class Trainings:
             try:
                 with job_workers(self.workers) as pool:
                     job.change = retrain(self.db, seed=self.seed, pool=pool, note=note)
+                job.outcome = f"Ready: {job.change.describe(self.db.taxonomy())}."
                 job.phase = "done"
             except Exception as exc:  # noqa: BLE001 - a job thread must never die silently: the pages say why
-                job.phase, job.error = "failed", (f"{type(exc).__name__}: {exc}".splitlines() or ["?"])[0][:300]
+                reason = (f"{type(exc).__name__}: {exc}".splitlines() or ["?"])[0][:300]
+                job.outcome = f"The model training failed: {reason}; the model versions before it are unchanged."
+                job.phase = "failed"
             job.finished = time.monotonic()
             with self._lock:
                 if not self._pending:

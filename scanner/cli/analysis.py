@@ -36,6 +36,7 @@ from scanner.storage.ingest import load_recordings, set_folder
 from scanner.storage.matfile import load_scan
 from scanner.workflows import (
     ModelChange,
+    cross_validated,
     extract_database,
     format_predictions,
     model_file,
@@ -50,7 +51,6 @@ from taxonomy.learning.evaluation import (
     MLP_MAX_ITER,
     classifier_estimators,
     default_feature_sets,
-    evaluate,
     evaluate_grid,
     evaluate_open_set,
     iteration_limit_stops,
@@ -60,7 +60,7 @@ from taxonomy.learning.evaluation import (
     with_values,
 )
 from taxonomy.learning.models import load_model, save_model, train_model
-from taxonomy.learning.results import EvaluationError, one_line
+from taxonomy.learning.results import one_line
 from taxonomy.learning.versions import current_version, use_version, version_file, versions
 from taxonomy.reports.report import format_open_set, format_protocols, format_table, write_report
 from taxonomy.table import load_taxonomy
@@ -417,16 +417,9 @@ def cmd_train(args: argparse.Namespace) -> int:
         return 0
     figures = {}
     if not args.no_cv:
-        started = time.perf_counter()
-        try:
-            result = evaluate(space, args.classifier, args.level, args.n, seed=args.seed, calibrate=False,
-                              feature_set=None if args.feature_set == ALL else args.feature_set)
-        except EvaluationError as exc:  # too few scans to cross-validate: the model is still kept
-            print(f"texplorer: note: no cross-validated accuracy for this version: {exc}", file=sys.stderr)
-        else:
-            figures["cv_accuracy"] = float(result.accuracy_pooled)
-            print(f"cross-validated accuracy of these settings: {100 * result.accuracy_pooled:.1f} % "
-                  f"({result.splitting}, {time.perf_counter() - started:.1f} s)")
+        figures, line = cross_validated(space, args.level, args.n, args.classifier, args.seed,
+                                        None if args.feature_set == ALL else args.feature_set)
+        print(line if figures else f"texplorer: note: {line}", file=sys.stdout if figures else sys.stderr)
     before = current_version(args.db)
     version = save_model_version(open_db(args), model, space, figures, note="texplorer train",
                                  make_current=not args.keep_current)

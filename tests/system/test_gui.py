@@ -679,7 +679,7 @@ def test_an_unknown_material_is_enrolled_from_the_summary_into_a_new_model_versi
         assert "is being trained in the background" in get(client, answer.headers["Location"]).text
         assert ctx.trainings.wait(600)
         job = ctx.trainings.job
-        assert job.phase == "done", job.error
+        assert job.phase == "done", job.outcome
         assert job.change.added == ("C6S1M1P2X1",) and job.change.before.version == 1
         assert current_version(db.root).version == 2 and [v.version for v in versions(db.root)] == [1, 2]
         assert "C6S1M1P2X1" in ctx.model.classes and ctx.model.n_rows == 13

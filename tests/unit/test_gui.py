@@ -629,3 +629,16 @@ def test_the_models_page_refuses_hostile_or_empty_requests_in_one_line(client, a
     # no scan running: the start page, nothing saved, nothing trained
     assert post(client, "/session/enrol", {"label": "C6S1M1P2X1"}).location == "/"
     assert len(database(app)) == 0 and app.extensions["texplorer"].trainings.job is None
+
+
+def test_a_training_that_fails_says_why_and_leaves_the_versions_alone(tmp_path):
+    from gui.training import Trainings
+    from scanner.storage.database import Database
+
+    db = Database(tmp_path / "db")
+    trainings = Trainings(db, workers=1)
+    job = trainings.start("asked for by a test")
+    assert job is not None and trainings.wait(60)
+    assert job.phase == "failed" and job.change is None and job.finished is not None
+    assert job.notice().startswith("The model training failed: DatabaseError: ") and "no scans" in job.notice()
+    assert trainings.recent() is job and not (db.root / "models").exists()
