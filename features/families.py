@@ -119,18 +119,35 @@ OTHER_UNITS = {"density": "g/cm^3", "magnet_mean": "uT", "magnet_peak": "uT", "r
                "tap_decay": "s"}
 """Units of the other features that have one (docs/features.md#other)."""
 
+TACTUM_STEPS = {"matx": ("tool_slide", "friction"), "maco": ("tool_slide", "photos"), "marg": ("tool_slide", "photos"),
+                "miro": ("tool_slide",), "mico": ("tool_slide",), "fst": ("friction",), "frs": ("friction",),
+                "atk": ("tu4",), "ccp": ("press", "fold"), "cdf": ("fold",), "cdp": ("fold",),
+                "crx": ("press", "fold"), "cyd": ("tu4",), "tco": ("thermal",), "tpr": ("thermal",)}
+"""The steps of the procedure each TacTUM feature needs: MATX mixes the tool slide with the friction slide, MACO
+and MARG the tool slide with the display photo, and the press features are 0 for a sample the fold finds rigid."""
+OTHER_STEPS = {"density": ("tu4",), "metal": ("static",), "magnet_mean": ("static",), "magnet_peak": ("static",),
+               "reflect_static": ("tool_slide",), "reflect_mean": ("tool_slide",), "cooling_rate": ("thermal",),
+               "vib_std": ("tool_slide",), "vib_kurtosis": ("tool_slide",), "vib_energy": ("tool_slide",),
+               "finger_vib_energy": ("finger_slide",), "finger_vib_centroid": ("finger_slide",),
+               "tap_peak": ("tool_tap",), "tap_centroid": ("tool_tap",), "tap_decay": ("tool_tap",)}
+"""The step of the procedure each other feature needs."""
+
 TACTUM = REGISTRY.register(Family("tactum", "TacTUM (paper section IV-A)", tactum.NAMES, _tactum,
-                                  units={f"tactum.{name}": unit for name, unit in TACTUM_UNITS.items()}))
+                                  units={f"tactum.{name}": unit for name, unit in TACTUM_UNITS.items()},
+                                  steps={f"tactum.{name}": steps for name, steps in TACTUM_STEPS.items()}))
 IMAGE = REGISTRY.register(Family(
     "image", "image", tuple(f"image.{short}.{name}" for short in IMAGES.values() for name in image.NAMES), _image,
     groups=tuple((f"image.{short}", PHOTO_TITLES[short]) for short in IMAGES.values()),
-    units={f"image.{short}.{name}": unit for short in IMAGES.values() for name, unit in IMAGE_UNITS.items()}))
+    units={f"image.{short}.{name}": unit for short in IMAGES.values() for name, unit in IMAGE_UNITS.items()},
+    steps={"image": ("photos",)}))
 AUDIO = REGISTRY.register(Family(
     "audio", "audio", tuple(f"audio.{which}.{name}" for which in AUDIO_SIGNALS for name in audio.NAMES), _audio,
     groups=tuple((f"audio.{which}", SLIDE_TITLES[which]) for which in AUDIO_SIGNALS),
-    units={f"audio.{which}.{name}": unit for which in AUDIO_SIGNALS for name, unit in AUDIO_UNITS.items()}))
+    units={f"audio.{which}.{name}": unit for which in AUDIO_SIGNALS for name, unit in AUDIO_UNITS.items()},
+    steps={f"audio.{which}": (f"{which}_slide",) for which in AUDIO_SIGNALS}))
 OTHER = REGISTRY.register(Family("other", "other", other.NAMES, _other, solver_rtol=other.SOLVER_RTOL,
-                                 units={f"other.{name}": unit for name, unit in OTHER_UNITS.items()}))
+                                 units={f"other.{name}": unit for name, unit in OTHER_UNITS.items()},
+                                 steps={f"other.{name}": steps for name, steps in OTHER_STEPS.items()}))
 
 NAMES: tuple[str, ...] = REGISTRY.names
 """The paper's 193 feature names in the order of docs/features.md: 15 TacTUM, 93 image (disp, macro, illu x 31), 70

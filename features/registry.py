@@ -81,9 +81,15 @@ class Family(_Code):
     units: Mapping[str, str] = field(default_factory=dict)
     """Physical unit of each column that has one (``"Hz"``, ``"N/mm"``); dimensionless columns are absent.
     Descriptive only (export metadata, docs/features.md): it does not count towards the code version."""
+    steps: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    """The steps of the scanning procedure (docs/operator.md#procedure: ``tool_slide``, ``photos``, ``tu4``, ...)
+    whose recordings each column needs, by column name or column prefix (the longest prefix wins): a column is
+    defined once all of its steps are recorded. A column not covered needs the whole scan. Descriptive as
+    ``units``; the quick scan reads it (:meth:`ScanRegistry.column_steps`)."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "columns", tuple(self.columns))
+        object.__setattr__(self, "steps", {key: tuple(value) for key, value in self.steps.items()})
         if not self.groups:
             object.__setattr__(self, "groups", ((self.name, self.title),))
         if not self.name or "." in self.name:
@@ -92,6 +98,12 @@ class Family(_Code):
         strays = sorted(set(self.units) - set(self.columns))
         if strays:
             raise RegistryError(f"family {self.name}: units given for columns it does not have: {', '.join(strays)}")
+        strays = sorted(key for key in self.steps if not any(c == key or c.startswith(key + ".") for c in self.columns))
+        if strays:
+            raise RegistryError(f"family {self.name}: steps given for columns it does not have: {', '.join(strays)}")
+        empty = sorted(key for key, steps in self.steps.items() if not steps or not all(steps))
+        if empty:
+            raise RegistryError(f"family {self.name}: no step named for {', '.join(empty)}")
 
 
 @dataclass(frozen=True)
@@ -251,6 +263,24 @@ class ScanRegistry(Registry[Family]):
     def units(self) -> dict[str, str]:
         """The unit of every column that has one (:attr:`Family.units`)."""
         return {column: unit for family in self for column, unit in family.units.items()}
+
+    def column_steps(self, columns: Sequence[str] | None = None) -> dict[str, frozenset[str]]:
+        """The steps each column needs (:attr:`Family.steps`; the longest declared prefix wins), for ``columns``
+        (default: every default column); an empty set where the family does not say, read as "the whole scan".
+
+        Examples
+        --------
+        >>> import features
+        >>> sorted(REGISTRY.column_steps(["tactum.matx"])["tactum.matx"])
+        ['friction', 'tool_slide']
+        """
+        declared = {key: frozenset(steps) for family in self.every for key, steps in family.steps.items()}
+        needed = {}
+        for column in (self.names if columns is None else columns):
+            parts = column.split(".")
+            keys = [".".join(parts[:k]) for k in range(len(parts), 0, -1)]
+            needed[column] = next((declared[key] for key in keys if key in declared), frozenset())
+        return needed
 
     def column_groups(self, columns: Sequence[str]) -> list[tuple[str, tuple[int, ...]]]:
         """``columns`` by the sensing step that measured them: ``[(title, column indices), ...]`` in order of

@@ -5,6 +5,7 @@ their families, columns, feature space and the message naming the roles the fami
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import numpy as np
 import pytest
@@ -16,7 +17,9 @@ from features.recordings import describe_families, families, feature_space
 from features.registry import ROLE_REGISTRY, RegistryError, RoleFamily
 from gui.browser import group_features
 from scanner import cli
-from scanner.scan import Recording, Trace
+from scanner.acquisition.session import STEP_TITLES
+from scanner.scan import CHANNELS, Recording, Trace
+from scanner.simulation import synthetic_scan
 from taxonomy.learning.evaluation import default_feature_sets, evaluate
 
 TOY = ("toy.peak_v_ts", "toy.samples_v_ts")
@@ -172,3 +175,72 @@ def test_a_role_family_is_refused_when_it_clashes():
         RoleFamily("toy", "photo", ("image.disp.lbp_0",), temperature_values)
     with pytest.raises(RegistryError, match="already registered: audio.audio.zcr"):
         ROLE_REGISTRY.register(RoleFamily("sound again", "audio", ("audio.audio.zcr",), temperature_values))
+
+
+# --- which steps each column needs -----------------------------------------------------------------------
+
+
+def _swapped(scan, donor, step):
+    """``scan`` with the recordings of ``step`` taken from ``donor`` (channels, raw volts, photos or TU4 values)."""
+    if step == "photos":
+        return dataclasses.replace(scan, images=dict(donor.images))
+    if step == "tu4":
+        meta = dataclasses.replace(scan.meta, mass_g=donor.meta.mass_g, volume_cm3=donor.meta.volume_cm3,
+                                   atk=donor.meta.atk, cyd=donor.meta.cyd)
+        return dataclasses.replace(scan, meta=meta)
+    names = [name for name, spec in CHANNELS.items() if spec.step == step]
+    traces = {**{k: v for k, v in scan.traces.items() if k not in names},
+              **{k: v for k, v in donor.traces.items() if k in names}}
+    raw = {k: v for k, v in scan.raw.items() if k not in names}
+    meta = dataclasses.replace(scan.meta, rigid=donor.meta.rigid) if step == "fold" else scan.meta
+    return dataclasses.replace(scan, meta=meta, traces=traces, raw=raw)
+
+
+@pytest.fixture(scope="module")
+def contrasting_scans():
+    """A soft, warm, foldable sample and a hard, cold, conductive one: every step records something different."""
+    soft = synthetic_scan("leather-smooth", seed=3, image_size=(240, 240), fold_skip_probability=0.0)
+    hard = synthetic_scan("mild-steel-brushed", seed=4, image_size=(240, 240), fold_skip_probability=0.0)
+    return soft, hard
+
+
+@pytest.mark.parametrize("step", [step for step in STEP_TITLES if step != "finger_tap"])
+def test_a_step_changes_only_the_columns_that_declare_it(contrasting_scans, step):
+    soft, hard = contrasting_scans
+    needs = REGISTRY.column_steps()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        before, after = extract(soft), extract(_swapped(soft, hard, step))
+    changed = {c for c in NAMES if not _same_value(before[c], after[c])}
+    declared = {c for c in NAMES if step in needs[c]}
+    assert changed <= declared, f"{step} changes undeclared columns: {sorted(changed - declared)[:5]}"
+    assert len(changed) >= max(1, len(declared) // 2), f"{step}: only {sorted(changed)} of {len(declared)} changed"
+
+
+def test_the_finger_tap_feeds_no_feature(contrasting_scans):
+    soft, hard = contrasting_scans
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        before, after = extract(soft), extract(_swapped(soft, hard, "finger_tap"))
+    assert all(_same_value(before[c], after[c]) for c in NAMES)
+    assert not any("finger_tap" in steps for steps in REGISTRY.column_steps().values())
+
+
+def test_every_paper_column_names_its_steps_and_only_steps_of_the_procedure():
+    needs = REGISTRY.column_steps()
+    assert set(needs) == set(NAMES)
+    assert all(needs[c] and needs[c] <= set(STEP_TITLES) for c in NAMES)
+    assert needs["image.macro.lbp_3"] == {"photos"} and needs["tactum.ccp"] == {"press", "fold"}
+
+
+def test_a_family_without_steps_needs_the_whole_scan_and_a_stray_key_is_refused():
+    plain = Family("plain", "plain", ("plain.a",), lambda prepared: {"plain.a": 0.0})
+    assert plain.steps == {}
+    with pytest.raises(RegistryError, match="steps given for columns it does not have: plain.b"):
+        Family("plain", "plain", ("plain.a",), lambda prepared: {"plain.a": 0.0}, steps={"plain.b": ("press",)})
+    with pytest.raises(RegistryError, match="no step named for plain.a"):
+        Family("plain", "plain", ("plain.a",), lambda prepared: {"plain.a": 0.0}, steps={"plain.a": ()})
+
+
+def _same_value(a: float, b: float) -> bool:
+    return (np.isnan(a) and np.isnan(b)) or a == b
