@@ -1,0 +1,603 @@
+"""The quick scan: a prediction after every step of the procedure, the most informative next step, and a stop
+once the prediction is sure (docs/quick.md).
+
+**One model for any subset of steps.** The columns are grouped by the steps they need
+(:meth:`features.registry.ScanRegistry.column_steps`): the tool slide's 42 columns, the photos' 93, MATX's
+tool slide *and* friction slide, ... Each such group is an *expert*: a random forest on its columns alone.
+A scan with the steps ``S`` recorded is predicted by the experts whose steps are all in ``S``, combined as a
+tempered product of experts (Hinton 2002, "Training products of experts by minimizing contrastive
+divergence", Neural Computation 14(8); naive Bayes over the experts when the temperature is 1):
+
+    log p(c | S) = log pi(c) + tau_m * sum over active experts E of [log q_E(c | x_E) - log pi(c)] + const
+
+with ``pi`` the class frequencies of the training rows, ``q_E`` the expert's vote shares, mixed with ``pi``
+and raised to its own power ``beta_E``, and ``tau_m`` one factor per number ``m`` of active experts. Both are
+fitted by maximum likelihood on out-of-fold predictions of the training rows (temperature scaling, Guo et al.
+2017): ``beta_E`` calibrates each expert on its own (a forest on two friction columns votes 0.4 for one of
+32 materials and is right 12 % of the time: its beta is about 0.35; the photos' about 2.3), ``tau_m``
+corrects for experts that see the same property (the two slides both feel roughness) and would otherwise
+count it twice. Chosen over one model per
+subset because the nine steps with features form 512 subsets, most of them with too few training
+scans for their own selection and calibration, and because the product makes the next step's expected
+information gain a closed-form sum over the training scans.
+
+**The next step** maximises the expected information gain per second (Lindley 1956, "On a measure of the
+information provided by an experiment", Ann. Math. Statist. 27(4)):
+
+    EIG(s) = H(p) - sum_j w_j H(p'_j),   w_j = p(c_j | S) / n_{c_j}
+
+where ``p'_j`` is the posterior after adding training scan ``j``'s out-of-fold expert ratios for the experts
+step ``s`` completes: the outcomes of ``s`` are drawn from the training scans, each class weighted by its
+current probability. Divided by the step's recording and handling time.
+
+**Stopping**: the top class reaches ``stop_at`` (0.95) and the novelty of the recorded steps is within what
+known materials show (:class:`Novelty`); or the operator stops; or the steps run out.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.optimize import minimize, minimize_scalar
+from scipy.special import log_softmax, softmax
+from sklearn.ensemble import ExtraTreesClassifier
+
+from features.registry import REGISTRY
+from features.space import FeatureSpace
+from taxonomy.learning.calibration import grouped_splits
+from taxonomy.learning.evaluation import SEED, EvaluationError, cv_splits, drop_nan_columns, fit_pipeline
+from taxonomy.learning.openset import Neighbours, fit_neighbours
+
+MIXTURE = 0.05
+"""Weight of the class frequencies mixed into an expert's vote shares, ``q = (1 - MIXTURE) votes + MIXTURE pi``:
+a class no tree voted for keeps a small probability, so one expert cannot veto it against all the others."""
+
+TREES = 100
+"""Trees of each expert's forest."""
+
+INNER_FOLDS = 4
+"""Grouped splits of the training rows that give each training row's out-of-fold expert predictions."""
+
+STOP_AT = 0.95
+"""The calibrated probability of the top class at which a quick scan stops (with the novelty accepted)."""
+
+KNOWN_QUANTILE = 0.98
+"""The novelty of the recorded steps is accepted up to this quantile of the known training rows' novelty for
+the same steps: the rule turns away about 2 % of scans of known materials, as the full scan's rule may."""
+
+
+@dataclass(frozen=True)
+class Expert:
+    """The columns measured by one set of steps."""
+
+    steps: frozenset[str]
+    columns: tuple[int, ...]
+
+    @property
+    def name(self) -> str:
+        """The steps joined by ``+``, in name order."""
+        return "+".join(sorted(self.steps))
+
+
+def experts_of(columns: Sequence[str], needs: Mapping[str, frozenset[str]]) -> tuple[Expert, ...]:
+    """The columns grouped by the steps they need, in order of first appearance; columns that need the whole
+    scan (no steps declared) are left out.
+
+    Parameters
+    ----------
+    columns : sequence of str
+        The feature space's columns.
+    needs : mapping of str to frozenset of str
+        The steps each column needs (:meth:`~features.registry.ScanRegistry.column_steps`).
+
+    Returns
+    -------
+    tuple of Expert
+
+    Examples
+    --------
+    >>> experts_of(["a.x", "a.y", "b.z"], {"a.x": frozenset({"tap"}), "a.y": frozenset({"tap"}),
+    ...                                    "b.z": frozenset()})
+    (Expert(steps=frozenset({'tap'}), columns=(0, 1)),)
+    """
+    grouped: dict[frozenset[str], list[int]] = {}
+    for index, column in enumerate(columns):
+        steps = needs.get(column, frozenset())
+        if steps:
+            grouped.setdefault(frozenset(steps), []).append(index)
+    return tuple(Expert(steps, tuple(indices)) for steps, indices in grouped.items())
+
+
+def log_ratios(forest: ExtraTreesClassifier, X: np.ndarray, classes: np.ndarray,
+               log_prior: np.ndarray) -> np.ndarray:
+    """``log q(c | x) - log pi(c)`` of the forest's vote shares mixed with the class frequencies (:data:`MIXTURE`),
+    rows x ``classes``; a class the forest never saw has only the mixture's share."""
+    votes = np.zeros((len(X), classes.size))
+    votes[:, np.searchsorted(classes, forest.classes_)] = forest.predict_proba(X)
+    prior = np.exp(log_prior)
+    return np.log((1.0 - MIXTURE) * votes + MIXTURE * prior) - log_prior
+
+
+def posterior(log_prior: np.ndarray, ratio_sum: np.ndarray, tau: float) -> np.ndarray:
+    """``p(c | S)`` of the tempered product (module docstring) from the summed log ratios of the active experts
+    (last axis: classes)."""
+    return softmax(log_prior + tau * ratio_sum, axis=-1)
+
+
+def entropy(p: np.ndarray) -> np.ndarray:
+    """Shannon entropy in bits over the last axis."""
+    return -np.sum(np.where(p > 0, p * np.log2(np.where(p > 0, p, 1.0)), 0.0), axis=-1)
+
+
+def fit_tau(ratio_sums: np.ndarray, true_index: np.ndarray, log_prior: np.ndarray) -> float:
+    """The factor ``tau`` minimising the negative log likelihood of :func:`posterior` on held-out rows, searched
+    over ``log tau`` in [-5, 2] (a single expert's ratios give its ``beta``); 1 without rows."""
+    if len(ratio_sums) == 0:
+        return 1.0
+    rows = np.arange(len(ratio_sums))
+
+    def loss(log_tau: float) -> float:
+        logp = log_softmax(log_prior + np.exp(log_tau) * ratio_sums, axis=1)
+        return float(-np.mean(logp[rows, true_index]))
+
+    return float(np.exp(minimize_scalar(loss, bounds=(-5.0, 2.0), method="bounded").x))
+
+
+def fit_weights(ratios: np.ndarray, true_index: np.ndarray, log_prior: np.ndarray) -> np.ndarray:
+    """Each expert's weight ``beta_E >= 0`` minimising the negative log likelihood of the product of all experts
+    (``log pi + sum_E beta_E r_E``) on held-out ``ratios`` (experts x rows x classes), by L-BFGS-B from each
+    expert's own temperature: an expert that adds nothing to the others gets a small weight."""
+    rows = np.arange(ratios.shape[1])
+
+    def loss(w: np.ndarray) -> tuple[float, np.ndarray]:
+        logp = log_softmax(log_prior + np.tensordot(w, ratios, axes=1), axis=1)
+        p = np.exp(logp)
+        grad = -(ratios[:, rows, true_index] - np.einsum("erc,rc->er", ratios, p)).mean(axis=1)
+        return float(-logp[rows, true_index].mean()), grad
+
+    start = np.array([fit_tau(r, true_index, log_prior) for r in ratios]) / len(ratios)
+    fitted = minimize(loss, start, jac=True, method="L-BFGS-B", bounds=[(0.0, 10.0)] * len(ratios))
+    return fitted.x
+
+
+@dataclass(frozen=True)
+class StepModel:
+    """The quick scan's model (module docstring): experts, their forests, ``tau`` per number of active experts,
+    and the training scans' out-of-fold log ratios the information gain draws outcomes from.
+
+    ``beta`` is each expert's power; ``train_ratios`` (experts, training rows, classes) holds the calibrated
+    ratios ``beta_E (log q_E - log pi)``; ``train_class`` each training row's class index.
+    """
+
+    experts: tuple[Expert, ...]
+    forests: tuple[ExtraTreesClassifier, ...]
+    classes: np.ndarray
+    log_prior: np.ndarray
+    beta: np.ndarray
+    tau: np.ndarray
+    train_ratios: np.ndarray
+    train_class: np.ndarray
+    calibrating: np.ndarray
+    """Training rows whose out-of-fold ratios fit ``beta`` and ``tau``: those whose class kept at least two
+    samples in their inner training part (:func:`_as_known_as_in_use`)."""
+    neighbours: Neighbours
+    """The training rows' nearest-neighbour model, one group per expert (:func:`expert_neighbours`)."""
+    novelty_scale: np.ndarray
+    """Mean and standard deviation of each expert's ``log d`` over the calibrating rows' out-of-fold
+    distances (2 x experts)."""
+    train_novelty: np.ndarray
+    """The calibrating rows' standardised out-of-fold ``z_E`` (rows x experts)."""
+    tau_sets: Mapping[bytes, float] = field(default_factory=dict)
+    """``tau`` of the active sets the walks of the training rows meet often (:func:`calibrate_walks`), by
+    :meth:`key`; other sets take ``tau[m]``."""
+
+    @property
+    def steps(self) -> frozenset[str]:
+        """Every step some expert needs."""
+        return frozenset().union(*(expert.steps for expert in self.experts))
+
+    def active(self, recorded: frozenset[str] | set[str]) -> np.ndarray:
+        """Which experts the recorded steps complete (boolean per expert)."""
+        return np.array([expert.steps <= recorded for expert in self.experts])
+
+    def ratios(self, X: np.ndarray) -> np.ndarray:
+        """Every expert's calibrated log ratio ``beta_E (log q_E(c | x_E) - log pi(c))`` for the scans' rows ``X``
+        (rows x experts x classes; one row ``x`` gives experts x classes)."""
+        X = np.asarray(X, dtype=np.float64)
+        rows = X[None, :] if X.ndim == 1 else X
+        out = np.stack([b * log_ratios(forest, rows[:, list(expert.columns)], self.classes, self.log_prior)
+                        for expert, forest, b in zip(self.experts, self.forests, self.beta, strict=True)], axis=1)
+        return out[0] if X.ndim == 1 else out
+
+    def predict(self, ratios: np.ndarray, recorded: frozenset[str] | set[str]) -> np.ndarray:
+        """``p(c | S)`` from a scan's expert ratios (:meth:`ratios`) and its recorded steps ``S``."""
+        active = self.active(recorded)
+        return posterior(self.log_prior, ratios[active].sum(axis=0), self.tau_of(active))
+
+    @staticmethod
+    def key(active: np.ndarray) -> bytes:
+        """An active set as a dictionary key."""
+        return np.packbits(active).tobytes()
+
+    def tau_of(self, active: np.ndarray) -> float:
+        """``tau`` of the active experts ``active``: fitted for the set itself, else for their number."""
+        fitted = self.tau_sets.get(self.key(active))
+        return float(fitted if fitted is not None else self.tau[min(int(active.sum()), len(self.tau) - 1)])
+
+    def novelty(self, X: np.ndarray) -> np.ndarray:
+        """Every expert's ``z_E`` for the scans' rows ``X`` (rows x experts; one row gives one vector): the
+        standardised log distance to the nearest training scan in the expert's columns
+        (:mod:`taxonomy.learning.openset`, term ``n``)."""
+        X = np.asarray(X, dtype=np.float64)
+        log_d = self.neighbours.log_distances(X[None, :] if X.ndim == 1 else X)
+        z = (log_d - self.novelty_scale[0]) / self.novelty_scale[1]
+        return z[0] if X.ndim == 1 else z
+
+    def accepts(self, novelty: np.ndarray, recorded: frozenset[str] | set[str]) -> bool:
+        """Whether the mean ``z_E`` of the active experts is within :data:`KNOWN_QUANTILE` of the known
+        training rows' mean for the same experts (nothing recorded: accepted)."""
+        active = self.active(recorded)
+        if not active.any():
+            return True
+        known = np.nanmean(self.train_novelty[:, active], axis=1)
+        limit = np.quantile(known[np.isfinite(known)], KNOWN_QUANTILE) if np.isfinite(known).any() else np.inf
+        return bool(np.nanmean(novelty[active]) <= limit) if np.isfinite(novelty[active]).any() else True
+
+    def gains(self, ratios: np.ndarray, recorded: frozenset[str] | set[str]) -> dict[str, float]:
+        """The expected information gain (bits) of every step not yet recorded that completes an expert
+        (module docstring)."""
+        recorded = frozenset(recorded)
+        active = self.active(recorded)
+        now = self.predict(ratios, recorded)
+        summed = ratios[active].sum(axis=0)
+        counts = np.bincount(self.train_class, minlength=self.classes.size)
+        weights = now[self.train_class] / np.maximum(counts[self.train_class], 1)
+        weights = weights / weights.sum()
+        gains = {}
+        for step in sorted(self.steps - recorded):
+            completed = self.active(recorded | {step}) & ~active
+            if not completed.any():
+                continue
+            tau = self.tau_of(active | completed)
+            after = posterior(self.log_prior, summed + self.train_ratios[completed].sum(axis=0), tau)
+            gains[step] = float(entropy(now) - weights @ entropy(after))
+        return gains
+
+
+def fit_step_model(X: np.ndarray, y: np.ndarray, groups: np.ndarray, experts: Sequence[Expert],
+                   seed: int = 0) -> StepModel:
+    """Fit every expert's forest on all rows, the out-of-fold ratios of the rows on grouped inner splits, each
+    expert's ``beta`` on its own out-of-fold ratios, and ``tau`` per number of active experts on the calibrated
+    ratios for the active sets of random step orders.
+
+    Parameters
+    ----------
+    X : numpy.ndarray
+        (rows, columns) feature values, NaN where undefined (the forests route missing values).
+    y : numpy.ndarray
+        Each row's class.
+    groups : numpy.ndarray
+        Each row's sample: the inner splits keep a sample's scans together.
+    experts : sequence of Expert
+        From :func:`experts_of`.
+    seed : int
+        Seed of the forests, the inner splits and the random orders.
+
+    Returns
+    -------
+    StepModel
+    """
+    if not experts:
+        raise EvaluationError("no column names the steps it needs: a quick scan has nothing to go on")
+    X, y = np.asarray(X, dtype=np.float64), np.asarray(y)
+    classes, train_class = np.unique(y, return_inverse=True)
+    log_prior = np.log(np.bincount(train_class) / len(y))
+    forests = tuple(_forest(seed).fit(X[:, list(e.columns)], y) for e in experts)
+    groups = np.asarray(groups)
+    ratios = np.zeros((len(experts), len(y), classes.size))
+    log_d = np.full((len(y), len(experts)), np.nan)
+    calibrating = np.zeros(len(y), dtype=bool)
+    for train, test in grouped_splits(y, groups, INNER_FOLDS, seed):
+        for k, expert in enumerate(experts):
+            inner = _forest(seed).fit(X[np.ix_(train, expert.columns)], y[train])
+            ratios[k, test] = log_ratios(inner, X[np.ix_(test, expert.columns)], classes, log_prior)
+        log_d[test] = expert_neighbours(X[train], y[train], classes, experts).log_distances(X[test])
+        calibrating[test] = _as_known_as_in_use(y, groups, train, test)
+    if not calibrating.any():
+        calibrating[:] = True
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an expert with no finite distance: scale 0, 1
+        scale = np.nan_to_num(np.stack([np.nanmean(log_d[calibrating], axis=0),
+                                        np.nanstd(log_d[calibrating], axis=0)]), nan=0.0)
+    scale[1] = np.where(scale[1] > 1e-12, scale[1], 1.0)
+    novelty = (log_d[calibrating] - scale[0]) / scale[1]
+    beta = np.array([fit_tau(ratios[k, calibrating], train_class[calibrating], log_prior)
+                     for k in range(len(experts))])
+    ratios *= beta[:, None, None]
+    tau = _fit_taus(ratios[:, calibrating], train_class[calibrating], log_prior, experts,
+                    np.random.default_rng(seed))
+    return StepModel(tuple(experts), forests, classes, log_prior, beta, tau, ratios, train_class, calibrating,
+                     expert_neighbours(X, y, classes, experts), scale, novelty)
+
+
+def expert_neighbours(X: np.ndarray, y: np.ndarray, classes: np.ndarray, experts: Sequence[Expert]) -> Neighbours:
+    """The nearest-neighbour model of the rows ``X`` (:func:`~taxonomy.learning.openset.fit_neighbours`) with
+    one group per expert: its columns, standardised, as one unit-length vector."""
+    group_of = np.full(X.shape[1], -1, dtype=np.int64)
+    for k, expert in enumerate(experts):
+        group_of[list(expert.columns)] = k
+    fitted = fit_neighbours(X, y, classes, [f"c{j}" for j in range(X.shape[1])])
+    return replace(fitted, titles=tuple(e.name for e in experts), group_of=group_of)
+
+
+def _as_known_as_in_use(y: np.ndarray, groups: np.ndarray, train: np.ndarray, test: np.ndarray) -> np.ndarray:
+    """Which ``test`` rows see their class as a model in use sees a new sample of it: with at least as many
+    other samples in ``train`` as the fewest a class has among all rows, less one, and at least two where
+    any class has three (a material scanned as one sample left out inner folds entirely, which made the
+    calibration distrust every expert for the case a model in use never meets)."""
+    samples = {c: np.unique(groups[y == c]).size for c in np.unique(y)}
+    need = max(1, min(2, max(samples.values()) - 1))
+    in_train = {c: np.unique(groups[train][y[train] == c]).size for c in np.unique(y[test])}
+    return np.array([in_train[c] >= need for c in y[test]])
+
+
+def _forest(seed: int) -> ExtraTreesClassifier:
+    return ExtraTreesClassifier(n_estimators=TREES, random_state=seed, n_jobs=1)
+
+
+def _fit_taus(ratios: np.ndarray, true_index: np.ndarray, log_prior: np.ndarray, experts: Sequence[Expert],
+              rng: np.random.Generator, orders: int = 8) -> np.ndarray:
+    """``tau[m]`` for m = 0..len(experts) active experts, from the active sets met along ``orders`` random step
+    orders per row; a count never met takes the nearest fitted one's."""
+    steps = sorted(frozenset().union(*(e.steps for e in experts)))
+    sums: dict[int, list[np.ndarray]] = {}
+    truth: dict[int, list[int]] = {}
+    for row in range(ratios.shape[1]):
+        for _ in range(orders):
+            recorded: set[str] = set()
+            for step in rng.permutation(steps):
+                recorded.add(str(step))
+                active = np.array([e.steps <= recorded for e in experts])
+                m = int(active.sum())
+                if m:
+                    sums.setdefault(m, []).append(ratios[active, row].sum(axis=0))
+                    truth.setdefault(m, []).append(int(true_index[row]))
+    fitted = {m: fit_tau(np.array(sums[m]), np.array(truth[m]), log_prior) for m in sums}
+    tau = np.ones(len(experts) + 1)
+    for m in range(1, len(tau)):
+        tau[m] = fitted[m] if m in fitted else fitted[min(fitted, key=lambda k: abs(k - m))]
+    return tau
+
+
+@dataclass(frozen=True)
+class Decision:
+    """One step of a quick scan: the step recorded, the time spent so far, the prediction after it."""
+
+    step: str
+    seconds: float
+    probabilities: np.ndarray
+    recorded: frozenset[str]
+    accepted: bool = True
+    """Whether the novelty of the recorded steps is within what known materials show."""
+
+    @property
+    def top(self) -> int:
+        """Index of the most probable class."""
+        return int(np.argmax(self.probabilities))
+
+    def decided(self, stop_at: float) -> bool:
+        """Whether a quick scan stops here: the top class at ``stop_at`` or above, and the novelty accepted."""
+        return bool(self.probabilities.max() >= stop_at and self.accepted)
+
+
+def next_step(model: StepModel, ratios: np.ndarray, recorded: frozenset[str], costs: Mapping[str, float],
+              order: Sequence[str] | None = None) -> str | None:
+    """The step to record next: with ``order`` (a fixed protocol), its first step not yet recorded; else the step
+    of largest expected information gain per second of ``costs`` (None when no step can add anything)."""
+    if order is not None:
+        return next((step for step in order if step not in recorded), None)
+    rates = {step: gain / costs[step] for step, gain in model.gains(ratios, recorded).items()}
+    return max(rates, key=lambda step: (rates[step], -costs[step])) if rates else None
+
+
+def replay(model: StepModel, ratios: np.ndarray, costs: Mapping[str, float], stop_at: float = STOP_AT,
+           order: Sequence[str] | None = None, novelty: np.ndarray | None = None) -> tuple[Decision, ...]:
+    """A quick scan of a scan whose every step is recorded (its expert ``ratios``, and its ``novelty`` for the
+    open-set check): the steps in the adaptive order (or ``order``) until the top class reaches ``stop_at``
+    and the novelty is accepted, or no step is left."""
+    recorded: frozenset[str] = frozenset()
+    seconds = 0.0
+    path = []
+    while (step := next_step(model, ratios, recorded, costs, order)) is not None:
+        recorded = recorded | {step}
+        seconds += costs[step]
+        accepted = True if novelty is None else model.accepts(novelty, recorded)
+        decision = Decision(step, seconds, model.predict(ratios, recorded), recorded, accepted)
+        path.append(decision)
+        if decision.decided(stop_at):
+            break
+    return tuple(path)
+
+
+WALK_ROWS = 20
+"""Training rows an active set needs before :func:`calibrate_walks` fits its own ``tau``."""
+
+
+def calibrate_walks(model: StepModel, costs: Mapping[str, float], orders: Sequence[Sequence[str] | None] = (None,),
+                    min_rows: int = WALK_ROWS) -> StepModel:
+    """The model with ``tau`` fitted for every active set that at least ``min_rows`` training rows meet when
+    walked, with their out-of-fold ratios, in each of ``orders`` (None: the adaptive order) to the end.
+
+    The count-based ``tau[m]`` is fitted over random orders, where weak experts (the static touch) count as
+    much as strong ones (the photos) and drag it down; the sets a quick scan actually meets are few and each
+    is met by most training rows, so each gets its own.
+    """
+    sets: dict[bytes, list[int]] = {}
+    masks: dict[bytes, np.ndarray] = {}
+    for row in np.flatnonzero(model.calibrating):
+        ratios = model.train_ratios[:, row]
+        for order in orders:
+            seen = set()
+            for decision in replay(model, ratios, costs, stop_at=np.inf, order=order):
+                active = model.active(decision.recorded)
+                key = model.key(active)
+                if key not in seen:
+                    seen.add(key)
+                    masks[key] = active
+                    sets.setdefault(key, []).append(row)
+    fitted = {}
+    for key, rows in sets.items():
+        if len(rows) >= min_rows:
+            sums = model.train_ratios[masks[key]][:, rows].sum(axis=0)
+            fitted[key] = fit_tau(sums, model.train_class[rows], model.log_prior)
+    return replace(model, tau_sets=fitted)
+
+
+# -- measuring the quick scan on stored full scans -------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Walk:
+    """One stored scan walked as a quick scan: the steps taken, the cumulative seconds after each, whether
+    the top class after each step was right, and whether (and after how many steps) it stopped."""
+
+    steps: tuple[str, ...]
+    seconds: tuple[float, ...]
+    correct: tuple[bool, ...]
+    decided: bool
+
+    @property
+    def taken(self) -> int:
+        """Steps recorded until the stop (all of them when it never stopped)."""
+        return len(self.steps)
+
+
+@dataclass(frozen=True)
+class QuickResult:
+    """:func:`evaluate_quick`'s figures: per order (``adaptive``, ``fixed``) every test scan's :class:`Walk`,
+    each scan's full-scan prediction right or not, the full protocol's seconds and how the folds split."""
+
+    walks: Mapping[str, tuple[Walk, ...]]
+    full_correct: np.ndarray
+    full_seconds: float
+    stop_at: float
+    splitting: str
+    notes: tuple[str, ...] = ()
+
+    def summary(self, order: str = "adaptive") -> dict[str, float]:
+        """Median steps and seconds to a decision (the whole protocol for a scan that never stops), the share
+        decided, the accuracy of the decided scans and of every scan (a scan that never stops is answered
+        by the full scan), the mean time as a share of the full protocol, and the full scan's accuracy."""
+        walks = self.walks[order]
+        decided = np.array([w.decided for w in walks])
+        taken = np.array([w.taken if w.decided else len(w.steps) for w in walks])
+        seconds = np.array([w.seconds[-1] if w.decided else self.full_seconds for w in walks])
+        right = np.array([w.correct[-1] for w in walks])
+        answered = np.where(decided, right, self.full_correct)
+        return {"median_steps": float(np.median(taken)), "median_seconds": float(np.median(seconds)),
+                "decided": float(decided.mean()), "accuracy_decided": float(right[decided].mean())
+                if decided.any() else float("nan"), "accuracy": float(answered.mean()),
+                "time_share": float(seconds.mean() / self.full_seconds),
+                "full_accuracy": float(np.mean(self.full_correct))}
+
+    def by_steps(self, order: str = "adaptive") -> list[tuple[int, float, float, float, float]]:
+        """Per number of steps k: the mean seconds of the scans still going at k, the share decided by k,
+        the accuracy of those decided by k, and of every scan's top class after k steps (its last)."""
+        walks = self.walks[order]
+        rows = []
+        for k in range(1, max(len(w.steps) for w in walks) + 1):
+            decided = np.array([w.decided and w.taken <= k for w in walks])
+            going = [w.seconds[k - 1] for w in walks if len(w.steps) >= k]
+            current = np.array([w.correct[min(k, len(w.steps)) - 1] for w in walks])
+            rows.append((k, float(np.mean(going)) if going else float("nan"), float(decided.mean()),
+                         float(current[decided].mean()) if decided.any() else float("nan"), float(current.mean())))
+        return rows
+
+    def by_seconds(self, order: str = "adaptive", marks: Sequence[float] = (15, 30, 60, 120, 240)
+                   ) -> list[tuple[float, float, float]]:
+        """Per time mark (and the full protocol): the share decided by then and the accuracy of those."""
+        walks = self.walks[order]
+        rows = []
+        for mark in (*[m for m in marks if m < self.full_seconds], self.full_seconds):
+            decided = np.array([w.decided and w.seconds[-1] <= mark for w in walks])
+            right = np.array([w.correct[-1] for w in walks])
+            rows.append((float(mark), float(decided.mean()), float(right[decided].mean()) if decided.any()
+                         else float("nan")))
+        return rows
+
+    def line(self) -> str:
+        """``quick: median N steps (S s) to a decision, accuracy A % of decided scans, full scan F %``."""
+        s = self.summary("adaptive")
+        return (f"quick: median {s['median_steps']:g} steps ({s['median_seconds']:.0f} s) to a decision, accuracy "
+                f"{100 * s['accuracy_decided']:.1f} % of decided scans, full scan {100 * s['full_accuracy']:.1f} %")
+
+
+def walk(model: StepModel, ratios: np.ndarray, novelty: np.ndarray, truth: str, costs: Mapping[str, float],
+         order: Sequence[str] | None, stop_at: float) -> Walk:
+    """One stored scan walked as a quick scan (:func:`replay`) from its expert ``ratios`` and ``novelty``."""
+    path = replay(model, ratios, costs, stop_at, order, novelty)
+    return Walk(tuple(d.step for d in path), tuple(d.seconds for d in path),
+                tuple(bool(model.classes[d.top] == truth) for d in path),
+                bool(path) and path[-1].decided(stop_at))
+
+
+def evaluate_quick(space: FeatureSpace, costs: Mapping[str, float], order: Sequence[str], level: str = "fine",
+                   folds: int = 5, seed: int = SEED, stop_at: float = STOP_AT, n_features: int = 10) -> QuickResult:
+    """Every full scan of ``space`` walked as a quick scan in held-out folds grouped by sample
+    (:func:`~taxonomy.learning.evaluation.cv_splits`): a :class:`StepModel` fitted on each fold's training rows
+    (and calibrated on their walks) walks each test scan in the adaptive order and in the fixed ``order``;
+    the full-scan figure is the product's own model (scale, FQ selection of ``n_features``, random forest)
+    on the same folds.
+
+    Parameters
+    ----------
+    space : FeatureSpace
+        Full scans with the paper's columns (each column's steps from
+        :meth:`~features.registry.ScanRegistry.column_steps`).
+    costs : mapping of str to float
+        Seconds each step of ``order`` takes, recording and handling.
+    order : sequence of str
+        The fixed protocol's steps in order (the paper's).
+    level, folds, seed, stop_at, n_features
+        Classification level, folds, seed, the probability that stops a quick scan, the full model's features.
+
+    Returns
+    -------
+    QuickResult
+    """
+    missing = [step for step in order if step not in costs]
+    if missing:
+        raise EvaluationError(f"no time given for step {missing[0]!r}")
+    level = space.check_level(level)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        y = space.y(level)
+        groups = np.asarray(space.groups)
+        experts = experts_of(space.columns, REGISTRY.column_steps(space.columns))
+        strays = sorted(set().union(*(e.steps for e in experts)) - set(order))
+        if strays:
+            raise EvaluationError(f"step {strays[0]!r} of the feature columns is not in the protocol's order")
+        full_space, _ = drop_nan_columns(space)
+        splits, grouped = cv_splits(y, groups, folds, seed, grouping_labels=space.label_text)
+        walks: dict[str, list[tuple[int, Walk]]] = {"adaptive": [], "fixed": []}
+        full_correct = np.zeros(len(y), dtype=bool)
+        tested = np.zeros(len(y), dtype=bool)
+        for train, test in splits:
+            model = fit_step_model(space.X[train], y[train], groups[train], experts, seed)
+            model = calibrate_walks(model, costs, (None, order))
+            ratios, novelty = model.ratios(space.X[test]), model.novelty(space.X[test])
+            for k, i in enumerate(test):
+                walks["adaptive"].append((i, walk(model, ratios[k], novelty[k], y[i], costs, None, stop_at)))
+                walks["fixed"].append((i, walk(model, ratios[k], novelty[k], y[i], costs, order, stop_at)))
+            pipeline = fit_pipeline(full_space.X[train], y[train], groups[train], "rf", n_features, seed,
+                                    calibrate=False, columns=full_space.columns)
+            full_correct[test] = pipeline.predict(full_space.X[test]) == y[test]
+            tested[test] = True
+    return QuickResult({name: tuple(w for _, w in sorted(pairs, key=lambda p: p[0])) for name, pairs in walks.items()},
+                       full_correct[tested],
+                       float(sum(costs[step] for step in order)), stop_at,
+                       f"{len(splits)} {'grouped' if grouped else 'ungrouped'} folds",
+                       tuple(sorted({str(w.message).splitlines()[0] for w in caught})))
