@@ -35,6 +35,8 @@ from typing import TYPE_CHECKING, Any
 
 from features import REGISTRY, FeatureSpace, ScanSource, WorkerPool, code_version, extract, extract_many, feature_sets
 from features.memory import keep_freed_memory
+from scanner.acquisition.config import Config
+from scanner.acquisition.session import step_seconds
 from scanner.scan import Scan
 from scanner.simulation.database import synthetic_database
 from scanner.simulation.scans import synthetic_scan
@@ -46,6 +48,7 @@ from taxonomy.labels import Label, LabelError
 from taxonomy.learning.evaluation import EvaluationError, FeatureSet, evaluate
 from taxonomy.learning.models import TrainedModel, classify_values, train_model
 from taxonomy.learning.openset import Explanation
+from taxonomy.learning.quick import QuickResult, evaluate_quick
 from taxonomy.learning.versions import (
     ModelVersion,
     add_version,
@@ -206,6 +209,15 @@ def train_and_measure(space: FeatureSpace, level: str, n_features: int, classifi
     not ``cv``)."""
     model = train_model(space, level, n_features, classifier, seed)
     return model, (cross_validated(space, level, n_features, classifier, seed)[0] if cv else {})
+
+
+def quick_evaluation(space: FeatureSpace, config: Config | None = None, level: str = "fine", folds: int = 5,
+                     seed: int = 0) -> QuickResult:
+    """``evaluate --quick``: the stored full scans walked as quick scans in grouped folds
+    (:func:`taxonomy.learning.quick.evaluate_quick`), each step taking its recording and handling time from
+    ``config`` (default: the default configuration), the fixed order the procedure's."""
+    seconds = step_seconds(config or Config())
+    return evaluate_quick(space, seconds, tuple(seconds), level, folds, seed)
 
 
 def cross_validated(space: FeatureSpace, level: str, n_features: int, classifier: str, seed: int,

@@ -64,6 +64,9 @@ CHANNEL_ROLES: Mapping[str, tuple[str, ...]] = MappingProxyType({
 MAX_HEAT_S = 5.0
 """The Peltier element never heats longer than this (docs/devices.md); the board refuses longer HEAT commands."""
 
+MAX_HANDLING_S = 3600.0
+"""The longest handling time a step may be given (an hour: a displacement volume of a porous sample)."""
+
 IMPLEMENTATIONS: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "daq": ("simulated", "nidaqmx", "replay"),
     "board": ("simulated", "serial", "replay"),
@@ -161,6 +164,27 @@ class StepDurations:
 
 
 @dataclass(frozen=True)
+class HandlingTimes:
+    """Seconds the operator needs for each step besides its recording: placing and steadying the unit,
+    mounting the steel tip (tool tap), picking up TU2 (static touch), gripping the edge (fold), the three
+    photos with the lens change and flash, weighing, the displacement volume and judging (TU4). The quick scan
+    (docs/quick.md) weighs each step's information by its recording plus this time; the defaults are a trained
+    operator's, measure your own lab's and set them here."""
+
+    finger_tap: float = 5.0
+    finger_slide: float = 5.0
+    tool_tap: float = 15.0
+    tool_slide: float = 5.0
+    static: float = 10.0
+    thermal: float = 5.0
+    friction: float = 5.0
+    press: float = 5.0
+    fold: float = 10.0
+    photos: float = 60.0
+    tu4: float = 120.0
+
+
+@dataclass(frozen=True)
 class DaqConfig:
     """NI-DAQmx device (``nidaqmx``): device name, optional remote gRPC server, rate, read cadence, buffer,
     input range and terminal configuration, the Peltier's digital line and the channel map."""
@@ -250,6 +274,7 @@ class Config:
     devices: Mapping[str, str] = field(default_factory=lambda: MappingProxyType(
         {name: choices[0] for name, choices in IMPLEMENTATIONS.items()}))
     steps: StepDurations = StepDurations()
+    handling: HandlingTimes = HandlingTimes()
     daq: DaqConfig = DaqConfig()
     board: BoardConfig = BoardConfig()
     microphone: MicrophoneConfig = MicrophoneConfig()
@@ -307,7 +332,8 @@ def load_config(path: str | Path | None = None) -> Config:
 
 
 _SECTIONS: dict[str, type] = {
-    "steps": StepDurations, "daq": DaqConfig, "board": BoardConfig, "microphone": MicrophoneConfig,
+    "steps": StepDurations, "handling": HandlingTimes, "daq": DaqConfig, "board": BoardConfig,
+    "microphone": MicrophoneConfig,
     "camera": CameraConfig, "simulated": SimulatedConfig, "replay": ReplayConfig, "calibration": Calibration,
 }
 
@@ -420,6 +446,10 @@ def _check(config: Config) -> None:
         if getattr(config.steps, f.name) > MAX_CHANNEL_SECONDS:
             raise ConfigError(f"{source}: steps.{f.name}: at most {MAX_CHANNEL_SECONDS:g} s, the longest a scan "
                               "channel may hold")
+    for f in fields(HandlingTimes):
+        value = getattr(config.handling, f.name)
+        if not 0 <= value <= MAX_HANDLING_S:
+            raise ConfigError(f"{source}: handling.{f.name}: must be between 0 and {MAX_HANDLING_S:g} s, got {value!r}")
     if config.steps.heat > MAX_HEAT_S:
         raise ConfigError(f"{source}: steps.heat: {config.steps.heat:g} s exceeds the "
                           f"{MAX_HEAT_S:g} s Peltier limit")

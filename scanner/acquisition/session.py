@@ -103,6 +103,13 @@ class StepInfo:
     skippable: bool
     kind: str
     """"record" (devices), "photos" (camera or upload) or "form" (typed values)."""
+    handling_s: float = 0.0
+    """The operator's time for the step besides its recording (``[handling]`` of the configuration)."""
+
+    @property
+    def seconds(self) -> float:
+        """The whole step: recording and handling."""
+        return self.duration_s + self.handling_s
 
 
 @dataclass(frozen=True)
@@ -160,8 +167,13 @@ def procedure(config: Config) -> tuple[StepInfo, ...]:
             duration = getattr(config.steps, step) + (config.steps.heat if step == "thermal" else 0.0)
             channels = tuple(name for name, spec in CHANNELS.items() if spec.step == step)
             info = StepInfo(step, number, title, instruction, duration, channels, step == "fold", "record")
-        steps.append(info)
+        steps.append(replace(info, handling_s=getattr(config.handling, step)))
     return tuple(steps)
+
+
+def step_seconds(config: Config) -> dict[str, float]:
+    """Each step's whole time, recording and handling, in the order of the procedure."""
+    return {step.id: step.seconds for step in procedure(config)}
 
 
 @dataclass

@@ -18,6 +18,7 @@ from typing import Any
 from features import REGISTRY, FeatureSpace, code_version, feature_sets
 from features.recordings import Windowing, describe_families, feature_space
 from features.selection import select_features
+from scanner.acquisition.config import load_config
 from scanner.cli.base import EXIT_ERROR, UsageError, add_db_option, open_db, table_lines
 from scanner.cli.common import (
     ALL,
@@ -42,6 +43,7 @@ from scanner.workflows import (
     model_file,
     predict_scan,
     predict_values,
+    quick_evaluation,
     save_model_version,
     stored_features,
 )
@@ -62,7 +64,7 @@ from taxonomy.learning.evaluation import (
 from taxonomy.learning.models import load_model, save_model, train_model
 from taxonomy.learning.results import one_line
 from taxonomy.learning.versions import current_version, use_version, version_file, versions
-from taxonomy.reports.report import format_open_set, format_protocols, format_table, write_report
+from taxonomy.reports.report import format_open_set, format_protocols, format_quick, format_table, write_report
 from taxonomy.table import load_taxonomy
 
 
@@ -164,6 +166,8 @@ def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
     group_by = set_grouping(args) if space.label_level is not None else scan_grouping(args)
     if getattr(args, "open_set", False):
         return run_open_set(space, args, classifiers, levels, sizes, sets, group_by)
+    if getattr(args, "quick", False):
+        return run_quick(space, args, ["fine"] if args.level == [ALL] else levels)
     sets, left_out = with_values(space, sets if sets is not None else present_feature_sets(space))
     for line in left_out:
         print(f"texplorer: note: {line}", file=sys.stderr)
@@ -217,6 +221,21 @@ def run_open_set(space, args: argparse.Namespace, classifiers, levels, sizes, se
     if args.report:
         print(f"report: {write_report(args.report, space, reports, workers=getattr(args, 'workers', None))}")
     return reports
+
+
+def run_quick(space, args: argparse.Namespace, levels: Sequence[str]) -> list:
+    """``evaluate --quick``: the database's full scans walked step by step as quick scans in grouped folds
+    (:func:`scanner.workflows.quick_evaluation`), step times from ``--config``; the tables and the one line,
+    at the fine level unless ``--level`` names others."""
+    if space.label_level is not None:
+        raise UsageError("--quick walks the scanner's procedure step by step; a recording set has no steps")
+    started = time.perf_counter()
+    config = load_config(args.config) if getattr(args, "config", None) else None
+    results = [quick_evaluation(space, config, level, args.folds, args.seed) for level in levels]
+    for result in results:
+        print(format_quick(result))
+    print(f"{len(results)} quick-scan evaluation(s) in {time.perf_counter() - started:.1f} s")
+    return results
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
@@ -539,6 +558,12 @@ def register(commands: argparse._SubParsersAction) -> None:
     evaluate.add_argument("--open-set", action="store_true", help="hold out whole classes per fold: AUROC of "
                           "the rejection score, known-class accuracy at the learned threshold and the share "
                           "of unknown scans rejected (docs/trust.md)")
+    evaluate.add_argument("--quick", action="store_true", help="walk every full scan step by step as a quick "
+                          "scan (the next step chosen by information per second, stopping at a calibrated 0.95): "
+                          "share decided and accuracy after each step and second, adaptive and in the paper's "
+                          "order, at the fine level unless --level says otherwise (docs/quick.md)")
+    evaluate.add_argument("--config", type=Path, help="--quick: device configuration TOML whose [steps] and "
+                          "[handling] give each step's time (default: the built-in times)")
     evaluate.add_argument("--no-calibration", action="store_true", help="skip the temperature scaling inside "
                           "every fold (about 4x less fitting; no reliability diagram or ECE)")
     evaluate.set_defaults(handler=cmd_evaluate)

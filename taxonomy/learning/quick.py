@@ -485,6 +485,7 @@ class QuickResult:
     full_seconds: float
     stop_at: float
     splitting: str
+    level: str = "fine"
     notes: tuple[str, ...] = ()
 
     def summary(self, order: str = "adaptive") -> dict[str, float]:
@@ -599,5 +600,5 @@ def evaluate_quick(space: FeatureSpace, costs: Mapping[str, float], order: Seque
     return QuickResult({name: tuple(w for _, w in sorted(pairs, key=lambda p: p[0])) for name, pairs in walks.items()},
                        full_correct[tested],
                        float(sum(costs[step] for step in order)), stop_at,
-                       f"{len(splits)} {'grouped' if grouped else 'ungrouped'} folds",
+                       f"{len(splits)} {'grouped' if grouped else 'ungrouped'} folds", level,
                        tuple(sorted({str(w.message).splitlines()[0] for w in caught})))

@@ -35,6 +35,7 @@ from scanner.storage.files import atomic_write_bytes
 from taxonomy.labels import LEVELS
 from taxonomy.learning.evaluation import MLP_MAX_ITER
 from taxonomy.learning.metrics import auroc, bootstrap_interval
+from taxonomy.learning.quick import QuickResult
 from taxonomy.learning.results import COLUMNS, Result, best_per_method, format_r_c, major_class, result_notes, size_name
 from taxonomy.reports.plots import (
     plot_confusion,
@@ -309,6 +310,31 @@ def format_open_set(reports: Sequence[Result]) -> str:
              f"without it, share of held-out materials' scans rejected"]
     lines += ["  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip() for row in rows]
     return "\n".join([*lines, *_note_lines(reports)])
+
+
+def format_quick(result: QuickResult) -> str:
+    """The quick scan's figures as text: per order, the share decided and the accuracy after each number of
+    steps and by each time mark, then the one line of :meth:`QuickResult.line`."""
+    lines = [f"quick scan, {result.level} level: {result.splitting}; stops at a calibrated {result.stop_at:.2f} with the novelty "
+             f"accepted; the full protocol takes {result.full_seconds:.0f} s"]
+    for order, title in (("adaptive", "adaptive order (most information per second next)"),
+                         ("fixed", "the paper's fixed order")):
+        s = result.summary(order)
+        lines += ["", f"{title}: median {s['median_steps']:g} steps ({s['median_seconds']:.0f} s), "
+                  f"{100 * s['decided']:.1f} % decided, mean time {100 * s['time_share']:.1f} % of the full "
+                  f"protocol, {100 * s['accuracy']:.1f} % right (undecided scans answered by the full scan)",
+                  "  steps  mean s  decided  right of decided  right now"]
+        lines += [f"  {k:>5}  {sec:>6.0f}  {100 * dec:>6.1f} %  {_percent(acc):>16}  {100 * now:>7.1f} %"
+                  for k, sec, dec, acc, now in result.by_steps(order)]
+        lines += ["  by s   decided  right of decided"]
+        lines += [f"  {mark:>4.0f}  {100 * dec:>7.1f} %  {_percent(acc):>16}"
+                  for mark, dec, acc in result.by_seconds(order)]
+    lines += [*(f"note: {note}" for note in result.notes), result.line()]
+    return "\n".join(lines)
+
+
+def _percent(value: float) -> str:
+    return "-" if value != value else f"{100 * value:.1f} %"
 
 
 # -- HTML page ---------------------------------------------------------------------------------------
