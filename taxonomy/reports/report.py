@@ -315,8 +315,8 @@ def format_open_set(reports: Sequence[Result]) -> str:
 def format_quick(result: QuickResult) -> str:
     """The quick scan's figures as text: per order, the share decided and the accuracy after each number of
     steps and by each time mark, then the one line of :meth:`QuickResult.line`."""
-    lines = [f"quick scan, {result.level} level: {result.splitting}; stops at a calibrated {result.stop_at:.2f} with the novelty "
-             f"accepted; the full protocol takes {result.full_seconds:.0f} s"]
+    lines = [f"quick scan, {result.level} level: {result.splitting}; stops at a calibrated {result.stop_at:.2f} with "
+             f"the novelty accepted; the full protocol takes {result.full_seconds:.0f} s"]
     for order, title in (("adaptive", "adaptive order (most information per second next)"),
                          ("fixed", "the paper's fixed order")):
         s = result.summary(order)
