@@ -231,7 +231,8 @@ def run_quick(space, args: argparse.Namespace, levels: Sequence[str]) -> list:
         raise UsageError("--quick walks the scanner's procedure step by step; a recording set has no steps")
     started = time.perf_counter()
     config = load_config(args.config) if getattr(args, "config", None) else None
-    results = [quick_evaluation(space, config, level, args.folds, args.seed) for level in levels]
+    results = [quick_evaluation(space, config, level, args.folds, args.seed, getattr(args, "workers", None))
+               for level in levels]
     for result in results:
         print(format_quick(result))
     print(f"{len(results)} quick-scan evaluation(s) in {time.perf_counter() - started:.1f} s")

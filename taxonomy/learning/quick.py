@@ -45,6 +45,7 @@ from scipy.optimize import minimize, minimize_scalar
 from scipy.special import log_softmax, softmax
 from sklearn.ensemble import ExtraTreesClassifier
 
+from features.extraction import worker_map
 from features.registry import REGISTRY
 from features.space import FeatureSpace
 from taxonomy.learning.calibration import grouped_splits
@@ -60,6 +61,9 @@ TREES = 100
 
 INNER_FOLDS = 4
 """Grouped splits of the training rows that give each training row's out-of-fold expert predictions."""
+
+NO_GAIN = 1e-9
+"""Expected information (bits) below which a step is not worth its time: the adaptive order ends there."""
 
 STOP_AT = 0.95
 """The calibrated probability of the top class at which a quick scan stops (with the novelty accepted)."""
@@ -396,10 +400,11 @@ class Decision:
 def next_step(model: StepModel, ratios: np.ndarray, recorded: frozenset[str], costs: Mapping[str, float],
               order: Sequence[str] | None = None) -> str | None:
     """The step to record next: with ``order`` (a fixed protocol), its first step not yet recorded; else the step
-    of largest expected information gain per second of ``costs`` (None when no step can add anything)."""
+    of largest expected information gain per second of ``costs`` (None when no step is expected to add more
+    than :data:`NO_GAIN`)."""
     if order is not None:
         return next((step for step in order if step not in recorded), None)
-    rates = {step: gain / costs[step] for step, gain in model.gains(ratios, recorded).items()}
+    rates = {step: gain / costs[step] for step, gain in model.gains(ratios, recorded).items() if gain > NO_GAIN}
     return max(rates, key=lambda step: (rates[step], -costs[step])) if rates else None
 
 
@@ -546,7 +551,8 @@ def walk(model: StepModel, ratios: np.ndarray, novelty: np.ndarray, truth: str, 
 
 
 def evaluate_quick(space: FeatureSpace, costs: Mapping[str, float], order: Sequence[str], level: str = "fine",
-                   folds: int = 5, seed: int = SEED, stop_at: float = STOP_AT, n_features: int = 10) -> QuickResult:
+                   folds: int = 5, seed: int = SEED, stop_at: float = STOP_AT, n_features: int = 10,
+                   workers: int | None = None) -> QuickResult:
     """Every full scan of ``space`` walked as a quick scan in held-out folds grouped by sample
     (:func:`~taxonomy.learning.evaluation.cv_splits`): a :class:`StepModel` fitted on each fold's training rows
     (and calibrated on their walks) walks each test scan in the adaptive order and in the fixed ``order``;
@@ -564,6 +570,8 @@ def evaluate_quick(space: FeatureSpace, costs: Mapping[str, float], order: Seque
         The fixed protocol's steps in order (the paper's).
     level, folds, seed, stop_at, n_features
         Classification level, folds, seed, the probability that stops a quick scan, the full model's features.
+    workers : int, optional
+        Processes the folds run in (:func:`~features.extraction.worker_map`; default one per CPU).
 
     Returns
     -------
@@ -583,22 +591,50 @@ def evaluate_quick(space: FeatureSpace, costs: Mapping[str, float], order: Seque
             raise EvaluationError(f"step {strays[0]!r} of the feature columns is not in the protocol's order")
         full_space, _ = drop_nan_columns(space)
         splits, grouped = cv_splits(y, groups, folds, seed, grouping_labels=space.label_text)
+        jobs = [_FoldJob(space.X, y, groups, experts, train, test, dict(costs), tuple(order), stop_at, seed,
+                         full_space.X, full_space.columns, n_features) for train, test in splits]
         walks: dict[str, list[tuple[int, Walk]]] = {"adaptive": [], "fixed": []}
         full_correct = np.zeros(len(y), dtype=bool)
         tested = np.zeros(len(y), dtype=bool)
-        for train, test in splits:
-            model = fit_step_model(space.X[train], y[train], groups[train], experts, seed)
-            model = calibrate_walks(model, costs, (None, order))
-            ratios, novelty = model.ratios(space.X[test]), model.novelty(space.X[test])
-            for k, i in enumerate(test):
-                walks["adaptive"].append((i, walk(model, ratios[k], novelty[k], y[i], costs, None, stop_at)))
-                walks["fixed"].append((i, walk(model, ratios[k], novelty[k], y[i], costs, order, stop_at)))
-            pipeline = fit_pipeline(full_space.X[train], y[train], groups[train], "rf", n_features, seed,
-                                    calibrate=False, columns=full_space.columns)
-            full_correct[test] = pipeline.predict(full_space.X[test]) == y[test]
+        for k, (adaptive, fixed, right) in worker_map(_quick_fold, jobs, workers):
+            test = jobs[k].test
+            walks["adaptive"] += zip(test, adaptive, strict=True)
+            walks["fixed"] += zip(test, fixed, strict=True)
+            full_correct[test] = right
             tested[test] = True
     return QuickResult({name: tuple(w for _, w in sorted(pairs, key=lambda p: p[0])) for name, pairs in walks.items()},
                        full_correct[tested],
                        float(sum(costs[step] for step in order)), stop_at,
                        f"{len(splits)} {'grouped' if grouped else 'ungrouped'} folds", level,
                        tuple(sorted({str(w.message).splitlines()[0] for w in caught})))
+
+
+@dataclass(frozen=True)
+class _FoldJob:
+    X: np.ndarray
+    y: np.ndarray
+    groups: np.ndarray
+    experts: tuple[Expert, ...]
+    train: np.ndarray
+    test: np.ndarray
+    costs: dict[str, float]
+    order: tuple[str, ...]
+    stop_at: float
+    seed: int
+    full_X: np.ndarray
+    full_columns: tuple[str, ...]
+    n_features: int
+
+
+def _quick_fold(job: _FoldJob) -> tuple[list[Walk], list[Walk], np.ndarray]:
+    """One fold of :func:`evaluate_quick`: the test rows' adaptive and fixed walks, and whether the full
+    scan's model named them right."""
+    train, test, y = job.train, job.test, job.y
+    model = fit_step_model(job.X[train], y[train], job.groups[train], job.experts, job.seed)
+    model = calibrate_walks(model, job.costs, (None, job.order))
+    ratios, novelty = model.ratios(job.X[test]), model.novelty(job.X[test])
+    adaptive = [walk(model, ratios[k], novelty[k], y[i], job.costs, None, job.stop_at) for k, i in enumerate(test)]
+    fixed = [walk(model, ratios[k], novelty[k], y[i], job.costs, job.order, job.stop_at) for k, i in enumerate(test)]
+    pipeline = fit_pipeline(job.full_X[train], y[train], job.groups[train], "rf", job.n_features, job.seed,
+                            calibrate=False, columns=job.full_columns)
+    return adaptive, fixed, pipeline.predict(job.full_X[test]) == y[test]

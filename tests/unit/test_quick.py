@@ -1,0 +1,216 @@
+"""The quick scan: experts by step, the tempered product, the information gain per second, the stop, and the
+walk of stored scans (docs/quick.md)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from features import FeatureSpace
+from scanner.acquisition.config import ConfigError, parse_config
+from scanner.acquisition.session import procedure, step_seconds
+from scanner.cli import main
+from taxonomy.learning.evaluation import EvaluationError
+from taxonomy.learning.quick import (
+    Expert,
+    StepModel,
+    entropy,
+    evaluate_quick,
+    experts_of,
+    fit_tau,
+    next_step,
+    posterior,
+    replay,
+)
+
+# -- a toy model with known answers ----------------------------------------------------------------------
+#
+# Two classes, equally frequent; every training row is one of each class. Step "a" completes an expert whose
+# out-of-fold posterior is 0.9 for the row's own class, step "c" one at 0.7, step "b" one that cannot tell.
+
+
+def _ratio(p_true: float) -> np.ndarray:
+    """Log ratios ``log q - log pi`` of the two training rows (class 0, class 1) of an expert that gives the
+    true class ``p_true``."""
+    q = np.array([[p_true, 1 - p_true], [1 - p_true, p_true]])
+    return np.log(q / 0.5)
+
+
+def toy_model(tau: float = 1.0) -> StepModel:
+    experts = (Expert(frozenset({"a"}), (0,)), Expert(frozenset({"b"}), (1,)), Expert(frozenset({"c"}), (2,)))
+    ratios = np.stack([_ratio(0.9), _ratio(0.5), _ratio(0.7)])
+    return StepModel(experts, (), np.array(["x", "y"]), np.log([0.5, 0.5]), np.ones(3), np.full(4, tau), ratios,
+                     np.array([0, 1]), np.ones(2, dtype=bool), None, np.array([[0.0] * 3, [1.0] * 3]),
+                     np.zeros((2, 3)))
+
+
+def h2(p: float) -> float:
+    """Binary entropy in bits."""
+    return float(-p * np.log2(p) - (1 - p) * np.log2(1 - p))
+
+
+def test_the_information_gain_of_each_step_is_the_drop_in_entropy_it_promises():
+    gains = toy_model().gains(np.zeros((3, 2)), frozenset())
+    assert gains["a"] == pytest.approx(1 - h2(0.9), abs=1e-12)
+    assert gains["c"] == pytest.approx(1 - h2(0.7), abs=1e-12)
+    assert gains["b"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_the_gain_weighs_the_outcomes_by_the_current_probabilities():
+    # After "c" said class x with 0.7, the outcome of "a" is class x's row with probability 0.7: posterior
+    # 0.7 * 0.9 / (0.7 * 0.9 + 0.3 * 0.1) = 21/22, or class y's row (0.3): 0.7 * 0.1 / (0.07 + 0.27) = 7/34.
+    model = toy_model()
+    scan = np.stack([_ratio(0.9)[0], _ratio(0.5)[0], _ratio(0.7)[0]])  # a scan of class x
+    now = model.predict(scan, {"c"})
+    assert now == pytest.approx([0.7, 0.3])
+    expected = h2(0.7) - (0.7 * h2(21 / 22) + 0.3 * h2(7 / 34))
+    assert model.gains(scan, {"c"})["a"] == pytest.approx(expected, abs=1e-12)
+
+
+def test_the_next_step_is_the_most_information_per_second_or_the_fixed_orders_next():
+    model, nothing = toy_model(), np.zeros((3, 2))
+    assert next_step(model, nothing, frozenset(), {"a": 1, "b": 1, "c": 1}) == "a"
+    # a: 0.531 bits in 10 s; c: 0.119 bits in 1 s
+    assert next_step(model, nothing, frozenset(), {"a": 10, "b": 1, "c": 1}) == "c"
+    assert next_step(model, nothing, frozenset({"a", "c"}), {"a": 1, "b": 1, "c": 1}) is None  # b tells nothing
+    assert next_step(model, nothing, frozenset({"b"}), {"a": 1, "b": 1, "c": 1}, order=["b", "c", "a"]) == "c"
+
+
+def test_a_quick_scan_stops_once_the_top_class_reaches_the_threshold():
+    model = toy_model()
+    scan = np.stack([_ratio(0.9)[0], _ratio(0.5)[0], _ratio(0.7)[0]])
+    costs = {"a": 1.0, "b": 1.0, "c": 1.0}
+    assert [d.step for d in replay(model, scan, costs, stop_at=0.85)] == ["a"]
+    path = replay(model, scan, costs, stop_at=0.95)  # a: 0.9, then c: 21/22 = 0.9545
+    assert [d.step for d in path] == ["a", "c"]
+    assert path[-1].probabilities[0] == pytest.approx(21 / 22) and path[-1].seconds == 2.0
+    assert [d.step for d in replay(model, scan, costs, stop_at=0.96)] == ["a", "c"]  # nothing left to gain
+
+
+def test_a_quick_scan_does_not_stop_while_the_recorded_steps_look_new():
+    model = toy_model()
+    scan = np.stack([_ratio(0.9)[0], _ratio(0.5)[0], _ratio(0.7)[0]])
+    path = replay(model, scan, {"a": 1.0, "b": 1.0, "c": 1.0}, stop_at=0.85, novelty=np.array([9.0, 9.0, 9.0]))
+    assert [d.step for d in path] == ["a", "c"] and not any(d.accepted for d in path)
+    assert not path[-1].decided(0.85)
+
+
+def test_the_product_is_tempered_by_tau():
+    model = toy_model(tau=0.5)
+    scan = np.stack([_ratio(0.9)[0], _ratio(0.5)[0], _ratio(0.7)[0]])
+    p = model.predict(scan, {"a"})[0]
+    assert p == pytest.approx(3 / 4)  # odds 9^0.5 = 3
+
+
+def test_tau_is_recovered_from_rows_drawn_from_the_tempered_posterior():
+    rng = np.random.default_rng(0)
+    n, true_tau = 20000, 0.6
+    log_prior = np.log(np.full(3, 1 / 3))
+    sums = rng.normal(0.0, 2.0, (n, 3))
+    p = posterior(log_prior, sums, true_tau)
+    y = (rng.random(n)[:, None] > np.cumsum(p, axis=1)).sum(axis=1)
+    tau = fit_tau(sums, y, log_prior)
+    # standard error of the maximum-likelihood estimate from the observed information d2 NLL / d tau2
+    eps = 1e-3
+    nll = [-np.log(posterior(log_prior, sums, t)[np.arange(n), y]).sum() for t in (tau - eps, tau, tau + eps)]
+    se = 1 / np.sqrt((nll[0] - 2 * nll[1] + nll[2]) / eps**2)
+    assert abs(tau - true_tau) < 4 * se
+
+
+def test_entropy_is_in_bits():
+    assert entropy(np.array([0.5, 0.5])) == pytest.approx(1.0)
+    assert entropy(np.array([1.0, 0.0])) == 0.0
+
+
+def test_columns_are_grouped_by_the_steps_they_need():
+    needs = {"tactum.matx": frozenset({"tool_slide", "friction"}), "audio.tool.zcr": frozenset({"tool_slide"}),
+             "other.vib_std": frozenset({"tool_slide"}), "x.whole": frozenset()}
+    experts = experts_of(["audio.tool.zcr", "tactum.matx", "x.whole", "other.vib_std"], needs)
+    assert experts == (Expert(frozenset({"tool_slide"}), (0, 3)), Expert(frozenset({"tool_slide", "friction"}), (1,)))
+    assert experts[1].name == "friction+tool_slide"
+
+
+# -- walking stored scans ----------------------------------------------------------------------------------
+
+
+def step_space(seed: int = 0) -> FeatureSpace:
+    """Four materials, three samples each, two scans per sample: the tool slide's columns tell the materials
+    apart, the TU4 values only the first two from the last two, the photos nothing."""
+    rng = np.random.default_rng(seed)
+    columns = ("audio.tool.zcr", "audio.tool.energy", "other.density", "image.disp.brightness")
+    labels = ["C1S1M1P1X1", "C2S1M1P1X1", "C3S1M1P1X1", "C4S1M1P1X1"]
+    rows, label_text, groups = [], [], []
+    for m, label in enumerate(labels):
+        for sample in range(3):
+            centre = rng.normal(0, 0.05, 4)
+            for _ in range(2):
+                slide = [3.0 * m, -2.0 * m] + rng.normal(0, 0.2, 2)
+                rows.append([*(slide + centre[:2]), (m // 2) + rng.normal(0, 0.2) + centre[2], rng.normal()])
+                label_text.append(label)
+                groups.append(f"{label}-{sample}")
+    return FeatureSpace(X=np.array(rows), columns=columns, scan_ids=tuple(f"s{i}" for i in range(len(rows))),
+                        label_text=tuple(label_text), groups=tuple(groups))
+
+
+@pytest.fixture(autouse=True)
+def few_trees(monkeypatch):
+    """Twenty trees per expert: the walks below need the order of the steps, not the last point of accuracy."""
+    monkeypatch.setattr("taxonomy.learning.quick.TREES", 20)
+
+
+COSTS = {"finger_tap": 10.0, "tool_slide": 10.0, "photos": 60.0, "tu4": 120.0}
+ORDER = ("finger_tap", "tool_slide", "photos", "tu4")
+
+
+def test_stored_scans_walk_to_a_decision_after_the_step_that_tells_them_apart():
+    result = evaluate_quick(step_space(), COSTS, ORDER, folds=3, workers=1)
+    adaptive, fixed = result.summary("adaptive"), result.summary("fixed")
+    assert all(w.steps == ("tool_slide",) for w in result.walks["adaptive"] if w.decided)
+    assert adaptive["decided"] >= 0.9 and adaptive["accuracy_decided"] >= 0.9
+    assert adaptive["median_steps"] == 1 and adaptive["median_seconds"] == 10.0
+    assert fixed["median_steps"] == 2 and fixed["median_seconds"] == 20.0  # the finger tap first, for nothing
+    assert result.full_seconds == 200.0
+    assert len(result.walks["adaptive"]) == len(result.full_correct) == 24
+    assert result.line().startswith("quick: median 1 steps (10 s) to a decision, accuracy ")
+
+
+def test_the_tables_count_decisions_by_steps_and_seconds():
+    result = evaluate_quick(step_space(), COSTS, ORDER, folds=3, workers=1)
+    steps = result.by_steps("fixed")
+    assert [row[0] for row in steps][:2] == [1, 2] and steps[0][2] == 0.0  # nobody decides on the finger tap
+    marks = result.by_seconds("adaptive", marks=(5, 15))
+    assert [m for m, _, _ in marks] == [5.0, 15.0, 200.0] and marks[0][1] == 0.0
+    assert marks[1][1] == result.summary("adaptive")["decided"]
+
+
+def test_a_step_the_order_lacks_or_a_step_without_time_is_refused():
+    with pytest.raises(EvaluationError, match="no time given for step 'photos'"):
+        evaluate_quick(step_space(), {"finger_tap": 1.0, "tool_slide": 1.0, "tu4": 1.0}, ORDER)
+    with pytest.raises(EvaluationError, match="step 'photos' of the feature columns is not in the protocol"):
+        evaluate_quick(step_space(), COSTS, ("tool_slide", "tu4"))
+
+
+# -- the protocol's times and the command ------------------------------------------------------------------
+
+
+def test_every_step_takes_its_recording_and_handling_time():
+    config = parse_config({"handling": {"photos": 30.0}, "steps": {"tool_slide": 4.0}})
+    seconds = step_seconds(config)
+    assert list(seconds) == [step.id for step in procedure(config)]
+    assert seconds["photos"] == 30.0 and seconds["tool_slide"] == 4.0 + 5.0
+    assert seconds["thermal"] == config.steps.heat + config.steps.thermal + config.handling.thermal
+
+
+@pytest.mark.parametrize(("value", "why"), [(-1.0, "must be between 0 and 3600 s"),
+                                            ("slow", "must be a finite number")])
+def test_a_bad_handling_time_is_refused_by_name(value, why):
+    with pytest.raises(ConfigError, match=f"handling.tu4: {why}"):
+        parse_config({"handling": {"tu4": value}})
+
+
+def test_evaluate_quick_prints_the_tables_and_the_line(tmp_path, capsys):
+    table = step_space().to_csv(tmp_path / "space.csv")
+    assert main(["evaluate", "--quick", "--features", str(table), "--folds", "3", "--db", str(tmp_path / "db")]) == 0
+    out = capsys.readouterr().out
+    assert "quick scan, fine level: 3 grouped folds" in out and "the paper's fixed order" in out
+    assert out.splitlines()[-2].startswith("quick: median 1 steps (10 s) to a decision")
