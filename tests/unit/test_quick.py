@@ -14,6 +14,7 @@ from taxonomy.learning.evaluation import EvaluationError
 from taxonomy.learning.quick import (
     Expert,
     StepModel,
+    contrast,
     entropy,
     evaluate_quick,
     experts_of,
@@ -72,8 +73,17 @@ def test_the_next_step_is_the_most_information_per_second_or_the_fixed_orders_ne
     assert next_step(model, nothing, frozenset(), {"a": 1, "b": 1, "c": 1}) == "a"
     # a: 0.531 bits in 10 s; c: 0.119 bits in 1 s
     assert next_step(model, nothing, frozenset(), {"a": 10, "b": 1, "c": 1}) == "c"
-    assert next_step(model, nothing, frozenset({"a", "c"}), {"a": 1, "b": 1, "c": 1}) is None  # b tells nothing
+    assert next_step(model, nothing, frozenset({"a", "c"}), {"a": 1, "b": 1, "c": 1}) == "b"  # the last one left
+    assert next_step(model, nothing, frozenset({"a", "b", "c"}), {"a": 1, "b": 1, "c": 1}) is None
     assert next_step(model, nothing, frozenset({"b"}), {"a": 1, "b": 1, "c": 1}, order=["b", "c", "a"]) == "c"
+
+
+def test_the_reason_for_a_step_is_how_far_it_swings_the_two_likeliest_classes_apart():
+    model = toy_model()
+    scan = np.stack([_ratio(0.9)[0], _ratio(0.5)[0], _ratio(0.7)[0]])
+    a, b, swing = contrast(model, scan, {"c"}, "a")
+    assert (a, b) == (0, 1) and swing == pytest.approx(2 * np.log(9))
+    assert contrast(model, scan, {"c"}, "b")[2] == pytest.approx(0.0)
 
 
 def test_a_quick_scan_stops_once_the_top_class_reaches_the_threshold():
@@ -84,14 +94,14 @@ def test_a_quick_scan_stops_once_the_top_class_reaches_the_threshold():
     path = replay(model, scan, costs, stop_at=0.95)  # a: 0.9, then c: 21/22 = 0.9545
     assert [d.step for d in path] == ["a", "c"]
     assert path[-1].probabilities[0] == pytest.approx(21 / 22) and path[-1].seconds == 2.0
-    assert [d.step for d in replay(model, scan, costs, stop_at=0.96)] == ["a", "c"]  # nothing left to gain
+    assert [d.step for d in replay(model, scan, costs, stop_at=0.96)] == ["a", "c", "b"]  # never sure
 
 
 def test_a_quick_scan_does_not_stop_while_the_recorded_steps_look_new():
     model = toy_model()
     scan = np.stack([_ratio(0.9)[0], _ratio(0.5)[0], _ratio(0.7)[0]])
     path = replay(model, scan, {"a": 1.0, "b": 1.0, "c": 1.0}, stop_at=0.85, novelty=np.array([9.0, 9.0, 9.0]))
-    assert [d.step for d in path] == ["a", "c"] and not any(d.accepted for d in path)
+    assert [d.step for d in path] == ["a", "c", "b"] and not any(d.accepted for d in path)
     assert not path[-1].decided(0.85)
 
 
