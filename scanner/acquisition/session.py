@@ -345,6 +345,12 @@ class Session:
             lines.append(f"the TU4 values: {', '.join(entered)}")
         return lines
 
+    def recorded_steps(self) -> frozenset[str]:
+        """The steps done so far: recorded (or the fold skipped as rigid), the three photos taken, the TU4
+        values entered."""
+        return frozenset(step.id for step in self.steps
+                         if self.status(step.id).state in (StepState.RECORDED, StepState.SKIPPED))
+
     def _missing_values(self) -> list[str]:
         values = self._values
         numbers = ("mass_g", "volume_cm3", "atk", "cyd")
@@ -552,10 +558,12 @@ class Session:
 
     # -- the end ---------------------------------------------------------------------------------
 
-    def scan(self, scan_index: int = 1) -> Scan:
-        """The scan as it would be saved (raises :class:`SessionError` listing what is missing)."""
+    def scan(self, scan_index: int = 1, partial: bool = False) -> Scan:
+        """The scan as it would be saved (raises :class:`SessionError` listing what is missing); with
+        ``partial``, the scan of what is done so far (a quick scan's prediction after each step): the channels
+        of the recorded steps, the photos taken, the TU4 values entered (NaN where not)."""
         missing = self.missing()
-        if missing:
+        if missing and not partial:
             raise SessionError(f"cannot save yet, missing: {', '.join(missing)}")
         results = {step: entry.result for step, entry in self._steps.items() if entry.result is not None}
         device, calibration = self.recorder.device_meta(results)

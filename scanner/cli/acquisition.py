@@ -23,14 +23,23 @@ from scanner.acquisition.entries import (
     parse_quantity,
     parse_volume_method,
 )
-from scanner.acquisition.session import VOLUME_METHODS, Session, SessionError, StepState
-from scanner.cli.base import EXIT_ERROR, add_db_option, open_db
+from scanner.acquisition.session import STEP_TITLES, VOLUME_METHODS, Session, SessionError, StepState
+from scanner.cli.base import EXIT_ERROR, UsageError, add_db_option, open_db
 from scanner.scan import IMAGES
 from scanner.storage.database import DatabaseError, is_database
-from scanner.workflows import check_label, format_predictions, model_file, predict_scan
+from scanner.workflows import (
+    QuickIdentifier,
+    QuickState,
+    check_label,
+    format_predictions,
+    model_file,
+    predict_scan,
+    step_words,
+)
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import LabelError
 from taxonomy.learning.models import TrainedModel, load_model
+from taxonomy.learning.quick import STOP_AT
 from taxonomy.table import UnknownLabelError, load_taxonomy
 
 try:  # pseudo-terminals: POSIX only
@@ -179,9 +188,7 @@ def _check_label(session: Session, model: TrainedModel, args: argparse.Namespace
         return
 
 
-def _guide(session, args: argparse.Namespace, model: TrainedModel | None = None) -> str | None:
-    """Walk the operator through every step, check the label against ``model`` if given; the saved scan id,
-    or None if not saved."""
+def _ambient(session: Session) -> None:
     answer = _ask(session, f"ambient temperature {session.t_amb:.2f} degC: [Enter] keep, or type degC: ")
     while answer:
         try:
@@ -189,17 +196,23 @@ def _guide(session, args: argparse.Namespace, model: TrainedModel | None = None)
             break
         except ValueError as exc:
             answer = _ask(session, f"  {exc}; degC: ")
-    total = len(session.steps)
-    for index, step in enumerate(session.steps, 1):
-        duration = f" ({step.duration_s:g} s)" if step.duration_s else ""
-        print(f"\nstep {index}/{total}: {step.title}{duration}")
-        print(textwrap.fill(step.instruction, 100, initial_indent="  ", subsequent_indent="  "))
-        if step.kind == "record":
-            _record_step(session, step)
-        elif step.kind == "photos":
-            _take_photos(session)
-        else:
-            _tu4(session)
+
+
+def _do_step(session: Session, step) -> None:
+    """Show one step's instruction and record it, take the photos or ask for the TU4 values."""
+    duration = f" ({step.duration_s:g} s)" if step.duration_s else ""
+    print(f"\nstep {step.number}/{len(session.steps)}: {step.title}{duration}")
+    print(textwrap.fill(step.instruction, 100, initial_indent="  ", subsequent_indent="  "))
+    if step.kind == "record":
+        _record_step(session, step)
+    elif step.kind == "photos":
+        _take_photos(session)
+    else:
+        _tu4(session)
+
+
+def _finish(session: Session, args: argparse.Namespace, model: TrainedModel | None) -> str | None:
+    """Check the label against ``model`` if given, then save when the operator says so: the scan id, or None."""
     if model is not None:
         _check_label(session, model, args)
     while _ask(session, "\nsave the scan? [Y/n] ").lower() in ("n", "no"):
@@ -213,10 +226,90 @@ def _guide(session, args: argparse.Namespace, model: TrainedModel | None = None)
             _ask(session, f"  not saved: {exc}\n  [Enter] retry, a abort: ")
 
 
+def _guide(session, args: argparse.Namespace, model: TrainedModel | None = None) -> str | None:
+    """Walk the operator through every step, check the label against ``model`` if given; the saved scan id,
+    or None if not saved."""
+    _ambient(session)
+    for step in session.steps:
+        _do_step(session, step)
+    return _finish(session, args, model)
+
+
+def _quick_lines(state: QuickState) -> str:
+    steps = ", ".join(step_words(step) for step in sorted(state.recorded, key=list(STEP_TITLES).index))
+    return f"after {steps} ({state.seconds:.0f} s):\n" + format_predictions(state.predictions)
+
+
+def _guide_quick(session: Session, args: argparse.Namespace, identifier: QuickIdentifier,
+                 model: TrainedModel | None = None) -> tuple[str | None, QuickState]:
+    """The quick scan (docs/quick.md): after every step the prediction, then the step proposed next and why,
+    until the prediction is sure; the operator may take another step, stop, or go on to the full scan (which
+    is saved as any scan). Returns the saved scan id (None if not saved) and where the quick scan stopped."""
+    _ambient(session)
+    print("\nquick identification: each step is chosen to tell the likeliest materials apart fastest; the scan "
+          f"stops at {100 * STOP_AT:.0f} %")
+    while True:
+        state = identifier.assess(session.scan(partial=True), session.recorded_steps())
+        if state.recorded:
+            print("\n" + _quick_lines(state))
+        if state.decided or state.next_step is None:
+            print(f"\nidentified: stopped because {state.why_stopped()}")
+            if _ask(session, "[Enter] stop here, f go on to the full scan to save it: ").lower() != "f":
+                return None, state
+            break
+        proposed = session.step(state.next_step)
+        print(f"\nnext: {proposed.title} ({proposed.seconds:g} s): {state.reason}")
+        answer = _ask(session, "  [Enter] take it, or a step number, f full scan, s stop: ").lower()
+        if answer == "s":
+            print(f"stopped by the operator after {len(state.recorded)} step(s)")
+            return None, state
+        if answer == "f":
+            break
+        chosen = _chosen_step(session, answer, proposed)
+        if chosen is not None:
+            _do_step(session, chosen)
+    for step in session.steps:
+        if step.id not in session.recorded_steps():
+            _do_step(session, step)
+    state = identifier.assess(session.scan(partial=True), session.recorded_steps())
+    print("\n" + _quick_lines(state))
+    if args.label is None:
+        _label_from(session, state)
+    return _finish(session, args, model), state
+
+
+def _chosen_step(session: Session, answer: str, proposed):
+    """The step the operator typed (its number), the proposed one on Enter; None (with why) for another."""
+    if not answer:
+        return proposed
+    if answer.isdigit() and 1 <= int(answer) <= len(session.steps):
+        step = session.steps[int(answer) - 1]
+        if step.id not in session.recorded_steps():
+            return step
+        print(f"  step {answer} ({step.title}) is done already")
+        return None
+    print(f"  {answer!r}: type a step number 1-{len(session.steps)}, f or s")
+    return None
+
+
+def _label_from(session: Session, state: QuickState) -> None:
+    """Before saving a quick scan started without a label: the quick prediction's label, or one typed."""
+    offered = state.predictions[0].label
+    session.relabel(offered)
+    while answer := _ask(session, f"label: [Enter] {offered} ({state.predictions[0].names}), or type another: "):
+        try:
+            session.relabel(load_taxonomy().check(answer.strip()).format())
+            return
+        except (LabelError, UnknownLabelError, SessionError) as exc:
+            print(f"  {exc}")
+
+
 def again(args: argparse.Namespace, session: Session) -> str:
-    """The command that starts this scan over, with the same database, label, sample and operator."""
-    words = ["texplorer", "scan", "--db", str(args.db), "--label", session.label, "--sample", session.sample_id,
-             "--operator", session.operator]
+    """The command that starts this scan over, with the same database, label, sample and operator (a quick
+    scan started without a label again without one)."""
+    label = [] if getattr(args, "quick", False) and args.label is None else ["--label", session.label]
+    words = ["texplorer", "scan", "--db", str(args.db), *label, "--sample", session.sample_id,
+             "--operator", session.operator] + (["--quick"] if getattr(args, "quick", False) else [])
     for option in ("config", "daq", "board", "model"):
         if getattr(args, option, None):
             words += [f"--{option}", str(getattr(args, option))]
@@ -228,27 +321,47 @@ def cmd_scan(args: argparse.Namespace) -> int:
     model = None
     if args.model:
         model = load_model(model_file(args.db, args.model))
+    if args.label is None and not args.quick:
+        raise UsageError("--label is required (only a quick scan, --quick, may start without one)")
     if args.daq:
         config = config.with_daq_server(args.daq)
     if args.board:
         config = config.with_board_port(args.board)
     # An aborted scan leaves no trace: an existing database is only read, a new one is made when saving.
     db = open_db(args) if is_database(args.db) else None
-    session = Session.open(config, label=args.label, sample_id=args.sample, operator=args.operator, db=db)
+    identifier = None
+    if args.quick:
+        if db is None:
+            raise UsageError(f"--quick learns from the scans of a database; {args.db} is none")
+        print(f"learning the quick scan from the {len(db)} scans of {args.db} ...", flush=True)
+        identifier = QuickIdentifier.from_database(db, config)
+    label = args.label or str(identifier.model.classes[0])  # a quick scan without label: the prediction's, later
+    session = Session.open(config, label=label, sample_id=args.sample, operator=args.operator, db=db)
+    state = None
     try:
-        print(f"scan of {session.label}, sample {session.sample_id}, operator {session.operator} "
+        about = session.label if args.label else "an unlabelled sample"
+        print(f"scan of {about}, sample {session.sample_id}, operator {session.operator} "
               f"(session {session.session_id}); 'a' aborts at any prompt")
         for name, description in session.devices.describe().items():
             print(f"  {name:<13} {description}")
         for warning in session.warnings:
             print(f"texplorer: warning: {warning}", file=sys.stderr)
-        scan_id = _guide(session, args, model)
+        if identifier is not None:
+            scan_id, state = _guide_quick(session, args, identifier, model)
+        else:
+            scan_id = _guide(session, args, model)
     except _Aborted as reason:
         print(f"scan aborted ({reason}): nothing was saved")
         print(f"to scan this sample again: {again(args, session)}")
         return EXIT_ERROR
     finally:
         session.abort()
+    if scan_id is None and state is not None:
+        top = state.predictions[0]
+        print(f"quick scan: {top.names} ({top.label}) at {100 * top.probability:.1f} % after "
+              f"{len(state.recorded)} of {len(session.steps)} steps ({state.seconds:.0f} s); not saved (a quick "
+              "scan is saved once the full scan is recorded: answer f)")
+        return 0
     if scan_id is None:
         print("not saved")
         print(f"to scan this sample again: {again(args, session)}")
@@ -301,7 +414,7 @@ def register(commands: argparse._SubParsersAction) -> None:
         description="Guide the operator through the steps of a scan (Strese et al. 2020, section III) with live "
         "levels, quality checks and redo, then save it. Devices come from --config (default: the simulated scanner).")
     add_db_option(scanning)
-    scanning.add_argument("--label", required=True, help="material label, e.g. C6S1M1P2X1")
+    scanning.add_argument("--label", help="material label, e.g. C6S1M1P2X1 (required, except for --quick)")
     scanning.add_argument("--sample", required=True, help="sample id, e.g. granite-01")
     scanning.add_argument("--operator", required=True, help="operator name or initials")
     scanning.add_argument("--config", type=Path, help="device configuration TOML "
@@ -313,6 +426,9 @@ def register(commands: argparse._SubParsersAction) -> None:
     scanning.add_argument("--model", help="before saving, print the prediction of this model (a version of the "
                           "database, 3 or v3, or a file) and "
                           "check the label against it")
+    scanning.add_argument("--quick", action="store_true", help="quick identification: after every step the "
+                          "prediction from the database's scans, the next step chosen by information per second, "
+                          "a stop at a calibrated 0.95; go on to the full scan to save it (docs/quick.md)")
     scanning.set_defaults(handler=cmd_scan)
 
     emulate = commands.add_parser("emulate", help="run a device emulator to try the app without hardware",

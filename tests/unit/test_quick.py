@@ -3,13 +3,18 @@ walk of stored scans (docs/quick.md)."""
 
 from __future__ import annotations
 
+import re
+import shutil
+
 import numpy as np
 import pytest
 
 from features import FeatureSpace
 from scanner.acquisition.config import ConfigError, parse_config
 from scanner.acquisition.session import procedure, step_seconds
-from scanner.cli import main
+from scanner.cli import EXIT_ERROR, main
+from scanner.storage.database import Database
+from scanner.workflows import simulated_database
 from taxonomy.learning.evaluation import EvaluationError
 from taxonomy.learning.quick import (
     Expert,
@@ -23,6 +28,7 @@ from taxonomy.learning.quick import (
     posterior,
     replay,
 )
+from unit.test_session import fast_toml, run_cli
 
 # -- a toy model with known answers ----------------------------------------------------------------------
 #
@@ -224,3 +230,52 @@ def test_evaluate_quick_prints_the_tables_and_the_line(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "quick scan, fine level: 3 grouped folds" in out and "the paper's fixed order" in out
     assert out.splitlines()[-2].startswith("quick: median 1 steps (10 s) to a decision")
+
+
+# -- the quick scan in the terminal --------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def three_materials(tmp_path_factory):
+    """A database of granite, oak and foam: two samples of each, two scans per sample."""
+    root = tmp_path_factory.mktemp("quick") / "db"
+    simulated_database(root, materials=["granite-polished", "oak-planed", "polyurethane-foam"], scans_per_material=2,
+                       samples_per_material=2, image_size=(256, 256), progress=False, workers=1).close()
+    return root
+
+
+def quick_argv(db, config: str, *extra: str) -> list[str]:
+    return ["scan", "--db", str(db), "--quick", "--sample", "piece-01", "--operator", "ab", "--config", config, *extra]
+
+
+def test_a_quick_scan_of_an_unlabelled_sample_stops_when_sure_and_saves_nothing(three_materials, tmp_path,
+                                                                                 monkeypatch, capsys):
+    config = fast_toml(tmp_path / "fast.toml", extra='material = "granite-polished"\n')
+    before = sorted(p.name for p in three_materials.rglob("*.mat"))
+    code, out = run_cli(monkeypatch, capsys, quick_argv(three_materials, config), "\n" * 40)
+    assert code == 0, out
+    assert "learning the quick scan from the 12 scans" in out and "scan of an unlabelled sample" in out
+    assert re.search(r"next: (TU\d [a-z ]+) \([\d.]+ s\): the \1 tells the most trained materials apart per second",
+                     out)
+    assert "identified: stopped because granite" in out and "(C6S1M1P2X1) reached" in out
+    last = out.strip().splitlines()[-1]
+    assert "quick scan: granite" in last and "not saved" in last and "of 11 steps" in last
+    assert sorted(p.name for p in three_materials.rglob("*.mat")) == before and len(Database(three_materials)) == 12
+
+
+def test_a_quick_scan_goes_on_to_the_full_scan_and_saves_it_under_the_predicted_label(three_materials, tmp_path,
+                                                                                       monkeypatch, capsys):
+    db = tmp_path / "db"
+    shutil.copytree(three_materials, db)
+    config = fast_toml(tmp_path / "fast.toml", extra='material = "granite-polished"\n')
+    steps = "\n\n" * 9  # record and keep each of the nine recorded steps
+    text = f"\nf\n{steps}\n\n\n512\n190\nwater\n0\n0.25\n\n\ny\n"  # photos, TU4, label as predicted, save
+    code, out = run_cli(monkeypatch, capsys, quick_argv(db, config), text)
+    assert code == 0, out
+    assert "saved piece-01-001" in out and "label: [Enter] C6S1M1P2X1" in out
+    assert Database(db).get("piece-01-001").meta.label == "C6S1M1P2X1"
+
+
+def test_a_scan_without_a_label_must_be_quick(tmp_path, capsys):
+    assert main(["scan", "--db", str(tmp_path / "db"), "--sample", "x-01", "--operator", "ab"]) == EXIT_ERROR
+    assert "--label is required (only a quick scan, --quick, may start without one)" in capsys.readouterr().err
