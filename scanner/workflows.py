@@ -224,12 +224,12 @@ def train_and_measure(space: FeatureSpace, level: str, n_features: int, classifi
 
 
 def quick_evaluation(space: FeatureSpace, config: Config | None = None, level: str = "fine", folds: int = 5,
-                     seed: int = 0, workers: int | None = None) -> QuickResult:
+                     seed: int = 0, workers: int | None = None, open_set: bool = False) -> QuickResult:
     """``evaluate --quick``: the stored full scans walked as quick scans in grouped folds
     (:func:`taxonomy.learning.quick.evaluate_quick`), each step taking its recording and handling time from
     ``config`` (default: the default configuration), the fixed order the procedure's."""
     seconds = step_seconds(config or Config())
-    return evaluate_quick(space, seconds, tuple(seconds), level, folds, seed, workers=workers)
+    return evaluate_quick(space, seconds, tuple(seconds), level, folds, seed, workers=workers, open_set=open_set)
 
 
 def cross_validated(space: FeatureSpace, level: str, n_features: int, classifier: str, seed: int,

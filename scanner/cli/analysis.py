@@ -164,10 +164,10 @@ def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
     use_split = not getattr(args, "ignore_split", False)
     sizes = set_sizes(args.n, ("3", "10", ALL) if space.label_level is not None else ("3", "10"))
     group_by = set_grouping(args) if space.label_level is not None else scan_grouping(args)
-    if getattr(args, "open_set", False):
-        return run_open_set(space, args, classifiers, levels, sizes, sets, group_by)
     if getattr(args, "quick", False):
         return run_quick(space, args, ["fine"] if args.level == [ALL] else levels)
+    if getattr(args, "open_set", False):
+        return run_open_set(space, args, classifiers, levels, sizes, sets, group_by)
     sets, left_out = with_values(space, sets if sets is not None else present_feature_sets(space))
     for line in left_out:
         print(f"texplorer: note: {line}", file=sys.stderr)
@@ -231,8 +231,8 @@ def run_quick(space, args: argparse.Namespace, levels: Sequence[str]) -> list:
         raise UsageError("--quick walks the scanner's procedure step by step; a recording set has no steps")
     started = time.perf_counter()
     config = load_config(args.config) if getattr(args, "config", None) else None
-    results = [quick_evaluation(space, config, level, args.folds, args.seed, getattr(args, "workers", None))
-               for level in levels]
+    results = [quick_evaluation(space, config, level, args.folds, args.seed, getattr(args, "workers", None),
+                                open_set=getattr(args, "open_set", False)) for level in levels]
     for result in results:
         print(format_quick(result))
     print(f"{len(results)} quick-scan evaluation(s) in {time.perf_counter() - started:.1f} s")
@@ -562,7 +562,8 @@ def register(commands: argparse._SubParsersAction) -> None:
     evaluate.add_argument("--quick", action="store_true", help="walk every full scan step by step as a quick "
                           "scan (the next step chosen by information per second, stopping at a calibrated 0.95): "
                           "share decided and accuracy after each step and second, adaptive and in the paper's "
-                          "order, at the fine level unless --level says otherwise (docs/quick.md)")
+                          "order, at the fine level unless --level says otherwise; with --open-set also how "
+                          "often it stops on a material it never saw (docs/quick.md)")
     evaluate.add_argument("--config", type=Path, help="--quick: device configuration TOML whose [steps] and "
                           "[handling] give each step's time (default: the built-in times)")
     evaluate.add_argument("--no-calibration", action="store_true", help="skip the temperature scaling inside "

@@ -44,13 +44,14 @@ import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 from scipy.special import log_softmax, softmax
 from sklearn.ensemble import ExtraTreesClassifier
+from sklearn.metrics import pairwise_distances_argmin_min
 
 from features.extraction import worker_map
 from features.registry import REGISTRY
 from features.space import FeatureSpace
 from taxonomy.learning.calibration import grouped_splits
 from taxonomy.learning.evaluation import SEED, EvaluationError, cv_splits, drop_nan_columns, fit_pipeline
-from taxonomy.learning.openset import Neighbours, fit_neighbours
+from taxonomy.learning.openset import Neighbours, class_folds, fit_neighbours
 
 MIXTURE = 0.05
 """Weight of the class frequencies mixed into an expert's vote shares, ``q = (1 - MIXTURE) votes + MIXTURE pi``:
@@ -67,7 +68,8 @@ STOP_AT = 0.95
 
 KNOWN_QUANTILE = 0.98
 """The novelty of the recorded steps is accepted up to this quantile of the known training rows' novelty for
-the same steps: the rule turns away about 2 % of scans of known materials, as the full scan's rule may."""
+the same steps (:meth:`StepModel.accepts`): it holds back about 2 % of the scans of known materials, which go
+on to more steps, as the full scan's rule may turn 2 % away."""
 
 
 @dataclass(frozen=True)
@@ -236,19 +238,24 @@ class StepModel:
         standardised log distance to the nearest training scan in the expert's columns
         (:mod:`taxonomy.learning.openset`, term ``n``)."""
         X = np.asarray(X, dtype=np.float64)
-        log_d = self.neighbours.log_distances(X[None, :] if X.ndim == 1 else X)
+        log_d = expert_log_distances(self.neighbours, X[None, :] if X.ndim == 1 else X)
         z = (log_d - self.novelty_scale[0]) / self.novelty_scale[1]
         return z[0] if X.ndim == 1 else z
 
     def accepts(self, novelty: np.ndarray, recorded: frozenset[str] | set[str]) -> bool:
-        """Whether the mean ``z_E`` of the active experts is within :data:`KNOWN_QUANTILE` of the known
-        training rows' mean for the same experts (nothing recorded: accepted)."""
+        """Whether the largest ``z_E`` of the active experts is within :data:`KNOWN_QUANTILE` of the known
+        training rows' largest ``z_E`` over the same experts (nothing recorded: accepted). The largest, not the
+        mean: one step that finds the sample unlike every trained material (its tool slide between two trained
+        ones') is not outvoted by steps that cannot tell (a photo of a plain surface)."""
         active = self.active(recorded)
-        if not active.any():
+        if not active.any() or not np.isfinite(novelty[active]).any():
             return True
-        known = np.nanmean(self.train_novelty[:, active], axis=1)
-        limit = np.quantile(known[np.isfinite(known)], KNOWN_QUANTILE) if np.isfinite(known).any() else np.inf
-        return bool(np.nanmean(novelty[active]) <= limit) if np.isfinite(novelty[active]).any() else True
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # a row without any value in these experts
+            known = np.nanmax(self.train_novelty[:, active], axis=1)
+        known = known[np.isfinite(known)]
+        limit = np.quantile(known, KNOWN_QUANTILE) if known.size else np.inf
+        return bool(np.nanmax(novelty[active]) <= limit)
 
     def gains(self, ratios: np.ndarray, recorded: frozenset[str] | set[str]) -> dict[str, float]:
         """The expected information gain (bits) of every step not yet recorded that completes an expert
@@ -328,7 +335,7 @@ def fit_step_model(X: np.ndarray, y: np.ndarray, groups: np.ndarray, experts: Se
         for k, expert in enumerate(experts):
             inner = _forest(seed).fit(X[np.ix_(train, expert.columns)], y[train])
             ratios[k, test] = log_ratios(inner, X[np.ix_(test, expert.columns)], classes, log_prior)
-        log_d[test] = expert_neighbours(X[train], y[train], classes, experts).log_distances(X[test])
+        log_d[test] = expert_log_distances(expert_neighbours(X[train], y[train], classes, experts), X[test])
         calibrating[test] = np.isin(y[test], y[train])
     if not calibrating.any():
         calibrating[:] = True
@@ -347,9 +354,29 @@ def fit_step_model(X: np.ndarray, y: np.ndarray, groups: np.ndarray, experts: Se
                      expert_neighbours(X, y, classes, experts), scale, novelty)
 
 
+def expert_log_distances(neighbours: Neighbours, X: np.ndarray) -> np.ndarray:
+    """``log d_E`` of every row of ``X`` (rows x experts): the Euclidean distance, in the expert's standardised
+    columns, to the nearest reference row; NaN where the row has no finite value in them.
+
+    Unlike the full scan's neighbour term, the vectors are not scaled to unit length: an expert of two
+    columns (the friction slide) would keep only their direction, and a material between two trained ones
+    along it (twice the roughness of one, half of the other) would be at distance 0 from both; ``z_E``
+    standardises each expert's distances instead.
+    """
+    Z, present = neighbours.standardise(X)
+    out = np.full((len(X), len(neighbours.titles)), np.nan)
+    for g in range(len(neighbours.titles)):
+        columns = neighbours.group_of == g
+        has = present[:, columns].any(axis=1)
+        if has.any() and len(neighbours.reference):
+            nearest = pairwise_distances_argmin_min(Z[has][:, columns], neighbours.reference[:, columns])[1]
+            out[has, g] = np.log(np.maximum(nearest, 1e-12))
+    return out
+
+
 def expert_neighbours(X: np.ndarray, y: np.ndarray, classes: np.ndarray, experts: Sequence[Expert]) -> Neighbours:
-    """The nearest-neighbour model of the rows ``X`` (:func:`~taxonomy.learning.openset.fit_neighbours`) with
-    one group per expert: its columns, standardised, as one unit-length vector."""
+    """The nearest-neighbour model of the rows ``X`` (:func:`~taxonomy.learning.openset.fit_neighbours`: the rows
+    standardised, missing values at the median) with one group per expert (:func:`expert_log_distances`)."""
     group_of = np.full(X.shape[1], -1, dtype=np.int64)
     for k, expert in enumerate(experts):
         group_of[list(expert.columns)] = k
@@ -523,6 +550,18 @@ class QuickResult:
                 "time_share": float(seconds.mean() / self.full_seconds),
                 "full_accuracy": float(np.mean(self.full_correct))}
 
+    def unseen(self) -> dict[str, float] | None:
+        """With held-out materials (``open_set``): the share of their scans a quick scan stopped on (each one a
+        material named wrongly), the median steps to that stop, and the share of them the novelty check held
+        back at least once before the last step. None without."""
+        walks = self.walks.get("unseen")
+        if not walks:
+            return None
+        decided = np.array([w.decided for w in walks])
+        taken = np.array([w.taken for w in walks if w.decided])
+        return {"decided": float(decided.mean()), "median_steps": float(np.median(taken)) if taken.size
+                else float("nan"), "scans": float(len(walks))}
+
     def by_steps(self, order: str = "adaptive") -> list[tuple[int, float, float, float, float]]:
         """Per number of steps k: the mean seconds of the scans still going at k, the share decided by k,
         the accuracy of those decided by k, and of every scan's top class after k steps (its last)."""
@@ -566,7 +605,7 @@ def walk(model: StepModel, ratios: np.ndarray, novelty: np.ndarray, truth: str, 
 
 def evaluate_quick(space: FeatureSpace, costs: Mapping[str, float], order: Sequence[str], level: str = "fine",
                    folds: int = 5, seed: int = SEED, stop_at: float = STOP_AT, n_features: int = 10,
-                   workers: int | None = None) -> QuickResult:
+                   workers: int | None = None, open_set: bool = False) -> QuickResult:
     """Every full scan of ``space`` walked as a quick scan in held-out folds grouped by sample
     (:func:`~taxonomy.learning.evaluation.cv_splits`): a :class:`StepModel` fitted on each fold's training rows
     (and calibrated on their walks) walks each test scan in the adaptive order and in the fixed ``order``;
@@ -586,6 +625,10 @@ def evaluate_quick(space: FeatureSpace, costs: Mapping[str, float], order: Seque
         Classification level, folds, seed, the probability that stops a quick scan, the full model's features.
     workers : int, optional
         Processes the folds run in (:func:`~features.extraction.worker_map`; default one per CPU).
+    open_set : bool
+        Also hold out a fifth of the materials per fold (:func:`~taxonomy.learning.openset.class_folds`, as
+        ``evaluate --open-set``) and walk their scans on a model that never saw them: ``walks["unseen"]``, of
+        which every decided scan is a material named wrongly.
 
     Returns
     -------
@@ -607,20 +650,38 @@ def evaluate_quick(space: FeatureSpace, costs: Mapping[str, float], order: Seque
         splits, grouped = cv_splits(y, groups, folds, seed, grouping_labels=space.label_text)
         jobs = [_FoldJob(space.X, y, groups, experts, train, test, dict(costs), tuple(order), stop_at, seed,
                          full_space.X, full_space.columns, n_features) for train, test in splits]
-        walks: dict[str, list[tuple[int, Walk]]] = {"adaptive": [], "fixed": []}
+        if open_set:
+            jobs += _open_set_jobs(jobs, y, seed)
+        walks: dict[str, list[tuple[int, Walk]]] = {"adaptive": [], "fixed": [], "unseen": []}
         full_correct = np.zeros(len(y), dtype=bool)
         tested = np.zeros(len(y), dtype=bool)
         for k, (adaptive, fixed, right) in worker_map(_quick_fold, jobs, workers):
             test = jobs[k].test
+            if jobs[k].unseen:
+                walks["unseen"] += zip(test, adaptive, strict=True)
+                continue
             walks["adaptive"] += zip(test, adaptive, strict=True)
             walks["fixed"] += zip(test, fixed, strict=True)
             full_correct[test] = right
             tested[test] = True
-    return QuickResult({name: tuple(w for _, w in sorted(pairs, key=lambda p: p[0])) for name, pairs in walks.items()},
+    return QuickResult({name: tuple(w for _, w in sorted(pairs, key=lambda p: p[0])) for name, pairs in walks.items()
+                        if pairs or name != "unseen"},
                        full_correct[tested],
                        float(sum(costs[step] for step in order)), stop_at,
                        f"{len(splits)} {'grouped' if grouped else 'ungrouped'} folds", level,
                        tuple(sorted({str(w.message).splitlines()[0] for w in caught})))
+
+
+def _open_set_jobs(closed: Sequence[_FoldJob], y: np.ndarray, seed: int) -> list[_FoldJob]:
+    """Fold k trains on the rows outside its test part whose class is not in class part k, and walks every row
+    of class part k (adaptive order only)."""
+    parts = class_folds(y, len(closed), seed)
+    jobs = []
+    for k, job in enumerate(closed):
+        held = np.isin(y, parts[k % len(parts)])
+        keep = job.train[~held[job.train]]
+        jobs.append(replace(job, train=keep, test=np.flatnonzero(held), unseen=True))
+    return jobs
 
 
 @dataclass(frozen=True)
@@ -638,16 +699,19 @@ class _FoldJob:
     full_X: np.ndarray
     full_columns: tuple[str, ...]
     n_features: int
+    unseen: bool = False
 
 
 def _quick_fold(job: _FoldJob) -> tuple[list[Walk], list[Walk], np.ndarray]:
     """One fold of :func:`evaluate_quick`: the test rows' adaptive and fixed walks, and whether the full
-    scan's model named them right."""
+    scan's model named them right (for held-out materials, the adaptive walks only)."""
     train, test, y = job.train, job.test, job.y
     model = fit_step_model(job.X[train], y[train], job.groups[train], job.experts, job.seed)
     model = calibrate_walks(model, job.costs, (None, job.order))
     ratios, novelty = model.ratios(job.X[test]), model.novelty(job.X[test])
     adaptive = [walk(model, ratios[k], novelty[k], y[i], job.costs, None, job.stop_at) for k, i in enumerate(test)]
+    if job.unseen:
+        return adaptive, [], np.zeros(0, dtype=bool)
     fixed = [walk(model, ratios[k], novelty[k], y[i], job.costs, job.order, job.stop_at) for k, i in enumerate(test)]
     pipeline = fit_pipeline(job.full_X[train], y[train], job.groups[train], "rf", job.n_features, job.seed,
                             calibrate=False, columns=job.full_columns)

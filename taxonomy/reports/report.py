@@ -329,6 +329,12 @@ def format_quick(result: QuickResult) -> str:
         lines += ["  by s   decided  right of decided"]
         lines += [f"  {mark:>4.0f}  {100 * dec:>7.1f} %  {_percent(acc):>16}"
                   for mark, dec, acc in result.by_seconds(order)]
+    unseen = result.unseen()
+    if unseen is not None:
+        lines += ["", f"held-out materials (a fifth of the materials per fold, never trained on): a quick scan "
+                  f"stopped on {100 * unseen['decided']:.1f} % of their {unseen['scans']:.0f} scans, each one named "
+                  f"as a trained material (median {unseen['median_steps']:g} steps); the others went on to the "
+                  "full scan, whose rule decides whether they are new"]
     lines += [*(f"note: {note}" for note in result.notes), result.line()]
     return "\n".join(lines)
 
