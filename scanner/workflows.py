@@ -518,7 +518,7 @@ class QuickIdentifier:
         p = self.model.predict(ratios, recorded)
         top = np.argsort(-p, kind="stable")[:k]
         predictions = name_predictions([(str(self.model.classes[i]), float(p[i])) for i in top], self.taxonomy)
-        accepted = self.model.accepts(novelty, recorded)
+        accepted = self.model.accepts(novelty, recorded, int(top[0]))
         decided = bool(recorded) and accepted and float(p.max()) >= STOP_AT
         step = None if decided else next_step(self.model, ratios, recorded, self.seconds)
         return QuickState(predictions, recorded, sum(self.seconds[s] for s in recorded), decided, accepted, step,

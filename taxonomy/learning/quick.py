@@ -44,7 +44,7 @@ import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 from scipy.special import log_softmax, softmax
 from sklearn.ensemble import ExtraTreesClassifier
-from sklearn.metrics import pairwise_distances_argmin_min
+from sklearn.metrics.pairwise import euclidean_distances
 
 from features.extraction import worker_map
 from features.registry import REGISTRY
@@ -66,10 +66,11 @@ INNER_FOLDS = 4
 STOP_AT = 0.95
 """The calibrated probability of the top class at which a quick scan stops (with the novelty accepted)."""
 
-KNOWN_QUANTILE = 0.98
+KNOWN_QUANTILE = 0.9
 """The novelty of the recorded steps is accepted up to this quantile of the known training rows' novelty for
-the same steps (:meth:`StepModel.accepts`): it holds back about 2 % of the scans of known materials, which go
-on to more steps, as the full scan's rule may turn 2 % away."""
+the same steps (:meth:`StepModel.accepts`): it holds back about a tenth of the scans of known materials at each
+set of steps (they take another step), and halves the share of never-seen materials a quick scan names as
+trained ones on the demo database (docs/quick.md#stopping-and-the-open-set)."""
 
 
 @dataclass(frozen=True)
@@ -193,9 +194,9 @@ class StepModel:
     """The training rows' nearest-neighbour model, one group per expert (:func:`expert_neighbours`)."""
     novelty_scale: np.ndarray
     """Mean and standard deviation of each expert's ``log d`` over the calibrating rows' out-of-fold
-    distances (2 x experts)."""
+    distances to the nearest scan of their own class (2 x experts)."""
     train_novelty: np.ndarray
-    """The calibrating rows' standardised out-of-fold ``z_E`` (rows x experts)."""
+    """The calibrating rows' standardised out-of-fold ``z_E`` to their own class (rows x experts)."""
     tau_sets: Mapping[bytes, float] = field(default_factory=dict)
     """``tau`` of the active sets the walks of the training rows meet often (:func:`calibrate_walks`), by
     :meth:`key`; other sets take ``tau[m]``."""
@@ -234,28 +235,30 @@ class StepModel:
         return float(fitted if fitted is not None else self.tau[min(int(active.sum()), len(self.tau) - 1)])
 
     def novelty(self, X: np.ndarray) -> np.ndarray:
-        """Every expert's ``z_E`` for the scans' rows ``X`` (rows x experts; one row gives one vector): the
-        standardised log distance to the nearest training scan in the expert's columns
-        (:mod:`taxonomy.learning.openset`, term ``n``)."""
+        """Every expert's ``z_E(c)`` for the scans' rows ``X`` and every class ``c`` (rows x experts x classes;
+        one row gives experts x classes): the log distance, in the expert's standardised columns, to the
+        nearest training scan of class ``c``, standardised as the known rows' distance to their own class."""
         X = np.asarray(X, dtype=np.float64)
-        log_d = expert_log_distances(self.neighbours, X[None, :] if X.ndim == 1 else X)
-        z = (log_d - self.novelty_scale[0]) / self.novelty_scale[1]
+        log_d = class_log_distances(self.neighbours, X[None, :] if X.ndim == 1 else X, self.classes.size)
+        z = (log_d - self.novelty_scale[0][:, None]) / self.novelty_scale[1][:, None]
         return z[0] if X.ndim == 1 else z
 
-    def accepts(self, novelty: np.ndarray, recorded: frozenset[str] | set[str]) -> bool:
-        """Whether the largest ``z_E`` of the active experts is within :data:`KNOWN_QUANTILE` of the known
-        training rows' largest ``z_E`` over the same experts (nothing recorded: accepted). The largest, not the
-        mean: one step that finds the sample unlike every trained material (its tool slide between two trained
-        ones') is not outvoted by steps that cannot tell (a photo of a plain surface)."""
+    def accepts(self, novelty: np.ndarray, recorded: frozenset[str] | set[str], top: int) -> bool:
+        """Whether the scan is as close to the class ``top`` it would be named as a new sample of a known
+        material is to its own: the largest ``z_E(top)`` of the active experts within :data:`KNOWN_QUANTILE` of
+        the known training rows' largest ``z_E`` (to their own class) over the same experts; nothing recorded
+        is accepted. The largest, not the mean: one step that finds the sample unlike the named material (its
+        tool slide between two trained ones') is not outvoted by steps that cannot tell (a plain photo)."""
         active = self.active(recorded)
-        if not active.any() or not np.isfinite(novelty[active]).any():
+        z = novelty[:, top]
+        if not active.any() or not np.isfinite(z[active]).any():
             return True
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # a row without any value in these experts
             known = np.nanmax(self.train_novelty[:, active], axis=1)
         known = known[np.isfinite(known)]
         limit = np.quantile(known, KNOWN_QUANTILE) if known.size else np.inf
-        return bool(np.nanmax(novelty[active]) <= limit)
+        return bool(np.nanmax(z[active]) <= limit)
 
     def gains(self, ratios: np.ndarray, recorded: frozenset[str] | set[str]) -> dict[str, float]:
         """The expected information gain (bits) of every step not yet recorded that completes an expert
@@ -335,7 +338,8 @@ def fit_step_model(X: np.ndarray, y: np.ndarray, groups: np.ndarray, experts: Se
         for k, expert in enumerate(experts):
             inner = _forest(seed).fit(X[np.ix_(train, expert.columns)], y[train])
             ratios[k, test] = log_ratios(inner, X[np.ix_(test, expert.columns)], classes, log_prior)
-        log_d[test] = expert_log_distances(expert_neighbours(X[train], y[train], classes, experts), X[test])
+        own = class_log_distances(expert_neighbours(X[train], y[train], classes, experts), X[test], classes.size)
+        log_d[test] = own[np.arange(len(test)), :, train_class[test]]
         calibrating[test] = np.isin(y[test], y[train])
     if not calibrating.any():
         calibrating[:] = True
@@ -354,9 +358,10 @@ def fit_step_model(X: np.ndarray, y: np.ndarray, groups: np.ndarray, experts: Se
                      expert_neighbours(X, y, classes, experts), scale, novelty)
 
 
-def expert_log_distances(neighbours: Neighbours, X: np.ndarray) -> np.ndarray:
-    """``log d_E`` of every row of ``X`` (rows x experts): the Euclidean distance, in the expert's standardised
-    columns, to the nearest reference row; NaN where the row has no finite value in them.
+def class_log_distances(neighbours: Neighbours, X: np.ndarray, classes: int) -> np.ndarray:
+    """``log d_E(c)`` of every row of ``X`` (rows x experts x classes): the Euclidean distance, in the expert's
+    standardised columns, to the nearest reference row of class ``c``; NaN where the row has no finite value
+    in them or the class no reference row.
 
     Unlike the full scan's neighbour term, the vectors are not scaled to unit length: an expert of two
     columns (the friction slide) would keep only their direction, and a material between two trained ones
@@ -364,19 +369,21 @@ def expert_log_distances(neighbours: Neighbours, X: np.ndarray) -> np.ndarray:
     standardises each expert's distances instead.
     """
     Z, present = neighbours.standardise(X)
-    out = np.full((len(X), len(neighbours.titles)), np.nan)
+    out = np.full((len(X), len(neighbours.titles), classes), np.nan)
     for g in range(len(neighbours.titles)):
         columns = neighbours.group_of == g
         has = present[:, columns].any(axis=1)
-        if has.any() and len(neighbours.reference):
-            nearest = pairwise_distances_argmin_min(Z[has][:, columns], neighbours.reference[:, columns])[1]
-            out[has, g] = np.log(np.maximum(nearest, 1e-12))
+        if not has.any() or not len(neighbours.reference):
+            continue
+        d = euclidean_distances(Z[has][:, columns], neighbours.reference[:, columns])
+        for c in np.unique(neighbours.classes):
+            out[has, g, c] = np.log(np.maximum(d[:, neighbours.classes == c].min(axis=1), 1e-12))
     return out
 
 
 def expert_neighbours(X: np.ndarray, y: np.ndarray, classes: np.ndarray, experts: Sequence[Expert]) -> Neighbours:
     """The nearest-neighbour model of the rows ``X`` (:func:`~taxonomy.learning.openset.fit_neighbours`: the rows
-    standardised, missing values at the median) with one group per expert (:func:`expert_log_distances`)."""
+    standardised, missing values at the median) with one group per expert (:func:`class_log_distances`)."""
     group_of = np.full(X.shape[1], -1, dtype=np.int64)
     for k, expert in enumerate(experts):
         group_of[list(expert.columns)] = k
@@ -460,8 +467,9 @@ def replay(model: StepModel, ratios: np.ndarray, costs: Mapping[str, float], sto
     while (step := next_step(model, ratios, recorded, costs, order)) is not None:
         recorded = recorded | {step}
         seconds += costs[step]
-        accepted = True if novelty is None else model.accepts(novelty, recorded)
-        decision = Decision(step, seconds, model.predict(ratios, recorded), recorded, accepted)
+        probabilities = model.predict(ratios, recorded)
+        accepted = True if novelty is None else model.accepts(novelty, recorded, int(np.argmax(probabilities)))
+        decision = Decision(step, seconds, probabilities, recorded, accepted)
         path.append(decision)
         if decision.decided(stop_at):
             break

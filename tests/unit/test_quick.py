@@ -106,7 +106,7 @@ def test_a_quick_scan_stops_once_the_top_class_reaches_the_threshold():
 def test_a_quick_scan_does_not_stop_while_the_recorded_steps_look_new():
     model = toy_model()
     scan = np.stack([_ratio(0.9)[0], _ratio(0.5)[0], _ratio(0.7)[0]])
-    path = replay(model, scan, {"a": 1.0, "b": 1.0, "c": 1.0}, stop_at=0.85, novelty=np.array([9.0, 9.0, 9.0]))
+    path = replay(model, scan, {"a": 1.0, "b": 1.0, "c": 1.0}, stop_at=0.85, novelty=np.full((3, 2), 9.0))
     assert [d.step for d in path] == ["a", "c", "b"] and not any(d.accepted for d in path)
     assert not path[-1].decided(0.85)
 
