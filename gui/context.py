@@ -12,6 +12,7 @@ from pathlib import Path
 
 from flask import current_app
 
+from features import code_version
 from gui.exports import Exports
 from gui.figures import Keeper
 from gui.live_session import Operations
@@ -19,7 +20,7 @@ from gui.photos import DEFAULT_MAX_BYTES, DEFAULT_MAX_PIXELS, PhotoStore
 from gui.training import Trainings
 from scanner.acquisition.config import Config
 from scanner.storage.database import Database
-from scanner.workflows import default_model
+from scanner.workflows import QuickIdentifier, default_model
 from taxonomy.learning.models import TrainedModel, load_model
 
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
@@ -84,6 +85,19 @@ class Context:
         self.trainings = Trainings(self.db, workers=settings.workers)
         self._model: tuple[tuple[Path, int], TrainedModel] | None = None
         self._model_lock = threading.Lock()
+        self._quick: tuple[tuple[int, str], QuickIdentifier] | None = None
+        self._quick_lock = threading.Lock()
+
+    def quick_identifier(self) -> QuickIdentifier:
+        """The quick identification learned from the database's scans (``scanner.workflows.QuickIdentifier``):
+        learned on first use (seconds: features from the cache), again once the scans or the feature code
+        changed."""
+        key = (len(self.db), code_version())
+        with self._quick_lock:
+            if self._quick is None or self._quick[0] != key:
+                self._quick = (key, QuickIdentifier.from_database(self.db, self.device_config,
+                                                                  workers=self.settings.workers))
+            return self._quick[1]
 
     @property
     def model_path(self) -> Path | None:

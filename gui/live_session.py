@@ -47,6 +47,21 @@ class Operation:
     step_figures: dict[str, tuple[Any, str, bytes]] = field(default_factory=dict)
     """Step -> (the recording it shows, what else it depends on, PNG): drawn once, kept across changes
     (``gui.figures``)."""
+    quick: Any = None
+    """A quick identification's :class:`scanner.workflows.QuickIdentifier` (docs/quick.md), else None."""
+    quick_full: bool = False
+    """The operator went on from the quick identification to the full scan."""
+    unlabelled: bool = False
+    """The scan started without a label: the quick prediction names it."""
+    quick_cache: tuple[int, Any] | None = None
+
+    def quick_state(self) -> Any:
+        """The quick identification after the steps done so far (:meth:`QuickIdentifier.assess`), kept until
+        the scan changes."""
+        if self.quick_cache is None or self.quick_cache[0] != self.version:
+            session = self.session
+            self.quick_cache = (self.version, self.quick.assess(session.scan(partial=True), session.recorded_steps()))
+        return self.quick_cache[1]
 
     def touch(self) -> None:
         """The browser is still there."""

@@ -45,8 +45,10 @@ from scanner.acquisition.session import VOLUME_METHODS, Session, SessionError, S
 from scanner.scan import CHANNELS, IMAGES
 from scanner.simulation import is_hand_set
 from scanner.storage.database import DatabaseError, ScanRecord
-from scanner.workflows import LabelCheck, check_label, predict_values
+from scanner.workflows import LabelCheck, QuickIdentifier, check_label, predict_values
+from taxonomy.learning.evaluation import EvaluationError
 from taxonomy.learning.models import ModelError, TrainedModel
+from taxonomy.learning.quick import STOP_AT
 from taxonomy.reports.plots import plot_scan
 
 blueprint = Blueprint("operate", __name__)
@@ -101,7 +103,12 @@ def step_url(step: StepInfo) -> str:
 
 
 def next_url(session: Session) -> str:
-    """The first step still to do, in procedure order; the summary when everything is done."""
+    """The first step still to do, in procedure order; the summary when everything is done. In a quick
+    identification (until the operator goes on to the full scan): its page, with the prediction and the step
+    proposed next."""
+    op = context().operations.active
+    if op is not None and op.session is session and op.quick is not None and not op.quick_full:
+        return url_for("operate.quick")
     for step in session.steps:
         if session.status(step.id).state not in (StepState.RECORDED, StepState.SKIPPED):
             return step_url(step)
@@ -150,6 +157,16 @@ KEPT_FORM = "start_form"
 scanned again), the operator after a save (the next sample is another)."""
 
 
+def provisional_label(identifier: QuickIdentifier | None, sample_id: str) -> str:
+    """The label a quick identification without one starts under: the sample's, if the database has it (a sample
+    cannot change its material), else the first trained material; the prediction replaces it before a save."""
+    try:
+        owner = sample_owner(sample_id.strip())
+    except (ValueError, DatabaseError):
+        owner = None
+    return owner or str(identifier.model.classes[0])
+
+
 def keep_start_form(session: Session, fields: tuple[str, ...]) -> None:
     """Fill the start form with ``fields`` of ``session`` the next time it is shown."""
     values = {"operator": session.operator, "label": session.label, "sample_id": session.sample_id}
@@ -167,8 +184,18 @@ def start() -> tuple[str, int]:
 def begin() -> tuple[str, int] | Response:
     ctx = context()
     form = {key: request.form.get(key, "")[:200] for key in START_FIELDS}
+    quick = request.form.get("quick") == "on"
+    form["quick"] = "on" if quick else ""
+    identifier = None
+    if quick:
+        try:
+            identifier = ctx.quick_identifier()
+        except (EvaluationError, DatabaseError) as exc:
+            return render_start(form, {"quick": session_error(exc)}, 422)
+    unlabelled = quick and not form["label"].strip()
+    checked = dict(form, label=provisional_label(identifier, form["sample_id"]) if unlabelled else form["label"])
     try:
-        values = validate_start(form, ctx.db.taxonomy(), sample_owner)
+        values = validate_start(checked, ctx.db.taxonomy(), sample_owner)
     except FormErrors as exc:
         return render_start(form, exc.errors, 422)
 
@@ -177,7 +204,8 @@ def begin() -> tuple[str, int] | Response:
                             operator=values.operator, db=ctx.db)
 
     try:
-        ctx.operations.begin(open_session)
+        op = ctx.operations.begin(open_session)
+        op.quick, op.unlabelled = identifier, unlabelled
     except SessionBusy as exc:
         return render_start(form, {"form": str(exc)}, 409)
     except ConfigError as exc:
@@ -736,3 +764,60 @@ def enrol() -> tuple[str, int] | Response:
     flash(f"Scan {scan_id} was saved as {label}. A new model version with it is being trained in the background"
           + ("" if started else ", after the one running now") + "; every page says when it is ready.", "good")
     return redirect(url_for("database.scan", scan_id=scan_id))
+
+
+# -- quick identification (docs/quick.md) -----------------------------------------------------------------
+
+
+def _quick_operation() -> Operation:
+    op = operation()
+    if op.quick is None:
+        abort(redirect(next_url(op.session)))
+    return op
+
+
+@blueprint.get("/session/quick")
+def quick() -> tuple[str, int]:
+    """The quick identification after the steps done so far: the three most probable materials, the stop or
+    the step proposed next and why, the other steps still open."""
+    op = _quick_operation()
+    state = op.quick_state()
+    session = op.session
+    proposed = session.step(state.next_step) if state.next_step else None
+    recorded = [step.title for step in session.steps if step.id in state.recorded]
+    others = [(step, step_url(step)) for step in session.steps
+              if step.id not in state.recorded and (proposed is None or step.id != proposed.id)]
+    return render_page("quick.html", state=state, proposed=proposed, proposed_url=step_url(proposed) if proposed
+                       else None, recorded=recorded, others=others, stop_at=100 * STOP_AT)
+
+
+@blueprint.post("/session/quick/stop")
+def quick_stop() -> Response:
+    """End a quick identification here: nothing is saved; the start page says what it found."""
+    op = _quick_operation()
+    state = op.quick_state()
+    top = state.predictions[0]
+    why = state.why_stopped() if state.decided or state.next_step is None else "the operator stopped it"
+    flash(f"Quick identification: {top.names} ({top.label}) at {100 * top.probability:.1f} % after "
+          f"{len(state.recorded)} of {len(op.session.steps)} steps ({state.seconds:.0f} s); {why}. "
+          "Nothing was saved.", "good" if state.decided else "")
+    keep_start_form(op.session, ("operator",))
+    context().operations.end(op)
+    return redirect(url_for("operate.start"))
+
+
+@blueprint.post("/session/quick/full")
+def quick_full() -> Response:
+    """Go on from the quick identification to the full scan (saved as any scan); a scan started without a
+    label takes the quick prediction's, which the summary lets the operator change."""
+    op = _quick_operation()
+    state = op.quick_state()
+    op.quick_full = True
+    if op.unlabelled:
+        top = state.predictions[0]
+        with contextlib.suppress(SessionError):
+            op.session.relabel(top.label)
+        flash(f"The scan will be saved as {top.names} ({top.label}), the quick prediction; the summary lets you "
+              "change it.", "")
+    op.changed()
+    return redirect(next_url(op.session))

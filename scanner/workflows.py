@@ -500,9 +500,9 @@ class QuickIdentifier:
                       workers: int | None = None) -> QuickIdentifier:
         """Fit the quick scan's model on every scan of ``db`` at the fine level (features from the cache),
         its temperatures calibrated on the walks of the adaptive and the procedure's order."""
-        space = extract_database(db, workers=workers, progress=False)
-        if len(space) == 0:
+        if len(db) == 0:
             raise EvaluationError(f"{db.root}: no scans to learn a quick scan from")
+        space = extract_database(db, workers=workers, progress=False)
         seconds = step_seconds(config or Config())
         experts = experts_of(space.columns, REGISTRY.column_steps(space.columns))
         model = fit_step_model(space.X, space.y("fine"), np.asarray(space.groups), experts, seed)

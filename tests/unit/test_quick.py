@@ -28,7 +28,8 @@ from taxonomy.learning.quick import (
     posterior,
     replay,
 )
-from unit.test_session import fast_toml, run_cli
+from unit.test_gui import BASE, make_app, post
+from unit.test_session import FAST, fast_toml, run_cli
 
 # -- a toy model with known answers ----------------------------------------------------------------------
 #
@@ -291,3 +292,69 @@ def test_materials_never_trained_on_do_not_stop_as_known_ones():
     assert unseen["decided"] == 0.0
     assert all(w.steps[0] == "tool_slide" and not w.decided for w in result.walks["unseen"])
     assert evaluate_quick(step_space(), COSTS, ORDER, folds=3, workers=1).unseen() is None
+
+
+# -- the quick scan in the web application -----------------------------------------------------------------
+
+
+@pytest.fixture
+def quick_app(three_materials, tmp_path):
+    db = tmp_path / "db"
+    shutil.copytree(three_materials, db)
+    config = parse_config({**FAST, "simulated": {**FAST.get("simulated", {}), "material": "granite-polished"}})
+    app = make_app(db, config)
+    yield app, db
+    app.extensions["texplorer"].shutdown()
+
+
+def record_proposed(app, client) -> str:
+    """Record the step the quick page proposes, as its step page would (the session's blocking call)."""
+    page = client.get("/session/quick", base_url=BASE).text
+    step_url = page.split('<a class="button big" href="', 1)[1].split('"', 1)[0]
+    step_id = step_url.rsplit("/", 1)[1]
+    app.extensions["texplorer"].operations.active.session.record(step_id)
+    app.extensions["texplorer"].operations.active.changed()
+    return step_id
+
+
+def test_a_quick_identification_in_the_web_app_proposes_steps_and_stops(quick_app):
+    app, db = quick_app
+    client = app.test_client()
+    start = post(client, "/", {"operator": "ab", "sample_id": "piece-01", "label": "", "quick": "on"})
+    assert start.status_code == 302, start.text
+    page = client.get("/session/quick", base_url=BASE).text
+    assert "Before the first step" in page and 'id="quick-reason">Why: the ' in page
+    assert "tells the most trained materials apart per second" in page
+    taken = [record_proposed(app, client)]
+    while 'id="quick-stop"' not in (page := client.get("/session/quick", base_url=BASE).text) and len(taken) < 9:
+        taken.append(record_proposed(app, client))
+    assert 'id="quick-stop"' in page and "C6S1M1P2X1" in page.split('id="quick-predictions"', 1)[1][:400]
+    done = post(client, "/session/quick/stop")
+    assert done.status_code == 302 and done.location.endswith("/")
+    page = client.get("/", base_url=BASE).text
+    assert "Quick identification: granite" in page and f"after {len(taken)} of 11 steps" in page
+    assert "Nothing was saved." in page and app.extensions["texplorer"].operations.active is None
+    assert len(Database(db)) == 12
+
+
+def test_going_on_to_the_full_scan_names_an_unlabelled_sample_by_the_quick_prediction(quick_app):
+    app, _ = quick_app
+    client = app.test_client()
+    post(client, "/", {"operator": "ab", "sample_id": "piece-02", "label": "", "quick": "on"})
+    record_proposed(app, client)
+    while 'id="quick-stop"' not in client.get("/session/quick", base_url=BASE).text:
+        record_proposed(app, client)
+    went = post(client, "/session/quick/full")
+    session = app.extensions["texplorer"].operations.active.session
+    assert session.label == "C6S1M1P2X1"
+    first_open = next(step for step in session.steps if step.id not in session.recorded_steps())
+    assert went.location.endswith(f"/session/step/{first_open.id}")
+    assert "the quick prediction; the summary lets you change it" in client.get(went.location, base_url=BASE).text
+
+
+def test_a_quick_identification_needs_scans_to_learn_from(tmp_path):
+    app = make_app(tmp_path / "empty")
+    client = app.test_client()
+    page = post(client, "/", {"operator": "ab", "sample_id": "piece-01", "label": "", "quick": "on"})
+    assert page.status_code == 422 and "no scans to learn a quick scan from" in page.text
+    app.extensions["texplorer"].shutdown()
