@@ -108,6 +108,11 @@ def _percent(value: float) -> str:
     return "-" if math.isnan(value) else f"{100 * value:.1f}"
 
 
+def _with_unit(value: float) -> str:
+    """A share as ``98.4 %``, or ``-`` where there is none."""
+    return "-" if math.isnan(value) else f"{_percent(value)} %"
+
+
 def _interval(bounds: tuple[float, float], scale: float = 100.0, digits: int = 1) -> str:
     low, high = bounds
     return "-" if math.isnan(low) else f"{scale * low:.{digits}f}-{scale * high:.{digits}f}"
@@ -324,10 +329,10 @@ def format_quick(result: QuickResult) -> str:
                   f"{100 * s['decided']:.1f} % decided, mean time {100 * s['time_share']:.1f} % of the full "
                   f"protocol, {100 * s['accuracy']:.1f} % right (undecided scans answered by the full scan)",
                   "  steps  mean s  decided  right of decided  right now"]
-        lines += [f"  {k:>5}  {sec:>6.0f}  {100 * dec:>6.1f} %  {_percent(acc):>16}  {100 * now:>7.1f} %"
+        lines += [f"  {k:>5}  {sec:>6.0f}  {100 * dec:>6.1f} %  {_with_unit(acc):>16}  {100 * now:>7.1f} %"
                   for k, sec, dec, acc, now in result.by_steps(order)]
         lines += ["  by s   decided  right of decided"]
-        lines += [f"  {mark:>4.0f}  {100 * dec:>7.1f} %  {_percent(acc):>16}"
+        lines += [f"  {mark:>4.0f}  {100 * dec:>7.1f} %  {_with_unit(acc):>16}"
                   for mark, dec, acc in result.by_seconds(order)]
     unseen = result.unseen()
     if unseen is not None:
@@ -337,10 +342,6 @@ def format_quick(result: QuickResult) -> str:
                   "full scan, whose rule decides whether they are new"]
     lines += [*(f"note: {note}" for note in result.notes), result.line()]
     return "\n".join(lines)
-
-
-def _percent(value: float) -> str:
-    return "-" if value != value else f"{100 * value:.1f} %"
 
 
 # -- HTML page ---------------------------------------------------------------------------------------
