@@ -232,7 +232,7 @@ def export_features() -> Response:
     """The feature space of every scan (docs/evaluation.md) as CSV, from the database's feature cache."""
     ctx = context()
     try:
-        space = extract_database(ctx.db, workers=ctx.settings.workers)
+        space = extract_database(ctx.db, workers=ctx.settings.workers, partial=False)
     except DatabaseError as exc:
         abort(404, description=str(exc))
     with tempfile.TemporaryDirectory(prefix="texplorer-features-") as scratch:  # nothing kept on the server

@@ -728,11 +728,12 @@ def save() -> tuple[str, int] | Response:
     return redirect(url_for("database.scan", scan_id=scan_id))
 
 
-def _save(op: Operation) -> str | None:
-    """Save the session's scan and end the session; None (and a message) when the save was refused."""
+def _save(op: Operation, partial: bool = False) -> str | None:
+    """Save the session's scan (``partial``: a quick scan of the steps done so far) and end the session; None
+    (and a message) when the save was refused."""
     ctx = context()
     try:
-        scan_id = op.session.save(ctx.db)
+        scan_id = op.session.save(ctx.db, partial=partial)
     except (SessionError, DatabaseError, ValueError) as exc:
         flash(f"The scan was not saved: {session_error(exc)}", "bad")
         return None
@@ -821,3 +822,19 @@ def quick_full() -> Response:
               "change it.", "")
     op.changed()
     return redirect(next_url(op.session))
+
+
+@blueprint.post("/session/quick/save")
+def quick_save() -> Response:
+    """Keep the quick scan as it is (``meta.steps`` names the steps it holds): a sample started without a label
+    under the quick prediction's."""
+    op = _quick_operation()
+    state = op.quick_state()
+    if op.unlabelled:
+        with contextlib.suppress(SessionError):
+            op.session.relabel(state.predictions[0].label)
+    scan_id = _save(op, partial=True)
+    if scan_id is None:
+        return redirect(url_for("operate.quick"))
+    flash(f"Quick scan {scan_id} was saved with {len(state.recorded)} of {len(op.session.steps)} steps.", "good")
+    return redirect(url_for("database.scan", scan_id=scan_id))

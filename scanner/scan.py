@@ -110,6 +110,32 @@ IMAGES: Mapping[str, str] = MappingProxyType({
 })
 """Photo variables -> short name used in file names and feature names (docs/database.md; docs/features.md#image)."""
 
+PROCEDURE_STEPS: tuple[str, ...] = ("finger_tap", "finger_slide", "tool_tap", "tool_slide", "static", "thermal",
+                                     "friction", "press", "fold", "photos", "tu4")
+"""The steps of the scanning procedure in order (docs/operator.md#procedure): the recorded ones (each channel's
+``ChannelSpec.step``), the photos and the TU4 values."""
+
+
+def check_steps(steps: Any) -> str:
+    """``meta.steps``: "" for a full scan (every file written before partial scans existed), or the steps a
+    partial (quick) scan holds, comma-separated; returned in procedure order. A ScanError names a step that
+    is not one of :data:`PROCEDURE_STEPS`, a repeated one, or a list naming every step (write "")."""
+    if not isinstance(steps, str) or len(steps) > 200:
+        raise ScanError(f"{_short(steps)} must be step names separated by commas", "meta.steps")
+    if not steps:
+        return ""
+    names = [name.strip() for name in steps.split(",")]
+    unknown = [name for name in names if name not in PROCEDURE_STEPS]
+    if unknown:
+        raise ScanError(f"{_short(unknown[0])} is not a step of the procedure ({', '.join(PROCEDURE_STEPS)})",
+                        "meta.steps")
+    if len(set(names)) < len(names):
+        raise ScanError(f"{_short(steps)} names a step twice", "meta.steps")
+    if len(names) == len(PROCEDURE_STEPS):
+        raise ScanError("names every step: a full scan stores meta.steps as empty text", "meta.steps")
+    return ",".join(step for step in PROCEDURE_STEPS if step in names)
+
+
 ROLES = frozenset({
     "vibration", "pressure_dc", "temperature", "heat_flow", "electrodes", "taxels", "force_xyz", "audio",
     "photo", "signal",
@@ -324,6 +350,9 @@ class ScanMeta(_Picklable):
     software_version: str = ""
     schema_version: int = SCHEMA_VERSION
     notes: str = ""
+    steps: str = ""
+    """"" for a full scan; for a partial (quick) scan the steps it holds, comma-separated in procedure order
+    (:func:`check_steps`): the features of the others are missing (NaN), not zero."""
 
     def __post_init__(self) -> None:
         try:
@@ -355,6 +384,7 @@ class ScanMeta(_Picklable):
                             "meta.schema_version")
         _check_text("software_version", self.software_version, MAX_TEXT["software_version"])
         _check_text("notes", self.notes, MAX_TEXT["notes"])
+        object.__setattr__(self, "steps", check_steps(self.steps))
         for name in ("device", "calibration"):
             keys = list(getattr(self, name))
             if len(keys) > MAX_META_KEYS:
@@ -372,6 +402,16 @@ class ScanMeta(_Picklable):
     def scan_id(self) -> str:
         """``<sample_id>-<scan_index:03d>``: unique within a database."""
         return f"{self.sample_id}-{self.scan_index:03d}"
+
+    @property
+    def partial(self) -> bool:
+        """A quick scan that holds only some steps (:attr:`steps`)."""
+        return bool(self.steps)
+
+    @property
+    def step_list(self) -> tuple[str, ...]:
+        """The steps the scan holds, in procedure order (all of them for a full scan)."""
+        return tuple(self.steps.split(",")) if self.steps else PROCEDURE_STEPS
 
     def __eq__(self, other: object) -> bool:
         # NaN marks "not measured"; two metas that both lack a value are equal.

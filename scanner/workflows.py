@@ -25,6 +25,7 @@ call it rather than wiring those layers together themselves (see ``docs/extendin
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
 import time
 import warnings
@@ -92,13 +93,15 @@ def database_sources(db: Database, records: Iterable[ScanRecord]) -> list[ScanSo
 def extract_database(db: Database, *, label: str | None = None, records: Sequence[ScanRecord] | None = None,
                      workers: int | None = None, progress: bool = True, client: Client | None = None,
                      ship_data: bool = False, pool: WorkerPool | None = None,
-                     families: Sequence[str] | None = None) -> FeatureSpace:
+                     families: Sequence[str] | None = None, partial: bool = True) -> FeatureSpace:
     """The features of every scan of ``db`` (or of ``label``, a label or class prefix, or of ``records``),
     read from the database's feature cache where the scan and the feature code are unchanged; extracted in
     ``workers`` processes here (or those of ``pool``, kept across a job's batches), or on the Dask cluster
     of ``client`` (``ship_data``: send the files to the workers; see :func:`features.extract_many`). The
     catalog and the cache are read and written here only. ``families``: the feature families to compute
-    (default: the paper's; opt-in ones such as :mod:`features.modern`'s too).
+    (default: the paper's; opt-in ones such as :mod:`features.modern`'s too). Without ``partial``, quick
+    scans that hold only some steps are left out (:func:`full_scans`): what models learn from and are
+    measured on.
 
     Raises
     ------
@@ -107,10 +110,22 @@ def extract_database(db: Database, *, label: str | None = None, records: Sequenc
     """
     if records is None:
         records = db.records(label=label)
+    if not partial:
+        records = full_scans(records)
     if not records:
         raise DatabaseError(f"{db.root}: no scans{f' with label {label}' if label else ''} to extract")
     return extract_many(database_sources(db, records), workers=workers, cache=db, progress=progress, client=client,
                         ship_data=ship_data, pool=pool, families=families)
+
+
+def full_scans(records: Sequence[ScanRecord]) -> list[ScanRecord]:
+    """The full scans of ``records``; a one-line note on stderr names how many quick (partial) scans are left
+    out, since a model learns from and is measured on every step."""
+    full = [r for r in records if not r.partial]
+    if len(full) < len(records):
+        print(f"texplorer: note: {len(records) - len(full)} quick scan(s) holding only some steps left out: models "
+              "learn from and are measured on full scans (docs/quick.md)", file=sys.stderr)
+    return full
 
 
 def simulated_database(root: str | os.PathLike[str], **options: Any) -> Database:
@@ -313,7 +328,7 @@ def retrain(db: Database, *, seed: int = 0, pool: WorkerPool | None = None, cv: 
     level, n_features, classifier = DEFAULT_MODEL_SETTINGS
     if before is not None and before.version > 0:
         level, n_features, classifier = before.level, before.n_features, before.classifier
-    space = extract_database(db, pool=pool, progress=False)
+    space = extract_database(db, pool=pool, progress=False, partial=False)
     arguments = (space, level, n_features, classifier, seed, cv)
     model, figures = (pool.submit(train_and_measure, *arguments).result() if pool is not None
                       else train_and_measure(*arguments))
@@ -502,7 +517,7 @@ class QuickIdentifier:
         its temperatures calibrated on the walks of the adaptive and the procedure's order."""
         if len(db) == 0:
             raise EvaluationError(f"{db.root}: no scans to learn a quick scan from")
-        space = extract_database(db, workers=workers, progress=False)
+        space = extract_database(db, workers=workers, progress=False, partial=False)
         seconds = step_seconds(config or Config())
         experts = experts_of(space.columns, REGISTRY.column_steps(space.columns))
         model = fit_step_model(space.X, space.y("fine"), np.asarray(space.groups), experts, seed)

@@ -565,6 +565,8 @@ class Session:
         missing = self.missing()
         if missing and not partial:
             raise SessionError(f"cannot save yet, missing: {', '.join(missing)}")
+        done = self.recorded_steps()
+        steps = ",".join(step.id for step in self.steps if step.id in done) if missing else ""
         results = {step: entry.result for step, entry in self._steps.items() if entry.result is not None}
         device, calibration = self.recorder.device_meta(results)
         values = self._values
@@ -574,22 +576,25 @@ class Session:
                             t_amb=self.t_amb, mass_g=values.mass_g, volume_cm3=values.volume_cm3,
                             volume_method=values.volume_method, atk=values.atk, cyd=values.cyd, rigid=self.rigid,
                             device=device, calibration=calibration, software_version=__version__,
-                            notes=values.notes)
+                            notes=values.notes, steps=steps)
             return build_scan(meta, results, self._photos)
         except ScanError as exc:
             raise SessionError(f"the scan is not valid: {exc}") from None
 
-    def save(self, db: Any) -> str:
+    def save(self, db: Any, partial: bool = False) -> str:
         """Store the scan in ``db`` (a :class:`scanner.Database`) as the sample's next scan; returns its id.
 
-        Only when every step is recorded or skipped, the photos are there and the TU4 values entered. The
-        devices are released afterwards.
+        Only when every step is recorded or skipped, the photos are there and the TU4 values entered; with
+        ``partial``, a quick scan of the steps done so far (at least one), which records them in
+        ``meta.steps``. The devices are released afterwards.
         """
         with self._lock:
             self._check_open()
             if self.running:
                 raise SessionError("cannot save while a step is recording")
-            scan = self.scan(db.next_scan_index(self.sample_id))
+            if partial and not self.recorded_steps():
+                raise SessionError("cannot save a quick scan before its first step")
+            scan = self.scan(db.next_scan_index(self.sample_id), partial=partial)
             scan_id = db.add(scan)
             self.state = SessionState.SAVED
         self.close()

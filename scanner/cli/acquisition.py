@@ -254,7 +254,11 @@ def _guide_quick(session: Session, args: argparse.Namespace, identifier: QuickId
             print("\n" + _quick_lines(state))
         if state.decided or state.next_step is None:
             print(f"\nidentified: stopped because {state.why_stopped()}")
-            if _ask(session, "[Enter] stop here, f go on to the full scan to save it: ").lower() != "f":
+            answer = _ask(session, "[Enter] stop here, k keep this quick scan in the database, f go on to the "
+                                   "full scan: ").lower()
+            if answer == "k":
+                return _keep_quick(session, args, state), state
+            if answer != "f":
                 return None, state
             break
         proposed = session.step(state.next_step)
@@ -276,6 +280,18 @@ def _guide_quick(session: Session, args: argparse.Namespace, identifier: QuickId
     if args.label is None:
         _label_from(session, state)
     return _finish(session, args, model), state
+
+
+def _keep_quick(session: Session, args: argparse.Namespace, state: QuickState) -> str | None:
+    """Save the quick scan as it is (``meta.steps`` names the steps it holds; docs/quick.md): under the
+    quick prediction's label when it started without one."""
+    if args.label is None:
+        _label_from(session, state)
+    while True:
+        try:
+            return session.save(open_db(args, create=True), partial=True)
+        except (DatabaseError, OSError) as exc:
+            _ask(session, f"  not saved: {exc}\n  [Enter] retry, a abort: ")
 
 
 def _chosen_step(session: Session, answer: str, proposed):
@@ -356,11 +372,12 @@ def cmd_scan(args: argparse.Namespace) -> int:
         return EXIT_ERROR
     finally:
         session.abort()
-    if scan_id is None and state is not None:
+    if state is not None:
         top = state.predictions[0]
+        kept = (f"saved {scan_id} in {args.db}" if scan_id else
+                "not saved (k keeps a quick scan, f records the full scan)")
         print(f"quick scan: {top.names} ({top.label}) at {100 * top.probability:.1f} % after "
-              f"{len(state.recorded)} of {len(session.steps)} steps ({state.seconds:.0f} s); not saved (a quick "
-              "scan is saved once the full scan is recorded: answer f)")
+              f"{len(state.recorded)} of {len(session.steps)} steps ({state.seconds:.0f} s); {kept}")
         return 0
     if scan_id is None:
         print("not saved")

@@ -91,7 +91,7 @@ def cmd_features(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     with cluster(args) as client:
         space = extract_database(db, label=args.label, workers=args.workers, client=client, ship_data=args.ship_data,
-                                 families=feature_sets.families_for(args.feature_set))
+                                 families=feature_sets.families_for(args.feature_set), partial=False)
     report_space(space, time.perf_counter() - started)
     out = args.out or db.root / table_name(args.label)
     space.to_csv(out)

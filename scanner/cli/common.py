@@ -26,7 +26,7 @@ def space_for(args: argparse.Namespace, client=None):
     wanted = args.feature_set if isinstance(getattr(args, "feature_set", None), list) else [
         getattr(args, "feature_set", ALL)]
     space = extract_database(open_db(args), workers=args.workers, client=client, ship_data=args.ship_data,
-                             families=feature_sets.families_for(wanted))
+                             families=feature_sets.families_for(wanted), partial=False)
     for scan_id, reason in space.failed:
         print(f"texplorer: warning: {scan_id} left out: {reason}", file=sys.stderr)
     return space

@@ -13,11 +13,18 @@ from scanner.storage.settings import KEYS, read_settings, write_settings
 def cmd_db_list(args: argparse.Namespace) -> int:
     db = open_db(args)
     records = db.records(label=args.label, sample=args.sample, session=args.session, operator=args.operator)
-    rows = [(r.scan_id, r.label, r.sample_id, r.session_id, r.operator, r.started) for r in records]
-    for line in table_lines(("scan", "label", "sample", "session", "operator", "started"), rows):
+    rows = [(r.scan_id, r.label, r.sample_id, r.session_id, r.operator, r.started, _steps(r.steps))
+            for r in records]
+    for line in table_lines(("scan", "label", "sample", "session", "operator", "started", "steps"), rows):
         print(line)
-    print(f"{len(records)} scan(s)")
+    quick = sum(r.partial for r in records)
+    print(f"{len(records)} scan(s)" + (f", {quick} of them quick scans holding only some steps" if quick else ""))
     return 0
+
+
+def _steps(steps: str) -> str:
+    """A catalog row's steps: ``all`` for a full scan, ``quick: tool_slide, photos`` for a partial one."""
+    return f"quick: {steps.replace(',', ', ')}" if steps else "all"
 
 
 def cmd_db_show(args: argparse.Namespace) -> int:
@@ -30,6 +37,7 @@ def cmd_db_show(args: argparse.Namespace) -> int:
           f"started {meta.started}")
     print(f"t_amb       {meta.t_amb:g} degC   mass {meta.mass_g:g} g   volume {meta.volume_cm3:g} cm^3   "
           f"atk {meta.atk:g}   cyd {meta.cyd:g}   rigid {int(meta.rigid)}")
+    print(f"steps       {_steps(meta.steps)}")
     print(f"file        {record.path}\ncontent     {record.content_hash}")
     print("channels:")
     for name, trace in scan.traces.items():

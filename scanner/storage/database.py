@@ -75,7 +75,9 @@ PENDING = ".pending"
 QUARANTINE = "quarantine"
 STAGING_PREFIX = ".import"
 """Import stages a bundle in ``<root>/.import.tmp-<hex>/`` (:func:`scanner.storage.files.owned_folder`)."""
-CATALOG_SCHEMA = 1
+CATALOG_SCHEMA = 2
+"""1: the first catalog; 2: ``scans.steps``, the steps a partial (quick) scan holds ("" for a full scan), added to
+a catalog of schema 1 when it is opened."""
 PHOTO_SUFFIXES = tuple(f"_{short}.png" for short in IMAGES.values())
 _CORRUPTION = ("malformed", "not a database", "encrypted", "corrupt")
 """Words of SQLite's messages for a damaged file (SQLITE_CORRUPT, SQLITE_NOTADB)."""
@@ -104,7 +106,8 @@ CREATE TABLE IF NOT EXISTS scans (
     rigid INTEGER NOT NULL,
     path TEXT NOT NULL UNIQUE,
     content_hash TEXT NOT NULL,
-    added TEXT NOT NULL
+    added TEXT NOT NULL,
+    steps TEXT NOT NULL DEFAULT ''
 );
 CREATE INDEX IF NOT EXISTS scans_label ON scans(label);
 CREATE INDEX IF NOT EXISTS scans_sample ON scans(sample_id);
@@ -146,6 +149,13 @@ class ScanRecord:
     path: str
     content_hash: str
     added: str
+    steps: str = ""
+    """"" for a full scan; the steps a partial (quick) scan holds, comma-separated (``ScanMeta.steps``)."""
+
+    @property
+    def partial(self) -> bool:
+        """A quick scan that holds only some steps."""
+        return bool(self.steps)
 
 
 @dataclass(frozen=True)
@@ -291,6 +301,10 @@ class Database:
     def _create_schema(self) -> None:
         conn = self._conn
         conn.executescript(_SCHEMA)
+        if "steps" not in {row[1] for row in conn.execute("PRAGMA table_info(scans)")}:
+            # A catalog of schema 1: every scan it knows is a full scan.
+            conn.execute("ALTER TABLE scans ADD COLUMN steps TEXT NOT NULL DEFAULT ''")
+            conn.execute("DELETE FROM info WHERE key = 'catalog_schema'")
         conn.execute("INSERT OR IGNORE INTO info VALUES ('catalog_schema', ?)", (str(CATALOG_SCHEMA),))
 
     # -- connections -------------------------------------------------------------------------------
@@ -458,10 +472,10 @@ class Database:
         conn.execute("INSERT OR IGNORE INTO samples VALUES (?, ?)", (meta.sample_id, meta.label))
         conn.execute("INSERT OR IGNORE INTO sessions VALUES (?, ?, ?)",
                      (meta.session_id, meta.operator, meta.started))
-        conn.execute("INSERT INTO scans VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        conn.execute("INSERT INTO scans VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                      (meta.scan_id, meta.label, meta.sample_id, meta.session_id, meta.operator,
                       meta.scan_index, meta.started, int(meta.rigid), mat.path, content_hash(entries),
-                      datetime.now(UTC).isoformat(timespec="seconds")))
+                      datetime.now(UTC).isoformat(timespec="seconds"), meta.steps))
         conn.executemany("INSERT INTO files VALUES (?, ?, ?, ?, ?)",
                          [(e.path, meta.scan_id, e.role, e.sha256, e.size) for e in entries])
 

@@ -9,7 +9,8 @@ Layout of ``<scan>.mat`` (``scipy.io.savemat``, ``long_field_names=True``, every
   ``started``, ``t_amb``, ``mass_g``, ``volume_cm3``, ``volume_method`` (water, micro-pearls, known or
   empty), ``atk``, ``cyd``, ``rigid``, ``fs`` (struct: channel -> Hz), ``units`` (struct: channel -> unit),
   ``raw_volts`` (0/1), ``device`` (struct of strings), ``calibration`` (struct of numbers),
-  ``software_version``, ``schema_version``, ``notes``.
+  ``software_version``, ``schema_version``, ``notes``, ``steps`` (only in a partial, quick scan: the steps
+  it holds, comma-separated, ``tool_slide,photos``; a file without it is a full scan).
   Unknown numbers (not weighed, not judged) are NaN.
 
 In MATLAB or Octave: ``s = load('granite-01-001.mat'); plot(s.v_ts); s.meta.fs.v_ts``.
@@ -114,6 +115,7 @@ def _meta_struct(scan: Scan) -> dict[str, Any]:
         "software_version": meta.software_version,
         "schema_version": float(meta.schema_version),
         "notes": meta.notes,
+        **({"steps": meta.steps} if meta.steps else {}),  # a full scan's file stays as it was before
     }
 
 
@@ -323,6 +325,7 @@ def _parse_meta(path: Path, variables: dict[str, Any]) -> tuple[dict[str, Any], 
             schema_version=int(schema),
             notes=_meta_text(path, meta, "notes", ""),
             volume_method=_meta_text(path, meta, "volume_method", ""),
+            steps=_meta_text(path, meta, "steps", ""),
             **{name: _meta_number(path, meta, name) for name in _OPTIONAL_NUMBERS},
         )
     except ScanError as exc:

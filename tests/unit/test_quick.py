@@ -3,18 +3,27 @@ walk of stored scans (docs/quick.md)."""
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
+import math
 import re
 import shutil
+import sqlite3
 
 import numpy as np
 import pytest
+from conftest import make_scan
+from scipy.io import loadmat
 
-from features import FeatureSpace
+from features import FeatureSpace, extract
 from scanner.acquisition.config import ConfigError, parse_config
 from scanner.acquisition.session import procedure, step_seconds
 from scanner.cli import EXIT_ERROR, main
+from scanner.scan import CHANNELS, PROCEDURE_STEPS, ScanError, check_steps
+from scanner.storage.bundle import import_bundle
 from scanner.storage.database import Database
-from scanner.workflows import simulated_database
+from scanner.storage.matfile import load_scan, save_scan
+from scanner.workflows import export_database, simulated_database
 from taxonomy.learning.evaluation import EvaluationError
 from taxonomy.learning.quick import (
     Expert,
@@ -358,3 +367,125 @@ def test_a_quick_identification_needs_scans_to_learn_from(tmp_path):
     page = post(client, "/", {"operator": "ab", "sample_id": "piece-01", "label": "", "quick": "on"})
     assert page.status_code == 422 and "no scans to learn a quick scan from" in page.text
     app.extensions["texplorer"].shutdown()
+
+
+# -- partial (quick) scans as stored scans ---------------------------------------------------------------
+
+
+def partial_scan(scan_index: int = 1):
+    """A scan holding only the tool slide and the photos: the others' channels and the TU4 values absent."""
+    full = make_scan(0, scan_index=scan_index, sample_id="piece-01")
+    keep = {name for name, spec in CHANNELS.items() if spec.step == "tool_slide"}
+    meta = dataclasses.replace(full.meta, mass_g=math.nan, volume_cm3=math.nan, atk=math.nan, cyd=math.nan,
+                               volume_method="", steps="photos, tool_slide")
+    return dataclasses.replace(full, meta=meta, traces={k: v for k, v in full.traces.items() if k in keep},
+                               raw={k: v for k, v in full.raw.items() if k in keep})
+
+
+@pytest.mark.parametrize(("steps", "why"), [
+    ("press,smell", "'smell' is not a step of the procedure"), ("press,press", "'press,press' names a step twice"),
+    (",".join(PROCEDURE_STEPS), "names every step: a full scan stores meta.steps as empty text"),
+    (3, "3 must be step names separated by commas")])
+def test_a_bad_list_of_steps_is_refused_by_field(steps, why):
+    with pytest.raises(ScanError, match=re.escape(why)) as caught:
+        check_steps(steps)
+    assert caught.value.field == "meta.steps"
+
+
+def test_a_partial_scan_keeps_its_steps_through_the_file_and_the_catalog(tmp_path):
+    scan = partial_scan()
+    assert scan.meta.steps == "tool_slide,photos" and scan.meta.partial
+    assert scan.meta.step_list == ("tool_slide", "photos")
+    path = tmp_path / "piece-01-001.mat"
+    save_scan(scan, path)
+    assert loadmat(path, simplify_cells=True)["meta"]["steps"] == "tool_slide,photos"  # what MATLAB reads
+    assert load_scan(path) == scan
+    full = make_scan(1)
+    save_scan(full, tmp_path / "full.mat")
+    assert "steps" not in loadmat(tmp_path / "full.mat", simplify_cells=True)["meta"]
+    assert load_scan(tmp_path / "full.mat").meta.steps == "" and not load_scan(tmp_path / "full.mat").meta.partial
+    db = Database(tmp_path / "db")
+    db.add(scan)
+    db.add(full)
+    assert {r.scan_id: r.steps for r in db.records()} == {"piece-01-001": "tool_slide,photos",
+                                                          full.meta.scan_id: ""}
+    with pytest.warns(UserWarning):
+        values = extract(db.get("piece-01-001"))
+    assert np.isnan(values["audio.finger.zcr"]) and np.isnan(values["other.density"])  # missing, never zero
+    assert np.isnan(values["tactum.fst"]) and np.isnan(values["other.metal"])
+    assert np.isfinite(values["image.disp.brightness"])
+
+
+def test_a_catalog_of_schema_1_gains_the_steps_column_when_opened(tmp_path):
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0))
+    db.close()
+    with contextlib.closing(sqlite3.connect(tmp_path / "db" / "catalog.sqlite")) as conn:
+        conn.execute("ALTER TABLE scans DROP COLUMN steps")
+        conn.execute("UPDATE info SET value = '1' WHERE key = 'catalog_schema'")
+        conn.commit()
+    db = Database(tmp_path / "db")
+    assert [r.steps for r in db.records()] == [""]
+    db.add(partial_scan())
+    assert db.record("piece-01-001").partial
+    with contextlib.closing(sqlite3.connect(tmp_path / "db" / "catalog.sqlite")) as conn:
+        assert conn.execute("SELECT value FROM info WHERE key = 'catalog_schema'").fetchone() == ("2",)
+
+
+def test_models_learn_from_full_scans_and_say_how_many_quick_ones_they_left_out(tmp_path, capsys):
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0))
+    db.add(partial_scan())
+    assert main(["db", "list", "--db", str(tmp_path / "db")]) == 0
+    out = capsys.readouterr().out
+    assert "quick: tool_slide, photos" in out and "2 scan(s), 1 of them quick scans holding only some steps" in out
+    assert main(["features", "--db", str(tmp_path / "db"), "--out", str(tmp_path / "f.csv")]) == 0
+    assert "1 quick scan(s) holding only some steps left out" in capsys.readouterr().err
+    assert len(FeatureSpace.from_csv(tmp_path / "f.csv")) == 1
+
+
+def test_a_quick_scan_kept_from_the_terminal_is_a_partial_scan(three_materials, tmp_path, monkeypatch, capsys):
+    db = tmp_path / "db"
+    shutil.copytree(three_materials, db)
+    config = fast_toml(tmp_path / "fast.toml", extra='material = "granite-polished"\n')
+    text = "\n" + "\n\n\n" * 9  # keep t_amb; take, record and keep proposed steps until identified
+    answers = iter(text.split("\n"))
+    monkeypatch.setattr("scanner.cli.acquisition._read", lambda prompt: _answer(prompt, answers))
+    code = main(quick_argv(db, config))
+    out = capsys.readouterr().out
+    assert code == 0, out
+    record = Database(db).record("piece-01-001")
+    assert record.partial and record.label == "C6S1M1P2X1"
+    assert "saved piece-01-001" in out.strip().splitlines()[-1]
+
+
+def _answer(prompt: str, answers) -> str:
+    """The operator: keeps the quick scan once identified, keeps the predicted label, else presses Enter."""
+    if prompt.startswith("[Enter] stop here, k keep"):
+        return "k"
+    return next(answers, "")
+
+
+def test_a_quick_scan_kept_from_the_web_app_shows_its_steps(quick_app):
+    app, db = quick_app
+    client = app.test_client()
+    post(client, "/", {"operator": "ab", "sample_id": "piece-03", "label": "", "quick": "on"})
+    record_proposed(app, client)
+    while 'id="quick-stop"' not in client.get("/session/quick", base_url=BASE).text:
+        record_proposed(app, client)
+    kept = post(client, "/session/quick/save")
+    assert kept.location.endswith("/db/scan/piece-03-001")
+    page = client.get(kept.location, base_url=BASE).text
+    assert "was saved with" in page and 'id="scan-steps">a quick scan: ' in page
+    assert Database(db).record("piece-03-001").partial
+
+
+def test_a_quick_scan_travels_with_its_steps_through_export_and_import(tmp_path):
+    source = Database(tmp_path / "source")
+    source.add(make_scan(0))
+    source.add(partial_scan())
+    bundle = export_database(source, tmp_path / "bundle", license="CC-BY-4.0", creator="lab", workers=1).path
+    target = Database(tmp_path / "target")
+    import_bundle(target, bundle)
+    assert target.record("piece-01-001").steps == "tool_slide,photos"
+    assert target.get("piece-01-001") == source.get("piece-01-001")
