@@ -326,6 +326,16 @@ def record_proposed(app, client) -> str:
     return step_id
 
 
+def identified(app, sample_id: str):
+    """A browser that started an unlabelled quick identification and took the proposed steps until it stopped."""
+    client = app.test_client()
+    post(client, "/", {"operator": "ab", "sample_id": sample_id, "label": "", "quick": "on"})
+    record_proposed(app, client)
+    while 'id="quick-stop"' not in client.get("/session/quick", base_url=BASE).text:
+        record_proposed(app, client)
+    return client
+
+
 def test_a_quick_identification_in_the_web_app_proposes_steps_and_stops(quick_app):
     app, db = quick_app
     client = app.test_client()
@@ -348,11 +358,7 @@ def test_a_quick_identification_in_the_web_app_proposes_steps_and_stops(quick_ap
 
 def test_going_on_to_the_full_scan_names_an_unlabelled_sample_by_the_quick_prediction(quick_app):
     app, _ = quick_app
-    client = app.test_client()
-    post(client, "/", {"operator": "ab", "sample_id": "piece-02", "label": "", "quick": "on"})
-    record_proposed(app, client)
-    while 'id="quick-stop"' not in client.get("/session/quick", base_url=BASE).text:
-        record_proposed(app, client)
+    client = identified(app, "piece-02")
     went = post(client, "/session/quick/full")
     session = app.extensions["texplorer"].operations.active.session
     assert session.label == "C6S1M1P2X1"
@@ -468,11 +474,7 @@ def _answer(prompt: str, answers) -> str:
 
 def test_a_quick_scan_kept_from_the_web_app_shows_its_steps(quick_app):
     app, db = quick_app
-    client = app.test_client()
-    post(client, "/", {"operator": "ab", "sample_id": "piece-03", "label": "", "quick": "on"})
-    record_proposed(app, client)
-    while 'id="quick-stop"' not in client.get("/session/quick", base_url=BASE).text:
-        record_proposed(app, client)
+    client = identified(app, "piece-03")
     kept = post(client, "/session/quick/save")
     assert kept.location.endswith("/db/scan/piece-03-001")
     page = client.get(kept.location, base_url=BASE).text
