@@ -41,7 +41,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.optimize import minimize, minimize_scalar
+from scipy.optimize import minimize_scalar
 from scipy.special import log_softmax, softmax
 from sklearn.ensemble import ExtraTreesClassifier
 from sklearn.metrics.pairwise import euclidean_distances
@@ -148,23 +148,6 @@ def fit_tau(ratio_sums: np.ndarray, true_index: np.ndarray, log_prior: np.ndarra
         return float(-np.mean(logp[rows, true_index]))
 
     return float(np.exp(minimize_scalar(loss, bounds=(-5.0, 2.0), method="bounded").x))
-
-
-def fit_weights(ratios: np.ndarray, true_index: np.ndarray, log_prior: np.ndarray) -> np.ndarray:
-    """Each expert's weight ``beta_E >= 0`` minimising the negative log likelihood of the product of all experts
-    (``log pi + sum_E beta_E r_E``) on held-out ``ratios`` (experts x rows x classes), by L-BFGS-B from each
-    expert's own temperature: an expert that adds nothing to the others gets a small weight."""
-    rows = np.arange(ratios.shape[1])
-
-    def loss(w: np.ndarray) -> tuple[float, np.ndarray]:
-        logp = log_softmax(log_prior + np.tensordot(w, ratios, axes=1), axis=1)
-        p = np.exp(logp)
-        grad = -(ratios[:, rows, true_index] - np.einsum("erc,rc->er", ratios, p)).mean(axis=1)
-        return float(-logp[rows, true_index].mean()), grad
-
-    start = np.array([fit_tau(r, true_index, log_prior) for r in ratios]) / len(ratios)
-    fitted = minimize(loss, start, jac=True, method="L-BFGS-B", bounds=[(0.0, 10.0)] * len(ratios))
-    return fitted.x
 
 
 @dataclass(frozen=True)
@@ -523,11 +506,6 @@ class Walk:
     correct: tuple[bool, ...]
     decided: bool
 
-    @property
-    def taken(self) -> int:
-        """Steps recorded until the stop (all of them when it never stopped)."""
-        return len(self.steps)
-
 
 @dataclass(frozen=True)
 class QuickResult:
@@ -537,6 +515,7 @@ class QuickResult:
     walks: Mapping[str, tuple[Walk, ...]]
     full_correct: np.ndarray
     full_seconds: float
+    full_steps: int
     stop_at: float
     splitting: str
     level: str = "fine"
@@ -548,7 +527,7 @@ class QuickResult:
         by the full scan), the mean time as a share of the full protocol, and the full scan's accuracy."""
         walks = self.walks[order]
         decided = np.array([w.decided for w in walks])
-        taken = np.array([w.taken if w.decided else len(w.steps) for w in walks])
+        taken = np.array([len(w.steps) if w.decided else self.full_steps for w in walks])
         seconds = np.array([w.seconds[-1] if w.decided else self.full_seconds for w in walks])
         right = np.array([w.correct[-1] for w in walks])
         answered = np.where(decided, right, self.full_correct)
@@ -560,13 +539,12 @@ class QuickResult:
 
     def unseen(self) -> dict[str, float] | None:
         """With held-out materials (``open_set``): the share of their scans a quick scan stopped on (each one a
-        material named wrongly), the median steps to that stop, and the share of them the novelty check held
-        back at least once before the last step. None without."""
+        material named wrongly), the median steps to that stop, and how many scans were walked. None without."""
         walks = self.walks.get("unseen")
         if not walks:
             return None
         decided = np.array([w.decided for w in walks])
-        taken = np.array([w.taken for w in walks if w.decided])
+        taken = np.array([len(w.steps) for w in walks if w.decided])
         return {"decided": float(decided.mean()), "median_steps": float(np.median(taken)) if taken.size
                 else float("nan"), "scans": float(len(walks))}
 
@@ -576,7 +554,7 @@ class QuickResult:
         walks = self.walks[order]
         rows = []
         for k in range(1, max(len(w.steps) for w in walks) + 1):
-            decided = np.array([w.decided and w.taken <= k for w in walks])
+            decided = np.array([w.decided and len(w.steps) <= k for w in walks])
             going = [w.seconds[k - 1] for w in walks if len(w.steps) >= k]
             current = np.array([w.correct[min(k, len(w.steps)) - 1] for w in walks])
             rows.append((k, float(np.mean(going)) if going else float("nan"), float(decided.mean()),
@@ -675,7 +653,7 @@ def evaluate_quick(space: FeatureSpace, costs: Mapping[str, float], order: Seque
     return QuickResult({name: tuple(w for _, w in sorted(pairs, key=lambda p: p[0])) for name, pairs in walks.items()
                         if pairs or name != "unseen"},
                        full_correct[tested],
-                       float(sum(costs[step] for step in order)), stop_at,
+                       float(sum(costs[step] for step in order)), len(order), stop_at,
                        f"{len(splits)} {'grouped' if grouped else 'ungrouped'} folds", level,
                        tuple(sorted({str(w.message).splitlines()[0] for w in caught})))
 

@@ -491,3 +491,12 @@ def test_a_quick_scan_travels_with_its_steps_through_export_and_import(tmp_path)
     import_bundle(target, bundle)
     assert target.record("piece-01-001").steps == "tool_slide,photos"
     assert target.get("piece-01-001") == source.get("piece-01-001")
+
+
+def test_a_scan_that_never_stops_counts_the_whole_protocol():
+    result = evaluate_quick(step_space(), COSTS, ORDER, folds=3, workers=1, stop_at=1.01)  # never sure enough
+    adaptive = result.summary("adaptive")
+    assert adaptive["decided"] == 0.0
+    assert all(len(w.steps) == 3 for w in result.walks["adaptive"])  # the finger tap feeds no expert: skipped
+    assert adaptive["median_steps"] == len(ORDER) and adaptive["median_seconds"] == 200.0
+    assert adaptive["time_share"] == 1.0
