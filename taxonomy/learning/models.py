@@ -31,9 +31,12 @@ from __future__ import annotations
 import io
 import math
 import os
+import sys
+import threading
 import warnings
 import zipfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -41,8 +44,10 @@ from typing import Any
 
 import numpy as np
 import sklearn
+import sklearn.utils
 from sklearn.pipeline import Pipeline
-from sklearn.preprocessing import MinMaxScaler
+from sklearn.preprocessing import LabelBinarizer, MinMaxScaler
+from sklearn.tree import DecisionTreeClassifier
 
 from features import feature_sets
 from features.random_kernels import SIGNAL_PREFIX, RandomKernels
@@ -97,6 +102,10 @@ arrays and scikit-learn estimators); a file with any other such type is refused 
 MODEL_TYPES = (MinMaxScaler, FQSelector, *(type(est) for est in classifier_estimators(SEED).values()))
 """The estimator classes a model's pipeline may consist of, step by step: scale, select, classify (the
 classifier bare, in a version 1 file, or inside a :class:`TemperatureScaledClassifier`)."""
+SKLEARN_PARTS = (Pipeline, MinMaxScaler, *MODEL_TYPES[2:], DecisionTreeClassifier, LabelBinarizer)
+"""The scikit-learn estimators a model file holds: the pipeline, its scaler, the classifiers and what they fit
+inside themselves (a forest's trees, a network's label binarizer). skops trusts these by default, in place of
+every estimator of scikit-learn (:func:`_skops`)."""
 _OPEN_SET_TYPES = {"means": np.ndarray, "precision": np.ndarray, "distance_scale": float, "threshold": float,
                    "max_accuracy_drop": float, "inner_auroc": float}
 _NEIGHBOUR_TYPES = {"group_titles": list, "group_of": np.ndarray, "fill": np.ndarray, "centre": np.ndarray,
@@ -249,12 +258,37 @@ def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, 
 # -- files -------------------------------------------------------------------------------------------
 
 def _skops() -> ModuleType:
-    """``skops.io``, imported when a model file is read or written: it takes a third of a second, which
-    every command and page that never touches a model file would pay."""
-    import skops.io
+    """``skops.io``, imported when a model file is read or written (it takes a third of a second, which every
+    command and page that never touches a model file would pay).
 
-    return skops.io
+    skops lists the estimators it trusts by default when it is imported, by importing every module of
+    scikit-learn (``sklearn.utils.all_estimators``: a second of CPU, more than the rest of ``classify``).
+    The first import here hands it :data:`SKLEARN_PARTS` instead, the estimators a model file may hold; the
+    check of a file's types (:func:`_check_types`) is against the model's own lists either way.
+    """
+    if "skops.io" not in sys.modules:
+        with _import_lock, _estimators(SKLEARN_PARTS):
+            import skops.io  # noqa: F401  (bound below, once imported with the model's own estimators)
+    return sys.modules["skops.io"]
 
+
+_import_lock = threading.Lock()
+_PART_NAMES = frozenset(f"{part.__module__}.{part.__qualname__}" for part in SKLEARN_PARTS)
+_TRUSTED = [*TRUSTED_TYPES, *sorted(_PART_NAMES)]
+"""Every type a model file may hold beyond builtins and numpy arrays, as skops names them."""
+
+
+@contextmanager
+def _estimators(parts: Sequence[type]) -> Iterator[None]:
+    """``sklearn.utils.all_estimators`` answering with ``parts`` while the block runs: only while skops is
+    first imported, under :data:`_import_lock` (a thread of the process that called it meanwhile would get the
+    same short list; nothing of the project does)."""
+    crawl = sklearn.utils.all_estimators
+    sklearn.utils.all_estimators = lambda type_filter=None: [(part.__name__, part) for part in parts]
+    try:
+        yield
+    finally:
+        sklearn.utils.all_estimators = crawl
 
 
 def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
@@ -292,7 +326,7 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
         payload["format_version"] = 1
     data = _skops().dumps(payload)
     _check_types(path, data)
-    _model_from(path, _skops().loads(data, trusted=list(TRUSTED_TYPES)))
+    _model_from(path, _skops().loads(data, trusted=_TRUSTED))
     atomic_write_bytes(path, data)
     remove_stale_temp_files(path.parent, path.name)  # a train killed at its rename left one
     return path
@@ -322,7 +356,7 @@ def load_model(path: str | os.PathLike[str]) -> TrainedModel:
     _check_types(path, data)
     _check_unpacked_size(path, data)
     try:
-        payload = _skops().loads(data, trusted=list(TRUSTED_TYPES))
+        payload = _skops().loads(data, trusted=_TRUSTED)
     except Exception as exc:  # skops raises many types for damaged archives
         raise ModelError(f"{path}: damaged model file ({type(exc).__name__}: {_first_line(exc)})") from None
     model = _model_from(path, payload)
@@ -340,7 +374,7 @@ def _check_types(path: Path, data: bytes) -> None:
                          f"({_first_line(exc)})") from None
     except Exception as exc:  # a zip that is not a skops archive fails in several ways
         raise ModelError(f"{path}: not a model file ({type(exc).__name__}: {_first_line(exc)})") from None
-    foreign = [t for t in untrusted if t not in TRUSTED_TYPES]
+    foreign = [t for t in untrusted if t not in TRUSTED_TYPES and t not in _PART_NAMES]
     if foreign:
         raise ModelError(f"{path}: refused, it holds types a texplorer model never contains: "
                          f"{', '.join(foreign[:5])}")

@@ -11,8 +11,10 @@ from pathlib import Path
 
 import pytest
 from conftest import make_scan
+from unit.test_models import separated_space
 
 from scanner.storage.database import Database
+from taxonomy.learning.models import save_model, train_model
 
 TESTS = Path(__file__).resolve().parents[1]
 
@@ -60,6 +62,18 @@ def test_features_load_the_libraries_they_compute_with():
     # the other side of the checks above: a command that computes loads what it needs, when it needs it
     loaded = _loaded_after("from conftest import make_scan\nfrom features import extract\nextract(make_scan(0))")
     assert {"numba", "cv2", "scipy.signal"} <= set(loaded) and "sklearn" not in loaded
+
+
+def test_a_model_loads_without_importing_the_rest_of_scikit_learn(tmp_path):
+    # skops lists every scikit-learn estimator when imported (a second of CPU); loading hands it the model's own
+    space = separated_space()
+    path = save_model(train_model(space, level="fine", n_features=2, classifier="rf"), tmp_path / "rf.skops")
+    code = (f"from taxonomy.learning.models import load_model\nmodel = load_model({str(path)!r})\n"
+            "import sys\nprint(sorted(m for m in ('sklearn.gaussian_process', 'sklearn.kernel_ridge', 'sklearn.semi_supervised') "
+            "if m in sys.modules), model.classifier)")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split("\n")[-2] == "[] rf"
 
 
 def test_python_dash_m_texplorer_is_the_texplorer_command():

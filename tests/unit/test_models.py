@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import sklearn.utils
 import skops.io
 from sklearn.linear_model import LogisticRegression
 from sklearn.pipeline import Pipeline
@@ -17,6 +18,7 @@ from sklearn.preprocessing import FunctionTransformer, MinMaxScaler
 
 from features.selection import FQSelector
 from features.space import FeatureSpace
+from taxonomy.learning import models
 from taxonomy.learning.evaluation import CLASSIFIERS
 from taxonomy.learning.models import (
     MODEL_FORMAT,
@@ -287,3 +289,13 @@ def test_a_small_file_that_would_unpack_to_more_than_the_limit_is_refused_before
 def test_an_open_set_rule_that_never_rejects_loads(forest, tmp_path):
     path = tampered(forest, tmp_path, lambda p: p["open_set"].update(threshold=float("inf")))
     assert load_model(path).rejection.threshold == float("inf")
+
+
+
+def test_skops_sees_the_model_s_own_estimators_only_while_it_is_first_imported():
+    crawl = sklearn.utils.all_estimators
+    with models._estimators(models.SKLEARN_PARTS):
+        listed = dict(sklearn.utils.all_estimators())
+    assert sklearn.utils.all_estimators is crawl
+    assert set(listed.values()) == set(models.SKLEARN_PARTS)
+    assert {"RandomForestClassifier", "Pipeline", "MinMaxScaler", "DecisionTreeClassifier"} <= set(listed)
