@@ -18,10 +18,11 @@ the roles they need are derived in the same way.
 
 from __future__ import annotations
 
-import ast
+import dis
 import hashlib
 import importlib.util
 import threading
+import types
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -94,7 +95,8 @@ class Family(_Code):
             object.__setattr__(self, "groups", ((self.name, self.title),))
         if not self.name or "." in self.name:
             raise RegistryError(f"family name must be a non-empty word without dots, got {self.name!r}")
-        _check_columns(self, lambda c: not c.startswith(self.name + "."), f"start with '{self.name}.'")
+        prefix = self.name + "."
+        _check_columns(self, [c for c in self.columns if not c.startswith(prefix)], f"start with '{prefix}'")
         strays = sorted(set(self.units) - set(self.columns))
         if strays:
             raise RegistryError(f"family {self.name}: units given for columns it does not have: {', '.join(strays)}")
@@ -130,13 +132,13 @@ class RoleFamily(_Code):
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "columns", tuple(self.columns))
-        _check_columns(self, lambda c: len(c.split(".")) != 3 or c.split(".")[1] != self.role,
+        role = f".{self.role}."
+        _check_columns(self, [c for c in self.columns if c.count(".") != 2 or role not in c],
                        f"be '<modality>.{self.role}.<feature>'")
 
 
-def _check_columns(family: Family | RoleFamily, stray: Callable[[str], bool], rule: str) -> None:
-    """Every column of ``family`` follows ``rule`` (``stray`` finds those that do not), none repeats."""
-    strays = [c for c in family.columns if stray(c)]
+def _check_columns(family: Family | RoleFamily, strays: Sequence[str], rule: str) -> None:
+    """Every column of ``family`` follows ``rule`` (``strays`` are those that do not), none repeats."""
     if strays or not family.columns:
         raise RegistryError(f"family {family.name!r}: every column must {rule} "
                             f"(got {', '.join(strays[:3]) or 'no columns'})")
@@ -156,24 +158,28 @@ class Registry(Generic[F]):
 
     def __init__(self) -> None:
         self._families: dict[str, F] = {}
+        self._columns: set[str] = set()
 
     def register(self, family: F) -> F:
         """Add ``family`` after the others; returns it."""
         if family.name in self._families:
             raise RegistryError(f"a feature family {family.name!r} is already registered")
-        taken = sorted(set(family.columns) & {c for f in self.every for c in f.columns})
+        taken = sorted(self._columns.intersection(family.columns))
         if taken:
             raise RegistryError(f"family {family.name!r}: column(s) already registered: {', '.join(taken[:3])}")
         fix_code_version(family.module)
         self._families[family.name] = family
+        self._columns.update(family.columns)
         return family
 
     def unregister(self, name: str) -> F:
         """Remove the family ``name`` (a plug-in or a test undoing its registration); returns it."""
         try:
-            return self._families.pop(name)
+            family = self._families.pop(name)
         except KeyError:
             raise RegistryError(f"no feature family {name!r} (registered: {', '.join(self._families)})") from None
+        self._columns.difference_update(family.columns)
+        return family
 
     def __iter__(self) -> Iterator[F]:
         return iter(tuple(f for f in self._families.values() if not f.opt_in))
@@ -313,15 +319,14 @@ ROLE_REGISTRY: Registry[RoleFamily] = Registry()
 # -- the code a family depends on ---------------------------------------------------------------------
 #
 # Read once per process and module, under one lock: the web app's request threads asked for the version at
-# once, and ``ast.parse`` is not safe to call from several threads (CPython 3.11: "AST constructor
-# recursion depth mismatch"); ``functools.cache`` does not serialise first calls.
+# once, and ``functools.cache`` does not serialise first calls.
 
 _lock = threading.RLock()
 _closures: dict[tuple[str, ...], tuple[str, ...]] = {}
 _sources: dict[str, bytes] = {}
 """Each module's source as this process read it, when the module (or a family importing it) was fixed."""
 _imports: dict[str, frozenset[str]] = {}
-"""The project modules each module imports, from its source in :data:`_sources`."""
+"""The project modules each module imports, from its top-level code (:func:`_imports_in`)."""
 
 
 def fix_code_version(*modules: str) -> None:
@@ -368,34 +373,49 @@ def _imported(module: str) -> frozenset[str]:
     found once per process: a module is in the closure of many families."""
     with _lock:
         if module not in _imports:
-            _imports[module] = _imports_in(_source_bytes(module))
+            _imports[module] = _imports_in(_code(module))
         return _imports[module]
 
 
-def _imports_in(source: bytes) -> frozenset[str]:
+def _code(module: str) -> types.CodeType:
+    """The top-level code of ``module`` as the import system has it: from its bytecode cache when that is
+    current (Python checks it against the source file), else compiled from the source (a loader without
+    ``get_code``, such as pytest's for test modules)."""
+    spec = importlib.util.find_spec(module)
+    get_code = getattr(spec.loader, "get_code", None) if spec is not None else None
+    code = get_code(module) if get_code is not None else None
+    return code if code is not None else compile(_source_bytes(module), str(_source(module)), "exec",
+                                                 dont_inherit=True)
+
+
+def _imports_in(code: types.CodeType) -> frozenset[str]:
     """The project modules named by the import statements of a module's top level, those inside its
-    ``if`` (``TYPE_CHECKING``), ``try`` and ``with`` blocks included: the project's modules import only at
-    their top, so the walk skips function and class bodies and every expression (it runs at each start)."""
+    ``if`` (``TYPE_CHECKING``), ``try`` and ``with`` blocks included: the ``IMPORT_NAME`` and ``IMPORT_FROM``
+    instructions of the module's own code object (function and class bodies are code objects of their own).
+    Relative imports name no top-level package of the project and so are left out. Reading the bytecode
+    rather than parsing the source keeps this walk, which runs at each start, to a few milliseconds."""
     found = set()
-    for node in _top_level(ast.parse(source.decode("utf-8")).body):
-        if isinstance(node, ast.Import):
-            found.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            found.add(node.module)
-            found.update(f"{node.module}.{alias.name}" for alias in node.names)
+    module = None
+    for op, arg in _instructions(code.co_code):
+        if op == _IMPORT_NAME:
+            module = code.co_names[arg]
+            found.add(module)
+        elif op == _IMPORT_FROM and module is not None:
+            found.add(f"{module}.{code.co_names[arg]}")
     return frozenset(name for name in found if name.split(".")[0] in PROJECT_PACKAGES and _is_module(name))
 
 
-def _top_level(statements: list[ast.stmt]) -> Iterator[ast.stmt]:
-    """The statements of a block and, recursively, of its ``if``, ``try`` and ``with`` blocks."""
-    for statement in statements:
-        yield statement
-        if isinstance(statement, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
-            continue
-        for name in ("body", "orelse", "finalbody"):
-            yield from _top_level(getattr(statement, name, []))
-        for handler in getattr(statement, "handlers", []):
-            yield from _top_level(handler.body)
+_IMPORT_NAME, _IMPORT_FROM, _EXTENDED_ARG = (dis.opmap[name] for name in ("IMPORT_NAME", "IMPORT_FROM", "EXTENDED_ARG"))
+
+
+def _instructions(raw: bytes) -> Iterator[tuple[int, int]]:
+    """``(opcode, argument)`` of every two-byte code unit of a code object's bytecode, ``EXTENDED_ARG``
+    prefixes folded into the argument that follows (inline cache units come out as opcode 0)."""
+    extended = 0
+    for index in range(0, len(raw), 2):
+        op, arg = raw[index], raw[index + 1] | extended
+        extended = arg << 8 if op == _EXTENDED_ARG else 0
+        yield op, arg
 
 
 def _is_module(name: str) -> bool:

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from conftest import make_scan
 
-from features import NAMES, REGISTRY, Family, FeatureSpace, code_version, extract, extract_many
+from features import NAMES, REGISTRY, Family, FeatureSpace, code_version, extract, extract_many, registry
 from features.extraction import source_of
 from features.recordings import describe_families, families, feature_space
 from features.registry import ROLE_REGISTRY, RegistryError, RoleFamily
@@ -175,6 +175,49 @@ def test_a_role_family_is_refused_when_it_clashes():
         RoleFamily("toy", "photo", ("image.disp.lbp_0",), temperature_values)
     with pytest.raises(RegistryError, match="already registered: audio.audio.zcr"):
         ROLE_REGISTRY.register(RoleFamily("sound again", "audio", ("audio.audio.zcr",), temperature_values))
+
+
+def test_unregistering_a_role_family_frees_its_columns(toy_role):
+    twin = RoleFamily("temperature twin", "temperature", TOY_TEMPERATURE, temperature_values)
+    with pytest.raises(RegistryError, match="already registered: other.temperature.mean"):
+        ROLE_REGISTRY.register(twin)
+    ROLE_REGISTRY.unregister(toy_role.name)
+    try:
+        assert ROLE_REGISTRY.register(twin) is twin
+    finally:
+        ROLE_REGISTRY.unregister(twin.name)
+        ROLE_REGISTRY.register(toy_role)  # for the fixture to take away
+
+
+MODULE_TOP = """
+from __future__ import annotations
+import json, features.space
+from taxonomy.labels import Label, LEVELS
+from features import modern as opt_in
+from . import sibling
+if TYPE_CHECKING:
+    from scanner.scan import Scan
+try:
+    import taxonomy.table as table
+except ImportError:
+    table = None
+with open(__file__):
+    from features import kernels
+
+
+class Holder:
+    from scanner import replay
+
+
+def later():
+    import gui.app
+"""
+
+
+def test_the_code_version_follows_the_imports_of_a_module_s_top_level_only():
+    code = compile(MODULE_TOP, "sample.py", "exec", dont_inherit=True)
+    assert registry._imports_in(code) == {"features.space", "taxonomy.labels", "features", "features.modern",
+                                          "scanner.scan", "taxonomy.table", "features.kernels"}
 
 
 # --- which steps each column needs -----------------------------------------------------------------------
