@@ -22,9 +22,9 @@ $(STAMP): pyproject.toml $(LOCK) $(TOOLS_LOCK)
 	$(PYTHON) -m venv $(VENV)/tools/rocrate
 	$(VENV)/tools/rocrate/bin/python -m pip install --quiet -r $(TOOLS_LOCK)
 	# numba's machine code of the feature kernels into its cache now, once, instead of in every process of
-	# the first command that extracts features (scanner.workflows.compile_kernels); a warm-up only: if it
+	# the first command that extracts features (scanner.workflows.demo.compile_kernels); a warm-up only: if it
 	# fails, the install stands and the tests name what is broken
-	-$(BIN)/python -c "from scanner.workflows import compile_kernels as c; print(f'feature kernels compiled in {c():.0f} s')"
+	-$(BIN)/python -c "from scanner.workflows.demo import compile_kernels as c; print(f'feature kernels compiled in {c():.0f} s')"
 	rm -f $(VENV)/.installed-*
 	touch $@
 

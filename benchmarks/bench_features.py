@@ -52,7 +52,7 @@ from scanner.scan import IMAGES, Scan  # noqa: E402
 from scanner.simulation import synthetic_scan  # noqa: E402
 from scanner.simulation.database import synthetic_database  # noqa: E402
 from scanner.storage.database import Database  # noqa: E402
-from scanner.workflows import database_sources  # noqa: E402
+from scanner.workflows.database import database_sources  # noqa: E402
 
 cv2.setNumThreads(1)
 

@@ -4,7 +4,7 @@
     python benchmarks/enrolment_recall.py texplorer-data/features.csv [--every 2] [--scans 2 3 5]
 
 For each material ``m`` of the feature table (every ``--every``-th, in label order) and each number ``k`` of
-enrolled scans: the database's default model (:func:`scanner.workflows.train_default_model`: random forest,
+enrolled scans: the database's default model (:func:`scanner.workflows.models.train_default_model`: random forest,
 fine level, 10 features, the rejection rule) is trained on every scan of the other materials and the first
 ``k`` scans of ``m`` (its first sample's scans first, as an operator scans one piece, then the next), and
 classifies ``m``'s other scans. Recall counts a scan named ``m`` and accepted by the rule; "named" counts it
@@ -22,7 +22,7 @@ import warnings
 import numpy as np
 
 from features.space import FeatureSpace
-from scanner.workflows import train_default_model
+from scanner.workflows.models import train_default_model
 from taxonomy.learning.evaluation import SEED, cv_splits, fit_pipeline
 
 

@@ -20,7 +20,7 @@ from features import feature_sets
 from features.recordings import feature_space
 from scanner.simulation.contrasts import contrast_recordings
 from scanner.storage.database import Database
-from scanner.workflows import extract_database
+from scanner.workflows.database import extract_database
 from taxonomy.learning.evaluation import evaluate_grid
 from taxonomy.reports.report import format_table
 

@@ -31,7 +31,7 @@ from scanner.storage.database import DatabaseError, ScanRecord
 from scanner.storage.files import temp_path_for
 from scanner.storage.metadata import MetadataError, checked_creator, license_url
 from scanner.storage.settings import read_settings
-from scanner.workflows import extract_database, stored_features
+from scanner.workflows.database import extract_database, stored_features
 from taxonomy.labels import Label, LabelError
 from taxonomy.learning.versions import VersionError, current_version, use_version, versions
 from taxonomy.reports.plots import plot_scan

@@ -13,7 +13,7 @@ from gui.app import Settings, serve
 from scanner.acquisition.config import load_config
 from scanner.cli.base import UsageError, add_db_option
 from scanner.photo import max_pixels
-from scanner.workflows import model_file
+from scanner.workflows.models import model_file
 
 MAX_PORT = 65535
 """The largest TCP port: a larger number would be taken modulo 65536 by the system (70000 listens on 4464)."""

@@ -20,7 +20,8 @@ from gui.photos import DEFAULT_MAX_BYTES, DEFAULT_MAX_PIXELS, PhotoStore
 from gui.training import Trainings
 from scanner.acquisition.config import Config
 from scanner.storage.database import Database
-from scanner.workflows import QuickIdentifier, default_model
+from scanner.workflows.models import default_model
+from scanner.workflows.quick import QuickIdentifier
 from taxonomy.learning.models import TrainedModel, load_model
 
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
@@ -89,7 +90,7 @@ class Context:
         self._quick_lock = threading.Lock()
 
     def quick_identifier(self) -> QuickIdentifier:
-        """The quick identification learned from the database's scans (``scanner.workflows.QuickIdentifier``):
+        """The quick identification learned from the database's scans (``scanner.workflows.quick.QuickIdentifier``):
         learned on first use (seconds: features from the cache), again once the scans or the feature code
         changed."""
         key = (len(self.db), code_version())

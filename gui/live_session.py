@@ -48,7 +48,7 @@ class Operation:
     """Step -> (the recording it shows, what else it depends on, PNG): drawn once, kept across changes
     (``gui.figures``)."""
     quick: Any = None
-    """A quick identification's :class:`scanner.workflows.QuickIdentifier` (docs/quick.md), else None."""
+    """A quick identification's :class:`scanner.workflows.quick.QuickIdentifier` (docs/quick.md), else None."""
     quick_full: bool = False
     """The operator went on from the quick identification to the full scan."""
     unlabelled: bool = False

@@ -45,7 +45,8 @@ from scanner.acquisition.session import VOLUME_METHODS, Session, SessionError, S
 from scanner.scan import CHANNELS, IMAGES
 from scanner.simulation import is_hand_set
 from scanner.storage.database import DatabaseError, ScanRecord
-from scanner.workflows import LabelCheck, QuickIdentifier, check_label, predict_values
+from scanner.workflows.predictions import LabelCheck, check_label, predict_values
+from scanner.workflows.quick import QuickIdentifier
 from taxonomy.learning.evaluation import EvaluationError
 from taxonomy.learning.models import ModelError, TrainedModel
 from taxonomy.learning.quick import STOP_AT
@@ -570,7 +571,7 @@ Predicted = tuple[list[tuple[str, float, str]] | None, str, str, LabelCheck | No
 
 def _predict(model: TrainedModel, values: dict[str, float], label: str) -> Predicted:
     """The top three, a note on the model, "unknown material (closest: ...): why" when its rule rejects, and where
-    the operator's ``label`` disagrees with the model (:func:`scanner.workflows.check_label`).
+    the operator's ``label`` disagrees with the model (:func:`scanner.workflows.predictions.check_label`).
     A model that fails or takes longer than ``prediction_timeout_s`` gives no prediction and a one-line note
     instead; the scan stays ready to save."""
     ctx = context()

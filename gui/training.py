@@ -2,7 +2,7 @@
 
 The summary of a scan the model calls an unknown material (or names wrongly) offers to save it under a new or
 corrected label and add it to the training set: the scan is saved, and :meth:`Trainings.start` trains a new
-model version on every scan of the database (:func:`scanner.workflows.retrain`) while scanning goes on. The
+model version on every scan of the database (:func:`scanner.workflows.models.retrain`) while scanning goes on. The
 features come from the database's cache (only new scans are extracted) and the training runs on one of the
 workers every request shares, at their lower priority, so the pages stay quick. When the version is saved
 it is current, and the next prediction loads it (:attr:`gui.context.Context.model`); every page says when it
@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 from features import job_workers
 from scanner.storage.database import Database
-from scanner.workflows import ModelChange, retrain
+from scanner.workflows.models import ModelChange, retrain
 
 RECENT_S = 15 * 60.0
 """How long every page says that a new model version is ready (or that a training failed)."""

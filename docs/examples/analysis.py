@@ -13,7 +13,7 @@ import numpy as np
 
 import scanner
 from features.selection import feature_quality
-from scanner.workflows import extract_database
+from scanner.workflows.database import extract_database
 from taxonomy.learning.evaluation import evaluate
 
 root = sys.argv[1] if len(sys.argv) > 1 else "texplorer-data"

@@ -27,15 +27,9 @@ from scanner.acquisition.session import STEP_TITLES, VOLUME_METHODS, Session, Se
 from scanner.cli.base import EXIT_ERROR, UsageError, add_db_option, open_db
 from scanner.scan import IMAGES
 from scanner.storage.database import DatabaseError, is_database
-from scanner.workflows import (
-    QuickIdentifier,
-    QuickState,
-    check_label,
-    format_predictions,
-    model_file,
-    predict_scan,
-    step_words,
-)
+from scanner.workflows.models import model_file
+from scanner.workflows.predictions import check_label, format_predictions, predict_scan
+from scanner.workflows.quick import QuickIdentifier, QuickState, step_words
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import LabelError
 from taxonomy.learning.models import TrainedModel, load_model
@@ -162,7 +156,7 @@ def _tu4(session: Session) -> None:
 
 def _check_label(session: Session, model: TrainedModel, args: argparse.Namespace) -> None:
     """Before saving: the model's prediction of the scan as it would be saved, and where the operator's label
-    disagrees with it (:func:`scanner.workflows.check_label`), the choice of the predicted label, the
+    disagrees with it (:func:`scanner.workflows.predictions.check_label`), the choice of the predicted label, the
     operator's, or another."""
     db = open_db(args) if is_database(args.db) else None
     taxonomy = db.taxonomy() if db is not None else load_taxonomy()

@@ -19,7 +19,7 @@ from features import REGISTRY, FeatureSpace, code_version, feature_sets
 from features.recordings import Windowing, describe_families, feature_space
 from features.selection import select_features
 from scanner.acquisition.config import load_config
-from scanner.cli.base import EXIT_ERROR, UsageError, add_db_option, open_db, table_lines
+from scanner.cli.base import EXIT_ERROR, UsageError, add_db_option, open_db
 from scanner.cli.common import (
     ALL,
     CLASSIFIER_NAMES,
@@ -34,19 +34,9 @@ from scanner.cli.common import (
 )
 from scanner.storage.files import atomic_write_bytes, sha256_file
 from scanner.storage.ingest import load_recordings, set_folder
-from scanner.storage.matfile import load_scan
-from scanner.workflows import (
-    ModelChange,
-    cross_validated,
-    extract_database,
-    format_predictions,
-    model_file,
-    predict_scan,
-    predict_values,
-    quick_evaluation,
-    save_model_version,
-    stored_features,
-)
+from scanner.workflows.database import extract_database
+from scanner.workflows.models import ModelChange, cross_validated, save_model_version
+from scanner.workflows.quick import quick_evaluation
 from taxonomy.labels import LEVELS, parse_prefix
 from taxonomy.learning.evaluation import (
     CLASSIFIERS,
@@ -61,9 +51,9 @@ from taxonomy.learning.evaluation import (
     vote,
     with_values,
 )
-from taxonomy.learning.models import load_model, save_model, train_model
+from taxonomy.learning.models import save_model, train_model
 from taxonomy.learning.results import one_line
-from taxonomy.learning.versions import current_version, use_version, version_file, versions
+from taxonomy.learning.versions import current_version, version_file
 from taxonomy.reports.report import format_open_set, format_protocols, format_quick, format_table, write_report
 from taxonomy.table import load_taxonomy
 
@@ -225,7 +215,7 @@ def run_open_set(space, args: argparse.Namespace, classifiers, levels, sizes, se
 
 def run_quick(space, args: argparse.Namespace, levels: Sequence[str]) -> list:
     """``evaluate --quick``: the database's full scans walked step by step as quick scans in grouped folds
-    (:func:`scanner.workflows.quick_evaluation`), step times from ``--config``; the tables and the one line,
+    (:func:`scanner.workflows.quick.quick_evaluation`), step times from ``--config``; the tables and the one line,
     at the fine level unless ``--level`` names others."""
     if space.label_level is not None:
         raise UsageError("--quick walks the scanner's procedure step by step; a recording set has no steps")
@@ -450,66 +440,6 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_models(args: argparse.Namespace) -> int:
-    if args.use is not None:
-        chosen = use_version(args.db, args.use)
-        print(f"version {chosen.version} is current: the web application (when it next loads the model) and "
-              "classify use it")
-    found = versions(args.db)
-    if not found:
-        print(f"no models in {args.db / 'models'}: 'texplorer train' or 'texplorer demo' makes one")
-        return 0
-    current = current_version(args.db)
-    rows = [(("* " if current and v.version == current.version else "  ") + f"v{v.version}", v.created[:16],
-             v.protocol(), str(len(v.classes) or "?"), str(v.rows or "?"), v.fingerprint[:12] or "-",
-             v.feature_code_version[:8] or "-", v.figures_text(), v.file) for v in found]
-    for line in table_lines(("version", "created", "protocol", "classes", "scans", "training data",
-                             "features", "figures", "file"), rows):
-        print(line)
-    print("* current: the model serve, classify and scan use when not given --model; 'texplorer models --use N' "
-          "makes another current")
-    return 0
-
-
-def cmd_classify(args: argparse.Namespace) -> int:
-    model = load_model(model_path(args))
-    if _is_scan_file(args.scan):
-        scan = load_scan(args.scan)
-        print(f"{scan.scan_id} ({scan.meta.label} recorded) with {model.describe()}")
-        print(format_predictions(predict_scan(model, scan, args.k, load_taxonomy())))
-        return 0
-    db = open_db(args)
-    record = db.record(args.scan)
-    values, failure = stored_features(db, record)  # from the feature cache when the scan was extracted before
-    if failure:
-        raise UsageError(f"{record.scan_id}: its features cannot be extracted: {failure}")
-    print(f"{record.scan_id} ({record.label} recorded) with {model.describe()}")
-    print(format_predictions(predict_values(model, values, args.k, db.taxonomy())))
-    return 0
-
-
-def _is_scan_file(scan: str) -> bool:
-    """Whether ``classify``'s SCAN names a ``.mat`` file rather than a scan of the database (whose ids
-    ``db list`` shows)."""
-    return Path(scan).suffix.lower() == ".mat" or Path(scan).is_file()
-
-
-def model_path(args: argparse.Namespace) -> Path:
-    """``--model``, else the database's default model (:func:`scanner.workflows.default_model`), as
-    ``serve`` uses it.
-
-    Raises
-    ------
-    UsageError
-        No ``--model`` given and the database has no default model.
-    """
-    found = model_file(args.db, args.model)
-    if found is None:
-        raise UsageError(f"no --model given and {args.db / 'models'} holds no model: train one with "
-                         "'texplorer train' or run 'texplorer demo'")
-    return found
-
-
 def register(commands: argparse._SubParsersAction) -> None:
     count = len(REGISTRY.names)
     features = commands.add_parser("features", help="extract the features of every scan into a feature table",
@@ -585,23 +515,3 @@ def register(commands: argparse._SubParsersAction) -> None:
     train.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     add_feature_set_option(train, many=False)
     train.set_defaults(handler=cmd_train)
-
-    models = commands.add_parser("models", help="list the database's model versions; make one current",
-                                 description="List every model 'texplorer train' and 'texplorer demo' kept, with "
-                                 "its date, protocol, classes, training-data fingerprint (scans and feature code) "
-                                 "and headline figures; --use N makes version N the current one.")
-    add_db_option(models)
-    models.add_argument("--use", metavar="N", help="make version N current (3 or v3)")
-    models.set_defaults(handler=cmd_models)
-
-    classify = commands.add_parser("classify", help="predict the material of a stored scan (its id in the "
-                                   "database, or a .mat file)", description="Extract the features of a scan "
-                                   "(a scan id as 'texplorer db list' shows it, its features read from the "
-                                   "database's cache, or a .mat file) and print the most probable labels with a "
-                                   "trained model.")
-    classify.add_argument("scan", help="scan id in the database, or a scan file (.mat)")
-    add_db_option(classify)
-    classify.add_argument("--model", help="a model version of the database (3 or v3, as 'texplorer models' lists "
-                          "them) or a model file (default: the current version)")
-    classify.add_argument("--k", type=int, default=3, help="how many labels to print (default 3)")
-    classify.set_defaults(handler=cmd_classify)

@@ -13,7 +13,7 @@ from pathlib import Path
 from features import REGISTRY, FeatureSpace, feature_sets
 from features.cluster import ClusterError, connect, describe
 from scanner.cli.base import UsageError, add_db_option, open_db
-from scanner.workflows import extract_database
+from scanner.workflows.database import extract_database
 from taxonomy.learning.evaluation import CLASSIFIERS
 
 ALL = "all"

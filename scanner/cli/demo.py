@@ -12,13 +12,9 @@ from scanner.cli.analysis import report_space, run_evaluation
 from scanner.cli.base import UsageError, add_db_option
 from scanner.cli.common import ALL, add_cluster_options, add_evaluation_options, cluster
 from scanner.preprocess import small_photo_note
-from scanner.workflows import (
-    DEFAULT_MODEL_SETTINGS,
-    extract_database,
-    save_model_version,
-    simulated_database,
-    train_default_model,
-)
+from scanner.workflows.database import extract_database
+from scanner.workflows.demo import simulated_database
+from scanner.workflows.models import DEFAULT_MODEL_SETTINGS, save_model_version, train_default_model
 from taxonomy.learning.versions import version_file
 
 DEMO_SAMPLES = 2

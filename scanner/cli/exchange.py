@@ -29,7 +29,7 @@ from scanner.storage.ingest import set_folder
 from scanner.storage.matfile import load_scan
 from scanner.storage.set_bundle import KIND, bundle_kind, export_set, import_set_bundle
 from scanner.storage.settings import read_settings
-from scanner.workflows import export_database
+from scanner.workflows.database import export_database
 from taxonomy.labels import Label
 from taxonomy.learning.models import load_model
 

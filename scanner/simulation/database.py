@@ -65,13 +65,13 @@ def synthetic_database(root: str | Path, materials: Iterable[str] | None = None,
     analyse : callable, optional
         Run on each simulated scan in the process that simulated it, while the scan is in memory (a
         module-level function: it is pickled to the workers), e.g. feature extraction, which then reads no
-        file back (:func:`scanner.workflows.simulated_database`).
+        file back (:func:`scanner.workflows.demo.simulated_database`).
     on_stored : callable, optional
         ``on_stored(database, scan_id, analysed)`` in this process once the scan is catalogued, with what
         ``analyse`` returned (None without ``analyse``).
     worker_start : callable, optional
         Run once in each worker process before its first scan (a module-level function), e.g. telling the
-        allocator to keep the memory a scan frees for the next one (:func:`scanner.workflows.simulated_database`).
+        allocator to keep the memory a scan frees for the next one (:func:`scanner.workflows.demo.simulated_database`).
 
     Returns
     -------

@@ -656,7 +656,8 @@ def test_a_label_the_model_never_saw_is_named_and_can_be_kept_or_replaced(tmp_pa
 def test_an_unknown_material_is_enrolled_from_the_summary_into_a_new_model_version(tmp_path):
     """A database of three materials and its model (version 1); a scan of granite, which the model never
     saw, is saved from the summary as granite and trained into version 2 in the background."""
-    from scanner.workflows import retrain, simulated_database
+    from scanner.workflows.demo import simulated_database
+    from scanner.workflows.models import retrain
     from taxonomy.learning.versions import current_version, versions
 
     db = simulated_database(tmp_path / "db", materials=["oak-planed", "mild-steel-brushed", "cork-board"],

@@ -87,7 +87,7 @@ def test_compile_kernels_leaves_nothing_for_a_database_of_scans_to_compile():
         from features import extract
         from scanner.simulation import synthetic_scan
         from scanner.storage.matfile import load_scan, save_scan
-        from scanner.workflows import compile_kernels
+        from scanner.workflows.demo import compile_kernels
 
         def signatures():
             return {f"{name}.{key}": len(value.signatures) for name, module in list(sys.modules.items())

@@ -107,7 +107,7 @@ def _other_photo(path: Path) -> bytes:
 def test_a_file_changed_after_its_features_were_cached_is_named_not_served(tmp_path):
     from conftest import make_scan
 
-    from scanner.workflows import extract_database
+    from scanner.workflows.database import extract_database
 
     db, record, photo = _database_with_one_scan(tmp_path, make_scan(1))
     first = extract_database(db, workers=1, progress=False)
@@ -123,7 +123,7 @@ def test_a_changed_file_without_a_cached_row_is_not_extracted_under_the_catalogu
     import numpy as np
     from conftest import make_scan
 
-    from scanner.workflows import extract_database
+    from scanner.workflows.database import extract_database
 
     db, record, photo = _database_with_one_scan(tmp_path, make_scan(2))
     original = photo.read_bytes()
@@ -145,7 +145,7 @@ def test_a_changed_file_without_a_cached_row_is_not_extracted_under_the_catalogu
 def test_a_changed_file_is_named_by_the_workers_too(tmp_path):
     from conftest import make_scan
 
-    from scanner.workflows import extract_database
+    from scanner.workflows.database import extract_database
 
     db, record, photo = _database_with_one_scan(tmp_path, make_scan(3))
     db.add(make_scan(4, sample_id="granite-02"))

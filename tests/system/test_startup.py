@@ -68,9 +68,9 @@ def test_a_model_loads_without_importing_the_rest_of_scikit_learn(tmp_path):
     # skops lists every scikit-learn estimator when imported (a second of CPU); loading hands it the model's own
     space = separated_space()
     path = save_model(train_model(space, level="fine", n_features=2, classifier="rf"), tmp_path / "rf.skops")
+    crawled = ("sklearn.gaussian_process", "sklearn.kernel_ridge", "sklearn.semi_supervised")
     code = (f"from taxonomy.learning.models import load_model\nmodel = load_model({str(path)!r})\n"
-            "import sys\nprint(sorted(m for m in ('sklearn.gaussian_process', 'sklearn.kernel_ridge', 'sklearn.semi_supervised') "
-            "if m in sys.modules), model.classifier)")
+            f"import sys\nprint(sorted(m for m in {crawled!r} if m in sys.modules), model.classifier)")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
     assert run.stdout.split("\n")[-2] == "[] rf"

@@ -10,15 +10,11 @@ import numpy as np
 import pytest
 
 from features import code_version, extract, extraction, memory
-from scanner import workflows
 from scanner.simulation.database import synthetic_database
 from scanner.storage.database import Database, DatabaseError
-from scanner.workflows import (
-    database_sources,
-    extract_database,
-    simulated_database,
-    stored_features,
-)
+from scanner.workflows import demo as demo_workflow
+from scanner.workflows.database import database_sources, extract_database, stored_features
+from scanner.workflows.demo import simulated_database
 
 SMALL = (64, 64)
 
@@ -96,7 +92,7 @@ def test_the_simulating_workers_keep_the_memory_a_scan_frees(tmp_path, monkeypat
     # temporaries); with worker_start, every scan is simulated in a worker with that setting, none in this
     # process, and without it in workers without.
     asked = {}
-    monkeypatch.setattr(workflows, "synthetic_database", lambda root, **options: asked.update(options))
+    monkeypatch.setattr(demo_workflow, "synthetic_database", lambda root, **options: asked.update(options))
     simulated_database(tmp_path / "spy", workers=2)
     assert asked["worker_start"] is memory.keep_freed_memory and asked["workers"] == 2
     monkeypatch.undo()

@@ -10,7 +10,7 @@ import pytest
 from scipy.stats import norm
 
 from features.space import FeatureSpace
-from scanner.workflows import Prediction, ScanPrediction, format_predictions
+from scanner.workflows.predictions import Prediction, ScanPrediction, format_predictions
 from taxonomy.learning.evaluation import evaluate_open_set
 from taxonomy.learning.metrics import auroc
 from taxonomy.learning.models import classify_values, load_model, save_model, train_model

@@ -2,12 +2,7 @@
 
 from __future__ import annotations
 
-from scanner.workflows import (
-    NOT_IN_TAXONOMY,
-    Prediction,
-    format_predictions,
-    name_predictions,
-)
+from scanner.workflows.predictions import NOT_IN_TAXONOMY, Prediction, format_predictions, name_predictions
 from taxonomy.table import load_taxonomy
 
 

@@ -1,0 +1,94 @@
+"""A database's features and export: catalog rows as cached feature sources, the features of every scan read
+from the database's feature cache where they are current, one stored scan's values, and an export bundle
+whose feature tables come from the cache."""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING
+
+from features import REGISTRY, FeatureSpace, ScanSource, WorkerPool, code_version, extract_many
+from scanner.storage.bundle import ExportReport, Progress, export_bundle
+from scanner.storage.database import Database, DatabaseError, ScanRecord
+from scanner.storage.settings import read_settings
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+
+# -- extract a database with its cache ---------------------------------------------------------------
+
+def database_sources(db: Database, records: Iterable[ScanRecord]) -> list[ScanSource]:
+    """One :class:`features.ScanSource` per catalog row: loaded where it is extracted (on a cluster worker,
+    exactly the catalogued bytes: :meth:`scanner.storage.database.Database.stored_scans`), cached by content."""
+    records = list(records)
+    return [ScanSource(r.scan_id, r.label, r.sample_id, stored, cache_key=r.content_hash)
+            for r, stored in zip(records, db.stored_scans(records), strict=True)]
+
+
+def extract_database(db: Database, *, label: str | None = None, records: Sequence[ScanRecord] | None = None,
+                     workers: int | None = None, progress: bool = True, client: Client | None = None,
+                     ship_data: bool = False, pool: WorkerPool | None = None,
+                     families: Sequence[str] | None = None, partial: bool = True) -> FeatureSpace:
+    """The features of every scan of ``db`` (or of ``label``, a label or class prefix, or of ``records``),
+    read from the database's feature cache where the scan and the feature code are unchanged; extracted in
+    ``workers`` processes here (or those of ``pool``, kept across a job's batches), or on the Dask cluster
+    of ``client`` (``ship_data``: send the files to the workers; see :func:`features.extract_many`). The
+    catalog and the cache are read and written here only. ``families``: the feature families to compute
+    (default: the paper's; opt-in ones such as :mod:`features.modern`'s too). Without ``partial``, quick
+    scans that hold only some steps are left out (:func:`full_scans`): what models learn from and are
+    measured on.
+
+    Raises
+    ------
+    DatabaseError
+        No scan to extract.
+    """
+    if records is None:
+        records = db.records(label=label)
+    if not partial:
+        records = full_scans(records)
+    if not records:
+        raise DatabaseError(f"{db.root}: no scans{f' with label {label}' if label else ''} to extract")
+    return extract_many(database_sources(db, records), workers=workers, cache=db, progress=progress, client=client,
+                        ship_data=ship_data, pool=pool, families=families)
+
+
+def full_scans(records: Sequence[ScanRecord]) -> list[ScanRecord]:
+    """The full scans of ``records``; a one-line note on stderr names how many quick (partial) scans are left
+    out, since a model learns from and is measured on every step."""
+    full = [r for r in records if not r.partial]
+    if len(full) < len(records):
+        print(f"texplorer: note: {len(records) - len(full)} quick scan(s) holding only some steps left out: models "
+              "learn from and are measured on full scans (docs/quick.md)", file=sys.stderr)
+    return full
+
+def stored_features(db: Database, record: ScanRecord) -> tuple[dict[str, float], str | None]:
+    """One stored scan's named feature values from the cache (extracted and cached if missing), or ``{}``
+    and the reason its extraction failed."""
+    space = extract_database(db, records=[record], workers=1, progress=False)
+    if space.failed:
+        return {}, space.failed[0][1]
+    return dict(zip(space.columns, space.X[0].tolist(), strict=True)), None
+
+
+# -- export a database with its features -----------------------------------------------------------
+
+def export_database(db: Database, out: str | os.PathLike[str], *, label: str | None = None,
+                    session: str | None = None, license: str | None = None, creator: str | None = None,
+                    workers: int | None = None, progress: Progress = iter) -> ExportReport:
+    """Write the scans of ``db`` (optionally a label or class prefix, or one session) as an export bundle
+    with their features, read from the feature cache where possible (``workers`` processes extract the
+    rest); see :func:`scanner.storage.bundle.export_bundle` for the bundle and its errors.
+
+    ``license`` and ``creator`` default to the database's settings (``texplorer db settings``); without a
+    license from either the export is refused (``"none"`` exports without one)."""
+    def features(records: Sequence[ScanRecord]) -> FeatureSpace:
+        return extract_database(db, records=records, workers=workers)
+
+    settings = read_settings(db.root)
+    return export_bundle(db, out, features, feature_code_version=code_version(),
+                         license=license or settings.get("license"), creator=creator or settings.get("creator"),
+                         feature_units=REGISTRY.units, label=label, session=session, progress=progress)
