@@ -264,7 +264,7 @@ def _skops() -> ModuleType:
     skops lists the estimators it trusts by default when it is imported, by importing every module of
     scikit-learn (``sklearn.utils.all_estimators``: a second of CPU, more than the rest of ``classify``).
     The first import here hands it :data:`SKLEARN_PARTS` instead, the estimators a model file may hold; the
-    check of a file's types (:func:`_check_types`) is against the model's own lists either way.
+    check of a file's types (:func:`_loads`) is against the model's own lists either way.
     """
     if "skops.io" not in sys.modules:
         with _import_lock, _estimators(SKLEARN_PARTS):
@@ -325,8 +325,7 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
     else:
         payload["format_version"] = 1
     data = _skops().dumps(payload)
-    _check_types(path, data)
-    _model_from(path, _skops().loads(data, trusted=_TRUSTED))
+    _model_from(path, _loads(path, data))
     atomic_write_bytes(path, data)
     remove_stale_temp_files(path.parent, path.name)  # a train killed at its rename left one
     return path
@@ -353,38 +352,41 @@ def load_model(path: str | os.PathLike[str]) -> TrainedModel:
         data = path.read_bytes()
     except OSError as exc:
         raise ModelError(f"{path}: cannot read the model file ({exc.strerror or exc})") from None
-    _check_types(path, data)
     _check_unpacked_size(path, data)
-    try:
-        payload = _skops().loads(data, trusted=_TRUSTED)
-    except Exception as exc:  # skops raises many types for damaged archives
-        raise ModelError(f"{path}: damaged model file ({type(exc).__name__}: {_first_line(exc)})") from None
-    model = _model_from(path, payload)
+    model = _model_from(path, _loads(path, data))
     if model.sklearn_version != sklearn.__version__:
         warnings.warn(f"{path}: trained with scikit-learn {model.sklearn_version}, running "
                       f"{sklearn.__version__}; retrain if predictions look wrong", stacklevel=2)
     return model
 
 
-def _check_types(path: Path, data: bytes) -> None:
+def _loads(path: Path, data: bytes) -> Any:
+    """The payload of a model archive, built by skops only if every type in it is one a model holds
+    (:data:`_TRUSTED`): skops audits the whole schema before it makes any object, and a refusal names the
+    foreign types (listed again only then, so that a good file's schema is walked once)."""
+    skops = _skops()
     try:
-        untrusted = _skops().get_untrusted_types(data=data)
+        return skops.loads(data, trusted=_TRUSTED)
+    except skops.exceptions.UntrustedTypesFoundException:
+        foreign = [t for t in skops.get_untrusted_types(data=data) if t not in _TRUSTED]
+        raise ModelError(f"{path}: refused, it holds types a texplorer model never contains: "
+                         f"{', '.join(foreign[:5])}") from None
     except zipfile.BadZipFile as exc:
         raise ModelError(f"{path}: not a readable model file, damaged, truncated or not a skops archive "
                          f"({_first_line(exc)})") from None
-    except Exception as exc:  # a zip that is not a skops archive fails in several ways
-        raise ModelError(f"{path}: not a model file ({type(exc).__name__}: {_first_line(exc)})") from None
-    foreign = [t for t in untrusted if t not in TRUSTED_TYPES and t not in _PART_NAMES]
-    if foreign:
-        raise ModelError(f"{path}: refused, it holds types a texplorer model never contains: "
-                         f"{', '.join(foreign[:5])}")
+    except Exception as exc:  # skops raises many types for damaged archives
+        raise ModelError(f"{path}: damaged model file ({type(exc).__name__}: {_first_line(exc)})") from None
 
 
 def _check_unpacked_size(path: Path, data: bytes) -> None:
     """Refuse an archive whose members would unpack to more than :data:`MAX_MODEL_BYTES` (the sizes its
     directory declares; the zip reader stops a member at its declared size), before any array is made."""
-    with zipfile.ZipFile(io.BytesIO(data)) as archive:
-        unpacked = sum(info.file_size for info in archive.infolist())
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as archive:
+            unpacked = sum(info.file_size for info in archive.infolist())
+    except zipfile.BadZipFile as exc:
+        raise ModelError(f"{path}: not a readable model file, damaged, truncated or not a skops archive "
+                         f"({_first_line(exc)})") from None
     if unpacked > MAX_MODEL_BYTES:
         raise ModelError(f"{path}: refused, its arrays would take {unpacked / 2**20:,.0f} MiB once unpacked "
                          f"(a model may take at most {MAX_MODEL_BYTES >> 20} MiB)")
