@@ -1,6 +1,7 @@
 """Storage benchmark: .mat save/load against numpy.save/load of the same arrays, the .mat file's compression
 (ISA-L) against the standard library's zlib at the same level, the photos' PNG encoding against OpenCV's
-default and against our options without the fixed row filter, catalog queries at 10,000 scans.
+default and against our options without the fixed row filter, catalog queries at 10,000 scans, and cached
+features served with the files' stat records against hashing every file (the files verified either way).
 
 Ratios are against references run in the same process, so they compare across machines.
 """
@@ -24,9 +25,10 @@ from timing import best_time  # noqa: E402
 
 from scanner.photo import encode_png  # noqa: E402
 from scanner.simulation import synthetic_scan  # noqa: E402
-from scanner.storage import matfile  # noqa: E402
+from scanner.storage import matfile, stored  # noqa: E402
 from scanner.storage.database import Database, FileEntry  # noqa: E402
 from scanner.storage.matfile import encode_mat, load_scan, save_scan, scan_to_variables  # noqa: E402
+from scanner.workflows.database import extract_database  # noqa: E402
 
 
 def bench_mat(folder: Path) -> None:
@@ -143,12 +145,44 @@ def bench_catalog(folder: Path, n: int = 10_000) -> None:
     db.close()
 
 
+CACHED_MATERIALS = ("granite-polished", "oak-planed", "cotton-woven", "mild-steel-brushed")
+
+
+def bench_cached_features(folder: Path, scans: int = 12, size: int = 512) -> None:
+    """Serve the cached features of ``scans`` stored scans with ``size`` px photos, as a web page does: with the
+    files' stat records, and (reference) with every file hashed, the records taken away."""
+    db = Database(folder / "cached")
+    for i in range(scans):
+        material, index = CACHED_MATERIALS[i % len(CACHED_MATERIALS)], i // len(CACHED_MATERIALS) + 1
+        db.add(synthetic_scan(material, seed=i, scan_index=index, image_size=(size, size)))
+    records = db.records()
+    extract_database(db, records=records, workers=1, progress=False)  # fills the feature cache
+    time.sleep(stored.RACY_SECONDS + 0.1)  # the files settle: their stat records can be kept
+    extract_database(db, records=records, workers=1, progress=False)  # checks the hashes once, keeps the records
+
+    def serve() -> None:
+        space = extract_database(db, records=records, workers=1, progress=False)
+        assert len(space) == scans and not space.failed
+
+    t_stat = best_time(serve, 5)
+    with mock.patch.object(stored, "RACY_SECONDS", float("inf")):
+        with db._transaction() as conn:
+            conn.execute("DELETE FROM file_stats")
+        t_hash = best_time(serve, 5)
+    megabytes = sum(p.stat().st_size for p in (folder / "cached").rglob("*") if p.is_file()) / 1e6
+    print(f"cached features of {scans} scans ({size} px photos, {megabytes:.0f} MB of files): stat records "
+          f"{t_stat * 1e3:6.1f} ms, every file hashed (reference) {t_hash * 1e3:6.1f} ms, "
+          f"ratio {t_stat / t_hash:5.3f}x")
+    db.close()
+
+
 def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         bench_mat(Path(tmp))
         bench_compression()
         bench_png()
         bench_catalog(Path(tmp))
+        bench_cached_features(Path(tmp))
 
 
 if __name__ == "__main__":

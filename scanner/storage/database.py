@@ -59,7 +59,7 @@ from scanner.storage.files import (
     temp_path_for,
 )
 from scanner.storage.matfile import ScanFormatError, load_scan, photo_file_name, save_scan, scan_files
-from scanner.storage.stored import StoredScan
+from scanner.storage.stored import StatLedger, StoredScan
 from taxonomy.errors import TexplorerError
 from taxonomy.table import Taxonomy, load_taxonomy, material_code, select_labels
 
@@ -121,6 +121,10 @@ CREATE TABLE IF NOT EXISTS files (
     size INTEGER NOT NULL
 );
 CREATE INDEX IF NOT EXISTS files_scan ON files(scan_id);
+CREATE TABLE IF NOT EXISTS file_stats (
+    path TEXT PRIMARY KEY REFERENCES files(path) ON DELETE CASCADE,
+    stat TEXT NOT NULL
+);
 CREATE TABLE IF NOT EXISTS feature_cache (
     content_hash TEXT NOT NULL,
     code_version TEXT NOT NULL,
@@ -620,11 +624,20 @@ class Database:
     @_catalog
     def stored_scans(self, records: Iterable[ScanRecord]) -> list[StoredScan]:
         """A loader of each record's scan that carries the catalogued size and SHA-256 of its files, so a
-        cluster worker loads exactly these bytes or none (:mod:`scanner.storage.stored`); here it is ``load_scan``."""
+        cluster worker loads exactly these bytes or none (:mod:`scanner.storage.stored`); here it is ``load_scan``.
+        It carries the files' stat records too, with which it verifies unchanged files without hashing them."""
         catalogued: dict[str, dict[str, tuple[int, str]]] = {}
-        for scan_id, path, size, sha256 in self._conn.execute("SELECT scan_id, path, size, sha256 FROM files"):
-            catalogued.setdefault(scan_id, {})[PurePosixPath(path).name] = (size, sha256)
-        return [StoredScan(self.root / record.path, catalogued.get(record.scan_id, {})) for record in records]
+        stats: dict[str, dict[str, str]] = {}
+        for scan_id, path, size, sha256, stat in self._conn.execute(
+                "SELECT files.scan_id, files.path, files.size, files.sha256, file_stats.stat FROM files "
+                "LEFT JOIN file_stats ON file_stats.path = files.path"):
+            name = PurePosixPath(path).name
+            catalogued.setdefault(scan_id, {})[name] = (size, sha256)
+            if stat is not None:
+                stats.setdefault(scan_id, {})[name] = stat
+        ledger = StatLedger(self.root, self.catalog_path)
+        return [StoredScan(self.root / record.path, catalogued.get(record.scan_id, {}), stats.get(record.scan_id, {}),
+                           ledger) for record in records]
 
     @_catalog
     def __len__(self) -> int:

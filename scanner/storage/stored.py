@@ -11,13 +11,24 @@ another database at that path never computes features for this one. A worker tha
 as a :class:`ShippedScan`, which loads from those bytes and reports every problem exactly as a local load
 would, naming the file as this machine names it. Reading stays bounded: a file larger than a scan file or
 a photo may be is not read, its size alone travels and is refused on the worker as it would be here.
+
+Before cached features are served, :meth:`StoredScan.verify` checks that the files are still the catalogued
+bytes. Hashing every file on every read made serving a dozen cached scans sixty times slower, so a file whose
+stat record (size, modification and inode change times, inode, device) is the one recorded when its SHA-256
+last matched is taken as unchanged; any other file is hashed, and recorded again when it matches
+(:class:`StatLedger`). The inode change time cannot be set back by copying with ``cp -p`` or by ``touch -r``,
+which restore only the modification time; a file changed within :data:`RACY_SECONDS` of its check is not
+recorded, so that a change within one tick of a coarse file-system clock is still hashed next time.
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import hashlib
 import os
+import sqlite3
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +41,39 @@ from taxonomy.errors import TexplorerError
 
 Catalogued = Mapping[str, tuple[int, str]]
 """File name (the ``.mat`` and each photo) -> (size in bytes, SHA-256) as the catalog recorded them."""
+
+RACY_SECONDS = 2.0
+"""A file whose inode changed less than this long before its hash was checked gets no stat record: file
+systems whose clocks tick in seconds (FAT: two) could give a change within the same tick the same record."""
+
+def stat_record(path: Path) -> tuple[str, float]:
+    """``"size:mtime_ns:ctime_ns:inode:device"`` of ``path`` and its inode change time (seconds since the
+    epoch). An ``OSError`` if it cannot be stat'ed."""
+    info = path.stat()
+    return f"{info.st_size}:{info.st_mtime_ns}:{info.st_ctime_ns}:{info.st_ino}:{info.st_dev}", info.st_ctime
+
+
+@dataclass(frozen=True)
+class StatLedger:
+    """Writes the stat records of files whose SHA-256 was found to match into the catalog at ``catalog``
+    (its table ``file_stats``: ``path`` as ``files.path`` -> ``stat``, :func:`stat_record` and the SHA-256 it
+    was checked against; paths relative to ``root``). A record only saves a later hash: a catalog that is
+    busy, read-only or damaged, or a file no longer catalogued, leaves it unwritten without a word."""
+
+    root: Path
+    catalog: Path
+
+    def record(self, folder: Path, stats: Mapping[str, str]) -> None:
+        """Record ``stats`` (file name in ``folder`` -> stat record with its SHA-256)."""
+        rows = [((folder / name).relative_to(self.root).as_posix(), stat) for name, stat in stats.items()]
+        with contextlib.suppress(sqlite3.Error, ValueError), contextlib.closing(
+                sqlite3.connect(self.catalog, timeout=5.0, isolation_level=None)) as conn:
+            conn.execute("PRAGMA foreign_keys=ON")
+            with conn:
+                conn.execute("BEGIN IMMEDIATE")
+                conn.executemany("INSERT OR REPLACE INTO file_stats (path, stat) SELECT ?, ? "
+                                 "WHERE EXISTS (SELECT 1 FROM files WHERE files.path = ?)",
+                                 [(path, stat, path) for path, stat in rows])
 
 
 class NotOnThisMachine(TexplorerError):
@@ -132,6 +176,9 @@ class StoredScan:
 
     path: Path
     catalogued: Catalogued = field(default_factory=dict)
+    stats: Mapping[str, str] = field(default_factory=dict)
+    """File name -> its stat record and SHA-256 when the hash last matched (:class:`StatLedger`)."""
+    ledger: StatLedger | None = None
 
     def __call__(self) -> Scan:
         """The scan, parsed from bytes checked against the catalog where it has them
@@ -141,13 +188,23 @@ class StoredScan:
     def verify(self) -> None:
         """Raise :class:`ChangedSinceStored` unless every catalogued file (the ``.mat`` and its photos) is
         there with its catalogued size and SHA-256: before serving cached features, which were computed
-        from those bytes. A missing or unreadable file raises its ``OSError``."""
+        from those bytes. A file whose stat record is the one :attr:`stats` holds for this SHA-256 is not
+        hashed again; the others are, and their records go to the :attr:`ledger` when they match. A
+        missing or unreadable file raises its ``OSError``."""
+        fresh = {}
         for name, (size, digest) in sorted(self.catalogued.items()):
             path = self.path.with_name(name)
-            if path.stat().st_size != size:
+            record, changed = stat_record(path)
+            if int(record.split(":", 1)[0]) != size:
                 raise ChangedSinceStored(path, "size")
+            if self.stats.get(name) == f"{record}:{digest}":
+                continue
             if sha256_file(path) != digest:
                 raise ChangedSinceStored(path, "SHA-256")
+            if time.time() - changed > RACY_SECONDS:
+                fresh[name] = f"{record}:{digest}"
+        if fresh and self.ledger is not None:
+            self.ledger.record(self.path.parent, fresh)
 
     def load_seen(self) -> Scan:
         """Load from this machine's view of ``path``; :class:`NotOnThisMachine` if a file is missing,
