@@ -33,7 +33,7 @@ from scanner.simulation.database import synthetic_database  # noqa: E402
 from scanner.storage.bundle import import_bundle  # noqa: E402
 from scanner.storage.database import Database  # noqa: E402
 from scanner.storage.matfile import load_scan  # noqa: E402
-from scanner.workflows.database import export_database  # noqa: E402
+from scanner.workflows.exchange import export_database  # noqa: E402
 
 MATERIALS = 24
 SCANS_PER_MATERIAL = 5

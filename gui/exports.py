@@ -3,7 +3,7 @@
 A bundle of a whole database is as large as the database (hundreds of MB), so it is not built inside a
 request: :meth:`Exports.start` starts an :class:`ExportJob` in a thread and the page polls its progress.
 The job fills the database's feature cache first (in chunks, so it can report progress and be cancelled
-between them), then calls :func:`scanner.workflows.database.export_database`, the same exporter as ``texplorer export``,
+between them), then calls :func:`scanner.workflows.exchange.export_database`, the same exporter as ``texplorer export``,
 with the same filters (label or class prefix, session), counting the scans its progress callback hands on.
 
 Where the bundle lives, and for how long:
@@ -37,7 +37,8 @@ from typing import IO, Any
 from features import job_workers
 from scanner.storage.bundle import BundleError
 from scanner.storage.database import Database, ScanRecord
-from scanner.workflows.database import export_database, extract_database
+from scanner.workflows.database import extract_database
+from scanner.workflows.exchange import export_database
 from taxonomy.errors import TexplorerError
 
 FEATURE_CHUNK = 16

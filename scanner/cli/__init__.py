@@ -30,7 +30,7 @@ __all__ = ["COMMANDS", "EXIT_ERROR", "EXIT_PIPE", "EXIT_PROBLEMS", "GROUPS", "Us
 
 COMMANDS = {
     "demo": ("demo", "build a synthetic database from the simulated scanner and summarise it"),
-    "features": ("analysis", "extract the features of every scan into a feature table"),
+    "features": ("features", "extract the features of every scan into a feature table"),
     "select": ("analysis", "print the FQ ranking and the selected feature set"),
     "evaluate": ("analysis", "cross-validate classifiers x feature sets x levels; table and HTML report"),
     "train": ("analysis", "train a classifier on all scans and save it (skops)"),

@@ -1,30 +1,23 @@
-"""``texplorer features``, ``select``, ``evaluate``, ``train``, ``classify``: the feature space, feature
-selection, cross-validated evaluation and trained models, of the database's scans or of a recording set."""
+"""``texplorer select``, ``evaluate``, ``train``: feature selection, cross-validated evaluation and trained
+models, of the database's scans or of a recording set (its feature table: :mod:`scanner.cli.features`)."""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import hashlib
-import json
 import math
 import sys
 import time
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
-from features import REGISTRY, FeatureSpace, code_version, feature_sets
-from features.recordings import Windowing, describe_families, feature_space
+from features import FeatureSpace, feature_sets
 from features.selection import select_features
 from scanner.acquisition.config import load_config
-from scanner.cli.base import EXIT_ERROR, UsageError, add_db_option, open_db
+from scanner.cli.base import EXIT_ERROR, UsageError, open_db
 from scanner.cli.common import (
     ALL,
-    CLASSIFIER_NAMES,
-    add_cluster_options,
-    add_evaluation_options,
     add_feature_set_option,
     add_space_options,
     choices,
@@ -32,12 +25,11 @@ from scanner.cli.common import (
     set_sizes,
     space_for,
 )
-from scanner.storage.files import atomic_write_bytes, sha256_file
-from scanner.storage.ingest import load_recordings, set_folder
-from scanner.workflows.database import extract_database
+from scanner.cli.features import add_set_options, set_space, stored_set_table
+from scanner.storage.ingest import set_folder
 from scanner.workflows.models import ModelChange, cross_validated, save_model_version
 from scanner.workflows.quick import quick_evaluation
-from taxonomy.labels import LEVELS, parse_prefix
+from taxonomy.labels import LEVELS
 from taxonomy.learning.evaluation import (
     CLASSIFIERS,
     MLP_MAX_ITER,
@@ -52,46 +44,29 @@ from taxonomy.learning.evaluation import (
     with_values,
 )
 from taxonomy.learning.models import save_model, train_model
-from taxonomy.learning.results import one_line
 from taxonomy.learning.versions import current_version, version_file
 from taxonomy.reports.report import format_open_set, format_protocols, format_quick, format_table, write_report
 from taxonomy.table import load_taxonomy
 
-
-def report_space(space, seconds: float) -> None:
-    import numpy as np
-
-    nan_columns = int(np.isnan(space.X).any(axis=0).sum()) if len(space) else 0
-    print(f"{len(space)} scans x {len(space.columns)} features in {seconds:.1f} s "
-          f"({nan_columns} column(s) with NaN, {len(space.failed)} scan(s) failed)")
-    for scan_id, reason in space.failed:
-        print(f"failed   {scan_id}: {reason}")
+CLASSIFIER_NAMES = tuple(CLASSIFIERS)
+"""The paper's six classifiers, as ``--classifier`` offers them."""
 
 
-def table_name(label: str | None) -> str:
-    """The default file of ``texplorer features``: ``features.csv`` for every scan, ``features-C6.csv`` for the
-    scans of a label or class prefix, so a filtered run never replaces the table of every scan."""
-    return f"features-{parse_prefix(label)}.csv" if label else "features.csv"
-
-
-def cmd_features(args: argparse.Namespace) -> int:
-    if args.dataset:
-        return cmd_set_features(args)
-    db = open_db(args)
-    started = time.perf_counter()
-    with cluster(args) as client:
-        space = extract_database(db, label=args.label, workers=args.workers, client=client, ship_data=args.ship_data,
-                                 families=feature_sets.families_for(args.feature_set), partial=False)
-    report_space(space, time.perf_counter() - started)
-    out = args.out or db.root / table_name(args.label)
-    space.to_csv(out)
-    kept = "" if args.out or not args.label else (f" (the scans of {parse_prefix(args.label)}; "
-                                                  f"{db.root / table_name(None)} is left as it was)")
-    print(f"wrote {out}{kept}")
-    if args.mat:
-        space.to_mat(args.mat)
-        print(f"wrote {args.mat}")
-    return EXIT_ERROR if space.failed else 0
+def add_evaluation_options(parser: argparse.ArgumentParser, report_default: str | None, seed: bool = True) -> None:
+    parser.add_argument("--classifier", nargs="+", choices=(*CLASSIFIER_NAMES, ALL), default=[ALL],
+                        help="classifiers (default all)")
+    parser.add_argument("--level", nargs="+", default=[ALL], help="levels: coarse, medium, fine, or a set's "
+                        "own levels (default all)")
+    parser.add_argument("--n", nargs="+", metavar="N", help="selected set sizes, and 'all' for every feature "
+                        "without selection (default 3 10; for a set 3 10 all)")
+    add_feature_set_option(parser, many=True)
+    parser.add_argument("--protocol", choices=("nested", "paper"), default="nested",
+                        help="nested (default): scaling and selection inside the folds; paper: on all data first")
+    parser.add_argument("--folds", type=int, default=5, help="cross-validation folds (default 5)")
+    if seed:
+        parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    default = f" (default {report_default})" if report_default else ""
+    parser.add_argument("--report", type=Path, default=None, help=f"write the HTML report into this folder{default}")
 
 
 def cmd_select(args: argparse.Namespace) -> int:
@@ -238,133 +213,6 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
-def set_recordings(spec: str, db: Path) -> tuple[str, list]:
-    """The set name and recordings a ``set:NAME`` argument names."""
-    if not spec.startswith("set:"):
-        raise UsageError(f"{spec!r} is not a recording set; name one as set:NAME (see 'texplorer ingest')")
-    return spec[4:], load_recordings(set_folder(db, spec[4:]))
-
-
-def set_space(args: argparse.Namespace, client=None):
-    """The feature space of ``set:NAME`` with the windowing, crop and grouping asked for (on the Dask cluster
-    of ``client`` if given); prints a summary line and the extraction warnings (a count, all with
-    --verbose)."""
-    name, recordings = set_recordings(args.dataset, args.db)
-    windowing = Windowing(args.window, args.combine)
-    started = time.perf_counter()
-    wanted = args.feature_set if isinstance(args.feature_set, list) else [args.feature_set]
-    space, notes = feature_space(recordings, windowing, args.border, args.group_by, workers=args.workers,
-                                 progress=True, client=client, chosen=feature_sets.role_families_for(wanted))
-    for note in notes if args.verbose else notes[:3]:
-        print(f"texplorer: warning: {one_line(note)}", file=sys.stderr)
-    if len(notes) > 3 and not args.verbose:
-        print(f"texplorer: warning: {len(notes) - 3} more warning(s); --verbose lists them", file=sys.stderr)
-    levels = ", ".join(f"{level} ({len(set(space.y(level)))} classes)" for level in reversed(space.level_names))
-    split = (f"; split {space.split.count('train')} train / {space.split.count('test')} test"
-             if space.split else "")
-    print(f"set:{name}: {len(recordings)} recordings -> {len(space)} rows ({windowing.describe()}), "
-          f"{len(set(space.groups))} groups; levels {levels}{split}")
-    print(f"features: {describe_families(space.columns)} in {time.perf_counter() - started:.1f} s")
-    return space
-
-
-SET_TABLE = "features.csv"
-SET_TABLE_OPTIONS = "features.json"
-"""Beside a set's feature table, the options it was written with (windowing, crop, grouping), the feature
-code version and the recordings it read, so ``evaluate set:NAME`` can tell whether the table fits."""
-
-
-def recordings_fingerprint(folder: Path) -> str:
-    """A hash of the set's recording files' stat records: name, size, modification time, inode and inode
-    change time. The change time is the kernel's: an edit of the same size whose modification time is put
-    back (``cp -p``, ``rsync -t``, ``touch -r``, a backup restored) still changes it."""
-    digest = hashlib.sha256()
-    for path in sorted(folder.glob("*.mat")):
-        stat = path.stat()
-        digest.update(f"{path.name}\0{stat.st_size}\0{stat.st_mtime_ns}\0{stat.st_ino}\0{stat.st_ctime_ns}\n"
-                      .encode())
-    return digest.hexdigest()
-
-
-def recordings_content(folder: Path) -> str:
-    """A hash of the set's recording files' names and contents: what a feature table was computed from.
-    Asked only when the stat records differ (a set copied, restored or touched), so an unchanged set is not
-    read in full."""
-    digest = hashlib.sha256()
-    for path in sorted(folder.glob("*.mat")):
-        digest.update(f"{path.name}\0{sha256_file(path)}\n".encode())
-    return digest.hexdigest()
-
-
-def set_table_options(args: argparse.Namespace, folder: Path) -> dict[str, Any]:
-    """What a set's feature table depends on, as ``features.json`` records it."""
-    wanted = args.feature_set if isinstance(args.feature_set, list) else [args.feature_set]
-    families = feature_sets.role_families_for(wanted)
-    return {"window": args.window, "combine": args.combine, "border": args.border, "group_by": args.group_by,
-            "families": list(families or ()), "code_version": code_version(),
-            "recordings": recordings_fingerprint(folder)}
-
-
-OPTION_WORDS = {"window": "--window", "combine": "--combine", "border": "--border", "group_by": "--group-by",
-                "families": "--feature-set",
-                "code_version": "the feature code", "recordings": "the recordings"}
-
-
-def _table_options(folder: Path) -> tuple[Path, dict[str, Any] | None, str]:
-    """A set's feature table, the options its ``features.json`` records (None if there are none), and why not."""
-    table, written = folder / SET_TABLE, folder / SET_TABLE_OPTIONS
-    if not table.is_file() or not written.is_file():
-        return table, None, f"no table written by 'texplorer features set:{folder.name}'"
-    try:
-        stored = json.loads(written.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return table, None, f"{written} cannot be read"
-    return (table, stored, "") if isinstance(stored, dict) else (table, None, f"{written} holds no table options")
-
-
-def stored_set_table(args: argparse.Namespace, folder: Path) -> tuple[Path | None, str]:
-    """The set's feature table if it was written with the options of ``args`` (and the same recordings and
-    feature code), else None; and one line saying which table ``evaluate`` uses and why."""
-    table, stored, why = _table_options(folder)
-    if stored is None:
-        return None, f"extracting the features ({why})"
-    wanted = set_table_options(args, folder)
-    differ = [OPTION_WORDS[key] for key in wanted if stored.get(key) != wanted[key]]
-    if differ == [OPTION_WORDS["recordings"]] and stored.get("content") == recordings_content(folder):
-        differ = []  # the files were copied or touched, not changed: their contents prove it
-    if differ:
-        return None, f"extracting the features ({table} was written with other {', '.join(differ)})"
-    return table, f"using {table} (written by 'texplorer features {args.dataset}' with the same options)"
-
-
-def current_set_table(folder: Path) -> tuple[Path | None, str]:
-    """The set's feature table if the current feature code computed it from the recordings the set holds now
-    (whatever its options, which its ``features.json`` records), else None; and why not."""
-    table, stored, why = _table_options(folder)
-    if stored is None:
-        return None, why
-    if stored.get("code_version") != code_version():
-        return None, f"{table} was written by other feature code"
-    if stored.get("recordings") != recordings_fingerprint(folder) and stored.get("content") != \
-            recordings_content(folder):
-        return None, f"{table} was written from other recordings"
-    return table, ""
-
-
-def cmd_set_features(args: argparse.Namespace) -> int:
-    folder = set_folder(args.db, args.dataset[4:])
-    with cluster(args) as client:
-        space = set_space(args, client)
-    out = args.out or folder / SET_TABLE
-    print(f"wrote {space.to_csv(out)}")
-    if args.out is None:
-        atomic_write_bytes(folder / SET_TABLE_OPTIONS, json.dumps(
-            {**set_table_options(args, folder), "content": recordings_content(folder)}).encode())
-    if args.mat:
-        print(f"wrote {space.to_mat(args.mat)}")
-    return 0
-
-
 def cmd_set_evaluate(args: argparse.Namespace) -> int:
     if args.features:
         raise UsageError("give either a set (set:NAME) or --features CSV, not both")
@@ -383,24 +231,6 @@ def cmd_set_evaluate(args: argparse.Namespace) -> int:
             print()
             print(format_protocols(reports, ungrouped))
     return 0 if reports else EXIT_ERROR
-
-
-def _add_set_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", nargs="?", metavar="set:NAME", help="a recording set imported with "
-                        "'texplorer ingest' (default: the scans of the database)")
-    parser.add_argument("--window", type=float, metavar="SECONDS", help="sets: cut each recording into "
-                        "windows of this length (default: the whole recording)")
-    parser.add_argument("--combine", choices=("mean", "median", "rows"), default="mean", help="sets: combine "
-                        "the windows' features by their mean (default) or median, or make each window a row "
-                        "(in its recording's group)")
-    parser.add_argument("--border", type=int, default=0, metavar="PX", help="sets: pixels cropped from every "
-                        "side of a photo before its features (default 0; the scanner's photos use 100)")
-    parser.add_argument("--group-by", default="auto", metavar="GROUP", help="what folds keep together: for "
-                        "the database's scans sample (default), session, operator or recording (each scan); "
-                        "for sets a group of the mapping's pattern, recording (each recording with its "
-                        "windows; also 'none'), or auto (default: object, else the photo a patch was cut "
-                        "from, else the recording)")
-    parser.add_argument("--verbose", action="store_true", help="sets: print every extraction warning")
 
 
 def cmd_train(args: argparse.Namespace) -> int:
@@ -441,23 +271,6 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def register(commands: argparse._SubParsersAction) -> None:
-    count = len(REGISTRY.names)
-    features = commands.add_parser("features", help="extract the features of every scan into a feature table",
-                                   description=f"Extract the {count} features of every scan (cached in the database "
-                                   "by scan content and feature-code version) and write features.csv.")
-    add_db_option(features)
-    _add_set_options(features)
-    add_feature_set_option(features, many=True)
-    features.add_argument("--workers", type=int, help="processes (default: number of cores)")
-    features.add_argument("--out", type=Path, help="CSV file (default: <db>/features.csv, with --label "
-                          "<db>/features-<LABEL>.csv; for a set <db>/recordings/<set>/features.csv, which "
-                          "'evaluate set:NAME' then uses when given the same options)")
-    features.add_argument("--mat", type=Path, help="also write the feature space as a .mat file")
-    features.add_argument("--label", help="only scans with this label, class prefix (C6 = every stone) or part "
-                          "of a material name (granite)")
-    add_cluster_options(features)
-    features.set_defaults(handler=cmd_features)
-
     select = commands.add_parser("select", help="print the FQ ranking and the selected feature set",
                                  description="Feature quality (Kruskal-Wallis + Tukey-Kramer) ranking and the "
                                  "FQ + Spearman selection on all scans.")
@@ -474,7 +287,7 @@ def register(commands: argparse._SubParsersAction) -> None:
                                    "(set:NAME): its own class names and levels, folds grouped by its groups, or "
                                    "its own train/test split when it has one.")
     add_space_options(evaluate)
-    _add_set_options(evaluate)
+    add_set_options(evaluate)
     evaluate.add_argument("--leakage", action="store_true", help="sets: evaluate again with every row its own "
                         "group (--group-by none: windows of one recording in training and test, as published "
                         "window-level results do) and print both figures side by side")

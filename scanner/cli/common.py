@@ -1,5 +1,6 @@
-"""What the analysis command groups share: the feature space of ``--features`` or the database, the cluster and
-the evaluation options (what every group shares, :mod:`scanner.cli.base`, loads nothing heavy)."""
+"""What the analysis command groups share: the feature space of ``--features`` or the database, the feature
+sets and the cluster options (what every group shares, :mod:`scanner.cli.base`, loads nothing heavy; the
+evaluation's options, which need the classifiers, are :mod:`scanner.cli.analysis`'s)."""
 
 from __future__ import annotations
 
@@ -14,7 +15,6 @@ from features import REGISTRY, FeatureSpace, feature_sets
 from features.cluster import ClusterError, connect, describe
 from scanner.cli.base import UsageError, add_db_option, open_db
 from scanner.workflows.database import extract_database
-from taxonomy.learning.evaluation import CLASSIFIERS
 
 ALL = "all"
 
@@ -49,33 +49,12 @@ def set_sizes(values: Sequence[str] | None, default: Sequence[str]) -> list[int 
     return list(dict.fromkeys(sizes))
 
 
-CLASSIFIER_NAMES = tuple(CLASSIFIERS)
-"""The paper's six classifiers, as ``--classifier`` offers them."""
-
-
 def add_space_options(parser: argparse.ArgumentParser) -> None:
     add_db_option(parser)
     parser.add_argument("--features", type=Path, help="feature table CSV (default: extract from the database, "
                         "using its feature cache)")
     parser.add_argument("--workers", type=int, help="processes (default: number of cores)")
     add_cluster_options(parser)
-
-
-def add_evaluation_options(parser: argparse.ArgumentParser, report_default: str | None, seed: bool = True) -> None:
-    parser.add_argument("--classifier", nargs="+", choices=(*CLASSIFIER_NAMES, ALL), default=[ALL],
-                        help="classifiers (default all)")
-    parser.add_argument("--level", nargs="+", default=[ALL], help="levels: coarse, medium, fine, or a set's "
-                        "own levels (default all)")
-    parser.add_argument("--n", nargs="+", metavar="N", help="selected set sizes, and 'all' for every feature "
-                        "without selection (default 3 10; for a set 3 10 all)")
-    add_feature_set_option(parser, many=True)
-    parser.add_argument("--protocol", choices=("nested", "paper"), default="nested",
-                        help="nested (default): scaling and selection inside the folds; paper: on all data first")
-    parser.add_argument("--folds", type=int, default=5, help="cross-validation folds (default 5)")
-    if seed:
-        parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    default = f" (default {report_default})" if report_default else ""
-    parser.add_argument("--report", type=Path, default=None, help=f"write the HTML report into this folder{default}")
 
 
 def feature_set_name(value: str) -> str:

@@ -8,9 +8,10 @@ import time
 
 from features import REGISTRY
 from features.extraction import run_aside
-from scanner.cli.analysis import report_space, run_evaluation
+from scanner.cli.analysis import add_evaluation_options, run_evaluation
 from scanner.cli.base import UsageError, add_db_option
-from scanner.cli.common import ALL, add_cluster_options, add_evaluation_options, cluster
+from scanner.cli.common import ALL, add_cluster_options, cluster
+from scanner.cli.features import report_space
 from scanner.preprocess import small_photo_note
 from scanner.workflows.database import extract_database
 from scanner.workflows.demo import simulated_database

@@ -9,9 +9,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from features import REGISTRY, SOLVER_RTOL, FeatureSpace
-from scanner.cli.analysis import current_set_table
 from scanner.cli.base import EXIT_ERROR, EXIT_PROBLEMS, UsageError, add_db_option, created_db, open_db, progress
 from scanner.cli.common import add_cluster_options, cluster
+from scanner.cli.features import current_set_table
 from scanner.replay import (
     DEFAULT_ATOL,
     DEFAULT_RTOL,
@@ -29,7 +29,7 @@ from scanner.storage.ingest import set_folder
 from scanner.storage.matfile import load_scan
 from scanner.storage.set_bundle import KIND, bundle_kind, export_set, import_set_bundle
 from scanner.storage.settings import read_settings
-from scanner.workflows.database import export_database
+from scanner.workflows.exchange import export_database
 from taxonomy.labels import Label
 from taxonomy.learning.models import load_model
 

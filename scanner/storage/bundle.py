@@ -130,7 +130,7 @@ class FeatureTable(Protocol):
 
 
 Features = Callable[[Sequence[ScanRecord]], FeatureTable]
-"""The caller's feature space of the scans to export (``scanner.workflows.database.export_database`` reads it from
+"""The caller's feature space of the scans to export (``scanner.workflows.exchange.export_database`` reads it from
 the database's feature cache)."""
 
 

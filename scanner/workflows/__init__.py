@@ -2,11 +2,13 @@
 module per subject so that a command imports only what it runs (``texplorer classify`` neither the
 simulator nor the devices):
 
-- :mod:`~scanner.workflows.database` -- **a database's features and export**: :func:`database_sources`
+- :mod:`~scanner.workflows.database` -- **a database's features**: :func:`database_sources`
   turns catalog rows into :class:`features.ScanSource` objects keyed by the scan's content hash;
   :func:`extract_database` extracts them with the database as the cache (a second run over unchanged scans
-  only reads it); :func:`stored_features` gives one stored scan's values; :func:`export_database` writes an
-  export bundle (:func:`scanner.storage.bundle.export_bundle`) whose feature tables come from the cache.
+  only reads it); :func:`stored_features` gives one stored scan's values.
+- :mod:`~scanner.workflows.exchange` -- **a database exported with its features**: :func:`export_database`
+  writes an export bundle (:func:`scanner.storage.bundle.export_bundle`) whose feature tables come from the
+  cache.
 - :mod:`~scanner.workflows.demo` -- **the simulated side**: :func:`simulated_database` (``texplorer demo``)
   extracts each simulated scan's features while it is in memory and fills the feature cache as the scans
   are stored; :func:`compile_kernels` (``make install``) extracts simulated scans so that numba writes every

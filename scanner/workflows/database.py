@@ -1,18 +1,14 @@
-"""A database's features and export: catalog rows as cached feature sources, the features of every scan read
-from the database's feature cache where they are current, one stored scan's values, and an export bundle
-whose feature tables come from the cache."""
+"""A database's features: catalog rows as cached feature sources, the features of every scan read from the
+database's feature cache where they are current, and one stored scan's values."""
 
 from __future__ import annotations
 
-import os
 import sys
 from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING
 
-from features import REGISTRY, FeatureSpace, ScanSource, WorkerPool, code_version, extract_many
-from scanner.storage.bundle import ExportReport, Progress, export_bundle
+from features import FeatureSpace, ScanSource, WorkerPool, extract_many
 from scanner.storage.database import Database, DatabaseError, ScanRecord
-from scanner.storage.settings import read_settings
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -72,23 +68,3 @@ def stored_features(db: Database, record: ScanRecord) -> tuple[dict[str, float],
     if space.failed:
         return {}, space.failed[0][1]
     return dict(zip(space.columns, space.X[0].tolist(), strict=True)), None
-
-
-# -- export a database with its features -----------------------------------------------------------
-
-def export_database(db: Database, out: str | os.PathLike[str], *, label: str | None = None,
-                    session: str | None = None, license: str | None = None, creator: str | None = None,
-                    workers: int | None = None, progress: Progress = iter) -> ExportReport:
-    """Write the scans of ``db`` (optionally a label or class prefix, or one session) as an export bundle
-    with their features, read from the feature cache where possible (``workers`` processes extract the
-    rest); see :func:`scanner.storage.bundle.export_bundle` for the bundle and its errors.
-
-    ``license`` and ``creator`` default to the database's settings (``texplorer db settings``); without a
-    license from either the export is refused (``"none"`` exports without one)."""
-    def features(records: Sequence[ScanRecord]) -> FeatureSpace:
-        return extract_database(db, records=records, workers=workers)
-
-    settings = read_settings(db.root)
-    return export_bundle(db, out, features, feature_code_version=code_version(),
-                         license=license or settings.get("license"), creator=creator or settings.get("creator"),
-                         feature_units=REGISTRY.units, label=label, session=session, progress=progress)

@@ -36,7 +36,7 @@ from scanner.storage.database import Database, DatabaseError
 from scanner.storage.matfile import save_scan
 from scanner.storage.metadata import CHANNEL_COLUMNS
 from scanner.storage.settings import write_settings
-from scanner.workflows.database import export_database
+from scanner.workflows.exchange import export_database
 from taxonomy.table import Taxonomy, load_taxonomy
 
 LAB_TAXONOMY = """kind,code,name,description

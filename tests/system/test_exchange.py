@@ -27,7 +27,7 @@ from scanner.storage.bundle import MANIFEST, MANIFEST_SUM, BundleError, import_b
 from scanner.storage.database import Database
 from scanner.storage.metadata import CROISSANT, DATAPACKAGE, RO_CRATE, SCANS_CSV
 from scanner.storage.settings import write_settings
-from scanner.workflows.database import export_database
+from scanner.workflows.exchange import export_database
 
 ROOT = Path(__file__).resolve().parents[2]
 ROCRATE_PYTHON = ROOT / ".venv" / "tools" / "rocrate" / "bin" / "python"

@@ -14,6 +14,7 @@ from conftest import make_scan
 from unit.test_models import separated_space
 
 from scanner.storage.database import Database
+from scanner.workflows.database import extract_database
 from taxonomy.learning.models import save_model, train_model
 
 TESTS = Path(__file__).resolve().parents[1]
@@ -74,6 +75,25 @@ def test_a_model_loads_without_importing_the_rest_of_scikit_learn(tmp_path):
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
     assert run.stdout.split("\n")[-2] == "[] rf"
+
+
+def test_classify_s_group_loads_neither_the_devices_nor_the_simulator():
+    code = ("import scanner.cli.models, sys\nprint(sorted(m for m in sys.modules if m.startswith(("
+            "'scanner.simulation', 'scanner.acquisition', 'cv2', 'scipy.signal', 'numba'))))")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.splitlines()[-1] == "[]"
+
+
+def test_a_cached_feature_table_loads_neither_scikit_learn_nor_scipy_stats(tmp_path):
+    db = Database(tmp_path / "db")
+    db.add(make_scan(0, sample_id="granite-01", scan_index=1))
+    extract_database(db, workers=1, progress=False)  # the feature cache holds the scan now
+    db.close()
+    loaded = _loaded_after(_cli("features", "--db", str(tmp_path / "db"), "--workers", "1", "--out",
+                                str(tmp_path / "features.csv")))
+    assert (tmp_path / "features.csv").is_file()
+    assert not {"sklearn", "scipy.stats", "numba", "cv2", "skops"} & set(loaded), loaded
 
 
 def test_python_dash_m_texplorer_is_the_texplorer_command():

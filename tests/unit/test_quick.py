@@ -23,8 +23,8 @@ from scanner.scan import CHANNELS, PROCEDURE_STEPS, ScanError, check_steps
 from scanner.storage.bundle import import_bundle
 from scanner.storage.database import Database
 from scanner.storage.matfile import load_scan, save_scan
-from scanner.workflows.database import export_database
 from scanner.workflows.demo import simulated_database
+from scanner.workflows.exchange import export_database
 from taxonomy.learning.evaluation import EvaluationError
 from taxonomy.learning.quick import (
     Expert,

@@ -14,15 +14,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, BinaryIO, TextIO
 
-import cv2
 import numpy as np
-from scipy.io import wavfile
 
+from scanner.lazy import library
 from scanner.photo import PhotoError, check_pixels, image_size, max_file_bytes
 from scanner.scan import ScanError, Trace, handed_over
 from scanner.storage.ingest.clock import Clock, on_slots, regular_clock
 from scanner.storage.ingest.mapping import FORMATS, TIME_UNITS, ChannelMap, FileMap, IngestError, format_of
 from scanner.storage.mat5 import MatFileError, read_mat
+
+cv2 = library("cv2")
+wavfile = library("scipy.io.wavfile")  # both load when a photo or a WAV file is read
 
 NAN_TOKENS = ("nan", "-nan", "+nan", "", "na", "n/a", "null", "none")
 """Tokens read as a missing sample (case-insensitive, surrounding spaces ignored)."""
