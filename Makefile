@@ -51,7 +51,7 @@ docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
 
 lint: $(STAMP)
-	$(BIN)/ruff check scanner features taxonomy gui tests benchmarks
+	$(BIN)/ruff check .
 	$(BIN)/lint-imports --no-logo
 
 # The newest releases pip resolves today, in a scratch environment, written as the new constraints; then
