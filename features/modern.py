@@ -47,7 +47,7 @@ from features.prepared import PreparedScan
 from features.registry import REGISTRY, ROLE_REGISTRY, Family, RoleFamily
 from scanner.lazy import library
 from scanner.preprocess import QualityError, dft321
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import ParameterError
 
 signal = library("scipy.signal")
 pycatch22 = library("pycatch22")  # the optional extra texplorer[modern], loaded at first use
@@ -84,10 +84,6 @@ SCATTERING_LOG_FLOOR = 1e-12
 """Added before the log so a silent instance has a finite value."""
 
 
-class ModernFeatureError(TexplorerError, ValueError):
-    """A modern family that cannot run here (its library missing) or a length rule that makes no sense."""
-
-
 @dataclass(frozen=True)
 class LengthRule:
     """How a signal of any duration becomes instances of ``length`` samples.
@@ -104,8 +100,8 @@ class LengthRule:
 
     def __post_init__(self) -> None:
         if self.length < 16 or self.windows < 1 or (self.rate is not None and self.rate <= 0):
-            raise ModernFeatureError(f"a length rule needs length >= 16, windows >= 1 and a positive rate, "
-                                     f"got {self}")
+            raise ParameterError(f"a length rule needs length >= 16, windows >= 1 and a positive rate, "
+                                 f"got {self}")
 
     @property
     def samples(self) -> int:
@@ -134,12 +130,12 @@ def instances(x: np.ndarray, fs: float, rule: LengthRule) -> np.ndarray:
 
     Raises
     ------
-    ModernFeatureError
+    ParameterError
         If ``x`` is not 1-D or holds fewer than 2 samples.
     """
     x = np.asarray(x, dtype=np.float64)
     if x.ndim != 1 or x.size < 2:
-        raise ModernFeatureError(f"a signal needs at least 2 samples in one column, got shape {x.shape}")
+        raise ParameterError(f"a signal needs at least 2 samples in one column, got shape {x.shape}")
     if rule.whole:
         return signal.resample(x, rule.length)[None, :]
     if rule.rate is not None:
@@ -207,7 +203,7 @@ def available(kind: str) -> bool:
 def require(kind: str) -> object:
     """The library of ``kind``; an error naming the extra where it is missing."""
     if not available(kind):
-        raise ModernFeatureError(f"the {kind} features need {EXTRA} (pip install '{EXTRA}')")
+        raise ParameterError(f"the {kind} features need {EXTRA} (pip install '{EXTRA}')")
     return {"catch22": pycatch22, "scattering": kymatio_1d}.get(kind)
 
 
@@ -275,7 +271,7 @@ def _scan_values(prepared: PreparedScan, kind: str, columns: Sequence[str],
         missing = [c for c in spec.channels if c not in prepared.scan.traces]
         try:
             if missing:
-                raise ModernFeatureError(f"no {' or '.join(missing)}")
+                raise ParameterError(f"no {' or '.join(missing)}")
             x, fs = spec.cut(prepared)
             computed = transform(instances(x, fs, spec.rule))
         except (QualityError, ValueError) as problem:

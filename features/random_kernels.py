@@ -27,7 +27,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from features.modern import EXTRA, FITTED_KINDS, GENERIC_RULE, ROLE_RULES, SCAN_SIGNALS, SIGNAL_PREFIX, LengthRule
 from scanner.scan import is_generic
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import ParameterError
 
 KINDS = FITTED_KINDS
 """The random-kernel transforms."""
@@ -36,19 +36,15 @@ CHUNK_INSTANCES = 256
 """Instances transformed at once: bounds the memory of a transform of many rows."""
 
 
-class RandomKernelError(TexplorerError, ValueError):
-    """A random-kernel transform that cannot run: its library missing, or no signal columns to read."""
-
-
 def library(kind: str) -> type:
     """sktime's class of ``kind`` (``minirocket``, ``multirocket``); an error naming the extra if missing."""
     if kind not in KINDS:
-        raise RandomKernelError(f"unknown random-kernel transform {kind!r} (known: {', '.join(KINDS)})")
+        raise ParameterError(f"unknown random-kernel transform {kind!r} (known: {', '.join(KINDS)})")
     try:
         # Imported on first use: sktime takes seconds to import and is an optional extra.
         from sktime.transformations.rocket import MiniRocket, MultiRocket
     except ImportError:
-        raise RandomKernelError(f"{kind} needs {EXTRA} (pip install '{EXTRA}')") from None
+        raise ParameterError(f"{kind} needs {EXTRA} (pip install '{EXTRA}')") from None
     return MiniRocket if kind == "minirocket" else MultiRocket
 
 
@@ -60,7 +56,7 @@ def signal_rule(name: str) -> LengthRule:
         return ROLE_RULES[name].rule
     if is_generic(name):  # a generic channel, signal_<channel>
         return GENERIC_RULE
-    raise RandomKernelError(f"no length rule for the signal {name!r}")
+    raise ParameterError(f"no length rule for the signal {name!r}")
 
 
 def signal_layout(columns: Sequence[str]) -> tuple[tuple[int, ...], tuple[tuple[str, int, LengthRule], ...]]:
@@ -80,8 +76,8 @@ def signal_layout(columns: Sequence[str]) -> tuple[tuple[int, ...], tuple[tuple[
         block = columns[k:k + rule.samples]
         if len(block) != rule.samples or any(c.rsplit(".", 1)[0] != f"{SIGNAL_PREFIX}.{parts[1]}" for c in block):
             found = sum(c.rsplit(".", 1)[0] == f"{SIGNAL_PREFIX}.{parts[1]}" for c in columns)
-            raise RandomKernelError(f"signal {parts[1]!r}: expected {rule.samples} consecutive columns "
-                                    f"({rule.describe()}), found {found}")
+            raise ParameterError(f"signal {parts[1]!r}: expected {rule.samples} consecutive columns "
+                                 f"({rule.describe()}), found {found}")
         signals.append((parts[1], k, rule))
         k += rule.samples
     return tuple(keep), tuple(signals)
@@ -125,7 +121,7 @@ class RandomKernels(TransformerMixin, BaseEstimator):
     def _layout(self) -> tuple[tuple[int, ...], tuple[tuple[str, int, LengthRule], ...]]:
         keep, signals = signal_layout(self.columns)
         if not signals:
-            raise RandomKernelError(f"{self.kind} reads the signal columns (feature set 'signal'); none given")
+            raise ParameterError(f"{self.kind} reads the signal columns (feature set 'signal'); none given")
         return keep, signals
 
     def fit(self, X: Any, y: Any = None) -> RandomKernels:
@@ -164,7 +160,7 @@ class RandomKernels(TransformerMixin, BaseEstimator):
     def _check(self, X: Any) -> np.ndarray:
         X = np.asarray(X, dtype=np.float64)
         if X.ndim != 2 or X.shape[1] != len(self.columns):
-            raise RandomKernelError(f"X has shape {X.shape}; expected {len(self.columns)} columns (one per name)")
+            raise ParameterError(f"X has shape {X.shape}; expected {len(self.columns)} columns (one per name)")
         return X
 
 

@@ -69,7 +69,7 @@ from features.threads import one_blas_thread
 from scanner.lazy import library
 from scanner.preprocess import BAND_HZ, dft321
 from scanner.scan import IMAGE_ROLES, Recording, Trace, is_generic
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import ParameterError
 
 signal = library("scipy.signal")
 
@@ -95,10 +95,6 @@ AUDIO_CHUNK_FRAMES = 256
 """Frames computed at once on a long recording (bounded memory: ~4 MB per array at 44.1 kHz)."""
 
 
-class RecordingFeatureError(TexplorerError, ValueError):
-    """A recording or option the feature families cannot use; the message names it."""
-
-
 @dataclass(frozen=True)
 class Windowing:
     """How a recording is cut: the whole recording (``seconds`` None) or ``seconds``-long windows whose
@@ -109,9 +105,9 @@ class Windowing:
 
     def __post_init__(self) -> None:
         if self.seconds is not None and not (math.isfinite(self.seconds) and self.seconds > 0):
-            raise RecordingFeatureError(f"the window must be a positive number of seconds, got {self.seconds!r}")
+            raise ParameterError(f"the window must be a positive number of seconds, got {self.seconds!r}")
         if self.combine not in COMBINE:
-            raise RecordingFeatureError(f"combine must be one of {', '.join(COMBINE)}, got {self.combine!r}")
+            raise ParameterError(f"combine must be one of {', '.join(COMBINE)}, got {self.combine!r}")
 
     def describe(self) -> str:
         if self.seconds is None:
@@ -161,18 +157,18 @@ def band_limited(v: np.ndarray, fs: float) -> np.ndarray:
 
     Raises
     ------
-    RecordingFeatureError
+    ParameterError
         If the rate is too low for a band above 10 Hz (<= 25 Hz) or the recording too short to filter.
     """
     low, high = vibration_band(fs)
     if high <= low:
-        raise RecordingFeatureError(f"a vibration at {fs:g} Hz has no band above {low:g} Hz")
+        raise ParameterError(f"a vibration at {fs:g} Hz has no band above {low:g} Hz")
     sos = _band_filter(float(fs))
     values = np.asarray(v, dtype=np.float64)
     padlen = 3 * (2 * len(sos) + 1)
     if values.shape[0] <= padlen:
-        raise RecordingFeatureError(f"a vibration of {values.shape[0]} samples is too short to band-limit "
-                                    f"(needs more than {padlen})")
+        raise ParameterError(f"a vibration of {values.shape[0]} samples is too short to band-limit "
+                             f"(needs more than {padlen})")
     return signal.sosfiltfilt(sos, values, axis=0)
 
 
@@ -218,11 +214,11 @@ def signal_bands(fs: float) -> np.ndarray:
 
 
 def _window_of(x: np.ndarray, fewest: int, family: str) -> np.ndarray:
-    """``x`` as float64; a :class:`RecordingFeatureError` if it has fewer than ``fewest`` samples."""
+    """``x`` as float64; a :class:`ParameterError` if it has fewer than ``fewest`` samples."""
     x = np.asarray(x, dtype=np.float64)
     if x.size < fewest:
-        raise RecordingFeatureError(f"a window of {x.size} samples is too short for the {family} features "
-                                    f"(needs {fewest})")
+        raise ParameterError(f"a window of {x.size} samples is too short for the {family} features "
+                             f"(needs {fewest})")
     return x
 
 
@@ -241,7 +237,7 @@ def signal_features(x: np.ndarray, fs: float) -> list[float]:
 
     Raises
     ------
-    RecordingFeatureError
+    ParameterError
         If the window has fewer than :data:`SIGNAL_MIN_SAMPLES` samples.
     """
     x = _window_of(x, SIGNAL_MIN_SAMPLES, "generic")
@@ -294,7 +290,7 @@ def slow_features(x: np.ndarray, fs: float) -> list[float]:
 
     Raises
     ------
-    RecordingFeatureError
+    ParameterError
         If the window has fewer than :data:`SLOW_MIN_SAMPLES` samples.
     """
     x = _window_of(x, SLOW_MIN_SAMPLES, "slow")
@@ -607,8 +603,8 @@ def fold_group(recording: Recording, group_by: str | None = "auto") -> str:
     if group_by == "auto":
         return recording.group.get("object") or recording.group.get("photo") or recording.name
     if group_by not in recording.group:
-        raise RecordingFeatureError(f"recording {recording.name!r} has no group {group_by!r} "
-                                    f"(groups: {', '.join(recording.group) or 'none'})")
+        raise ParameterError(f"recording {recording.name!r} has no group {group_by!r} "
+                             f"(groups: {', '.join(recording.group) or 'none'})")
     return recording.group[group_by]
 
 
@@ -654,23 +650,23 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
 
     Raises
     ------
-    RecordingFeatureError
+    ParameterError
         If no family applies to any recording, or a recording has no label.
     """
     recordings = list(recordings)
     if not recordings:
-        raise RecordingFeatureError("no recordings")
+        raise ParameterError("no recordings")
     unlabelled = next((r.name for r in recordings if not r.label), None)
     if unlabelled is not None:
-        raise RecordingFeatureError(f"recording {unlabelled!r} has no label")
+        raise ParameterError(f"recording {unlabelled!r} has no label")
     found = [families(r, chosen) for r in recordings]
     applied = _applied({f for names in found for f in names}, chosen)
     if not applied:
         roles = sorted({role for r in recordings for role in r.roles})
         needed = list(dict.fromkeys(family.role for family in ROLE_REGISTRY.chosen(chosen)))
-        raise RecordingFeatureError(f"no feature family applies: the recordings have the roles "
-                                    f"{', '.join(roles) or 'none'}; the families need "
-                                    f"{', '.join(needed[:-1])} or {needed[-1]}")
+        raise ParameterError(f"no feature family applies: the recordings have the roles "
+                             f"{', '.join(roles) or 'none'}; the families need "
+                             f"{', '.join(needed[:-1])} or {needed[-1]}")
     columns = tuple(name for family in applied for name in family_names(family))
     jobs = [(r, windowing, border, applied) for r in recordings]
     results = _map(_extract_one, jobs, workers, progress, client)

@@ -31,17 +31,13 @@ from typing import Any, Generic, TypeVar
 import numpy as np
 
 from features.prepared import PreparedScan
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import ParameterError
 
 PROJECT_PACKAGES = ("scanner", "features", "taxonomy", "gui")
 """Packages whose modules count towards the code version when a family's module imports them."""
 
 Compute = Callable[[PreparedScan], Mapping[str, float]]
 """A family's function: the prepared scan -> its values by column name, in the family's column order."""
-
-
-class RegistryError(TexplorerError, ValueError):
-    """A family that cannot be registered (a name or column already taken, a malformed column name)."""
 
 
 class _Code:
@@ -94,18 +90,18 @@ class Family(_Code):
         if not self.groups:
             object.__setattr__(self, "groups", ((self.name, self.title),))
         if not self.name or "." in self.name:
-            raise RegistryError(f"family name must be a non-empty word without dots, got {self.name!r}")
+            raise ParameterError(f"family name must be a non-empty word without dots, got {self.name!r}")
         prefix = self.name + "."
         _check_columns(self, [c for c in self.columns if not c.startswith(prefix)], f"start with '{prefix}'")
         strays = sorted(set(self.units) - set(self.columns))
         if strays:
-            raise RegistryError(f"family {self.name}: units given for columns it does not have: {', '.join(strays)}")
+            raise ParameterError(f"family {self.name}: units given for columns it does not have: {', '.join(strays)}")
         strays = sorted(key for key in self.steps if not any(c == key or c.startswith(key + ".") for c in self.columns))
         if strays:
-            raise RegistryError(f"family {self.name}: steps given for columns it does not have: {', '.join(strays)}")
+            raise ParameterError(f"family {self.name}: steps given for columns it does not have: {', '.join(strays)}")
         empty = sorted(key for key, steps in self.steps.items() if not steps or not all(steps))
         if empty:
-            raise RegistryError(f"family {self.name}: no step named for {', '.join(empty)}")
+            raise ParameterError(f"family {self.name}: no step named for {', '.join(empty)}")
 
 
 @dataclass(frozen=True)
@@ -140,10 +136,10 @@ class RoleFamily(_Code):
 def _check_columns(family: Family | RoleFamily, strays: Sequence[str], rule: str) -> None:
     """Every column of ``family`` follows ``rule`` (``strays`` are those that do not), none repeats."""
     if strays or not family.columns:
-        raise RegistryError(f"family {family.name!r}: every column must {rule} "
-                            f"(got {', '.join(strays[:3]) or 'no columns'})")
+        raise ParameterError(f"family {family.name!r}: every column must {rule} "
+                             f"(got {', '.join(strays[:3]) or 'no columns'})")
     if len(set(family.columns)) != len(family.columns):
-        raise RegistryError(f"family {family.name!r}: column names repeat")
+        raise ParameterError(f"family {family.name!r}: column names repeat")
 
 
 F = TypeVar("F", Family, RoleFamily)
@@ -163,10 +159,10 @@ class Registry(Generic[F]):
     def register(self, family: F) -> F:
         """Add ``family`` after the others; returns it."""
         if family.name in self._families:
-            raise RegistryError(f"a feature family {family.name!r} is already registered")
+            raise ParameterError(f"a feature family {family.name!r} is already registered")
         taken = sorted(self._columns.intersection(family.columns))
         if taken:
-            raise RegistryError(f"family {family.name!r}: column(s) already registered: {', '.join(taken[:3])}")
+            raise ParameterError(f"family {family.name!r}: column(s) already registered: {', '.join(taken[:3])}")
         fix_code_version(family.module)
         self._families[family.name] = family
         self._columns.update(family.columns)
@@ -177,7 +173,7 @@ class Registry(Generic[F]):
         try:
             family = self._families.pop(name)
         except KeyError:
-            raise RegistryError(f"no feature family {name!r} (registered: {', '.join(self._families)})") from None
+            raise ParameterError(f"no feature family {name!r} (registered: {', '.join(self._families)})") from None
         self._columns.difference_update(family.columns)
         return family
 
@@ -205,14 +201,14 @@ class Registry(Generic[F]):
 
         Raises
         ------
-        RegistryError
+        ParameterError
             If a name is not a registered family.
         """
         if names is None:
             return tuple(self)
         unknown = [n for n in names if n not in self._families]
         if unknown:
-            raise RegistryError(f"no feature family {unknown[0]!r} (registered: {', '.join(self._families)})")
+            raise ParameterError(f"no feature family {unknown[0]!r} (registered: {', '.join(self._families)})")
         return tuple(f for f in self._families.values() if f.name in names)
 
     def columns_of(self, names: Sequence[str] | None = None) -> tuple[str, ...]:
@@ -357,7 +353,7 @@ def _closure(start: tuple[str, ...]) -> tuple[str, ...]:
 def _source(module: str) -> Path:
     spec = importlib.util.find_spec(module)
     if spec is None or spec.origin is None:
-        raise RegistryError(f"cannot find the source of module {module!r}")
+        raise ParameterError(f"cannot find the source of module {module!r}")
     return Path(spec.origin)
 
 

@@ -3,7 +3,7 @@
 Every set reads its inputs by channel **role** (docs/database.md: ``vibration``, ``pressure_dc``, ``temperature``,
 ``heat_flow``, ``electrodes`` (n, k), ``taxels`` (n, h, w), ``force_xyz`` (n, 3), ``audio``), so the same
 code runs on a BioTac recording, a pressure-array slide, a soft 3-axis sensor or a scan converted by
-:func:`scan_recording`. A recording without a role a set needs raises :class:`MissingRoleError`, whose
+:func:`scan_recording`. A recording without a role a set needs raises :class:`RelatedFeatureError`, whose
 one-line message names the set, the roles it needs and the ones missing.
 
 Each set is a function ``recording -> dict[name, float]`` listed in :data:`FEATURE_SETS`; names are
@@ -46,17 +46,13 @@ class RelatedFeatureError(TexplorerError, ValueError):
     """Input a related-work feature set cannot use; the message names the set and what is wrong."""
 
 
-class MissingRoleError(RelatedFeatureError):
-    """A recording lacks a channel role (or a scan a channel) that a feature set reads."""
-
-
 # -- inputs ------------------------------------------------------------------------------------------
 
 def _check_roles(recording: Recording, set_name: str, roles: Sequence[str]) -> None:
     missing = [role for role in roles if role not in recording.roles]
     if missing:
-        raise MissingRoleError(f"{set_name} needs the role(s) {', '.join(roles)}; "
-                               f"recording {recording.name!r} lacks {', '.join(missing)}")
+        raise RelatedFeatureError(f"{set_name} needs the role(s) {', '.join(roles)}; "
+                                  f"recording {recording.name!r} lacks {', '.join(missing)}")
 
 
 def _trace(recording: Recording, role: str) -> Trace:
@@ -103,13 +99,13 @@ def fishel3(scan: Scan) -> dict[str, float]:
 
     Raises
     ------
-    MissingRoleError
+    RelatedFeatureError
         If the scan lacks ``v_ts``, ``f_frn`` or ``f_frt``.
     """
     missing = [name for name in FISHEL_CHANNELS if scan.get(name) is None]
     if missing:
-        raise MissingRoleError(f"fishel3 needs the scan channels {', '.join(FISHEL_CHANNELS)}; scan "
-                               f"{scan.scan_id} lacks {', '.join(missing)}")
+        raise RelatedFeatureError(f"fishel3 needs the scan channels {', '.join(FISHEL_CHANNELS)}; scan "
+                                  f"{scan.scan_id} lacks {', '.join(missing)}")
     f_frn, f_frt = scan["f_frn"], scan["f_frt"]
     traction = frs(f_frn.data, remove_friction_offset(f_frt.data, f_frt.fs))
     try:
@@ -186,8 +182,8 @@ def xie_sequence_vector(recording: Recording, seconds: float = XIE_SECONDS) -> n
     """
     role = "taxels" if "taxels" in recording.roles else "electrodes"
     if role not in recording.roles:
-        raise MissingRoleError(f"xie11 needs the role taxels or electrodes; "
-                               f"recording {recording.name!r} has neither")
+        raise RelatedFeatureError(f"xie11 needs the role taxels or electrodes; "
+                                  f"recording {recording.name!r} has neither")
     trace = _trace(recording, role)
     n = int(round(seconds * trace.fs))
     if n < 2 or trace.n < n:
@@ -734,10 +730,8 @@ def compute(name: str, recording: Recording) -> dict[str, float]:
 
     Raises
     ------
-    MissingRoleError
-        The recording lacks a role the set reads.
     RelatedFeatureError
-        An unknown set name, or data the set cannot use.
+        The recording lacks a role the set reads, an unknown set name, or data the set cannot use.
     """
     if name not in FEATURE_SETS:
         raise RelatedFeatureError(f"unknown feature set {name!r} (known: {', '.join(FEATURE_SETS)})")

@@ -25,7 +25,7 @@ from sklearn.base import BaseEstimator
 from sklearn.feature_selection import SelectorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from taxonomy.errors import ParameterError, TexplorerError
+from taxonomy.errors import ParameterError
 
 SF_TOLERANCE = 1e-9
 """Largest absolute error allowed for a studentized-range p-value taken from the interpolation table."""
@@ -37,10 +37,6 @@ _SF_FIRST_STEP = 0.01
 """First node spacing of the interpolation table; halved until the table meets the tolerance."""
 
 _SF_REFINEMENTS = 4
-
-
-class SelectionError(TexplorerError, ValueError):
-    """Input that feature quality or selection cannot work on; the message names what is wrong."""
 
 
 # -- feature quality ---------------------------------------------------------------------------------
@@ -114,12 +110,12 @@ def _check_input(X: Any, y: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     try:
         X = np.asarray(X, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise SelectionError(f"X must be a numeric matrix ({exc})") from None
+        raise ParameterError(f"X must be a numeric matrix ({exc})") from None
     if X.ndim != 2:
-        raise SelectionError(f"X must be 2-D (rows x features), got shape {X.shape}")
+        raise ParameterError(f"X must be 2-D (rows x features), got shape {X.shape}")
     y = np.asarray(y)
     if y.ndim != 1 or y.shape[0] != X.shape[0]:
-        raise SelectionError(f"y must hold one class per row of X: y has shape {y.shape}, "
+        raise ParameterError(f"y must hold one class per row of X: y has shape {y.shape}, "
                              f"X has {X.shape[0]} rows")
     _, codes, counts = np.unique(y, return_inverse=True, return_counts=True)
     return X, codes.ravel(), counts

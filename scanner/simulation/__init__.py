@@ -45,14 +45,13 @@ storage; :mod:`~scanner.simulation.recordings` simulates the related methods' se
 
 from scanner.simulation.accelerometer import finger_tap, tool_tap
 from scanner.simulation.camera import PHOTO_FOV_MM, photos
-from scanner.simulation.derived import NotSimulatedError, is_hand_set, material_for_label, material_named
+from scanner.simulation.derived import is_hand_set, material_for_label, material_named
 from scanner.simulation.flex import fold
 from scanner.simulation.force import friction_slide, press
 from scanner.simulation.materials import (
     MAGNETIC_TYPES,
     TEXTURES,
     Material,
-    MaterialLibraryError,
     SimulationError,
     UnknownMaterialError,
     load_materials,
@@ -67,7 +66,7 @@ from scanner.simulation.variability import OperatorDraw, draw_operator, sample_o
 
 __all__ = [
     "FINGER", "MAGNETIC_TYPES", "PHOTO_FOV_MM", "SIMULATOR", "STEPS", "STEP_FUNCTIONS", "TEXTURES", "TOOL",
-    "Material", "MaterialLibraryError", "NotSimulatedError", "OperatorDraw", "SimulationError", "Tip",
+    "Material", "SimulationError", "SimulationError", "OperatorDraw", "SimulationError", "Tip",
     "UnknownMaterialError", "contact_frequency_hz", "draw_operator", "finger_slide", "finger_tap", "fold",
     "friction_slide", "is_hand_set", "material_for_label", "material_named",
     "load_materials", "photos", "press", "sample_id_of", "sample_of", "scan_seed", "static_touch",

@@ -61,10 +61,6 @@ _LIMITS = {
 """The library's ranges (:mod:`~scanner.simulation.materials`) of the values derivation changes."""
 
 
-class NotSimulatedError(SimulationError):
-    """A label the simulated scanner cannot simulate; the message says what the operator can do."""
-
-
 @lru_cache(maxsize=1)
 def _classes() -> Mapping[str, Any]:
     with CLASSES_FILE.open("rb") as handle:
@@ -103,14 +99,14 @@ def material_for_label(label: str | Label) -> Material:
 
     Raises
     ------
-    NotSimulatedError
+    SimulationError
         The label is malformed, or its major class and sub-class have no prototype (a class a lab added
         to its taxonomy); the message says what to do instead.
     """
     try:
         parsed = Label.parse(label)
     except LabelError as exc:
-        raise NotSimulatedError(f"{exc}; pick the material with the search to get a valid label") from None
+        raise SimulationError(f"{exc}; pick the material with the search to get a valid label") from None
     return hand_set(parsed) or derived_material(parsed)
 
 
@@ -121,7 +117,7 @@ def material_named(name: Material | str) -> Material:
     ------
     UnknownMaterialError
         ``name`` is neither; the message says both forms.
-    NotSimulatedError
+    SimulationError
         A label the simulator cannot simulate (:func:`material_for_label`).
     """
     if isinstance(name, Material):
@@ -142,9 +138,9 @@ def derived_material(label: Label) -> Material:
     c, csub, cm, p, x = label.codes()
     classes = _classes()
     if csub not in classes:
-        raise NotSimulatedError(
-            f"the simulated scanner has no physics for {csub} ({_name(csub)}), so it cannot simulate {label}: "
-            "choose a material of the classes C1-C8 of the shipped taxonomy, or connect the real scanner")
+        raise SimulationError(
+          f"the simulated scanner has no physics for {csub} ({_name(csub)}), so it cannot simulate {label}: "
+          "choose a material of the classes C1-C8 of the shipped taxonomy, or connect the real scanner")
     table = _base_table(cm, classes[csub])
     for code in (p, x):
         _apply(table, classes.get(code, {}))

@@ -23,8 +23,6 @@ class SimulationError(TexplorerError, ValueError):
     """Arguments the simulator cannot use; the message says which."""
 
 
-class MaterialLibraryError(SimulationError):
-    """The material library file is malformed; the message names the file, the material and the field."""
 @dataclass(frozen=True)
 class Roughness:
     """Surface profile: micro-roughness spectrum and macro-structure (bump or pit train)."""
@@ -133,9 +131,9 @@ class _Where:
     def __init__(self, path: Path, slug: str, section: str = "") -> None:
         self.path, self.slug, self.section = path, slug, section
 
-    def fail(self, key: str, problem: str) -> MaterialLibraryError:
+    def fail(self, key: str, problem: str) -> SimulationError:
         field_name = f"{self.section}.{key}" if self.section else key
-        return MaterialLibraryError(f"{self.path.name}: material {self.slug!r}: {field_name} {problem}")
+        return SimulationError(f"{self.path.name}: material {self.slug!r}: {field_name} {problem}")
 
 
 def _take(table: Mapping[str, Any], key: str, where: _Where) -> Any:
@@ -297,7 +295,7 @@ _TOP_LEVEL = ("label", "name", "density_g_cm3", "sample_volume_cm3", "conductive
 def _material(slug: str, table: Any, path: Path) -> Material:
     where = _Where(path, slug)
     if not isinstance(table, dict):
-        raise MaterialLibraryError(f"{path.name}: material {slug!r} must be a table")
+        raise SimulationError(f"{path.name}: material {slug!r} must be a table")
     _no_extra(table, (*_TOP_LEVEL, *_SECTIONS), where)
     label = _text(table, "label", where)
     if not _is_label(label):
@@ -324,7 +322,7 @@ def _is_label(text: str) -> bool:
 def load_materials(path: str | Path | None = None) -> dict[str, Material]:
     """Read and validate a material library (default: the shipped ``scanner/data/materials.toml``).
 
-    Returns materials keyed by slug, in file order. Any problem raises :class:`MaterialLibraryError` with
+    Returns materials keyed by slug, in file order. Any problem raises :class:`SimulationError` with
     one line naming the file, the material and the field (missing, wrong type, out of range, unknown
     magnetic type or texture, malformed label, unknown field).
     """
@@ -343,11 +341,11 @@ def _read_library(path: Path) -> dict[str, Material]:
         with path.open("rb") as handle:
             document = tomllib.load(handle)
     except FileNotFoundError:
-        raise MaterialLibraryError(f"{path}: material library not found") from None
+        raise SimulationError(f"{path}: material library not found") from None
     except tomllib.TOMLDecodeError as exc:
-        raise MaterialLibraryError(f"{path.name}: not valid TOML ({exc})") from None
+        raise SimulationError(f"{path.name}: not valid TOML ({exc})") from None
     if not document:
-        raise MaterialLibraryError(f"{path.name}: the library has no materials")
+        raise SimulationError(f"{path.name}: the library has no materials")
     return {slug: _material(slug, table, path) for slug, table in document.items()}
 
 

@@ -136,3 +136,47 @@ def test_the_check_sees_a_bare_raise(tmp_path):
                       "            raise ValueError(x)\n        raise builtins.TypeError\n\n\n"
                       "def g():\n    raise ParameterError('bad')\n")
     assert built_in_raises(sample, tmp_path) == [("sample.py", "A.f", "ValueError"), ("sample.py", "A.f", "TypeError")]
+
+
+KEPT_BASES = ("TexplorerError", "ParameterError")
+"""The two errors every caller may catch; any other project error is kept only where someone catches it by
+name, as it tells them something those two do not."""
+
+
+def caught_names(path: Path) -> set[str]:
+    """The exception names ``path`` catches: in ``except`` clauses, ``pytest.raises`` and
+    ``isinstance(..., X)`` checks (a plain name, the last part of a dotted one, or any of a tuple)."""
+    found: set[str] = set()
+
+    def names(node: ast.AST | None) -> None:
+        if isinstance(node, ast.Tuple):
+            for item in node.elts:
+                names(item)
+        elif isinstance(node, ast.Name):
+            found.add(node.id)
+        elif isinstance(node, ast.Attribute):
+            found.add(node.attr)
+
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ExceptHandler):
+            names(node.type)
+        elif isinstance(node, ast.Call) and node.args and ast.unparse(node.func) in ("pytest.raises", "raises"):
+            names(node.args[0])
+        elif isinstance(node, ast.Call) and ast.unparse(node.func) == "isinstance" and len(node.args) == 2:
+            names(node.args[1])
+    return found
+
+
+def test_every_project_error_beyond_the_two_bases_is_caught_by_name_somewhere():
+    files = sorted(path for folder in (*PACKAGES, "tests") for path in (ROOT / folder).rglob("*.py"))
+    caught = set().union(*(caught_names(path) for path in files))
+    uncaught = sorted({error.__qualname__ for error in defined_exceptions()} - caught - set(KEPT_BASES))
+    assert uncaught == []
+
+
+def test_the_catch_check_sees_except_raises_and_isinstance(tmp_path):
+    sample = tmp_path / "sample.py"
+    sample.write_text("try:\n    f()\nexcept (storage.BundleError, OSError):\n    pass\n"
+                      "with pytest.raises(ModelError, match='x'):\n    g()\n"
+                      "if isinstance(exc, (UsageError, errors.LabelError)):\n    pass\n")
+    assert caught_names(sample) == {"BundleError", "OSError", "ModelError", "UsageError", "LabelError"}

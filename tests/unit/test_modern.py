@@ -18,7 +18,7 @@ rocket = pytest.importorskip("sktime.transformations.rocket", reason="the modern
 
 from features import extract, feature_sets, modern  # noqa: E402
 from features.extraction import code_version  # noqa: E402
-from features.random_kernels import RandomKernelError, RandomKernels, signal_layout  # noqa: E402
+from features.random_kernels import ParameterError, RandomKernels, signal_layout  # noqa: E402
 from features.recordings import band_limited, feature_space  # noqa: E402
 from features.registry import REGISTRY, ScanRegistry  # noqa: E402
 from scanner.preprocess import dft321, slide_signal  # noqa: E402
@@ -179,7 +179,7 @@ def test_length_rule_cuts_evenly_spread_windows_and_pads_short_signals():
     assert short.shape == (3, 100) and (short[:, 40:] == 0).all()
     whole = modern.instances(x, 1000.0, modern.LengthRule(64, whole=True))
     assert whole.shape == (1, 64)
-    with pytest.raises(modern.ModernFeatureError, match="length >= 16"):
+    with pytest.raises(modern.ParameterError, match="length >= 16"):
         modern.LengthRule(8)
 
 
@@ -231,7 +231,7 @@ def test_a_fused_set_is_selected_family_by_family():
 
 
 def test_signal_layout_refuses_a_partial_signal():
-    with pytest.raises(RandomKernelError, match="expected 3000 consecutive columns"):
+    with pytest.raises(ParameterError, match="expected 3000 consecutive columns"):
         signal_layout([f"signal.v_ts.{k:05d}" for k in range(2999)])
 
 

@@ -80,5 +80,5 @@ def test_a_set_space_keeps_labels_groups_levels_and_the_split(tmp_path):
         space.y("coarse")
     back = FeatureSpace.from_csv(space.to_csv(tmp_path / "f.csv"))
     assert (back.levels, back.split, back.label_level) == (space.levels, space.split, space.label_level)
-    with pytest.raises(recordings.RecordingFeatureError, match="has no group 'trial'"):
+    with pytest.raises(recordings.ParameterError, match="has no group 'trial'"):
         recordings.fold_group(rs[0], "trial")

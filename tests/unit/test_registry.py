@@ -14,7 +14,7 @@ from conftest import make_scan
 from features import NAMES, REGISTRY, Family, FeatureSpace, code_version, extract, extract_many, registry
 from features.extraction import source_of
 from features.recordings import describe_families, families, feature_space
-from features.registry import ROLE_REGISTRY, RegistryError, RoleFamily
+from features.registry import ROLE_REGISTRY, ParameterError, RoleFamily
 from gui.browser import group_features
 from scanner import cli
 from scanner.acquisition.session import STEP_TITLES
@@ -116,11 +116,11 @@ def test_a_toy_family_changes_the_cache_key_and_is_not_served_stale(toy):
 
 
 def test_a_family_is_refused_when_it_clashes():
-    with pytest.raises(RegistryError, match="already registered"):
+    with pytest.raises(ParameterError, match="already registered"):
         REGISTRY.register(Family("tactum", "again", ("tactum.matx",), toy_values))
-    with pytest.raises(RegistryError, match="must start with 'toy.'"):
+    with pytest.raises(ParameterError, match="must start with 'toy.'"):
         Family("toy", "toy", ("peak",), toy_values)
-    with pytest.raises(RegistryError, match="no feature family 'smell'"):
+    with pytest.raises(ParameterError, match="no feature family 'smell'"):
         REGISTRY.unregister("smell")
 
 
@@ -171,15 +171,15 @@ def test_the_roles_the_families_need_come_from_the_registry(toy_role):
 
 
 def test_a_role_family_is_refused_when_it_clashes():
-    with pytest.raises(RegistryError, match="'<modality>.photo.<feature>'"):
+    with pytest.raises(ParameterError, match="'<modality>.photo.<feature>'"):
         RoleFamily("toy", "photo", ("image.disp.lbp_0",), temperature_values)
-    with pytest.raises(RegistryError, match="already registered: audio.audio.zcr"):
+    with pytest.raises(ParameterError, match="already registered: audio.audio.zcr"):
         ROLE_REGISTRY.register(RoleFamily("sound again", "audio", ("audio.audio.zcr",), temperature_values))
 
 
 def test_unregistering_a_role_family_frees_its_columns(toy_role):
     twin = RoleFamily("temperature twin", "temperature", TOY_TEMPERATURE, temperature_values)
-    with pytest.raises(RegistryError, match="already registered: other.temperature.mean"):
+    with pytest.raises(ParameterError, match="already registered: other.temperature.mean"):
         ROLE_REGISTRY.register(twin)
     ROLE_REGISTRY.unregister(toy_role.name)
     try:
@@ -279,9 +279,9 @@ def test_every_paper_column_names_its_steps_and_only_steps_of_the_procedure():
 def test_a_family_without_steps_needs_the_whole_scan_and_a_stray_key_is_refused():
     plain = Family("plain", "plain", ("plain.a",), lambda prepared: {"plain.a": 0.0})
     assert plain.steps == {}
-    with pytest.raises(RegistryError, match="steps given for columns it does not have: plain.b"):
+    with pytest.raises(ParameterError, match="steps given for columns it does not have: plain.b"):
         Family("plain", "plain", ("plain.a",), lambda prepared: {"plain.a": 0.0}, steps={"plain.b": ("press",)})
-    with pytest.raises(RegistryError, match="no step named for plain.a"):
+    with pytest.raises(ParameterError, match="no step named for plain.a"):
         Family("plain", "plain", ("plain.a",), lambda prepared: {"plain.a": 0.0}, steps={"plain.a": ()})
 
 

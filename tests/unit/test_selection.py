@@ -13,12 +13,12 @@ from sklearn.utils.estimator_checks import parametrize_with_checks
 from features.selection import (
     FQSelector,
     PartwiseFQSelector,
-    SelectionError,
     accept_uncorrelated,
     feature_quality,
     select_features,
 )
 from features.space import FeatureSpace
+from taxonomy.errors import ParameterError
 
 
 def loop_ranks(values: list[float]) -> list[float]:
@@ -121,7 +121,7 @@ def test_unusable_columns_and_single_class_give_zero():
     ([["x"], ["y"]], ["a", "b"], "numeric"),
 ])
 def test_bad_input_is_named(X, y, message):
-    with pytest.raises(SelectionError, match=message):
+    with pytest.raises(ParameterError, match=message):
         feature_quality(X, y)
 
 

@@ -165,7 +165,7 @@ def test_a_valid_library_file_loads(tmp_path):
 def test_library_errors_name_file_material_and_field(tmp_path, old, new, message):
     assert old in VALID
     path = write_library(tmp_path, VALID.replace(old, new, 1))
-    with pytest.raises(sim.MaterialLibraryError) as caught:
+    with pytest.raises(sim.SimulationError) as caught:
         sim.load_materials(path)
     text = str(caught.value)
     assert "\n" not in text
@@ -174,9 +174,9 @@ def test_library_errors_name_file_material_and_field(tmp_path, old, new, message
 
 
 def test_library_file_errors(tmp_path):
-    with pytest.raises(sim.MaterialLibraryError, match="not valid TOML"):
+    with pytest.raises(sim.SimulationError, match="not valid TOML"):
         sim.load_materials(write_library(tmp_path, "[broken"))
-    with pytest.raises(sim.MaterialLibraryError, match="material library not found"):
+    with pytest.raises(sim.SimulationError, match="material library not found"):
         sim.load_materials(tmp_path / "missing.toml")
     with pytest.raises(sim.UnknownMaterialError, match="unknown material 'unobtainium'"):
         sim.synthetic_scan("unobtainium", seed=0)

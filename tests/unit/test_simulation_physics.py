@@ -61,7 +61,7 @@ def test_derived_parameters_follow_the_codes():
 
 
 def test_a_label_of_a_class_without_physics_says_what_to_do():
-    with pytest.raises(sim.NotSimulatedError, match="no physics for C9S1 .* choose a material of the classes"):
+    with pytest.raises(sim.SimulationError, match="no physics for C9S1 .* choose a material of the classes"):
         material_for_label("C9S1M1P1X1")
     with pytest.raises(sim.UnknownMaterialError, match="give a full taxonomy label such as C1S1M4P1X1"):
         sim.synthetic_scan("oak", seed=0)
