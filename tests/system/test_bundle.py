@@ -470,7 +470,7 @@ def test_an_import_failing_at_the_catalog_or_a_move_leaves_the_database_byte_ide
         real_replace(source, target_path)
 
     monkeypatch.setattr(database.Database, "_insert", insert)
-    monkeypatch.setattr(database.os, "replace", replace)
+    monkeypatch.setattr(os, "replace", replace)
     with pytest.raises(DatabaseError if fail == "insert" else OSError):
         import_bundle(target, bundle)
     assert calls.count("move") == (at if fail == "move" else 0)  # with a refused insert nothing moved
