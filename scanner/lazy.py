@@ -4,8 +4,10 @@ more than numpy: a command loads OpenCV, numba or scipy's signal tools only if i
 - :func:`library` stands for a library module at a module's top (``cv2 = library("cv2")``) and imports it
   at the first attribute read (``cv2.imdecode``).
 - :func:`jit` is ``numba.njit(**options)`` applied when a compiled function is first called: numba and
-  LLVM load then, and every kernel that :func:`jit` holds is compiled at once, so that one kernel calling
-  another (by name, or as ``module.kernel``) finds numba's dispatcher, as with ``numba.njit`` at import.
+  LLVM load then, and that kernel compiles (or loads from numba's cache) with the kernels it calls. numba
+  types a stand-in it meets in a kernel's globals as the stand-in's own dispatcher, so a kernel calling
+  another (by name, or as ``module.kernel``) compiles as with ``numba.njit`` at import, and no module's
+  globals are rewritten.
 
 Only third-party libraries are deferred: the project's own modules import each other at their top
 (docs/extending.md), where the layer contracts see them.
@@ -82,38 +84,50 @@ def preload() -> None:
     themselves are compiled, or loaded from numba's cache, in each worker at their first call)."""
     for name in sorted(_waiting):
         importlib.import_module(name)
-    if _pending:
-        importlib.import_module("numba")
+    if _kernels:
+        _numba()
 
 
 class _Kernel:
-    """A function :func:`jit` compiles at the first call of any deferred kernel."""
+    """A function :func:`jit` hands to numba when it is first called, or first compiled into another kernel.
+
+    numba types a kernel it finds in a module's globals through :func:`_typeof_kernel` as its own dispatcher,
+    so a kernel calling another by name (or as ``module.kernel``, inlined or not) compiles as with
+    ``numba.njit`` at import, and the module's globals keep the stand-in."""
 
     def __init__(self, function: Callable[..., Any], options: dict[str, Any]) -> None:
         functools.update_wrapper(self, function)
         self.py_func = function
         self.options = options
-        self.dispatcher: Any = None
+        self._dispatcher: Any = None
+
+    @property
+    def dispatcher(self) -> Any:
+        """numba's dispatcher of this kernel (``numba.njit(**options)(py_func)``), made at its first use;
+        numba compiles it, or loads it from its cache (``cache=True``), at its first call."""
+        if self._dispatcher is None:
+            with _lock:
+                if self._dispatcher is None:
+                    numba = _numba()
+                    self._dispatcher = numba.njit(**self.options)(self.py_func)
+        return self._dispatcher
 
     def __call__(self, *args: Any, **kwargs: Any) -> Any:
-        if self.dispatcher is None:
-            _compile_pending()
         return self.dispatcher(*args, **kwargs)
 
     def __getattr__(self, name: str) -> Any:  # numba's own attributes (signatures, inspect_types, ...)
-        if name.startswith("__") or name == "dispatcher":
+        if name.startswith("__") or name in ("dispatcher", "_dispatcher"):
             raise AttributeError(name)
-        if self.dispatcher is None:
-            _compile_pending()
         return getattr(self.dispatcher, name)
 
 
-_pending: list[_Kernel] = []
-_lock = threading.Lock()
+_kernels: list[_Kernel] = []
+"""Every kernel :func:`jit` made (for :func:`preload`)."""
+_lock = threading.RLock()
 
 
 def jit(**options: Any) -> Callable[[F], F]:
-    """``numba.njit(**options)``, applied at the first call of a deferred kernel instead of at import.
+    """``numba.njit(**options)``, applied at the first call of a kernel instead of at import.
 
     Parameters
     ----------
@@ -128,31 +142,25 @@ def jit(**options: Any) -> Callable[[F], F]:
     def decorate(function: F) -> F:
         kernel = _Kernel(function, options)
         with _lock:
-            _pending.append(kernel)
+            _kernels.append(kernel)
         return kernel  # type: ignore[return-value]
     return decorate
 
 
-def _compile_pending() -> None:
-    """Make numba's dispatcher of every deferred kernel and put it in place of the stand-in, in the module
-    that defines it and in every project module that imported it, before any of them compiles: numba reads
-    a kernel's callees from its module's globals when it compiles it."""
+def _numba() -> types.ModuleType:
+    """numba, imported at the first kernel's first use, with the stand-ins typed as their dispatchers."""
     import numba
+    from numba.core import types as numba_types
+    from numba.extending import typeof_impl
 
-    with _lock:
-        kernels = list(_pending)
-        _pending.clear()
-        for kernel in kernels:
-            kernel.dispatcher = numba.njit(**kernel.options)(kernel.py_func)
-        replaced = {id(kernel): kernel.dispatcher for kernel in kernels}
-        defining = {kernel.py_func.__module__ for kernel in kernels}
-        for name, module in list(sys.modules.items()):
-            if module is None or (name.split(".")[0] not in PROJECT_PACKAGES and name not in defining):
-                continue
-            namespace = vars(module)
-            for key, value in list(namespace.items()):
-                if id(value) in replaced and isinstance(value, _Kernel):
-                    namespace[key] = replaced[id(value)]
+    if not _typed:
+        typeof_impl.register(_Kernel)(lambda kernel, context: numba_types.Dispatcher(kernel.dispatcher))
+        _typed.append(True)
+    return numba
+
+
+_typed: list[bool] = []
+"""Whether numba was told how to type a kernel's stand-in (once per process)."""
 
 
 def optional(name: str, extra: str, purpose: str) -> types.ModuleType:
