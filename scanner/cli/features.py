@@ -205,7 +205,6 @@ def add_set_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--verbose", action="store_true", help="sets: print every extraction warning")
 
 
-
 def register(commands: argparse._SubParsersAction) -> None:
     count = len(REGISTRY.names)
     features = commands.add_parser("features", help="extract the features of every scan into a feature table",

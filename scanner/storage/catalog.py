@@ -63,7 +63,7 @@ _CORRUPTION = ("malformed", "not a database", "encrypted", "corrupt")
 _REBUILD_HINT = "run 'texplorer db rebuild' to recreate it from the files"
 
 
-_SCHEMA = """
+SCHEMA = """
 CREATE TABLE IF NOT EXISTS info (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS materials (label TEXT PRIMARY KEY);
 CREATE TABLE IF NOT EXISTS samples (
@@ -157,7 +157,7 @@ def _catalog_error(path: Path, exc: sqlite3.Error) -> DatabaseError:
     return DatabaseError(f"{path}: {text}")
 
 
-def _catalog(method):
+def catalog_call(method):
     """Turn SQLite's errors in a :class:`Database` method into one-line :class:`DatabaseError`s."""
 
     @functools.wraps(method)
@@ -211,10 +211,10 @@ class Catalog:
         with contextlib.suppress(DatabaseError):  # a broken catalog still allows rebuild()
             self._create_schema()
 
-    @_catalog
+    @catalog_call
     def _create_schema(self) -> None:
         conn = self._conn
-        conn.executescript(_SCHEMA)
+        conn.executescript(SCHEMA)
         if "steps" not in {row[1] for row in conn.execute("PRAGMA table_info(scans)")}:
             # A catalog of schema 1: every scan it knows is a full scan.
             conn.execute("ALTER TABLE scans ADD COLUMN steps TEXT NOT NULL DEFAULT ''")
@@ -297,7 +297,7 @@ class Catalog:
         """The shipped taxonomy merged with ``$TEXPLORER_TAXONOMY`` and this database's extension, if any."""
         return load_taxonomy(self.taxonomy_path if self.taxonomy_path.is_file() else None)
 
-    @_catalog
+    @catalog_call
     def records(self, *, label: str | None = None, sample: str | None = None, session: str | None = None,
                 operator: str | None = None) -> list[ScanRecord]:
         """Catalog rows, optionally filtered; ``label`` may be a class prefix ("C6" = every stone, not C60) or
@@ -319,14 +319,14 @@ class Catalog:
         records = [_record(row) for row in rows]
         return records if materials is None else [r for r in records if material_code(r.label) in materials]
 
-    @_catalog
+    @catalog_call
     def record(self, scan_id: str) -> ScanRecord:
         row = self._conn.execute("SELECT * FROM scans WHERE scan_id = ?", (scan_id,)).fetchone()
         if row is None:
             raise DatabaseError(f"no scan {scan_id!r} in {self.root}")
         return _record(row)
 
-    @_catalog
+    @catalog_call
     def files(self, scan_id: str) -> list[FileEntry]:
         rows = self._conn.execute("SELECT path, role, sha256, size FROM files WHERE scan_id = ? ORDER BY path",
                                   (scan_id,))
@@ -341,7 +341,7 @@ class Catalog:
         for record in self.records() if records is None else records:
             yield load_scan(self.root / record.path, images=images)
 
-    @_catalog
+    @catalog_call
     def stored_scans(self, records: Iterable[ScanRecord]) -> list[StoredScan]:
         """A loader of each record's scan that carries the catalogued size and SHA-256 of its files, so a
         cluster worker loads exactly these bytes or none (:mod:`scanner.storage.stored`); here it is ``load_scan``.
@@ -359,11 +359,11 @@ class Catalog:
         return [StoredScan(self.root / record.path, catalogued.get(record.scan_id, {}), stats.get(record.scan_id, {}),
                            ledger) for record in records]
 
-    @_catalog
+    @catalog_call
     def __len__(self) -> int:
         return self._conn.execute("SELECT COUNT(*) FROM scans").fetchone()[0]
 
-    @_catalog
+    @catalog_call
     def summary(self) -> dict[str, int]:
         """Counts of materials, samples, sessions, scans and files."""
         return {table: self._conn.execute(f"SELECT COUNT(*) FROM {table}").fetchone()[0]
@@ -377,7 +377,7 @@ class Catalog:
         meta = scan.meta
         return self.root / SCANS / meta.label / check_sample_id(meta.sample_id) / f"{scan.scan_id}.mat"
 
-    @_catalog
+    @catalog_call
     def next_scan_index(self, sample_id: str) -> int:
         """The scan index a new scan of ``sample_id`` should get (1 for a new sample)."""
         row = self._conn.execute("SELECT MAX(scan_index) FROM scans WHERE sample_id = ?", (sample_id,)).fetchone()

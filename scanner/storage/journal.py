@@ -23,7 +23,7 @@ from scanner.storage.catalog import (
     Catalog,
     DatabaseError,
     FileEntry,
-    _catalog,
+    catalog_call,
     content_hash,
     file_roles,
 )
@@ -48,7 +48,7 @@ class _Intent:
 class FileJournal(Catalog):
     """Adding scans (one, or an imported batch whose files are already written) under the write journal."""
 
-    @_catalog
+    @catalog_call
     def add(self, scan: Scan) -> str:
         """Store a scan (files, then catalog rows in one transaction); returns its scan id.
 
@@ -70,7 +70,7 @@ class FileJournal(Catalog):
         self._end_intent(intent)
         return scan.scan_id
 
-    @_catalog
+    @catalog_call
     def add_written(self, staged: Sequence[tuple[ScanMeta, Mapping[str, Path]]]) -> list[str]:
         """Catalog scans whose files are already complete on this file system, all in one transaction.
 

@@ -14,7 +14,6 @@ from pathlib import Path
 
 from scanner.scan import Scan
 from scanner.storage.catalog import (
-    _SCHEMA,
     CATALOG,
     CATALOG_SCHEMA,
     MODELS,
@@ -22,10 +21,11 @@ from scanner.storage.catalog import (
     QUARANTINE,
     RECORDINGS,
     SCANS,
+    SCHEMA,
     STAGING_PREFIX,
     DatabaseError,
     FileEntry,
-    _catalog,
+    catalog_call,
     file_roles,
 )
 from scanner.storage.files import (
@@ -83,7 +83,7 @@ class Maintenance(FileJournal):
         """Every file under ``scans/``, relative to the root (including leftovers of interrupted writes)."""
         return sorted(self._relative(p) for p in (self.root / SCANS).rglob("*") if p.is_file())
 
-    @_catalog
+    @catalog_call
     def check(self, progress: Callable[[Iterable], Iterable] = iter) -> CheckReport:
         """Verify every catalogued file's SHA-256; report missing, changed and unknown files, and leftovers.
 
@@ -129,7 +129,7 @@ class Maintenance(FileJournal):
         return sorted(p for p in self.root.glob(f"{STAGING_PREFIX}.tmp-*")
                       if p.is_dir() and is_temp_file(p) and is_abandoned(p))
 
-    @_catalog
+    @catalog_call
     def repair(self) -> list[str]:
         """Remove the crash leftovers :meth:`check` lists, under the write lock (nothing in flight is
         touched), and finish or undo a recording set's replacement that a killed ingest left
@@ -148,7 +148,7 @@ class Maintenance(FileJournal):
             removed.append(relative)
         return sorted(set(removed))
 
-    @_catalog
+    @catalog_call
     def rebuild(self, progress: Callable[[Iterable], Iterable] = iter) -> RebuildReport:
         """Recreate the catalog from the ``.mat`` files alone; every good file is catalogued.
 
@@ -250,7 +250,7 @@ class Maintenance(FileJournal):
         temp = temp_path_for(self.catalog_path)
         conn = sqlite3.connect(temp, isolation_level=None)
         try:
-            conn.executescript(_SCHEMA)
+            conn.executescript(SCHEMA)
             conn.execute("INSERT INTO info VALUES ('catalog_schema', ?)", (str(CATALOG_SCHEMA),))
             conn.execute("PRAGMA foreign_keys=ON")
             conn.execute("BEGIN IMMEDIATE")

@@ -106,6 +106,7 @@ def predict_values(model: TrainedModel, values: dict[str, float], k: int, taxono
                           closest, explanation)
 
 
+# -- the operator's label against the prediction -----------------------------------------------------
 
 MODEL_LEVELS = ("coarse", "medium", "fine")
 """The levels of the taxonomy a model of scans predicts; a label's class at each is ``Label.at(level)``."""
