@@ -268,13 +268,17 @@ class StoredLoader(Protocol):
 
     path: Any
 
-    def __call__(self) -> Any: ...
+    def __call__(self) -> Any:
+        """The scan, loaded here from its files."""
 
-    def load_seen(self) -> Any: ...
+    def load_seen(self) -> Any:
+        """The scan from this machine's view of its path; ``NotOnThisMachine`` if it differs."""
 
-    def visible(self) -> bool: ...
+    def visible(self) -> bool:
+        """Whether this machine sees the scan's files as catalogued."""
 
-    def shipped(self) -> Callable[[], Any]: ...
+    def shipped(self) -> Callable[[], Any]:
+        """A loader that carries the files' bytes to a worker that cannot see them."""
 
 
 def _stored(source: Any) -> StoredLoader | None:

@@ -130,9 +130,11 @@ class _Bar(tqdm):
 class FeatureCache(Protocol):
     """Where feature vectors are kept between runs (``scanner.Database`` implements it)."""
 
-    def cached_features(self, content_hash: str, code_version: str) -> dict[str, float] | None: ...
+    def cached_features(self, content_hash: str, code_version: str) -> dict[str, float] | None:
+        """The values stored for this content and feature code, or None."""
 
-    def store_features(self, content_hash: str, code_version: str, values: dict[str, float]) -> None: ...
+    def store_features(self, content_hash: str, code_version: str, values: dict[str, float]) -> None:
+        """Keep ``values`` for this content and feature code."""
 
 
 @dataclass(frozen=True)
@@ -375,7 +377,7 @@ class WorkerPool:
                 self._executor = None
 
     def serving(self, key: Hashable) -> WorkerPool:
-        """This pool for work of ``key`` (:func:`extract_many`'s: the feature code's version, the column
+        """The pool for work of ``key`` (:func:`extract_many`'s: the feature code's version, the column
         names and the working directory). Workers forked for another key are ended first: they would run
         the code of before (a family registered since), and their rows would be stored under the new key."""
         if key is not ANY_WORK and key != self._key:
@@ -618,7 +620,7 @@ def job_workers(workers: int | None = None) -> Iterator[WorkerPool]:
 
 
 def _working_directory() -> str | None:
-    """This process's working directory, None where it was removed (its scans' relative paths are then
+    """The working directory of this process, None where it was removed (its scans' relative paths are then
     found nowhere, by kept workers or new ones)."""
     try:
         return os.getcwd()
@@ -684,8 +686,8 @@ def start_workers_from_a_server() -> None:
 def revive_worker_server() -> bool:
     """Start the worker server again if its socket was deleted (a ``/tmp`` cleaner removes a file it has not
     seen used for days): the server still runs but no worker can be started from it, and every pool would
-    fail. Stops the orphaned server and starts a new one at a new socket; True if it did. (A killed server
-    is restarted by multiprocessing itself.)"""
+    fail. Stops the orphaned server and starts a new one at a new socket; True if it did (a killed server
+    is restarted by multiprocessing itself)."""
     if _SERVER["context"] is None or _SERVER["context"].get_start_method() != "forkserver":
         return False
     from multiprocessing import forkserver, util  # noqa: PLC0415 (only where it exists)

@@ -73,7 +73,7 @@ def _glibc() -> ctypes.CDLL | None:
 
 
 def _set(libc: ctypes.CDLL, settings: dict[int, int]) -> bool:
-    """Apply every setting (a list, not a generator: one refused does not skip the others); all took?"""
+    """Apply every setting (a list, not a generator: one refused does not skip the others); whether all took."""
     return all([bool(libc.mallopt(parameter, value)) for parameter, value in settings.items()])
 
 

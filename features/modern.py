@@ -165,7 +165,7 @@ def scattering_octaves(length: int) -> int:
 
 @lru_cache(maxsize=8)
 def scattering_transform(length: int) -> object:
-    """kymatio's ``Scattering1D`` for instances of ``length`` samples (J by :func:`scattering_octaves`,
+    """The ``Scattering1D`` of kymatio for instances of ``length`` samples (J by :func:`scattering_octaves`,
     Q = :data:`SCATTERING_Q`, orders 0 to 2), built once per process."""
     require("scattering")
     return kymatio_1d.ScatteringNumPy1D(J=scattering_octaves(length), shape=length, Q=SCATTERING_Q)

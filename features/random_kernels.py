@@ -37,7 +37,7 @@ CHUNK_INSTANCES = 256
 
 
 def library(kind: str) -> type:
-    """sktime's class of ``kind`` (``minirocket``, ``multirocket``); an error naming the extra if missing."""
+    """The sktime class of ``kind`` (``minirocket``, ``multirocket``); an error naming the extra if missing."""
     if kind not in KINDS:
         raise ParameterError(f"unknown random-kernel transform {kind!r} (known: {', '.join(KINDS)})")
     try:

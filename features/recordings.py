@@ -110,6 +110,8 @@ class Windowing:
             raise ParameterError(f"combine must be one of {', '.join(COMBINE)}, got {self.combine!r}")
 
     def describe(self) -> str:
+        """The windowing in words, as the reports print it: ``whole recordings``, ``5 s windows, one row per
+        window``."""
         if self.seconds is None:
             return "whole recordings"
         rule = "one row per window" if self.combine == "rows" else f"the {self.combine} over the windows"
@@ -597,7 +599,7 @@ def recording_rows(recording: Recording, windowing: Windowing = Windowing(), bor
 def fold_group(recording: Recording, group_by: str | None = "auto") -> str:
     """The cross-validation group of a recording: its group ``group_by``; with ``auto`` the ``object``,
     else the ``photo`` its patch was cut from, else the recording itself; ``recording`` (or None): every
-    recording alone, with its windows. (``none``, every row alone, is :func:`feature_space`'s.)"""
+    recording alone, with its windows (``none``, every row alone, is :func:`feature_space`'s)."""
     if group_by is None or group_by in ("none", "recording"):
         return recording.name
     if group_by == "auto":

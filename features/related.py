@@ -221,11 +221,13 @@ class XieFeatures(TransformerMixin, BaseEstimator):
     """
 
     def fit(self, X: np.ndarray, y: np.ndarray | None = None) -> XieFeatures:
+        """Learn the standardisation of the sequence vectors ``X`` (one row per recording) on these rows."""
         X = validate_data(self, X)
         self.scaler_ = StandardScaler().fit(X)
         return self
 
     def transform(self, X: np.ndarray) -> np.ndarray:
+        """The 11 Xie features of every row of ``X``, standardised as fitted."""
         check_is_fitted(self, "scaler_")
         standard = self.scaler_.transform(validate_data(self, X, reset=False))
         return np.array([xie11_from_vector(row) for row in standard]).reshape(len(standard), len(XIE_NAMES))
@@ -471,7 +473,7 @@ def _exponential(t: np.ndarray, final: float, step: float, tau: float) -> np.nda
 
 
 def time_constant(x: np.ndarray, fs: float) -> float:
-    """tau of the least-squares fit ``x(t) = a + b exp(-t / tau)``, t = 0 at the first sample (s).
+    """The time constant tau of the least-squares fit ``x(t) = a + b exp(-t / tau)``, t = 0 at the first sample (s).
 
     Start ``(x[-1], x[0] - x[-1], duration / 3)``. NaN for a constant signal, a failed fit, or a tau that is
     not finite and positive.

@@ -398,6 +398,7 @@ class KeepAll(SelectorMixin, BaseEstimator):
     Spearman filter. ``selected_`` lists every column, as :class:`FQSelector`'s does its choice."""
 
     def fit(self, X: Any, y: Any = None) -> KeepAll:
+        """Keep every column of ``X`` (NaN allowed, as the other selectors)."""
         X = validate_data(self, X, ensure_all_finite="allow-nan", dtype=np.float64)
         self.selected_ = np.arange(X.shape[1])
         return self

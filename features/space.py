@@ -340,6 +340,7 @@ class FeatureSpace:
 
     @classmethod
     def from_mat(cls, path: str | os.PathLike[str]) -> FeatureSpace:
+        """Read a ``.mat`` file written by :meth:`to_mat`; errors name the file and the variable."""
         path = Path(path)
         try:
             data = scipy.io.loadmat(path, simplify_cells=True)

@@ -131,7 +131,9 @@ class TemperatureScaledClassifier(ClassifierMixin, BaseEstimator):
         return self
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        """The classifier's probabilities, tempered: ``softmax(beta * logits)``."""
         return softmax(self.beta_ * logits(self.estimator_, X), axis=1)
 
     def predict(self, X: np.ndarray) -> np.ndarray:
+        """The classifier's own predictions (a temperature changes no ranking)."""
         return self.estimator_.predict(X)

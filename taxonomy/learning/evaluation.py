@@ -160,6 +160,7 @@ def make_pipeline(classifier: str | BaseEstimator = "rf", n_features: int | None
 
 
 def classifier_name(classifier: str | BaseEstimator) -> str:
+    """A classifier's name as the tables print it: its key, or its class name."""
     return classifier if isinstance(classifier, str) else type(classifier).__name__
 
 

@@ -79,6 +79,7 @@ def pooled_macro_f1(y_true: Sequence[str], y_pred: Sequence[str]) -> float:
 
 
 def accuracy(y_true: Sequence[str], y_pred: Sequence[str]) -> float:
+    """The share of rows whose prediction is their class."""
     return float(np.mean(np.asarray(y_true) == np.asarray(y_pred)))
 
 

@@ -642,6 +642,7 @@ class Verdict:
 
     @property
     def unknown(self) -> bool:
+        """Whether the rejection score is above the model's threshold: an unknown material."""
         return bool(self.score > self.threshold)
 
 

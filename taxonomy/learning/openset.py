@@ -161,6 +161,7 @@ class Scales:
     term_sd: np.ndarray
 
     def group_z(self, log_distances: np.ndarray) -> np.ndarray:
+        """Log distances per feature group standardised by the known scans' mean and spread."""
         return (log_distances - self.group_mean) / self.group_sd
 
     def combine(self, terms: np.ndarray) -> np.ndarray:
@@ -200,6 +201,7 @@ class RejectionRule:
     scales: Scales | None = None
 
     def to_dict(self) -> dict[str, object]:
+        """The rule as plain values and arrays, as a model file stores it."""
         stored: dict[str, object] = {
             "means": np.asarray(self.means, dtype=np.float64),
             "precision": np.asarray(self.precision, dtype=np.float64),

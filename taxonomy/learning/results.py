@@ -127,10 +127,11 @@ class Result:
     folds kept together: ``group_by``, the sample by default) and ``probability`` (calibrated out-of-fold
     class probabilities, columns in the order of ``classes``; None when not calibrated). ``voted``: each row
     is a recording scored by the vote of its windows (:func:`taxonomy.learning.evaluation.vote`).
-``seconds``: the wall time of fitting and predicting over all splits (the shared transform, scaling and
-selection, and this classifier). ``unconverged``: ``(n, m)``, n of the classifier's m fits (calibration's
-inner fits included) stopped at the paper's L-BFGS iteration limit before converging; counted for the paper's
-MLP only, ``(0, 0)`` for every other classifier (:func:`taxonomy.learning.evaluation.iteration_limit_stops`).
+    ``seconds``: the wall time of fitting and predicting over all splits (the shared transform, scaling and
+    selection, and this classifier). ``unconverged``: ``(n, m)``, n of the classifier's m fits (calibration's
+    inner fits included) stopped at the paper's L-BFGS iteration limit before converging; counted for the
+    paper's MLP only, ``(0, 0)`` for every other classifier
+    (:func:`taxonomy.learning.evaluation.iteration_limit_stops`).
 
     An open-set evaluation's own (:func:`taxonomy.learning.evaluation.evaluate_open_set`): the arrays above
     are per test *instance* (a scan is tested once as an unknown, in the fold that holds out its class,
@@ -190,6 +191,7 @@ MLP only, ``(0, 0)`` for every other classifier (:func:`taxonomy.learning.evalua
 
     @property
     def accuracy_mean(self) -> float:
+        """Mean accuracy over the folds."""
         return float(np.mean(self.accuracy))
 
     @property
@@ -199,10 +201,12 @@ MLP only, ``(0, 0)`` for every other classifier (:func:`taxonomy.learning.evalua
 
     @property
     def f1_mean(self) -> float:
+        """Mean macro F1 over the folds."""
         return float(np.mean(self.f1))
 
     @property
     def f1_std(self) -> float:
+        """Spread of the macro F1 over the folds."""
         return _split_std(self.f1)
 
     @property
@@ -269,10 +273,12 @@ MLP only, ``(0, 0)`` for every other classifier (:func:`taxonomy.learning.evalua
 
     @property
     def accuracy_ci(self) -> tuple[float, float]:
+        """The accuracy's confidence interval."""
         return self.intervals["accuracy"]
 
     @property
     def f1_ci(self) -> tuple[float, float]:
+        """The macro F1's confidence interval."""
         return self.intervals["f1"]
 
     @functools.cached_property
@@ -310,6 +316,7 @@ MLP only, ``(0, 0)`` for every other classifier (:func:`taxonomy.learning.evalua
 
     @property
     def open_set(self) -> bool:
+        """Whether the result holds the open-set figures (known accuracy, scores, rejections)."""
         return self.known is not None and self.open_score is not None and self.rejected is not None
 
     @property

@@ -86,6 +86,7 @@ def training_fingerprint(rows: Iterable[tuple[str, str]], feature_code_version: 
 
 
 def models_folder(db_root: str | os.PathLike[str]) -> Path:
+    """The folder of a database's model files."""
     return Path(db_root) / MODELS
 
 
@@ -158,6 +159,7 @@ def current_version(db_root: str | os.PathLike[str]) -> ModelVersion | None:
 
 
 def version_file(db_root: str | os.PathLike[str], version: ModelVersion) -> Path:
+    """The model file of ``version`` in the database at ``db_root``."""
     return models_folder(db_root) / version.file
 
 
