@@ -108,7 +108,8 @@ def main() -> None:
         from scanner.storage.database import Database
         from scanner.storage.stored import RACY_SECONDS
 
-        scan = Database(modelled, create=False).records()[0].scan_id
+        with Database(modelled, create=False) as db_modelled:
+            scan = db_modelled.records()[0].scan_id
         commands = {
             REFERENCE: [sys.executable, "-c", "import numpy"],
             LEARNING: [sys.executable, "-c", "import sklearn.ensemble, scipy.stats"],

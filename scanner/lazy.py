@@ -147,20 +147,21 @@ def jit(**options: Any) -> Callable[[F], F]:
     return decorate
 
 
+@functools.cache
 def _numba() -> types.ModuleType:
-    """numba, imported at the first kernel's first use, with the stand-ins typed as their dispatchers."""
+    """numba, imported at the first kernel's first use, told once to type a stand-in as its dispatcher."""
     import numba
-    from numba.core import types as numba_types
     from numba.extending import typeof_impl
 
-    if not _typed:
-        typeof_impl.register(_Kernel)(lambda kernel, context: numba_types.Dispatcher(kernel.dispatcher))
-        _typed.append(True)
+    typeof_impl.register(_Kernel)(_typeof_kernel)
     return numba
 
 
-_typed: list[bool] = []
-"""Whether numba was told how to type a kernel's stand-in (once per process)."""
+def _typeof_kernel(kernel: _Kernel, context: Any) -> Any:
+    """numba's type of a kernel's stand-in met in compiled code: the type of its own dispatcher."""
+    from numba.core import types as numba_types
+
+    return numba_types.Dispatcher(kernel.dispatcher)
 
 
 def optional(name: str, extra: str, purpose: str) -> types.ModuleType:

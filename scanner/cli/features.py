@@ -19,6 +19,7 @@ from scanner.cli.base import EXIT_ERROR, UsageError, add_db_option, open_db
 from scanner.cli.common import add_cluster_options, add_feature_set_option, cluster
 from scanner.storage.files import atomic_write_bytes, sha256_file
 from scanner.storage.ingest import load_recordings, set_folder
+from scanner.storage.stored import stat_record
 from scanner.workflows.database import extract_database
 from taxonomy.labels import parse_prefix
 from taxonomy.learning.results import one_line
@@ -97,14 +98,13 @@ code version and the recordings it read, so ``evaluate set:NAME`` can tell wheth
 
 
 def recordings_fingerprint(folder: Path) -> str:
-    """A hash of the set's recording files' stat records: name, size, modification time, inode and inode
-    change time. The change time is the kernel's: an edit of the same size whose modification time is put
-    back (``cp -p``, ``rsync -t``, ``touch -r``, a backup restored) still changes it."""
+    """A hash of the set's recording files' stat records (:func:`scanner.storage.stored.stat_record`: size,
+    modification time, inode change time, inode and device). The change time is the kernel's: an edit of the
+    same size whose modification time is put back (``cp -p``, ``rsync -t``, ``touch -r``, a backup restored)
+    still changes it."""
     digest = hashlib.sha256()
     for path in sorted(folder.glob("*.mat")):
-        stat = path.stat()
-        digest.update(f"{path.name}\0{stat.st_size}\0{stat.st_mtime_ns}\0{stat.st_ino}\0{stat.st_ctime_ns}\n"
-                      .encode())
+        digest.update(f"{path.name}\0{stat_record(path.stat())}\n".encode())
     return digest.hexdigest()
 
 

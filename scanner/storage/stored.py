@@ -46,11 +46,9 @@ RACY_SECONDS = 2.0
 """A file whose inode changed less than this long before its hash was checked gets no stat record: file
 systems whose clocks tick in seconds (FAT: two) could give a change within the same tick the same record."""
 
-def stat_record(path: Path) -> tuple[str, float]:
-    """``"size:mtime_ns:ctime_ns:inode:device"`` of ``path`` and its inode change time (seconds since the
-    epoch). An ``OSError`` if it cannot be stat'ed."""
-    info = path.stat()
-    return f"{info.st_size}:{info.st_mtime_ns}:{info.st_ctime_ns}:{info.st_ino}:{info.st_dev}", info.st_ctime
+def stat_record(info: os.stat_result) -> str:
+    """``"size:mtime_ns:ctime_ns:inode:device"`` of a file's ``stat``."""
+    return f"{info.st_size}:{info.st_mtime_ns}:{info.st_ctime_ns}:{info.st_ino}:{info.st_dev}"
 
 
 @dataclass(frozen=True)
@@ -194,15 +192,16 @@ class StoredScan:
         fresh = {}
         for name, (size, digest) in sorted(self.catalogued.items()):
             path = self.path.with_name(name)
-            record, changed = stat_record(path)
-            if int(record.split(":", 1)[0]) != size:
+            info = path.stat()
+            if info.st_size != size:
                 raise ChangedSinceStored(path, "size")
-            if self.stats.get(name) == f"{record}:{digest}":
+            record = f"{stat_record(info)}:{digest}"
+            if self.stats.get(name) == record:
                 continue
             if sha256_file(path) != digest:
                 raise ChangedSinceStored(path, "SHA-256")
-            if time.time() - changed > RACY_SECONDS:
-                fresh[name] = f"{record}:{digest}"
+            if time.time() - info.st_ctime > RACY_SECONDS:
+                fresh[name] = record
         if fresh and self.ledger is not None:
             self.ledger.record(self.path.parent, fresh)
 

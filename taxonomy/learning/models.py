@@ -371,10 +371,7 @@ def _loads(path: Path, data: bytes) -> Any:
         foreign = [t for t in skops.get_untrusted_types(data=data) if t not in _TRUSTED]
         raise ModelError(f"{path}: refused, it holds types a texplorer model never contains: "
                          f"{', '.join(foreign[:5])}") from None
-    except zipfile.BadZipFile as exc:
-        raise ModelError(f"{path}: not a readable model file, damaged, truncated or not a skops archive "
-                         f"({_first_line(exc)})") from None
-    except Exception as exc:  # skops raises many types for damaged archives
+    except Exception as exc:  # skops raises many types for damaged archives (load_model checked the zip first)
         raise ModelError(f"{path}: damaged model file ({type(exc).__name__}: {_first_line(exc)})") from None
 
 
