@@ -32,7 +32,8 @@ import cv2
 import numpy as np
 from distributed import Client, LocalCluster, get_task_stream
 
-from features import FeatureSpace, ScanSource, cluster, extract, extract_many
+from features import FeatureSpace, ScanSource, extract, extract_many
+from scanner.runtime import cluster
 from scanner.scan import Scan
 from scanner.simulation.database import synthetic_database
 

@@ -10,7 +10,7 @@
   timed alone in the same rounds, each with its ratio against the reference, and what extract saves by
   sharing ``I_disp`` between TacTUM and the image features;
 - in a fresh process, ``extract`` reuses freed memory within a 12 MP scan and gives it back at its end
-  (``features.memory.reusing_freed_memory``);
+  (``scanner.runtime.memory.reusing_freed_memory``);
 - peak resident memory while extracting one 12 MP scan, and how much above the loaded scan it is;
 - the 12 MP scan again as ``extract_many``'s workers extract it (``keep_freed_memory``: freed temporaries
   are reused, not faulted in again for every scan);
@@ -43,11 +43,12 @@ from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
 
-from features import ScanSource, WorkerPool, extract, extract_many, image, other, tactum  # noqa: E402
-from features.extraction import _extract_source, _run  # noqa: E402
+from features import ScanSource, extract, extract_many, image, other, tactum  # noqa: E402
+from features.extraction import _extract_source  # noqa: E402
 from features.families import audio_features  # noqa: E402
-from features.memory import keep_freed_memory  # noqa: E402
 from scanner.preprocess import crop_image, grayscale  # noqa: E402
+from scanner.runtime.local import WorkerPool, run_tasks  # noqa: E402
+from scanner.runtime.memory import keep_freed_memory  # noqa: E402
 from scanner.scan import IMAGES, Scan  # noqa: E402
 from scanner.simulation import synthetic_scan  # noqa: E402
 from scanner.simulation.database import synthetic_database  # noqa: E402
@@ -227,7 +228,7 @@ def where_the_workers_time_goes(sources: list[ScanSource], rounds: int = 3) -> N
     best: tuple[float, list] | None = None
     for _ in range(rounds):
         start = time.perf_counter()
-        done = [result for _, result in _run(_timed_extraction, sources, range(len(sources)), 2, lambda n: None)]
+        done = [result for _, result in run_tasks(_timed_extraction, sources, range(len(sources)), 2, lambda n: None)]
         total = time.perf_counter() - start
         if best is None or total < best[0]:
             best = (total, [(pid, began - start, end - began, faults) for pid, began, end, faults in done])

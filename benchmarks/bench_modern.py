@@ -24,7 +24,7 @@ from timing import best_time, median_time
 from features import extract
 from features.modern import ROLE_RULES, SCAN_SIGNALS, instances
 from features.random_kernels import RandomKernels
-from features.threads import one_blas_thread
+from scanner.runtime.threads import one_blas_thread
 from scanner.storage.matfile import load_scan
 
 FS = 44100.0

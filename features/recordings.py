@@ -62,12 +62,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 from tqdm import tqdm
 
-from features import audio, cluster, extraction, image, other, tactum
+from features import audio, image, other, tactum
 from features.registry import ROLE_REGISTRY, RoleFamily
 from features.space import FeatureSpace
-from features.threads import one_blas_thread
 from scanner.lazy import library
 from scanner.preprocess import BAND_HZ, dft321
+from scanner.runtime import cluster
+from scanner.runtime.local import run_tasks
+from scanner.runtime.threads import one_blas_thread
 from scanner.scan import IMAGE_ROLES, Recording, Trace, is_generic
 from taxonomy.errors import ParameterError
 
@@ -646,7 +648,7 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     makes every row its own group, so the windows of one recording fall in training and test (the
     protocol of published results that cut windows from runs, which leaks between them). ``workers``
     processes (1: in this process, None: one per core), or the Dask cluster of ``client``
-    (:mod:`features.cluster`; the recordings are sent from here, the values are the same). ``chosen``
+    (:mod:`scanner.runtime.cluster`; the recordings are sent from here, the values are the same). ``chosen``
     names the registered families to compute (default: the default ones), opt-in ones too
     (``catch22.audio``, ...: docs/modern-features.md).
 
@@ -754,7 +756,7 @@ def _map(function: Callable, jobs: Sequence, workers: int | None, progress: bool
     else:
         # In this process, or extract_many's workers: forked with one thread each, keeping the memory they
         # free; leaving early (Ctrl-C) drops the jobs not started.
-        with contextlib.closing(extraction._run(function, jobs, range(len(jobs)), workers, bar.update)) as done:
+        with contextlib.closing(run_tasks(function, jobs, range(len(jobs)), workers, bar.update)) as done:
             for i, result in done:
                 results[i] = result
     bar.close()

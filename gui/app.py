@@ -9,9 +9,9 @@ The app holds no business logic. Pages call ``scanner`` (database, guided sessio
 
 :func:`serve` runs it on Werkzeug's threaded WSGI server, bound to 127.0.0.1 unless another host is given.
 Extraction for its requests runs in workers started by a fork server that :func:`serve` starts before any
-request thread exists (:func:`features.start_workers_from_a_server`): a worker forked from the threaded
+request thread exists (:func:`scanner.runtime.local.start_workers_from_a_server`): a worker forked from the threaded
 server would inherit locks other request threads held (SQLite's memory mutex: a request hung for good).
-Every request and export job shares one bounded set of those workers (:func:`features.share_workers`,
+Every request and export job shares one bounded set of those workers (:func:`scanner.runtime.local.share_workers`,
 ``--workers``): a busy lab's concurrent requests queue for them rather than each starting its own.
 """
 
@@ -27,9 +27,10 @@ from flask import Flask, Response, render_template
 from flask.globals import request_ctx
 from werkzeug.exceptions import HTTPException, RequestEntityTooLarge
 
-from features import end_shared_workers, share_workers, start_workers_from_a_server
+from features import WORKER_SERVER_PRELOAD
 from gui import browser, operate, security
 from gui.context import LOOPBACK_HOSTS, Context, Settings, context
+from scanner.runtime.local import end_shared_workers, share_workers, start_workers_from_a_server
 
 MULTIPART_OVERHEAD = 1024 * 1024
 """Room for the form fields next to three photos in one request."""
@@ -149,7 +150,7 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None
     if warning:
         print(f"texplorer: warning: {warning}", file=sys.stderr)
     app = create_app(settings)
-    start_workers_from_a_server()  # before the first request thread
+    start_workers_from_a_server(WORKER_SERVER_PRELOAD)  # before the first request thread
     share_workers(settings.workers)  # one bounded set of workers for every request and export job
     signal.signal(signal.SIGTERM, _stop)  # as Ctrl-C: a running scan aborted, an export's bundle deleted
     threading.Thread(target=app.extensions["texplorer"].warm_up, name="warm-up", daemon=True).start()

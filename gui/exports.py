@@ -34,7 +34,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import IO, Any
 
-from features import job_workers
+from scanner.runtime.local import job_workers
 from scanner.storage.bundle import BundleError
 from scanner.storage.database import Database, ScanRecord
 from scanner.workflows.database import extract_database
@@ -178,7 +178,7 @@ class ExportJob:
     def _warm_feature_cache(self, abandon_after_s: float) -> None:
         """Features of every exported scan into the cache, so the exporter only reads them. The chunks
         share one set of worker processes: forking them per chunk cost each chunk their start-up (in a server,
-        the workers every request shares: ``features.share_workers``)."""
+        the workers every request shares: ``scanner.runtime.local.share_workers``)."""
         with job_workers(self.workers) as pool:
             for start in range(0, len(self.records), FEATURE_CHUNK):
                 self._check(abandon_after_s)

@@ -19,7 +19,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from features import job_workers
+from scanner.runtime.local import job_workers
 from scanner.storage.database import Database
 from scanner.workflows.models import ModelChange, retrain
 

@@ -67,9 +67,9 @@ def _no_workers_kept_between_tests():
     """``extract_many`` keeps its workers for its next call: a test must not extract with workers forked by
     another, which run that test's code and patches (not imported here if no test has)."""
     yield
-    extraction = sys.modules.get("features.extraction")
-    if extraction is not None:
-        extraction.release_workers()
+    local = sys.modules.get("scanner.runtime.local")
+    if local is not None:
+        local.release_workers()
 
 
 @pytest.fixture

@@ -12,8 +12,8 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from features import REGISTRY, FeatureSpace, feature_sets
-from features.cluster import ClusterError, connect, describe
 from scanner.cli.base import UsageError, add_db_option, open_db
+from scanner.runtime.cluster import ClusterError, connect, describe
 from scanner.workflows.database import extract_database
 
 ALL = "all"

@@ -7,12 +7,12 @@ import sys
 import time
 
 from features import REGISTRY
-from features.extraction import run_aside
 from scanner.cli.analysis import add_evaluation_options, run_evaluation
 from scanner.cli.base import UsageError, add_db_option
 from scanner.cli.common import ALL, add_cluster_options, cluster
 from scanner.cli.features import report_space
 from scanner.preprocess import small_photo_note
+from scanner.runtime.local import run_aside
 from scanner.workflows.database import extract_database
 from scanner.workflows.demo import simulated_database
 from scanner.workflows.models import DEFAULT_MODEL_SETTINGS, save_model_version, train_default_model

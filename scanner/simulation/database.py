@@ -14,7 +14,7 @@ from typing import Any
 import cv2
 from tqdm import tqdm
 
-from scanner.processes import end_with_parent
+from scanner.runtime.processes import end_with_parent
 from scanner.scan import Scan, ScanMeta
 from scanner.simulation.scans import _Job, scan_jobs, simulate_one
 from scanner.storage.database import STAGING_PREFIX, Database, file_roles

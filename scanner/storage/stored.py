@@ -3,7 +3,7 @@ one that gets the files' bytes from this machine.
 
 A :class:`StoredScan` is what ``features.extract_many`` calls to load a scan. In a process of this machine
 it reads the ``.mat`` file and its photos as :func:`scanner.storage.matfile.load_scan` always does. A Dask worker
-(``features.cluster``) first tries :meth:`StoredScan.load_seen`: the files at the same path as this machine
+(``scanner.runtime.cluster``) first tries :meth:`StoredScan.load_seen`: the files at the same path as this machine
 names them (an absolute path on storage mounted alike everywhere, or a path relative to the directory the
 worker was started in), accepted only with the size and SHA-256 the catalog recorded, so a worker that has
 another database at that path never computes features for this one. A worker that cannot see the files
@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from scanner.photo import max_file_bytes
+from scanner.runtime.cluster import NotOnThisMachine
 from scanner.scan import Scan
 from scanner.storage.files import sha256_file
 from scanner.storage.matfile import MAX_SCAN_BYTES, load_scan, photo_names
@@ -72,10 +73,6 @@ class StatLedger:
                 conn.executemany("INSERT OR REPLACE INTO file_stats (path, stat) SELECT ?, ? "
                                  "WHERE EXISTS (SELECT 1 FROM files WHERE files.path = ?)",
                                  [(path, stat, path) for path, stat in rows])
-
-
-class NotOnThisMachine(TexplorerError):
-    """A worker does not see a stored scan's file as the client does: missing, unreadable or other bytes."""
 
 
 class ChangedSinceStored(TexplorerError):

@@ -7,7 +7,8 @@ import sys
 from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING
 
-from features import FeatureSpace, ScanSource, WorkerPool, extract_many
+from features import FeatureSpace, ScanSource, extract_many
+from scanner.runtime.local import WorkerPool
 from scanner.storage.database import Database, DatabaseError, ScanRecord
 
 if TYPE_CHECKING:

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from features import code_version, extract
-from features.memory import keep_freed_memory
+from scanner.runtime.memory import keep_freed_memory
 from scanner.scan import Scan
 from scanner.simulation.database import synthetic_database
 from scanner.simulation.scans import synthetic_scan
@@ -24,7 +24,7 @@ def simulated_database(root: str | os.PathLike[str], **options: Any) -> Database
     features extracted by the process that simulated it, from the scan in memory, and stored in the
     feature cache once the scan is catalogued: the features stage that follows (:func:`extract_database`)
     then reads no file back, only verifies the files' hashes. The workers keep the memory a scan frees for
-    the next (:func:`features.memory.keep_freed_memory`; docs/performance.md). The values are those an
+    the next (:func:`scanner.runtime.memory.keep_freed_memory`; docs/performance.md). The values are those an
     extraction from the stored files gives (the ``.mat`` and PNG files are lossless), and a scan whose
     extraction fails here is simply left to that stage, which reports it."""
     version = code_version()

@@ -8,7 +8,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from features import FeatureSpace, WorkerPool, code_version
+from features import FeatureSpace, code_version
+from scanner.runtime.local import WorkerPool
 from scanner.storage.database import Database
 from scanner.workflows.database import extract_database
 from scanner.workflows.predictions import label_names

@@ -51,13 +51,14 @@ from sklearn.preprocessing import MinMaxScaler
 from sklearn.svm import SVC
 from tqdm import tqdm
 
-from features import cluster, feature_sets
-from features.extraction import worker_map
+from features import feature_sets
 from features.random_kernels import RandomKernels
 from features.registry import REGISTRY
 from features.selection import FQSelector, KeepAll, PartwiseFQSelector
 from features.space import FeatureSpace
-from features.threads import one_blas_thread
+from scanner.runtime import cluster
+from scanner.runtime.local import worker_map
+from scanner.runtime.threads import one_blas_thread
 from taxonomy.learning.calibration import TemperatureScaledClassifier
 from taxonomy.learning.metrics import present_class_f1
 from taxonomy.learning.openset import MAX_ACCURACY_DROP, class_folds, fit_rule, learn_rejection
@@ -367,7 +368,7 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
     use_split : bool
         Use the space's own train/test split where it has one (``space.split``) instead of ``folds``.
     client : distributed.Client, optional
-        Fit the folds on this Dask cluster (:mod:`features.cluster`) instead of in this process; the
+        Fit the folds on this Dask cluster (:mod:`scanner.runtime.cluster`) instead of in this process; the
         report is the same.
     single_group : str
         ``"train"`` or ``"drop"``: a class with a single sample (group) is kept in training only, or left

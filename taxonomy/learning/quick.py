@@ -46,9 +46,9 @@ from scipy.special import log_softmax, softmax
 from sklearn.ensemble import ExtraTreesClassifier
 from sklearn.metrics.pairwise import euclidean_distances
 
-from features.extraction import worker_map
 from features.registry import REGISTRY
 from features.space import FeatureSpace
+from scanner.runtime.local import worker_map
 from taxonomy.learning.calibration import grouped_splits
 from taxonomy.learning.evaluation import SEED, EvaluationError, cv_splits, drop_nan_columns, fit_pipeline
 from taxonomy.learning.openset import Neighbours, class_folds, fit_neighbours
@@ -610,7 +610,7 @@ def evaluate_quick(space: FeatureSpace, costs: Mapping[str, float], order: Seque
     level, folds, seed, stop_at, n_features
         Classification level, folds, seed, the probability that stops a quick scan, the full model's features.
     workers : int, optional
-        Processes the folds run in (:func:`~features.extraction.worker_map`; default one per CPU).
+        Processes the folds run in (:func:`~scanner.runtime.local.worker_map`; default one per CPU).
     open_set : bool
         Also hold out a fifth of the materials per fold (:func:`~taxonomy.learning.openset.class_folds`, as
         ``evaluate --open-set``) and walk their scans on a model that never saw them: ``walks["unseen"]``, of

@@ -142,7 +142,7 @@ def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Se
     progress : callable
         Wraps the iteration over the methods (e.g. a tqdm bar).
     client : distributed.Client, optional
-        Fit the splits of each configuration side by side on this Dask cluster (:mod:`features.cluster`)
+        Fit the splits of each configuration side by side on this Dask cluster (:mod:`scanner.runtime.cluster`)
         instead of one after the other here; the scores are the same.
 
     Returns

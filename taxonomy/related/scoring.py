@@ -16,8 +16,8 @@ from sklearn.metrics import confusion_matrix
 from sklearn.model_selection import StratifiedKFold, StratifiedShuffleSplit
 from sklearn.pipeline import Pipeline
 
-from features import cluster
-from features.threads import one_blas_thread
+from scanner.runtime import cluster
+from scanner.runtime.threads import one_blas_thread
 from taxonomy import labels
 from taxonomy.labels import LabelError
 from taxonomy.learning.metrics import present_class_f1

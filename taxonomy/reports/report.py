@@ -28,9 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from features.extraction import worker_map
 from features.selection import Selection, select_features
 from features.space import FeatureSpace
+from scanner.runtime.local import worker_map
 from scanner.storage.files import atomic_write_bytes
 from taxonomy.labels import LEVELS
 from taxonomy.learning.evaluation import MLP_MAX_ITER
@@ -366,7 +366,7 @@ def write_report(folder: str | os.PathLike[str], space: FeatureSpace, reports: S
         Bars in the FQ chart; classes in the box plot (beyond it only the major class with the most
         classes is shown, as in the paper's Fig. 14) and labelled classes in a confusion matrix.
     workers : int, optional
-        Processes drawing the figures (:func:`features.extraction.worker_map`; None: every core).
+        Processes drawing the figures (:func:`scanner.runtime.local.worker_map`; None: every core).
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

@@ -1,4 +1,4 @@
-"""Feature extraction and evaluation on a Dask cluster (features.cluster), on loopback only: a LocalCluster
+"""Feature extraction and evaluation on a Dask cluster (scanner.runtime.cluster), on loopback only: a LocalCluster
 of two worker processes, and a scheduler and workers started as ``dask scheduler`` / ``dask worker``
 subprocesses. Every result is compared bit for bit with the serial run; a worker is killed mid-run; Ctrl-C
 cancels the cluster's work; workers that do not see the database get its bytes from the client."""
@@ -28,7 +28,7 @@ distributed = pytest.importorskip("distributed")
 from unit.test_evaluation import labelled_space  # noqa: E402
 
 from features import FeatureSpace, ScanSource, code_version, extract_many  # noqa: E402
-from features.cluster import (  # noqa: E402
+from scanner.runtime.cluster import (  # noqa: E402
     NO_WORKERS_ENV,
     ClusterError,
     DataShipped,

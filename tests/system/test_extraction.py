@@ -23,6 +23,7 @@ from unit.test_extraction import SIZE, _gated_mark, foam, foam_values
 import features
 from features import NAMES, ScanSource, extract, extract_many, extraction
 from features.extraction import code_version, source_of
+from scanner.runtime import local
 from scanner.scan import Scan
 from scanner.simulation import synthetic_scan
 
@@ -68,7 +69,7 @@ def test_extract_many_keeps_order_reports_failures_and_uses_the_cache():
 _RESIDENT_AFTER_FREEING = """
 import sys
 import numpy as np
-from features.memory import keep_freed_memory
+from scanner.runtime.memory import keep_freed_memory
 
 def resident_mb():
     with open("/proc/self/status") as status:
@@ -99,7 +100,7 @@ def test_workers_keep_the_memory_they_free_for_the_next_scan():
 
 _RESIDENT_AFTER_GIVING_BACK = """
 import numpy as np
-from features.memory import give_back_free_memory, keep_freed_memory
+from scanner.runtime.memory import give_back_free_memory, keep_freed_memory
 
 def resident_mb():
     with open("/proc/self/status") as status:
@@ -123,7 +124,7 @@ def test_free_memory_is_given_back_before_workers_are_forked(monkeypatch):
     held, gave, after = run.stdout.split()
     assert float(held) > 120 and gave == "True" and float(after) < 16
     calls = []
-    monkeypatch.setattr(extraction, "give_back_free_memory", lambda: calls.append(1))
+    monkeypatch.setattr(local, "give_back_free_memory", lambda: calls.append(1))
     scans = [synthetic_scan("oak-planed", seed=seed) for seed in (1, 2)]
     extract_many(scans, workers=1, progress=False)
     assert calls == []
@@ -133,7 +134,7 @@ def test_free_memory_is_given_back_before_workers_are_forked(monkeypatch):
 
 _RESIDENT_IN_AND_AFTER_A_BLOCK = """
 import numpy as np
-from features.memory import reusing_freed_memory
+from scanner.runtime.memory import reusing_freed_memory
 
 def resident_mb():
     with open("/proc/self/status") as status:
@@ -195,13 +196,13 @@ def _ended(pid: int, within_s: float = 20.0) -> bool:
     return not os.path.exists(f"/proc/{pid}")
 
 
-def _pids_of(pool: extraction.WorkerPool, items: list) -> set[int]:
-    return {pid for _, pid in extraction._run(_pid, items, range(len(items)), pool.size, lambda n: None, pool)}
+def _pids_of(pool: local.WorkerPool, items: list) -> set[int]:
+    return {pid for _, pid in local.run_tasks(_pid, items, range(len(items)), pool.size, lambda n: None, pool)}
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="looks processes up in /proc")
 def test_a_worker_pool_keeps_its_processes_across_calls_and_ends_them_when_closed(tmp_path):
-    pool = extraction.WorkerPool(2)
+    pool = local.WorkerPool(2)
     with pool:
         assert pool._executor is None  # nothing forked before a batch needs it
         first = _pids_of(pool, _meeting(tmp_path))
@@ -212,7 +213,7 @@ def test_a_worker_pool_keeps_its_processes_across_calls_and_ends_them_when_close
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="looks processes up in /proc")
 def test_a_dead_worker_fails_its_batch_and_the_next_batch_starts_new_workers(tmp_path):
-    with extraction.WorkerPool(2) as pool:
+    with local.WorkerPool(2) as pool:
         before = _pids_of(pool, _meeting(tmp_path))
         with pytest.raises(concurrent.futures.BrokenExecutor):
             _pids_of(pool, ["die"])
@@ -226,7 +227,7 @@ def test_a_worker_that_died_between_batches_costs_the_next_batch_nothing(tmp_pat
     # next batch submits anything, which then runs on new workers instead of failing.
     import signal
 
-    with extraction.WorkerPool(2) as pool:
+    with local.WorkerPool(2) as pool:
         before = _pids_of(pool, _meeting(tmp_path))
         victim = min(before)
         os.kill(victim, signal.SIGKILL)
@@ -241,7 +242,7 @@ def test_a_worker_that_died_between_batches_costs_the_next_batch_nothing(tmp_pat
 def test_a_kept_pool_serving_other_code_forks_new_workers(tmp_path):
     # extract_many serves a pool its code version and column names: workers forked before a family was
     # registered would compute the old columns, stored under the new version.
-    with extraction.WorkerPool(2) as pool:
+    with local.WorkerPool(2) as pool:
         first = _pids_of(pool.serving(("v1", ("a",))), _meeting(tmp_path))
         again = _pids_of(pool.serving(("v1", ("a",))), _meeting(tmp_path))
         other = _pids_of(pool.serving(("v2", ("a", "b"))), _meeting(tmp_path))
@@ -249,7 +250,7 @@ def test_a_kept_pool_serving_other_code_forks_new_workers(tmp_path):
 
 
 def test_extract_many_serves_the_kept_pool_its_code_version_columns_and_directory():
-    with extraction.WorkerPool(2) as pool:
+    with local.WorkerPool(2) as pool:
         extract_many([foam(), foam()], pool=pool, progress=False)
         assert pool._key == (code_version(), features.REGISTRY.names, os.getcwd())
 
@@ -257,8 +258,8 @@ def test_extract_many_serves_the_kept_pool_its_code_version_columns_and_director
 def test_leaving_a_batch_early_leaves_the_kept_pool_usable(tmp_path):
     (tmp_path / "marks").mkdir()
     marks = [str(tmp_path / "marks" / f"{i}") for i in range(20)]
-    with extraction.WorkerPool(2) as pool:
-        results = extraction._run(_gated_mark, marks, range(len(marks)), 2, lambda n: None, pool)
+    with local.WorkerPool(2) as pool:
+        results = local.run_tasks(_gated_mark, marks, range(len(marks)), 2, lambda n: None, pool)
         assert next(results) == (0, marks[0])
         results.close()
         (tmp_path / "gate").touch()
@@ -270,7 +271,7 @@ def test_extract_many_with_a_kept_pool_equals_one_worker():
     scans = [foam(), synthetic_scan("float-glass", seed=3, image_size=SIZE, sample_id="glass-01"),
              synthetic_scan("oak-planed", seed=4, image_size=SIZE, sample_id="oak-01")]
     alone = extract_many(scans, workers=1, progress=False)
-    with extraction.WorkerPool(2) as pool:
+    with local.WorkerPool(2) as pool:
         for _ in range(2):
             kept = extract_many(scans, pool=pool, progress=False)
             np.testing.assert_array_equal(kept.X, alone.X)
@@ -324,7 +325,7 @@ def test_extract_many_keeps_its_workers_for_its_next_call_until_they_are_release
     assert _loaders(tmp_path / "again") == first and len(first) == 2 and os.getpid() not in first
     np.testing.assert_array_equal(again.X, alone.X)
     assert list(again.scan_ids) == [f"scan-{i}" for i in range(len(scans))]
-    features.release_workers()
+    local.release_workers()
     assert all(_ended(pid) for pid in first)
     after = _workers_of_a_call(tmp_path)
     assert len(after) == 2 and not after & first
@@ -332,10 +333,10 @@ def test_extract_many_keeps_its_workers_for_its_next_call_until_they_are_release
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="looks processes up in /proc")
 def test_kept_workers_end_by_themselves_when_no_call_comes(tmp_path, monkeypatch):
-    monkeypatch.setattr(extraction, "KEEP_WORKERS_S", 0.2)
+    monkeypatch.setattr(local, "KEEP_WORKERS_S", 0.2)
     kept = _workers_of_a_call(tmp_path)
     assert all(_ended(pid) for pid in kept)
-    assert extraction._KEPT._pool is None
+    assert local._KEPT._pool is None
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="looks processes up in /proc")
@@ -348,9 +349,9 @@ def test_kept_workers_are_forked_anew_for_other_code_another_number_or_another_d
     monkeypatch.chdir(tmp_path)
     calls.append(_workers_of_a_call(tmp_path))
     calls.append(_workers_of_a_call(tmp_path, workers=3))
-    three = set(extraction._KEPT._pool._executor._processes)
+    three = set(local._KEPT._pool._executor._processes)
     calls.append(_workers_of_a_call(tmp_path, workers=3))
-    assert len(three) == 3 and set(extraction._KEPT._pool._executor._processes) == three and calls[4] <= three
+    assert len(three) == 3 and set(local._KEPT._pool._executor._processes) == three and calls[4] <= three
     for before, after in zip(calls[:3], calls[1:4], strict=True):
         assert len(after) >= 2 and not after & before and all(_ended(pid) for pid in before)
 
@@ -380,7 +381,7 @@ def test_a_call_made_while_another_threads_has_the_kept_workers_forks_its_own(tm
 
 
 def _lent_in_a_child(answers) -> None:
-    with extraction._KEPT.lent(2, "key") as pool:
+    with local._KEPT.lent(2, "key") as pool:
         answers.put(pool is None)
 
 
@@ -424,7 +425,7 @@ def test_a_photo_too_small_for_image_features_gives_nan_not_an_error():
 
 
 def _pid_and_blas(value: int) -> tuple[int, int, int]:
-    from features.threads import thread_pools  # noqa: PLC0415 (in the child)
+    from scanner.runtime.threads import thread_pools  # noqa: PLC0415 (in the child)
 
     return os.getpid(), value * 2, max((p["num_threads"] for p in thread_pools().info()), default=1)
 
@@ -434,17 +435,17 @@ def _refuse(value: int) -> None:
 
 
 def test_run_aside_runs_in_a_forked_process_with_one_blas_thread_while_this_one_goes_on():
-    future = extraction.run_aside(_pid_and_blas, 21)
+    future = local.run_aside(_pid_and_blas, 21)
     pid, doubled, blas = future.result(timeout=60)
     assert pid != os.getpid() and doubled == 42 and blas == 1
-    failed = extraction.run_aside(_refuse, 7)
+    failed = local.run_aside(_refuse, 7)
     with pytest.raises(ValueError, match="no 7"):
         failed.result(timeout=60)
 
 
 def test_run_aside_runs_here_where_a_worker_server_serves_this_process(monkeypatch):
-    monkeypatch.setitem(extraction._SERVER, "context", multiprocessing.get_context())
-    future = extraction.run_aside(_pid_and_blas, 1)
+    monkeypatch.setitem(local._SERVER, "context", multiprocessing.get_context())
+    future = local.run_aside(_pid_and_blas, 1)
     assert future.done() and future.result()[:2] == (os.getpid(), 2)
     with pytest.raises(ValueError, match="no 3"):
-        extraction.run_aside(_refuse, 3).result()
+        local.run_aside(_refuse, 3).result()

@@ -94,14 +94,14 @@ def test_the_next_ingest_of_any_set_removes_what_a_killed_one_left(tmp_path):
 WORKER_SERVER_SCRIPT = """
 import os, sys
 from multiprocessing import forkserver
-from features import extraction
+from scanner.runtime import local
 
-extraction.start_workers_from_a_server()
-first = sorted(v for _, v in extraction.worker_map(abs, [-1, -2, -3, -4], workers=2))
-extraction.release_workers()
+local.start_workers_from_a_server()
+first = sorted(v for _, v in local.worker_map(abs, [-1, -2, -3, -4], workers=2))
+local.release_workers()
 address = forkserver._forkserver._forkserver_address
 os.unlink(address)  # what a /tmp cleaner does to a socket it has not seen used for days
-second = sorted(v for _, v in extraction.worker_map(abs, [-5, -6, -7, -8], workers=2))
+second = sorted(v for _, v in local.worker_map(abs, [-5, -6, -7, -8], workers=2))
 print(first, second, forkserver._forkserver._forkserver_address != address,
       os.path.exists(forkserver._forkserver._forkserver_address))
 """

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from scanner.processes import PARENT_POLL_S
+from scanner.runtime.processes import PARENT_POLL_S
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -48,10 +48,11 @@ import multiprocessing, sys, time
 
 if __name__ == "__main__":
     import features
+    from scanner.runtime import local
     from scanner.simulation import synthetic_scan
 
     if sys.argv[1:] == ["server"]:
-        features.start_workers_from_a_server()
+        local.start_workers_from_a_server()
     scans = [synthetic_scan(m, seed=1, image_size=(96, 96), sample_id=f"{m}-1") for m in ("oak-planed", "float-glass")]
     space = features.extract_many(scans, workers=2, progress=False)
     assert not space.failed, space.failed

@@ -1,5 +1,5 @@
-"""The thread limits of extraction (features.threads): counted across the threads that extract at once, and safe
-to fork from while other threads take them (also features.memory's settings): the system tests (forked
+"""The thread limits of extraction (scanner.runtime.threads): counted across the threads that extract at once, and safe
+to fork from while other threads take them (also scanner.runtime.memory's settings): the system tests (forked
 processes)."""
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from unit.test_threads import (
     a_thread_holding_openblas,  # noqa: F401 (a fixture)
 )
 
-from features import memory, threads
-from features.threads import one_blas_thread, one_thread_each
+from scanner.runtime import memory, threads
+from scanner.runtime.threads import one_blas_thread, one_thread_each
 
 
 def _take_a_limit() -> None:

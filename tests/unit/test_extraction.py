@@ -15,6 +15,7 @@ import pytest
 
 import features
 from features import NAMES, extract, extract_many, extraction, image
+from scanner.runtime import local
 from scanner.scan import CHANNELS, IMAGES, Scan, Trace
 from scanner.simulation import synthetic_scan
 
@@ -172,7 +173,7 @@ def test_leaving_a_parallel_run_early_drops_the_tasks_not_started(tmp_path):
     # once the closed generator has dropped the executor.
     (tmp_path / "marks").mkdir()
     marks = [str(tmp_path / "marks" / f"{i}") for i in range(20)]
-    results = extraction._run(_gated_mark, marks, range(len(marks)), 2, lambda n: None)
+    results = local.run_tasks(_gated_mark, marks, range(len(marks)), 2, lambda n: None)
     assert next(results) == (0, marks[0])
     results.close()
     (tmp_path / "gate").touch()
@@ -205,11 +206,11 @@ def test_concurrent_batches_of_the_same_work_share_one_run_of_it(tmp_path):
 
     (tmp_path / "marks").mkdir()
     items = [str(tmp_path / "marks" / f"scan-{i}") for i in range(5)]
-    pool = extraction.SharedWorkers(2)
+    pool = local.SharedWorkers(2)
     results: dict[str, list] = {}
 
     def batch(name):
-        results[name] = sorted(extraction._run(_gated_run, items, range(5), 2, lambda n: None, pool, keys=items))
+        results[name] = sorted(local.run_tasks(_gated_run, items, range(5), 2, lambda n: None, pool, keys=items))
 
     try:
         threads = [threading.Thread(target=batch, args=(name,)) for name in ("a", "b")]
@@ -233,7 +234,7 @@ def test_concurrent_batches_of_the_same_work_share_one_run_of_it(tmp_path):
 
 def test_a_batch_that_leaves_early_drops_only_the_work_no_other_batch_waits_for(tmp_path):
     (tmp_path / "marks").mkdir()
-    pool = extraction.SharedWorkers(2)
+    pool = local.SharedWorkers(2)
     try:
         # six tasks fill the two workers, the call queue (workers + 1) and the queue behind it
         busy = [pool._submit(_gated_run, str(tmp_path / "marks" / f"busy-{i}")) for i in range(6)]
@@ -253,7 +254,7 @@ def test_the_same_work_twice_in_one_batch_answers_both_rows(tmp_path):
     import threading
 
     (tmp_path / "marks").mkdir()
-    pool = extraction.SharedWorkers(2)
+    pool = local.SharedWorkers(2)
     item = str(tmp_path / "marks" / "scan")
 
     def open_gate_once_both_wait():  # (an open gate could let the first finish before the second is queued)
@@ -265,7 +266,7 @@ def test_the_same_work_twice_in_one_batch_answers_both_rows(tmp_path):
     opener = threading.Thread(target=open_gate_once_both_wait)
     opener.start()
     try:
-        got = sorted(extraction._run(_gated_run, [item, item], [3, 7], 2, lambda n: None, pool, keys=["k", "k"]))
+        got = sorted(local.run_tasks(_gated_run, [item, item], [3, 7], 2, lambda n: None, pool, keys=["k", "k"]))
     finally:
         opener.join()
         pool.close()
@@ -276,9 +277,9 @@ def test_the_same_work_twice_in_one_batch_answers_both_rows(tmp_path):
 def test_sharing_workers_needs_the_worker_server(monkeypatch):
     from taxonomy.errors import TexplorerError
 
-    monkeypatch.setitem(extraction._SERVER, "context", None)
+    monkeypatch.setitem(local._SERVER, "context", None)
     with pytest.raises(TexplorerError, match=r"share_workers\(\) needs the worker server"):
-        features.share_workers(2)
+        local.share_workers(2)
 
 
 def _pid_or_die(item: str) -> int:
@@ -290,10 +291,10 @@ def _pid_or_die(item: str) -> int:
 def test_shared_workers_start_again_after_one_died():
     import concurrent.futures
 
-    pool = extraction.SharedWorkers(2)
+    pool = local.SharedWorkers(2)
     try:
         with pytest.raises(concurrent.futures.BrokenExecutor):
-            list(extraction._run(_pid_or_die, ["die", "a"], [0, 1], 2, lambda n: None, pool))
-        assert len(dict(extraction._run(_pid_or_die, ["a", "b"], [0, 1], 2, lambda n: None, pool))) == 2
+            list(local.run_tasks(_pid_or_die, ["die", "a"], [0, 1], 2, lambda n: None, pool))
+        assert len(dict(local.run_tasks(_pid_or_die, ["a", "b"], [0, 1], 2, lambda n: None, pool))) == 2
     finally:
         pool.close()

@@ -1,5 +1,5 @@
-"""The thread limits of extraction (features.threads): counted across the threads that extract at once, and
-safe to fork from while other threads take them (also features.memory's settings)."""
+"""The thread limits of extraction (scanner.runtime.threads): counted across the threads that extract at once, and
+safe to fork from while other threads take them (also scanner.runtime.memory's settings)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import threading
 import cv2
 import pytest
 
-from features import threads
-from features.threads import one_blas_thread, one_thread_each, thread_pools
+from scanner.runtime import threads
+from scanner.runtime.threads import one_blas_thread, one_thread_each, thread_pools
 
 
 def _blas_threads() -> set[int]:
