@@ -34,6 +34,7 @@ from distributed import Client, LocalCluster, get_task_stream
 
 from features import FeatureSpace, ScanSource, extract, extract_many
 from scanner.runtime import cluster
+from scanner.runtime.executors import DaskRuntime, using
 from scanner.scan import Scan
 from scanner.simulation.database import synthetic_database
 
@@ -105,6 +106,12 @@ def _no_work(source: ScanSource) -> tuple[None, str]:
     return None, "not extracted"
 
 
+def on(client: Client, sources: list[ScanSource], ship_data: bool = False) -> FeatureSpace:
+    """The features of ``sources`` with the cluster of ``client`` as the current runtime."""
+    with using(DaskRuntime(client, ship_data=ship_data)):
+        return extract_many(sources, progress=False)
+
+
 def client_cost_per_task(client: Client, sources: list[ScanSource]) -> float:
     """Seconds per task of tasks that do nothing, through the path extraction takes (best of 3)."""
     best = math.inf
@@ -166,9 +173,8 @@ def main() -> None:
                 "serial (1 process)": lambda: timed(lambda: extract_many(sources, workers=1, progress=False)),
                 f"local pool ({WORKERS} processes, kept)": lambda: timed(
                     lambda: extract_many(sources, workers=WORKERS, progress=False)),
-                cluster_name: lambda: timed_on(client, lambda: extract_many(sources, client=client, progress=False)),
-                "  same, files shipped": lambda: timed_on(client, lambda: extract_many(
-                    sources, client=client, progress=False, ship_data=True)),
+                cluster_name: lambda: timed_on(client, lambda: on(client, sources)),
+                "  same, files shipped": lambda: timed_on(client, lambda: on(client, sources, ship_data=True)),
             }, ROUNDS)
             client_cost = client_cost_per_task(client, sources)
         serial = next(iter(runs.values()))

@@ -14,7 +14,7 @@ import sys
 import warnings
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 import numpy as np
 from tqdm import tqdm
@@ -23,15 +23,12 @@ from features import tactum
 from features.prepared import PreparedScan
 from features.registry import REGISTRY, fix_code_version
 from features.space import FeatureSpace
-from scanner.runtime import cluster
-from scanner.runtime.local import WorkerPool, kept_workers, run_tasks, shared_workers
+from scanner.runtime import cluster, executors
+from scanner.runtime.local import WorkerPool
 from scanner.runtime.memory import reusing_freed_memory
 from scanner.runtime.threads import one_blas_thread
 from scanner.scan import Scan
 from taxonomy.errors import ParameterError, TexplorerError
-
-if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
-    from distributed import Client
 
 
 def code_version(families: Sequence[str] | None = None) -> str:
@@ -206,8 +203,7 @@ def _extract_with_code(version: str, families: tuple[str, ...] | None,
 
 
 def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None, *,
-                 cache: FeatureCache | None = None, progress: bool = True, client: Client | None = None,
-                 ship_data: bool = False, pool: WorkerPool | None = None,
+                 cache: FeatureCache | None = None, progress: bool = True, pool: WorkerPool | None = None,
                  families: Sequence[str] | None = None) -> FeatureSpace:
     """Features of many scans as a :class:`FeatureSpace`, rows in input order.
 
@@ -216,26 +212,25 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     after, keyed by :func:`code_version` too, so a second run over unchanged scans only reads the cache. A
     cached row is served only once the source's files are verified to be the bytes it was computed from (a
     stored scan's ``load.verify()``: their SHA-256), and a stored scan is extracted only from its catalogued
-    bytes: a file changed since it was stored fails its row, naming the file, and nothing is cached.
+    bytes: a file changed since it was stored fails its row, naming the file, and nothing is cached. The
+    uncached scans are extracted where the current runtime runs the work (:func:`scanner.runtime.current`:
+    this machine's processes, or a Dask cluster chosen by the command), with the same results.
 
     Parameters
     ----------
     scans : iterable of Scan or ScanSource
         Scans, or sources that load them where they are extracted (with label, group and cache key).
     workers : int, optional
-        Processes (default: the number of cores; 1 = in this process), kept for the next call
-        (:data:`scanner.runtime.local.KEEP_WORKERS_S`; ``release_workers`` ends them at once).
+        Processes of this machine (default: the number of cores; 1 = in this process), kept for the next
+        call (:data:`scanner.runtime.local.KEEP_WORKERS_S`; ``release_workers`` ends them at once); a
+        cluster has its own.
     cache : FeatureCache, optional
         Where cached rows are read and new ones written (a ``scanner.Database``); only this process uses it.
     progress : bool
         Show a progress bar.
-    client : distributed.Client, optional
-        Extract the uncached scans on this Dask cluster instead, with the same results
-        (:func:`scanner.runtime.cluster.extract`).
-    ship_data : bool
-        Send each scan's files from here instead of letting the cluster's workers read them.
     pool : WorkerPool, optional
-        Workers kept across the calls of a job that extracts in batches.
+        Workers of this machine kept across the calls of a job that extracts in batches (default: the
+        process's shared workers, if it has them).
     families : sequence of str, optional
         The families to compute (default: the default ones, the paper's 193 features), opt-in ones too;
         their cache entries are keyed by their names and parameters as well.
@@ -253,14 +248,12 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
     >>> space.X.shape, space.y("coarse").tolist()
     ((4, 193), ['C1', 'C1', 'C2', 'C2'])
     """
-    pool = pool or shared_workers()  # a job's own pool, else the process's shared workers (``job_workers`` gives both)
     if pool is not None and not pool.shared and workers not in (None, pool.size):
         raise ParameterError(f"workers={workers} with a pool of {pool.size} workers")
     sources = [s if isinstance(s, ScanSource) else source_of(s) for s in scans]
     families = None if families is None else tuple(f.name for f in REGISTRY.chosen(families))
     names = REGISTRY.columns_of(families)
     version = code_version(families)
-    work = _extract_source if families is None else functools.partial(_extract_source, families=families)
     rows: list[list[float] | None] = [None] * len(sources)
     errors: dict[int, str] = {}
     todo = []
@@ -274,23 +267,13 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
             rows[i] = list(cached.values())
     bar = _Bar(total=len(todo), desc="features", unit="scan", file=sys.stderr, disable=None if progress else True,
                leave=False)
-    size = (pool.size if pool else workers) or os.cpu_count() or 1
-    workers = size if pool is not None and pool.shared else max(1, min(size, len(todo) or 1))
-    with contextlib.ExitStack() as stack:
-        if client is not None:
-            results = cluster.extract(client, work, [sources[i] for i in todo], todo, bar.update,
-                                      version=functools.partial(code_version, families), ship_data=ship_data)
-        else:
-            key = (version, names, _working_directory())
-            if pool is not None:
-                pool = pool.serving(key)
-            elif workers > 1:  # this function's own, kept between calls (None: another thread's call has them)
-                pool = stack.enter_context(kept_workers(size, key))
-            fn = work if workers == 1 else functools.partial(_extract_with_code, version, families)
-            keys = [(version, sources[i].cache_key) if sources[i].cache_key else None for i in todo]
-            results = run_tasks(fn, [sources[i] for i in todo], todo, workers, bar.update, pool, keys)
-        # leaving early (Ctrl-C) ends the workers' tasks now, not at exit
-        for i, (row, error) in stack.enter_context(contextlib.closing(results)):
+    results = executors.current().extract(
+        functools.partial(_extract_with_code, version, families), [sources[i] for i in todo], todo, bar.update,
+        version=functools.partial(code_version, families), key=(version, names, _working_directory()),
+        keys=[(version, sources[i].cache_key) if sources[i].cache_key else None for i in todo],
+        workers=workers, pool=pool)
+    with contextlib.closing(results):  # leaving early (Ctrl-C) ends the workers' tasks now, not at exit
+        for i, (row, error) in results:
             if error is not None:
                 errors[i] = error
                 continue

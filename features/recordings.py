@@ -67,8 +67,7 @@ from features.registry import ROLE_REGISTRY, RoleFamily
 from features.space import FeatureSpace
 from scanner.lazy import library
 from scanner.preprocess import BAND_HZ, dft321
-from scanner.runtime import cluster
-from scanner.runtime.local import run_tasks
+from scanner.runtime import executors
 from scanner.runtime.threads import one_blas_thread
 from scanner.scan import IMAGE_ROLES, Recording, Trace, is_generic
 from taxonomy.errors import ParameterError
@@ -76,7 +75,7 @@ from taxonomy.errors import ParameterError
 signal = library("scipy.signal")
 
 if TYPE_CHECKING:
-    from distributed import Client
+    pass
 
 VIBRATION_AUDIO_MIN_FS = 1000.0
 """Lowest vibration rate the audio features are computed on (see the module docstring)."""
@@ -636,7 +635,6 @@ def _extract_one(job: tuple[Recording, Windowing, int, tuple[str, ...]]) -> tupl
 
 def feature_space(recordings: Sequence[Recording], windowing: Windowing = Windowing(), border: int = 0,
                   group_by: str | None = "auto", workers: int | None = 1, progress: bool = False,
-                  client: Client | None = None,
                   chosen: Sequence[str] | None = None) -> tuple[FeatureSpace, list[str]]:
     """The feature space of a set of recordings with its own labels, levels, groups and split, and the
     warnings raised while extracting (one line each, naming the recording).
@@ -647,8 +645,9 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     ``combine = "rows"``). ``group_by`` names the rows' cross-validation groups (:func:`fold_group`); ``none``
     makes every row its own group, so the windows of one recording fall in training and test (the
     protocol of published results that cut windows from runs, which leaks between them). ``workers``
-    processes (1: in this process, None: one per core), or the Dask cluster of ``client``
-    (:mod:`scanner.runtime.cluster`; the recordings are sent from here, the values are the same). ``chosen``
+    processes of this machine (1: in this process, None: one per core), or the workers of the current
+    runtime's cluster (:func:`scanner.runtime.current`; the recordings are sent from here, the values are
+    the same). ``chosen``
     names the registered families to compute (default: the default ones), opt-in ones too
     (``catch22.audio``, ...: docs/modern-features.md).
 
@@ -673,7 +672,7 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
                              f"{', '.join(needed[:-1])} or {needed[-1]}")
     columns = tuple(name for family in applied for name in family_names(family))
     jobs = [(r, windowing, border, applied) for r in recordings]
-    results = _map(_extract_one, jobs, workers, progress, client)
+    results = _map(_extract_one, jobs, workers, progress)
     missing = lacking(recordings, found, applied)
     label_level, levels = set_levels(recordings)
     X, ids, labels, groups, level_rows, split, notes = [], [], [], [], {k: [] for k in levels}, [], []
@@ -739,26 +738,20 @@ def lacking(recordings: Sequence[Recording], found: Sequence[Sequence[str]], app
     return lines
 
 
-def _map(function: Callable, jobs: Sequence, workers: int | None, progress: bool,
-         client: Client | None = None) -> list:
-    """``function`` of every job, in order, in this process, a process pool or on a Dask cluster, with a
-    progress bar."""
+def _map(function: Callable, jobs: Sequence, workers: int | None, progress: bool) -> list:
+    """``function`` of every job, in order, where the current runtime runs the work (in this process for
+    ``workers`` 1), with a progress bar. The jobs travel to a cluster once, not inside the tasks; leaving
+    early (Ctrl-C) drops the jobs not started."""
     bar = tqdm(total=len(jobs), desc="features", unit="recording", file=sys.stderr,
                disable=None if progress else True, leave=False)
-    workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
+    runtime = executors.current()
     results: list = [None] * len(jobs)
-    if client is not None:
-        on_cluster = cluster.scatter(client, list(jobs))  # recordings travel once, not inside the tasks
-        with contextlib.closing(cluster.run(client, function, [(job,) for job in on_cluster],
-                                            name="texplorer-recording", tick=bar.update)) as done:
-            for i, result in done:
-                results[i] = result
-    else:
-        # In this process, or extract_many's workers: forked with one thread each, keeping the memory they
-        # free; leaving early (Ctrl-C) drops the jobs not started.
-        with contextlib.closing(run_tasks(function, jobs, range(len(jobs)), workers, bar.update)) as done:
-            for i, result in done:
-                results[i] = result
+    calls = [(job,) for job in runtime.share(jobs)]
+    count = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
+    done = runtime.map_unordered(function, calls, workers=count, name="texplorer-recording", tick=bar.update)
+    with contextlib.closing(done):
+        for i, result in done:
+            results[i] = result
     bar.close()
     return results
 

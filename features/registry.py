@@ -321,6 +321,8 @@ _lock = threading.RLock()
 _closures: dict[tuple[str, ...], tuple[str, ...]] = {}
 _sources: dict[str, bytes] = {}
 """Each module's source as this process read it, when the module (or a family importing it) was fixed."""
+_digests: dict[tuple[str, ...], str] = {}
+"""The hash of each set of modules' sources (:func:`_digest`)."""
 _imports: dict[str, frozenset[str]] = {}
 """The project modules each module imports, from its top-level code (:func:`_imports_in`)."""
 
@@ -422,6 +424,15 @@ def _is_module(name: str) -> bool:
 
 
 def _digest(modules: tuple[str, ...]) -> str:
+    """The hash of ``modules``' sources as this process read them: computed once per set (an extraction
+    checks it for every scan it hands a worker)."""
+    with _lock:
+        if modules not in _digests:
+            _digests[modules] = _hashed(modules)
+        return _digests[modules]
+
+
+def _hashed(modules: tuple[str, ...]) -> str:
     root = Path(__file__).resolve().parents[1]
     digest = hashlib.sha256()
     for module in modules:

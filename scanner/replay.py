@@ -21,7 +21,6 @@ from collections import Counter
 from collections.abc import Callable, Collection, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -34,9 +33,6 @@ from scanner.storage.matfile import load_scan
 from scanner.storage.stored import StoredScan
 from taxonomy.errors import TexplorerError
 from taxonomy.learning.models import ModelError, TrainedModel, predict_top
-
-if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
-    from distributed import Client
 
 DEFAULT_RTOL = 1e-9
 """Relative tolerance of :func:`compare` for closed-form features (sums, FFTs, filters), whose values differ
@@ -74,9 +70,10 @@ def scan_paths(paths: Iterable[str | Path]) -> list[Path]:
     return found
 
 
-def replay(paths: Sequence[Path], *, workers: int | None = None, progress: bool = True, client: Client | None = None,
-           ship_data: bool = False) -> FeatureSpace:
-    """The features of the scans stored at ``paths``, extracted by the current code (nothing is cached).
+def replay(paths: Sequence[Path], *, workers: int | None = None, progress: bool = True) -> FeatureSpace:
+    """The features of the scans stored at ``paths``, extracted by the current code (nothing is cached),
+    where the current runtime runs the work (:func:`scanner.runtime.current`: processes here, or a Dask
+    cluster whose workers read the files at the same paths or get them from here).
 
     Parameters
     ----------
@@ -86,10 +83,6 @@ def replay(paths: Sequence[Path], *, workers: int | None = None, progress: bool 
         Worker processes (default: the number of cores); each scan is loaded (validated) and extracted there.
     progress : bool
         Show a progress bar.
-    client : distributed.Client, optional
-        Extract on this Dask cluster; workers read the files at the same paths, or get them from here.
-    ship_data : bool
-        Send every file from here instead of letting workers read them.
 
     Returns
     -------
@@ -97,7 +90,7 @@ def replay(paths: Sequence[Path], *, workers: int | None = None, progress: bool 
         Rows in the order of ``paths``; scans that fail are listed in ``.failed`` with the reason.
     """
     sources = [ScanSource(str(path), "", "", StoredScan(path)) for path in paths]
-    return _identified(extract_many(sources, workers=workers, progress=progress, client=client, ship_data=ship_data))
+    return _identified(extract_many(sources, workers=workers, progress=progress))
 
 
 def _identified(space: FeatureSpace) -> FeatureSpace:

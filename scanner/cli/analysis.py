@@ -21,7 +21,7 @@ from scanner.cli.common import (
     add_feature_set_option,
     add_space_options,
     choices,
-    cluster,
+    runtime_of,
     set_sizes,
     space_for,
 )
@@ -70,8 +70,8 @@ def add_evaluation_options(parser: argparse.ArgumentParser, report_default: str 
 
 
 def cmd_select(args: argparse.Namespace) -> int:
-    with cluster(args) as client:
-        space = space_for(args, client)
+    with runtime_of(args):
+        space = space_for(args)
     print(select_features(space, args.level, args.n, args.max_corr).format(args.top))
     return 0
 
@@ -113,9 +113,9 @@ def set_grouping(args: argparse.Namespace) -> str:
     return {"auto": "the set's groups"}.get(group_by, group_by)
 
 
-def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
-    """Evaluate the grid asked for on the command line (on the Dask cluster of ``client`` if given);
-    print the table; write the HTML report if asked."""
+def run_evaluation(space, args: argparse.Namespace) -> list:
+    """Evaluate the grid asked for on the command line (where the current runtime runs the work); print
+    the table; write the HTML report if asked."""
     classifiers = choices(args.classifier, list(CLASSIFIERS))
     levels = choices(args.level, space.level_names)
     defaults = default_feature_sets()
@@ -142,7 +142,7 @@ def run_evaluation(space, args: argparse.Namespace, client=None) -> list:
         calibrate = diagram_cells(levels, sizes, list(sets or present_feature_sets(space)), space.level_names)
     reports = evaluate_grid(space, classifiers, levels, sizes, sets, folds=args.folds, seed=args.seed,
                             protocol=args.protocol, workers=args.workers, progress=True, use_split=use_split,
-                            client=client, single_group=getattr(args, "single_group", "train"),
+                            single_group=getattr(args, "single_group", "train"),
                             calibrate=calibrate, group_by=group_by, pairs=getattr(args, "pairs", None))
     if getattr(args, "vote", False):
         recordings = [recording_of(s) for s in space.scan_ids]
@@ -207,9 +207,9 @@ def run_quick(space, args: argparse.Namespace, levels: Sequence[str]) -> list:
 def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.dataset:
         return cmd_set_evaluate(args)
-    with cluster(args) as client:
-        space = space_for(args, client)
-        run_evaluation(regroup_scans(space, args), args, client)
+    with runtime_of(args):
+        space = space_for(args)
+        run_evaluation(regroup_scans(space, args), args)
     return 0
 
 
@@ -218,16 +218,15 @@ def cmd_set_evaluate(args: argparse.Namespace) -> int:
         raise UsageError("give either a set (set:NAME) or --features CSV, not both")
     table, which = stored_set_table(args, set_folder(args.db, args.dataset[4:]))
     print(f"{args.dataset}: {which}")
-    with cluster(args) as client:
-        space = FeatureSpace.from_csv(table) if table else set_space(args, client)
-        reports = run_evaluation(space, args, client)
+    with runtime_of(args):
+        space = FeatureSpace.from_csv(table) if table else set_space(args)
+        reports = run_evaluation(space, args)
         if reports and getattr(args, "leakage", False):
             print()
             print("the same evaluation with --group-by none: every row its own group, so the windows of one "
                   "recording fall in training and test (the published protocol)")
             ungrouped = run_evaluation(dataclasses.replace(space, groups=space.scan_ids),
-                                       argparse.Namespace(**{**vars(args), "group_by": "none", "report": None}),
-                                       client)
+                                       argparse.Namespace(**{**vars(args), "group_by": "none", "report": None}))
             print()
             print(format_protocols(reports, ungrouped))
     return 0 if reports else EXIT_ERROR
@@ -237,8 +236,8 @@ def cmd_train(args: argparse.Namespace) -> int:
     if args.out is not None and args.out.exists():  # said before the training, not after
         raise UsageError(f"{args.out} exists: a trained model is never overwritten; give a new name, or leave "
                          "out --out to keep it as the database's next model version")
-    with cluster(args) as client:
-        space = space_for(args, client)
+    with runtime_of(args):
+        space = space_for(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         model = train_model(space, args.level, args.n, args.classifier, args.seed,

@@ -13,20 +13,21 @@ from pathlib import Path
 
 from features import REGISTRY, FeatureSpace, feature_sets
 from scanner.cli.base import UsageError, add_db_option, open_db
-from scanner.runtime.cluster import ClusterError, connect, describe
+from scanner.runtime.cluster import ClusterError
+from scanner.runtime.executors import LOCAL, Runtime, connect, using
 from scanner.workflows.database import extract_database
 
 ALL = "all"
 
 
-def space_for(args: argparse.Namespace, client=None):
+def space_for(args: argparse.Namespace):
     """The feature space of ``--features CSV`` if given, else of the database (from its feature cache)."""
     if args.features:
         return FeatureSpace.from_csv(args.features)
     wanted = args.feature_set if isinstance(getattr(args, "feature_set", None), list) else [
         getattr(args, "feature_set", ALL)]
-    space = extract_database(open_db(args), workers=args.workers, client=client, ship_data=args.ship_data,
-                             families=feature_sets.families_for(wanted), partial=False)
+    space = extract_database(open_db(args), workers=args.workers, families=feature_sets.families_for(wanted),
+                             partial=False)
     for scan_id, reason in space.failed:
         print(f"texplorer: warning: {scan_id} left out: {reason}", file=sys.stderr)
     return space
@@ -76,23 +77,26 @@ def add_feature_set_option(parser: argparse.ArgumentParser, many: bool) -> None:
 
 
 @contextlib.contextmanager
-def cluster(args: argparse.Namespace) -> Iterator:
-    """The Dask client of ``--scheduler``, else of Dask's configuration (``DASK_SCHEDULER_ADDRESS``), or
-    None for processes on this machine; an explicit ``--workers`` means processes on this machine."""
+def runtime_of(args: argparse.Namespace) -> Iterator[Runtime]:
+    """Where the command's work runs, current until the block ends (:mod:`scanner.runtime.executors`): the
+    Dask cluster of ``--scheduler``, else of Dask's configuration (``DASK_SCHEDULER_ADDRESS``), else
+    processes on this machine; an explicit ``--workers`` means processes on this machine. ``--ship-data``
+    sends the scans' files to a cluster's workers."""
     workers = getattr(args, "workers", None)
     if args.scheduler and workers:
         raise ClusterError("--workers sets processes on this machine, --scheduler a Dask cluster: give one")
     if workers:
-        yield None
+        with using(LOCAL):
+            yield LOCAL
         return
-    with connect(args.scheduler) as client:
-        if client is None:
-            yield None
+    with connect(args.scheduler, ship_data=getattr(args, "ship_data", False)) as runtime:
+        if runtime is LOCAL:
+            yield runtime
             return
-        print(f"dask: {describe(client)}", file=sys.stderr)
+        print(runtime.describe(), file=sys.stderr)
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning
-            yield client
+            yield runtime
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:

@@ -9,10 +9,9 @@ import time
 from features import REGISTRY
 from scanner.cli.analysis import add_evaluation_options, run_evaluation
 from scanner.cli.base import UsageError, add_db_option
-from scanner.cli.common import ALL, add_cluster_options, cluster
+from scanner.cli.common import ALL, add_cluster_options, runtime_of
 from scanner.cli.features import report_space
 from scanner.preprocess import small_photo_note
-from scanner.runtime.local import run_aside
 from scanner.workflows.database import extract_database
 from scanner.workflows.demo import simulated_database
 from scanner.workflows.models import DEFAULT_MODEL_SETTINGS, save_model_version, train_default_model
@@ -76,16 +75,16 @@ def cmd_demo(args: argparse.Namespace) -> int:
     for record in db.records():
         by_class[record.label[:2]] = by_class.get(record.label[:2], 0) + 1
     print("scans per major class: " + ", ".join(f"{c} {n}" for c, n in sorted(by_class.items())))
-    with cluster(args) as client:
+    with runtime_of(args) as runtime:
         started = time.perf_counter()
-        space = extract_database(db, workers=args.workers, client=client, ship_data=args.ship_data)
+        space = extract_database(db, workers=args.workers)
         report_space(space, time.perf_counter() - started)
         print(f"wrote {space.to_csv(db.root / 'features.csv')}")
         if args.no_evaluation:
             return 0
-        # The model needs only the features: trained in a process of its own while the evaluation runs (on
-        # this machine's cores; in sequence after it when the folds run on a cluster).
-        model = None if client is not None else run_aside(train_default_model, space, args.seed)
+        # The model needs only the features: trained beside the evaluation (in a process of its own, or as
+        # one task on the cluster).
+        model = runtime.submit(train_default_model, space, args.seed)
         args.report = args.report or db.root / "report"
         # Temperature scaling refits each classifier on three inner splits per fold; the report shows its
         # result in one reliability diagram per classifier, so the demo calibrates those cells only (the
@@ -93,9 +92,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
         args.calibrate_diagram_only = True
         if not args.full_grid and args.level == [ALL] and args.n is None:
             args.pairs = PAPER_FIGURES
-        reports = run_evaluation(space, args, client)
-
-    trained = train_default_model(space, args.seed) if model is None else model.result()
+        reports = run_evaluation(space, args)
+        trained = model.result()
     level, n_features, classifier = DEFAULT_MODEL_SETTINGS
     same = [r for r in reports if (r.level, r.n_features, r.classifier, r.feature_set) ==
             (level, n_features, classifier, "all")]

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from features import REGISTRY, SOLVER_RTOL, FeatureSpace
 from scanner.cli.base import EXIT_ERROR, EXIT_PROBLEMS, UsageError, add_db_option, created_db, open_db, progress
-from scanner.cli.common import add_cluster_options, cluster
+from scanner.cli.common import add_cluster_options, runtime_of
 from scanner.cli.features import current_set_table
 from scanner.replay import (
     DEFAULT_ATOL,
@@ -149,8 +149,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
         model = load_model(args.model)
     expected = FeatureSpace.from_csv(args.expect) if args.expect else None
     started = time.perf_counter()
-    with cluster(args) as client:
-        space = replay(paths, workers=args.workers, client=client, ship_data=args.ship_data)
+    with runtime_of(args):
+        space = replay(paths, workers=args.workers)
     seconds = time.perf_counter() - started
     _print_replay(space, predictions(space, model, args.k) if model else None, model.level if model else None)
     for path, reason in space.failed:

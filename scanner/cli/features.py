@@ -16,7 +16,7 @@ from typing import Any
 from features import REGISTRY, code_version, feature_sets
 from features.recordings import Windowing, describe_families, feature_space
 from scanner.cli.base import EXIT_ERROR, UsageError, add_db_option, open_db
-from scanner.cli.common import add_cluster_options, add_feature_set_option, cluster
+from scanner.cli.common import add_cluster_options, add_feature_set_option, runtime_of
 from scanner.storage.files import atomic_write_bytes, sha256_file
 from scanner.storage.ingest import load_recordings, set_folder
 from scanner.storage.stored import stat_record
@@ -46,8 +46,8 @@ def cmd_features(args: argparse.Namespace) -> int:
         return cmd_set_features(args)
     db = open_db(args)
     started = time.perf_counter()
-    with cluster(args) as client:
-        space = extract_database(db, label=args.label, workers=args.workers, client=client, ship_data=args.ship_data,
+    with runtime_of(args):
+        space = extract_database(db, label=args.label, workers=args.workers,
                                  families=feature_sets.families_for(args.feature_set), partial=False)
     report_space(space, time.perf_counter() - started)
     out = args.out or db.root / table_name(args.label)
@@ -68,16 +68,16 @@ def set_recordings(spec: str, db: Path) -> tuple[str, list]:
     return spec[4:], load_recordings(set_folder(db, spec[4:]))
 
 
-def set_space(args: argparse.Namespace, client=None):
-    """The feature space of ``set:NAME`` with the windowing, crop and grouping asked for (on the Dask cluster
-    of ``client`` if given); prints a summary line and the extraction warnings (a count, all with
+def set_space(args: argparse.Namespace):
+    """The feature space of ``set:NAME`` with the windowing, crop and grouping asked for (where the current
+    runtime runs the work); prints a summary line and the extraction warnings (a count, all with
     --verbose)."""
     name, recordings = set_recordings(args.dataset, args.db)
     windowing = Windowing(args.window, args.combine)
     started = time.perf_counter()
     wanted = args.feature_set if isinstance(args.feature_set, list) else [args.feature_set]
     space, notes = feature_space(recordings, windowing, args.border, args.group_by, workers=args.workers,
-                                 progress=True, client=client, chosen=feature_sets.role_families_for(wanted))
+                                 progress=True, chosen=feature_sets.role_families_for(wanted))
     for note in notes if args.verbose else notes[:3]:
         print(f"texplorer: warning: {one_line(note)}", file=sys.stderr)
     if len(notes) > 3 and not args.verbose:
@@ -175,8 +175,8 @@ def current_set_table(folder: Path) -> tuple[Path | None, str]:
 
 def cmd_set_features(args: argparse.Namespace) -> int:
     folder = set_folder(args.db, args.dataset[4:])
-    with cluster(args) as client:
-        space = set_space(args, client)
+    with runtime_of(args):
+        space = set_space(args)
     out = args.out or folder / SET_TABLE
     print(f"wrote {space.to_csv(out)}")
     if args.out is None:

@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 
 from scanner.cli.base import EXIT_PROBLEMS, UsageError, add_db_option, progress
-from scanner.cli.common import add_cluster_options, cluster
+from scanner.cli.common import add_cluster_options, runtime_of
 from scanner.simulation.recordings import simulate_recordings
 from scanner.storage.database import Database, DatabaseError
 from scanner.storage.ingest import (
@@ -117,9 +117,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     dataset = comparison_dataset(args.dataset, args.db, args.seed)
     print(dataset.summary())
-    with cluster(args) as client:
+    with runtime_of(args):
         comparison = compare_methods(dataset, args.methods, seed=args.seed, repeats=args.repeats,
-                                     progress=progress("comparing", unit="method"), client=client)
+                                     progress=progress("comparing", unit="method"))
     print(comparison.format_outcome())
     results = comparison.results
     if not results:

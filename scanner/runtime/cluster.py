@@ -238,7 +238,7 @@ def run(client: Client, fn: Callable[..., Any], calls: Sequence[tuple], *, name:
     """
     distributed = _distributed()
     token = uuid.uuid4().hex
-    futures = {client.submit(_pinned, fn, *args, key=f"{name}-{token}-{i}", pure=False): i
+    futures = {client.submit(pinned, fn, *args, key=f"{name}-{token}-{i}", pure=False): i
                for i, args in enumerate(calls)}
     try:
         for future in completions(client, distributed.as_completed(futures, loop=client.loop)):
@@ -250,7 +250,7 @@ def run(client: Client, fn: Callable[..., Any], calls: Sequence[tuple], *, name:
         _cancel(client, futures)
 
 
-def _pinned(fn: Callable[..., Any], *args: Any) -> Any:
+def pinned(fn: Callable[..., Any], *args: Any) -> Any:
     """On a worker: ``fn(*args)`` with BLAS on one thread for good, as in a process of this machine.
 
     Not restored afterwards: tasks in other threads of the worker must never see a limit being lifted
@@ -292,11 +292,11 @@ def _stored(source: Any) -> StoredLoader | None:
 
 
 def _versioned(fn: Callable[[Item], Any], version: Callable[[], str], item: Item) -> tuple[Any, str, str]:
-    """On a worker: ``fn(item)`` (BLAS pinned as by :func:`_pinned`), the worker's feature code version and
+    """On a worker: ``fn(item)`` (BLAS pinned as by :func:`pinned`), the worker's feature code version and
     its address."""
     from distributed import get_worker
 
-    return _pinned(fn, item), version(), get_worker().address
+    return pinned(fn, item), version(), get_worker().address
 
 
 def blind_workers(client: Client, loader: StoredLoader) -> list[str]:

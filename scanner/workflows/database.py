@@ -5,15 +5,10 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Iterable, Sequence
-from typing import TYPE_CHECKING
 
 from features import FeatureSpace, ScanSource, extract_many
 from scanner.runtime.local import WorkerPool
 from scanner.storage.database import Database, DatabaseError, ScanRecord
-
-if TYPE_CHECKING:
-    from distributed import Client
-
 
 # -- extract a database with its cache ---------------------------------------------------------------
 
@@ -26,13 +21,12 @@ def database_sources(db: Database, records: Iterable[ScanRecord]) -> list[ScanSo
 
 
 def extract_database(db: Database, *, label: str | None = None, records: Sequence[ScanRecord] | None = None,
-                     workers: int | None = None, progress: bool = True, client: Client | None = None,
-                     ship_data: bool = False, pool: WorkerPool | None = None,
+                     workers: int | None = None, progress: bool = True, pool: WorkerPool | None = None,
                      families: Sequence[str] | None = None, partial: bool = True) -> FeatureSpace:
     """The features of every scan of ``db`` (or of ``label``, a label or class prefix, or of ``records``),
     read from the database's feature cache where the scan and the feature code are unchanged; extracted in
-    ``workers`` processes here (or those of ``pool``, kept across a job's batches), or on the Dask cluster
-    of ``client`` (``ship_data``: send the files to the workers; see :func:`features.extract_many`). The
+    ``workers`` processes here (or those of ``pool``, kept across a job's batches), or on the current
+    runtime's Dask cluster (:func:`scanner.runtime.current`; see :func:`features.extract_many`). The
     catalog and the cache are read and written here only. ``families``: the feature families to compute
     (default: the paper's; opt-in ones such as :mod:`features.modern`'s too). Without ``partial``, quick
     scans that hold only some steps are left out (:func:`full_scans`): what models learn from and are
@@ -49,8 +43,8 @@ def extract_database(db: Database, *, label: str | None = None, records: Sequenc
         records = full_scans(records)
     if not records:
         raise DatabaseError(f"{db.root}: no scans{f' with label {label}' if label else ''} to extract")
-    return extract_many(database_sources(db, records), workers=workers, cache=db, progress=progress, client=client,
-                        ship_data=ship_data, pool=pool, families=families)
+    return extract_many(database_sources(db, records), workers=workers, cache=db, progress=progress, pool=pool,
+                        families=families)
 
 
 def full_scans(records: Sequence[ScanRecord]) -> list[ScanRecord]:

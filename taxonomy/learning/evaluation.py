@@ -33,7 +33,6 @@ import time
 import warnings
 from collections.abc import Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
 
 import numpy as np
 from sklearn.base import BaseEstimator, clone
@@ -56,16 +55,12 @@ from features.random_kernels import RandomKernels
 from features.registry import REGISTRY
 from features.selection import FQSelector, KeepAll, PartwiseFQSelector
 from features.space import FeatureSpace
-from scanner.runtime import cluster
-from scanner.runtime.local import worker_map
+from scanner.runtime import executors
 from scanner.runtime.threads import one_blas_thread
 from taxonomy.learning.calibration import TemperatureScaledClassifier
 from taxonomy.learning.metrics import present_class_f1
 from taxonomy.learning.openset import MAX_ACCURACY_DROP, class_folds, fit_rule, learn_rejection
 from taxonomy.learning.results import OWN_METHOD, EvaluationError, Result, warning_notes
-
-if TYPE_CHECKING:  # Dask is an optional dependency (texplorer[cluster])
-    from distributed import Client
 
 PROTOCOLS = ("nested", "paper")
 
@@ -342,7 +337,7 @@ def _without_rows(space: FeatureSpace, bad: np.ndarray, why: str, first: int = 3
 
 def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level: str = "fine",
              n_features: int | None = 10, folds: int = 5, seed: int = SEED, protocol: str = "nested",
-             feature_set: FeatureSet = None, use_split: bool = True, client: Client | None = None,
+             feature_set: FeatureSet = None, use_split: bool = True,
              single_group: str = "train", calibrate: bool = True, group_by: str = "sample") -> Result:
     """Cross-validate one classifier pipeline on ``space`` at classification ``level`` (paper section V-C).
 
@@ -367,9 +362,6 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
         Columns that hold NaN in any row are left out (listed in ``Result.dropped``).
     use_split : bool
         Use the space's own train/test split where it has one (``space.split``) instead of ``folds``.
-    client : distributed.Client, optional
-        Fit the folds on this Dask cluster (:mod:`scanner.runtime.cluster`) instead of in this process; the
-        report is the same.
     single_group : str
         ``"train"`` or ``"drop"``: a class with a single sample (group) is kept in training only, or left
         out, while the folds of the others stay grouped (:func:`cv_splits`).
@@ -391,7 +383,7 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
     """
     cell = _Cell(space.check_level(level), _set_name(feature_set), feature_set, n_features)
     return _run(space, [classifier], [cell], folds, seed, protocol, workers=1, progress=False,
-                use_split=use_split, client=client, single_group=single_group, calibrate=calibrate,
+                use_split=use_split, single_group=single_group, calibrate=calibrate,
                 group_by=group_by)[0]
 
 
@@ -399,14 +391,14 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
                   levels: Iterable[str] | None = None, set_sizes: Iterable[int | None] = (3, 10),
                   feature_sets: Mapping[str, FeatureSet] | None = None, folds: int = 5, seed: int = SEED,
                   protocol: str = "nested", workers: int | None = None,
-                  progress: bool = False, use_split: bool = True, client: Client | None = None,
+                  progress: bool = False, use_split: bool = True,
                   single_group: str = "train", calibrate: bool | Collection[tuple[str, str, int | None]] = True,
                   group_by: str = "sample", pairs: Collection[tuple[str, int | None]] | None = None) -> list[Result]:
     """Every classifier x feature set x level x set size (the paper's Figs. 16-18), folds in parallel.
 
     Each fold of each (level, feature set, size) is one job in one of ``workers`` processes, or one task on
-    the Dask cluster of ``client`` (each cell's data sent once), the fine level first because it takes
-    longest. Results equal those of :func:`evaluate` with the same arguments.
+    the current runtime's Dask cluster (:func:`scanner.runtime.current`; each cell's data sent once), the
+    fine level first because it takes longest. Results equal those of :func:`evaluate` with the same arguments.
 
     Parameters
     ----------
@@ -426,13 +418,11 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
     protocol : str
         ``"nested"`` or ``"paper"``.
     workers : int, optional
-        Processes (default: all cores).
+        Processes of this machine (default: all cores); a cluster has its own.
     progress : bool
         Show a progress bar.
     use_split : bool
         Use the space's own train/test split where it has one.
-    client : distributed.Client, optional
-        Fit the folds on this Dask cluster.
     calibrate : bool or collection of (str, str, int or None)
         Calibrate every cell (see :func:`evaluate`), none, or only the cells named by (level, feature set
         name, set size); the predictions are the same either way.
@@ -464,7 +454,7 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
                               f"{', '.join(levels)} and the set sizes {', '.join(map(str, set_sizes))}")
     chosen = None if isinstance(calibrate, bool) else set(calibrate)
     flags = [calibrate if chosen is None else (c.level, c.set_name, c.n_features) in chosen for c in cells]
-    reports = _run(space, classifiers, cells, folds, seed, protocol, workers, progress, use_split, client,
+    reports = _run(space, classifiers, cells, folds, seed, protocol, workers, progress, use_split,
                    single_group, flags, group_by)
     per_cell = len(classifiers)
     return [reports[c * per_cell + k] for k in range(per_cell) for c in range(len(cells))]
@@ -542,7 +532,7 @@ class _Prepared:
 
 def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells: Sequence[_Cell], folds: int,
          seed: int, protocol: str, workers: int | None, progress: bool, use_split: bool = True,
-         client: Client | None = None, single_group: str = "train", calibrate: bool | Sequence[bool] = True,
+         single_group: str = "train", calibrate: bool | Sequence[bool] = True,
          group_by: str = "sample") -> list[Result]:
     """Results of every classifier in every cell, in that order (cells outer, classifiers inner);
     ``calibrate`` for every cell or one flag per cell."""
@@ -556,11 +546,10 @@ def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells:
     # disable=None hides the bar when stderr is not a terminal (logs, CI).
     bar = tqdm(total=len(jobs), desc="evaluating", unit="fold", file=sys.stderr, disable=None if progress else True,
                leave=False)
-    if client is None:
-        results = worker_map(_run_fold, [(prepared[c], f, protocol) for c, f in jobs], workers)
-    else:
-        on_cluster = cluster.scatter(client, prepared)
-        results = cluster.run(client, _fold, [(on_cluster[c], f, protocol) for c, f in jobs], name="texplorer-fold")
+    runtime = executors.current()
+    shared = runtime.share(prepared)  # each cell's data travels to a cluster once, not with each fold
+    results = runtime.map_unordered(_fold, [(shared[c], f, protocol) for c, f in jobs], workers=workers,
+                                    name="texplorer-fold")
     outcome: dict[tuple[int, int], _FoldOutcome] = {}
     with contextlib.closing(results):  # leaving early (Ctrl-C) cancels the cluster's remaining folds now
         for j, result in results:
@@ -643,10 +632,6 @@ class _FoldOutcome:
     seconds: list[float]
     probabilities: list[np.ndarray | None]
     unconverged: list[tuple[int, int]]
-
-
-def _run_fold(job: tuple[_Prepared, int, str]) -> _FoldOutcome:
-    return _fold(*job)
 
 
 def _fold(prepared: _Prepared, fold: int, protocol: str) -> _FoldOutcome:

@@ -48,7 +48,7 @@ from sklearn.metrics.pairwise import euclidean_distances
 
 from features.registry import REGISTRY
 from features.space import FeatureSpace
-from scanner.runtime.local import worker_map
+from scanner.runtime import executors
 from taxonomy.learning.calibration import grouped_splits
 from taxonomy.learning.evaluation import SEED, EvaluationError, cv_splits, drop_nan_columns, fit_pipeline
 from taxonomy.learning.openset import Neighbours, class_folds, fit_neighbours
@@ -610,7 +610,8 @@ def evaluate_quick(space: FeatureSpace, costs: Mapping[str, float], order: Seque
     level, folds, seed, stop_at, n_features
         Classification level, folds, seed, the probability that stops a quick scan, the full model's features.
     workers : int, optional
-        Processes the folds run in (:func:`~scanner.runtime.local.worker_map`; default one per CPU).
+        Processes of this machine the folds run in (default one per CPU), or the current runtime's cluster
+        (:func:`scanner.runtime.current`).
     open_set : bool
         Also hold out a fifth of the materials per fold (:func:`~taxonomy.learning.openset.class_folds`, as
         ``evaluate --open-set``) and walk their scans on a model that never saw them: ``walks["unseen"]``, of
@@ -641,7 +642,9 @@ def evaluate_quick(space: FeatureSpace, costs: Mapping[str, float], order: Seque
         walks: dict[str, list[tuple[int, Walk]]] = {"adaptive": [], "fixed": [], "unseen": []}
         full_correct = np.zeros(len(y), dtype=bool)
         tested = np.zeros(len(y), dtype=bool)
-        for k, (adaptive, fixed, right) in worker_map(_quick_fold, jobs, workers):
+        folds_done = executors.current().map_unordered(_quick_fold, [(job,) for job in jobs], workers=workers,
+                                                       name="texplorer-quick-fold")
+        for k, (adaptive, fixed, right) in folds_done:
             test = jobs[k].test
             if jobs[k].unseen:
                 walks["unseen"] += zip(test, adaptive, strict=True)

@@ -6,7 +6,6 @@ from __future__ import annotations
 import math
 import warnings
 from itertools import combinations
-from typing import TYPE_CHECKING
 
 import numpy as np
 from sklearn.base import BaseEstimator, ClassifierMixin
@@ -18,8 +17,6 @@ from sklearn.utils import Tags
 from sklearn.utils.multiclass import check_classification_targets
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-if TYPE_CHECKING:
-    from distributed import Client
 from taxonomy.learning.results import Result
 from taxonomy.related.datasets import Dataset, Extracted, ExtractedSets, MethodError, MethodSkipped, motion_of, trial_of
 from taxonomy.related.scoring import holdout_splits, score, scored
@@ -154,8 +151,7 @@ def palpation_table(dataset: Dataset, extracted: Extracted,
     return keys, np.array(table).reshape(len(keys), -1), first
 
 
-def run_chathuranga(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int,
-                    client: Client | None = None) -> list[Result]:
+def run_chathuranga(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int) -> list[Result]:
     """Chathuranga et al.: elimination over (up to) three palpations; the two single-palpation baselines."""
     c4 = cache.get("chathuranga4")
     per_trial = {}
@@ -171,7 +167,7 @@ def run_chathuranga(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: 
     splitting = f"{len(splits)} x holdout 1/6"
     level = dataset.label_level
     seconds = float(np.nanmedian(c4.seconds[first])) * count
-    scores = score(lambda _, __: PairwiseEliminationSVM(palpations=count), X, y, splits, client)
+    scores = score(lambda _, __: PairwiseEliminationSVM(palpations=count), X, y, splits)
     results = [scored(scores, len(y), seconds, method="chathuranga", feature_set="chathuranga4",
                       classifier="pairwise-svm", motions=f"{count} palpation(s)", level=level, splitting=splitting,
                       seed=seed, paper=CHATHURANGA_PAPER["pairwise-svm"])]
@@ -195,7 +191,7 @@ def run_chathuranga(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: 
             continue
         X_b, y_b = extracted.X[usable], dataset.y(level, usable)
         b_splits = holdout_splits(y_b, len(splits), 1 / 6, seed)
-        scores = score(lambda _, __, make=make: make(), X_b, y_b, b_splits, client)
+        scores = score(lambda _, __, make=make: make(), X_b, y_b, b_splits)
         seconds = float(np.nanmedian(extracted.seconds[usable]))
         results.append(scored(scores, len(y_b), seconds, results_note, method="chathuranga", feature_set=set_name,
                               classifier=name, motions="1 palpation", level=level, splitting=splitting, seed=seed,

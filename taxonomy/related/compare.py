@@ -5,12 +5,8 @@ from __future__ import annotations
 import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from scanner.scan import Recording, Scan
-
-if TYPE_CHECKING:
-    from distributed import Client
 from taxonomy.learning.results import Result
 from taxonomy.related.chathuranga import run_chathuranga
 from taxonomy.related.datasets import REPEATS, SEED, Dataset, ExtractedSets, MethodError, MethodSkipped, every
@@ -28,7 +24,7 @@ class Method:
     paper: str
     needs: str
     applies: Callable[[Dataset], bool]
-    run: Callable[[Dataset, ExtractedSets, int, int, Client | None], list[Result]]
+    run: Callable[[Dataset, ExtractedSets, int, int], list[Result]]
 
 
 
@@ -93,9 +89,8 @@ class MethodComparison:
 
 def compare_methods(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Sequence[str] | None = None,
                     *, seed: int = SEED, repeats: int = REPEATS,
-                    progress: Callable[[Iterable[str]], Iterable[str]] = iter,
-                    client: Client | None = None) -> MethodComparison:
-    """:func:`compare` (on the Dask cluster of ``client`` if given), with the outcome of every method:
+                    progress: Callable[[Iterable[str]], Iterable[str]] = iter) -> MethodComparison:
+    """:func:`compare`, with the outcome of every method:
     ``ran (n results)`` (and the parts it skipped), or ``not run:`` the role or value it lacks, or why the
     data could not feed it."""
     data = _as_dataset(dataset)
@@ -103,7 +98,7 @@ def compare_methods(dataset: Dataset | Sequence[Recording] | Sequence[Scan], met
                if methods is None and (reason := not_applicable(data, name))}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", MethodSkipped)
-        results = compare(data, methods, seed=seed, repeats=repeats, progress=progress, client=client)
+        results = compare(data, methods, seed=seed, repeats=repeats, progress=progress)
     skipped = [str(w.message) for w in caught if issubclass(w.category, MethodSkipped)]
     for w in caught:
         if not issubclass(w.category, MethodSkipped):
@@ -123,9 +118,12 @@ def compare_methods(dataset: Dataset | Sequence[Recording] | Sequence[Scan], met
 
 
 def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Sequence[str] | None = None, *,
-            seed: int = SEED, repeats: int = REPEATS, progress: Callable[[Iterable[str]], Iterable[str]] = iter,
-            client: Client | None = None) -> list[Result]:
+            seed: int = SEED, repeats: int = REPEATS,
+            progress: Callable[[Iterable[str]], Iterable[str]] = iter) -> list[Result]:
     """Run the related methods on one dataset, each with its published features, classifiers and protocol.
+
+    The splits of each configuration are fitted one after the other here, or side by side on the current
+    runtime's Dask cluster (:func:`scanner.runtime.current`); the scores are the same.
 
     Parameters
     ----------
@@ -141,9 +139,6 @@ def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Se
         half as many, at least two).
     progress : callable
         Wraps the iteration over the methods (e.g. a tqdm bar).
-    client : distributed.Client, optional
-        Fit the splits of each configuration side by side on this Dask cluster (:mod:`scanner.runtime.cluster`)
-        instead of one after the other here; the scores are the same.
 
     Returns
     -------
@@ -164,7 +159,7 @@ def compare(dataset: Dataset | Sequence[Recording] | Sequence[Scan], methods: Se
     results: list[Result] = []
     for name in progress(names):
         try:
-            results += METHODS[name].run(data, cache, seed, repeats, client)
+            results += METHODS[name].run(data, cache, seed, repeats)
         except ValueError as exc:
             # A method the caller asked for must run; one merely applicable may find the data too small.
             reason = str(exc) if isinstance(exc, MethodError) else f"{type(exc).__name__}: {exc}"

@@ -4,7 +4,6 @@ classifiers, 5-fold CV grouped by sample, at the coarse, medium and fine levels.
 from __future__ import annotations
 
 import warnings
-from typing import TYPE_CHECKING
 
 import numpy as np
 from sklearn.base import BaseEstimator
@@ -12,16 +11,12 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import MinMaxScaler
 
 from taxonomy.learning.evaluation import classifier_estimators, cv_splits
-
-if TYPE_CHECKING:
-    from distributed import Client
 from taxonomy.learning.results import Result, warning_notes
 from taxonomy.related.datasets import Dataset, ExtractedSets, object_of
 from taxonomy.related.scoring import score, scored, usable_rows
 
 
-def run_fishel(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int,
-               client: Client | None = None) -> list[Result]:
+def run_fishel(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int) -> list[Result]:
     """``fishel3`` with the project's six classifiers, 5-fold CV grouped by sample (fewer folds when a class
     has fewer scans), every taxonomy level."""
     extracted = cache.get("fishel3")
@@ -44,7 +39,7 @@ def run_fishel(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int,
                 return Pipeline([("scale", MinMaxScaler()),
                                  ("classify", _without_probability(classifier_estimators(seed)[name]))])
             seconds = float(np.nanmedian(extracted.seconds[rows]))
-            results.append(scored(score(make, X, y, splits, client), len(rows), seconds,
+            results.append(scored(score(make, X, y, splits), len(rows), seconds,
                                   [*notes, *warning_notes(caught)], method="fishel", feature_set="fishel3",
                                   classifier=name, motions="tool slide + friction", level=level,
                                   splitting=splitting, seed=seed))

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Iterator, Mapping, Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 from sklearn.base import BaseEstimator, ClassifierMixin, clone
@@ -19,8 +18,6 @@ from sklearn.svm import SVC
 from sklearn.utils.multiclass import check_classification_targets
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-if TYPE_CHECKING:
-    from distributed import Client
 from taxonomy.learning.results import Result
 from taxonomy.related.datasets import (
     SEED,
@@ -204,7 +201,7 @@ def _motion_rows(dataset: Dataset, motion: str) -> list[int]:
 
 
 def _single_motion(dataset: Dataset, cache: ExtractedSets, set_name: str, classifier: str, seed: int,
-                   repeats: int, client: Client | None = None) -> Result:
+                   repeats: int) -> Result:
     """One feature set and classifier on every motion separately; the accuracies of all motions together.
     Motions it cannot run on are noted; if that is every motion, a :class:`MethodError` says why."""
     extracted = cache.get(set_name)
@@ -222,7 +219,7 @@ def _single_motion(dataset: Dataset, cache: ExtractedSets, set_name: str, classi
         def make(_: int, __: np.ndarray) -> Pipeline:
             return Pipeline([("features", hoelscher_features(set_name)),
                              ("classify", hoelscher_classifier(classifier, seed))])
-        result = score(make, extracted.X[np.ix_(rows, columns)], y, splits, client)
+        result = score(make, extracted.X[np.ix_(rows, columns)], y, splits)
         per_motion[motion] = float(np.mean(result.accuracy))
         scores.append(result)
         notes += dropped
@@ -257,7 +254,7 @@ def combined_table(dataset: Dataset, extracted: Extracted,
 
 
 def _combined(dataset: Dataset, cache: ExtractedSets, mode: str, classifier: str, level: str,
-              protocol: str, seed: int, repeats: int, client: Client | None = None) -> Result | None:
+              protocol: str, seed: int, repeats: int) -> Result | None:
     extracted = cache.get("mean23")
     motions = dataset.motions()
     X, first = combined_table(dataset, extracted, motions)
@@ -274,12 +271,11 @@ def _combined(dataset: Dataset, cache: ExtractedSets, mode: str, classifier: str
     shown = f"{repeats} x one per object" if protocol == "one per object" else "held-out objects"
     paper = HOELSCHER_PAPER.get(("mean23", classifier, mode), "") if level == dataset.label_level else ""
     seconds = float(np.nanmedian(extracted.seconds[first])) * len(motions)
-    return scored(score(make, X, y, splits, client), len(first), seconds, method="hoelscher", feature_set="mean23",
+    return scored(score(make, X, y, splits), len(first), seconds, method="hoelscher", feature_set="mean23",
                   classifier=classifier, motions=label, level=level, splitting=shown, seed=seed, paper=paper)
 
 
-def run_hoelscher(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int,
-                  client: Client | None = None) -> list[Result]:
+def run_hoelscher(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int) -> list[Result]:
     """Hoelscher et al. 2015: every applicable feature set x classifier per motion, then motion combinations, the
     material-class level and held-out objects with the mean features."""
     sets = [s for s in HOELSCHER_SETS if every(dataset, s)]
@@ -287,7 +283,7 @@ def run_hoelscher(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: in
     for set_name in sets:
         for classifier in HOELSCHER_CLASSIFIERS:
             try:
-                results.append(_single_motion(dataset, cache, set_name, classifier, seed, repeats, client))
+                results.append(_single_motion(dataset, cache, set_name, classifier, seed, repeats))
             except MethodError as exc:
                 problems.append(str(exc))
     if not results:
@@ -305,7 +301,7 @@ def run_hoelscher(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: in
                  ("concatenation", "linear-svm", level, "held-out objects")]
     for mode, classifier, level, protocol in runs:
         try:
-            result = _combined(dataset, cache, mode, classifier, level, protocol, seed, repeats, client)
+            result = _combined(dataset, cache, mode, classifier, level, protocol, seed, repeats)
         except MethodError as exc:
             warnings.warn(f"method hoelscher: {mode} of the motions ({classifier}, {level}, {protocol}) "
                           f"skipped: {exc}", MethodSkipped, stacklevel=2)

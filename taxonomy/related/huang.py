@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.ensemble import RandomForestClassifier
@@ -13,8 +11,6 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
-if TYPE_CHECKING:
-    from distributed import Client
 from taxonomy.learning.results import Result
 from taxonomy.related.datasets import Dataset, ExtractedSets, slides_first
 from taxonomy.related.scoring import kfold_splits, score, scored, usable_rows
@@ -35,8 +31,7 @@ def huang_classifier(name: str, seed: int) -> BaseEstimator:
     }[name]()
 
 
-def run_huang(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int,
-              client: Client | None = None) -> list[Result]:
+def run_huang(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int) -> list[Result]:
     """Huang and Wu: seven band means, RBF SVM / random forest / kNN, 10-fold CV at the label level."""
     extracted = cache.get("huang7")
     chosen, motions = slides_first(dataset, range(len(dataset)))
@@ -49,7 +44,7 @@ def run_huang(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int,
     for name in HUANG_PAPER:
         def make(_: int, __: np.ndarray, name: str = name) -> BaseEstimator:
             return huang_classifier(name, seed)
-        results.append(scored(score(make, X, y, splits, client), len(rows), seconds, notes, method="huang",
+        results.append(scored(score(make, X, y, splits), len(rows), seconds, notes, method="huang",
                               feature_set="huang7", classifier=name, motions=motions, level=dataset.label_level,
                               splitting=f"{len(splits)}-fold CV", seed=seed, paper=HUANG_PAPER[name]))
     return results

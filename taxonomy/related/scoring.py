@@ -8,7 +8,6 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from sklearn.base import BaseEstimator
@@ -16,16 +15,13 @@ from sklearn.metrics import confusion_matrix
 from sklearn.model_selection import StratifiedKFold, StratifiedShuffleSplit
 from sklearn.pipeline import Pipeline
 
-from scanner.runtime import cluster
+from scanner.runtime import executors
 from scanner.runtime.threads import one_blas_thread
 from taxonomy import labels
 from taxonomy.labels import LabelError
 from taxonomy.learning.metrics import present_class_f1
 from taxonomy.learning.results import Result, warning_notes
 from taxonomy.related.datasets import TIMED_ROWS, Extracted, MethodError
-
-if TYPE_CHECKING:
-    from distributed import Client
 
 Split = tuple[np.ndarray, np.ndarray]
 
@@ -127,18 +123,16 @@ def _fit_split(make: Maker, X: np.ndarray, y: np.ndarray, k: int, train: np.ndar
     return predicted, list(warning_notes(caught)), feature, classify
 
 
-def score(make: Maker, X: np.ndarray, y: np.ndarray, splits: Sequence[Split],
-          client: Client | None = None) -> Scores:
+def score(make: Maker, X: np.ndarray, y: np.ndarray, splits: Sequence[Split]) -> Scores:
     """Fit ``make(k, y_train)`` on split k's training rows and score its predictions on the test rows;
-    the splits one after the other here, or side by side on the Dask cluster of ``client``."""
+    the splits one after the other in this process, or side by side on the current runtime's Dask cluster
+    (:func:`scanner.runtime.current`); the scores are the same."""
     calls = [(make, X, y, k, train, test) for k, (train, test) in enumerate(splits)]
-    if client is None:
-        fitted = [_fit_split(*call) for call in calls]
-    else:
-        fitted = [None] * len(calls)
-        with contextlib.closing(cluster.run(client, _fit_split, calls, name="texplorer-split")) as results:
-            for k, outcome in results:
-                fitted[k] = outcome
+    fitted: list = [None] * len(calls)
+    results = executors.current().map_unordered(_fit_split, calls, workers=1, name="texplorer-split")
+    with contextlib.closing(results):
+        for k, outcome in results:
+            fitted[k] = outcome
     classes = np.unique(y)
     confusion = np.zeros((classes.size, classes.size), dtype=np.int64)
     accuracy, f1, notes = [], [], []

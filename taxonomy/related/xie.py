@@ -3,8 +3,6 @@ and seven classifiers, 5-fold CV."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.decomposition import PCA
@@ -18,9 +16,6 @@ from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC, LinearSVC
 
 from features import related
-
-if TYPE_CHECKING:
-    from distributed import Client
 from taxonomy.learning.results import Result
 from taxonomy.related.datasets import Dataset, ExtractedSets, slides_first
 from taxonomy.related.scoring import kfold_splits, score, scored, usable_rows
@@ -80,8 +75,7 @@ def pca_sweep(X: np.ndarray, y: np.ndarray, seed: int, folds: int = 5) -> np.nda
 
 
 
-def run_xie(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int,
-            client: Client | None = None) -> list[Result]:
+def run_xie(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int) -> list[Result]:
     """Xie et al.: PCA dimension swept per training fold with the linear SVM, then seven classifiers."""
     extracted = cache.get("xie_sequences")
     chosen, motions = slides_first(dataset, range(len(dataset)))
@@ -101,7 +95,7 @@ def run_xie(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int,
                 # The paper's k, at most the smallest training class (a class of 5 has no 10 neighbours).
                 k = min(neighbours, int(np.unique(y_train, return_counts=True)[1].min()))
                 return xie_pipeline(xie_classifier(name, k, seed), dims[fold])
-            scores = score(make, X, y, splits, client)
+            scores = score(make, X, y, splits)
             stages = (f"per sample: images -> sequences {1e3 * seconds:.2f} ms, standardised sequences -> "
                       f"11 features {1e3 * scores.feature_seconds:.2f} ms, PCA + classifier "
                       f"{1e6 * scores.classify_seconds:.0f} us; PCA dimensions per fold {dims}")

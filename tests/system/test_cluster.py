@@ -28,6 +28,7 @@ distributed = pytest.importorskip("distributed")
 from unit.test_evaluation import labelled_space  # noqa: E402
 
 from features import FeatureSpace, ScanSource, code_version, extract_many  # noqa: E402
+from scanner.runtime import executors  # noqa: E402
 from scanner.runtime.cluster import (  # noqa: E402
     NO_WORKERS_ENV,
     ClusterError,
@@ -37,6 +38,7 @@ from scanner.runtime.cluster import (  # noqa: E402
     no_workers_timeout,
     scheduler_address,
 )
+from scanner.runtime.executors import DaskRuntime, using  # noqa: E402
 from scanner.simulation import recordings as sim  # noqa: E402
 from scanner.simulation.database import synthetic_database  # noqa: E402
 from scanner.storage.database import Database  # noqa: E402
@@ -55,6 +57,14 @@ def sources_of(db: Database) -> list[ScanSource]:
     records = db.records()
     return [ScanSource(r.scan_id, r.label, r.sample_id, stored, cache_key=r.content_hash)
             for r, stored in zip(records, db.stored_scans(records), strict=True)]
+
+
+def on_dask(client, fn, *args, ship_data: bool = False, **kwargs):
+    """``fn(*args, **kwargs)`` with the Dask cluster of ``client`` as the current runtime (as a command with
+    ``--scheduler`` runs it)."""
+    with using(DaskRuntime(client, ship_data=ship_data)) as runtime:
+        assert executors.current() is runtime
+        return fn(*args, **kwargs)
 
 
 def same_bits(a: FeatureSpace, b: FeatureSpace) -> bool:
@@ -120,6 +130,8 @@ def test_scheduler_comes_from_the_option_then_from_dask_configuration():
         assert scheduler_address("local:2") == "local:2"
     with dask.config.set({"scheduler-address": None}), connect(None) as client:
         assert client is None  # the embedded default: processes on this machine
+    with dask.config.set({"scheduler-address": None}), executors.connect(None) as runtime:
+        assert runtime is executors.LOCAL is executors.current()
     assert local_workers("local") is None and local_workers("local:3") == 3
     for bad in ("local:0", "local:x", "local:-1"):
         with pytest.raises(ClusterError, match="expected local:N with N >= 1"):
@@ -173,7 +185,7 @@ def test_local_cluster_equals_the_serial_run_and_reports_failures_as_the_pool(lo
     pool = extract_many(sources, workers=2, progress=False)
     assert same_bits(pool, serial)
     with pytest.warns(DataShipped) as shipped:  # no worker sees the truncated first .mat as catalogued
-        on_cluster = extract_many(sources, client=local_cluster, progress=False)
+        on_cluster = on_dask(local_cluster, extract_many, sources, progress=False)
     assert "2 Dask worker(s) do not see" in str(shipped[0].message)
     assert same_bits(on_cluster, serial)
     truncated, photo_lost = (reason for _, reason in on_cluster.failed)
@@ -187,22 +199,22 @@ def test_local_cluster_reads_shared_storage_or_gets_the_bytes(local_cluster, pri
     reference = extract_many(sources, workers=1, progress=False)
     with warnings.catch_warnings():
         warnings.simplefilter("error", DataShipped)  # the workers see the pristine files: nothing is sent
-        assert same_bits(extract_many(sources, client=local_cluster, progress=False), reference)
-    assert same_bits(extract_many(sources, client=local_cluster, progress=False, ship_data=True), reference)
+        assert same_bits(on_dask(local_cluster, extract_many, sources, progress=False), reference)
+    assert same_bits(on_dask(local_cluster, extract_many, sources, progress=False, ship_data=True), reference)
     in_memory = [Database(pristine).get(s.scan_id) for s in sources[:2]]
-    assert same_bits(extract_many(in_memory, client=local_cluster, progress=False),
+    assert same_bits(on_dask(local_cluster, extract_many, in_memory, progress=False),
                      extract_many(in_memory, workers=1, progress=False))
 
 
 def test_cache_is_resolved_and_written_by_the_client_only(local_cluster, pristine, tmp_path):
     db = Database(fresh_copy(pristine, tmp_path))
     sources = sources_of(db)
-    first = extract_many(sources[:3], client=local_cluster, cache=db, progress=False)
+    first = on_dask(local_cluster, extract_many, sources[:3], cache=db, progress=False)
     for source, row in zip(sources[:3], first.X, strict=True):
         assert np.array(list(db.cached_features(source.cache_key, code_version()).values())).tobytes() == row.tobytes()
     # Cached scans are never submitted: their loaders would fail on any machine.
     unloadable = [dataclasses.replace(s, load=_unloadable) if i < 3 else s for i, s in enumerate(sources)]
-    again = extract_many(unloadable, client=local_cluster, cache=db, progress=False)
+    again = on_dask(local_cluster, extract_many, unloadable, cache=db, progress=False)
     assert again.failed == () and again.X[:3].tobytes() == first.X.tobytes()
     assert same_bits(again, extract_many(sources, workers=1, progress=False))
 
@@ -215,15 +227,15 @@ def test_evaluation_and_compare_on_the_cluster_equal_the_local_run(local_cluster
     space = labelled_space(materials=6, samples=2, scans=2)
     args = dict(classifiers=["rf", "lda", "knn"], levels=["coarse", "fine"], set_sizes=[3], folds=3)
     here = evaluate_grid(space, workers=1, **args)
-    there = evaluate_grid(space, client=local_cluster, **args)
+    there = on_dask(local_cluster, evaluate_grid, space, **args)
     assert [r.to_dict() for r in there] == [r.to_dict() for r in here]
-    one = evaluate(space, "svm", "medium", folds=3, protocol="paper", client=local_cluster)
+    one = on_dask(local_cluster, evaluate, space, "svm", "medium", folds=3, protocol="paper")
     assert one.to_dict() == evaluate(space, "svm", "medium", folds=3, protocol="paper").to_dict()
 
     soft = Dataset.from_recordings("sim:soft3axis", sim.soft3axis_recordings(
         materials=["aluminium", "rubber", "denim"], trials=8))
     alone = compare(soft, ["chathuranga"], repeats=4)
-    spread = compare(soft, ["chathuranga"], repeats=4, client=local_cluster)
+    spread = on_dask(local_cluster, compare, soft, ["chathuranga"], repeats=4)
     assert [(r.classifier, r.accuracy.tolist(), r.f1.tolist(), r.confusion.tolist(), r.notes) for r in spread] == \
         [(r.classifier, r.accuracy.tolist(), r.f1.tolist(), r.confusion.tolist(), r.notes) for r in alone]
 
@@ -236,7 +248,7 @@ def test_a_recording_set_on_the_cluster_equals_the_local_run(local_cluster):
 
     rs = [recording(1.0, f"r{i}", object=f"o{i // 2}") for i in range(4)]
     here, notes = recordings.feature_space(rs, Windowing(0.5, "rows"), workers=1)
-    there, cluster_notes = recordings.feature_space(rs, Windowing(0.5, "rows"), client=local_cluster)
+    there, cluster_notes = on_dask(local_cluster, recordings.feature_space, rs, Windowing(0.5, "rows"))
     assert same_bits(there, here) and cluster_notes == notes and len(notes) == 4
 
 
@@ -259,7 +271,7 @@ def test_ctrl_c_cancels_the_submitted_work_and_leaves_the_cache_consistent(local
 
     cache = InterruptedAfterFirstStore()
     with pytest.raises(KeyboardInterrupt):
-        extract_many(sources, client=local_cluster, cache=cache, progress=False)
+        on_dask(local_cluster, extract_many, sources, cache=cache, progress=False)
     deadline = time.monotonic() + 60
     while local_cluster.run_on_scheduler(_tasks_left) and time.monotonic() < deadline:
         time.sleep(0.1)
@@ -269,7 +281,7 @@ def test_ctrl_c_cancels_the_submitted_work_and_leaves_the_cache_consistent(local
     assert 1 <= len(done) < 6
     for i in done:  # every stored row is complete and right
         assert np.array(list(cached[sources[i].cache_key].values())).tobytes() == reference.X[i].tobytes()
-    resumed = extract_many(sources[:6], client=local_cluster, cache=db, progress=False)
+    resumed = on_dask(local_cluster, extract_many, sources[:6], cache=db, progress=False)
     assert same_bits(resumed, reference)
 
 
@@ -284,8 +296,8 @@ def test_a_worker_killed_mid_run_costs_a_retry_not_the_run(local_cluster, pristi
     reference = extract_many(sources[:6], workers=1, progress=False)
     pids = local_cluster.run(os.getpid)
     outcome = {}
-    run = threading.Thread(target=lambda: outcome.update(space=extract_many(
-        sources, client=local_cluster, progress=False, ship_data=ship_data)))
+    run = threading.Thread(target=lambda: outcome.update(space=on_dask(
+        local_cluster, extract_many, sources, progress=False, ship_data=ship_data)))
     run.start()
     victim = None
     deadline = time.monotonic() + 60
@@ -318,7 +330,7 @@ def test_a_scan_that_kills_every_worker_it_meets_is_reported_and_the_others_kept
     with dask.config.set({"distributed.scheduler.allowed-failures": 1}), distributed.LocalCluster(
             n_workers=2, threads_per_worker=1, dashboard_address=None, host="127.0.0.1") as cluster, \
             distributed.Client(cluster) as client:
-        space = extract_many([*sources, *killers], client=client, progress=False)
+        space = on_dask(client, extract_many, [*sources, *killers], progress=False)
     reference = extract_many(sources, workers=1, progress=False)
     assert same_bits(space, dataclasses.replace(reference, failed=space.failed))
     assert [scan_id for scan_id, _ in space.failed] == ["killer-001", "killer-002"]
@@ -415,11 +427,11 @@ def test_ship_data_and_a_worker_that_sees_another_database_at_the_path(dask_comm
     with distributed.Client(address) as client:
         with warnings.catch_warnings():
             warnings.simplefilter("error", DataShipped)  # the first scan is seen as catalogued
-            assert same_bits(extract_many(sources, client=client, progress=False), reference)
-        assert same_bits(extract_many(sources, client=client, progress=False, ship_data=True), reference)
+            assert same_bits(on_dask(client, extract_many, sources, progress=False), reference)
+        assert same_bits(on_dask(client, extract_many, sources, progress=False, ship_data=True), reference)
         damaged_sources = sources_of(Database(damaged))
         with pytest.warns(DataShipped):
-            assert same_bits(extract_many(damaged_sources, client=client, progress=False), serial)
+            assert same_bits(on_dask(client, extract_many, damaged_sources, progress=False), serial)
     replayed = texplorer(["replay", "other-db/scans", "--ship-data", "--scheduler", address], tmp_path)
     assert replayed.returncode == 0, replayed.stderr
     assert f"{len(sources)} scan(s) replayed" in replayed.stdout
@@ -437,12 +449,12 @@ def test_modern_families_on_the_cluster_equal_the_local_run(local_cluster):
 
     scan = load_scan(Path(__file__).parents[1] / "regression" / "scans" / "granite-polished-01-001.mat")
     here = extract_many([scan], workers=1, progress=False, families=["catch22"])
-    there = extract_many([scan], progress=False, client=local_cluster, families=["catch22"])
+    there = on_dask(local_cluster, extract_many, [scan], progress=False, families=["catch22"])
     assert same_bits(there, here) and "catch22.v_ts.CO_FirstMin_ac" in here.columns
     rs = [recording(1.0, f"r{i}", object=f"o{i // 2}") for i in range(2)]
     chosen = feature_sets.role_families_for(["catch22"])
     local, _ = feature_space(rs, workers=1, chosen=chosen)
-    remote, _ = feature_space(rs, client=local_cluster, chosen=chosen)
+    remote, _ = on_dask(local_cluster, feature_space, rs, chosen=chosen)
     assert same_bits(remote, local) and any(c.startswith("catch22.") for c in local.columns)
 
 

@@ -227,8 +227,7 @@ def test_evaluate_uses_the_sets_table_written_with_the_same_options(tmp_path, ca
 
     extracted = []
     original = analysis.set_space
-    monkeypatch.setattr(analysis, "set_space", lambda args, client=None: extracted.append(args) or
-                        original(args, client))
+    monkeypatch.setattr(analysis, "set_space", lambda args: extracted.append(args) or original(args))
     same = cli(capsys, "evaluate", "set:sounds", "--db", db, "--window", "0.25", "--combine", "rows", *quick)
     assert f"set:sounds: using {table_path} (written by 'texplorer features set:sounds' with the same options)" \
         in same
