@@ -123,8 +123,9 @@ class DaskRuntime(Runtime):
         self.ship_data = ship_data
 
     def submit(self, fn: Callable[..., Any], /, *args: Any) -> concurrent.futures.Future:
-        """``fn(*args)`` as one task on the cluster (BLAS on one thread, as here)."""
-        return self.client.submit(cluster.pinned, fn, *args, pure=False)
+        """``fn(*args)`` as one task on the cluster (BLAS on one thread, as here), through the client's
+        ``concurrent.futures`` executor."""
+        return self.client.get_executor(pure=False).submit(cluster.pinned, fn, *args)
 
     def map_unordered(self, fn: Callable[..., Any], calls: Sequence[tuple], *, workers: int | None = None,
                       name: str = "texplorer", tick: Tick | None = None) -> Iterator[tuple[int, Any]]:
@@ -174,8 +175,8 @@ def using(runtime: Runtime) -> Iterator[Runtime]:
     try:
         yield runtime
     finally:
-        with _lock:
-            _current.remove(runtime)
+        with _lock:  # the innermost choice of this runtime (it may be current at several depths)
+            del _current[max(i for i, chosen in enumerate(_current) if chosen is runtime)]
 
 
 @contextlib.contextmanager
