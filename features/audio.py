@@ -66,6 +66,21 @@ def matlab_round(x: float) -> int:
     """Round half away from zero, as MATLAB's ``round`` (numpy rounds half to even: 1102.5 -> 1102).
 
     Computed from the exact fractional part, so 0.49999999999999994 still rounds down.
+
+    Parameters
+    ----------
+    x : float
+        The value to round.
+
+    Returns
+    -------
+    int
+        The nearest integer; halves go away from zero.
+
+    Examples
+    --------
+    >>> matlab_round(1102.5), matlab_round(-2.5), round(1102.5), matlab_round(0.49999999999999994)
+    (1103, -3, 1102, 0)
     """
     magnitude = abs(x)
     floor = math.floor(magnitude)
@@ -76,7 +91,19 @@ def matlab_round(x: float) -> int:
 def window_and_step(fs: float) -> tuple[int, int]:
     """Window and step in samples, ``round(0.050 fs)`` and ``round(0.025 fs)`` (``stFeatureExtraction.m``).
 
-    >>> window_and_step(44100.0)
+    Parameters
+    ----------
+    fs : float
+        Sampling rate in Hz.
+
+    Returns
+    -------
+    window, step : int
+        The frame length and the hop between frame starts, rounded as MATLAB does (:func:`matlab_round`).
+
+    Examples
+    --------
+    >>> window_and_step(44100.0)  # 1102.5 rounds up
     (2205, 1103)
     """
     return matlab_round(WINDOW_S * fs), matlab_round(STEP_S * fs)
@@ -89,11 +116,29 @@ def frames(signal: np.ndarray, fs: float = 44100.0) -> np.ndarray:
     multiplied by the symmetric Hamming window ``0.54 - 0.46 cos(2 pi n / (N - 1))`` (MATLAB
     ``window(@hamming, N)``), as in ``stFeatureExtraction.m``.
 
+    Parameters
+    ----------
+    signal : np.ndarray
+        1-D real audio samples, at least one window long.
+    fs : float
+        Sampling rate in Hz; it sets the window and step (:func:`window_and_step`).
+
+    Returns
+    -------
+    np.ndarray
+        ``(n_frames, N)`` float64: the windowed frames, one per row.
+
     Raises
     ------
     ValueError
         If ``fs`` is not a positive finite number or gives a window under 20 samples, or the signal is
         not 1-D, not finite, or shorter than one window.
+
+    Examples
+    --------
+    >>> framed = frames(np.ones(40), fs=400.0)  # window 20, step 10: (40 - 20) // 10 + 1 = 3 frames
+    >>> framed.shape, np.round(framed[0, [0, 10, 19]], 4).tolist()  # a constant shows the Hamming window
+    ((3, 20), [0.08, 0.9937, 0.08])
     """
     x = _checked_signal(signal, fs)
     window, step = window_and_step(fs)
@@ -112,7 +157,24 @@ def _hamming(window: int) -> np.ndarray:
 
 
 def spectrum(framed: np.ndarray) -> np.ndarray:
-    """Magnitude spectra ``|fft(frame)| / N`` over the first ``ceil(N/2)`` bins (``getDFT.m``)."""
+    """Magnitude spectra ``|fft(frame)| / N`` over the first ``ceil(N/2)`` bins (``getDFT.m``).
+
+    Parameters
+    ----------
+    framed : np.ndarray
+        ``(n_frames, N)`` frames, one per row (:func:`frames`).
+
+    Returns
+    -------
+    np.ndarray
+        ``(n_frames, ceil(N/2))`` magnitudes.
+
+    Examples
+    --------
+    >>> n = np.arange(8)
+    >>> np.round(spectrum(np.cos(2 * np.pi * n / 8)[None]), 6).tolist()  # one cycle: half its amplitude in bin 1
+    [[0.0, 0.5, 0.0, 0.0]]
+    """
     return _spectrum(_magnitudes(framed), framed.shape[1])
 
 
@@ -130,6 +192,21 @@ def zcr(framed: np.ndarray) -> np.ndarray:
 
     Because the sample before the frame counts as 0, a frame with a non-zero first sample gets an extra
     ``1/(2N)``; a sample that is exactly 0 counts as half a crossing on each side.
+
+    Parameters
+    ----------
+    framed : np.ndarray
+        ``(n_frames, N)`` frames, one per row (:func:`frames`).
+
+    Returns
+    -------
+    np.ndarray
+        ``(n_frames,)`` zero-crossing rates.
+
+    Examples
+    --------
+    >>> zcr(np.array([[1.0, -1.0, 1.0, -1.0], [1.0, 1.0, 1.0, 1.0]])).tolist()  # (1 + 3 * 2) / 8 and 1 / 8
+    [0.875, 0.125]
     """
     return _sign_changes(framed) / (2.0 * framed.shape[1])
 
@@ -149,7 +226,23 @@ def _sign_changes(rows: np.ndarray) -> np.ndarray:
 
 
 def energy(framed: np.ndarray) -> np.ndarray:
-    """Short-term energy ``E = 1/N sum_n x(n)^2`` (``feature_energy.m``)."""
+    """Short-term energy ``E = 1/N sum_n x(n)^2`` (``feature_energy.m``).
+
+    Parameters
+    ----------
+    framed : np.ndarray
+        ``(n_frames, N)`` frames, one per row (:func:`frames`).
+
+    Returns
+    -------
+    np.ndarray
+        ``(n_frames,)`` energies.
+
+    Examples
+    --------
+    >>> energy(np.array([[1.0, -1.0, 1.0, -1.0], [2.0, 2.0, 0.0, 0.0]])).tolist()
+    [1.0, 2.0]
+    """
     return np.mean(framed**2, axis=1)
 
 
@@ -175,6 +268,24 @@ def energy_entropy(framed: np.ndarray, n_blocks: int = N_BLOCKS) -> np.ndarray:
     """Entropy of energy over ``n_blocks`` sub-frames (``feature_energy_entropy.m``), in bits.
 
     0 when one sub-frame holds all the energy, ``log2(n_blocks)`` when all hold the same.
+
+    Parameters
+    ----------
+    framed : np.ndarray
+        ``(n_frames, N)`` frames, one per row (:func:`frames`).
+    n_blocks : int
+        Sub-frames of ``floor(N / n_blocks)`` samples each (trailing samples dropped).
+
+    Returns
+    -------
+    np.ndarray
+        ``(n_frames,)`` entropies in bits.
+
+    Examples
+    --------
+    >>> framed = np.array([[1.0, 1.0, 0.0, 0.0], [1.0, 1.0, 1.0, 1.0]])  # energy in 2 of 4 sub-frames, in all 4
+    >>> np.round(energy_entropy(framed, n_blocks=4), 6).tolist()
+    [1.0, 2.0]
     """
     return _block_entropy(framed, n_blocks)
 
@@ -186,6 +297,25 @@ def spectral_centroid_spread(spectra: np.ndarray, fs: float) -> tuple[np.ndarray
     DFT's ``(k-1) fs/N``) and ``X`` the spectrum divided by its maximum:
     ``C = sum(m X) / (sum X + eps)``, ``S = sqrt(sum((m - C)^2 X) / (sum X + eps))``. An all-zero spectrum
     gives 0 for both.
+
+    Parameters
+    ----------
+    spectra : np.ndarray
+        ``(n_frames, K)`` magnitude spectra, one per row (:func:`spectrum`).
+    fs : float
+        Sampling rate in Hz.
+
+    Returns
+    -------
+    centroid, spread : np.ndarray
+        ``(n_frames,)`` each, as fractions of ``fs/2``.
+
+    Examples
+    --------
+    >>> spectra = np.array([[0.0, 0.0, 1.0, 0.0], [1.0, 1.0, 1.0, 1.0]])  # a line in bin 3 of 4; flat
+    >>> centroid, spread = spectral_centroid_spread(spectra, 8.0)  # m = 1, 2, 3, 4 Hz; fs/2 = 4 Hz
+    >>> np.round(centroid, 6).tolist(), np.round(spread, 6).tolist()  # 3/4, 2.5/4; 0, sqrt(1.25)/4
+    ([0.75, 0.625], [0.0, 0.279508])
     """
     n_bins = spectra.shape[1]
     m = fs / (2.0 * n_bins) * np.arange(1, n_bins + 1)
@@ -218,6 +348,24 @@ def spectral_entropy(spectra: np.ndarray, n_blocks: int = N_BLOCKS) -> np.ndarra
 
     Same formula as ``energy_entropy`` on the magnitude spectrum; a flat spectrum gives
     ``log2(n_blocks)`` up to the trailing bins the sub-bands drop.
+
+    Parameters
+    ----------
+    spectra : np.ndarray
+        ``(n_frames, K)`` magnitude spectra, one per row (:func:`spectrum`).
+    n_blocks : int
+        Sub-bands of ``floor(K / n_blocks)`` bins each (trailing bins dropped).
+
+    Returns
+    -------
+    np.ndarray
+        ``(n_frames,)`` entropies in bits.
+
+    Examples
+    --------
+    >>> flat, two_bands = np.ones(20), np.repeat([1.0, 0.0], [4, 16])  # 10 sub-bands of 2 bins
+    >>> np.round(spectral_entropy(np.vstack([flat, two_bands])), 6).tolist()  # log2(10) and log2(2)
+    [3.321928, 1.0]
     """
     return _block_entropy(spectra, n_blocks)
 
@@ -227,6 +375,22 @@ def spectral_flux(spectra: np.ndarray) -> np.ndarray:
 
     The first frame is compared with itself, as ``stFeatureExtraction.m`` does, so its flux is ~0. An
     all-zero current spectrum contributes 0 in place of the toolbox's 0/0.
+
+    Parameters
+    ----------
+    spectra : np.ndarray
+        ``(n_frames, K)`` magnitude spectra of consecutive frames, one per row (:func:`spectrum`).
+
+    Returns
+    -------
+    np.ndarray
+        ``(n_frames,)`` fluxes.
+
+    Examples
+    --------
+    >>> spectra = np.array([[1.0, 0.0], [1.0, 0.0], [0.0, 1.0]])  # the energy moves to bin 1 in frame 2
+    >>> np.round(spectral_flux(spectra), 6).tolist()  # (0 - 1)^2 + (1 - 0)^2
+    [0.0, 0.0, 2.0]
     """
     return np.sum(_flux_terms(spectra, spectra.sum(axis=1), np.sum(spectra + EPS, axis=1)), axis=1)
 
@@ -257,6 +421,23 @@ def spectral_rolloff(spectra: np.ndarray, c: float = ROLLOFF_C) -> np.ndarray:
     ``j`` is the first 0-based bin at which the cumulative spectral energy ``sum_{k<=j} X(k)^2`` exceeds
     ``c`` times the total; ``K`` the number of bins. If no bin does (an all-zero spectrum) the toolbox's
     loop runs off the end and gives ``(K-1)/K``.
+
+    Parameters
+    ----------
+    spectra : np.ndarray
+        ``(n_frames, K)`` magnitude spectra, one per row (:func:`spectrum`).
+    c : float
+        The share of the energy below the roll-off bin.
+
+    Returns
+    -------
+    np.ndarray
+        ``(n_frames,)`` roll-off bins as fractions of ``K``.
+
+    Examples
+    --------
+    >>> spectral_rolloff(np.array([[1.0, 1.0, 1.0, 1.0], [2.0, 1.0, 0.0, 0.0]])).tolist()  # 4 > 3.6; 5 > 4.5
+    [0.75, 0.25]
     """
     return _rolloff_of_power(spectra**2, c)
 
@@ -300,6 +481,29 @@ def harmonic(framed: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
     holds those lags without wrap-around, at a third of the cost. Deliberately, values within
     ``1e-12 R(0)`` of zero are set to 0, so that nearly silent frames get the exact-arithmetic result on
     every machine instead of one decided by round-off.
+
+    Parameters
+    ----------
+    framed : np.ndarray
+        ``(n_frames, N)`` frames, one per row (:func:`frames`).
+    fs : float
+        Sampling rate in Hz.
+
+    Returns
+    -------
+    ratio, f0 : np.ndarray
+        ``(n_frames,)`` each: the harmonic ratio, and the fundamental frequency in Hz (0 where there is none).
+
+    Examples
+    --------
+    >>> fs = 8000.0
+    >>> tone = np.sin(2 * np.pi * 500.0 * np.arange(400) / fs)  # one 400-sample frame, a period of 16 samples
+    >>> ratio, f0 = harmonic(frames(tone, fs), fs)
+    >>> f0.tolist(), bool(ratio[0] > 0.99)
+    ([500.0], True)
+    >>> noise = np.random.default_rng(0).normal(size=400)
+    >>> [values.tolist() for values in harmonic(frames(noise, fs), fs)]  # unvoiced
+    [[0.0], [0.0]]
     """
     squares = framed**2
     return _harmonic(framed, fs, squares.sum(axis=1), squares[:, :_shared_head(framed.shape[1], fs)].sum(axis=1))
@@ -470,6 +674,24 @@ def mfcc_filter_bank(n_bins: int, fs: float) -> np.ndarray:
     ``f_k = k fs / n_bins`` for ``k = 0..n_bins-1`` although only the first half of the spectrum is passed
     in, so bin ``k`` stands for twice its true frequency; kept deliberately to match the toolbox.
     The returned array is read-only (it is cached).
+
+    Parameters
+    ----------
+    n_bins : int
+        Number of spectrum bins the filters apply to.
+    fs : float
+        Sampling rate in Hz.
+
+    Returns
+    -------
+    np.ndarray
+        ``(40, n_bins)`` filter weights, read-only.
+
+    Examples
+    --------
+    >>> bank = mfcc_filter_bank(1000, 10000.0)  # bin k at 10 k Hz on the toolbox's axis
+    >>> bank.shape, round(float(bank[0, 20]), 4)  # filter 0 peaks at 200 Hz: 2 / (266.67 - 133.33)
+    ((40, 1000), 0.015)
     """
     linear = 133.3333 + np.arange(13) * 66.66666666
     logarithmic = linear[-1] * 1.0711703 ** np.arange(1, 27 + 3)
@@ -501,6 +723,24 @@ def mfcc(spectra: np.ndarray, fs: float) -> np.ndarray:
     ``W`` is ``mfcc_filter_bank(K, fs)`` for the ``K`` spectrum bins and the DCT is the orthonormal DCT-II
     of the 40 filter outputs, first 13 coefficients. A silent spectrum gives ``c_0 = sqrt(40) log10(eps)``
     and zeros elsewhere.
+
+    Parameters
+    ----------
+    spectra : np.ndarray
+        ``(n_frames, K)`` magnitude spectra, one per row (:func:`spectrum`).
+    fs : float
+        Sampling rate in Hz.
+
+    Returns
+    -------
+    np.ndarray
+        ``(n_frames, 13)`` coefficients ``c_0 .. c_12``.
+
+    Examples
+    --------
+    >>> c = mfcc(np.zeros((1, 1102)), 44100.0)  # a silent frame
+    >>> round(float(c[0, 0]), 4), bool(np.allclose(c[0, 1:], 0.0))  # sqrt(40) * log10(2^-52) = -99.0018
+    (-99.0018, True)
     """
     support, bank = _mfcc_bank_support(spectra.shape[1], float(fs))
     return np.log10(spectra[:, :support] @ bank + EPS) @ _dct_matrix().T
@@ -553,6 +793,25 @@ def chroma(framed: np.ndarray, fs: float) -> np.ndarray:
     the array count as 0). ``y`` sums the kept magnitudes per pitch class, ``c`` counts them. Pitch classes
     start at A (55 Hz): ``chroma_01`` is A, ``chroma_02`` A#, ..., ``chroma_12`` G#. An all-zero frame
     gives zeros.
+
+    Parameters
+    ----------
+    framed : np.ndarray
+        ``(n_frames, N)`` frames, one per row (:func:`frames`).
+    fs : float
+        Sampling rate in Hz.
+
+    Returns
+    -------
+    np.ndarray
+        ``(n_frames, 12)`` chroma values, pitch classes A .. G#.
+
+    Examples
+    --------
+    >>> n = np.arange(8)  # at 880 Hz, bins 1 and 3 are 110 Hz (an A) and 330 Hz (nearest note E, 329.6 Hz)
+    >>> frame = np.cos(2 * np.pi * n / 8) + 0.5 * np.cos(2 * np.pi * 3 * n / 8)  # peak 1.5 at n = 0
+    >>> np.round(chroma(frame[None], 880.0), 6).tolist()  # A: (4 / 1.5) / 2, E: (2 / 1.5) / 2
+    [[1.333333, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.666667, 0.0, 0.0, 0.0, 0.0]]
     """
     return _chroma(framed, _magnitudes(framed), fs)
 
@@ -604,10 +863,29 @@ def frame_features(signal: np.ndarray, fs: float = 44100.0) -> np.ndarray:
     Rows of silent frames (``sum(|windowed frame|) <= eps``) are all zero, as in ``stFeatureExtraction.m``;
     they still serve as the previous spectrum of the next frame's flux.
 
+    Parameters
+    ----------
+    signal : np.ndarray
+        1-D real audio samples, at least one window long.
+    fs : float
+        Sampling rate in Hz.
+
+    Returns
+    -------
+    np.ndarray
+        ``(n_frames, 35)`` float64: one row per frame (:func:`frames`), one column per name of ``NAMES``.
+
     Raises
     ------
     ValueError
         For bad input, see ``frames``.
+
+    Examples
+    --------
+    >>> tone = np.sin(2 * np.pi * 441.0 * np.arange(44100) / 44100.0)  # 1 s of a 441 Hz tone
+    >>> table = frame_features(tone)
+    >>> table.shape, np.unique(np.round(table[:, NAMES.index("f0")], 6)).tolist()  # every frame's f0
+    ((38, 35), [441.0])
     """
     framed = frames(signal, fs)
     n = framed.shape[1]

@@ -90,7 +90,25 @@ _TAMURA_TILE = (256, 256)
 
 def spans(n: int, per_span: int) -> Iterator[tuple[int, int]]:
     """Consecutive ``[start, stop)`` ranges of ``per_span`` indices (the last may be shorter) covering
-    ``range(n)``: the bands of rows (and tiles' columns) in which photos and TacTUM's planes are processed."""
+    ``range(n)``: the bands of rows (and tiles' columns) in which photos and TacTUM's planes are processed.
+
+    Parameters
+    ----------
+    n : int
+        Number of indices to cover.
+    per_span : int
+        Indices per range (positive).
+
+    Yields
+    ------
+    tuple of (int, int)
+        ``(start, stop)`` of each range, in order.
+
+    Examples
+    --------
+    >>> list(spans(5, 2))
+    [(0, 2), (2, 4), (4, 5)]
+    """
     for start in range(0, n, per_span):
         yield start, min(start + per_span, n)
 
@@ -173,6 +191,17 @@ class PreparedPhoto:
         Made by :func:`features.kernels.gray_images` with its 8-bit version, its extremes and the GLCM
         level counts, in one pass over the photo instead of reading the 86 MB of a 12-megapixel gray
         image again for each (made again after :meth:`release`, which forgets only the gray image).
+
+        Returns
+        -------
+        numpy.ndarray
+            (h, w) float64 gray values of the cropped photo.
+
+        Examples
+        --------
+        >>> photo = PreparedPhoto(np.full((2, 3, 3), (255, 0, 0), np.uint8), border=0)  # pure red
+        >>> np.round(photo.gray, 6).tolist()  # 0.299 * 255
+        [[76.245, 76.245, 76.245], [76.245, 76.245, 76.245]]
         """
         buffer, self._buffer = self._buffer, None
         gray = np.empty(self.photo.shape[:2]) if buffer is None else buffer
@@ -197,6 +226,23 @@ class PreparedPhoto:
 
         Both are forgotten, with the float32 gray image, so they are computed again if asked for. None if
         neither the spectrum nor the gray image was computed.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            (h, w) float64 memory of the cropped photo's size (its contents are no longer meaningful), or
+            None.
+
+        Examples
+        --------
+        >>> rgb = np.zeros((4, 4, 3), np.uint8)
+        >>> photo = PreparedPhoto(rgb, border=0)
+        >>> peak = photo.spectrum.peak
+        >>> buffer = photo.release()
+        >>> buffer.shape, PreparedPhoto(rgb, buffer=buffer, border=0).gray is buffer  # the next photo's gray
+        ((4, 4), True)
+        >>> PreparedPhoto(rgb, border=0).release() is None  # nothing computed, nothing to give
+        True
         """
         self.__dict__.pop("gray32", None)
         self._spectrum_memory = None
@@ -210,6 +256,17 @@ class PreparedPhoto:
 
         A photo that keeps its gray image holds this one in the first half of the memory its spectrum will
         take, one fresh allocation fewer; the spectrum then overwrites it (it is made again if asked for).
+
+        Returns
+        -------
+        numpy.ndarray
+            (h, w) float32 gray values.
+
+        Examples
+        --------
+        >>> photo = PreparedPhoto(np.full((2, 3, 3), (255, 0, 0), np.uint8), border=0)
+        >>> str(photo.gray32.dtype), round(float(photo.gray32[0, 0]), 3)
+        ('float32', 76.245)
         """
         if not self.keep_gray:
             return self.gray.astype(np.float32)
@@ -228,37 +285,114 @@ class PreparedPhoto:
 
     @functools.cached_property
     def gray_u8(self) -> np.ndarray:
-        """``scanner.preprocess.gray_uint8`` of :attr:`gray` (made with it, see there)."""
+        """``scanner.preprocess.gray_uint8`` of :attr:`gray` (made with it, see there).
+
+        Returns
+        -------
+        numpy.ndarray
+            (h, w) uint8 gray values, ``floor(gray + 0.5)``.
+
+        Examples
+        --------
+        >>> photo = PreparedPhoto(np.full((2, 3, 3), (255, 0, 0), np.uint8), border=0)  # gray 76.245
+        >>> photo.gray_u8.tolist()
+        [[76, 76, 76], [76, 76, 76]]
+        """
         _ = self.gray  # the pass over the photo stores this one too
         return self.__dict__["gray_u8"]
 
     @functools.cached_property
     def direction_counts(self) -> list[np.ndarray]:
-        """:func:`_direction_counts` of the 32-level quantised :attr:`gray` (made with it, see there)."""
+        """:func:`_direction_counts` of the 32-level quantised :attr:`gray` (made with it, see there).
+
+        Returns
+        -------
+        list of numpy.ndarray
+            The (32, 32) int64 counts of (reference, neighbour) level pairs at 0, 45, 90 and 135 degrees
+            (:data:`GLCM_OFFSETS`).
+
+        Examples
+        --------
+        >>> photo = PreparedPhoto(np.full((2, 3, 3), (255, 0, 0), np.uint8), border=0)  # level floor(76.245 / 8)
+        >>> [int(counts[9, 9]) for counts in photo.direction_counts]  # the pairs of a 2 x 3 image
+        [4, 2, 3, 2]
+        """
         _ = self.gray
         return self.__dict__["direction_counts"]
 
     @functools.cached_property
     def mean(self) -> float:
-        """Mean gray value (:func:`_mean`'s order; made with :attr:`gray`)."""
+        """Mean gray value (:func:`_mean`'s order; made with :attr:`gray`).
+
+        Returns
+        -------
+        float
+            The mean of :attr:`gray`.
+
+        Examples
+        --------
+        >>> rgb = np.zeros((4, 4, 3), np.uint8)
+        >>> rgb[:, 2:] = 255  # left half black, right half white
+        >>> round(PreparedPhoto(rgb, border=0).mean, 6)
+        127.5
+        """
         _ = self.gray
         return self.__dict__["mean"]
 
     @functools.cached_property
     def extremes(self) -> tuple[float, float]:
-        """Smallest and largest gray value (made with :attr:`gray`)."""
+        """Smallest and largest gray value (made with :attr:`gray`).
+
+        Returns
+        -------
+        tuple of (float, float)
+            ``(min(gray), max(gray))``.
+
+        Examples
+        --------
+        >>> rgb = np.zeros((4, 4, 3), np.uint8)
+        >>> rgb[:, 2:] = 255
+        >>> [round(v, 6) for v in PreparedPhoto(rgb, border=0).extremes]
+        [0.0, 255.0]
+        """
         _ = self.gray
         return self.__dict__["extremes"]
 
     @functools.cached_property
     def contrast(self) -> float:
-        """Tamura contrast of :attr:`gray` (:func:`tamura_contrast`)."""
+        """Tamura contrast of :attr:`gray` (:func:`tamura_contrast`).
+
+        Returns
+        -------
+        float
+            ``sigma / kurt^(1/4)`` of the gray values; 0 for a constant photo.
+
+        Examples
+        --------
+        >>> rgb = np.zeros((4, 4, 3), np.uint8)
+        >>> rgb[:, 2:] = 255  # two equal halves: sigma 127.5, kurtosis 1
+        >>> round(PreparedPhoto(rgb, border=0).contrast, 6)
+        127.5
+        """
         low, high = self.extremes
         return _tamura_contrast(self.gray, self.mean, low == high)
 
     @functools.cached_property
     def spectrum(self) -> RealSpectrum:
-        """``Re(fft2(gray - mean(gray)))``, unscaled (:class:`RealSpectrum`)."""
+        """``Re(fft2(gray - mean(gray)))``, unscaled (:class:`RealSpectrum`).
+
+        Returns
+        -------
+        RealSpectrum
+            The half spectrum of the centred gray image.
+
+        Examples
+        --------
+        >>> rgb = np.zeros((4, 4, 3), np.uint8)
+        >>> rgb[::2, ::2] = rgb[1::2, 1::2] = 255  # a checkerboard: +-127.5 about the mean
+        >>> round(PreparedPhoto(rgb, border=0).spectrum.peak, 6)  # all at frequency (2, 2): 127.5 * 16
+        2040.0
+        """
         gray, mean = self.gray, self.mean
         if self.keep_gray:
             memory, self._spectrum_memory = self._spectrum_memory, None
@@ -337,6 +471,11 @@ def color(rgb: np.ndarray) -> float:
     over the pixels with ``S / 255 >= 0.2`` and ``V / 255 >= 0.2`` a 36-bin histogram with bins
     ``[10 b, 10 b + 10)`` is built and ``10 b + 5`` of its fullest bin (the first on ties) returned.
 
+    Parameters
+    ----------
+    rgb : (h, w, 3) uint8 array
+        An RGB photo (the cropped one, in :func:`compute`).
+
     Returns
     -------
     float
@@ -361,7 +500,28 @@ def color(rgb: np.ndarray) -> float:
 
 
 def brightness(gray: np.ndarray) -> float:
-    """Mean gray value / 255 (paper: I_br; docs/features.md#image), in [0, 1] for a gray image in 0..255."""
+    """Mean gray value / 255 (paper: I_br; docs/features.md#image), in [0, 1] for a gray image in 0..255.
+
+    Parameters
+    ----------
+    gray : 2-D array
+        Gray values in 0..255 (``scanner.preprocess.grayscale``).
+
+    Returns
+    -------
+    float
+        The mean gray value divided by 255.
+
+    Raises
+    ------
+    ValueError
+        If ``gray`` is not a non-empty 2-D numeric array of finite values.
+
+    Examples
+    --------
+    >>> brightness(np.array([[0.0, 255.0], [127.5, 127.5]]))
+    0.5
+    """
     return _mean(_check_gray(gray)) / 255.0
 
 
@@ -378,6 +538,23 @@ def edginess(gray_u8: np.ndarray) -> float:
     ----------
     gray_u8 : (h, w) uint8 array
         The 8-bit gray image of docs/features.md#preprocessing (``scanner.preprocess.gray_uint8``).
+
+    Returns
+    -------
+    float
+        The share of edge pixels, in [0, 1].
+
+    Raises
+    ------
+    ValueError
+        If ``gray_u8`` is not a non-empty 2-D uint8 array.
+
+    Examples
+    --------
+    >>> step = np.zeros((8, 8), np.uint8)
+    >>> step[:, 4:] = 255  # a vertical step: one column of edge pixels
+    >>> float(edginess(step))
+    0.125
     """
     image = np.asarray(gray_u8)
     if image.dtype != np.uint8 or image.ndim != 2 or image.size == 0:
@@ -432,7 +609,21 @@ class RealSpectrum:
 
     @functools.cached_property
     def parts(self) -> list[tuple[np.ndarray, int]]:
-        """Every value of the spectrum once, as (view of :attr:`values`, multiplicity) pairs."""
+        """Every value of the spectrum once, as (view of :attr:`values`, multiplicity) pairs.
+
+        Returns
+        -------
+        list of (numpy.ndarray, int)
+            Columns 1 .. (N-1)//2 (multiplicity 2), column 0 and, for even N, column N/2 (1 each).
+
+        Examples
+        --------
+        >>> spectrum = RealSpectrum(np.ones((2, 4)))
+        >>> [(part.shape, weight) for part, weight in spectrum.parts]
+        [((1, 2), 2), ((1, 2), 1), ((1, 2), 1)]
+        >>> sum(weight * part.size for part, weight in spectrum.parts)  # M x N values
+        8
+        """
         n = self.shape[1]
         parts = [(self.values[1:(n - 1) // 2 + 1], 2), (self.values[:1], 1)]
         if n % 2 == 0 and n > 1:
@@ -441,7 +632,18 @@ class RealSpectrum:
 
     @functools.cached_property
     def peak(self) -> float:
-        """The largest value, ``max(Re(fft2(image)))``."""
+        """The largest value, ``max(Re(fft2(image)))``.
+
+        Returns
+        -------
+        float
+            The largest real part of the spectrum.
+
+        Examples
+        --------
+        >>> RealSpectrum(np.ones((2, 4))).peak  # all in the DC term: the sum of the image
+        8.0
+        """
         return max(float(part.max()) for part, _ in self.parts if part.size)
 
     def peaks(self, fraction: float) -> list[tuple[np.ndarray, int]]:
@@ -449,6 +651,23 @@ class RealSpectrum:
 
         A selection at a lower fraction holds every higher one, so it is kept and narrowed down: MaRG
         (0.75) and the DFT peak means (0.80, 0.85) scan the whole spectrum once.
+
+        Parameters
+        ----------
+        fraction : float
+            Share of :attr:`peak` a value must reach.
+
+        Returns
+        -------
+        list of (numpy.ndarray, int)
+            The selected values of every part of :attr:`parts`, with the part's multiplicity.
+
+        Examples
+        --------
+        >>> image = 1 + np.cos(2 * np.pi * np.arange(4) / 4) * np.ones((2, 1))  # rows [2, 1, 0, 1]
+        >>> spectrum = RealSpectrum(image)  # DC 8; 4 at (0, 1) and at its mirror (0, 3)
+        >>> [(np.round(values, 6).tolist(), weight) for values, weight in spectrum.peaks(0.4)]
+        [([4.0], 2), ([8.0], 1), ([], 1)]
         """
         threshold = fraction * self.peak
         if self._selection is None or threshold < self._selection[0]:
@@ -456,7 +675,24 @@ class RealSpectrum:
         return [(values[values >= threshold], weight) for values, weight in self._selection[1]]
 
     def peak_sum(self, fraction: float) -> tuple[float, float]:
-        """Sum and number of the values ``>= fraction * peak``, each counted with its multiplicity."""
+        """Sum and number of the values ``>= fraction * peak``, each counted with its multiplicity.
+
+        Parameters
+        ----------
+        fraction : float
+            Share of :attr:`peak` a value must reach.
+
+        Returns
+        -------
+        total, count : float
+            The sum and the number of the values of the full spectrum at or above ``fraction * peak``.
+
+        Examples
+        --------
+        >>> image = 1 + np.cos(2 * np.pi * np.arange(4) / 4) * np.ones((2, 1))
+        >>> [round(v, 6) for v in RealSpectrum(image).peak_sum(0.4)]  # 8 + 4 + 4, three values
+        [16.0, 3.0]
+        """
         total = count = 0.0
         for kept, weight in self.peaks(fraction):
             total += weight * float(kept.sum())
@@ -464,7 +700,24 @@ class RealSpectrum:
         return total, count
 
     def at(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """``Re Y(k, l)`` on the grid of frequencies ``rows`` x ``cols`` (integers, taken modulo M and N)."""
+        """``Re Y(k, l)`` on the grid of frequencies ``rows`` x ``cols`` (integers, taken modulo M and N).
+
+        Parameters
+        ----------
+        rows, cols : array-like of int
+            Frequencies ``k`` and ``l``; negative ones count from the end (modulo M and N).
+
+        Returns
+        -------
+        numpy.ndarray
+            (len(rows), len(cols)) values of ``Re(fft2(image))``.
+
+        Examples
+        --------
+        >>> image = 1 + np.cos(2 * np.pi * np.arange(4) / 4) * np.ones((2, 1))
+        >>> np.round(RealSpectrum(image).at([0], [0, 1, -1]), 6).tolist()  # column 3 read as its mirror
+        [[8.0, 4.0, 4.0]]
+        """
         m, n = self.shape
         rows = np.mod(np.asarray(rows, dtype=np.intp), m)[:, None]
         cols = np.mod(np.asarray(cols, dtype=np.intp), n)[None, :]
@@ -517,6 +770,13 @@ def dft_peak_means(gray: np.ndarray, fractions: Sequence[float] = DFT_FRACTIONS)
     parts are the same values, so they are counted twice instead. The result equals the full-spectrum
     mean to rounding.
 
+    Parameters
+    ----------
+    gray : 2-D array
+        Gray values, at least 2 x 2 px.
+    fractions : sequence of float
+        Shares of the largest value a coefficient must reach.
+
     Returns
     -------
     tuple of float
@@ -547,6 +807,28 @@ def quantize(gray: np.ndarray, levels: int = GLCM_LEVELS) -> np.ndarray:
     """Gray levels for the GLCM: ``q = min(floor(gray * levels / 256), levels - 1)`` as uint8 (docs/features.md#image).
 
     0-based (0 .. levels-1); Haralick's formulas use ``q + 1``. Values below 0 map to 0.
+
+    Parameters
+    ----------
+    gray : 2-D array
+        Gray values in 0..255.
+    levels : int
+        Number of gray levels, 1..256.
+
+    Returns
+    -------
+    numpy.ndarray
+        The levels as a uint8 array of the image's shape.
+
+    Raises
+    ------
+    ValueError
+        If ``levels`` is out of range or ``gray`` is not a non-empty 2-D array of finite values.
+
+    Examples
+    --------
+    >>> quantize(np.array([[-5.0, 7.9, 8.0, 255.0]])).tolist()  # 8 gray values per level
+    [[0, 0, 1, 31]]
     """
     if not 1 <= levels <= 256:
         raise ParameterError(f"levels must be in 1..256, got {levels}")
@@ -588,6 +870,18 @@ def glcm(q: np.ndarray, offset: tuple[int, int] = (0, 1), levels: int = GLCM_LEV
         Gray levels 0 .. levels-1 (``quantize``).
     offset : (int, int)
         Step from a pixel to its neighbour; ``GLCM_OFFSETS`` are 0, 45, 90 and 135 degrees at distance 1.
+    levels : int
+        Number of gray levels, 1..256: the matrix is ``levels x levels``.
+
+    Returns
+    -------
+    (levels, levels) float array
+        The symmetric matrix ``P``, summing to 1.
+
+    Raises
+    ------
+    ValueError
+        If ``q`` is not a 2-D integer array of levels in 0 .. levels-1, or has no pixel pair at ``offset``.
 
     Examples
     --------
@@ -696,6 +990,21 @@ def haralick_from_glcm(p: np.ndarray) -> np.ndarray:
     - f14 maximal correlation coefficient, see ``_maximal_correlations``; 0 with fewer than two
       occupied levels.
 
+    Parameters
+    ----------
+    p : (Ng, Ng) array
+        A normalised GLCM: non-negative, summing to 1 (``glcm``).
+
+    Returns
+    -------
+    (14,) float array
+        f1 .. f14.
+
+    Raises
+    ------
+    ValueError
+        If ``p`` is not square, has a negative entry or does not sum to 1.
+
     Examples
     --------
     >>> f = haralick_from_glcm(np.array([[0.0, 0.5], [0.5, 0.0]]))  # every neighbour differs by 1 level
@@ -765,10 +1074,26 @@ def haralick(gray: np.ndarray) -> np.ndarray:
     32 levels (``quantize``), distance 1, symmetric normalised GLCMs (``glcm``), each feature computed
     per direction (``haralick_from_glcm``) and then averaged. f3 and f12 are NaN for a constant image.
 
+    Parameters
+    ----------
+    gray : 2-D array
+        Gray values in 0..255, at least 2 x 2 px.
+
     Returns
     -------
     (14,) float array
         ``haralick_01`` .. ``haralick_14``.
+
+    Raises
+    ------
+    ValueError
+        If ``gray`` is not a 2-D array of finite values of at least 2 x 2 px.
+
+    Examples
+    --------
+    >>> stripes = np.tile([0.0, 255.0], (4, 2))  # columns of levels 0 and 31 in turn
+    >>> haralick(stripes)[:2].tolist()  # ASM 0.5 in every direction; contrast 31^2 at 0, 45, 135 degrees
+    [0.5, 720.75]
     """
     return _haralick(_check_gray(gray, min_side=2, purpose="the GLCM"))
 
@@ -796,6 +1121,23 @@ def tamura_coarseness(gray: np.ndarray, kmax: int = TAMURA_KMAX) -> float:
     The window sums are built as a pyramid: each level adds four windows of the level below, so every
     sum is a short fixed-order float64 sum (no running or integral-image sums, whose rounding grows with
     the image and would break exact ties).
+
+    Parameters
+    ----------
+    gray : 2-D array
+        Gray values, at least ``2 * 2^kmax`` px on each side.
+    kmax : int
+        The largest window is ``2^kmax`` px (at least 1).
+
+    Returns
+    -------
+    float
+        The mean best window size in px, between 2 and ``2^kmax``.
+
+    Raises
+    ------
+    ValueError
+        If ``kmax < 1``, or ``gray`` is too small, not 2-D or not finite.
 
     Examples
     --------
@@ -885,6 +1227,23 @@ def tamura_contrast(gray: np.ndarray) -> float:
 
     Population moments over all pixels; 0 for a constant image (docs/features.md#image), tested as min == max because
     ``x - mean(x)`` of a constant need not be exactly 0.
+
+    Parameters
+    ----------
+    gray : array
+        Gray values (2-D; other shapes are taken as one row).
+
+    Returns
+    -------
+    float
+        The contrast; 0 for a constant or empty image.
+
+    Examples
+    --------
+    >>> tamura_contrast(np.array([[0.0, 255.0]]))  # sigma 127.5, kurtosis 1
+    127.5
+    >>> tamura_contrast(np.full((3, 3), 9.0))
+    0.0
     """
     values = np.asarray(gray, dtype=np.float64)
     values = values if values.ndim == 2 else values.reshape(1, -1)
@@ -947,10 +1306,29 @@ def lbp_histogram(gray: np.ndarray) -> np.ndarray:
     scikit-image's weights and operation order, and a neighbour counts as 1 when it is >= the centre. The
     histogram runs over the pixels at least 1 px from the border and sums to 1.
 
+    Parameters
+    ----------
+    gray : 2-D array
+        Gray values, at least 3 x 3 px.
+
     Returns
     -------
     (10,) float array
         Shares of labels 0..9.
+
+    Raises
+    ------
+    ValueError
+        If ``gray`` is not a 2-D array of finite values of at least 3 x 3 px.
+
+    Examples
+    --------
+    >>> spot = np.zeros((3, 3))
+    >>> spot[1, 1] = 9.0  # one inner pixel, brighter than all its neighbours: code 0, label 0
+    >>> lbp_histogram(spot).tolist()
+    [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    >>> lbp_histogram(9.0 - spot).tolist()  # darker than all: eight ones, label 8
+    [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]
     """
     return _lbp_histogram(_check_gray(gray, min_side=3, purpose="LBP"))
 

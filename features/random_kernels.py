@@ -37,7 +37,28 @@ CHUNK_INSTANCES = 256
 
 
 def library(kind: str) -> type:
-    """The sktime class of ``kind`` (``minirocket``, ``multirocket``); an error naming the extra if missing."""
+    """The sktime class of ``kind`` (``minirocket``, ``multirocket``); an error naming the extra if missing.
+
+    Parameters
+    ----------
+    kind : str
+        One of :data:`KINDS`: ``"minirocket"`` or ``"multirocket"``.
+
+    Returns
+    -------
+    type
+        sktime's ``MiniRocket`` or ``MultiRocket`` transformer class (not an instance).
+
+    Raises
+    ------
+    ParameterError
+        If ``kind`` is not one of :data:`KINDS`, or sktime (``texplorer[modern]``) is not installed.
+
+    Examples
+    --------
+    >>> library("minirocket").__name__, library("multirocket").__name__
+    ('MiniRocket', 'MultiRocket')
+    """
     if kind not in KINDS:
         raise ParameterError(f"unknown random-kernel transform {kind!r} (known: {', '.join(KINDS)})")
     try:
@@ -49,7 +70,29 @@ def library(kind: str) -> type:
 
 
 def signal_rule(name: str) -> LengthRule:
-    """The length rule of the signal ``name``: a scan signal (``v_ts``) or an imported role (``audio``)."""
+    """The length rule of the signal ``name``: a scan signal (``v_ts``) or an imported role (``audio``).
+
+    Parameters
+    ----------
+    name : str
+        A scan signal of :data:`features.modern.SCAN_SIGNALS`, a role of :data:`features.modern.ROLE_RULES`,
+        or a generic channel ``signal_<channel>`` (:data:`features.modern.GENERIC_RULE`).
+
+    Returns
+    -------
+    LengthRule
+        How the signal is cut into instances: their length and number of windows.
+
+    Raises
+    ------
+    ParameterError
+        If ``name`` is none of these.
+
+    Examples
+    --------
+    >>> signal_rule("v_ts").samples, signal_rule("audio").describe(), signal_rule("signal_z").describe()
+    (3000, '8 windows of 2048 samples at 44100 Hz', '4 windows of 512 samples')
+    """
     if name in SCAN_SIGNALS:
         return SCAN_SIGNALS[name].rule
     if name in ROLE_RULES:
@@ -63,6 +106,31 @@ def signal_layout(columns: Sequence[str]) -> tuple[tuple[int, ...], tuple[tuple[
     """The columns kept as they are, and every signal's ``(name, first column, rule)``.
 
     A signal's columns are ``signal.<name>.<k>``, consecutive, ``windows x length`` of them.
+
+    Parameters
+    ----------
+    columns : sequence of str
+        The column names of a feature space, in order.
+
+    Returns
+    -------
+    keep : tuple of int
+        The indices of the columns that are not signal samples, in order.
+    signals : tuple of (str, int, LengthRule)
+        Every signal's name, the index of its first column and its length rule, in column order.
+
+    Raises
+    ------
+    ParameterError
+        If a signal has no length rule, or its columns are not ``windows x length`` consecutive ones.
+
+    Examples
+    --------
+    >>> from features.modern import signal_columns
+    >>> columns = ("other.density", *signal_columns("signal.v_tt", signal_rule("v_tt")), "image.disp.color")
+    >>> keep, signals = signal_layout(columns)
+    >>> keep, [(name, first, rule.samples) for name, first, rule in signals]
+    ((0, 1025), [('v_tt', 1, 1024)])
     """
     keep, signals, k = [], [], 0
     columns = list(columns)
@@ -84,7 +152,31 @@ def signal_layout(columns: Sequence[str]) -> tuple[tuple[int, ...], tuple[tuple[
 
 
 def signal_instances(X: np.ndarray, first: int, rule: LengthRule) -> np.ndarray:
-    """The instances of one signal of every row, shape ``(rows x windows, 1, length)`` (sktime's panel)."""
+    """The instances of one signal of every row, shape ``(rows x windows, 1, length)`` (sktime's panel).
+
+    Parameters
+    ----------
+    X : numpy.ndarray
+        (rows, columns) float values.
+    first : int
+        The index of the signal's first column (:func:`signal_layout`).
+    rule : LengthRule
+        The signal's length rule: ``rule.samples`` columns from ``first`` on, ``rule.windows`` instances of
+        ``rule.length`` samples each.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(rows x windows, 1, length)``: the windows of row 0, then those of row 1, ..., a C-contiguous copy.
+
+    Examples
+    --------
+    >>> from features.modern import GENERIC_RULE  # 4 windows of 512 samples
+    >>> X = np.arange(2 * 2048.0).reshape(2, 2048)
+    >>> panel = signal_instances(X, 0, GENERIC_RULE)
+    >>> panel.shape, panel[:, 0, 0].tolist()  # the first sample of every window
+    ((8, 1, 512), [0.0, 512.0, 1024.0, 1536.0, 2048.0, 2560.0, 3072.0, 3584.0])
+    """
     block = X[:, first:first + rule.samples]
     return np.ascontiguousarray(block.reshape(-1, 1, rule.length))
 
@@ -125,7 +217,35 @@ class RandomKernels(TransformerMixin, BaseEstimator):
         return keep, signals
 
     def fit(self, X: Any, y: Any = None) -> RandomKernels:
-        """Fit one transform per signal on the instances of the rows of ``X``."""
+        """Fit one transform per signal on the instances of the rows of ``X``.
+
+        Parameters
+        ----------
+        X : array-like
+            (rows, len(columns)) float values, the columns named by ``columns``.
+        y : array-like, optional
+            Ignored: the transforms are unsupervised (scikit-learn's signature).
+
+        Returns
+        -------
+        RandomKernels
+            This transformer, fitted: :attr:`transforms_` and :attr:`widths_` are set.
+
+        Raises
+        ------
+        ParameterError
+            If ``X`` does not have one column per name, ``columns`` has no signal, ``kind`` is unknown or
+            sktime is not installed.
+
+        Examples
+        --------
+        >>> from features.modern import signal_columns
+        >>> columns = ("other.density", *signal_columns("signal.v_tt", signal_rule("v_tt")))
+        >>> X = np.hstack([np.arange(4.0)[:, None], np.random.default_rng(0).normal(size=(4, 1024))])
+        >>> model = RandomKernels("minirocket", columns, num_kernels=84).fit(X)
+        >>> model.widths_  # 84 kernel features of the one signal
+        [84]
+        """
         X = self._check(X)
         cls = library(self.kind)
         arguments = {"random_state": int(self.random_state)}
@@ -141,7 +261,35 @@ class RandomKernels(TransformerMixin, BaseEstimator):
         return self
 
     def transform(self, X: Any) -> np.ndarray:
-        """The kept columns, then every signal's kernel features averaged over its instances."""
+        """The kept columns, then every signal's kernel features averaged over its instances.
+
+        Parameters
+        ----------
+        X : array-like
+            (rows, len(columns)) float values, the columns named by ``columns``.
+
+        Returns
+        -------
+        numpy.ndarray
+            (rows, len(keep_) + sum(widths_)): the kept columns as they are, then the kernel features of
+            every signal, each the mean over the row's instances of the signal.
+
+        Raises
+        ------
+        ParameterError
+            If ``X`` does not have one column per name.
+
+        Examples
+        --------
+        >>> from features.modern import signal_columns
+        >>> columns = ("other.density", *signal_columns("signal.v_tt", signal_rule("v_tt")))
+        >>> X = np.hstack([np.arange(4.0)[:, None], np.random.default_rng(0).normal(size=(4, 1024))])
+        >>> Z = RandomKernels("minirocket", columns, num_kernels=84).fit(X).transform(X)
+        >>> Z.shape, Z[:, 0].tolist()  # the paper's column passes through
+        ((4, 85), [0.0, 1.0, 2.0, 3.0])
+        >>> bool(((Z[:, 1:] >= 0) & (Z[:, 1:] <= 1)).all())  # MiniRocket's features are shares (PPV)
+        True
+        """
         check_is_fitted(self, "transforms_")
         X = self._check(X)
         parts = [X[:, list(self.keep_)]]
@@ -150,7 +298,27 @@ class RandomKernels(TransformerMixin, BaseEstimator):
         return np.hstack(parts)
 
     def get_feature_names_out(self, input_features: Any = None) -> np.ndarray:
-        """The kept columns' names, then ``<kind>.<signal>.<k>`` for every kernel feature."""
+        """The kept columns' names, then ``<kind>.<signal>.<k>`` for every kernel feature.
+
+        Parameters
+        ----------
+        input_features : array-like of str, optional
+            Ignored: the names come from ``columns`` (scikit-learn's signature).
+
+        Returns
+        -------
+        numpy.ndarray
+            The names of the columns of :meth:`transform`'s output, as an object array.
+
+        Examples
+        --------
+        >>> from features.modern import signal_columns
+        >>> columns = ("other.density", *signal_columns("signal.v_tt", signal_rule("v_tt")))
+        >>> X = np.hstack([np.arange(4.0)[:, None], np.random.default_rng(0).normal(size=(4, 1024))])
+        >>> names = RandomKernels("minirocket", columns, num_kernels=84).fit(X).get_feature_names_out()
+        >>> len(names), names[:2].tolist(), names[-1]
+        (85, ['other.density', 'minirocket.v_tt.00000'], 'minirocket.v_tt.00083')
+        """
         check_is_fitted(self, "transforms_")
         names = [self.columns[k] for k in self.keep_]
         for width, (name, _, _) in zip(self.widths_, self.signals_, strict=True):

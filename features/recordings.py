@@ -57,7 +57,6 @@ import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import TYPE_CHECKING
 
 import numpy as np
 from tqdm import tqdm
@@ -73,9 +72,6 @@ from scanner.scan import IMAGE_ROLES, Recording, Trace, is_generic
 from taxonomy.errors import ParameterError
 
 signal = library("scipy.signal")
-
-if TYPE_CHECKING:
-    pass
 
 VIBRATION_AUDIO_MIN_FS = 1000.0
 """Lowest vibration rate the audio features are computed on (see the module docstring)."""
@@ -112,7 +108,19 @@ class Windowing:
 
     def describe(self) -> str:
         """The windowing in words, as the reports print it: ``whole recordings``, ``5 s windows, one row per
-        window``."""
+        window``.
+
+        Returns
+        -------
+        str
+            The window length and how the windows' values are combined.
+
+        Examples
+        --------
+        >>> from features.recordings import Windowing
+        >>> Windowing().describe(), Windowing(5, "rows").describe(), Windowing(2.5, "median").describe()
+        ('whole recordings', '5 s windows, one row per window', '2.5 s windows, the median over the windows')
+        """
         if self.seconds is None:
             return "whole recordings"
         rule = "one row per window" if self.combine == "rows" else f"the {self.combine} over the windows"
@@ -127,6 +135,34 @@ def audio_features(x: np.ndarray, fs: float) -> dict[str, float]:
     Equal to ``features.audio.compute(x, fs)``; the frames are computed :data:`AUDIO_CHUNK_FRAMES` at a
     time, each chunk starting one frame early so the spectral flux sees its true previous frame, so a long
     recording needs bounded memory. Several channels (n, channels) are averaged into one (a mono mix).
+
+    Parameters
+    ----------
+    x : np.ndarray
+        The signal, (n,) or (n, channels).
+    fs : float
+        Sampling rate in Hz; a 50 ms frame must hold at least 20 samples (fs >= 400 Hz).
+
+    Returns
+    -------
+    dict of str to float
+        The 35 features by name (``zcr``, ..., ``f0``, ``mfcc_01``, ..., ``chroma_12``), in
+        ``features.audio.NAMES`` order.
+
+    Examples
+    --------
+    A pure 250 Hz tone has that fundamental; 3000 samples at 400 Hz are 299 frames, computed in two chunks,
+    whose mean is that of the one-pass computation to rounding:
+
+    >>> import numpy as np
+    >>> from features import audio
+    >>> tone = np.sin(2 * np.pi * 250.0 * np.arange(2000) / 4000.0)
+    >>> audio_features(tone, 4000.0)["f0"]
+    250.0
+    >>> noise = np.random.default_rng(0).standard_normal(3000)
+    >>> chunked, whole = audio_features(noise, 400.0), audio.compute(noise, 400.0)
+    >>> max(abs(chunked[name] - whole[name]) for name in whole) < 1e-9
+    True
     """
     values = np.asarray(x, dtype=np.float64)
     values = values.mean(axis=1) if values.ndim == 2 else values
@@ -145,7 +181,23 @@ def audio_features(x: np.ndarray, fs: float) -> dict[str, float]:
 
 def vibration_band(fs: float) -> tuple[float, float]:
     """The band of ``v``: the 10-1000 Hz of docs/features.md#preprocessing, the upper edge lowered to 0.45 fs where fs
-    cannot carry it."""
+    cannot carry it.
+
+    Parameters
+    ----------
+    fs : float
+        The vibration's sampling rate in Hz.
+
+    Returns
+    -------
+    (float, float)
+        Lower and upper edge in Hz; the upper one is at or below the lower one for fs <= 22.2 Hz (no band).
+
+    Examples
+    --------
+    >>> vibration_band(3000.0), vibration_band(1000.0), vibration_band(20.0)
+    ((10.0, 1000.0), (10.0, 450.0), (10.0, 9.0))
+    """
     return BAND_HZ[0], min(BAND_HZ[1], 0.45 * fs)
 
 
@@ -158,10 +210,34 @@ def band_limited(v: np.ndarray, fs: float) -> np.ndarray:
     """Each axis of a vibration band-limited over the whole recording (:func:`vibration_band`,
     docs/features.md#preprocessing).
 
+    Parameters
+    ----------
+    v : np.ndarray
+        The vibration, (n,) or (n, axes).
+    fs : float
+        Its sampling rate in Hz.
+
+    Returns
+    -------
+    np.ndarray
+        The band-limited vibration, float64 in the shape of ``v`` (4th-order Butterworth band-pass, run
+        forward and backward: no phase shift).
+
     Raises
     ------
     ParameterError
         If the rate is too low for a band above 10 Hz (<= 25 Hz) or the recording too short to filter.
+
+    Examples
+    --------
+    A 100 Hz sine on an offset of 5: the offset (0 Hz) is removed, the sine in the pass band kept:
+
+    >>> import numpy as np
+    >>> t = np.arange(3000) / 3000.0
+    >>> band = band_limited(np.sin(2 * np.pi * 100.0 * t) + 5.0, 3000.0)
+    >>> middle = band[300:-300]  # away from the filter's start and end
+    >>> bool(abs(middle.mean()) < 0.01), round(float(middle.std() * np.sqrt(2)), 3)
+    (True, 1.0)
     """
     low, high = vibration_band(fs)
     if high <= low:
@@ -177,14 +253,64 @@ def band_limited(v: np.ndarray, fs: float) -> np.ndarray:
 
 def vibration_features(v: np.ndarray, fs: float) -> dict[str, float]:
     """MiRO, MiCo (paper eqs. 13-15), std, Pearson kurtosis and mean power (docs/features.md#other) of a slide signal
-    ``v`` (band-limited, windowed, axes combined)."""
+    ``v`` (band-limited, windowed, axes combined).
+
+    Parameters
+    ----------
+    v : np.ndarray
+        The slide signal, (n,).
+    fs : float
+        Its sampling rate in Hz.
+
+    Returns
+    -------
+    dict of str to float
+        The values of :data:`VIBRATION_NAMES`, in that order.
+
+    Examples
+    --------
+    A 100 Hz sine of amplitude 2: standard deviation ``2 / sqrt(2)``, kurtosis 1.5, power ``2^2 / 2``, and
+    MiCo (the spectral centroid) at its frequency:
+
+    >>> import numpy as np
+    >>> v = 2.0 * np.sin(2 * np.pi * 100.0 * np.arange(3000) / 3000.0)
+    >>> values = vibration_features(v, 3000.0)
+    >>> {name: round(value, 4) for name, value in values.items()}  # doctest: +NORMALIZE_WHITESPACE
+    {'tactum.vibration.miro': 0.0001, 'tactum.vibration.mico': 100.0, 'other.vibration.vib_std': 1.4142,
+     'other.vibration.vib_kurtosis': 1.5, 'other.vibration.vib_energy': 2.0}
+    """
     return dict(zip(VIBRATION_NAMES, (tactum.miro(v), tactum.mico(v, fs), other.vib_std(v),
                                       other.vib_kurtosis(v), other.vib_energy(v)), strict=True))
 
 
 def friction_features(xyz: np.ndarray, fs: float) -> dict[str, float]:
     """FST and FRS (paper eqs. 16, 17) of a 3-axis force: normal force z, tangential ``|(x, y)|`` after
-    taring x and y by their mean over the first 0.1 s; the stiction window is 10 ms at any rate."""
+    taring x and y by their mean over the first 0.1 s; the stiction window is 10 ms at any rate.
+
+    Parameters
+    ----------
+    xyz : np.ndarray
+        The force, (n, 3): x and y tangential, z normal.
+    fs : float
+        Its sampling rate in Hz.
+
+    Returns
+    -------
+    dict of str to float
+        The values of :data:`FRICTION_NAMES`: ``tactum.force_xyz.fst`` and ``tactum.force_xyz.frs``.
+
+    Examples
+    --------
+    A load that grows after 0.2 s with a tangential force of ``|(0.3, 0.4)| = 0.5`` times the normal force
+    throughout: a friction coefficient of 0.5, in static and in sliding friction alike:
+
+    >>> import numpy as np
+    >>> t = np.arange(400) / 200.0
+    >>> fz = np.clip((t - 0.2) * 10, 0, 3)  # no load in the first 0.1 s, so the tare is 0
+    >>> values = friction_features(np.column_stack([0.3 * fz, 0.4 * fz, fz]), 200.0)
+    >>> {name: round(value, 6) for name, value in values.items()}
+    {'tactum.force_xyz.fst': 0.5, 'tactum.force_xyz.frs': 0.5}
+    """
     values = np.asarray(xyz, dtype=np.float64)
     tare = values[:max(1, int(round(TARE_S * fs))), :2].mean(axis=0)
     f_frt = np.hypot(*(values[:, :2] - tare).T)
@@ -212,7 +338,23 @@ ROLLOFF = 0.85
 def signal_bands(fs: float) -> np.ndarray:
     """Edges (Hz) of the rate-aware band plan of a generic channel: ``0`` and ``fs / 2^k`` for k = 7 .. 1,
     seven bands of an octave each but the lowest: a 100 Hz IMU gets 0-0.78-1.56-3.1-6.25-12.5-25-50 Hz,
-    a 3 kHz accelerometer 0-23-47-94-188-375-750-1500 Hz."""
+    a 3 kHz accelerometer 0-23-47-94-188-375-750-1500 Hz.
+
+    Parameters
+    ----------
+    fs : float
+        The channel's sampling rate in Hz.
+
+    Returns
+    -------
+    np.ndarray, shape (8,)
+        The band edges in Hz, increasing, from 0 to the Nyquist frequency ``fs / 2``.
+
+    Examples
+    --------
+    >>> signal_bands(100.0).tolist()
+    [0.0, 0.78125, 1.5625, 3.125, 6.25, 12.5, 25.0, 50.0]
+    """
     return np.concatenate(([0.0], fs / 2.0 ** np.arange(SIGNAL_BANDS, 0, -1)))
 
 
@@ -238,10 +380,37 @@ def signal_features(x: np.ndarray, fs: float) -> list[float]:
     the 85 % roll-off (Hz) and the frequency of the largest power (Hz). A constant signal has no spectrum:
     its band energies and shape are NaN.
 
+    Parameters
+    ----------
+    x : np.ndarray
+        The window of one column, (n,), at least :data:`SIGNAL_MIN_SAMPLES` samples.
+    fs : float
+        Its sampling rate in Hz.
+
+    Returns
+    -------
+    list of float
+        The 19 values of :data:`SIGNAL_NAMES`, in that order.
+
     Raises
     ------
     ParameterError
         If the window has fewer than :data:`SIGNAL_MIN_SAMPLES` samples.
+
+    Examples
+    --------
+    A unit sine of 187.5 Hz at 1 kHz, exactly on a line of the 256-sample Welch spectrum (spaced 1000 / 256 Hz):
+    standard deviation and RMS ``1 / sqrt(2)``, kurtosis 1.5, all its power in the band 125-250 Hz, centroid
+    and peak at the tone; a constant has no spectrum:
+
+    >>> import numpy as np
+    >>> tone = np.sin(2 * np.pi * 187.5 * np.arange(1000) / 1000.0)
+    >>> values = dict(zip(SIGNAL_NAMES, signal_features(tone, 1000.0)))
+    >>> [round(values[name], 4) for name in ("std", "rms", "kurtosis", "band5", "centroid", "peak")]
+    [0.7071, 0.7071, 1.5, 1.0, 187.5, 187.5]
+    >>> values = dict(zip(SIGNAL_NAMES, signal_features(np.full(32, 2.0), 1000.0)))
+    >>> values["mean"], values["std"], values["band0"], values["centroid"]
+    (2.0, 0.0, nan, nan)
     """
     x = _window_of(x, SIGNAL_MIN_SAMPLES, "generic")
     mean, std = float(x.mean()), float(x.std())
@@ -291,10 +460,36 @@ def slow_features(x: np.ndarray, fs: float) -> list[float]:
     per second) and rate of change (mean absolute difference of neighbouring samples times fs, units per
     second: how much it moves within the window, which a slope misses when it goes up and down).
 
+    Parameters
+    ----------
+    x : np.ndarray
+        The window of one column, (n,), at least :data:`SLOW_MIN_SAMPLES` samples.
+    fs : float
+        Its sampling rate in Hz.
+
+    Returns
+    -------
+    list of float
+        The 6 values of :data:`SLOW_NAMES`, in that order.
+
     Raises
     ------
     ParameterError
         If the window has fewer than :data:`SLOW_MIN_SAMPLES` samples.
+
+    Examples
+    --------
+    A line rising 2 units per second from 1 to 3, sampled at 10 Hz, has slope and rate of change 2; a
+    triangle that goes up and down again has no slope but the same rate of change:
+
+    >>> import numpy as np
+    >>> ramp = 1.0 + 2.0 * np.arange(11) / 10.0
+    >>> dict(zip(SLOW_NAMES, np.round(slow_features(ramp, 10.0), 6).tolist()))
+    {'mean': 2.0, 'std': 0.632456, 'p05': 1.1, 'p95': 2.9, 'slope': 2.0, 'change': 2.0}
+    >>> triangle = np.concatenate([ramp, ramp[-2::-1]])
+    >>> slope, change = slow_features(triangle, 10.0)[4:]
+    >>> bool(abs(slope) < 1e-9), round(change, 6)
+    (True, 2.0)
     """
     x = _window_of(x, SLOW_MIN_SAMPLES, "slow")
     t = np.arange(x.size) / fs
@@ -307,7 +502,26 @@ def slow_features(x: np.ndarray, fs: float) -> list[float]:
 def log_ratio(a: np.ndarray, b: np.ndarray) -> float:
     """``log10(mean|a| / mean|b|)`` of two windows (motor current per wheel speed: the power a terrain
     takes per unit of speed), bounded to +-:data:`RATIO_BOUND`: each level is floored at 10^-3 of the
-    larger one, so a window where one is 0 gives the bound, and one where both are 0 gives 0."""
+    larger one, so a window where one is 0 gives the bound, and one where both are 0 gives 0.
+
+    Parameters
+    ----------
+    a, b : np.ndarray
+        The two windows (any shape; their mean absolute values are compared).
+
+    Returns
+    -------
+    float
+        The log10 ratio of the levels, in [-:data:`RATIO_BOUND`, :data:`RATIO_BOUND`].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> log_ratio(np.array([2.0, -2.0]), np.array([0.2, 0.2])), log_ratio(np.ones(3), np.zeros(3))
+    (1.0, 3.0)
+    >>> log_ratio(np.zeros(3), np.ones(3)), log_ratio(np.zeros(3), np.zeros(3))
+    (-3.0, 0.0)
+    """
     level_a, level_b = float(np.mean(np.abs(a))), float(np.mean(np.abs(b)))
     floor = 10.0 ** -RATIO_BOUND * max(level_a, level_b)
     if floor == 0:
@@ -317,14 +531,57 @@ def log_ratio(a: np.ndarray, b: np.ndarray) -> float:
 
 def generic_columns(role: str, width: int) -> tuple[str, ...]:
     """Columns of the generic family on a channel of ``width`` columns: ``generic.<role>.<feature>``, with
-    ``c<k>_`` before the feature for each column of a multi-column channel."""
+    ``c<k>_`` before the feature for each column of a multi-column channel.
+
+    Parameters
+    ----------
+    role : str
+        The channel's role (``signal_<channel>`` or ``vibration``).
+    width : int
+        The channel's number of columns.
+
+    Returns
+    -------
+    tuple of str
+        ``width`` times the 19 :data:`SIGNAL_NAMES`, column after column.
+
+    Examples
+    --------
+    >>> generic_columns("signal_gyro", 1)[:3]
+    ('generic.signal_gyro.mean', 'generic.signal_gyro.std', 'generic.signal_gyro.rms')
+    >>> columns = generic_columns("signal_gyro", 3)
+    >>> len(columns), columns[0], columns[19]
+    (57, 'generic.signal_gyro.c0_mean', 'generic.signal_gyro.c1_mean')
+    """
     if width == 1:
         return tuple(f"generic.{role}.{name}" for name in SIGNAL_NAMES)
     return tuple(f"generic.{role}.c{k}_{name}" for k in range(width) for name in SIGNAL_NAMES)
 
 
 def slow_columns(role: str, width: int) -> tuple[str, ...]:
-    """Columns of the slow family on a channel of ``width`` columns, named as :func:`generic_columns`."""
+    """Columns of the slow family on a channel of ``width`` columns, named as :func:`generic_columns`.
+
+    Parameters
+    ----------
+    role : str
+        The channel's role (``signal_<channel>`` or ``vibration``).
+    width : int
+        The channel's number of columns.
+
+    Returns
+    -------
+    tuple of str
+        ``width`` times the 6 :data:`SLOW_NAMES`, column after column.
+
+    Examples
+    --------
+    >>> slow_columns("signal_speed", 1)
+    ... # doctest: +NORMALIZE_WHITESPACE
+    ('generic.signal_speed.mean', 'generic.signal_speed.std', 'generic.signal_speed.p05', 'generic.signal_speed.p95',
+     'generic.signal_speed.slope', 'generic.signal_speed.change')
+    >>> slow_columns("signal_speed", 2)[5:7]
+    ('generic.signal_speed.c0_change', 'generic.signal_speed.c1_mean')
+    """
     if width == 1:
         return tuple(f"generic.{role}.{name}" for name in SLOW_NAMES)
     return tuple(f"generic.{role}.c{k}_{name}" for k in range(width) for name in SLOW_NAMES)
@@ -357,7 +614,31 @@ def generic_family(role: str, width: int) -> RoleFamily:
     """The generic family of a channel playing ``role`` with ``width`` columns (docs/features.md#generic-
     signals): on every generic channel (``signal_<channel>``) and on a vibration sampled below
     :data:`VIBRATION_AUDIO_MIN_FS`, where the audio features do not apply. Not registered: its columns
-    follow the channel's width, so a set's families are made for the channels it has."""
+    follow the channel's width, so a set's families are made for the channels it has.
+
+    Parameters
+    ----------
+    role : str
+        The channel's role: ``signal_<channel>`` or ``vibration``.
+    width : int
+        The channel's number of columns (:func:`generic_columns`).
+
+    Returns
+    -------
+    RoleFamily
+        Named ``generic.<role>``, or ``generic.<role>:<width>`` for several columns; it applies to a
+        generic channel at :data:`SLOW_MAX_HZ` or more, to a vibration from there to
+        :data:`VIBRATION_AUDIO_MIN_FS`.
+
+    Examples
+    --------
+    >>> gyro = generic_family("signal_gyro", 3)
+    >>> gyro.name, len(gyro.columns), gyro.applies(100.0), gyro.applies(10.0)
+    ('generic.signal_gyro:3', 57, True, False)
+    >>> vibration = generic_family("vibration", 1)
+    >>> vibration.applies(500.0), vibration.applies(3000.0)
+    (True, False)
+    """
     name = f"generic.{role}" if width == 1 else f"generic.{role}:{width}"
     return RoleFamily(name, role, generic_columns(role, width), _generic,
                       applies=_below_vibration_audio if role == "vibration" else _not_slow)
@@ -367,7 +648,30 @@ def generic_family(role: str, width: int) -> RoleFamily:
 def slow_family(role: str, width: int) -> RoleFamily:
     """The slow family of a generic channel (or vibration) sampled below :data:`SLOW_MAX_HZ`
     (:func:`slow_features`): level, spread, slope and rate of change, no spectra. Named ``slow.<role>``;
-    its columns are ``generic.<role>.<feature>`` like the generic family's, which it replaces there."""
+    its columns are ``generic.<role>.<feature>`` like the generic family's, which it replaces there.
+
+    Parameters
+    ----------
+    role : str
+        The channel's role: ``signal_<channel>`` or ``vibration``.
+    width : int
+        The channel's number of columns (:func:`slow_columns`).
+
+    Returns
+    -------
+    RoleFamily
+        Named ``slow.<role>``, or ``slow.<role>:<width>`` for several columns; it applies below
+        :data:`SLOW_MAX_HZ`.
+
+    Examples
+    --------
+    >>> speed = slow_family("signal_speed", 1)
+    >>> speed.name, speed.columns[0], speed.applies(6.5), speed.applies(100.0)
+    ('slow.signal_speed', 'generic.signal_speed.mean', True, False)
+    >>> import numpy as np
+    >>> np.round(speed.compute(np.array([0.0, 1.0, 2.0, 3.0]), 2.0), 6).tolist()  # mean, std, p05, p95, slope, change
+    [1.5, 1.118034, 0.15, 2.85, 2.0, 2.0]
+    """
     name = f"slow.{role}" if width == 1 else f"slow.{role}:{width}"
     return RoleFamily(name, role, slow_columns(role, width), _slow, applies=_slow_rate)
 
@@ -379,7 +683,27 @@ def _channel_word(role: str) -> str:
 def ratio_columns(role: str, other: str, width: int, other_width: int) -> tuple[str, ...]:
     """Columns of the ratios of ``role`` to ``other``: ``generic.<role>.c<k>_log_per_<other channel>`` column
     by column where both have ``width`` columns (left current per left speed, ...), else one
-    ``generic.<role>.log_per_<other channel>`` of their levels over all columns."""
+    ``generic.<role>.log_per_<other channel>`` of their levels over all columns.
+
+    Parameters
+    ----------
+    role, other : str
+        The roles of the two channels (``signal_<channel>``).
+    width, other_width : int
+        Their numbers of columns.
+
+    Returns
+    -------
+    tuple of str
+        ``width`` names where the widths are equal and above 1, else one.
+
+    Examples
+    --------
+    >>> ratio_columns("signal_current", "signal_speed", 2, 2)
+    ('generic.signal_current.c0_log_per_speed', 'generic.signal_current.c1_log_per_speed')
+    >>> ratio_columns("signal_current", "signal_speed", 2, 1)
+    ('generic.signal_current.log_per_speed',)
+    """
     word = _channel_word(other)
     if width == other_width and width > 1:
         return tuple(f"generic.{role}.c{k}_log_per_{word}" for k in range(width))
@@ -390,7 +714,31 @@ def ratio_columns(role: str, other: str, width: int, other_width: int) -> tuple[
 def ratio_family(role: str, other: str, width: int, other_width: int) -> RoleFamily:
     """The level ratios (:func:`log_ratio`) of two slow channels of one recording sampled at the same rate:
     motor current per wheel speed, say. Named ``ratio.<role>.<other>:<width>x<other width>``; its window is
-    both channels side by side (:func:`recording_rows` prepares it)."""
+    both channels side by side (:func:`recording_rows` prepares it).
+
+    Parameters
+    ----------
+    role, other : str
+        The roles of the two channels (``signal_<channel>``), ``role`` the numerator.
+    width, other_width : int
+        Their numbers of columns.
+
+    Returns
+    -------
+    RoleFamily
+        The family, with the columns of :func:`ratio_columns`; it applies below :data:`SLOW_MAX_HZ`.
+
+    Examples
+    --------
+    A current of 2 A at a speed of 0.2 m/s: ten times the level, a log10 ratio of 1:
+
+    >>> import numpy as np
+    >>> family = ratio_family("signal_current", "signal_speed", 1, 1)
+    >>> family.name, family.columns
+    ('ratio.signal_current.signal_speed:1x1', ('generic.signal_current.log_per_speed',))
+    >>> family.compute(np.array([[2.0, 0.2], [2.0, 0.2]]), 10.0)
+    [1.0]
+    """
 
     def compute(window: np.ndarray, fs: float) -> list[float]:
         a, b = window[:, :width], window[:, width:]
@@ -490,7 +838,43 @@ FRICTION = ROLE_REGISTRY.register(RoleFamily("friction", "force_xyz", FRICTION_N
 def families(recording: Recording, chosen: Sequence[str] | None = None) -> list[str]:
     """The families that apply to a recording: the registered ones (``audio.audio``, ``image.photo``, ...)
     in order, among the default ones or those named in ``chosen`` (opt-in ones too: docs/modern-features.md),
-    then the generic family of each generic channel and of a vibration below 1 kHz."""
+    then the generic family of each generic channel and of a vibration below 1 kHz.
+
+    Parameters
+    ----------
+    recording : Recording
+        A recording with roles.
+    chosen : sequence of str, optional
+        Names of registered families to look at (default: the default ones); naming a family of a kind of
+        :data:`GENERIC_KINDS` (``catch22.audio``) adds that kind's family on every generic channel.
+
+    Returns
+    -------
+    list of str
+        The names of the families whose role the recording has at a rate they apply to: the registered ones
+        in registry order, then by role the generic or slow family of each generic channel and slow
+        vibration (``generic.<role>``, ``slow.<role>``, ``:<width>`` for several columns), the ratio family
+        of each two slow channels at one rate, and the families of the chosen kinds.
+
+    Examples
+    --------
+    A 3-axis vibration at 3 kHz and a force: audio on the vibration, the vibration features and friction.
+    A robot's gyroscope at 100 Hz, speed and current at 10 Hz: generic, slow and ratio families:
+
+    >>> import numpy as np
+    >>> from scanner import Recording, Trace
+    >>> slide = Recording("slide", {"acc": Trace(np.zeros((3000, 3)), 3000.0, "g"),
+    ...                             "force": Trace(np.ones((300, 3)), 100.0, "N")},
+    ...                   {"vibration": "acc", "force_xyz": "force"}, "cork")
+    >>> families(slide)
+    ['audio.vibration', 'vibration', 'friction']
+    >>> run = Recording("run", {"gyro": Trace(np.zeros((500, 3)), 100.0, "rad/s"),
+    ...                         "speed": Trace(np.ones(50), 10.0, "m/s"), "current": Trace(np.ones(50), 10.0, "A")},
+    ...                 {"signal_gyro": "gyro", "signal_speed": "speed", "signal_current": "current"}, "grass")
+    >>> families(run)  # doctest: +NORMALIZE_WHITESPACE
+    ['slow.signal_current', 'generic.signal_gyro:3', 'slow.signal_speed',
+     'ratio.signal_current.signal_speed:1x1']
+    """
     found = []
     kinds = _generic_kinds(chosen)
     chosen = None if chosen is None else [n for n in chosen if n in ROLE_REGISTRY]
@@ -523,7 +907,26 @@ def families(recording: Recording, chosen: Sequence[str] | None = None) -> list[
 
 
 def family_names(family: str) -> tuple[str, ...]:
-    """The columns of one family."""
+    """The columns of one family.
+
+    Parameters
+    ----------
+    family : str
+        A registered family's name, or that of a generic, slow, ratio or modern generic family as
+        :func:`families` gives it.
+
+    Returns
+    -------
+    tuple of str
+        Its column names, in order.
+
+    Examples
+    --------
+    >>> family_names("friction")
+    ('tactum.force_xyz.fst', 'tactum.force_xyz.frs')
+    >>> len(family_names("generic.signal_gyro:3")), family_names("slow.signal_speed")[-2:]
+    (57, ('generic.signal_speed.slope', 'generic.signal_speed.change'))
+    """
     return _family(family).columns
 
 
@@ -564,6 +967,46 @@ def recording_rows(recording: Recording, windowing: Windowing = Windowing(), bor
 
     ``applied`` are the families to compute (default :func:`families`); ``border`` the crop of its photo.
     A family whose input fails (too short to filter, a photo too small to crop) is NaN with a warning.
+
+    Parameters
+    ----------
+    recording : Recording
+        The recording.
+    windowing : Windowing, optional
+        How it is cut and its windows combined (default: the whole recording).
+    border : int, default 0
+        Pixels cropped from each edge of its photo.
+    applied : sequence of str, optional
+        Names of the families to compute (:func:`families`' names); default those that apply to it.
+
+    Returns
+    -------
+    list of dict of str to float
+        The values by column name: one row, or one per window in time order with ``combine = "rows"``.
+        Windows cover the sampled channels only; a photo's values are in every row.
+
+    Warns
+    -----
+    UserWarning
+        Naming the recording and the family whose input failed; its values are NaN.
+
+    Examples
+    --------
+    A speed rising at 2 m/s per second for 4 s, sampled at 10 Hz: the whole of it, its 2 s windows as rows,
+    and the median over 1 s windows:
+
+    >>> import numpy as np
+    >>> from scanner import Recording, Trace
+    >>> from features.recordings import Windowing
+    >>> ramp = Recording("ramp", {"speed": Trace(2.0 * np.arange(40) / 10.0, 10.0, "m/s")},
+    ...                  {"signal_speed": "speed"}, "grass")
+    >>> def shown(rows):
+    ...     return [(round(row["generic.signal_speed.mean"], 6), round(row["generic.signal_speed.slope"], 6))
+    ...             for row in rows]
+    >>> shown(recording_rows(ramp)), shown(recording_rows(ramp, Windowing(2.0, "rows")))
+    ([(3.9, 2.0)], [(1.9, 2.0), (5.9, 2.0)])
+    >>> shown(recording_rows(ramp, Windowing(1.0, "median")))
+    [(3.9, 2.0)]
     """
     applied = list(families(recording) if applied is None else applied)
     fixed: dict[str, float] = {}
@@ -600,7 +1043,33 @@ def recording_rows(recording: Recording, windowing: Windowing = Windowing(), bor
 def fold_group(recording: Recording, group_by: str | None = "auto") -> str:
     """The cross-validation group of a recording: its group ``group_by``; with ``auto`` the ``object``,
     else the ``photo`` its patch was cut from, else the recording itself; ``recording`` (or None): every
-    recording alone, with its windows (``none``, every row alone, is :func:`feature_space`'s)."""
+    recording alone, with its windows (``none``, every row alone, is :func:`feature_space`'s).
+
+    Parameters
+    ----------
+    recording : Recording
+        The recording.
+    group_by : str or None, default "auto"
+        A key of the recording's ``group``, ``auto``, ``recording``, ``none`` or None.
+
+    Returns
+    -------
+    str
+        The group's id.
+
+    Raises
+    ------
+    ParameterError
+        If the recording has no group ``group_by``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scanner import Recording, Trace
+    >>> patch = Recording("patch-3", {"x": Trace(np.ones(4), 10.0, "-")}, group={"photo": "img-7", "site": "a"})
+    >>> fold_group(patch), fold_group(patch, "site"), fold_group(patch, "recording")
+    ('img-7', 'a', 'patch-3')
+    """
     if group_by is None or group_by in ("none", "recording"):
         return recording.name
     if group_by == "auto":
@@ -612,7 +1081,33 @@ def fold_group(recording: Recording, group_by: str | None = "auto") -> str:
 
 
 def set_levels(recordings: Sequence[Recording]) -> tuple[str, dict[str, list[str]]]:
-    """The label's level and the coarser levels every recording defines (``meta["levels"]``)."""
+    """The label's level and the coarser levels every recording defines (``meta["levels"]``).
+
+    Parameters
+    ----------
+    recordings : sequence of Recording
+        The set, at least one recording; the first one's ``meta`` names the levels.
+
+    Returns
+    -------
+    label_level : str
+        The first recording's ``meta["label_level"]``, ``label`` if it has none.
+    levels : dict of str to list of str
+        Each coarser level that every recording defines, with every recording's class at it, in order.
+
+    Examples
+    --------
+    ``hardness`` is defined by both recordings, ``colour`` by one only:
+
+    >>> import numpy as np
+    >>> from scanner import Recording, Trace
+    >>> def made(name, label, levels):
+    ...     return Recording(name, {"x": Trace(np.ones(4), 10.0, "-")}, label=label,
+    ...                      meta={"label_level": "material", "levels": levels})
+    >>> set_levels([made("a", "cork", {"hardness": "soft", "colour": "brown"}),
+    ...             made("b", "oak", {"hardness": "hard"})])
+    ('material', {'hardness': ['soft', 'hard']})
+    """
     label_level = str(recordings[0].meta.get("label_level", "label"))
     levels: dict[str, list[str]] = {}
     first = recordings[0].meta.get("levels") or {}
@@ -651,10 +1146,63 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     names the registered families to compute (default: the default ones), opt-in ones too
     (``catch22.audio``, ...: docs/modern-features.md).
 
+    Parameters
+    ----------
+    recordings : sequence of Recording
+        The set, each recording labelled; the first one's ``meta`` names the label's level and coarser
+        levels (:func:`set_levels`), and ``meta["split"]`` the split if every recording has one.
+    windowing : Windowing, optional
+        How each recording is cut (default: whole recordings).
+    border : int, default 0
+        Pixels cropped from each edge of a photo.
+    group_by : str or None, default "auto"
+        The rows' cross-validation groups (:func:`fold_group`), or ``none``: every row alone.
+    workers : int or None, default 1
+        Processes of this machine (None: one per core) or workers of the current runtime.
+    progress : bool, default False
+        Show a progress bar on stderr.
+    chosen : sequence of str, optional
+        Names of the registered families to compute (default: the default ones).
+
+    Returns
+    -------
+    space : FeatureSpace
+        One row per recording (or window), free labels at the set's level.
+    notes : list of str
+        One line per family some recordings lack (:func:`lacking`), then each warning raised while
+        extracting, once.
+
     Raises
     ------
     ParameterError
         If no family applies to any recording, or a recording has no label.
+
+    Examples
+    --------
+    Two recordings of a robot's speed at 10 Hz, a constant level plus a rise of 1 m/s per second, one
+    with a current too; the other lacks its columns:
+
+    >>> import numpy as np
+    >>> from scanner import Recording, Trace
+    >>> from features.recordings import Windowing
+    >>> def run(name, terrain, level, current):
+    ...     speed = Trace(level + np.arange(20) / 10.0, 10.0, "m/s")
+    ...     channels = {"speed": speed, "current": Trace(np.full(20, 2.0 * level), 10.0, "A")}
+    ...     roles = {"signal_speed": "speed", "signal_current": "current"} if current else {"signal_speed": "speed"}
+    ...     return Recording(name, channels, roles, terrain, {"object": f"{terrain}-1"}, {"label_level": "terrain"})
+    >>> space, notes = feature_space([run("r0", "grass", 1.0, True), run("r1", "gravel", 2.0, False)])
+    >>> space
+    FeatureSpace(2 rows x 13 features, 2 groups, 2 classes at terrain)
+    >>> space.subset(["generic.signal_speed.mean", "generic.signal_speed.slope"]).X.round(6).tolist()
+    [[1.95, 1.0], [2.95, 1.0]]
+    >>> space.groups, len(notes)
+    (('grass-1', 'gravel-1'), 2)
+    >>> print(notes[0])  # doctest: +NORMALIZE_WHITESPACE
+    1 of 2 recording(s) lack the role signal_current (at a rate slow.signal_current applies to): its 6 column(s)
+    are NaN there (r1)
+    >>> windows, _ = feature_space([run("r0", "grass", 1.0, True)], Windowing(1.0, "rows"), group_by="none")
+    >>> windows.scan_ids, windows.groups
+    (('r0#w000', 'r0#w001'), ('r0#w000', 'r0#w001'))
     """
     recordings = list(recordings)
     if not recordings:
@@ -726,7 +1274,41 @@ def _own(recording: Recording, applied: Sequence[str]) -> list[str]:
 def lacking(recordings: Sequence[Recording], found: Sequence[Sequence[str]], applied: Sequence[str],
             first: int = 3) -> list[str]:
     """One line per family that some recordings of the set lack (their columns are NaN there): the role it
-    needs, how many lack it and the first few names."""
+    needs, how many lack it and the first few names.
+
+    Parameters
+    ----------
+    recordings : sequence of Recording
+        The set.
+    found : sequence of sequence of str
+        The families of each recording (:func:`families`), in the order of ``recordings``.
+    applied : sequence of str
+        The set's families.
+    first : int, default 3
+        How many names of recordings to show per line.
+
+    Returns
+    -------
+    list of str
+        One line per family of ``applied`` that a recording lacks, in the order of ``applied``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scanner import Recording, Trace
+    >>> both = Recording("both", {"f": Trace(np.ones((300, 3)), 100.0, "N"),
+    ...                           "s": Trace(np.ones(100), 100.0, "-")},
+    ...                  {"force_xyz": "f", "signal_s": "s"}, "cork")
+    >>> bare = [Recording(f"bare{k}", {"s": Trace(np.ones(100), 100.0, "-")}, {"signal_s": "s"}, "oak")
+    ...         for k in range(4)]
+    >>> found = [families(r) for r in [both, *bare]]
+    >>> found[0]
+    ['friction', 'generic.signal_s']
+    >>> for line in lacking([both, *bare], found, found[0], first=2):
+    ...     print(line)  # doctest: +NORMALIZE_WHITESPACE
+    4 of 5 recording(s) lack the role force_xyz (at a rate friction applies to): its 2 column(s) are NaN there
+    (bare0, bare1 and 2 more)
+    """
     lines = []
     for name in applied:
         family = _family(name)
@@ -757,7 +1339,23 @@ def _map(function: Callable, jobs: Sequence, workers: int | None, progress: bool
 
 
 def describe_families(names: Iterable[str]) -> str:
-    """``audio.audio (35), image.photo (31)``: the families of a list of columns with their sizes."""
+    """``audio.audio (35), image.photo (31)``: the families of a list of columns with their sizes.
+
+    Parameters
+    ----------
+    names : iterable of str
+        Column names ``<family>.<role>.<feature>``.
+
+    Returns
+    -------
+    str
+        Each ``<family>.<role>`` in order of first appearance with its number of columns, comma-separated.
+
+    Examples
+    --------
+    >>> describe_families(["audio.audio.zcr", "audio.audio.f0", "image.photo.color", "generic.signal_speed.mean"])
+    'audio.audio (2), image.photo (1), generic.signal_speed (1)'
+    """
     counts: dict[str, int] = {}
     for name in names:
         family = ".".join(name.split(".")[:2])

@@ -157,7 +157,38 @@ class Registry(Generic[F]):
         self._columns: set[str] = set()
 
     def register(self, family: F) -> F:
-        """Add ``family`` after the others; returns it."""
+        """Add ``family`` after the others; returns it.
+
+        Its module's source (and that of every project module it imports) is read now, for the code version
+        (:func:`fix_code_version`).
+
+        Parameters
+        ----------
+        family : Family or RoleFamily
+            The family to add; its name and columns must be new to this registry.
+
+        Returns
+        -------
+        Family or RoleFamily
+            ``family``, so that a module can keep it: ``TOY = REGISTRY.register(Family(...))``.
+
+        Raises
+        ------
+        ParameterError
+            If a family of that name or one of its columns is already registered.
+
+        Examples
+        --------
+        >>> from features.registry import Family, Registry
+        >>> registry = Registry()
+        >>> size = registry.register(Family("toy", "Toy", ("toy.size", "toy.mass"), lambda prepared: {}))
+        >>> registry.names, registry.modalities
+        (('toy.size', 'toy.mass'), ('toy',))
+        >>> registry.register(Family("toy", "Toy", ("toy.colour",), lambda prepared: {}))
+        Traceback (most recent call last):
+        ...
+        taxonomy.errors.ParameterError: a feature family 'toy' is already registered
+        """
         if family.name in self._families:
             raise ParameterError(f"a feature family {family.name!r} is already registered")
         taken = sorted(self._columns.intersection(family.columns))
@@ -169,7 +200,31 @@ class Registry(Generic[F]):
         return family
 
     def unregister(self, name: str) -> F:
-        """Remove the family ``name`` (a plug-in or a test undoing its registration); returns it."""
+        """Remove the family ``name`` (a plug-in or a test undoing its registration); returns it.
+
+        Parameters
+        ----------
+        name : str
+            The name of a registered family.
+
+        Returns
+        -------
+        Family or RoleFamily
+            The family removed; its column names are free again.
+
+        Raises
+        ------
+        ParameterError
+            If no family of that name is registered.
+
+        Examples
+        --------
+        >>> from features.registry import Family, Registry
+        >>> registry = Registry()
+        >>> toy = registry.register(Family("toy", "Toy", ("toy.size",), lambda prepared: {}))
+        >>> registry.unregister("toy") is toy, "toy" in registry, registry.names
+        (True, False, ())
+        """
         try:
             family = self._families.pop(name)
         except KeyError:
@@ -199,10 +254,28 @@ class Registry(Generic[F]):
     def chosen(self, names: Sequence[str] | None = None) -> tuple[F, ...]:
         """The families ``names`` in registry order (None: the default ones).
 
+        Parameters
+        ----------
+        names : sequence of str, optional
+            Names of registered families, opt-in ones too, in any order.
+
+        Returns
+        -------
+        tuple of Family or RoleFamily
+            The families named (or every default one), in the order they were registered.
+
         Raises
         ------
         ParameterError
             If a name is not a registered family.
+
+        Examples
+        --------
+        >>> from features import REGISTRY
+        >>> [family.name for family in REGISTRY.chosen()]
+        ['tactum', 'image', 'audio', 'other']
+        >>> [family.name for family in REGISTRY.chosen(["catch22", "other", "tactum"])]
+        ['tactum', 'other', 'catch22']
         """
         if names is None:
             return tuple(self)
@@ -212,7 +285,29 @@ class Registry(Generic[F]):
         return tuple(f for f in self._families.values() if f.name in names)
 
     def columns_of(self, names: Sequence[str] | None = None) -> tuple[str, ...]:
-        """Every column of the families ``names`` (None: the default ones), in order."""
+        """Every column of the families ``names`` (None: the default ones), in order.
+
+        Parameters
+        ----------
+        names : sequence of str, optional
+            Names of registered families, opt-in ones too (:meth:`chosen`).
+
+        Returns
+        -------
+        tuple of str
+            The column names of those families, family after family in registry order.
+
+        Raises
+        ------
+        ParameterError
+            If a name is not a registered family.
+
+        Examples
+        --------
+        >>> from features import REGISTRY
+        >>> len(REGISTRY.columns_of()), REGISTRY.columns_of(["other", "tactum"])[:2]
+        (193, ('tactum.matx', 'tactum.maco'))
+        """
         return tuple(column for family in self.chosen(names) for column in family.columns)
 
     def __getitem__(self, name: str) -> F:
@@ -231,7 +326,34 @@ class Registry(Generic[F]):
     def code_modules(self, *extra: str, families: Sequence[str] | None = None) -> tuple[str, ...]:
         """The modules whose source the values depend on: each family's module (of ``families``, default
         the default ones), ``extra`` modules (the extraction's own), and every project module they import,
-        directly or not."""
+        directly or not.
+
+        Parameters
+        ----------
+        *extra : str
+            Further modules whose source counts (dotted names).
+        families : sequence of str, optional
+            Names of registered families (:meth:`chosen`); default the default ones.
+
+        Returns
+        -------
+        tuple of str
+            The dotted module names, sorted, each once; only modules of :data:`PROJECT_PACKAGES` besides the
+            families' own and ``extra``.
+
+        Examples
+        --------
+        A family defined in this module depends on it and on what it imports (:mod:`features.prepared`, ...):
+
+        >>> from features.registry import Family, Registry
+        >>> registry = Registry()
+        >>> toy = registry.register(Family("toy", "Toy", ("toy.size",), lambda prepared: {}))
+        >>> modules = registry.code_modules()
+        >>> toy.module in modules, "features.prepared" in modules, "features.selection" in modules
+        (True, True, False)
+        >>> "features.selection" in registry.code_modules("features.selection")
+        True
+        """
         return _closure(tuple(sorted({family.module for family in self.chosen(families)} | set(extra))))
 
     def code_version(self, *extra: str, families: Sequence[str] | None = None) -> str:
@@ -239,7 +361,37 @@ class Registry(Generic[F]):
         (:func:`fix_code_version`, at registration; a process computes with the code it imported, not with
         what is on disk later), and of the chosen families' names and ``params`` when ``families`` are
         given: a cached feature vector is reused only with the code and parameters that computed it. The
-        default families' version is that of their source alone."""
+        default families' version is that of their source alone.
+
+        Parameters
+        ----------
+        *extra : str
+            Further modules whose source counts (:meth:`code_modules`).
+        families : sequence of str, optional
+            Names of registered families whose names and ``params`` count too; default the default families,
+            by their source alone.
+
+        Returns
+        -------
+        str
+            20 hexadecimal digits of a SHA-256 hash.
+
+        Examples
+        --------
+        The same family's code with other parameters: the same source version, another version of the
+        families chosen by name:
+
+        >>> from features.registry import Family, Registry
+        >>> def size(prepared):
+        ...     return {"toy.size": 1.0}
+        >>> octaves_4, octaves_2 = Registry(), Registry()
+        >>> _ = octaves_4.register(Family("toy", "Toy", ("toy.size",), size, params={"octaves": 4}))
+        >>> _ = octaves_2.register(Family("toy", "Toy", ("toy.size",), size, params={"octaves": 2}))
+        >>> octaves_4.code_version() == octaves_2.code_version(), len(octaves_4.code_version())
+        (True, 20)
+        >>> octaves_4.code_version(families=["toy"]) == octaves_2.code_version(families=["toy"])
+        False
+        """
         source = _digest(self.code_modules(*extra, families=families))
         if families is None:
             return source
@@ -270,6 +422,16 @@ class ScanRegistry(Registry[Family]):
         """The steps each column needs (:attr:`Family.steps`; the longest declared prefix wins), for ``columns``
         (default: every default column); an empty set where the family does not say, read as "the whole scan".
 
+        Parameters
+        ----------
+        columns : sequence of str, optional
+            Column names (of any registered family or none); default :attr:`names`.
+
+        Returns
+        -------
+        dict of str to frozenset of str
+            Each column's steps, in the order of ``columns``.
+
         Examples
         --------
         >>> import features
@@ -291,6 +453,24 @@ class ScanRegistry(Registry[Family]):
         A column under one of :attr:`groups`' prefixes takes its title (the longest prefix wins: ``image.disp``
         is "image: photo"); a recording's column ``<modality>.<role>.<feature>`` is grouped by modality and
         role ("generic: vibration"); any other column by its first name part.
+
+        Parameters
+        ----------
+        columns : sequence of str
+            Column names, in the order of a feature space's columns.
+
+        Returns
+        -------
+        list of (str, tuple of int)
+            Each group's title and the indices of its columns in ``columns``.
+
+        Examples
+        --------
+        >>> from features import REGISTRY
+        >>> REGISTRY.column_groups(["tactum.matx", "image.disp.color", "audio.tool.f0", "image.macro.color",
+        ...                         "generic.vibration.mean", "tactum.fst"])  # doctest: +NORMALIZE_WHITESPACE
+        [('TacTUM', (0, 5)), ('image: photo', (1,)), ('audio: tool slide', (2,)), ('image: macro lens', (3,)),
+         ('generic: vibration', (4,))]
         """
         titles = {prefix: title.split(" (", 1)[0] for prefix, title in self.groups}
         grouped: dict[str, list[int]] = {}
@@ -333,6 +513,35 @@ def fix_code_version(*modules: str) -> None:
     Called when a family is registered, that is when its module is imported (and :mod:`features.extraction`
     for itself): the version is that of the files the process imported, so a long-running process (a web
     server) whose files are updated on disk keeps storing its values under the version of its own code.
+
+    Parameters
+    ----------
+    *modules : str
+        Dotted names of importable modules.
+
+    Raises
+    ------
+    ParameterError
+        If a module's source cannot be found.
+
+    Examples
+    --------
+    A module outside the project is hashed as its name, a zero byte and its source; a change to its file
+    after it was fixed does not change the version:
+
+    >>> import hashlib, sys, tempfile
+    >>> from pathlib import Path
+    >>> from features.registry import Registry
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     source = Path(folder) / "texplorer_docs_toy.py"
+    ...     _ = source.write_text("SCALE = 1")
+    ...     sys.path.insert(0, folder)
+    ...     fix_code_version("texplorer_docs_toy")
+    ...     _ = source.write_text("SCALE = 2")
+    ...     version = Registry().code_version("texplorer_docs_toy")
+    ...     sys.path.remove(folder)
+    >>> version == hashlib.sha256(b"texplorer_docs_toy" + bytes(1) + b"SCALE = 1").hexdigest()[:20]
+    True
     """
     for module in _closure(tuple(sorted(modules))):
         _source_bytes(module)

@@ -97,7 +97,26 @@ def feature_quality(X: Any, y: Any) -> np.ndarray:
 
 
 def usable_columns(X: np.ndarray) -> np.ndarray:
-    """Mask of the columns FQ is defined for: every value finite and not all values equal."""
+    """Mask of the columns FQ is defined for: every value finite and not all values equal.
+
+    Parameters
+    ----------
+    X : np.ndarray, shape (n_rows, n_features)
+        Feature values; NaN marks an undefined value.
+
+    Returns
+    -------
+    np.ndarray of bool, shape (n_features,)
+        True where the column is usable (with no rows, no column is).
+
+    Examples
+    --------
+    A varying column, a constant one, one with a NaN, and one that varies again:
+
+    >>> import numpy as np
+    >>> usable_columns(np.array([[1.0, 5.0, np.nan, 0.0], [2.0, 5.0, 1.0, 3.0]])).tolist()
+    [True, False, False, True]
+    """
     finite = np.isfinite(X).all(axis=0)
     varying = np.zeros(X.shape[1], dtype=bool)
     if X.shape[0]:
@@ -163,6 +182,29 @@ def studentized_range_sf(q: np.ndarray, k: int) -> np.ndarray:
     values. The path depends on ``q`` and ``k`` only, never on earlier calls. Values with ``q`` beyond the
     Bonferroni cut
     ``P(Q > q) <= k (k - 1) / 2 * erfc(q / 2) <= 1e-12`` are 0.
+
+    Parameters
+    ----------
+    q : np.ndarray
+        Studentized range values (any shape), non-negative.
+    k : int
+        Number of groups, at least 2.
+
+    Returns
+    -------
+    np.ndarray
+        ``P(Q > q)`` of every value, in the shape of ``q``, in [0, 1].
+
+    Examples
+    --------
+    The range of two standard normals is ``|Z1 - Z2|``, a normal of variance 2 folded at 0, so for ``k = 2``
+    the tail is ``erfc(q / 2)``:
+
+    >>> import math
+    >>> import numpy as np
+    >>> p = studentized_range_sf(np.array([0.0, 1.0, 2.0, 20.0]), 2)
+    >>> p.round(6).tolist(), bool(abs(p[1] - math.erfc(0.5)) < 1e-9)
+    ([1.0, 0.4795, 0.157299, 0.0], True)
     """
     q = np.asarray(q, dtype=np.float64)
     cut = _negligible_from(k)
@@ -212,7 +254,28 @@ def _sf_table(k: int) -> CubicHermiteSpline | None:
 
 
 def spearman_matrix(X: np.ndarray) -> np.ndarray:
-    """|Spearman rho| is read from this (m, m) matrix of ``scipy.stats.spearmanr`` over the columns of X."""
+    """|Spearman rho| is read from this (m, m) matrix of ``scipy.stats.spearmanr`` over the columns of X.
+
+    Parameters
+    ----------
+    X : np.ndarray, shape (n_rows, m)
+        Feature values, one column per feature.
+
+    Returns
+    -------
+    np.ndarray, shape (m, m)
+        Spearman's rho of every pair of columns (1 on the diagonal; NaN where a column is constant or has a
+        NaN); all ones for fewer than two columns.
+
+    Examples
+    --------
+    A column, its square (the same order), its reverse and a column whose order is unrelated to them:
+
+    >>> import numpy as np
+    >>> X = np.array([[1.0, 1.0, 4.0, 3.0], [2.0, 4.0, 3.0, 1.0], [3.0, 9.0, 2.0, 4.0], [4.0, 16.0, 1.0, 2.0]])
+    >>> spearman_matrix(X).round(6).tolist()
+    [[1.0, 1.0, -1.0, 0.0], [1.0, 1.0, -1.0, 0.0], [-1.0, -1.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
+    """
     m = X.shape[1]
     if m < 2:
         return np.ones((m, m))
@@ -226,6 +289,33 @@ def accept_uncorrelated(order: Sequence[int], rho: np.ndarray, n_features: int, 
     """Walk ``order`` and keep an index whose |rho| with every kept one is below ``max_corr``; stop at n.
 
     A NaN correlation rejects (``|nan| < max_corr`` is false).
+
+    Parameters
+    ----------
+    order : sequence of int
+        Column indices in the order to walk them (by decreasing FQ).
+    rho : np.ndarray, shape (m, m)
+        Spearman's rho between the columns (:func:`spearman_matrix`).
+    n_features : int
+        How many indices to keep at most.
+    max_corr : float
+        Critical |rho|: an index at or above it with a kept one is skipped.
+
+    Returns
+    -------
+    list of int
+        The kept indices in the order they were accepted.
+
+    Examples
+    --------
+    Columns 0 and 1 are perfectly correlated, column 2 anti-correlated with both, column 3 with none:
+
+    >>> import numpy as np
+    >>> rho = np.array([[1.0, 1.0, -1.0, 0.0], [1.0, 1.0, -1.0, 0.0], [-1.0, -1.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+    >>> accept_uncorrelated([1, 0, 2, 3], rho, n_features=3, max_corr=0.5)
+    [1, 3]
+    >>> accept_uncorrelated([1, 0, 2, 3], rho, n_features=1, max_corr=0.5)
+    [1]
     """
     accepted: list[int] = []
     for j in order:
@@ -246,7 +336,39 @@ def walk_uncorrelated(X: np.ndarray, order: Sequence[int], n_features: int,
                       max_corr: float) -> tuple[list[int], np.ndarray]:
     """:func:`accept_uncorrelated` without the whole matrix: Spearman's rho is Pearson's correlation of the
     average ranks, so each column's centred, unit-norm ranks are made once and a walked column's rho with
-    the accepted ones is one product with them. Returns the accepted indices and their rho matrix."""
+    the accepted ones is one product with them. Returns the accepted indices and their rho matrix.
+
+    Parameters
+    ----------
+    X : np.ndarray, shape (n_rows, m)
+        Feature values of usable columns (finite, not constant).
+    order : sequence of int
+        Column indices in the order to walk them (by decreasing FQ).
+    n_features : int
+        How many columns to keep at most.
+    max_corr : float
+        Critical |rho|: a column at or above it with an accepted one is skipped.
+
+    Returns
+    -------
+    accepted : list of int
+        The kept columns in acceptance order, as :func:`accept_uncorrelated` keeps them.
+    rho : np.ndarray, shape (len(accepted), len(accepted))
+        Spearman's rho among the kept columns, in acceptance order.
+
+    Examples
+    --------
+    The columns of :func:`spearman_matrix`'s example: the square and the reverse of the first column are
+    rejected, the unrelated last one is kept:
+
+    >>> import numpy as np
+    >>> X = np.array([[1.0, 1.0, 4.0, 3.0], [2.0, 4.0, 3.0, 1.0], [3.0, 9.0, 2.0, 4.0], [4.0, 16.0, 1.0, 2.0]])
+    >>> accepted, rho = walk_uncorrelated(X, [0, 1, 2, 3], n_features=3, max_corr=0.5)
+    >>> accepted, bool(np.allclose(rho, np.eye(2), atol=1e-12))
+    ([0, 3], True)
+    >>> accepted == accept_uncorrelated([0, 1, 2, 3], spearman_matrix(X), 3, 0.5)
+    True
+    """
     ranks = scipy.stats.rankdata(X, axis=0)
     ranks -= ranks.mean(axis=0)
     ranks /= np.linalg.norm(ranks, axis=0)
@@ -302,7 +424,36 @@ class FQSelector(SelectorMixin, BaseEstimator):
         self.max_corr = max_corr
 
     def fit(self, X: Any, y: Any) -> FQSelector:
-        """Rank the columns of ``X`` by FQ for the classes ``y`` and pick the uncorrelated best ones."""
+        """Rank the columns of ``X`` by FQ for the classes ``y`` and pick the uncorrelated best ones.
+
+        Parameters
+        ----------
+        X : array-like, shape (n_rows, n_features)
+            Training rows; NaN marks an undefined value (such a column is never selected).
+        y : array-like, shape (n_rows,)
+            Class of every row, at least two classes.
+
+        Returns
+        -------
+        FQSelector
+            This selector, fitted (:attr:`fq_`, :attr:`selected_`, :attr:`rho_`).
+
+        Raises
+        ------
+        ParameterError
+            If ``y`` has fewer than two classes, or ``n_features`` or ``max_corr`` is out of range.
+
+        Examples
+        --------
+        Two classes that do not overlap in the first and last columns, which rank the rows alike; the middle
+        column is constant:
+
+        >>> import numpy as np
+        >>> X = np.array([[0.0, 5.0, 0.0], [1.0, 5.0, 2.0], [2.0, 5.0, 4.0], [3.0, 5.0, 6.0]])
+        >>> selector = FQSelector(n_features=2).fit(X, [0, 0, 1, 1])
+        >>> selector.fq_.round(2).tolist(), selector.selected_.tolist(), selector.transform(X).ravel().tolist()
+        ([87.87, 0.0, 87.87], [0], [0.0, 1.0, 2.0, 3.0])
+        """
         self._check_params()
         X, y = validate_data(self, X, y, ensure_all_finite="allow-nan", dtype=np.float64)
         n_classes = np.unique(y).size
@@ -375,7 +526,38 @@ class PartwiseFQSelector(FQSelector):
         self.parts = parts
 
     def fit(self, X: Any, y: Any) -> PartwiseFQSelector:
-        """Select within each part of the columns of ``X`` for the classes ``y`` (see the class)."""
+        """Select within each part of the columns of ``X`` for the classes ``y`` (see the class).
+
+        Parameters
+        ----------
+        X : array-like, shape (n_rows, n_features)
+            Training rows; NaN marks an undefined value.
+        y : array-like, shape (n_rows,)
+            Class of every row, at least two classes.
+
+        Returns
+        -------
+        PartwiseFQSelector
+            This selector, fitted (:attr:`fq_`, :attr:`selected_`).
+
+        Raises
+        ------
+        ParameterError
+            If ``parts`` names more columns than ``X`` has, ``y`` has fewer than two classes, or
+            ``n_features`` or ``max_corr`` is out of range.
+
+        Examples
+        --------
+        Three columns that separate the classes equally well: the first two one part, the last one
+        another. A joint selection of one feature keeps the first column only; each part keeps its own:
+
+        >>> import numpy as np
+        >>> X = np.array([[0.0, 0.0, 1.0], [1.0, 2.0, 0.0], [2.0, 4.0, 3.0], [3.0, 6.0, 2.0]])
+        >>> FQSelector(n_features=1).fit(X, [0, 0, 1, 1]).selected_.tolist()
+        [0]
+        >>> PartwiseFQSelector(n_features=1, parts=(0, 0)).fit(X, [0, 0, 1, 1]).selected_.tolist()
+        [0, 2]
+        """
         self._check_params()
         X, y = validate_data(self, X, y, ensure_all_finite="allow-nan", dtype=np.float64)
         labels = np.asarray(self.parts, dtype=np.int64)
@@ -398,7 +580,28 @@ class KeepAll(SelectorMixin, BaseEstimator):
     Spearman filter. ``selected_`` lists every column, as :class:`FQSelector`'s does its choice."""
 
     def fit(self, X: Any, y: Any = None) -> KeepAll:
-        """Keep every column of ``X`` (NaN allowed, as the other selectors)."""
+        """Keep every column of ``X`` (NaN allowed, as the other selectors).
+
+        Parameters
+        ----------
+        X : array-like, shape (n_rows, n_features)
+            Training rows.
+        y : array-like, optional
+            Ignored; there for the pipeline's call.
+
+        Returns
+        -------
+        KeepAll
+            This selector, fitted: :attr:`selected_` is every column index.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> X = np.array([[1.0, np.nan, 5.0], [2.0, 3.0, 5.0]])
+        >>> selector = KeepAll().fit(X)
+        >>> selector.selected_.tolist(), selector.transform(X).shape
+        ([0, 1, 2], (2, 3))
+        """
         X = validate_data(self, X, ensure_all_finite="allow-nan", dtype=np.float64)
         self.selected_ = np.arange(X.shape[1])
         return self
@@ -441,7 +644,30 @@ class Selection:
     rho: np.ndarray
 
     def format(self, top: int = 20) -> str:
-        """Text for a terminal: the ``top`` FQ ranking with the selected features marked, then rho."""
+        """Text for a terminal: the ``top`` FQ ranking with the selected features marked, then rho.
+
+        Parameters
+        ----------
+        top : int, default 20
+            How many of the best features by FQ to list.
+
+        Returns
+        -------
+        str
+            A title line, one line per listed feature (rank, ``*`` if selected, name, FQ in percent), and a
+            line naming the selected features in acceptance order.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> selection = Selection("coarse", 2, 0.5, (("tactum.matx", 87.87), ("other.metal", 56.14),
+        ...                                         ("other.density", 0.0)), ("tactum.matx", "other.metal"), np.eye(2))
+        >>> print(selection.format(top=2))
+        feature quality at level coarse (3 features, top 2):
+           1 * tactum.matx   87.87 %
+           2 * other.metal   56.14 %
+        selected (|Spearman rho| < 0.5, n = 2): tactum.matx, other.metal
+        """
         chosen = set(self.selected)
         width = max((len(name) for name, _ in self.ranking[:top]), default=4)
         lines = [f"feature quality at level {self.level} ({len(self.ranking)} features, top {top}):"]
@@ -459,6 +685,42 @@ def select_features(space: _LabelledSpace, level: str = "fine", n_features: int 
 
     This is the paper's exploratory view (Table IV): the selection a model trained on the whole space
     would use. Cross-validated scores must come from ``taxonomy.learning.evaluation.evaluate`` instead.
+
+    Parameters
+    ----------
+    space : FeatureSpace
+        The rows, columns and labels (anything with ``X``, ``columns`` and ``y(level)``).
+    level : str, default "fine"
+        The classification level whose classes FQ tells apart (:meth:`FeatureSpace.y`).
+    n_features : int, default 10
+        How many features to keep.
+    max_corr : float, default 0.5
+        Critical |Spearman rho| (:class:`FQSelector`).
+
+    Returns
+    -------
+    Selection
+        FQ of every column by decreasing FQ and the kept features with their correlations.
+
+    Raises
+    ------
+    ParameterError
+        If the space has fewer than two classes at ``level``, or ``n_features`` or ``max_corr`` is out of
+        range.
+
+    Examples
+    --------
+    Two coarse classes: ``tactum.matx`` separates them, ``other.metal`` in part, ``other.density`` is
+    constant:
+
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> X = np.array([[1.0, 5.0, 0.3], [2.0, 5.0, 0.1], [3.0, 5.0, 0.4], [4.0, 5.0, 0.2]])
+    >>> space = FeatureSpace(X, ("tactum.matx", "other.density", "other.metal"), ("a", "b", "c", "d"),
+    ...                      ("C1S1M1P1X1",) * 2 + ("C6S1M1P1X1",) * 2, ("w1", "w2", "g1", "g2"))
+    >>> selection = select_features(space, "coarse", n_features=2)
+    >>> [(name, round(fq, 2)) for name, fq in selection.ranking], selection.selected
+    ([('tactum.matx', 87.87), ('other.metal', 56.14), ('other.density', 0.0)], ('tactum.matx', 'other.metal'))
     """
     y = space.y(level)
     selector = FQSelector(n_features=n_features, max_corr=max_corr).fit(space.X, y)

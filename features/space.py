@@ -140,7 +140,42 @@ class FeatureSpace:
 
     def check_level(self, level: str | None = None) -> str:
         """``level`` if this space has it (None and ``fine`` mean the finest level); else an error naming
-        the levels there are."""
+        the levels there are.
+
+        Parameters
+        ----------
+        level : str, optional
+            A level of :attr:`level_names`, ``fine`` or None (the finest: the label's own level).
+
+        Returns
+        -------
+        str
+            The level's name in this space: ``fine`` for taxonomy labels, the label's level (``material``)
+            for free labels.
+
+        Raises
+        ------
+        LabelError
+            An unknown level of a space with taxonomy labels (a ``ValueError``).
+        FeatureSpaceError
+            A level the free labels of this space do not have.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from features import FeatureSpace
+        >>> taxonomy = FeatureSpace(np.zeros((1, 1)), ("other.density",), ("a",), ("C6S1M1P2X1",), ("g",))
+        >>> taxonomy.check_level(), taxonomy.check_level("coarse")
+        ('fine', 'coarse')
+        >>> free = FeatureSpace(np.zeros((1, 1)), ("other.density",), ("a",), ("cork",), ("g",),
+        ...                     label_level="material", levels={"hardness": ("soft",)})
+        >>> free.check_level(), free.check_level("fine"), free.check_level("hardness")
+        ('material', 'material', 'hardness')
+        >>> free.check_level("coarse")
+        Traceback (most recent call last):
+        ...
+        features.space.FeatureSpaceError: no level 'coarse' in this feature space (levels: hardness, material)
+        """
         if self.label_level is None:
             return check_level("fine" if level is None else level)
         if level is None or level == "fine":
@@ -216,7 +251,37 @@ class FeatureSpace:
 
     def y(self, level: str | None = "fine") -> np.ndarray:
         """Class of every row at ``level`` ("coarse" = C, "medium" = C+S, "fine" = full label; for free
-        labels the label's level, ``fine`` or None, or a coarser level of the set)."""
+        labels the label's level, ``fine`` or None, or a coarser level of the set).
+
+        Parameters
+        ----------
+        level : str, optional
+            The classification level (:meth:`check_level`); default the finest.
+
+        Returns
+        -------
+        numpy.ndarray of str, shape (n,)
+            The class of every row at that level, in row order.
+
+        Raises
+        ------
+        ValueError
+            A level this space does not have (:meth:`check_level`).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from features import FeatureSpace
+        >>> space = FeatureSpace(np.zeros((2, 1)), ("other.density",), ("a", "b"), ("C6S1M1P2X1", "C6S2M1P1X1"),
+        ...                      ("granite-01", "marble-01"))
+        >>> space.y("coarse").tolist(), space.y("medium").tolist(), space.y().tolist()
+        (['C6', 'C6'], ['C6S1', 'C6S2'], ['C6S1M1P2X1', 'C6S2M1P1X1'])
+        >>> free = FeatureSpace(np.zeros((3, 1)), ("other.density",), ("r0", "r1", "r2"), ("cork", "felt", "oak"),
+        ...                     ("r0", "r1", "r2"), label_level="material",
+        ...                     levels={"hardness": ("soft", "soft", "hard")})
+        >>> free.y().tolist(), free.y("hardness").tolist()
+        (['cork', 'felt', 'oak'], ['soft', 'soft', 'hard'])
+        """
         level = self.check_level(level)
         if self.label_level is None:
             return np.array([Label.parse(text).at(level) for text in self.label_text])
@@ -224,14 +289,65 @@ class FeatureSpace:
 
     def modality(self, name: str) -> FeatureSpace:
         """The columns of one modality: a registered family (``tactum``, ``image``, ``audio``, ``other``),
-        whose name is the first part of its column names."""
+        whose name is the first part of its column names.
+
+        Parameters
+        ----------
+        name : str
+            The name of a registered family (:data:`features.REGISTRY`).
+
+        Returns
+        -------
+        FeatureSpace
+            The same rows with only the columns whose first name part is ``name``, in their order.
+
+        Raises
+        ------
+        FeatureSpaceError
+            If ``name`` is not a registered family.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from features import FeatureSpace
+        >>> space = FeatureSpace(np.array([[1.0, 2.0, 3.0]]), ("tactum.matx", "other.density", "tactum.fst"),
+        ...                      ("a",), ("C6S1M1P2X1",), ("granite-01",))
+        >>> tactum = space.modality("tactum")
+        >>> tactum.columns, tactum.X.tolist()
+        (('tactum.matx', 'tactum.fst'), [[1.0, 3.0]])
+        """
         if name not in REGISTRY:
             known = ", ".join(f.name for f in REGISTRY.every)
             raise FeatureSpaceError(f"unknown modality {name!r} (known: {known})")
         return self.subset([c for c in self.columns if c.split(".", 1)[0] == name])
 
     def subset(self, columns: Sequence[str]) -> FeatureSpace:
-        """A feature space with only ``columns`` (in that order)."""
+        """A feature space with only ``columns`` (in that order).
+
+        Parameters
+        ----------
+        columns : sequence of str
+            Names of columns of this space, in the order wanted.
+
+        Returns
+        -------
+        FeatureSpace
+            The same rows, labels and groups with those columns only.
+
+        Raises
+        ------
+        FeatureSpaceError
+            If a name is not a column of this space.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from features import FeatureSpace
+        >>> space = FeatureSpace(np.array([[1.0, 2.0], [3.0, 4.0]]), ("tactum.matx", "other.density"), ("a", "b"),
+        ...                      ("C6S1M1P2X1", "C1S1M1P4X1"), ("granite-01", "oak-01"))
+        >>> space.subset(["other.density", "tactum.matx"]).X.tolist()
+        [[2.0, 1.0], [4.0, 3.0]]
+        """
         index = {name: i for i, name in enumerate(self.columns)}
         missing = [c for c in columns if c not in index]
         if missing:
@@ -241,7 +357,29 @@ class FeatureSpace:
                             self.failed, self.label_level, self.levels, self.split)
 
     def rows(self, indices: Sequence[int]) -> FeatureSpace:
-        """A feature space with only the rows ``indices`` (in that order)."""
+        """A feature space with only the rows ``indices`` (in that order).
+
+        Parameters
+        ----------
+        indices : sequence of int
+            Row numbers of this space; one may repeat.
+
+        Returns
+        -------
+        FeatureSpace
+            Those rows with their scan ids, labels, groups, coarser levels and split; the same columns and
+            failed scans.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from features import FeatureSpace
+        >>> space = FeatureSpace(np.array([[1.0], [2.0], [3.0]]), ("other.density",), ("a", "b", "c"),
+        ...                      ("C6S1M1P2X1", "C1S1M1P4X1", "C1S1M1P4X1"), ("granite-01", "oak-01", "oak-02"))
+        >>> picked = space.rows([2, 0])
+        >>> picked.scan_ids, picked.X.tolist(), picked.groups
+        (('c', 'a'), [[3.0], [1.0]], ('oak-02', 'granite-01'))
+        """
         picked = list(indices)
         return FeatureSpace(self.X[picked], self.columns, [self.scan_ids[i] for i in picked],
                             [self.label_text[i] for i in picked], [self.groups[i] for i in picked],
@@ -261,7 +399,31 @@ class FeatureSpace:
     # -- files -------------------------------------------------------------------------------------
 
     def to_csv(self, path: str | os.PathLike[str]) -> Path:
-        """Write the CSV described in the module docstring, atomically."""
+        """Write the CSV described in the module docstring, atomically.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (replaced if it exists).
+
+        Returns
+        -------
+        pathlib.Path
+            ``path``.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> import numpy as np
+        >>> from features import FeatureSpace
+        >>> space = FeatureSpace(np.array([[0.1, np.nan]]), ("tactum.matx", "other.density"), ("a",),
+        ...                      ("C6S1M1P2X1",), ("granite-01",))
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     print(space.to_csv(Path(folder) / "space.csv").read_text(), end="")
+        scan_id,sample_id,label,C,S,M,P,X,tactum.matx,other.density
+        a,granite-01,C6S1M1P2X1,6,1,1,2,1,0.1,NaN
+        """
         buffer = io.StringIO()
         writer = csv.writer(buffer, lineterminator="\n")
         label = "label" if self.label_level is None else f"label:{self.label_level}"
@@ -276,7 +438,37 @@ class FeatureSpace:
 
     @classmethod
     def from_csv(cls, path: str | os.PathLike[str]) -> FeatureSpace:
-        """Read a CSV written by :meth:`to_csv`; errors name the file, line and column."""
+        """Read a CSV written by :meth:`to_csv`; errors name the file, line and column.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            A CSV file in the format of the module docstring.
+
+        Returns
+        -------
+        FeatureSpace
+            The space written, values exact (no failed scans: the CSV does not keep them).
+
+        Raises
+        ------
+        FeatureSpaceError
+            If the file cannot be read, its header is not that of a feature space, a row has another number
+            of fields or a value is not a number.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> import numpy as np
+        >>> from features import FeatureSpace
+        >>> space = FeatureSpace(np.array([[1 / 3], [np.nan]]), ("other.density",), ("r0", "r1"), ("cork", "felt"),
+        ...                      ("r0", "r1"), label_level="material", split=("train", "test"))
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     read = FeatureSpace.from_csv(space.to_csv(Path(folder) / "space.csv"))
+        >>> bool(read.X[0, 0] == 1 / 3), bool(np.isnan(read.X[1, 0])), read.label_level, read.split
+        (True, True, 'material', ('train', 'test'))
+        """
         path = Path(path)
         try:
             text = path.read_text(encoding="utf-8")
@@ -321,7 +513,34 @@ class FeatureSpace:
             raise FeatureSpaceError(f"{path}: {exc}") from None
 
     def to_mat(self, path: str | os.PathLike[str]) -> Path:
-        """Write ``X``, ``columns``, ``labels``, ``label``, ``scan_id``, ``sample_id`` as MATLAB v5, atomically."""
+        """Write ``X``, ``columns``, ``labels``, ``label``, ``scan_id``, ``sample_id`` as MATLAB v5, atomically.
+
+        With free labels also ``label_level``, ``levels`` and ``split`` (module docstring).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The ``.mat`` file to write (replaced if it exists).
+
+        Returns
+        -------
+        pathlib.Path
+            ``path``.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> import numpy as np
+        >>> import scipy.io
+        >>> from features import FeatureSpace
+        >>> space = FeatureSpace(np.array([[1.0, 2.0]]), ("tactum.matx", "other.density"), ("a",),
+        ...                      ("C6S1M1P2X1",), ("granite-01",))
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     data = scipy.io.loadmat(space.to_mat(Path(folder) / "space.mat"), simplify_cells=True)
+        >>> data["X"].tolist(), data["labels"].tolist(), data["columns"].tolist()
+        ([1.0, 2.0], [6.0, 1.0, 1.0, 2.0, 1.0], ['tactum.matx', 'other.density'])
+        """
         buffer = io.BytesIO()
         free = {} if self.label_level is None else {
             "label_level": self.label_level,
@@ -340,7 +559,37 @@ class FeatureSpace:
 
     @classmethod
     def from_mat(cls, path: str | os.PathLike[str]) -> FeatureSpace:
-        """Read a ``.mat`` file written by :meth:`to_mat`; errors name the file and the variable."""
+        """Read a ``.mat`` file written by :meth:`to_mat`; errors name the file and the variable.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            A ``.mat`` file with the variables of the module docstring.
+
+        Returns
+        -------
+        FeatureSpace
+            The space written (no failed scans: the file does not keep them).
+
+        Raises
+        ------
+        FeatureSpaceError
+            If the file is not a readable ``.mat`` file or lacks one of ``X``, ``columns``, ``label``,
+            ``scan_id``, ``sample_id``, or its variables do not make a consistent space.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> import numpy as np
+        >>> from features import FeatureSpace
+        >>> space = FeatureSpace(np.array([[0.1, 2.0], [3.0, np.nan]]), ("tactum.matx", "other.density"),
+        ...                      ("a", "b"), ("C6S1M1P2X1", "C1S1M1P4X1"), ("granite-01", "oak-01"))
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     read = FeatureSpace.from_mat(space.to_mat(Path(folder) / "space.mat"))
+        >>> read.X.tolist(), read.columns, read.y("coarse").tolist()
+        ([[0.1, 2.0], [3.0, nan]], ('tactum.matx', 'other.density'), ['C6', 'C1'])
+        """
         path = Path(path)
         try:
             data = scipy.io.loadmat(path, simplify_cells=True)

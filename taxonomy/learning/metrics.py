@@ -35,6 +35,28 @@ def macro_f1_from_confusion(confusion: np.ndarray) -> float:
     columns predicted): ``F1_c = 2 TP_c / (2 TP_c + FP_c + FN_c)``, averaged over those classes.
 
     Equal to scikit-learn's ``f1_score(average="macro")`` of the rows that make up the matrix.
+
+    Parameters
+    ----------
+    confusion : array_like, shape (k, k)
+        Counts of the rows, the true class in the rows and the predicted one in the columns.
+
+    Returns
+    -------
+    float
+        The mean ``F1_c`` of the classes that occur; NaN where no class does (a matrix of zeros).
+
+    Examples
+    --------
+    Class 0: ``2 * 3 / (2 * 3 + 0 + 1) = 6/7``; class 1: ``2 * 4 / (2 * 4 + 1 + 0) = 8/9``; a third class
+    that is neither true nor predicted counts for nothing:
+
+    >>> import numpy as np
+    >>> from taxonomy.learning.metrics import macro_f1_from_confusion
+    >>> round(macro_f1_from_confusion(np.array([[3, 1], [0, 4]])), 6), round((6 / 7 + 8 / 9) / 2, 6)
+    (0.873016, 0.873016)
+    >>> round(macro_f1_from_confusion(np.array([[3, 1, 0], [0, 4, 0], [0, 0, 0]])), 6)
+    0.873016
     """
     confusion = np.asarray(confusion, dtype=np.float64)
     return float(macro_f1_of_counts(np.diag(confusion), confusion.sum(axis=1), confusion.sum(axis=0)))
@@ -43,7 +65,32 @@ def macro_f1_from_confusion(confusion: np.ndarray) -> float:
 def macro_f1_of_counts(tp: np.ndarray, true: np.ndarray, predicted: np.ndarray) -> np.ndarray:
     """:func:`macro_f1_from_confusion` of many confusion matrices at once, from their diagonals ``tp`` and
     their row (``true``) and column (``predicted``) sums, one matrix per row: ``F1_c = 2 TP_c / (n_c + m_c)``
-    averaged over the classes with ``n_c + m_c > 0``; NaN for a matrix with no class."""
+    averaged over the classes with ``n_c + m_c > 0``; NaN for a matrix with no class.
+
+    Parameters
+    ----------
+    tp : array_like, shape (..., k)
+        The diagonal of each confusion matrix: the rows of each class predicted as that class.
+    true, predicted : array_like, shape (..., k)
+        Each matrix's row sums (``n_c``, the rows of each true class) and column sums (``m_c``, the rows
+        predicted as each class).
+
+    Returns
+    -------
+    numpy.ndarray, shape (...)
+        The macro F1 of each matrix; NaN for a matrix in which no class occurs.
+
+    Examples
+    --------
+    The matrices ``[[3, 1], [0, 4]]`` (``(6/7 + 8/9) / 2``) and a matrix of zeros:
+
+    >>> import numpy as np
+    >>> from taxonomy.learning.metrics import macro_f1_of_counts
+    >>> tp = np.array([[3, 4], [0, 0]])
+    >>> true, predicted = np.array([[4, 4], [0, 0]]), np.array([[3, 5], [0, 0]])
+    >>> np.round(macro_f1_of_counts(tp, true, predicted), 6).tolist()
+    [0.873016, nan]
+    """
     tp, denominator = np.asarray(tp, dtype=np.float64), np.asarray(true, np.float64) + np.asarray(predicted, np.float64)
     occurs = denominator > 0
     scores = np.divide(2 * tp, denominator, out=np.zeros_like(tp), where=occurs)
@@ -57,6 +104,25 @@ def present_class_f1(y_true: Sequence[str], y_pred: Sequence[str]) -> float:
 
     A prediction into a class absent from the fold still costs the true class its recall; it no longer adds
     a class whose F1 is 0 by construction.
+
+    Parameters
+    ----------
+    y_true, y_pred : sequence of str
+        The true and the predicted class of each row of the fold.
+
+    Returns
+    -------
+    float
+        The mean F1 of the classes in ``y_true``; NaN for a fold without rows.
+
+    Examples
+    --------
+    One ``a`` predicted as ``c``, a class the fold does not hold: ``a`` scores ``2 / (2 + 0 + 1) = 2/3``,
+    ``b`` 1, and ``c`` is not averaged in (:func:`pooled_macro_f1` would count it as 0):
+
+    >>> from taxonomy.learning.metrics import present_class_f1
+    >>> round(present_class_f1(["a", "a", "b", "b"], ["a", "c", "b", "b"]), 6), round((2 / 3 + 1) / 2, 6)
+    (0.833333, 0.833333)
     """
     y_true, y_pred = np.asarray(y_true), np.asarray(y_pred)
     scores = []
@@ -69,7 +135,27 @@ def present_class_f1(y_true: Sequence[str], y_pred: Sequence[str]) -> float:
 
 
 def pooled_macro_f1(y_true: Sequence[str], y_pred: Sequence[str]) -> float:
-    """Macro F1 of all out-of-fold predictions at once (over the classes in the true or predicted labels)."""
+    """Macro F1 of all out-of-fold predictions at once (over the classes in the true or predicted labels).
+
+    Parameters
+    ----------
+    y_true, y_pred : sequence of str
+        The true and the predicted class of each row, all folds together.
+
+    Returns
+    -------
+    float
+        :func:`macro_f1_from_confusion` of their confusion matrix, as scikit-learn's
+        ``f1_score(average="macro")``.
+
+    Examples
+    --------
+    ``a`` scores 2/3, ``b`` 1 and ``c``, predicted once and never true, 0:
+
+    >>> from taxonomy.learning.metrics import pooled_macro_f1
+    >>> round(pooled_macro_f1(["a", "a", "b", "b"], ["a", "c", "b", "b"]), 6), round((2 / 3 + 1 + 0) / 3, 6)
+    (0.555556, 0.555556)
+    """
     y_true, y_pred = np.asarray(y_true), np.asarray(y_pred)
     classes = np.unique(np.concatenate([y_true, y_pred]))
     index = {c: k for k, c in enumerate(classes)}
@@ -79,7 +165,24 @@ def pooled_macro_f1(y_true: Sequence[str], y_pred: Sequence[str]) -> float:
 
 
 def accuracy(y_true: Sequence[str], y_pred: Sequence[str]) -> float:
-    """The share of rows whose prediction is their class."""
+    """The share of rows whose prediction is their class.
+
+    Parameters
+    ----------
+    y_true, y_pred : sequence of str
+        The true and the predicted class of each row.
+
+    Returns
+    -------
+    float
+        Between 0 and 1; NaN without rows.
+
+    Examples
+    --------
+    >>> from taxonomy.learning.metrics import accuracy
+    >>> accuracy(["a", "b", "b", "a"], ["a", "b", "a", "a"])
+    0.75
+    """
     return float(np.mean(np.asarray(y_true) == np.asarray(y_pred)))
 
 
@@ -90,6 +193,41 @@ def bootstrap_interval(statistic: Callable[[np.ndarray], float], groups: Sequenc
     ``statistic`` takes the weight of every row in one resample: how often its group was drawn (the G
     draws of G groups, a multinomial count). A single group gives the degenerate interval of the
     statistic itself.
+
+    Parameters
+    ----------
+    statistic : callable
+        Maps the weights of the rows (numpy.ndarray, shape (n,)) to the statistic of that resample.
+    groups : sequence of str
+        The group of each row (sample, session, ...): the unit that is drawn.
+    seed : int
+        Seed of the draws (:func:`bootstrap_weights`).
+    resamples : int
+        The number of resamples.
+    level : float
+        The central share of the resampled statistics the interval holds.
+
+    Returns
+    -------
+    tuple of float
+        ``(low, high)``, the percentiles ``100 (1 - level) / 2`` and ``100 (1 + level) / 2``
+        (:func:`percentile_interval`).
+
+    Examples
+    --------
+    The accuracy of two samples, one classified right, one wrong: a resample draws two samples, so its
+    accuracy is 0, 1/2 or 1 with probabilities 1/4, 1/2, 1/4, and the 95 % interval spans all of it; with
+    a single sample every resample is the data itself:
+
+    >>> import numpy as np
+    >>> from taxonomy.learning.metrics import bootstrap_interval
+    >>> right = np.array([1.0, 1.0, 0.0, 0.0])
+    >>> def weighted_accuracy(weights):
+    ...     return float(np.sum(weights * right) / np.sum(weights))
+    >>> bootstrap_interval(weighted_accuracy, ["s1", "s1", "s2", "s2"], resamples=200)
+    (0.0, 1.0)
+    >>> bootstrap_interval(weighted_accuracy, ["s1", "s1", "s1", "s1"], resamples=200)
+    (0.5, 0.5)
     """
     weights = bootstrap_weights(groups, seed, resamples)
     return percentile_interval(np.array([statistic(row) for row in weights], dtype=np.float64), level)
@@ -97,7 +235,33 @@ def bootstrap_interval(statistic: Callable[[np.ndarray], float], groups: Sequenc
 
 def bootstrap_weights(groups: Sequence[str], seed: int = 0, resamples: int = BOOTSTRAP_RESAMPLES) -> np.ndarray:
     """The row weights of :func:`bootstrap_interval`'s resamples, one row per resample (``resamples`` x rows):
-    how often each row's group was drawn, the multinomial count of G draws of G groups with replacement."""
+    how often each row's group was drawn, the multinomial count of G draws of G groups with replacement.
+
+    Parameters
+    ----------
+    groups : sequence of str
+        The group of each row.
+    seed : int
+        Seed of the draws; the same seed and number of groups give the same draws.
+    resamples : int
+        The number of resamples (rows of the result).
+
+    Returns
+    -------
+    numpy.ndarray of int, shape (resamples, n)
+        The weight of every row in every resample; read-only, shared by calls with the same arguments.
+
+    Examples
+    --------
+    The rows of one group share their weight, and the weights of one row per group sum to the number of
+    groups:
+
+    >>> import numpy as np
+    >>> from taxonomy.learning.metrics import bootstrap_weights
+    >>> weights = bootstrap_weights(["s1", "s1", "s2"], seed=0, resamples=5)
+    >>> weights.shape, bool(np.all(weights[:, 0] == weights[:, 1])), np.unique(weights[:, 1:].sum(axis=1)).tolist()
+    ((5, 3), True, [2])
+    """
     names, inverse = np.unique(np.asarray(groups), return_inverse=True)
     return _group_draws(names.size, seed, resamples)[:, inverse]
 
@@ -115,7 +279,31 @@ def _group_draws(n_groups: int, seed: int, resamples: int) -> np.ndarray:
 
 
 def percentile_interval(values: np.ndarray, level: float = 0.95) -> tuple[float, float]:
-    """The central ``level`` percentile interval of the finite ``values``; NaN, NaN if none is finite."""
+    """The central ``level`` percentile interval of the finite ``values``; NaN, NaN if none is finite.
+
+    Parameters
+    ----------
+    values : array_like
+        The values; NaN and infinite ones are left out.
+    level : float
+        The central share of the values the interval holds.
+
+    Returns
+    -------
+    tuple of float
+        ``(low, high)``, the percentiles ``100 (1 - level) / 2`` and ``100 (1 + level) / 2`` (numpy's linear
+        interpolation).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from taxonomy.learning.metrics import percentile_interval
+    >>> low, high = percentile_interval(np.r_[np.arange(101.0), np.nan, np.inf])
+    >>> round(low, 6), round(high, 6)
+    (2.5, 97.5)
+    >>> percentile_interval([np.nan])
+    (nan, nan)
+    """
     values = np.asarray(values, dtype=np.float64)
     values = values[np.isfinite(values)]
     if values.size == 0:
@@ -140,6 +328,31 @@ def reliability(probability: np.ndarray, true_index: np.ndarray, bins: int = CAL
 
     Bin ``m`` holds the rows whose top probability lies in ``((m - 1) / M, m / M]``; the ECE is the
     count-weighted mean gap between each bin's accuracy and mean confidence (Guo et al. 2017, eq. 3).
+
+    Parameters
+    ----------
+    probability : array_like, shape (n, k)
+        The predicted probability of each class for each row.
+    true_index : array_like of int, shape (n,)
+        The column of each row's true class.
+    bins : int
+        The number ``M`` of equal-width confidence bins.
+
+    Returns
+    -------
+    Reliability
+        The populated bins in order of confidence, and the ECE (NaN without rows).
+
+    Examples
+    --------
+    Two rows 85 % sure, one of them right (gap 0.35), and two rows 65 % sure, both right (gap 0.35):
+
+    >>> import numpy as np
+    >>> from taxonomy.learning.metrics import reliability
+    >>> probability = np.array([[0.85, 0.15], [0.85, 0.15], [0.65, 0.35], [0.35, 0.65]])
+    >>> bins = reliability(probability, np.array([0, 1, 0, 1]))
+    >>> np.round(bins.confidence, 6).tolist(), bins.accuracy.tolist(), bins.count.tolist(), round(bins.ece, 6)
+    ([0.65, 0.85], [1.0, 0.5], [2, 2], 0.35)
     """
     probability = np.asarray(probability, dtype=np.float64)
     true_index = np.asarray(true_index)
@@ -162,7 +375,31 @@ def reliability(probability: np.ndarray, true_index: np.ndarray, bins: int = CAL
 def auroc(score: Sequence[float], unknown: Sequence[bool]) -> float:
     """Area under the ROC curve of ``score`` separating unknown (True) from known rows: the probability that
     a random unknown row scores above a random known one, ties counting one half (Mann-Whitney U / n1 n0).
-    NaN without both kinds of row."""
+    NaN without both kinds of row.
+
+    Parameters
+    ----------
+    score : sequence of float
+        The rejection score of each row; higher means more likely unknown.
+    unknown : sequence of bool
+        Whether each row is of a class the model was not trained on.
+
+    Returns
+    -------
+    float
+        Between 0 (every known row scores higher) and 1 (every unknown row scores higher); 0.5 for scores
+        that do not separate them.
+
+    Examples
+    --------
+    Of the four (unknown, known) pairs, the unknown row scores higher in three:
+
+    >>> from taxonomy.learning.metrics import auroc
+    >>> auroc([0.1, 0.4, 0.35, 0.8], [False, False, True, True])
+    0.75
+    >>> auroc([0.5, 0.5, 0.5], [False, True, True]), auroc([0.1, 0.2], [False, False])
+    (0.5, nan)
+    """
     score = np.asarray(score, dtype=np.float64)
     unknown = np.asarray(unknown, dtype=bool)
     n1, n0 = int(unknown.sum()), int((~unknown).sum())
@@ -180,12 +417,53 @@ def auroc(score: Sequence[float], unknown: Sequence[bool]) -> float:
 
 
 def chance_accuracy(y_true: Sequence[str]) -> float:
-    """Accuracy of always answering the most frequent class."""
+    """Accuracy of always answering the most frequent class.
+
+    Parameters
+    ----------
+    y_true : sequence of str
+        The true class of each row.
+
+    Returns
+    -------
+    float
+        The share of the most frequent class; NaN without rows.
+
+    Examples
+    --------
+    >>> from taxonomy.learning.metrics import chance_accuracy
+    >>> chance_accuracy(["oak", "oak", "oak", "granite"])
+    0.75
+    """
     _, counts = np.unique(np.asarray(y_true), return_counts=True)
     return float(counts.max() / counts.sum()) if counts.size else float("nan")
 
 
 def chance_macro_f1(n_classes: int) -> float:
     """Expected macro F1 of guessing each class with its frequency: each class's precision and recall are
-    its prior ``pi_c``, so ``F1_c = pi_c`` and the macro mean is ``1 / K``."""
+    its prior ``pi_c``, so ``F1_c = pi_c`` and the macro mean is ``1 / K``.
+
+    Parameters
+    ----------
+    n_classes : int
+        The number of classes ``K``.
+
+    Returns
+    -------
+    float
+        ``1 / K``; NaN for no class.
+
+    Examples
+    --------
+    Four classes of shares 1/2, 1/4, 1/8 and 1/8, guessed with those shares: the expected confusion matrix
+    is the outer product of the shares, and its macro F1 is ``1 / 4`` whatever the shares:
+
+    >>> import numpy as np
+    >>> from taxonomy.learning.metrics import chance_macro_f1, macro_f1_from_confusion
+    >>> prior = np.array([0.5, 0.25, 0.125, 0.125])
+    >>> chance_macro_f1(4), round(macro_f1_from_confusion(np.outer(prior, prior)), 6)
+    (0.25, 0.25)
+    >>> chance_macro_f1(0)
+    nan
+    """
     return 1.0 / n_classes if n_classes else float("nan")

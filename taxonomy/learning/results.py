@@ -39,17 +39,75 @@ class EvaluationError(TexplorerError, ValueError):
 
 
 def one_line(message: str) -> str:
-    """A message whole on one line: its lines joined, runs of white space made one space."""
+    r"""A message whole on one line: its lines joined, runs of white space made one space.
+
+    Parameters
+    ----------
+    message : str
+        Any message (or object, as its ``str``).
+
+    Returns
+    -------
+    str
+        The message without line breaks, tabs or repeated spaces, stripped.
+
+    Examples
+    --------
+    >>> from taxonomy.learning.results import one_line
+    >>> one_line("lbfgs failed to converge\n    (status=1):\tSTOP ")
+    'lbfgs failed to converge (status=1): STOP'
+    """
     return " ".join(str(message).split())
 
 
 def warning_notes(caught: Sequence[warnings.WarningMessage], source: str = "") -> tuple[str, ...]:
-    """Each warning once, as one line: who raised it (``source``), its category and its whole text."""
+    r"""Each warning once, as one line: who raised it (``source``), its category and its whole text.
+
+    Parameters
+    ----------
+    caught : sequence of warnings.WarningMessage
+        The warnings recorded by ``warnings.catch_warnings(record=True)``.
+    source : str
+        Put before each note, e.g. ``"mlp: "``.
+
+    Returns
+    -------
+    tuple of str
+        ``<source><category>: <message on one line>``, in the order first raised, without repeats.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> from taxonomy.learning.results import warning_notes
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     for _ in range(3):
+    ...         warnings.warn("lbfgs failed\n  to converge", UserWarning)
+    >>> warning_notes(caught, "mlp: ")
+    ('mlp: UserWarning: lbfgs failed to converge',)
+    """
     return tuple(dict.fromkeys(f"{source}{w.category.__name__}: {one_line(str(w.message))}" for w in caught))
 
 
 def size_name(n_features: int | None) -> str:
-    """``X10`` for a selected set size, ``all`` for every feature without selection."""
+    """``X10`` for a selected set size, ``all`` for every feature without selection.
+
+    Parameters
+    ----------
+    n_features : int or None
+        The number of features selected; None: every feature, unselected.
+
+    Returns
+    -------
+    str
+        The size as reports name it.
+
+    Examples
+    --------
+    >>> from taxonomy.learning.results import size_name
+    >>> size_name(10), size_name(None)
+    ('X10', 'all')
+    """
     return "all" if n_features is None else f"X{n_features}"
 
 
@@ -57,7 +115,33 @@ def size_name(n_features: int | None) -> str:
 
 def major_class(code: str) -> str:
     """The major class C of a class code at any level (:func:`taxonomy.labels.major_class`), as an
-    :class:`EvaluationError` for a class without one."""
+    :class:`EvaluationError` for a class without one.
+
+    Parameters
+    ----------
+    code : str
+        A class code at the coarse, medium or fine level.
+
+    Returns
+    -------
+    str
+        Its major class, ``C<c>``.
+
+    Raises
+    ------
+    EvaluationError
+        ``code`` does not start with a major class code.
+
+    Examples
+    --------
+    >>> from taxonomy.learning.results import major_class
+    >>> major_class("C6S1M1P2X1"), major_class("C6S1"), major_class("C6")
+    ('C6', 'C6', 'C6')
+    >>> major_class("oak")
+    Traceback (most recent call last):
+    ...
+    taxonomy.learning.results.EvaluationError: class 'oak' does not start with a major class code C<c>
+    """
     try:
         return labels.major_class(code)
     except LabelError as exc:
@@ -73,6 +157,36 @@ def r_c(confusion: np.ndarray, classes: Sequence[str]) -> float:
     NaN where the metric is undefined (reports show "-"): when nothing is misclassified (no N_miss), and
     at the coarse level, where the classes are the major classes themselves: every misclassification
     changes C by definition, so the ratio would be 1 whatever the classifier does and says nothing.
+
+    Parameters
+    ----------
+    confusion : numpy.ndarray, shape (k, k)
+        Counts, rows the true class, columns the predicted one.
+    classes : sequence of str
+        The k class codes, in the order of the rows and columns.
+
+    Returns
+    -------
+    float
+        ``r_C`` between 0 and 1, or NaN where it is undefined.
+
+    Raises
+    ------
+    EvaluationError
+        A matrix whose shape does not fit ``classes``, or a class that is no taxonomy code.
+
+    Examples
+    --------
+    Four misclassifications: one granite (C6S1) taken for marble (C6S2), the same major class, and three
+    across major classes:
+
+    >>> import numpy as np
+    >>> from taxonomy.learning.results import r_c
+    >>> classes = ["C6S1M1P2X1", "C6S2M1P1X1", "C1S1M1P4X1"]
+    >>> r_c(np.array([[5, 1, 1], [0, 4, 0], [2, 0, 3]]), classes)
+    0.75
+    >>> r_c(np.diag([5, 4, 3]), classes), r_c(np.array([[3, 1], [2, 4]]), ["C1", "C6"])
+    (nan, nan)
     """
     confusion = np.asarray(confusion)
     if confusion.shape != (len(classes), len(classes)):
@@ -89,7 +203,24 @@ def r_c(confusion: np.ndarray, classes: Sequence[str]) -> float:
 
 
 def format_r_c(value: float) -> str:
-    """r_C with two decimals, or "-" where it is undefined (NaN, see :func:`r_c`)."""
+    """r_C with two decimals, or "-" where it is undefined (NaN, see :func:`r_c`).
+
+    Parameters
+    ----------
+    value : float
+        An ``r_C`` value, or NaN.
+
+    Returns
+    -------
+    str
+        The text reports show.
+
+    Examples
+    --------
+    >>> from taxonomy.learning.results import format_r_c
+    >>> format_r_c(0.75), format_r_c(1 / 3), format_r_c(float("nan"))
+    ('0.75', '0.33', '-')
+    """
     return "-" if np.isnan(value) else f"{value:.2f}"
 
 
@@ -256,7 +387,30 @@ class Result:
     def intervals(self) -> dict[str, tuple[float, float]]:
         """95 % percentile-bootstrap intervals of the pooled ``accuracy`` and ``f1`` over the folds' groups
         (:func:`metrics.bootstrap_interval`, 1000 resamples with the result's seed); over single rows for a
-        result without groups (a related method's splits)."""
+        result without groups (a related method's splits).
+
+        Returns
+        -------
+        dict of str to (float, float)
+            ``accuracy`` and ``f1``, each a ``(low, high)`` interval; NaN, NaN where nothing was scored.
+
+        Examples
+        --------
+        Two samples, one classified right, one wrong: a resample holds both of them (accuracy 1/2), the
+        right one twice (1) or the wrong one twice (0), and the 95 % interval spans all three:
+
+        >>> import numpy as np
+        >>> from taxonomy.learning.results import Result
+        >>> granite, oak = "C6S1M1P2X1", "C1S1M1P4X1"
+        >>> result = Result("texplorer", "all", "rf", "fine", "nested", "2 grouped folds", (oak, granite),
+        ...                 accuracy=np.array([1.0, 0.0]), f1=np.array([1.0, 0.0]),
+        ...                 confusion=np.array([[0, 2], [0, 2]]), n_samples=4, seed=0,
+        ...                 y_true=np.array([granite, granite, oak, oak]), y_pred=np.array([granite] * 4),
+        ...                 fold=np.array([0, 0, 1, 1]),
+        ...                 groups=np.array(["granite-01", "granite-01", "oak-01", "oak-01"]))
+        >>> result.intervals
+        {'accuracy': (0.0, 1.0), 'f1': (0.0, 1.0)}
+        """
         y_true, y_pred, groups = self._scored_rows()
         if y_true.size == 0:
             return {"accuracy": (math.nan, math.nan), "f1": (math.nan, math.nan)}
@@ -283,7 +437,29 @@ class Result:
 
     @functools.cached_property
     def reliability(self) -> metrics.Reliability | None:
-        """The reliability bins and ECE of the calibrated out-of-fold probabilities; None without them."""
+        """The reliability bins and ECE of the calibrated out-of-fold probabilities; None without them.
+
+        Returns
+        -------
+        metrics.Reliability or None
+            Over the tested rows with finite probabilities (the known instances of an open-set result).
+
+        Examples
+        --------
+        Two scans 85 % sure, one of them right, and two 65 % sure, both right: both bins are 0.35 off:
+
+        >>> import numpy as np
+        >>> from taxonomy.learning.results import Result
+        >>> granite, oak = "C6S1M1P2X1", "C1S1M1P4X1"
+        >>> result = Result("texplorer", "all", "rf", "fine", "nested", "2 grouped folds", (oak, granite),
+        ...                 accuracy=np.array([0.5, 1.0]), f1=np.array([0.5, 1.0]),
+        ...                 confusion=np.array([[1, 1], [0, 2]]), n_samples=4, seed=0,
+        ...                 y_true=np.array([oak, granite, oak, granite]), y_pred=np.array([oak, oak, oak, granite]),
+        ...                 fold=np.array([0, 0, 1, 1]),
+        ...                 probability=np.array([[0.85, 0.15], [0.85, 0.15], [0.65, 0.35], [0.35, 0.65]]))
+        >>> result.reliability.count.tolist(), result.reliability.accuracy.tolist(), round(result.ece, 6)
+        ([2, 2], [1.0, 0.5], 0.35)
+        """
         if self.probability is None or self.y_true is None:
             return None
         tested = np.all(np.isfinite(self.probability), axis=1)
@@ -301,7 +477,33 @@ class Result:
 
     def derived_accuracy(self, level: str) -> float:
         """Accuracy at a coarser ``level`` of this fine result's predictions cut to that level (``C6S1M1P2X1``
-        -> ``C6`` at the coarse level); NaN where it does not apply (not the fine level of taxonomy codes)."""
+        -> ``C6`` at the coarse level); NaN where it does not apply (not the fine level of taxonomy codes).
+
+        Parameters
+        ----------
+        level : str
+            ``"coarse"`` or ``"medium"`` (``"fine"`` gives the result's own pooled accuracy).
+
+        Returns
+        -------
+        float
+            The share of scored rows whose cut prediction is their cut class.
+
+        Examples
+        --------
+        Granite (C6S1) taken for marble (C6S2) is wrong at the fine and medium levels, right at the coarse:
+
+        >>> import numpy as np
+        >>> from taxonomy.learning.results import Result
+        >>> granite, marble = "C6S1M1P2X1", "C6S2M1P1X1"
+        >>> result = Result("texplorer", "all", "rf", "fine", "nested", "2 grouped folds", (granite, marble),
+        ...                 accuracy=np.array([0.0, 1.0]), f1=np.array([0.0, 1.0]),
+        ...                 confusion=np.array([[0, 1], [0, 1]]), n_samples=2, seed=0,
+        ...                 y_true=np.array([granite, marble]), y_pred=np.array([marble, marble]),
+        ...                 fold=np.array([0, 1]))
+        >>> result.derived_accuracy("coarse"), result.derived_accuracy("medium"), result.derived_accuracy("fine")
+        (1.0, 0.5, 0.5)
+        """
         if self.level != "fine" or not self.taxonomy or self.y_true is None or self.y_pred is None:
             return math.nan
         y_true, y_pred, _ = self._scored_rows()
@@ -348,7 +550,27 @@ class Result:
 
     def summary(self) -> str:
         """One line: ``rf fine X10 all (nested): accuracy 90.2 % +- 1.2 % (95 % CI 86.0-93.1), macro F1 0.90
-        pooled, 0.91 per fold, r_C 0.05, chance 3.1 % ...``."""
+        pooled, 0.91 per fold, r_C 0.05, chance 3.1 % ...``.
+
+        Returns
+        -------
+        str
+            What ran, the mean accuracy with its spread over the splits and its 95 % interval, the pooled and
+            per-fold macro F1, ``r_C``, the chance accuracy, the splitting, the classes and the seed.
+
+        Examples
+        --------
+        >>> import textwrap
+        >>> import numpy as np
+        >>> from taxonomy.learning.results import Result
+        >>> classes = ("C1S1M1P4X1", "C6S1M1P2X1")
+        >>> result = Result("texplorer", "all", "rf", "fine", "nested", "2 grouped folds", classes,
+        ...                 accuracy=np.array([1.0, 0.5]), f1=np.array([1.0, 1 / 3]),
+        ...                 confusion=np.array([[1, 1], [0, 2]]), n_samples=4, seed=0, n_features=10)
+        >>> print(textwrap.fill(result.summary(), 100))
+        rf fine X10 all (nested): accuracy 75.0 % +- 35.4 % (95 % CI 25.0-100.0), macro F1 0.73 pooled, 0.67
+        per fold, r_C 1.00, chance 50.0 % (2 grouped folds, 2 classes, seed 0)
+        """
         low, high = self.accuracy_ci
         return (f"{self.classifier} {self.level} {size_name(self.n_features)} {self.feature_set} "
                 f"({self.protocol}): accuracy {100 * self.accuracy_mean:.1f} % +- {100 * self.accuracy_std:.1f} % "
@@ -394,6 +616,25 @@ class Result:
             pandas is not installed (``pip install 'texplorer[pandas]'``).
         EvaluationError
             ``what`` is none of the three, or ``predictions`` of a result that has none.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from taxonomy.learning.results import Result
+        >>> classes = ("C1S1M1P4X1", "C6S1M1P2X1")
+        >>> result = Result("texplorer", "all", "rf", "fine", "nested", "2 grouped folds", classes,
+        ...                 accuracy=np.array([1.0, 0.5]), f1=np.array([1.0, 1 / 3]),
+        ...                 confusion=np.array([[1, 1], [0, 2]]), n_samples=4, seed=0)
+        >>> print(result.to_pandas().round(4))
+               accuracy      f1
+        split
+        0           1.0  1.0000
+        1           0.5  0.3333
+        >>> print(result.to_pandas("confusion"))
+        predicted   C1S1M1P4X1  C6S1M1P2X1
+        true
+        C1S1M1P4X1           1           1
+        C6S1M1P2X1           0           2
         """
         pd = optional("pandas", "pandas", "Result.to_pandas()")
         if what == "splits":
@@ -413,14 +654,66 @@ class Result:
         raise EvaluationError(f"to_pandas: {what!r} is none of 'splits', 'predictions', 'confusion'")
 
     def cells(self) -> tuple[str, ...]:
-        """The row of the comparison table, in :data:`COLUMNS` order."""
+        """The row of the comparison table, in :data:`COLUMNS` order.
+
+        Returns
+        -------
+        tuple of str
+            One cell per column: the mean accuracy in % with its spread over the splits, the mean macro F1,
+            the feature time in milliseconds and the classifier's in microseconds per classification.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from taxonomy.learning.results import COLUMNS, Result
+        >>> classes = ("C1S1M1P4X1", "C6S1M1P2X1")
+        >>> result = Result("fishel", "fishel3", "bayes", "fine", "nested", "10-fold CV", classes,
+        ...                 accuracy=np.array([0.9, 0.8]), f1=np.array([0.9, 0.8]),
+        ...                 confusion=np.array([[9, 1], [2, 8]]), n_samples=20, seed=0, motions="tap, slide",
+        ...                 feature_seconds=0.0021, classify_seconds=3.5e-05, paper="95.0 %")
+        >>> for column, cell in zip(COLUMNS, result.cells()):
+        ...     print(f"{column}: {cell.strip()}")
+        method: fishel
+        features: fishel3
+        classifier: bayes
+        motions: tap, slide
+        level (classes): fine (2)
+        protocol: 10-fold CV
+        accuracy %: 85.0 +-  7.1
+        macro F1: 0.85
+        features ms: 2.100
+        classify us: 35.0
+        paper: 95.0 %
+        """
         return (self.method, self.feature_set, self.classifier, self.motions,
                 f"{self.level} ({len(self.classes)})", self.splitting,
                 f"{100 * self.accuracy_mean:5.1f} +- {100 * self.accuracy_std:4.1f}", f"{self.f1_mean:4.2f}",
                 f"{1e3 * self.feature_seconds:8.3f}", f"{1e6 * self.classify_seconds:9.1f}", self.paper)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON-ready values (lists, numbers, strings; an undefined r_C or time becomes None)."""
+        """Plain JSON-ready values (lists, numbers, strings; an undefined r_C or time becomes None).
+
+        Returns
+        -------
+        dict of str to object
+            What ran, the scores per split and their summaries, the intervals, the confusion matrix, the
+            selected features, the notes and the times; ``json.dumps`` writes it as it is.
+
+        Examples
+        --------
+        >>> import json
+        >>> import numpy as np
+        >>> from taxonomy.learning.results import Result
+        >>> classes = ("C1S1M1P4X1", "C6S1M1P2X1")
+        >>> result = Result("texplorer", "all", "rf", "fine", "nested", "2 grouped folds", classes,
+        ...                 accuracy=np.array([1.0, 0.5]), f1=np.array([1.0, 1 / 3]),
+        ...                 confusion=np.array([[1, 1], [0, 2]]), n_samples=4, seed=0)
+        >>> plain = result.to_dict()
+        >>> plain["accuracy"], plain["accuracy_mean"], plain["confusion"], plain["feature_seconds"]
+        ([1.0, 0.5], 0.75, [[1, 1], [0, 2]], None)
+        >>> json.loads(json.dumps(plain)) == plain
+        True
+        """
         def number(value: float) -> float | None:
             return None if math.isnan(value) else value
 
@@ -453,7 +746,53 @@ COLUMNS = ("method", "features", "classifier", "motions", "level (classes)", "pr
 
 
 def format_comparison(results: Sequence[Result]) -> str:
-    """The comparison table as text: one row per result, then the notes."""
+    """The comparison table as text: one row per result, then the notes.
+
+    Parameters
+    ----------
+    results : sequence of Result
+        The rows, in order (:func:`taxonomy.related.compare` gives them).
+
+    Returns
+    -------
+    str
+        The :data:`COLUMNS` header, a rule, one row per result (:meth:`Result.cells`), then ``note:`` lines
+        (:func:`result_notes`); a sentence saying so where there are no results.
+
+    Examples
+    --------
+    The table is wide; here it is in two halves:
+
+    >>> import numpy as np
+    >>> from taxonomy.learning.results import Result, format_comparison
+    >>> classes = ("C1S1M1P4X1", "C6S1M1P2X1")
+    >>> fishel = Result("fishel", "fishel3", "bayes", "fine", "nested", "10-fold CV", classes,
+    ...                 accuracy=np.array([0.9, 0.8]), f1=np.array([0.9, 0.8]), confusion=np.array([[9, 1], [2, 8]]),
+    ...                 n_samples=20, seed=0, motions="tap, slide", feature_seconds=0.0021,
+    ...                 classify_seconds=3.5e-05, paper="95.0 %",
+    ...                 notes=("ConvergenceWarning: lbfgs failed to converge",))
+    >>> huang = Result("huang", "huang6", "svm", "fine", "nested", "5 x holdout 1/6", classes,
+    ...                accuracy=np.array([1.0, 0.9]), f1=np.array([1.0, 0.9]), confusion=np.array([[10, 0], [1, 9]]),
+    ...                n_samples=20, seed=0, feature_seconds=0.0125, classify_seconds=2e-06)
+    >>> lines = format_comparison([fishel, huang]).splitlines()
+    >>> cut = lines[0].index("accuracy %")
+    >>> for line in lines[:4]:
+    ...     print(line[:cut].rstrip())
+    method  features  classifier  motions     level (classes)  protocol
+    ------  --------  ----------  ----------  ---------------  ---------------
+    fishel  fishel3   bayes       tap, slide  fine (2)         10-fold CV
+    huang   huang6    svm                     fine (2)         5 x holdout 1/6
+    >>> for line in lines[:4]:
+    ...     print(line[cut:])
+    accuracy %     macro F1  features ms  classify us  paper
+    -------------  --------  -----------  -----------  ------
+     85.0 +-  7.1  0.85         2.100          35.0    95.0 %
+     95.0 +-  7.1  0.95        12.500           2.0
+    >>> lines[4]
+    'note: fishel fishel3: ConvergenceWarning: lbfgs failed to converge'
+    >>> format_comparison([])
+    'no method applies to this dataset'
+    """
     if not results:
         return "no method applies to this dataset"
     rows = [COLUMNS, *(r.cells() for r in results)]
@@ -465,11 +804,57 @@ def format_comparison(results: Sequence[Result]) -> str:
 
 
 def result_notes(results: Sequence[Result]) -> list[str]:
-    """Every note once, naming the method (and feature set) that raised it."""
+    """Every note once, naming the method (and feature set) that raised it.
+
+    Parameters
+    ----------
+    results : sequence of Result
+        The results whose ``notes`` are gathered.
+
+    Returns
+    -------
+    list of str
+        ``<method> <feature set>: <note>``, in the order of the results, without repeats.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from taxonomy.learning.results import Result, result_notes
+    >>> def result(method, notes):
+    ...     return Result(method, "all", "svm", "fine", "nested", "10-fold CV", ("C1S1M1P4X1", "C6S1M1P2X1"),
+    ...                   accuracy=np.array([1.0]), f1=np.array([1.0]), confusion=np.eye(2, dtype=int), n_samples=2,
+    ...                   seed=0, notes=notes)
+    >>> result_notes([result("xie", ("2 rows left out",)), result("xie", ("2 rows left out",)), result("huang", ())])
+    ['xie all: 2 rows left out']
+    """
     return list(dict.fromkeys(f"{r.method} {r.feature_set}: {note}" for r in results for note in r.notes))
 
 
 def best_per_method(results: Sequence[Result]) -> Iterator[Result]:
-    """The most accurate result of every method (first on ties), in method order."""
+    """The most accurate result of every method (first on ties), in method order.
+
+    Parameters
+    ----------
+    results : sequence of Result
+        Results of one or more methods.
+
+    Yields
+    ------
+    Result
+        The result of highest mean accuracy of each method, the methods in the order they first occur.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from taxonomy.learning.results import Result, best_per_method
+    >>> def result(method, classifier, accuracy):
+    ...     return Result(method, "all", classifier, "fine", "nested", "10-fold CV", ("C1S1M1P4X1", "C6S1M1P2X1"),
+    ...                   accuracy=np.array([accuracy]), f1=np.array([accuracy]), confusion=np.eye(2, dtype=int),
+    ...                   n_samples=2, seed=0)
+    >>> results = [result("xie", "svm", 0.8), result("huang", "knn", 0.7), result("xie", "rf", 0.9),
+    ...            result("huang", "svm", 0.7)]
+    >>> [(r.method, r.classifier) for r in best_per_method(results)]
+    [('xie', 'rf'), ('huang', 'knn')]
+    """
     for method in dict.fromkeys(r.method for r in results):
         yield max((r for r in results if r.method == method), key=lambda r: r.accuracy_mean)
