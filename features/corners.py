@@ -38,6 +38,27 @@ def harris_corners(gray: np.ndarray) -> np.ndarray:
     ``cv2.goodFeaturesToTrack(gray.astype(float32), maxCorners=100, qualityLevel=0.01, minDistance=10,
     blockSize=3, useHarrisDetector=True, k=0.04)``, rounded to the nearest pixel; the corners
     are the same, in the same order, from :func:`_harris_corners`.
+
+    Parameters
+    ----------
+    gray : array of shape (h, w)
+        Gray image.
+
+    Returns
+    -------
+    ndarray of shape (k, 2)
+        Integer (row, column) of each corner, strongest first, ``k <= 100``.
+
+    Examples
+    --------
+    The four corners of a bright square:
+
+    >>> import numpy as np
+    >>> from features.corners import harris_corners
+    >>> gray = np.zeros((64, 64))
+    >>> gray[16:48, 16:48] = 200.0
+    >>> sorted(harris_corners(gray).tolist())
+    [[16, 16], [16, 47], [47, 16], [47, 47]]
     """
     return _harris_corners(np.asarray(gray, dtype=np.float32))
 
@@ -82,6 +103,28 @@ def harris_response(gray32: np.ndarray) -> np.ndarray:
       roundings).
 
     Where that does not reproduce ``cornerHarris`` on this machine (:func:`_harris_loops`), it is called.
+
+    Parameters
+    ----------
+    gray32 : array of shape (h, w)
+        Gray image (converted to float32).
+
+    Returns
+    -------
+    ndarray of shape (h, w), float32
+        The Harris response R of each pixel.
+
+    Examples
+    --------
+    R is 0 on flat ground, negative on an edge and largest at a corner:
+
+    >>> import numpy as np
+    >>> from features.corners import harris_response
+    >>> gray32 = np.zeros((64, 64), np.float32)
+    >>> gray32[16:48, 16:48] = 200.0
+    >>> response = harris_response(gray32)
+    >>> float(response[2, 2]), bool(response[32, 16] < 0), bool(response[16, 16] == response.max())
+    (0.0, True, True)
     """
     image = np.ascontiguousarray(gray32, dtype=np.float32)
     loops = _harris_loops()
@@ -294,6 +337,40 @@ def gaussian_weights(sigma: float, order: int, truncate: float = 4.0) -> np.ndar
     The sampled Gaussian ``phi(x) = exp(-x^2 / (2 sigma^2))`` on x = -r..r, r = int(truncate sigma + 0.5),
     normalised to sum 1, times its derivative polynomial (1, -x / sigma^2 or (x^2 - sigma^2) / sigma^4),
     reversed because scipy correlates with it.
+
+    Parameters
+    ----------
+    sigma : float
+        Standard deviation of the Gaussian in samples.
+    order : int
+        Derivative order: 0, 1 or 2.
+    truncate : float
+        Half-width of the kernel in standard deviations.
+
+    Returns
+    -------
+    ndarray of shape (2 r + 1,)
+        The weights.
+
+    Raises
+    ------
+    ParameterError
+        If ``order`` is not 0, 1 or 2.
+
+    Examples
+    --------
+    With ``truncate = 1`` the order-0 weights are ``(e^-1/2, 1, e^-1/2) / (1 + 2 e^-1/2)``; filtering an
+    impulse with scipy gives the weights back, reversed:
+
+    >>> import numpy as np
+    >>> from scipy.ndimage import gaussian_filter1d
+    >>> from features.corners import gaussian_weights
+    >>> np.round(gaussian_weights(1.0, 0, truncate=1.0), 6).tolist()
+    [0.274069, 0.451863, 0.274069]
+    >>> impulse = np.zeros(9)
+    >>> impulse[4] = 1.0
+    >>> bool(np.allclose(gaussian_filter1d(impulse, 1.0, order=1)[::-1], gaussian_weights(1.0, 1)))
+    True
     """
     if order not in (0, 1, 2):
         raise ParameterError(f"Gaussian derivative order must be 0, 1 or 2, got {order}")
@@ -399,6 +476,34 @@ def hessian_response(gray: np.ndarray, corners: np.ndarray, sigma: float) -> np.
     ``L..`` are ``scipy.ndimage.gaussian_filter(gray, sigma, order=..., mode="reflect", truncate=4.0)``,
     evaluated only at ``corners`` (integer (row, column) pairs) from their reflected neighbourhoods, so the
     values equal whole-image filtering (to rounding) at a fraction of its cost.
+
+    Parameters
+    ----------
+    gray : array of shape (h, w)
+        Gray image.
+    corners : array of shape (k, 2)
+        Integer (row, column) of the pixels.
+    sigma : float
+        Scale of the Gaussian derivatives in pixels.
+
+    Returns
+    -------
+    ndarray of shape (k,)
+        The response at each pixel.
+
+    Examples
+    --------
+    The same values as filtering the whole image, at pixels inside and on the border:
+
+    >>> import numpy as np
+    >>> from scipy.ndimage import gaussian_filter
+    >>> from features.corners import hessian_response
+    >>> gray = np.random.default_rng(0).random((40, 40))
+    >>> corners = np.array([[0, 0], [20, 13], [39, 5]])
+    >>> l_xx, l_yy, l_xy = (gaussian_filter(gray, 2.0, order=order) for order in ((0, 2), (2, 0), (1, 1)))
+    >>> whole = 2.0**4 * (l_xx * l_yy - l_xy**2)[corners[:, 0], corners[:, 1]]
+    >>> bool(np.allclose(hessian_response(gray, corners, 2.0), whole, rtol=1e-9, atol=1e-15))
+    True
     """
     return _scale_responses(gray, corners, (float(sigma),))[:, 0]
 
@@ -408,6 +513,29 @@ def corner_scales(gray: np.ndarray, corners: np.ndarray) -> np.ndarray:
 
     The determinant-of-Hessian detector that SURF approximates (paper eq. 8, ``detectSURFFeatures``);
     the first maximum on ties.
+
+    Parameters
+    ----------
+    gray : array of shape (h, w)
+        Gray image.
+    corners : array of shape (k, 2)
+        Integer (row, column) of the corners (:func:`harris_corners`).
+
+    Returns
+    -------
+    ndarray of shape (k,)
+        The scale of each corner in pixels, one of :data:`DOH_SCALES`.
+
+    Examples
+    --------
+    The scale of a Gaussian blob at its centre is the blob's own sigma, here 4.8 px (``1.2 * 2^(8/4)``):
+
+    >>> import numpy as np
+    >>> from features.corners import corner_scales
+    >>> rows, cols = np.mgrid[:64, :64]
+    >>> blob = np.exp(-((rows - 32) ** 2 + (cols - 32) ** 2) / (2 * 4.8**2))
+    >>> corner_scales(blob, np.array([[32, 32]])).tolist()
+    [4.8]
     """
     responses = _scale_responses(gray, corners, tuple(DOH_SCALES.tolist()))
     return DOH_SCALES[np.argmax(np.abs(responses), axis=1)]

@@ -63,10 +63,47 @@ def gray_images(rgb: np.ndarray, gray: np.ndarray, gray_u8: np.ndarray, gray32: 
     Each histogram is kept four times over and added up at the end: neighbouring pixels often share
     their levels, and consecutive increments of one counter would wait for each other.
 
+    Parameters
+    ----------
+    rgb : uint8 array of shape (h, w, 3)
+        The photo.
+    gray : float64 array of shape (h, w)
+        Filled with the gray image.
+    gray_u8 : uint8 array of shape (h, w)
+        Filled with the rounded gray image.
+    gray32 : float32 array of shape (h, w) or (0, 0)
+        Filled with the float32 gray image; an empty array skips it.
+    levels : int
+        Number of GLCM gray levels (at most 256).
+    triples : int64 array of shape (levels, levels, levels)
+        Filled with the counts of the L-shaped triples.
+    diagonal : int64 array of shape (levels, levels)
+        Filled with the counts of the 135-degree pairs.
+    edges : int64 array of shape (2, levels, levels)
+        Filled with the counts of the last row's and the last column's pairs.
+
     Returns
     -------
     (float, float, float)
         The smallest and largest gray value, and the sum of all (:func:`pixel_sum`'s order).
+
+    Examples
+    --------
+    A white and a black diagonal of a 2 x 2 photo, on 2 levels (white is level 1, black 0):
+
+    >>> import numpy as np
+    >>> from features.kernels import gray_images
+    >>> rgb = np.zeros((2, 2, 3), np.uint8)
+    >>> rgb[0, 0] = rgb[1, 1] = 255
+    >>> gray, gray_u8 = np.empty((2, 2)), np.empty((2, 2), np.uint8)
+    >>> triples, diagonal = np.empty((2, 2, 2), np.int64), np.empty((2, 2), np.int64)
+    >>> edges = np.empty((2, 2, 2), np.int64)
+    >>> gray_images(rgb, gray, gray_u8, np.empty((0, 0), np.float32), 2, triples, diagonal, edges)
+    (0.0, 255.0, 510.0)
+    >>> gray_u8.tolist()
+    [[255, 0], [0, 255]]
+    >>> np.argwhere(triples).tolist(), np.argwhere(diagonal).tolist(), np.argwhere(edges).tolist()
+    ([[1, 0, 0]], [[1, 1]], [[0, 0, 1], [1, 1, 0]])
     """
     h, w = gray.shape
     red, green, blue = GRAY_PRODUCTS[0], GRAY_PRODUCTS[1], GRAY_PRODUCTS[2]
@@ -117,6 +154,23 @@ def pixel_sum(image: np.ndarray) -> float:
     its rows the same way), so that a feature computed alone equals the same feature from the prepared
     photo bit for bit. Its rounding error is near (row length / 4 + rows) ulps, the order of numpy's
     pairwise sum.
+
+    Parameters
+    ----------
+    image : float64 array of shape (h, w)
+        The image.
+
+    Returns
+    -------
+    float
+        The sum of its pixels.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features.kernels import pixel_sum
+    >>> pixel_sum(np.arange(12.0).reshape(3, 4))
+    66.0
     """
     total = 0.0
     for r in range(image.shape[0]):
@@ -148,6 +202,27 @@ def central_moment_sums(gray: np.ndarray, mean: float) -> tuple[float, float]:
     interleaved partial sums (columns c mod 4), so that the additions need not wait for each other, and
     the rows' sums are added up; the rounding error stays near (row length / 4 + rows) ulps, the order of
     numpy's pairwise sums.
+
+    Parameters
+    ----------
+    gray : float64 array of shape (h, w)
+        The image.
+    mean : float
+        The value the deviations are taken from (the image's mean).
+
+    Returns
+    -------
+    (float, float)
+        The sums of the squared and of the fourth powers of the deviations.
+
+    Examples
+    --------
+    Every pixel lies 1 from the mean 2:
+
+    >>> import numpy as np
+    >>> from features.kernels import central_moment_sums
+    >>> central_moment_sums(np.array([[1.0, 3.0], [1.0, 3.0]]), 2.0)
+    (4.0, 4.0)
     """
     second = fourth = 0.0
     for r in range(gray.shape[0]):
@@ -184,6 +259,27 @@ def centred_point_symmetric_rows(image: np.ndarray, mean: float, out: np.ndarray
     with the subtraction, the sum and the halving in that order. ``out`` may be ``image`` itself: row m
     of the result needs only rows m and M - m, and row M - m > M/2 is never written; the two rows that
     pair with themselves (0 and M/2) are read from a copy.
+
+    Parameters
+    ----------
+    image : float64 array of shape (M, N)
+        The image.
+    mean : float
+        The value subtracted (the image's mean).
+    out : float64 array of shape (M, N)
+        Rows 0 .. M//2 are written; may be ``image``.
+
+    Examples
+    --------
+    On a 2 x 3 image both rows pair with themselves: columns 1 and 2 are each other's mirror.
+
+    >>> import numpy as np
+    >>> from features.kernels import centred_point_symmetric_rows
+    >>> image = np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])
+    >>> out = np.zeros_like(image)
+    >>> centred_point_symmetric_rows(image, 3.5, out)
+    >>> out.tolist()
+    [[-2.5, -1.0, -1.0], [0.5, 2.0, 2.0]]
     """
     m, n = image.shape
     mirror = np.empty(n)
@@ -211,6 +307,36 @@ def lbp_code_counts(image: np.ndarray, right: tuple[np.ndarray, np.ndarray], lef
     neighbour column), then between two such rows with the row weights ``up``/``down``. Two products and
     their sum, in that order, give scikit-image's rounding; the weights come from
     ``features.image._interpolation_weights``, per absolute row and column as scikit-image computes them.
+
+    Parameters
+    ----------
+    image : float64 array of shape (h, w)
+        Gray image, C-contiguous.
+    right, left : (array of shape (w,), array of shape (w,))
+        ``(1 - f, f)`` per column of the interpolation towards the right and the left neighbour column.
+    up, down : (array of shape (h,), array of shape (h,))
+        ``(1 - f, f)`` per row of the interpolation towards the row above and the row below.
+
+    Returns
+    -------
+    int64 array of shape (256,)
+        The number of interior pixels with each code.
+
+    Examples
+    --------
+    On an image growing downwards the neighbours below and beside a pixel count, those above do not: bits
+    0 (right), 4 (left), 5, 6 and 7 (below), code ``1 + 16 + 32 + 64 + 128 = 241`` at all 3 x 4 interior
+    pixels. The diagonal neighbours lie ``f = sqrt(1/2)`` px along each axis:
+
+    >>> import numpy as np
+    >>> from features.kernels import lbp_code_counts
+    >>> def weights(n, f):
+    ...     return np.full(n, 1 - f), np.full(n, f)
+    >>> f = np.sqrt(0.5)
+    >>> image = np.arange(5.0)[:, None] * np.ones(6)
+    >>> counts = lbp_code_counts(image, weights(6, f), weights(6, 1 - f), weights(5, 1 - f), weights(5, f))
+    >>> np.flatnonzero(counts).tolist(), int(counts[241])
+    ([241], 12)
     """
     h, w = image.shape
     right0, right1 = right
@@ -283,8 +409,25 @@ def tamura_coarseness_total(gray: np.ndarray, tolerance: int) -> int:
     Parameters
     ----------
     gray : (h, w) float64 array, h and w at least 64
+        Gray image (values of an 8-bit photo's gray image, 0..255).
     tolerance : int
         The tie tolerance in units of ``1 / (1000 * 4^5)`` gray levels.
+
+    Returns
+    -------
+    int
+        The sum of ``S_best`` over the ``(h - 63) (w - 63)`` output pixels (rows and columns 32 .. h - 32
+        and 32 .. w - 32); divided by their number, Tamura coarseness.
+
+    Examples
+    --------
+    On a flat image every ``E_k`` is 0, so every output pixel takes the smallest window, 2: a 70 x 70
+    image has 7 x 7 output pixels.
+
+    >>> import numpy as np
+    >>> from features.kernels import tamura_coarseness_total
+    >>> tamura_coarseness_total(np.full((70, 70), 100.0), 0)
+    98
     """
     h, w = gray.shape
     margin = 32

@@ -94,10 +94,30 @@ def _axes(a: np.ndarray, name: str) -> np.ndarray:
 def density(mass_g: float, volume_cm3: float) -> float:
     """Density ``mass / volume`` in g/cm^3 (docs/features.md#other); NaN if either was not measured (NaN).
 
+    Parameters
+    ----------
+    mass_g : float
+        Mass in g (``meta.mass_g``), NaN if not weighed.
+    volume_cm3 : float
+        Volume in cm^3 (``meta.volume_cm3``), NaN if not measured.
+
+    Returns
+    -------
+    float
+        Density in g/cm^3, NaN if either value is NaN.
+
+    Raises
+    ------
+    ParameterError
+        If a value is zero, negative or infinite.
+
     Examples
     --------
+    >>> from features.other import density
     >>> density(27.0, 10.0)
     2.7
+    >>> density(27.0, float("nan"))
+    nan
     """
     mass, volume = float(mass_g), float(volume_cm3)
     for name, value in (("mass_g", mass), ("volume_cm3", volume)):
@@ -110,13 +130,48 @@ def metal(m: np.ndarray) -> float:
     """1 if the sample conducts, ``mean(m) > 0``, else 0 (docs/features.md#other); ``m`` is the electrode in {-1, +1}.
 
     A tie (as many +1 as -1 samples) is not conductive: the electrodes did not close for most of the time.
+
+    Parameters
+    ----------
+    m : array of shape (n,)
+        Metal electrode samples, +1 conductive, -1 not.
+
+    Returns
+    -------
+    float
+        1.0 or 0.0.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features.other import metal
+    >>> metal(np.array([1.0, 1.0, -1.0])), metal(np.array([1.0, -1.0]))
+    (1.0, 0.0)
     """
     return 1.0 if float(np.mean(_samples(m, "m"))) > 0 else 0.0
 
 
 def magnet_mean(dB: np.ndarray) -> float:
     """Mean change of the magnetic field magnitude against the calibration, ``mean(dB)`` in uT
-    (docs/features.md#other)."""
+    (docs/features.md#other).
+
+    Parameters
+    ----------
+    dB : array of shape (n,)
+        Change of the magnetic field magnitude in uT.
+
+    Returns
+    -------
+    float
+        The mean in uT.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features.other import magnet_mean
+    >>> magnet_mean(np.array([0.5, 1.5, -0.5, 2.5]))
+    1.0
+    """
     return float(np.mean(_samples(dB, "dB")))
 
 
@@ -126,10 +181,24 @@ def magnet_peak(dB: np.ndarray) -> float:
     A ferromagnetic sample pulls the field strongly in either direction depending on the pole facing the
     sensor, so the sign is kept and the magnitude decides.
 
+    Parameters
+    ----------
+    dB : array of shape (n,)
+        Change of the magnetic field magnitude in uT.
+
+    Returns
+    -------
+    float
+        The sample of largest magnitude in uT.
+
     Examples
     --------
+    >>> import numpy as np
+    >>> from features.other import magnet_peak
     >>> magnet_peak(np.array([1.0, 3.0, -7.0, 5.0]))
     -7.0
+    >>> magnet_peak(np.array([2.0, -2.0]))
+    2.0
     """
     values = _samples(dB, "dB")
     return float(values[np.argmax(np.abs(values))])
@@ -142,6 +211,31 @@ def reflect_static(r_ts: np.ndarray, start: int) -> float:
 
     ``start`` is the slide start of ``v_ts`` (:func:`scanner.preprocess.slide_start`); NaN if it is 0
     (no resting samples).
+
+    Parameters
+    ----------
+    r_ts : array of shape (n,)
+        IR reflectance during the tool slide in V.
+    start : int
+        Slide start, a sample index in 0..n.
+
+    Returns
+    -------
+    float
+        The mean reflectance before the start in V, NaN if ``start`` is 0.
+
+    Raises
+    ------
+    ParameterError
+        If ``start`` is not an integer index in 0..n.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features.other import reflect_static
+    >>> r_ts = np.array([2.0, 2.2, 3.0, 3.1])
+    >>> round(reflect_static(r_ts, 2), 6), reflect_static(r_ts, 0)
+    (2.1, nan)
     """
     values = _samples(r_ts, "r_ts")
     if isinstance(start, bool) or int(start) != start or not 0 <= start <= values.size:
@@ -150,7 +244,25 @@ def reflect_static(r_ts: np.ndarray, start: int) -> float:
 
 
 def reflect_mean(r_window: np.ndarray) -> float:
-    """Mean IR reflectance in the 1 s slide window of the tool slide, in V (docs/features.md#other)."""
+    """Mean IR reflectance in the 1 s slide window of the tool slide, in V (docs/features.md#other).
+
+    Parameters
+    ----------
+    r_window : array of shape (n,)
+        IR reflectance ``r_ts`` in the slide window of ``v_ts``, in V.
+
+    Returns
+    -------
+    float
+        The mean reflectance in V.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features.other import reflect_mean
+    >>> round(reflect_mean(np.array([1.1, 1.3, 1.2])), 6)
+    1.2
+    """
     return float(np.mean(_samples(r_window, "r_window")))
 
 
@@ -167,11 +279,34 @@ def cooling_rate(t_cool: np.ndarray, t_amb: float, fs: float = T_COOL_FS) -> flo
     not change the model), or the least-squares optimum is r = infinity (every later sample fits the
     instant drop to ``t_amb`` at least as well as any finite rate does).
 
+    Parameters
+    ----------
+    t_cool : array of shape (n,)
+        Object temperature after heating in degC.
+    t_amb : float
+        Ambient temperature in degC, NaN if unknown.
+    fs : float
+        Sample rate of ``t_cool`` in Hz (default :data:`T_COOL_FS`, 20).
+
+    Returns
+    -------
+    float
+        The rate in 1/s, NaN where undefined; reproducible to :data:`SOLVER_RTOL`.
+
+    Raises
+    ------
+    ParameterError
+        If ``fs`` is not positive and finite, or ``t_amb`` is infinite.
+
     Examples
     --------
+    >>> import numpy as np
+    >>> from features.other import cooling_rate
     >>> t = np.arange(200) / 20.0
     >>> round(cooling_rate(22.0 + 8.0 * np.exp(-0.3 * t), 22.0), 9)
     0.3
+    >>> cooling_rate(np.full(10, 22.0), 22.0)
+    nan
     """
     values = _samples(t_cool, "t_cool")
     if not math.isfinite(fs) or fs <= 0:
@@ -213,7 +348,28 @@ def _log_linear_rate(above: np.ndarray, excess: float, t: np.ndarray) -> float:
 # --- slide vibration ----------------------------------------------------------------------------------
 
 def vib_std(v: np.ndarray) -> float:
-    """Standard deviation (population) of the slide signal, ``std(v)`` in g (docs/features.md#other)."""
+    """Standard deviation (population) of the slide signal, ``std(v)`` in g (docs/features.md#other).
+
+    Parameters
+    ----------
+    v : array of shape (n,)
+        Tool-slide signal in g.
+
+    Returns
+    -------
+    float
+        ``std(v)`` in g.
+
+    Examples
+    --------
+    A sine of amplitude 1 over whole periods has the standard deviation ``1 / sqrt(2)``:
+
+    >>> import math
+    >>> import numpy as np
+    >>> from features.other import vib_std
+    >>> round(vib_std(np.sin(2 * np.pi * 50.0 * np.arange(3000) / 3000.0)), 6), round(1 / math.sqrt(2), 6)
+    (0.707107, 0.707107)
+    """
     return float(np.std(_samples(v, "v")))
 
 
@@ -222,10 +378,24 @@ def vib_kurtosis(v: np.ndarray) -> float:
 
     3 for Gaussian noise, 1.5 for a sine; NaN for a constant signal (0/0).
 
+    Parameters
+    ----------
+    v : array of shape (n,)
+        Tool-slide signal in g.
+
+    Returns
+    -------
+    float
+        The kurtosis, NaN for a constant signal.
+
     Examples
     --------
+    >>> import numpy as np
+    >>> from features.other import vib_kurtosis
     >>> round(vib_kurtosis(np.sin(2 * np.pi * np.arange(3000) / 30.0)), 9)
     1.5
+    >>> vib_kurtosis(np.full(100, 0.5))
+    nan
     """
     values = _samples(v, "v")
     centred = values - values.mean()
@@ -234,7 +404,27 @@ def vib_kurtosis(v: np.ndarray) -> float:
 
 
 def vib_energy(v: np.ndarray) -> float:
-    """Mean power of a slide signal, ``mean(v^2)`` in g^2 (docs/features.md#other): vib_energy and finger_vib_energy."""
+    """Mean power of a slide signal, ``mean(v^2)`` in g^2 (docs/features.md#other): vib_energy and finger_vib_energy.
+
+    Parameters
+    ----------
+    v : array of shape (n,)
+        Tool- or finger-slide signal in g.
+
+    Returns
+    -------
+    float
+        ``mean(v^2)`` in g^2.
+
+    Examples
+    --------
+    A sine of amplitude 2 over whole periods has the mean power ``2^2 / 2``:
+
+    >>> import numpy as np
+    >>> from features.other import vib_energy
+    >>> round(vib_energy(2.0 * np.sin(2 * np.pi * 50.0 * np.arange(3000) / 3000.0)), 6)
+    2.0
+    """
     return float(np.mean(_samples(v, "v") ** 2))
 
 
@@ -243,6 +433,25 @@ def vib_centroid(v: np.ndarray, fs: float = VIBRATION_FS) -> float:
     docs/features.md#mico).
 
     ``finger_vib_centroid`` is that of ``v_f``. NaN for an all-zero signal.
+
+    Parameters
+    ----------
+    v : array of shape (n,)
+        Slide signal in g.
+    fs : float
+        Sample rate in Hz (default :data:`VIBRATION_FS`, 3000).
+
+    Returns
+    -------
+    float
+        The centroid in Hz, NaN for an all-zero signal.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features.other import vib_centroid
+    >>> round(vib_centroid(np.sin(2 * np.pi * 400.0 * np.arange(3000) / 3000.0)), 6)
+    400.0
     """
     return spectral_centroid(_samples(v, "v"), fs)
 
@@ -250,7 +459,25 @@ def vib_centroid(v: np.ndarray, fs: float = VIBRATION_FS) -> float:
 # --- tool tap -----------------------------------------------------------------------------------------
 
 def tap_energy(a: np.ndarray) -> np.ndarray:
-    """Per-sample energy of the band-limited tool tap summed over the axes, ``sum over axes a^2`` (g^2)."""
+    """Per-sample energy of the band-limited tool tap summed over the axes, ``sum over axes a^2`` (g^2).
+
+    Parameters
+    ----------
+    a : array of shape (n, axes)
+        Band-limited tool tap in g.
+
+    Returns
+    -------
+    ndarray of shape (n,)
+        The energy of each sample in g^2.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features.other import tap_energy
+    >>> tap_energy(np.array([[3.0, 4.0, 0.0], [1.0, 2.0, 2.0]]))
+    array([25.,  9.])
+    """
     return _energy_of_axes(_axes(a, "v_tt"))
 
 
@@ -264,7 +491,25 @@ def _energy_of_axes(array: np.ndarray) -> np.ndarray:
 
 
 def tap_peak(a: np.ndarray) -> float:
-    """Tap peak ``sqrt(energy[p])`` in g, p = argmax of :func:`tap_energy` (docs/features.md#other)."""
+    """Tap peak ``sqrt(energy[p])`` in g, p = argmax of :func:`tap_energy` (docs/features.md#other).
+
+    Parameters
+    ----------
+    a : array of shape (n, axes)
+        Band-limited tool tap in g.
+
+    Returns
+    -------
+    float
+        The largest magnitude of the acceleration vector in g.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features.other import tap_peak
+    >>> tap_peak(np.array([[3.0, 4.0, 0.0], [1.0, 2.0, 2.0]]))
+    5.0
+    """
     return float(np.sqrt(np.max(tap_energy(a))))
 
 
@@ -274,6 +519,35 @@ def tap_response(a: np.ndarray, length: int = TAP_SAMPLES,
 
     ``a`` is the band-limited tool tap (n, 3); p = argmax of :func:`tap_energy`, the first on ties.
     None if fewer than ``min_length`` samples remain from p on (docs/features.md#other).
+
+    Parameters
+    ----------
+    a : array of shape (n, axes)
+        Band-limited tool tap in g.
+    length : int
+        Samples taken from p on (default :data:`TAP_SAMPLES`, 150).
+    min_length : int
+        Fewest samples from p on that make a response (default :data:`TAP_MIN_SAMPLES`, 30).
+
+    Returns
+    -------
+    ndarray of shape (m,) or None
+        The response in g, ``m = min(length, n - p)``; None if ``m < min_length``.
+
+    Examples
+    --------
+    The same decaying 600 Hz tap on all three axes, its peak at sample 10: DFT321 keeps the energy, so the
+    response is the tap times ``sqrt(3)``.
+
+    >>> import numpy as np
+    >>> from features.other import tap_response
+    >>> t = np.arange(290) / 3000.0
+    >>> x = np.r_[np.zeros(10), np.exp(-t / 0.01) * np.cos(2 * np.pi * 600.0 * t)]
+    >>> y = tap_response(np.column_stack([x, x, x]))
+    >>> y.shape, bool(np.allclose(y, np.sqrt(3) * x[10:160]))
+    ((150,), True)
+    >>> print(tap_response(np.column_stack([x, x, x])[:30]))
+    None
     """
     array = _axes(a, "v_tt")
     return _tap_response(array, _energy_of_axes(array), length, min_length)
@@ -287,7 +561,29 @@ def _tap_response(array: np.ndarray, energy: np.ndarray, length: int = TAP_SAMPL
 
 
 def tap_centroid(y: np.ndarray, fs: float = VIBRATION_FS) -> float:
-    """Spectral centroid of the tap response y in Hz (Strese et al. 2020, eq. 15; docs/features.md#other)."""
+    """Spectral centroid of the tap response y in Hz (Strese et al. 2020, eq. 15; docs/features.md#other).
+
+    Parameters
+    ----------
+    y : array of shape (n,)
+        Tap response in g (:func:`tap_response`).
+    fs : float
+        Sample rate in Hz (default :data:`VIBRATION_FS`, 3000).
+
+    Returns
+    -------
+    float
+        The centroid in Hz, NaN for an all-zero response.
+
+    Examples
+    --------
+    30 periods of a 600 Hz tone in 150 samples:
+
+    >>> import numpy as np
+    >>> from features.other import tap_centroid
+    >>> round(tap_centroid(np.sin(2 * np.pi * 600.0 * np.arange(150) / 3000.0)), 6)
+    600.0
+    """
     return spectral_centroid(_samples(y, "y"), fs)
 
 
@@ -302,6 +598,30 @@ def tap_decay(y: np.ndarray, fs: float = VIBRATION_FS) -> float:
     reproducible to :data:`SOLVER_RTOL`) with p0 = (max envelope, 0.01 s), t = 0 at the first sample of y
     (docs/features.md#other). NaN if the envelope is all zero, if the fit raises, or if tau is non-finite or not
     positive.
+
+    Parameters
+    ----------
+    y : array of shape (n,)
+        Tap response in g (:func:`tap_response`).
+    fs : float
+        Sample rate in Hz (default :data:`VIBRATION_FS`, 3000).
+
+    Returns
+    -------
+    float
+        tau in s, NaN where undefined.
+
+    Examples
+    --------
+    A 500 Hz tone dying away with tau = 10 ms:
+
+    >>> import numpy as np
+    >>> from features.other import tap_decay
+    >>> t = np.arange(150) / 3000.0
+    >>> round(tap_decay(np.exp(-t / 0.01) * np.cos(2 * np.pi * 500.0 * t)), 3)
+    0.01
+    >>> tap_decay(np.zeros(150))
+    nan
     """
     envelope = np.abs(signal.hilbert(_samples(y, "y")))
     if not envelope.any():
@@ -323,6 +643,34 @@ def tap_features(a: np.ndarray, fs: float = VIBRATION_FS) -> tuple[float, float,
     """``(tap_peak, tap_centroid, tap_decay)`` of the band-limited tool tap ``a`` (n, 3) (docs/features.md#other).
 
     Centroid and decay are NaN if fewer than 30 samples follow the tap peak (see :func:`tap_response`).
+
+    Parameters
+    ----------
+    a : array of shape (n, axes)
+        Band-limited tool tap in g.
+    fs : float
+        Sample rate in Hz (default :data:`VIBRATION_FS`, 3000).
+
+    Returns
+    -------
+    (float, float, float)
+        Peak in g, centroid in Hz and decay time constant in s.
+
+    Examples
+    --------
+    A 600 Hz tap of peak 1 g dying away with tau = 10 ms on one axis; cut 20 samples after its peak, only
+    the peak is defined:
+
+    >>> import numpy as np
+    >>> from features.other import tap_features
+    >>> t = np.arange(290) / 3000.0
+    >>> x = np.r_[np.zeros(10), np.exp(-t / 0.01) * np.cos(2 * np.pi * 600.0 * t)]
+    >>> a = np.column_stack([x, np.zeros_like(x), np.zeros_like(x)])
+    >>> peak, centroid, decay = tap_features(a)
+    >>> peak, round(decay, 3)
+    (1.0, 0.01)
+    >>> tap_features(a[:30])
+    (1.0, nan, nan)
     """
     array = _axes(a, "v_tt")
     energy = _energy_of_axes(array)  # shared by the peak and the response
@@ -448,6 +796,47 @@ def compute(scan: Scan, *, prepared: PreparedScan | None = None) -> dict[str, fl
     features of a group whose input is missing (a channel, ``meta.mass_g``, ``meta.volume_cm3`` or
     ``meta.t_amb``) or fails its slide check are NaN, with one :class:`MissingDataWarning` naming the
     input and the features it made NaN.
+
+    Parameters
+    ----------
+    scan : Scan
+        The scan.
+    prepared : PreparedScan, optional
+        The scan prepared once for every feature family (:func:`features.extract`); the values are the same.
+
+    Returns
+    -------
+    dict of str to float
+        The 15 features of :data:`NAMES`, NaN where a value is undefined.
+
+    Warns
+    -----
+    MissingDataWarning
+        Naming the missing input and the features it made NaN.
+
+    Examples
+    --------
+    A scan holding only the static channels, the cooling curve and the mass and volume: those features are
+    defined, the ten of the IR reflectance, the slides and the tap are NaN.
+
+    >>> import math
+    >>> import warnings
+    >>> import numpy as np
+    >>> from features import other
+    >>> from scanner.scan import Scan, ScanMeta, Trace
+    >>> meta = ScanMeta(label="C6S1M1P2X1", operator="op", sample_id="granite-01", scan_index=1, session_id="s-1",
+    ...                 started="2026-11-21T09:00:00+00:00", t_amb=22.0, mass_g=27.0, volume_cm3=10.0)
+    >>> t = np.arange(200) / 20.0
+    >>> traces = {"m": Trace(np.array([1.0, 1.0, -1.0]), 3000.0, "-"),
+    ...           "dB": Trace(np.array([0.5, 1.5, -0.5, 2.5]), 80.0, "uT"),
+    ...           "t_cool": Trace(22.0 + 8.0 * np.exp(-0.3 * t), 20.0, "degC")}
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     values = other.compute(Scan(meta, traces))
+    >>> values["other.density"], values["other.metal"], values["other.magnet_mean"], values["other.magnet_peak"]
+    (2.7, 1.0, 1.0, 2.5)
+    >>> round(values["other.cooling_rate"], 9), sum(math.isnan(value) for value in values.values()), len(caught)
+    (0.3, 10, 4)
     """
     prepared = prepared if prepared is not None else PreparedScan(scan)
     values: dict[str, float] = {}
