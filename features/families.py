@@ -43,6 +43,43 @@ def image_features(scan: Scan, disp: image.PreparedPhoto | None = None) -> dict[
     ``disp`` is ``I_disp`` already prepared (:func:`prepared_disp`); the other photos are prepared here.
     Each photo releases its memory once its features are computed (``disp`` too) and the next photo's
     gray image is computed in it: fresh memory is slow to fault in.
+
+    Parameters
+    ----------
+    scan : Scan
+        A scan with (some of) the photos ``I_disp``, ``I_macro``, ``I_illu``.
+    disp : PreparedPhoto, optional
+        ``I_disp`` prepared by :func:`features.prepared.prepared_disp`.
+
+    Returns
+    -------
+    dict of str to float
+        ``image.<photo>.<name>`` for the photos ``disp``, ``macro``, ``illu`` and each name of
+        :data:`features.image.NAMES`, 93 values.
+
+    Warns
+    -----
+    UserWarning
+        Naming the scan and the photo that is missing or too small.
+
+    Examples
+    --------
+    A uniform gray display photo: brightness 128 / 255, no edges; the two missing photos give NaN:
+
+    >>> import numpy as np
+    >>> from scanner import Scan, ScanMeta, Trace
+    >>> meta = ScanMeta("C6S1M1P2X1", "ab", "granite-01", 1, "s-1", "2026-11-21T08:00:00+00:00")
+    >>> import math, warnings
+    >>> from features.families import image_features
+    >>> scan = Scan(meta, images={"I_disp": np.full((264, 264, 3), 128, dtype=np.uint8)})
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     values = image_features(scan)
+    >>> len(values), round(values["image.disp.brightness"] * 255, 6), values["image.disp.edginess"]
+    (93, 128.0, 0.0)
+    >>> math.isnan(values["image.macro.color"]), [str(warning.message) for warning in caught]
+    (True, ['scan granite-01-001: no photo I_macro; its image features are NaN',
+            'scan granite-01-001: no photo I_illu; its image features are NaN'])
     """
     values: dict[str, float] = {}
     spare = None
@@ -66,7 +103,48 @@ def image_features(scan: Scan, disp: image.PreparedPhoto | None = None) -> dict[
 
 
 def audio_features(scan: Scan, prepared: PreparedScan | None = None) -> dict[str, float]:
-    """35 features of the finger and of the tool audio in the 1 s slide window (docs/features.md#audio)."""
+    """35 features of the finger and of the tool audio in the 1 s slide window (docs/features.md#audio).
+
+    Parameters
+    ----------
+    scan : Scan
+        A scan with the slides' vibrations ``v_fs``, ``v_ts`` and audio ``a_fs``, ``a_ts``.
+    prepared : PreparedScan, optional
+        The scan prepared for extraction, whose slide windows are found once.
+
+    Returns
+    -------
+    dict of str to float
+        ``audio.<slide>.<name>`` for the slides ``finger``, ``tool`` and each name of
+        :data:`features.audio.NAMES`, 70 values.
+
+    Warns
+    -----
+    UserWarning
+        Naming the scan and the channel that is missing or whose slide check fails.
+
+    Examples
+    --------
+    The tool slide starts at 0.5 s, so its window holds 1 s of a 441 Hz tone from 0.5 s on; the
+    scan has no finger slide:
+
+    >>> import numpy as np
+    >>> from scanner import Scan, ScanMeta, Trace
+    >>> meta = ScanMeta("C6S1M1P2X1", "ab", "granite-01", 1, "s-1", "2026-11-21T08:00:00+00:00")
+    >>> import warnings
+    >>> from features.families import audio_features
+    >>> v_ts = np.zeros((9000, 3))
+    >>> v_ts[1500:, 0] = 0.4 * np.sin(2 * np.pi * 250.0 * np.arange(7500) / 3000.0)
+    >>> a_ts = 0.5 * np.sin(2 * np.pi * 441.0 * np.arange(132300) / 44100.0)
+    >>> scan = Scan(meta, {"v_ts": Trace(v_ts, 3000.0, "g"), "a_ts": Trace(a_ts, 44100.0, "FS")})
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     values = audio_features(scan)
+    >>> len(values), round(values["audio.tool.f0"], 6), values["audio.finger.f0"]
+    (70, 441.0, nan)
+    >>> [str(warning.message) for warning in caught]
+    ['scan granite-01-001: no a_fs or v_fs; audio.finger features are NaN']
+    """
     values: dict[str, float] = {}
     prepared = prepared or PreparedScan(scan)
     for which, (vibration, sound) in AUDIO_SIGNALS.items():
