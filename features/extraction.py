@@ -34,7 +34,30 @@ from taxonomy.errors import ParameterError, TexplorerError
 def code_version(families: Sequence[str] | None = None) -> str:
     """Hash of the feature code (every registered family's module, this module and what they import): a
     cached feature vector is reused only with the code that computed it. ``families`` (default: the
-    default families) adds the chosen families' names and parameters (:meth:`Registry.code_version`)."""
+    default families) adds the chosen families' names and parameters (:meth:`Registry.code_version`).
+
+    Parameters
+    ----------
+    families : sequence of str, optional
+        Names of registered families whose names and parameters count too (default: the default families,
+        by their source alone).
+
+    Returns
+    -------
+    str
+        20 hexadecimal digits of a SHA-256 hash.
+
+    Examples
+    --------
+    The same code gives the same version; choosing other families gives another:
+
+    >>> from features import code_version
+    >>> version = code_version()
+    >>> len(version), set(version) <= set("0123456789abcdef")
+    (20, True)
+    >>> code_version() == version, code_version(["signal"]) == version
+    (True, False)
+    """
     return REGISTRY.code_version(__name__, families=families)
 
 
@@ -46,6 +69,38 @@ def without_short_channels(scan: Scan) -> Scan:
 
     Their features are then NaN like those of a missing channel: a single sample has no spread, no
     relaxation and no cooling curve, and computing them anyway gives silent zeros (docs/features.md).
+
+    Parameters
+    ----------
+    scan : Scan
+        A stored or simulated scan.
+
+    Returns
+    -------
+    Scan
+        ``scan`` itself if no channel is too short, else a copy without the short channels.
+
+    Warns
+    -----
+    MissingDataWarning
+        Naming each short channel, its samples and the samples its features need.
+
+    Examples
+    --------
+    A cooling curve of 2 samples (its fit needs 3) is left out; the magnetic field of 2 samples is kept:
+
+    >>> import warnings
+    >>> from scanner import Scan, ScanMeta, Trace
+    >>> from features.extraction import without_short_channels
+    >>> meta = ScanMeta("C6S1M1P2X1", "op", "granite-01", 1, "s1", "2024-01-01T00:00:00")
+    >>> scan = Scan(meta, {"t_cool": Trace([30.0, 29.5], 20.0, "degC"), "dB": Trace([0.1, 0.2], 80.0, "uT")})
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     kept = without_short_channels(scan)
+    >>> list(kept.traces), list(scan.traces)
+    (['dB'], ['t_cool', 'dB'])
+    >>> print(caught[0].message)
+    scan granite-01-001: too short: t_cool (2 of the 3 samples its features need); treated as missing
     """
     short = scan.short_channels()
     if not short:
@@ -124,10 +179,61 @@ class FeatureCache(Protocol):
     """Where feature vectors are kept between runs (``scanner.Database`` implements it)."""
 
     def cached_features(self, content_hash: str, code_version: str) -> dict[str, float] | None:
-        """The values stored for this content and feature code, or None."""
+        """The values stored for this content and feature code, or None.
+
+        Parameters
+        ----------
+        content_hash : str
+            The scan's content hash (:attr:`ScanSource.cache_key`).
+        code_version : str
+            The feature code's version (:func:`code_version`).
+
+        Returns
+        -------
+        dict of str to float or None
+            The stored feature values in their order, NaN where a value is undefined; None if nothing is
+            stored for this content and code.
+
+        Examples
+        --------
+        A ``scanner.Database`` keeps the values of one code version; another version finds nothing:
+
+        >>> import math
+        >>> import tempfile
+        >>> from scanner import Database
+        >>> with tempfile.TemporaryDirectory() as folder, Database(folder) as cache:
+        ...     cache.store_features("3f2a", "v1", {"other.metal": 1.0, "other.density": math.nan})
+        ...     stored, other = cache.cached_features("3f2a", "v1"), cache.cached_features("3f2a", "v2")
+        >>> stored["other.metal"], math.isnan(stored["other.density"]), other
+        (1.0, True, None)
+        """
 
     def store_features(self, content_hash: str, code_version: str, values: dict[str, float]) -> None:
-        """Keep ``values`` for this content and feature code."""
+        """Keep ``values`` for this content and feature code.
+
+        Parameters
+        ----------
+        content_hash : str
+            The scan's content hash (:attr:`ScanSource.cache_key`).
+        code_version : str
+            The feature code's version (:func:`code_version`).
+        values : dict of str to float
+            The scan's feature values in their order, NaN where a value is undefined; they replace any
+            stored for the same content and code.
+
+        Examples
+        --------
+        Storing again replaces the values, in a ``scanner.Database``:
+
+        >>> import tempfile
+        >>> from scanner import Database
+        >>> with tempfile.TemporaryDirectory() as folder, Database(folder) as cache:
+        ...     cache.store_features("3f2a", "v1", {"other.metal": -1.0})
+        ...     cache.store_features("3f2a", "v1", {"other.metal": 1.0})
+        ...     stored = cache.cached_features("3f2a", "v1")
+        >>> stored
+        {'other.metal': 1.0}
+        """
 
 
 @dataclass(frozen=True)
@@ -160,7 +266,28 @@ def _return(scan: Scan) -> Scan:
 
 
 def source_of(scan: Scan) -> ScanSource:
-    """Wrap an in-memory scan (no cache key: it has no stored content hash)."""
+    """Wrap an in-memory scan (no cache key: it has no stored content hash).
+
+    Parameters
+    ----------
+    scan : Scan
+        A scan in memory.
+
+    Returns
+    -------
+    ScanSource
+        With the scan's id, label and sample id as the row's identity; ``load`` gives ``scan`` back.
+
+    Examples
+    --------
+    >>> from scanner import Scan, ScanMeta, Trace
+    >>> from features.extraction import source_of
+    >>> scan = Scan(ScanMeta("C6S1M1P2X1", "op", "granite-01", 3, "s1", "2024-01-01T00:00:00"),
+    ...             {"dB": Trace([0.1, 0.2], 80.0, "uT")})
+    >>> source = source_of(scan)
+    >>> source.scan_id, source.label, source.group, source.cache_key, source.load() is scan
+    ('granite-01-003', 'C6S1M1P2X1', 'granite-01', None, True)
+    """
     return ScanSource(scan.scan_id, scan.meta.label, scan.meta.sample_id, functools.partial(_return, scan))
 
 

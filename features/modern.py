@@ -109,7 +109,21 @@ class LengthRule:
         return self.windows * self.length
 
     def describe(self) -> str:
-        """``8 windows of 2048 samples at 44100 Hz``, ``resampled to 1024 samples``."""
+        """``8 windows of 2048 samples at 44100 Hz``, ``resampled to 1024 samples``.
+
+        Returns
+        -------
+        str
+            The rule in words, for people.
+
+        Examples
+        --------
+        >>> from features.modern import LengthRule
+        >>> LengthRule(2048, windows=8, rate=44100.0).describe()
+        '8 windows of 2048 samples at 44100 Hz'
+        >>> LengthRule(3000).describe(), LengthRule(1024, whole=True).describe()
+        ('1 window of 3000 samples', 'resampled to 1024 samples')
+        """
         if self.whole:
             return f"resampled to {self.length} samples"
         at = "" if self.rate is None else f" at {self.rate:g} Hz"
@@ -118,7 +132,33 @@ class LengthRule:
 
 def resample(x: np.ndarray, fs: float, rate: float) -> np.ndarray:
     """``x`` at ``rate`` Hz: polyphase resampling with scipy's anti-aliasing filter (the ratio as a fraction
-    with a denominator of at most 1000)."""
+    with a denominator of at most 1000).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The signal, samples along the first axis.
+    fs : float
+        Its sample rate in Hz.
+    rate : float
+        The rate wanted, in Hz.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``x`` as float64 at ``rate`` (``x`` itself, converted, where the rates are equal).
+
+    Examples
+    --------
+    One second of a 50 Hz tone at 1000 Hz, halved to 500 Hz: 500 samples, still a 50 Hz tone:
+
+    >>> import numpy as np
+    >>> from features.modern import resample
+    >>> tone = np.sin(2 * np.pi * 50 * np.arange(1000) / 1000)
+    >>> y = resample(tone, 1000.0, 500.0)
+    >>> y.size, float(np.argmax(np.abs(np.fft.rfft(y))) * 500 / y.size)
+    (500, 50.0)
+    """
     ratio = Fraction(rate / fs).limit_denominator(1000)
     if ratio == 1:
         return np.asarray(x, dtype=np.float64)
@@ -128,10 +168,40 @@ def resample(x: np.ndarray, fs: float, rate: float) -> np.ndarray:
 def instances(x: np.ndarray, fs: float, rule: LengthRule) -> np.ndarray:
     """The instances of a 1-D signal by ``rule``, shape ``(windows, length)`` (see :class:`LengthRule`).
 
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The signal, 1-D.
+    fs : float
+        Its sample rate in Hz (used where ``rule.rate`` resamples it).
+    rule : LengthRule
+        How it is cut or resampled.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 of shape ``(rule.windows, rule.length)``: the windows in time order, zero-padded at their end
+        where the signal is shorter than ``rule.length`` (every window is then the same).
+
     Raises
     ------
     ParameterError
         If ``x`` is not 1-D or holds fewer than 2 samples.
+
+    Examples
+    --------
+    Three windows of 16 samples spread evenly over 100 samples start at samples 0, 42 and 84:
+
+    >>> import numpy as np
+    >>> from features.modern import LengthRule, instances
+    >>> windows = instances(np.arange(100.0), 1000.0, LengthRule(16, windows=3))
+    >>> windows.shape, windows[:, 0].tolist()
+    ((3, 16), [0.0, 42.0, 84.0])
+
+    A signal of 10 samples is zero-padded to one instance of 16:
+
+    >>> instances(np.ones(10), 1000.0, LengthRule(16)).tolist()
+    [[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]]
     """
     x = np.asarray(x, dtype=np.float64)
     if x.ndim != 1 or x.size < 2:
@@ -149,7 +219,35 @@ def instances(x: np.ndarray, fs: float, rule: LengthRule) -> np.ndarray:
 # -- the transforms ---------------------------------------------------------------------------------
 
 def catch22(windows: np.ndarray) -> np.ndarray:
-    """catch22 of every instance, averaged over the instances (22 values, :data:`CATCH22_NAMES` order)."""
+    """catch22 of every instance, averaged over the instances (22 values, :data:`CATCH22_NAMES` order).
+
+    Parameters
+    ----------
+    windows : numpy.ndarray
+        The instances, shape ``(instances, length)`` (:func:`instances`).
+
+    Returns
+    -------
+    numpy.ndarray
+        The 22 mean values, float64.
+
+    Raises
+    ------
+    ParameterError
+        If ``pycatch22`` is not installed (:func:`require`).
+
+    Examples
+    --------
+    A sine of period 20 samples: its periodicity (Wang et al.) is 20 samples, its autocorrelation's first
+    minimum half of that (only where the extra ``texplorer[modern]`` is installed):
+
+    >>> import numpy as np
+    >>> from features.modern import CATCH22_NAMES, available, catch22
+    >>> tone = np.sin(2 * np.pi * np.arange(200) / 20)
+    >>> values = dict(zip(CATCH22_NAMES, catch22(np.stack([tone, tone])))) if available("catch22") else None
+    >>> values is None or (values["PD_PeriodicityWang_th0_01"], values["CO_FirstMin_ac"]) == (20.0, 10.0)
+    True
+    """
     library = require("catch22")
     values = [library.catch22_all(row.tolist())["values"] for row in windows]
     return np.mean(np.asarray(values, dtype=np.float64), axis=0)
@@ -159,14 +257,56 @@ def scattering_octaves(length: int) -> int:
     """J, the octaves of the scattering's averaging scale 2^J: the largest with 2^J <= length / 4, at most 9
     (a quarter of the instance leaves room for the filters' support at the edges); below 1024 samples an
     eighth (512 samples: J = 6), as kymatio's filters at J = 7 no longer fit 512 samples without border
-    effects (it warns)."""
+    effects (it warns).
+
+    Parameters
+    ----------
+    length : int
+        Samples of an instance.
+
+    Returns
+    -------
+    int
+        J, from 1 to 9.
+
+    Examples
+    --------
+    >>> from features.modern import scattering_octaves
+    >>> [scattering_octaves(n) for n in (512, 1023, 1024, 2048, 3000, 8192)]
+    [6, 6, 8, 9, 9, 9]
+    """
     return max(1, min(9, int(math.floor(math.log2(length / (4 if length >= 1024 else 8))))))
 
 
 @lru_cache(maxsize=8)
 def scattering_transform(length: int) -> object:
     """The ``Scattering1D`` of kymatio for instances of ``length`` samples (J by :func:`scattering_octaves`,
-    Q = :data:`SCATTERING_Q`, orders 0 to 2), built once per process."""
+    Q = :data:`SCATTERING_Q`, orders 0 to 2), built once per process.
+
+    Parameters
+    ----------
+    length : int
+        Samples of an instance.
+
+    Returns
+    -------
+    kymatio.scattering1d.frontend.numpy_frontend.ScatteringNumPy1D
+        The transform, the same object for the same ``length``.
+
+    Raises
+    ------
+    ParameterError
+        If ``kymatio`` is not installed (:func:`require`).
+
+    Examples
+    --------
+    Where the extra ``texplorer[modern]`` is installed, instances of 512 samples get J = 6:
+
+    >>> from features.modern import available, scattering_transform
+    >>> transform = scattering_transform(512) if available("scattering") else None
+    >>> transform is None or (transform.J, transform is scattering_transform(512)) == (6, True)
+    True
+    """
     require("scattering")
     return kymatio_1d.ScatteringNumPy1D(J=scattering_octaves(length), shape=length, Q=SCATTERING_Q)
 
@@ -174,7 +314,35 @@ def scattering_transform(length: int) -> object:
 def scattering(windows: np.ndarray) -> np.ndarray:
     """Every scattering coefficient's mean over time, averaged over the instances; orders 1 and 2 (moduli,
     positive) as ``log(mean + 1e-12)``, as Andén and Mallat (2014, section 2.3) take their log. Order 0 is
-    the low-passed signal itself, signed, and stays a mean."""
+    the low-passed signal itself, signed, and stays a mean.
+
+    Parameters
+    ----------
+    windows : numpy.ndarray
+        The instances, shape ``(instances, length)`` (:func:`instances`).
+
+    Returns
+    -------
+    numpy.ndarray
+        One value per coefficient, in the order of :func:`scattering_names`.
+
+    Raises
+    ------
+    ParameterError
+        If ``kymatio`` is not installed (:func:`require`).
+
+    Examples
+    --------
+    A silent signal: order 0 is 0, every coefficient of orders 1 and 2 the log floor, ``log(1e-12)`` (only
+    where the extra ``texplorer[modern]`` is installed):
+
+    >>> import numpy as np
+    >>> from features.modern import available, scattering, scattering_names
+    >>> values = scattering(np.zeros((2, 512))) if available("scattering") else None
+    >>> values is None or (values.size == len(scattering_names(512)) == 126 and values[0] == 0.0
+    ...                    and bool(np.allclose(values[1:], np.log(1e-12))))
+    True
+    """
     transform = scattering_transform(windows.shape[1])
     coefficients = transform(np.ascontiguousarray(windows)).mean(axis=-1)  # (instances, coefficients)
     modulus = _orders(windows.shape[1]) > 0
@@ -189,19 +357,87 @@ def _orders(length: int) -> np.ndarray:
 
 def scattering_names(length: int) -> tuple[str, ...]:
     """``s0``, ``s1_000``, ..., ``s2_000``, ...: the coefficients of :func:`scattering` in kymatio's order
-    (order 0, then 1, then 2; :data:`SCATTERING_SIZES`)."""
+    (order 0, then 1, then 2; :data:`SCATTERING_SIZES`).
+
+    Parameters
+    ----------
+    length : int
+        Samples of an instance, at least 512 (J of 6, 8 or 9: :func:`scattering_octaves`).
+
+    Returns
+    -------
+    tuple of str
+        One name per coefficient; known without kymatio.
+
+    Examples
+    --------
+    Instances of 512 samples (J = 6) have 1 + 38 + 87 coefficients:
+
+    >>> from features.modern import scattering_names
+    >>> names = scattering_names(512)
+    >>> len(names), names[:3], names[38:40], names[-1]
+    (126, ('s0', 's1_000', 's1_001'), ('s1_037', 's2_000'), 's2_086')
+    """
     first, second = SCATTERING_SIZES[scattering_octaves(length)]
     return ("s0", *(f"s1_{k:03d}" for k in range(first)), *(f"s2_{k:03d}" for k in range(second)))
 
 
 def available(kind: str) -> bool:
     """Whether the library of ``catch22`` or ``scattering`` is installed (``signal`` needs none), found
-    without importing it."""
+    without importing it.
+
+    Parameters
+    ----------
+    kind : str
+        ``"catch22"``, ``"scattering"`` or ``"signal"``.
+
+    Returns
+    -------
+    bool
+        True where the kind's library can be imported, or the kind needs none.
+
+    Examples
+    --------
+    >>> import importlib.util
+    >>> from features.modern import available
+    >>> available("signal"), available("catch22") == (importlib.util.find_spec("pycatch22") is not None)
+    (True, True)
+    """
     return kind not in LIBRARIES or importlib.util.find_spec(LIBRARIES[kind]) is not None
 
 
 def require(kind: str) -> object:
-    """The library of ``kind``; an error naming the extra where it is missing."""
+    """The library of ``kind``; an error naming the extra where it is missing.
+
+    Parameters
+    ----------
+    kind : str
+        ``"catch22"``, ``"scattering"`` or ``"signal"``.
+
+    Returns
+    -------
+    module or None
+        ``pycatch22``, kymatio's 1-D frontend, or None for a kind that needs no library (``signal``); each
+        imported at its first use.
+
+    Raises
+    ------
+    ParameterError
+        If the kind's library is not installed, naming the extra ``texplorer[modern]``.
+
+    Examples
+    --------
+    >>> from features.modern import require
+    >>> from taxonomy.errors import ParameterError
+    >>> require("signal") is None
+    True
+    >>> try:
+    ...     found = require("catch22").__name__
+    ... except ParameterError as error:  # without the extra
+    ...     found = str(error)
+    >>> found in ("pycatch22", "the catch22 features need texplorer[modern] (pip install 'texplorer[modern]')")
+    True
+    """
     if not available(kind):
         raise ParameterError(f"the {kind} features need {EXTRA} (pip install '{EXTRA}')")
     return {"catch22": pycatch22, "scattering": kymatio_1d}.get(kind)
@@ -214,12 +450,75 @@ TAP_LEAD_S = 0.010
 
 
 def slide_vibration(prepared: PreparedScan) -> tuple[np.ndarray, float]:
-    """``v`` of the tool slide: band-limited, in the 1 s slide window, DFT321 (paper section III)."""
+    """``v`` of the tool slide: band-limited, in the 1 s slide window, DFT321 (paper section III).
+
+    Parameters
+    ----------
+    prepared : PreparedScan
+        A scan with ``v_ts``.
+
+    Returns
+    -------
+    signal : numpy.ndarray
+        The 1 s window from the slide start, 1-D.
+    fs : float
+        Its sample rate in Hz.
+
+    Raises
+    ------
+    QualityError
+        If no slide is detected or less than 1 s follows its start.
+
+    Examples
+    --------
+    At rest for 0.5 s, then a 200 Hz slide along x: the second from the slide start, a 200 Hz tone:
+
+    >>> import numpy as np
+    >>> from scanner import Scan, ScanMeta, Trace
+    >>> from features.prepared import PreparedScan
+    >>> meta = ScanMeta("C6S1M1P2X1", "op", "granite-01", 1, "s1", "2024-01-01T00:00:00")
+    >>> from features.modern import slide_vibration
+    >>> t = np.arange(6000) / 3000
+    >>> v = np.zeros((6000, 3))
+    >>> v[1500:, 0] = np.sin(2 * np.pi * 200 * t[1500:])
+    >>> x, fs = slide_vibration(PreparedScan(Scan(meta, {"v_ts": Trace(v, 3000.0, "g")})))
+    >>> x.size, fs, float(np.argmax(np.abs(np.fft.rfft(x))) * fs / x.size)
+    (3000, 3000.0, 200.0)
+    """
     return prepared.slide_signal("v_ts"), prepared.scan["v_ts"].fs
 
 
 def tap_vibration(prepared: PreparedScan) -> tuple[np.ndarray, float]:
-    """The tool tap ``v_tt``: band-limited, DFT321, from :data:`TAP_LEAD_S` before its largest sample."""
+    """The tool tap ``v_tt``: band-limited, DFT321, from :data:`TAP_LEAD_S` before its largest sample.
+
+    Parameters
+    ----------
+    prepared : PreparedScan
+        A scan with ``v_tt``.
+
+    Returns
+    -------
+    signal : numpy.ndarray
+        The tap to the end of the recording, 1-D.
+    fs : float
+        Its sample rate in Hz.
+
+    Examples
+    --------
+    A tap rings down from 0.3 s: the signal's largest sample is 10 ms after its start:
+
+    >>> import numpy as np
+    >>> from scanner import Scan, ScanMeta, Trace
+    >>> from features.prepared import PreparedScan
+    >>> meta = ScanMeta("C6S1M1P2X1", "op", "granite-01", 1, "s1", "2024-01-01T00:00:00")
+    >>> from features.modern import tap_vibration
+    >>> t = np.arange(2100) / 3000
+    >>> v = np.zeros((3000, 3))
+    >>> v[900:, 2] = np.exp(-t / 0.02) * np.sin(2 * np.pi * 300 * t)
+    >>> x, fs = tap_vibration(PreparedScan(Scan(meta, {"v_tt": Trace(v, 3000.0, "g")})))
+    >>> int(np.argmax(np.abs(x))) / fs, fs
+    (0.01, 3000.0)
+    """
     fs = prepared.scan["v_tt"].fs
     v = dft321(prepared.band_limited("v_tt"))
     start = max(0, int(np.argmax(np.abs(v))) - int(round(TAP_LEAD_S * fs)))
@@ -227,14 +526,74 @@ def tap_vibration(prepared: PreparedScan) -> tuple[np.ndarray, float]:
 
 
 def slide_sound(prepared: PreparedScan) -> tuple[np.ndarray, float]:
-    """The tool-slide sound ``a_ts`` in the slide window of ``v_ts``."""
+    """The tool-slide sound ``a_ts`` in the slide window of ``v_ts``.
+
+    Parameters
+    ----------
+    prepared : PreparedScan
+        A scan with ``a_ts`` and ``v_ts``.
+
+    Returns
+    -------
+    signal : numpy.ndarray
+        The sound of the 1 s slide window, 1-D.
+    fs : float
+        Its sample rate in Hz.
+
+    Raises
+    ------
+    QualityError
+        If no slide is detected or less than 1 s of sound follows its start.
+
+    Examples
+    --------
+    A slide from 0.5 s: the sound's second from 0.5 s on:
+
+    >>> import numpy as np
+    >>> from scanner import Scan, ScanMeta, Trace
+    >>> from features.prepared import PreparedScan
+    >>> meta = ScanMeta("C6S1M1P2X1", "op", "granite-01", 1, "s1", "2024-01-01T00:00:00")
+    >>> from features.modern import slide_sound
+    >>> v = np.zeros((6000, 3))
+    >>> v[1500:, 0] = np.sin(2 * np.pi * 200 * np.arange(4500) / 3000)
+    >>> a = np.sin(2 * np.pi * 440 * np.arange(88200) / 44100)
+    >>> scan = Scan(meta, {"v_ts": Trace(v, 3000.0, "g"), "a_ts": Trace(a, 44100.0, "FS")})
+    >>> x, fs = slide_sound(PreparedScan(scan))
+    >>> x.size, fs, bool(np.array_equal(x, a[22050:66150]))
+    (44100, 44100.0, True)
+    """
     a = prepared.scan["a_ts"]
     window = prepared.slide_window("v_ts", audio_samples=a.n, audio_fs=a.fs)
     return a.data[window.audio], a.fs
 
 
 def friction_force(prepared: PreparedScan) -> tuple[np.ndarray, float]:
-    """The tangential force of the friction slide ``f_frt``, whole."""
+    """The tangential force of the friction slide ``f_frt``, whole.
+
+    Parameters
+    ----------
+    prepared : PreparedScan
+        A scan with ``f_frt``.
+
+    Returns
+    -------
+    signal : numpy.ndarray
+        The recorded force in N, 1-D.
+    fs : float
+        Its sample rate in Hz.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scanner import Scan, ScanMeta, Trace
+    >>> from features.prepared import PreparedScan
+    >>> meta = ScanMeta("C6S1M1P2X1", "op", "granite-01", 1, "s1", "2024-01-01T00:00:00")
+    >>> from features.modern import friction_force
+    >>> force = np.linspace(0.0, 3.0, 600)
+    >>> x, fs = friction_force(PreparedScan(Scan(meta, {"f_frt": Trace(force, 3000.0, "N")})))
+    >>> x.size, fs, bool(np.array_equal(x, force))
+    (600, 3000.0, True)
+    """
     trace = prepared.scan["f_frt"]
     return trace.data, trace.fs
 
@@ -287,7 +646,27 @@ def _flat(windows: np.ndarray) -> np.ndarray:
 
 
 def signal_columns(prefix: str, rule: LengthRule) -> tuple[str, ...]:
-    """``<prefix>.00000`` ...: one column per sample of every instance, windows in time order."""
+    """``<prefix>.00000`` ...: one column per sample of every instance, windows in time order.
+
+    Parameters
+    ----------
+    prefix : str
+        The columns' prefix, ``signal.<signal>``.
+    rule : LengthRule
+        The signal's rule: ``rule.samples`` columns.
+
+    Returns
+    -------
+    tuple of str
+        The column names.
+
+    Examples
+    --------
+    >>> from features.modern import LengthRule, signal_columns
+    >>> columns = signal_columns("signal.v_tt", LengthRule(16, windows=2))
+    >>> len(columns), columns[:2], columns[-1]
+    (32, ('signal.v_tt.00000', 'signal.v_tt.00001'), 'signal.v_tt.00031')
+    """
     return tuple(f"{prefix}.{k:05d}" for k in range(rule.samples))
 
 
@@ -436,5 +815,24 @@ KINDS = ("signal", "catch22", "scattering")
 
 
 def role_families(kinds: Sequence[str]) -> tuple[str, ...]:
-    """The registered role families of ``kinds`` (``catch22`` -> ``catch22.audio``, ...)."""
+    """The registered role families of ``kinds`` (``catch22`` -> ``catch22.audio``, ...).
+
+    Parameters
+    ----------
+    kinds : sequence of str
+        Kinds of :data:`KINDS`.
+
+    Returns
+    -------
+    tuple of str
+        The names of their opt-in role families, in registration order (none for a kind whose library is
+        missing).
+
+    Examples
+    --------
+    >>> from features.modern import role_families
+    >>> names = role_families(["signal"])
+    >>> names[0], [name.removeprefix("signal.") for name in names]
+    ('signal.audio', ['audio', 'vibration', 'force_xyz', 'pressure_dc', 'temperature', 'heat_flow'])
+    """
     return tuple(f.name for f in ROLE_REGISTRY.every if f.name.split(".")[0] in kinds and f.opt_in)

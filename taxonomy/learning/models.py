@@ -158,7 +158,34 @@ class TrainedModel:
     rejection: RejectionRule | None = None
 
     def describe(self) -> str:
-        """One line for people: classifier, level, classes, rows, the rejection rule and the features."""
+        """One line for people: classifier, level, classes, rows, the rejection rule and the features.
+
+        Returns
+        -------
+        str
+            The line, its parts separated by ``"; "``.
+
+        Examples
+        --------
+        Two classes leave none to hold out, so the rule never rejects (its threshold is +inf):
+
+        >>> import numpy as np
+        >>> from features import FeatureSpace
+        >>> from taxonomy.learning.models import train_model
+        >>> density = [0.0, 0.2, 0.1, 0.3, 5.0, 5.2, 5.1, 5.3]  # granite, then oak: perfectly separated
+        >>> space = FeatureSpace(np.column_stack([density, [1.0, 0.0] * 4]), ("other.density", "other.metal"),
+        ...                      [f"scan{i}" for i in range(8)], ["C6S1M1P2X1"] * 4 + ["C1S1M1P4X1"] * 4,
+        ...                      [f"sample{i // 2}" for i in range(8)])
+        >>> model = train_model(space, n_features=1, classifier="nb")
+        >>> for part in model.describe().replace(model.software_version, "X.Y").split("; "):
+        ...     print(part)
+        nb at level fine, 2 classes, trained on 8 scans, texplorer X.Y
+        rejects a scan scoring above inf (leave-classes-out AUROC nan inside training)
+        features: other.density
+        >>> from dataclasses import replace
+        >>> replace(model, rejection=None).describe().split("; ")[1]
+        'no rejection rule (a version 1 model)'
+        """
         rule = ("; no rejection rule (a version 1 model)" if self.rejection is None else
                 f"; rejects a scan scoring above {self.rejection.threshold:.2f} (leave-classes-out AUROC "
                 f"{self.rejection.inner_auroc:.2f} inside training)")
@@ -173,7 +200,34 @@ NO_PROBABILITIES = ("ridge",)
 
 def selected_names(pipeline: Pipeline, columns: Sequence[str]) -> tuple[str, ...]:
     """The names of the features the pipeline's selector kept: input columns, or the random-kernel step's
-    outputs (``minirocket.v_ts.00042``) where the pipeline has one."""
+    outputs (``minirocket.v_ts.00042``) where the pipeline has one.
+
+    Parameters
+    ----------
+    pipeline : sklearn.pipeline.Pipeline
+        A fitted pipeline with a ``select`` step (and perhaps a ``kernels`` step).
+    columns : sequence of str
+        The pipeline's input columns in order.
+
+    Returns
+    -------
+    tuple of str
+        The kept features' names, in the selector's order (best FQ first).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> from taxonomy.learning.models import train_model
+    >>> density = [0.0, 0.2, 0.1, 0.3, 5.0, 5.2, 5.1, 5.3]  # granite, then oak: perfectly separated
+    >>> space = FeatureSpace(np.column_stack([density, [1.0, 0.0] * 4]), ("other.density", "other.metal"),
+    ...                      [f"scan{i}" for i in range(8)], ["C6S1M1P2X1"] * 4 + ["C1S1M1P4X1"] * 4,
+    ...                      [f"sample{i // 2}" for i in range(8)])
+    >>> model = train_model(space, n_features=1, classifier="nb")
+    >>> from taxonomy.learning.models import selected_names
+    >>> selected_names(model.pipeline, space.columns), selected_names(model.pipeline, ["density", "metal"])
+    (('other.density',), ('density',))
+    """
     if "kernels" in pipeline.named_steps:
         columns = list(pipeline.named_steps["kernels"].get_feature_names_out())
     return tuple(columns[i] for i in np.asarray(pipeline.named_steps["select"].selected_, dtype=np.int64)
@@ -182,7 +236,34 @@ def selected_names(pipeline: Pipeline, columns: Sequence[str]) -> tuple[str, ...
 
 def required_inputs(model: TrainedModel) -> tuple[str, ...]:
     """The inputs that must be finite to classify: the selected features, and with a random-kernel step
-    every signal column (each signal is transformed whole)."""
+    every signal column (each signal is transformed whole).
+
+    Parameters
+    ----------
+    model : TrainedModel
+        A trained or loaded model.
+
+    Returns
+    -------
+    tuple of str
+        The names of the inputs :func:`predict_top` needs.
+
+    Examples
+    --------
+    Of the two inputs of a model that selects one feature, only that one is needed:
+
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> from taxonomy.learning.models import train_model
+    >>> density = [0.0, 0.2, 0.1, 0.3, 5.0, 5.2, 5.1, 5.3]  # granite, then oak: perfectly separated
+    >>> space = FeatureSpace(np.column_stack([density, [1.0, 0.0] * 4]), ("other.density", "other.metal"),
+    ...                      [f"scan{i}" for i in range(8)], ["C6S1M1P2X1"] * 4 + ["C1S1M1P4X1"] * 4,
+    ...                      [f"sample{i // 2}" for i in range(8)])
+    >>> model = train_model(space, n_features=1, classifier="nb")
+    >>> from taxonomy.learning.models import required_inputs
+    >>> model.feature_names, required_inputs(model)
+    (('other.density', 'other.metal'), ('other.density',))
+    """
     if "kernels" not in model.pipeline.named_steps:
         return model.selected
     signals = tuple(n for n in model.feature_names if n.startswith(f"{SIGNAL_PREFIX}."))
@@ -214,6 +295,8 @@ def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, 
         Seed of the classifier.
     feature_set : None, str or list of str
         None / ``"all"``, a modality or column names.
+    max_accuracy_drop : float
+        The known classes' accuracy the rejection rule may cost, as a fraction (default: 0.02).
 
     Returns
     -------
@@ -223,8 +306,27 @@ def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, 
 
     Raises
     ------
+    ModelError
+        An unknown classifier, or one without class probabilities (:data:`NO_PROBABILITIES`).
     EvaluationError
-        An unknown classifier, or only NaN columns.
+        Only NaN columns.
+
+    Examples
+    --------
+    Two materials that ``other.density`` separates; ``other.metal`` is noise and is not selected:
+
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> from taxonomy.learning.models import train_model
+    >>> density = [0.0, 0.2, 0.1, 0.3, 5.0, 5.2, 5.1, 5.3]  # granite, then oak: perfectly separated
+    >>> space = FeatureSpace(np.column_stack([density, [1.0, 0.0] * 4]), ("other.density", "other.metal"),
+    ...                      [f"scan{i}" for i in range(8)], ["C6S1M1P2X1"] * 4 + ["C1S1M1P4X1"] * 4,
+    ...                      [f"sample{i // 2}" for i in range(8)])
+    >>> model = train_model(space, n_features=1, classifier="nb")
+    >>> model.selected, model.classes, model.n_rows
+    (('other.density',), ('C1S1M1P4X1', 'C6S1M1P2X1'), 8)
+    >>> model.rejection.threshold  # two classes leave none to hold out: the rule never rejects
+    inf
     """
     check_level(level)
     if classifier not in CLASSIFIERS:
@@ -309,6 +411,25 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
     ------
     ModelError
         A model that :func:`load_model` would refuse, so no unreadable file is written.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> from taxonomy.learning.models import train_model
+    >>> density = [0.0, 0.2, 0.1, 0.3, 5.0, 5.2, 5.1, 5.3]  # granite, then oak: perfectly separated
+    >>> space = FeatureSpace(np.column_stack([density, [1.0, 0.0] * 4]), ("other.density", "other.metal"),
+    ...                      [f"scan{i}" for i in range(8)], ["C6S1M1P2X1"] * 4 + ["C1S1M1P4X1"] * 4,
+    ...                      [f"sample{i // 2}" for i in range(8)])
+    >>> model = train_model(space, n_features=1, classifier="nb")
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from taxonomy.learning.models import load_model, save_model
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = save_model(model, Path(folder) / "granite-oak.skops")
+    ...     loaded = load_model(path)
+    >>> path.name, loaded.selected, loaded.classes == model.classes
+    ('granite-oak.skops', ('other.density',), True)
     """
     path = Path(path)
     payload = {
@@ -346,6 +467,38 @@ def load_model(path: str | os.PathLike[str]) -> TrainedModel:
     ------
     ModelError
         One line, for anything else: not a skops archive, an untrusted type, an inconsistent pipeline.
+
+    Warns
+    -----
+    UserWarning
+        If the model was trained with another scikit-learn version.
+
+    Examples
+    --------
+    A model saved and loaded back predicts the same; a file that is not a model is refused:
+
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> from taxonomy.learning.models import train_model
+    >>> density = [0.0, 0.2, 0.1, 0.3, 5.0, 5.2, 5.1, 5.3]  # granite, then oak: perfectly separated
+    >>> space = FeatureSpace(np.column_stack([density, [1.0, 0.0] * 4]), ("other.density", "other.metal"),
+    ...                      [f"scan{i}" for i in range(8)], ["C6S1M1P2X1"] * 4 + ["C1S1M1P4X1"] * 4,
+    ...                      [f"sample{i // 2}" for i in range(8)])
+    >>> model = train_model(space, n_features=1, classifier="nb")
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from taxonomy.learning.models import ModelError, load_model, predict_top, save_model
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     loaded = load_model(save_model(model, Path(folder) / "model.skops"))
+    ...     _ = (Path(folder) / "notes.skops").write_text("not a model")
+    ...     try:
+    ...         load_model(Path(folder) / "notes.skops")
+    ...     except ModelError as error:
+    ...         refused = str(error).removeprefix(f"{folder}/notes.skops: ")
+    >>> predict_top(loaded, {"other.density": 5.1}) == predict_top(model, {"other.density": 5.1})
+    True
+    >>> refused
+    'not a readable model file, damaged, truncated or not a skops archive (File is not a zip file)'
     """
     path = Path(path)
     try:
@@ -644,7 +797,51 @@ class Verdict:
 
 
 def classify_values(model: TrainedModel, feature_values: Mapping[str, float], k: int = 3) -> Verdict:
-    """:func:`predict_top` with the model's rejection rule applied (:mod:`taxonomy.learning.openset`)."""
+    """:func:`predict_top` with the model's rejection rule applied (:mod:`taxonomy.learning.openset`).
+
+    Parameters
+    ----------
+    model : TrainedModel
+        A trained or loaded model.
+    feature_values : mapping of str to float
+        Feature names to values (``features.extract(scan)``); extra names are ignored.
+    k : int
+        How many classes.
+
+    Returns
+    -------
+    Verdict
+        The ``k`` most probable classes, the rejection score and threshold and whether the scan is an
+        unknown material; score NaN and threshold +inf for a model without a rule.
+
+    Raises
+    ------
+    ModelError
+        As :func:`predict_top`.
+
+    Examples
+    --------
+    A model of two classes has a rule that never rejects (threshold +inf); a version 1 model has none:
+
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> from taxonomy.learning.models import train_model
+    >>> density = [0.0, 0.2, 0.1, 0.3, 5.0, 5.2, 5.1, 5.3]  # granite, then oak: perfectly separated
+    >>> space = FeatureSpace(np.column_stack([density, [1.0, 0.0] * 4]), ("other.density", "other.metal"),
+    ...                      [f"scan{i}" for i in range(8)], ["C6S1M1P2X1"] * 4 + ["C1S1M1P4X1"] * 4,
+    ...                      [f"sample{i // 2}" for i in range(8)])
+    >>> model = train_model(space, n_features=1, classifier="nb")
+    >>> from dataclasses import replace
+    >>> from taxonomy.learning.models import classify_values, predict_top
+    >>> verdict = classify_values(model, {"other.density": 5.1})
+    >>> verdict.top == predict_top(model, {"other.density": 5.1}), verdict.threshold, verdict.unknown
+    (True, inf, False)
+    >>> verdict.explanation.closest
+    'C1S1M1P4X1'
+    >>> verdict = classify_values(replace(model, rejection=None), {"other.density": 5.1})
+    >>> verdict.score, verdict.threshold, verdict.unknown, verdict.explanation
+    (nan, inf, False, None)
+    """
     top = predict_top(model, feature_values, k)
     if model.rejection is None:
         return Verdict(top, math.nan, math.inf)
@@ -681,6 +878,29 @@ def predict_top(model: TrainedModel, feature_values: Mapping[str, float],
     ------
     ModelError
         A selected feature missing or NaN, naming them (a guess would look like a real prediction).
+
+    Examples
+    --------
+    ``other.metal`` is not selected, so it may be missing:
+
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> from taxonomy.learning.models import train_model
+    >>> density = [0.0, 0.2, 0.1, 0.3, 5.0, 5.2, 5.1, 5.3]  # granite, then oak: perfectly separated
+    >>> space = FeatureSpace(np.column_stack([density, [1.0, 0.0] * 4]), ("other.density", "other.metal"),
+    ...                      [f"scan{i}" for i in range(8)], ["C6S1M1P2X1"] * 4 + ["C1S1M1P4X1"] * 4,
+    ...                      [f"sample{i // 2}" for i in range(8)])
+    >>> model = train_model(space, n_features=1, classifier="nb")
+    >>> from taxonomy.learning.models import predict_top
+    >>> top = predict_top(model, {"other.density": 5.1})
+    >>> [(label, round(probability, 3)) for label, probability in top]
+    [('C1S1M1P4X1', 1.0), ('C6S1M1P2X1', 0.0)]
+    >>> predict_top(model, {"other.density": 0.1, "other.metal": float("nan")}, k=1)[0][0]
+    'C6S1M1P2X1'
+    >>> predict_top(model, {"other.metal": 1.0})
+    Traceback (most recent call last):
+    ...
+    taxonomy.learning.models.ModelError: missing feature value(s) the model needs: other.density
     """
     if isinstance(k, bool) or not isinstance(k, int) or k < 1:
         raise ModelError(f"k must be a positive integer, got {k!r}")
@@ -709,7 +929,32 @@ def _finite(value: Any) -> bool:
 
 
 def format_predictions(predictions: Sequence[tuple[str, float]], taxonomy: Taxonomy | None = None) -> str:
-    """Lines like ``1. C6S1M1P2X1   82.0 %  granite (igneous stone, stone), polished, plain``."""
+    """Lines like ``1. C6S1M1P2X1   82.0 %  granite (igneous stone, stone), polished, plain``.
+
+    Parameters
+    ----------
+    predictions : sequence of (str, float)
+        ``[(label, probability), ...]`` (:func:`predict_top`), in rank order.
+    taxonomy : Taxonomy, optional
+        Names the labels; a label it lacks is marked ``(not in the taxonomy table)``.
+
+    Returns
+    -------
+    str
+        One line per prediction: rank, label (padded to the longest), probability in percent and the name.
+
+    Examples
+    --------
+    >>> from taxonomy import SHIPPED_TABLE, Taxonomy
+    >>> from taxonomy.learning.models import format_predictions
+    >>> predictions = [("C6S1M1P2X1", 0.82), ("C1S1M1P4X1", 0.18)]
+    >>> print(format_predictions(predictions))
+    1. C6S1M1P2X1   82.0 %
+    2. C1S1M1P4X1   18.0 %
+    >>> print(format_predictions(predictions, Taxonomy.from_csv(SHIPPED_TABLE)))
+    1. C6S1M1P2X1   82.0 %  granite (igneous stone, stone), polished, plain
+    2. C1S1M1P4X1   18.0 %  oak (hardwood, wood), planed, plain
+    """
     width = max((len(label) for label, _ in predictions), default=0)
     lines = []
     for rank, (label, probability) in enumerate(predictions, start=1):
