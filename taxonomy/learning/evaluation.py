@@ -77,7 +77,19 @@ MLP_MAX_ITER = 200
 
 def default_feature_sets() -> dict[str, FeatureSet]:
     """The paper's Figs. 16-18 columns: one modality (registered feature family) at a time, then all of them
-    (X3 of "all" is the best-3)."""
+    (X3 of "all" is the best-3).
+
+    Returns
+    -------
+    dict of str to FeatureSet
+        Display name -> feature set: each modality of :data:`features.registry.REGISTRY` by its name, then
+        ``all`` (None).
+
+    Examples
+    --------
+    >>> default_feature_sets()
+    {'tactum': 'tactum', 'image': 'image', 'audio': 'audio', 'other': 'other', 'all': None}
+    """
     return {**{name: name for name in REGISTRY.modalities}, "all": None}
 
 
@@ -93,6 +105,24 @@ def classifier_estimators(seed: int) -> dict[str, BaseEstimator]:
     random forest of 100 trees (MATLAB's Classification Learner bags 30), each split drawing sqrt(f)
     candidate features. ``ridge``: ``RidgeClassifierCV`` choosing its penalty among 10 values from 1e-3 to
     1e3 by efficient leave-one-out on the training rows, as Dempster et al.
+
+    Parameters
+    ----------
+    seed : int
+        The random state of every classifier that has one.
+
+    Returns
+    -------
+    dict of str to estimator
+        Name -> unfitted scikit-learn classifier, in the order of :data:`CLASSIFIERS`.
+
+    Examples
+    --------
+    >>> estimators = classifier_estimators(seed=7)
+    >>> list(estimators)
+    ['svm', 'lda', 'knn', 'mlp', 'rf', 'nb', 'ridge']
+    >>> estimators["rf"].random_state, estimators["rf"].n_estimators, estimators["knn"].n_neighbors
+    (7, 100, 3)
     """
     return {
         "svm": SVC(kernel="rbf", probability=True, random_state=seed),
@@ -140,6 +170,43 @@ def make_pipeline(classifier: str | BaseEstimator = "rf", n_features: int | None
 
     ``classifier`` is a key of :data:`CLASSIFIERS` or any unfitted scikit-learn classifier (it is cloned;
     its random state is set to ``seed`` when it has one).
+
+    Parameters
+    ----------
+    classifier : str or estimator
+        A key of :data:`CLASSIFIERS` or an unfitted scikit-learn classifier.
+    n_features : int or None
+        Features the selector keeps; None keeps every one, unselected.
+    seed : int
+        Random state of the classifier and of the random kernels.
+    kernels : str, optional
+        ``minirocket`` or ``multirocket``: a random-kernel step first.
+    columns : sequence of str
+        The names of the input columns.
+
+    Returns
+    -------
+    Pipeline
+        Unfitted.
+
+    Raises
+    ------
+    EvaluationError
+        An unknown classifier name, or a classifier that is neither a name nor an estimator.
+
+    Examples
+    --------
+    The selector keeps the one column that tells ``a`` from ``b``, and the classifier names a new row by it:
+
+    >>> pipeline = make_pipeline("knn", n_features=1)
+    >>> [name for name, _ in pipeline.steps]
+    ['scale', 'select', 'classify']
+    >>> pipeline.fit([[0.0, 5.0], [1.0, 3.0], [9.0, 4.0], [10.0, 5.0]], ["a", "a", "b", "b"]).predict([[8.0, 3.0]])
+    array(['b'], dtype='<U1')
+    >>> pipeline.named_steps["select"].selected_.tolist()
+    [0]
+    >>> type(make_pipeline("rf", n_features=None).named_steps["select"]).__name__
+    'KeepAll'
     """
     if isinstance(classifier, str):
         if classifier not in CLASSIFIERS:
@@ -156,7 +223,23 @@ def make_pipeline(classifier: str | BaseEstimator = "rf", n_features: int | None
 
 
 def classifier_name(classifier: str | BaseEstimator) -> str:
-    """A classifier's name as the tables print it: its key, or its class name."""
+    """A classifier's name as the tables print it: its key, or its class name.
+
+    Parameters
+    ----------
+    classifier : str or estimator
+        A key of :data:`CLASSIFIERS` or a scikit-learn classifier.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> from sklearn.naive_bayes import GaussianNB
+    >>> classifier_name("rf"), classifier_name(GaussianNB())
+    ('rf', 'GaussianNB')
+    """
     return classifier if isinstance(classifier, str) else type(classifier).__name__
 
 
@@ -171,6 +254,35 @@ def iteration_limit_stops(estimator: BaseEstimator,
     to scale the data does not apply (the pipeline scales every feature to [0, 1]). Every other warning
     stays a warning, an MLP's that stopped for another reason (a failed line search) or with other
     settings included. The stop is recognised by scipy's L-BFGS-B message, which scikit-learn's warning quotes.
+
+    Parameters
+    ----------
+    estimator : estimator
+        The unfitted classifier whose fits raised the warnings.
+    caught : sequence of warnings.WarningMessage
+        The warnings recorded while fitting.
+
+    Returns
+    -------
+    stops : int
+        Fits of the paper's MLP that stopped at the iteration limit (0 for any other classifier).
+    others : list of warnings.WarningMessage
+        Every other warning, in order.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> from sklearn.exceptions import ConvergenceWarning
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     warnings.warn("lbfgs failed to converge (status=1): STOP: TOTAL NO. OF ITERATIONS REACHED LIMIT.",
+    ...                   ConvergenceWarning)
+    ...     warnings.warn("lbfgs failed to converge (status=2): ABNORMAL: a failed line search", ConvergenceWarning)
+    >>> stops, others = iteration_limit_stops(classifier_estimators(0)["mlp"], caught)
+    >>> stops, [str(w.message) for w in others]
+    (1, ['lbfgs failed to converge (status=2): ABNORMAL: a failed line search'])
+    >>> iteration_limit_stops(classifier_estimators(0)["rf"], caught)[0]  # not the paper's MLP
+    0
     """
     stops = [w for w in caught if paper_mlp(estimator) and issubclass(w.category, ConvergenceWarning)
              and "ITERATIONS REACHED LIMIT" in str(w.message).upper()]
@@ -178,7 +290,23 @@ def iteration_limit_stops(estimator: BaseEstimator,
 
 
 def paper_mlp(estimator: BaseEstimator) -> bool:
-    """Whether ``estimator`` is an MLP trained as the paper's: by L-BFGS for at most 200 iterations."""
+    """Whether ``estimator`` is an MLP trained as the paper's: by L-BFGS for at most 200 iterations.
+
+    Parameters
+    ----------
+    estimator : estimator
+        A scikit-learn classifier.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> from sklearn.neural_network import MLPClassifier
+    >>> paper_mlp(classifier_estimators(0)["mlp"]), paper_mlp(MLPClassifier(solver="lbfgs", max_iter=500))
+    (True, False)
+    """
     return (isinstance(estimator, MLPClassifier) and estimator.solver == "lbfgs"
             and estimator.max_iter == MLP_MAX_ITER)
 
@@ -218,6 +346,46 @@ def cv_splits(y: Sequence[str], groups: Sequence[str], folds: int = 5, seed: int
     - Only when every class has a single group, or there are fewer groups than folds, no grouped split
       exists: the split falls back to the ungrouped ``StratifiedKFold`` of the paper (scans of one sample in
       both training and test) with a warning saying why.
+
+    Parameters
+    ----------
+    y : sequence of str
+        Each row's class at the level being classified.
+    groups : sequence of str
+        Each row's group (sample).
+    folds : int
+        Number of folds, at least 2.
+    seed : int
+        Seed of the shuffle.
+    grouping_labels : sequence of str, optional
+        The classes that decide whether grouping is possible (default ``y``).
+    single_group : str
+        ``"train"`` or ``"drop"``: what becomes of a class with a single group.
+
+    Returns
+    -------
+    splits : list of (numpy.ndarray, numpy.ndarray)
+        The (train, test) row indices of every fold.
+    grouped : bool
+        Whether no group lies in the training and the test part of one fold.
+
+    Raises
+    ------
+    EvaluationError
+        ``folds`` not an integer of at least 2, an unknown ``single_group``, or no class with ``folds`` rows.
+
+    Examples
+    --------
+    Two samples of each class, scanned twice: each fold tests one sample of each class, and no sample is on
+    both sides of a fold:
+
+    >>> y = ["a", "a", "a", "a", "b", "b", "b", "b"]
+    >>> groups = ["a1", "a1", "a2", "a2", "b1", "b1", "b2", "b2"]
+    >>> splits, grouped = cv_splits(y, groups, folds=2)
+    >>> grouped, [sorted({groups[i] for i in test}) for _, test in splits]
+    (True, [['a2', 'b1'], ['a1', 'b2']])
+    >>> all(not {groups[i] for i in train} & {groups[i] for i in test} for train, test in splits)
+    True
     """
     y = np.asarray(y)
     groups = np.asarray(groups)
@@ -259,7 +427,28 @@ def _stratified(y: np.ndarray, rows: np.ndarray, folds: int, seed: int) -> list[
 
 
 def given_split(split: Sequence[str]) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The set's own split as the one (train, test) pair of row indices; an error without both parts."""
+    """The set's own split as the one (train, test) pair of row indices; an error without both parts.
+
+    Parameters
+    ----------
+    split : sequence of str
+        ``train`` or ``test`` per row (``FeatureSpace.split``).
+
+    Returns
+    -------
+    list of (numpy.ndarray, numpy.ndarray)
+        One (train, test) pair.
+
+    Raises
+    ------
+    EvaluationError
+        No training or no test row.
+
+    Examples
+    --------
+    >>> [(train.tolist(), test.tolist()) for train, test in given_split(["train", "test", "train", "test"])]
+    [([0, 2], [1, 3])]
+    """
     split = np.asarray(split)
     train, test = np.flatnonzero(split == "train"), np.flatnonzero(split == "test")
     if train.size == 0 or test.size == 0:
@@ -272,7 +461,34 @@ def given_split(split: Sequence[str]) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 def resolve_feature_set(space: FeatureSpace, feature_set: FeatureSet) -> tuple[FeatureSpace, str]:
-    """The columns of ``feature_set`` and its display name ("all", the modality, or "<n> columns")."""
+    """The columns of ``feature_set`` and its display name ("all", the modality, or "<n> columns").
+
+    Parameters
+    ----------
+    space : FeatureSpace
+        The feature space.
+    feature_set : FeatureSet
+        None or ``"all"``, a named set (:mod:`features.feature_sets`), a modality, or column names.
+
+    Returns
+    -------
+    subset : FeatureSpace
+        ``space`` with the set's columns only.
+    name : str
+        The set's display name.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> space = FeatureSpace(np.array([[1.0, 2.0, 3.0]]), ("tactum.matx", "other.density", "other.metal"),
+    ...                      ("scan1",), ("C1S1M1P1X1",), ("sample1",))
+    >>> subset, name = resolve_feature_set(space, "other")
+    >>> subset.columns, name
+    (('other.density', 'other.metal'), 'other')
+    >>> resolve_feature_set(space, ["tactum.matx", "other.metal"])[1], resolve_feature_set(space, None)[1]
+    ('2 columns', 'all')
+    """
     if feature_set is None or feature_set == "all":
         return space, "all"
     if isinstance(feature_set, str) and feature_sets.is_named_set(feature_set):
@@ -290,6 +506,36 @@ def drop_nan_columns(space: FeatureSpace) -> tuple[FeatureSpace, tuple[str, ...]
     a warning naming how many and the first few; then a column with NaN in any row is left out (it gets FQ
     0 anyway) and listed in the result; when that would leave no column, the rows with NaN are left out
     instead, with a warning.
+
+    Parameters
+    ----------
+    space : FeatureSpace
+        The feature space.
+
+    Returns
+    -------
+    subset : FeatureSpace
+        The rows and columns kept, checked by :func:`check_degenerate`.
+    dropped : tuple of str
+        The columns left out.
+
+    Raises
+    ------
+    EvaluationError
+        Every row holds only NaN, or the values kept cannot be scaled or are constant.
+
+    Examples
+    --------
+    The metal value of one scan is missing: the column is left out, the scan kept:
+
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> X = np.array([[1.0, 5.0, 3.0], [2.0, np.nan, 1.0], [3.0, 4.0, 2.0]])
+    >>> space = FeatureSpace(X, ("tactum.matx", "other.metal", "other.density"), ("a", "b", "c"),
+    ...                      ("C1S1M1P1X1", "C2S1M1P1X1", "C2S1M1P1X1"), ("a", "b", "c"))
+    >>> subset, dropped = drop_nan_columns(space)
+    >>> subset.columns, dropped, subset.scan_ids
+    (('tactum.matx', 'other.density'), ('other.metal',), ('a', 'b', 'c'))
     """
     empty = np.isnan(space.X).all(axis=1)
     if empty.all():
@@ -310,7 +556,40 @@ def drop_nan_columns(space: FeatureSpace) -> tuple[FeatureSpace, tuple[str, ...]
 def check_degenerate(space: FeatureSpace, first: int = 3) -> FeatureSpace:
     """``space`` itself if its values can be scaled and tell rows apart; else an :class:`EvaluationError`
     saying what is wrong with the data: a column whose values are infinite or span more than float64 holds
-    (+-1e308: the scaler's range overflows and every value becomes NaN), or every column constant."""
+    (+-1e308: the scaler's range overflows and every value becomes NaN), or every column constant.
+
+    Parameters
+    ----------
+    space : FeatureSpace
+        The feature space.
+    first : int
+        How many overflowing columns the message names.
+
+    Returns
+    -------
+    FeatureSpace
+        ``space`` itself.
+
+    Raises
+    ------
+    EvaluationError
+        A column spans more than a float64 can scale, or every column is constant.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> labels, ids = ("C1S1M1P1X1", "C2S1M1P1X1"), ("a", "b")
+    >>> space = FeatureSpace(np.array([[1.0], [2.0]]), ("other.density",), ids, labels, ids)
+    >>> check_degenerate(space) is space
+    True
+    >>> constant = FeatureSpace(np.array([[1.0], [1.0]]), ("other.density",), ids, labels, ids)
+    >>> check_degenerate(constant)  # doctest: +NORMALIZE_WHITESPACE
+    Traceback (most recent call last):
+    ...
+    taxonomy.learning.results.EvaluationError: every one of the 1 feature column(s) is constant over the 2 rows
+    (other.density = 1, ...): no feature can tell the classes apart
+    """
     X = space.X
     with np.errstate(over="ignore", invalid="ignore"):
         span = X.max(axis=0) - X.min(axis=0) if X.size else np.zeros(X.shape[1])
@@ -380,6 +659,20 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
         ungrouped folds, an MLP of other settings that did not converge) are collected in ``Result.notes``;
         the fits of the paper's MLP that stopped at its 200 iterations are counted in ``Result.unconverged``
         (:func:`iteration_limit_stops`).
+
+    Examples
+    --------
+    Two classes, two samples of each scanned twice; the density tells the classes apart, the TacTUM value
+    (0 or 1 in both) does not. Naive Bayes on the density (the one feature selected) names every scan right:
+
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> X = np.array([[0.0, 0.0], [0.1, 1.0], [0.2, 0.0], [0.3, 1.0], [1.0, 0.0], [1.1, 1.0], [1.2, 0.0], [1.3, 1.0]])
+    >>> labels, samples = ("C1S1M1P1X1",) * 4 + ("C2S1M1P1X1",) * 4, ("a1", "a1", "a2", "a2", "b1", "b1", "b2", "b2")
+    >>> space = FeatureSpace(X, ("other.density", "tactum.matx"), tuple(f"scan{i}" for i in range(8)), labels, samples)
+    >>> result = evaluate(space, "nb", "coarse", n_features=1, folds=2, calibrate=False)
+    >>> result.accuracy.tolist(), result.confusion.tolist(), result.splitting
+    ([1.0, 1.0], [[4, 0], [0, 4]], '2 grouped folds')
     """
     cell = _Cell(space.check_level(level), _set_name(feature_set), feature_set, n_features)
     return _run(space, [classifier], [cell], folds, seed, protocol, workers=1, progress=False,
@@ -423,9 +716,14 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
         Show a progress bar.
     use_split : bool
         Use the space's own train/test split where it has one.
+    single_group : str
+        ``"train"`` or ``"drop"``: a class with a single sample (group) is kept in training only, or left
+        out (:func:`cv_splits`).
     calibrate : bool or collection of (str, str, int or None)
         Calibrate every cell (see :func:`evaluate`), none, or only the cells named by (level, feature set
         name, set size); the predictions are the same either way.
+    group_by : str
+        What ``space.groups`` are, for the report (see :func:`evaluate`).
     pairs : collection of (str, int or None), optional
         Only these (level, set size) pairs of ``levels`` x ``set_sizes`` (default: every pair), e.g. the
         paper's figures: ``{("coarse", 10), ("fine", 10), ("fine", 3)}``.
@@ -441,6 +739,22 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
         An unknown classifier or protocol, too few rows per class for the folds, or only NaN columns.
     FeatureSpaceError
         A level the space does not have.
+
+    Examples
+    --------
+    Two classes, two samples of each scanned twice; the density tells the classes apart, the TacTUM value
+    (0 or 1 in both) does not: each classifier is at chance (0.5) on the TacTUM set and right on every
+    scan with the density:
+
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> X = np.array([[0.0, 0.0], [0.1, 1.0], [0.2, 0.0], [0.3, 1.0], [1.0, 0.0], [1.1, 1.0], [1.2, 0.0], [1.3, 1.0]])
+    >>> labels, samples = ("C1S1M1P1X1",) * 4 + ("C2S1M1P1X1",) * 4, ("a1", "a1", "a2", "a2", "b1", "b1", "b2", "b2")
+    >>> space = FeatureSpace(X, ("other.density", "tactum.matx"), tuple(f"scan{i}" for i in range(8)), labels, samples)
+    >>> results = evaluate_grid(space, ["nb", "lda"], ["coarse"], [1], folds=2, workers=1, calibrate=False)
+    >>> [(r.classifier, r.feature_set, r.accuracy_mean) for r in results]  # doctest: +NORMALIZE_WHITESPACE
+    [('nb', 'tactum', 0.5), ('nb', 'other', 1.0), ('nb', 'all', 1.0),
+     ('lda', 'tactum', 0.5), ('lda', 'other', 1.0), ('lda', 'all', 1.0)]
     """
     classifiers = list(classifiers)
     levels = list(dict.fromkeys(space.check_level(level) for level in (levels or space.level_names)))
@@ -461,7 +775,28 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
 
 
 def present_feature_sets(space: FeatureSpace) -> dict[str, FeatureSet]:
-    """The modalities present, then all of them; a single modality only once (it is all of them)."""
+    """The modalities present, then all of them; a single modality only once (it is all of them).
+
+    Parameters
+    ----------
+    space : FeatureSpace
+        The feature space.
+
+    Returns
+    -------
+    dict of str to FeatureSet
+        Display name -> feature set, in the order of :func:`default_feature_sets`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> space = FeatureSpace(np.array([[1.0, 2.0]]), ("other.density", "tactum.matx"), ("a",), ("C1S1M1P1X1",), ("a",))
+    >>> present_feature_sets(space)
+    {'tactum': 'tactum', 'other': 'other', 'all': None}
+    >>> present_feature_sets(space.modality("other"))
+    {'other': 'other'}
+    """
     prefixes = {c.split(".", 1)[0] for c in space.columns}
     present = {name: fs for name, fs in default_feature_sets().items() if fs in prefixes}
     return present if len(present) == 1 else {**present, "all": None}
@@ -472,10 +807,37 @@ def with_values(space: FeatureSpace, sets: dict[str, FeatureSet]) -> tuple[dict[
     every one of its columns is missing in every row (photos smaller than the border crop leave the image
     family without a value): such a set cannot be evaluated, the others can.
 
+    Parameters
+    ----------
+    space : FeatureSpace
+        The feature space.
+    sets : dict of str to FeatureSet
+        Display name -> feature set.
+
+    Returns
+    -------
+    kept : dict of str to FeatureSet
+        The sets with a value somewhere.
+    left_out : list of str
+        One line per set left out.
+
     Raises
     ------
     EvaluationError
         No set has a value.
+
+    Examples
+    --------
+    Photos too small for the image features:
+
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> X = np.array([[1.0, np.nan, 3.0], [2.0, np.nan, 1.0]])
+    >>> space = FeatureSpace(X, ("tactum.matx", "image.disp.brightness", "other.density"), ("a", "b"),
+    ...                      ("C1S1M1P1X1", "C2S1M1P1X1"), ("a", "b"))
+    >>> kept, left_out = with_values(space, present_feature_sets(space))
+    >>> list(kept), left_out
+    (['tactum', 'other', 'all'], ['feature set image left out: none of its 1 columns has a value in any of the 2 rows'])
     """
     kept, left_out = {}, []
     for name, feature_set in sets.items():
@@ -741,7 +1103,47 @@ def fit_pipeline(X: np.ndarray, y: np.ndarray, groups: np.ndarray, classifier: s
     :class:`~taxonomy.learning.calibration.TemperatureScaledClassifier` whose inner splits keep ``groups`` together
     and leave out rows whose ``materials`` (full labels) their inner training part lacks (scikit-learn's
     ``Pipeline.fit`` cannot hand these to the last step, so the steps are fitted here one after the other,
-    as ``Pipeline.fit`` would). ``kernels`` and ``columns`` are :func:`make_pipeline`'s."""
+    as ``Pipeline.fit`` would). ``kernels`` and ``columns`` are :func:`make_pipeline`'s.
+
+    Parameters
+    ----------
+    X : numpy.ndarray
+        (rows, columns) training values, without NaN.
+    y : numpy.ndarray
+        Each row's class.
+    groups : numpy.ndarray
+        Each row's group (sample), for the calibration's inner splits.
+    classifier : str or estimator
+        A key of :data:`CLASSIFIERS` or an unfitted scikit-learn classifier.
+    n_features : int or None
+        Features the selector keeps; None keeps every one, unselected.
+    seed : int
+        Random state of the classifier, the kernels and the calibration's splits.
+    calibrate : bool
+        Wrap the classifier in a temperature-scaled one.
+    materials : numpy.ndarray, optional
+        Each row's full label, for the calibration's inner splits.
+    kernels : str, optional
+        ``minirocket`` or ``multirocket``: a random-kernel step first.
+    columns : sequence of str
+        The names of the input columns.
+
+    Returns
+    -------
+    Pipeline
+        Fitted on every row.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X = np.array([[0.0], [0.1], [0.2], [0.3], [1.0], [1.1], [1.2], [1.3]])
+    >>> y, groups = np.repeat(["cork", "oak"], 4), np.repeat(["c1", "c2", "o1", "o2"], 2)
+    >>> pipeline = fit_pipeline(X, y, groups, "nb", n_features=None)
+    >>> type(pipeline[-1]).__name__, pipeline.predict(np.array([[0.05], [1.25]])).tolist()
+    ('TemperatureScaledClassifier', ['cork', 'oak'])
+    >>> type(fit_pipeline(X, y, groups, "nb", n_features=None, calibrate=False)[-1]).__name__
+    'GaussianNB'
+    """
     pipeline = make_pipeline(classifier, n_features, seed, kernels, columns)
     with one_blas_thread():
         Z = pipeline[:-1].fit_transform(X, y)
@@ -756,7 +1158,23 @@ def fit_pipeline(X: np.ndarray, y: np.ndarray, groups: np.ndarray, classifier: s
 
 
 def recording_of(scan_id: str) -> str:
-    """The recording a row belongs to: ``<recording>#w<k>`` is window k of a recording (``--combine rows``)."""
+    """The recording a row belongs to: ``<recording>#w<k>`` is window k of a recording (``--combine rows``).
+
+    Parameters
+    ----------
+    scan_id : str
+        A row's scan id.
+
+    Returns
+    -------
+    str
+        The id without its window suffix.
+
+    Examples
+    --------
+    >>> recording_of("oak-01-003#w2"), recording_of("oak-01-003")
+    ('oak-01-003', 'oak-01-003')
+    """
     return scan_id.rsplit("#w", 1)[0]
 
 
@@ -768,6 +1186,41 @@ def vote(result: Result, recordings: Sequence[str]) -> Result:
     probabilities, else the most frequent prediction (ties: the first in class order). Its fold is its
     windows' fold (they share one: folds keep a recording's windows together); a recording whose windows
     lie in different folds is an error.
+
+    Parameters
+    ----------
+    result : Result
+        A result with its out-of-fold predictions (``y_true``, ``y_pred``, ``fold``).
+    recordings : sequence of str
+        The recording of every row (:func:`recording_of`).
+
+    Returns
+    -------
+    Result
+        One row per recording, in order of first appearance; accuracy, F1 and confusion recomputed.
+
+    Raises
+    ------
+    EvaluationError
+        A result without its out-of-fold predictions, or a recording whose windows lie in different folds
+        or classes.
+
+    Examples
+    --------
+    Three recordings of cork and three of oak, three windows each, folds grouped by recording; one window of
+    a cork recording looks like oak and is named oak, but its recording's two other windows outvote it:
+
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> ids = tuple(f"{material}{k}#w{w}" for material in ("cork", "oak") for k in range(3) for w in range(3))
+    >>> X = np.repeat([0.0, 1.0], 9)[:, None] + np.tile([0.0, 0.1, -0.1], 6)[:, None]
+    >>> X[2, 0] = 1.0
+    >>> space = FeatureSpace(X, ("other.density",), ids, ("C1S1M1P1X1",) * 9 + ("C2S1M1P1X1",) * 9,
+    ...                      tuple(recording_of(i) for i in ids))
+    >>> result = evaluate(space, "nb", "coarse", n_features=None, folds=3, calibrate=False, group_by="recording")
+    >>> voted = vote(result, [recording_of(i) for i in space.scan_ids])
+    >>> int(np.sum(result.y_pred == result.y_true)), len(result.y_true), voted.accuracy_pooled, len(voted.y_true)
+    (17, 18, 1.0, 6)
     """
     if result.y_true is None or result.y_pred is None or result.fold is None:
         raise EvaluationError("only a result with its out-of-fold predictions can be voted")
@@ -816,6 +1269,56 @@ def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = 
     unknown, and once as known unless its sample's fold is the one that holds out its class. The result's
     arrays are per test instance (``Result.rows``); ``auroc``, ``known_accuracy``, ``closed_accuracy`` and
     ``unknown_rejected`` hold the figures.
+
+    Parameters
+    ----------
+    space : FeatureSpace
+        Rows = scans, with labels and groups.
+    classifier : str
+        A key of :data:`CLASSIFIERS`.
+    level : str
+        The classification level.
+    n_features : int or None
+        Features kept by the selector; None keeps every feature, unselected.
+    folds, seed : int
+        Number of folds (and of class parts); seed of the folds, the class parts and the classifier.
+    feature_set : FeatureSet
+        None / ``"all"``, a named set, a modality or column names (see :func:`evaluate`).
+    group_by : str
+        What ``space.groups`` are, for the report.
+    max_accuracy_drop : float
+        The known-class accuracy the rejection rule may cost, as a fraction.
+    calibrate : bool
+        Calibrate each fold's classifier and keep the calibrated probabilities (``Result.probability``).
+
+    Returns
+    -------
+    Result
+        One row per test instance; ``Result.open_set`` is true.
+
+    Raises
+    ------
+    EvaluationError
+        Fewer than two classes to hold out in turn, or too few rows for the folds.
+
+    Examples
+    --------
+    Four classes at the corners of a square 10 wide, two samples of each scanned twice. Each scan is tested
+    once as unknown, and the score ranks every unknown scan above every known one. Each fold trains on two
+    classes, too few to hold one out inside training: its threshold stays +inf and nothing is rejected.
+
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> rng = np.random.default_rng(0)
+    >>> X = np.repeat([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, 10.0]], 4, axis=0) + rng.normal(0, 0.2, (16, 2))
+    >>> space = FeatureSpace(X, ("other.density", "other.metal"), tuple(f"scan{i}" for i in range(16)),
+    ...                      tuple(f"C{c}S1M1P1X1" for c in np.repeat([1, 2, 3, 4], 4)),
+    ...                      tuple(f"sample{k}" for k in range(8) for _ in range(2)))
+    >>> result = evaluate_open_set(space, "nb", "coarse", n_features=None, folds=2, calibrate=False)
+    >>> result.splitting
+    '2 grouped folds, 1/2 of the classes held out per fold'
+    >>> int(np.sum(~result.known)), result.auroc, result.closed_accuracy, result.unknown_rejected
+    (16, 1.0, 1.0, 0.0)
     """
     level = space.check_level(level)
     with warnings.catch_warnings(record=True) as caught:

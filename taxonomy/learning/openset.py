@@ -112,7 +112,32 @@ class Neighbours:
 
     def standardise(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rows of ``X`` standardised as the reference, missing values at the training median; and where
-        the values were finite."""
+        the values were finite.
+
+        Parameters
+        ----------
+        X : numpy.ndarray
+            (n, columns) values of the input columns; NaN where missing.
+
+        Returns
+        -------
+        Z : numpy.ndarray
+            (n, columns) standardised values.
+        present : numpy.ndarray
+            (n, columns) booleans: where ``X`` was finite.
+
+        Examples
+        --------
+        Training columns of mean 1 and 20, standard deviation 1 and 10, medians 1 and 20:
+
+        >>> import numpy as np
+        >>> from taxonomy.learning.openset import fit_neighbours
+        >>> neighbours = fit_neighbours(np.array([[0.0, 10.0], [2.0, 30.0]]), np.array(["a", "b"]), ["a", "b"],
+        ...                             ["tactum.matx", "other.density"])
+        >>> Z, present = neighbours.standardise(np.array([[4.0, np.nan]]))
+        >>> Z.tolist(), present.tolist()
+        ([[3.0, 0.0]], [[True, False]])
+        """
         X = np.asarray(X, dtype=np.float64)
         present = np.isfinite(X)
         filled = np.where(present, X, self.fill)
@@ -120,7 +145,34 @@ class Neighbours:
 
     def log_distances(self, X: np.ndarray) -> np.ndarray:
         """``log d_g`` of every row of ``X`` (n, groups) to the nearest reference row; NaN in a group where
-        the row has no finite value."""
+        the row has no finite value.
+
+        Parameters
+        ----------
+        X : numpy.ndarray
+            (n, columns) values of the input columns; NaN where missing.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, groups) natural log distances.
+
+        Examples
+        --------
+        Four training scans whose TacTUM vectors point along the axes, class ``a`` along x, ``b`` along y. A scan at 45
+        degrees between two of them lies ``2 sin(22.5 deg) = 0.7654`` from the nearest; a multiple of a training scan's
+        vector, at distance 0 (the groups are unit vectors):
+
+        >>> import numpy as np
+        >>> from taxonomy.learning.openset import fit_neighbours
+        >>> X = np.array([[1.0, 0.0, 1.0], [-1.0, 0.0, 2.0], [0.0, 1.0, 3.0], [0.0, -1.0, 4.0]])
+        >>> neighbours = fit_neighbours(X, np.array(["a", "a", "b", "b"]), ["a", "b"],
+        ...                             ["tactum.x", "tactum.y", "other.density"])
+        >>> neighbours.titles
+        ('TacTUM', 'other')
+        >>> np.round(np.exp(neighbours.log_distances(np.array([[1.0, 1.0, np.nan], [3.0, 0.0, 4.0]]))), 4).tolist()
+        [[0.7654, nan], [0.0, 0.0]]
+        """
         out = np.full((len(X), len(self.titles)), np.nan)
         for g, has, query, reference in self._groups(X):
             out[has, g] = np.log(np.maximum(pairwise_distances_argmin_min(query, reference)[1], 1e-12))
@@ -128,7 +180,31 @@ class Neighbours:
 
     def class_log_distances(self, X: np.ndarray) -> np.ndarray:
         """``log d_g`` of every row of ``X`` to the nearest reference row of each class: (n, groups,
-        classes); for a few rows (it holds their distances to every reference row)."""
+        classes); for a few rows (it holds their distances to every reference row).
+
+        Parameters
+        ----------
+        X : numpy.ndarray
+            (n, columns) values of the input columns; NaN where missing.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, groups, classes) natural log distances; NaN in a group where the row has no finite value.
+
+        Examples
+        --------
+        Four training scans whose TacTUM vectors point along the axes, class ``a`` along x, ``b`` along y. A scan along
+        x lies at distance 0 from class ``a`` and at a right angle, ``sqrt 2``, from ``b``:
+
+        >>> import numpy as np
+        >>> from taxonomy.learning.openset import fit_neighbours
+        >>> X = np.array([[1.0, 0.0, 1.0], [-1.0, 0.0, 2.0], [0.0, 1.0, 3.0], [0.0, -1.0, 4.0]])
+        >>> neighbours = fit_neighbours(X, np.array(["a", "a", "b", "b"]), ["a", "b"],
+        ...                             ["tactum.x", "tactum.y", "other.density"])
+        >>> np.round(np.exp(neighbours.class_log_distances(np.array([[1.0, 0.0, np.nan]]))), 4).tolist()
+        [[[0.0, 1.4142], [nan, nan]]]
+        """
         classes = int(self.classes.max(initial=-1)) + 1
         out = np.full((len(X), len(self.titles), classes), np.nan)
         for g, has, query, reference in self._groups(X):
@@ -161,12 +237,53 @@ class Scales:
     term_sd: np.ndarray
 
     def group_z(self, log_distances: np.ndarray) -> np.ndarray:
-        """Log distances per feature group standardised by the known scans' mean and spread."""
+        """Log distances per feature group standardised by the known scans' mean and spread.
+
+        Parameters
+        ----------
+        log_distances : numpy.ndarray
+            ``log d_g``, groups on the last axis.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``z_g = (log d_g - a_g) / b_g``, shaped as ``log_distances``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from taxonomy.learning.openset import Scales
+        >>> scales = Scales(np.array([-1.0, 0.0]), np.array([0.5, 2.0]), np.zeros(2), np.zeros(3), np.ones(3))
+        >>> scales.group_z(np.array([[0.0, 1.0]])).tolist()
+        [[2.0, 0.5]]
+        """
         return (log_distances - self.group_mean) / self.group_sd
 
     def combine(self, terms: np.ndarray) -> np.ndarray:
         """``s = mean_i (t_i - alpha_i) / beta_i`` of rows of terms (n, 3); a missing term (a scan with no
-        value in any group) is left out of the mean."""
+        value in any group) is left out of the mean.
+
+        Parameters
+        ----------
+        terms : numpy.ndarray
+            (n, 3) raw terms ``(u, m, n)`` (:meth:`RejectionRule.terms`).
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) scores.
+
+        Examples
+        --------
+        Terms of standard deviations 1, 2 and 4 around 0: ``(3 + 1 + 1) / 3``, and without the last term
+        ``(3 + 1) / 2``:
+
+        >>> import numpy as np
+        >>> from taxonomy.learning.openset import Scales
+        >>> scales = Scales(np.zeros(1), np.ones(1), np.zeros(1), np.zeros(3), np.array([1.0, 2.0, 4.0]))
+        >>> np.round(scales.combine(np.array([[3.0, 2.0, 4.0], [3.0, 2.0, np.nan]])), 6).tolist()
+        [1.666667, 2.0]
+        """
         return _mean_present((terms - self.term_mean) / self.term_sd)
 
 
@@ -201,7 +318,26 @@ class RejectionRule:
     scales: Scales | None = None
 
     def to_dict(self) -> dict[str, object]:
-        """The rule as plain values and arrays, as a model file stores it."""
+        """The rule as plain values and arrays, as a model file stores it.
+
+        Returns
+        -------
+        dict of str to object
+            Floats and float arrays; with a neighbour model and scales also their arrays, group titles and
+            each reference row's class.
+
+        Examples
+        --------
+        A rule of the previous format (no neighbour model): its threshold, scale and budget, and two arrays:
+
+        >>> import numpy as np
+        >>> from taxonomy.learning.openset import RejectionRule
+        >>> stored = RejectionRule(np.zeros((2, 1)), np.eye(1), 2.0, 1.5, inner_auroc=0.9).to_dict()
+        >>> {name: value for name, value in stored.items() if isinstance(value, float)}
+        {'distance_scale': 2.0, 'threshold': 1.5, 'max_accuracy_drop': 0.02, 'inner_auroc': 0.9}
+        >>> stored["means"].tolist(), stored["precision"].tolist()
+        ([[0.0], [0.0]], [[1.0]])
+        """
         stored: dict[str, object] = {
             "means": np.asarray(self.means, dtype=np.float64),
             "precision": np.asarray(self.precision, dtype=np.float64),
@@ -219,12 +355,73 @@ class RejectionRule:
 
     def terms(self, pipeline: Pipeline, X: np.ndarray) -> np.ndarray:
         """The raw terms ``(u, m, n)`` of every row of ``X`` (n, 3); ``n`` is NaN in a rule of the
-        previous format."""
+        previous format.
+
+        Parameters
+        ----------
+        pipeline : Pipeline
+            The fitted model this rule was fitted for.
+        X : numpy.ndarray
+            (n, columns) values of the input columns.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, 3) surprisal, log distance ratio and mean group ``z_g``.
+
+        Examples
+        --------
+        Two samples of cork (0 and 0.2) and of oak (0.8 and 1); ``M_0 = 2``: a training scan lies 0.2 from the mean of
+        its class's other sample, twice the classes' standard deviation of 0.1. A rule of the previous format (no
+        neighbour term) with threshold 1. A scan at 0.2 is sure cork (``u = 0``), ``1 = M_0 / 2`` from its mean; one
+        halfway, at 0.5, is split 50:50 (``u = log 2``) and ``4 = 2 M_0`` from either mean:
+
+        >>> import numpy as np
+        >>> from taxonomy.learning.evaluation import fit_pipeline
+        >>> from taxonomy.learning.openset import Learned, fit_rule
+        >>> X, y = np.array([[0.0], [0.2], [0.8], [1.0]]), np.array(["cork", "cork", "oak", "oak"])
+        >>> groups = np.array(["cork1", "cork2", "oak1", "oak2"])
+        >>> pipeline = fit_pipeline(X, y, groups, "nb", n_features=None, calibrate=False)
+        >>> rule = fit_rule(pipeline, X, y, groups, Learned(1.0, float("nan"), None), ["other.density"])
+        >>> np.round(rule.terms(pipeline, np.array([[0.2], [0.5]])), 4).tolist()
+        [[0.0, -0.6931, nan], [0.6931, 0.6931, nan]]
+        """
         return score_terms(pipeline, X, Distance(self.means, self.precision, self.distance_scale),
                            self.neighbours, self.scales)
 
     def score(self, pipeline: Pipeline, X: np.ndarray) -> np.ndarray:
-        """``s(x)`` of every row of ``X`` under ``pipeline``, the model this rule was fitted for."""
+        """``s(x)`` of every row of ``X`` under ``pipeline``, the model this rule was fitted for.
+
+        Parameters
+        ----------
+        pipeline : Pipeline
+            The fitted model this rule was fitted for.
+        X : numpy.ndarray
+            (n, columns) values of the input columns.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) scores; a scan is rejected where its score exceeds ``threshold``.
+
+        Examples
+        --------
+        Two samples of cork (0 and 0.2) and of oak (0.8 and 1); ``M_0 = 2``: a training scan lies 0.2 from the mean of
+        its class's other sample, twice the classes' standard deviation of 0.1. A rule of the previous format (no
+        neighbour term) with threshold 1: its score is ``u + m``, ``0 - log 2`` for a scan of cork at 0.2, and
+        ``log 2 + log 2`` for one halfway between the classes, which is rejected:
+
+        >>> import numpy as np
+        >>> from taxonomy.learning.evaluation import fit_pipeline
+        >>> from taxonomy.learning.openset import Learned, fit_rule
+        >>> X, y = np.array([[0.0], [0.2], [0.8], [1.0]]), np.array(["cork", "cork", "oak", "oak"])
+        >>> groups = np.array(["cork1", "cork2", "oak1", "oak2"])
+        >>> pipeline = fit_pipeline(X, y, groups, "nb", n_features=None, calibrate=False)
+        >>> rule = fit_rule(pipeline, X, y, groups, Learned(1.0, float("nan"), None), ["other.density"])
+        >>> score = rule.score(pipeline, np.array([[0.2], [0.5]]))
+        >>> np.round(score, 4).tolist(), (score > rule.threshold).tolist()
+        ([-0.6931, 1.3863], [False, True])
+        """
         terms = self.terms(pipeline, X)
         if self.scales is None:
             return terms[:, 0] + terms[:, 1]
@@ -233,7 +430,42 @@ class RejectionRule:
     def assess(self, pipeline: Pipeline, X: np.ndarray) -> tuple[np.ndarray, list[Explanation]]:
         """``s(x)`` and an :class:`Explanation` of every row of ``X``, from one computation of the terms (a
         scan being classified needs both). The closest class is the classifier's top one in a rule of the
-        previous format (which names no group) and for a row without a value in any group."""
+        previous format (which names no group) and for a row without a value in any group.
+
+        Parameters
+        ----------
+        pipeline : Pipeline
+            The fitted model this rule was fitted for.
+        X : numpy.ndarray
+            (n, columns) values of the input columns.
+
+        Returns
+        -------
+        score : numpy.ndarray
+            (n,) scores, as :meth:`score` gives them.
+        explanations : list of Explanation
+            One per row.
+
+        Examples
+        --------
+        Two samples of cork and of oak, told apart by their density; their TacTUM vectors point one way or
+        another, alike in both materials. With scales that leave ``z_g = log d_g`` and limit it at 0 (a
+        distance of 1), a scan whose TacTUM vector lies at a right angle to every trained one (distance
+        ``sqrt 2``) is unlike in that group:
+
+        >>> import numpy as np
+        >>> from taxonomy.learning.evaluation import fit_pipeline
+        >>> from taxonomy.learning.openset import Learned, Scales, fit_rule
+        >>> X = np.array([[0.0, 1.0, 0.0], [0.2, 0.0, 1.0], [0.8, 1.0, 0.0], [1.0, 0.0, 1.0]])
+        >>> y, groups = np.array(["cork", "cork", "oak", "oak"]), np.array(["cork1", "cork2", "oak1", "oak2"])
+        >>> pipeline = fit_pipeline(X, y, groups, "nb", n_features=None, calibrate=False)
+        >>> scales = Scales(np.zeros(2), np.ones(2), np.zeros(2), np.zeros(3), np.ones(3))
+        >>> rule = fit_rule(pipeline, X, y, groups, Learned(0.0, float("nan"), scales),
+        ...                 ["other.density", "tactum.a", "tactum.b"])
+        >>> score, why = rule.assess(pipeline, np.array([[0.1, 1.0, 0.0], [0.1, 1.0, 1.0]]))
+        >>> [(e.closest, e.unlike) for e in why], bool(score[1] > score[0])
+        ([('cork', ()), ('cork', ('TacTUM',))], True)
+        """
         classes = [str(c) for c in pipeline.classes_]
         if self.neighbours is None or self.scales is None:
             top = pipeline.predict_proba(X).argmax(axis=1)
@@ -264,7 +496,24 @@ class RejectionRule:
 
 
 def unit_rows(Z: np.ndarray) -> np.ndarray:
-    """Every row of ``Z`` scaled to unit Euclidean length (a zero row stays zero)."""
+    """Every row of ``Z`` scaled to unit Euclidean length (a zero row stays zero).
+
+    Parameters
+    ----------
+    Z : numpy.ndarray
+        (n, d) vectors.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, d) unit vectors, or zeros.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> unit_rows(np.array([[3.0, 4.0], [0.0, 0.0]])).tolist()
+    [[0.6, 0.8], [0.0, 0.0]]
+    """
     return Z / np.maximum(np.linalg.norm(Z, axis=1, keepdims=True), 1e-12)
 
 
@@ -275,7 +524,31 @@ def _class_means(Z: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def mahalanobis(Z: np.ndarray, means: np.ndarray, precision: np.ndarray) -> np.ndarray:
-    """Distance of every row of ``Z`` to its nearest class mean under the shared ``precision``."""
+    """Distance of every row of ``Z`` to its nearest class mean under the shared ``precision``.
+
+    Parameters
+    ----------
+    Z : numpy.ndarray
+        (n, d) rows in the model's feature space.
+    means : numpy.ndarray
+        (classes, d) class means.
+    precision : numpy.ndarray
+        (d, d) inverse of the shared covariance.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) Mahalanobis distances.
+
+    Examples
+    --------
+    A 3-4-5 triangle: with unit covariance the Euclidean distance, with variance 4 (precision 1/4) half of it:
+
+    >>> import numpy as np
+    >>> Z, means = np.array([[0.0, 0.0], [3.0, 4.0]]), np.array([[0.0, 0.0], [10.0, 10.0]])
+    >>> mahalanobis(Z, means, np.eye(2)).tolist(), mahalanobis(Z, means, np.eye(2) / 4).tolist()
+    ([0.0, 5.0], [0.0, 2.5])
+    """
     Z = np.asarray(Z, dtype=np.float64)
     squared = np.stack([np.einsum("ij,jk,ik->i", Z - m, precision, Z - m) for m in means])
     return np.sqrt(np.maximum(squared.min(axis=0), 0.0))
@@ -286,7 +559,32 @@ def fit_distance(Z: np.ndarray, y: np.ndarray, groups: np.ndarray) -> Distance:
     inverted) and ``M_0``: the median over the training rows whose class has another group (sample) of
     the distance to the nearest class mean, the row's own class's mean taken without the row's group. Rows
     of a class with a single sample are left out of ``M_0``: without their own class they would measure
-    the distance between classes, and models fitted on fewer samples would get a larger scale."""
+    the distance between classes, and models fitted on fewer samples would get a larger scale.
+
+    Parameters
+    ----------
+    Z : numpy.ndarray
+        (n, d) training rows in the model's feature space.
+    y : numpy.ndarray
+        Each row's class.
+    groups : numpy.ndarray
+        Each row's sample.
+
+    Returns
+    -------
+    Distance
+
+    Examples
+    --------
+    Two samples of cork (0 and 0.2) and of oak (0.8 and 1): class means 0.1 and 0.9, variance 0.01
+    (precision 100), and ``M_0 = 0.2 * 10 = 2``, a scan's distance from its class's other sample:
+
+    >>> import numpy as np
+    >>> distance = fit_distance(np.array([[0.0], [0.2], [0.8], [1.0]]), np.array(["cork", "cork", "oak", "oak"]),
+    ...                         np.array(["cork1", "cork2", "oak1", "oak2"]))
+    >>> np.round(distance.means, 6).tolist(), round(float(distance.precision[0, 0]), 3), round(distance.scale, 4)
+    ([[0.1], [0.9]], 100.0, 2.0)
+    """
     Z, y, groups = np.asarray(Z, dtype=np.float64), np.asarray(y), np.asarray(groups)
     means, index = _class_means(Z, y)
     deviations = Z - means[index]
@@ -305,7 +603,26 @@ def fit_distance(Z: np.ndarray, y: np.ndarray, groups: np.ndarray) -> Distance:
 
 def feature_groups(columns: Sequence[str]) -> tuple[tuple[str, ...], np.ndarray]:
     """The group titles of the input ``columns`` and each column's group index (-1 for a raw signal column,
-    whose values are samples, not features)."""
+    whose values are samples, not features).
+
+    Parameters
+    ----------
+    columns : sequence of str
+        The input column names (:meth:`features.registry.ScanRegistry.column_groups`).
+
+    Returns
+    -------
+    titles : tuple of str
+        The groups' titles, in order of first appearance.
+    group_of : numpy.ndarray
+        Each column's group index, or -1.
+
+    Examples
+    --------
+    >>> titles, group_of = feature_groups(["tactum.matx", "other.density", "other.metal", "signal.v_ts.00001"])
+    >>> titles, group_of.tolist()
+    (('TacTUM', 'other'), [0, 1, 1, -1])
+    """
     titles: list[str] = []
     group_of = np.full(len(columns), -1, dtype=np.int64)
     for title, indices in REGISTRY.column_groups(columns):
@@ -317,7 +634,36 @@ def feature_groups(columns: Sequence[str]) -> tuple[tuple[str, ...], np.ndarray]
 
 
 def fit_neighbours(X: np.ndarray, y: np.ndarray, classes: Sequence[str], columns: Sequence[str]) -> Neighbours:
-    """The nearest-neighbour model of the training rows ``X`` (classes ``y``, the pipeline's ``classes``)."""
+    """The nearest-neighbour model of the training rows ``X`` (classes ``y``, the pipeline's ``classes``).
+
+    Parameters
+    ----------
+    X : numpy.ndarray
+        (n, columns) training rows; NaN where a value is missing.
+    y : numpy.ndarray
+        Each row's class.
+    classes : sequence of str
+        The pipeline's classes (``classes_``), sorted.
+    columns : sequence of str
+        The input column names, which name the groups (:func:`feature_groups`).
+
+    Returns
+    -------
+    Neighbours
+
+    Examples
+    --------
+    Three scans; the missing density takes the median, 20, and every column is standardised (mean 2 and 20,
+    standard deviation ``sqrt(8 / 3)`` and ``10 sqrt(2 / 3)``):
+
+    >>> import numpy as np
+    >>> X = np.array([[0.0, 10.0], [2.0, np.nan], [4.0, 30.0]])
+    >>> neighbours = fit_neighbours(X, np.array(["a", "b", "b"]), ["a", "b"], ["tactum.matx", "other.density"])
+    >>> neighbours.titles, neighbours.fill.tolist(), neighbours.classes.tolist()
+    (('TacTUM', 'other'), [2.0, 20.0], [0, 1, 1])
+    >>> np.round(neighbours.reference, 4).tolist()
+    [[-1.2247, -1.2247], [0.0, 0.0], [1.2247, 1.2247]]
+    """
     X = np.asarray(X, dtype=np.float64)
     titles, group_of = feature_groups(columns)
     finite = np.isfinite(X)
@@ -332,7 +678,33 @@ def fit_neighbours(X: np.ndarray, y: np.ndarray, classes: Sequence[str], columns
 def confidence(pipeline: Pipeline, X: np.ndarray) -> np.ndarray:
     """The classifier's own largest class probability per row: of the forest's trees (not the calibrated
     probability, whose temperature changes from model to model), or the calibrated one where the classifier
-    has no probabilities of its own."""
+    has no probabilities of its own.
+
+    Parameters
+    ----------
+    pipeline : Pipeline
+        A fitted ``scale -> select -> classify`` pipeline.
+    X : numpy.ndarray
+        (n, columns) values of the input columns.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) the largest class probability of each row.
+
+    Examples
+    --------
+    Two samples of cork (0 and 0.2) and of oak (0.8 and 1), the classes' standard deviation 0.1: sure at a class mean,
+    split 50:50 halfway between them:
+
+    >>> import numpy as np
+    >>> from taxonomy.learning.evaluation import fit_pipeline
+    >>> X, y = np.array([[0.0], [0.2], [0.8], [1.0]]), np.array(["cork", "cork", "oak", "oak"])
+    >>> groups = np.array(["cork1", "cork2", "oak1", "oak2"])
+    >>> pipeline = fit_pipeline(X, y, groups, "nb", n_features=None, calibrate=False)
+    >>> np.round(confidence(pipeline, np.array([[0.1], [0.5]])), 6).tolist()
+    [1.0, 0.5]
+    """
     classifier = pipeline[-1]
     Z = pipeline[:-1].transform(X)
     if isinstance(classifier, TemperatureScaledClassifier) and hasattr(classifier.estimator_, "predict_proba"):
@@ -343,7 +715,41 @@ def confidence(pipeline: Pipeline, X: np.ndarray) -> np.ndarray:
 def score_terms(pipeline: Pipeline, X: np.ndarray, distance: Distance, neighbours: Neighbours | None,
                 scales: Scales | None) -> np.ndarray:
     """``(u, m, n)`` of every row of ``X`` (module docstring); ``n`` is NaN without ``scales`` (it needs
-    the groups' ``a_g``, ``b_g``)."""
+    the groups' ``a_g``, ``b_g``).
+
+    Parameters
+    ----------
+    pipeline : Pipeline
+        A fitted ``scale -> select -> classify`` pipeline.
+    X : numpy.ndarray
+        (n, columns) values of the input columns.
+    distance : Distance
+        The Mahalanobis model of the pipeline's training rows (:func:`fit_distance`).
+    neighbours : Neighbours or None
+        The nearest-neighbour model of the training rows (:func:`fit_neighbours`).
+    scales : Scales or None
+        The groups' and terms' scales.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 3) surprisal ``u``, log distance ratio ``m`` and mean group ``z_g`` ``n``.
+
+    Examples
+    --------
+    Two samples of cork (0 and 0.2) and of oak (0.8 and 1), the classes' standard deviation 0.1; ``M_0 = 2``. A scan at
+    0.2 is sure cork (``u = 0``), 1 from its mean (``m = log(1 / 2)``); one at 0.5 is split 50:50 (``u = log 2``), 4
+    from either mean (``m = log 2``):
+
+    >>> import numpy as np
+    >>> from taxonomy.learning.evaluation import fit_pipeline
+    >>> X, y = np.array([[0.0], [0.2], [0.8], [1.0]]), np.array(["cork", "cork", "oak", "oak"])
+    >>> groups = np.array(["cork1", "cork2", "oak1", "oak2"])
+    >>> pipeline = fit_pipeline(X, y, groups, "nb", n_features=None, calibrate=False)
+    >>> distance = fit_distance(pipeline[:-1].transform(X), y, groups)
+    >>> np.round(score_terms(pipeline, np.array([[0.2], [0.5]]), distance, None, None), 4).tolist()
+    [[0.0, -0.6931, nan], [0.6931, 0.6931, nan]]
+    """
     u = -np.log(np.maximum(confidence(pipeline, X), 1e-12))
     m = np.log(np.maximum(mahalanobis(pipeline[:-1].transform(X), distance.means, distance.precision)
                           / distance.scale, 1e-12))
@@ -373,6 +779,36 @@ def choose_threshold(score: np.ndarray, unknown: np.ndarray, correct: np.ndarray
     scans). +inf (reject nothing) with
     fewer than three right rows; ``unknown`` rows do not set ``t``, which is the lowest that keeps the
     known-class accuracy: the most unknown rows rejected for that cost.
+
+    Parameters
+    ----------
+    score : numpy.ndarray
+        (n,) the rows' scores ``s``.
+    unknown : numpy.ndarray
+        (n,) booleans: rows of a class the scoring model did not know.
+    correct : numpy.ndarray
+        (n,) booleans: rows the model classified right.
+    max_accuracy_drop : float
+        The known-class accuracy the rule may cost, as a fraction.
+
+    Returns
+    -------
+    float
+        The threshold; -inf (reject everything) where the budget covers every right row.
+
+    Examples
+    --------
+    Ten known rows, all right, scored 1 to 10, and a budget of 10 %: ``q = 0.1``, the 0.9 quantile
+    ``1 + 0.9 * 9 = 9.1``. Unknown rows leave it where it is; two right rows set nothing:
+
+    >>> import numpy as np
+    >>> round(choose_threshold(np.arange(1.0, 11.0), np.zeros(10, bool), np.ones(10, bool), 0.1), 6)
+    9.1
+    >>> unknown = np.r_[np.zeros(10, bool), np.ones(2, bool)]
+    >>> round(choose_threshold(np.arange(1.0, 13.0), unknown, np.ones(12, bool), 0.1), 6)
+    9.1
+    >>> choose_threshold(np.array([1.0, 2.0]), np.zeros(2, bool), np.ones(2, bool))
+    inf
     """
     score, unknown, correct = np.asarray(score), np.asarray(unknown, dtype=bool), np.asarray(correct, dtype=bool)
     right = score[~unknown & correct & np.isfinite(score)]
@@ -385,7 +821,31 @@ def choose_threshold(score: np.ndarray, unknown: np.ndarray, correct: np.ndarray
 
 
 def class_folds(y: np.ndarray, folds: int, seed: int) -> list[np.ndarray]:
-    """The classes of ``y`` shuffled with ``seed`` and dealt into ``folds`` parts (each class in one)."""
+    """The classes of ``y`` shuffled with ``seed`` and dealt into ``folds`` parts (each class in one).
+
+    Parameters
+    ----------
+    y : numpy.ndarray
+        Each row's class.
+    folds : int
+        The number of parts; fewer where there are fewer classes (no part is empty).
+    seed : int
+        Seed of the shuffle.
+
+    Returns
+    -------
+    list of numpy.ndarray
+        Each part's classes, sorted.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> y = np.array(["a", "a", "b", "b", "c", "c", "d", "d", "e"])
+    >>> [part.tolist() for part in class_folds(y, 2, seed=0)]
+    [['b', 'c', 'd'], ['a', 'e']]
+    >>> len(class_folds(y, 9, seed=0))  # five classes: five parts
+    5
+    """
     classes = np.unique(y)
     shuffled = np.random.default_rng(seed).permutation(classes)
     return [np.sort(shuffled[k::folds]) for k in range(folds) if shuffled[k::folds].size]
@@ -403,7 +863,36 @@ class Learned:
 
 def fit_scales(terms: np.ndarray, log_distances: np.ndarray, known: np.ndarray) -> Scales:
     """The :class:`Scales` from the rounds' raw terms ``u``, ``m`` (n, 2) and group ``log d_g`` (n, groups),
-    over the ``known`` rows."""
+    over the ``known`` rows.
+
+    Parameters
+    ----------
+    terms : numpy.ndarray
+        (n, 2) raw ``u`` and ``m`` of the rounds' test rows.
+    log_distances : numpy.ndarray
+        (n, groups) their ``log d_g``; NaN where a row has no value in a group.
+    known : numpy.ndarray
+        (n,) booleans: rows of a class their round's model knew.
+
+    Returns
+    -------
+    Scales
+        Means and (sample) standard deviations over the known rows; a spread of 0 or NaN becomes 1.
+
+    Examples
+    --------
+    Three known rows with ``log d`` 0, 1, 2 (mean 1, standard deviation 1: ``z`` = -1, 0, 1, their 0.98
+    quantile 0.96) and a constant ``m`` (its spread of 0 taken as 1); the unknown fourth row counts for
+    nothing:
+
+    >>> import numpy as np
+    >>> terms = np.array([[0.0, 1.0], [1.0, 1.0], [2.0, 1.0], [9.0, 9.0]])
+    >>> scales = fit_scales(terms, np.array([[0.0], [1.0], [2.0], [9.0]]), np.array([True, True, True, False]))
+    >>> scales.group_mean.tolist(), scales.group_sd.tolist(), np.round(scales.group_limit, 6).tolist()
+    ([1.0], [1.0], [0.96])
+    >>> scales.term_mean.tolist(), scales.term_sd.tolist()
+    ([1.0, 1.0, 0.0], [1.0, 1.0, 1.0])
+    """
     def mean_sd(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         with np.errstate(invalid="ignore"), warnings_ignored():
             mean, sd = np.nanmean(values, axis=0), np.nanstd(values, axis=0, ddof=1)
@@ -420,7 +909,25 @@ def fit_scales(terms: np.ndarray, log_distances: np.ndarray, known: np.ndarray) 
 
 @contextmanager
 def warnings_ignored() -> Iterator[None]:
-    """Quiet numpy's warnings of a mean or quantile over an all-NaN column (a group no row had)."""
+    """Quiet numpy's warnings of a mean or quantile over an all-NaN column (a group no row had).
+
+    Yields
+    ------
+    None
+        Inside the ``with`` block RuntimeWarnings are ignored; after it, the filters are as before.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import numpy as np
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     with warnings_ignored():
+    ...         quiet = np.nanmean(np.array([np.nan, np.nan]))
+    ...     loud = np.nanmean(np.array([np.nan]))
+    >>> float(quiet), float(loud), [str(w.message) for w in caught]
+    (nan, nan, ['Mean of empty slice'])
+    """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         yield
@@ -428,7 +935,41 @@ def warnings_ignored() -> Iterator[None]:
 
 def fit_models(pipeline: Pipeline, X: np.ndarray, y: np.ndarray, groups: np.ndarray,
                columns: Sequence[str]) -> tuple[Distance, Neighbours]:
-    """The distance and neighbour models of a fitted ``pipeline``'s training rows (input ``columns``)."""
+    """The distance and neighbour models of a fitted ``pipeline``'s training rows (input ``columns``).
+
+    Parameters
+    ----------
+    pipeline : Pipeline
+        A ``scale -> select -> classify`` pipeline fitted on ``X``.
+    X : numpy.ndarray
+        (n, columns) its training rows.
+    y : numpy.ndarray
+        Each row's class.
+    groups : numpy.ndarray
+        Each row's sample.
+    columns : sequence of str
+        The input column names.
+
+    Returns
+    -------
+    distance : Distance
+        In the pipeline's feature space (:func:`fit_distance`).
+    neighbours : Neighbours
+        On the input columns (:func:`fit_neighbours`).
+
+    Examples
+    --------
+    Two samples of cork (0 and 0.2) and of oak (0.8 and 1), the classes' standard deviation 0.1 (``M_0 = 2``):
+
+    >>> import numpy as np
+    >>> from taxonomy.learning.evaluation import fit_pipeline
+    >>> X, y = np.array([[0.0], [0.2], [0.8], [1.0]]), np.array(["cork", "cork", "oak", "oak"])
+    >>> groups = np.array(["cork1", "cork2", "oak1", "oak2"])
+    >>> pipeline = fit_pipeline(X, y, groups, "nb", n_features=None, calibrate=False)
+    >>> distance, neighbours = fit_models(pipeline, X, y, groups, ["other.density"])
+    >>> round(distance.scale, 4), neighbours.titles, neighbours.classes.tolist()
+    (2.0, ('other',), [0, 0, 1, 1])
+    """
     return (fit_distance(pipeline[:-1].transform(X), y, groups),
             fit_neighbours(X, y, [str(c) for c in pipeline.classes_], columns))
 
@@ -436,7 +977,43 @@ def fit_models(pipeline: Pipeline, X: np.ndarray, y: np.ndarray, groups: np.ndar
 def fit_rule(pipeline: Pipeline, X: np.ndarray, y: np.ndarray, groups: np.ndarray, learned: Learned,
              columns: Sequence[str], max_accuracy_drop: float = MAX_ACCURACY_DROP) -> RejectionRule:
     """The rule of a fitted ``pipeline``: its distance and neighbour models on its training rows (input
-    ``columns``), and the threshold and scales that :func:`learn_rejection` learned."""
+    ``columns``), and the threshold and scales that :func:`learn_rejection` learned.
+
+    Parameters
+    ----------
+    pipeline : Pipeline
+        A ``scale -> select -> classify`` pipeline fitted on ``X``.
+    X : numpy.ndarray
+        (n, columns) its training rows.
+    y : numpy.ndarray
+        Each row's class.
+    groups : numpy.ndarray
+        Each row's sample.
+    learned : Learned
+        The threshold, inner AUROC and scales (:func:`learn_rejection`).
+    columns : sequence of str
+        The input column names.
+    max_accuracy_drop : float
+        The known-class accuracy the threshold was allowed to cost, as a fraction.
+
+    Returns
+    -------
+    RejectionRule
+        Without a neighbour model where ``learned`` has no scales (the previous format's score).
+
+    Examples
+    --------
+    Two samples of cork (0 and 0.2) and of oak (0.8 and 1), the classes' standard deviation 0.1 (``M_0 = 2``):
+
+    >>> import numpy as np
+    >>> from taxonomy.learning.evaluation import fit_pipeline
+    >>> X, y = np.array([[0.0], [0.2], [0.8], [1.0]]), np.array(["cork", "cork", "oak", "oak"])
+    >>> groups = np.array(["cork1", "cork2", "oak1", "oak2"])
+    >>> pipeline = fit_pipeline(X, y, groups, "nb", n_features=None, calibrate=False)
+    >>> rule = fit_rule(pipeline, X, y, groups, Learned(1.5, 0.9, None), ["other.density"])
+    >>> rule.threshold, rule.inner_auroc, round(rule.distance_scale, 4), rule.neighbours is None
+    (1.5, 0.9, 2.0, True)
+    """
     distance, neighbours = fit_models(pipeline, X, y, groups, columns)
     return RejectionRule(distance.means, distance.precision, distance.scale, learned.threshold, max_accuracy_drop,
                          learned.inner_auroc, neighbours if learned.scales is not None else None, learned.scales)
@@ -451,7 +1028,49 @@ def learn_rejection(X: np.ndarray, y: np.ndarray, groups: np.ndarray, fit: FitPi
     the other classes' rows as known: the scales and the inner AUROC come from these rounds. The threshold
     is read from the known rows' scores of :func:`known_scores`: grouped folds of every training class,
     whose models, like the final one, know every class. With fewer than three classes there is nothing to
-    hold out and ``t`` is +inf (never reject)."""
+    hold out and ``t`` is +inf (never reject).
+
+    Parameters
+    ----------
+    X : numpy.ndarray
+        (n, columns) the training rows.
+    y : numpy.ndarray
+        Each row's class.
+    groups : numpy.ndarray
+        Each row's sample.
+    fit : FitPipeline
+        Fits a ``scale -> select -> classify`` pipeline on ``(X, y, groups)``.
+    columns : sequence of str
+        The input column names.
+    rounds : int
+        Leave-classes-out rounds and grouped folds.
+    seed : int
+        Seed of the class parts and the splits.
+    max_accuracy_drop : float
+        The known-class accuracy the rule may cost, as a fraction.
+
+    Returns
+    -------
+    Learned
+
+    Examples
+    --------
+    Four classes at the corners of a square 10 wide, two samples of each scanned twice, 0.2 of noise: a held-out class
+    scores above every known row (inner AUROC 1). Two classes leave nothing to hold out:
+
+    >>> import numpy as np
+    >>> from taxonomy.learning.evaluation import fit_pipeline
+    >>> rng = np.random.default_rng(0)
+    >>> y = np.repeat(["a", "b", "c", "d"], 4)
+    >>> X = np.repeat([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, 10.0]], 4, axis=0) + rng.normal(0, 0.2, (16, 2))
+    >>> groups = np.repeat([f"sample{k}" for k in range(8)], 2)  # two samples of each class, two scans each
+    >>> fit = lambda X, y, g: fit_pipeline(X, y, g, "nb", n_features=None, calibrate=False)
+    >>> learned = learn_rejection(X, y, groups, fit, ["other.density", "other.metal"], rounds=3)
+    >>> learned.inner_auroc, bool(np.isfinite(learned.threshold)), learned.scales.term_mean.size
+    (1.0, True, 3)
+    >>> learn_rejection(X[:8], y[:8], groups[:8], fit, ["other.density", "other.metal"])
+    Learned(threshold=inf, inner_auroc=nan, scales=None)
+    """
     X, y, groups = np.asarray(X), np.asarray(y), np.asarray(groups)
     never = Learned(float("inf"), float("nan"), None)
     if np.unique(y).size < 3:
@@ -498,7 +1117,52 @@ def known_scores(X: np.ndarray, y: np.ndarray, groups: np.ndarray, fit: FitPipel
     The threshold is a quantile of the known rows' scores, and those depend on how many classes the model
     knows: a leave-classes-out round's model knows a fifth fewer and is surer of the rest, so its known rows
     score lower than the final model's. With five terrains (BorealTC) that put ``t`` so low that 10.4 % of
-    the known windows were rejected against the 2 % budgeted; read from these folds, 3.9 % (docs/trust.md)."""
+    the known windows were rejected against the 2 % budgeted; read from these folds, 3.9 % (docs/trust.md).
+
+    Parameters
+    ----------
+    X : numpy.ndarray
+        (n, columns) the training rows.
+    y : numpy.ndarray
+        Each row's class.
+    groups : numpy.ndarray
+        Each row's sample.
+    fit : FitPipeline
+        Fits a ``scale -> select -> classify`` pipeline on ``(X, y, groups)``.
+    columns : sequence of str
+        The input column names.
+    scales : Scales
+        The scales of the leave-classes-out rounds (:func:`fit_scales`).
+    rounds : int
+        Grouped folds (fewer where there are fewer samples).
+    seed : int
+        Seed of the splits.
+
+    Returns
+    -------
+    tuple of numpy.ndarray or None
+        ``(score, unknown, correct)``, rows in fold order.
+
+    Examples
+    --------
+    Four classes at the corners of a square 10 wide, two samples of each scanned twice, 0.2 of noise: each fold keeps a
+    sample of every class, and every row is classified right. A single sample cannot be split:
+
+    >>> import numpy as np
+    >>> from taxonomy.learning.evaluation import fit_pipeline
+    >>> rng = np.random.default_rng(0)
+    >>> y = np.repeat(["a", "b", "c", "d"], 4)
+    >>> X = np.repeat([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, 10.0]], 4, axis=0) + rng.normal(0, 0.2, (16, 2))
+    >>> groups = np.repeat([f"sample{k}" for k in range(8)], 2)  # two samples of each class, two scans each
+    >>> fit = lambda X, y, g: fit_pipeline(X, y, g, "nb", n_features=None, calibrate=False)
+    >>> from taxonomy.learning.openset import Scales
+    >>> scales = Scales(np.zeros(1), np.ones(1), np.zeros(1), np.zeros(3), np.ones(3))
+    >>> score, unknown, correct = known_scores(X, y, groups, fit, ["other.density", "other.metal"], scales, rounds=3)
+    >>> len(score), int(unknown.sum()), int(correct.sum())
+    (16, 0, 16)
+    >>> known_scores(X, y, np.full(16, "one"), fit, ["other.density", "other.metal"], scales) is None
+    True
+    """
     splits = grouped_splits(y, groups, rounds, seed)
     if not splits:
         return None
