@@ -9,7 +9,8 @@ import os
 import numpy as np
 import pytest
 
-from features import code_version, extract, extraction, memory
+from features import code_version, extract, extraction
+from scanner.runtime import memory
 from scanner.simulation.database import synthetic_database
 from scanner.storage.database import Database, DatabaseError
 from scanner.workflows import demo as demo_workflow
