@@ -5,6 +5,7 @@ holds only what it imported itself."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -13,6 +14,7 @@ import pytest
 from conftest import make_scan
 from unit.test_models import separated_space
 
+from scanner.runtime.cluster import dask_configuration_exists
 from scanner.storage.database import Database
 from scanner.workflows.database import extract_database
 from taxonomy.learning.models import save_model, train_model
@@ -20,15 +22,15 @@ from taxonomy.learning.models import save_model, train_model
 TESTS = Path(__file__).resolve().parents[1]
 
 HEAVY = ("numba", "sklearn", "flask", "cv2", "scipy.signal", "scipy.stats", "scipy.io", "matplotlib", "skops",
-         "pywt", "distributed")
+         "pywt", "distributed", "dask")
 """Libraries that cost more CPU to import than numpy itself, or about as much."""
 
 
-def _loaded_after(code: str) -> list[str]:
+def _loaded_after(code: str, env: dict[str, str] | None = None) -> list[str]:
     """The :data:`HEAVY` libraries loaded in a fresh interpreter after running ``code``."""
     probe = (f"import json, sys\nsys.path.insert(0, {str(TESTS)!r})\n{code}\n"
              f"print(json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)))")
-    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=300)
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=300, env=env)
     assert run.returncode == 0, run.stderr
     return json.loads(run.stdout.splitlines()[-1])
 
@@ -94,6 +96,16 @@ def test_a_cached_feature_table_loads_neither_scikit_learn_nor_scipy_stats(tmp_p
                                 str(tmp_path / "features.csv")))
     assert (tmp_path / "features.csv").is_file()
     assert not {"sklearn", "scipy.stats", "numba", "cv2", "skops"} & set(loaded), loaded
+    # Without --workers the command asks where to run: with no Dask configuration anywhere, Dask is not imported
+    # to say so, and reading a stored recording set's files (scipy.io) waits for a set.
+    home = tmp_path / "home"
+    home.mkdir()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("DASK_")} | {"HOME": str(home)}
+    loaded = _loaded_after(_cli("features", "--db", str(tmp_path / "db"), "--out", str(tmp_path / "again.csv")),
+                           env)
+    assert (tmp_path / "again.csv").read_bytes() == (tmp_path / "features.csv").read_bytes()
+    if not dask_configuration_exists(env):  # a machine with /etc/dask or a site's Dask YAML asks Dask
+        assert not {"dask", "distributed", "scipy.io", "sklearn"} & set(loaded), loaded
 
 
 def test_python_dash_m_texplorer_is_the_texplorer_command():

@@ -72,3 +72,25 @@ def test_the_code_that_runs_work_asks_the_current_runtime():
         scores = score(lambda k, y_train: KNeighborsClassifier(1), X, y, splits)
     assert counting.calls == 2 and scores.accuracy.tolist() == [1.0, 1.0]
 
+
+
+def test_dask_is_asked_for_a_scheduler_only_where_it_could_be_configured(tmp_path, monkeypatch):
+    from scanner.runtime import cluster
+
+    monkeypatch.setenv("HOME", str(tmp_path))
+    monkeypatch.setattr(cluster.sys, "prefix", str(tmp_path / "prefix"))
+    monkeypatch.setattr(cluster.site, "PREFIXES", [str(tmp_path / "site")])
+    root = tmp_path / "etc-dask"  # stands for /etc/dask, which this machine may have
+    monkeypatch.setattr(cluster.os.path, "isfile", lambda path: False)
+    real_listdir = cluster.os.listdir
+    monkeypatch.setattr(cluster.os, "listdir", lambda path: real_listdir(root if path == "/etc/dask" else path))
+    assert not cluster.dask_configuration_exists({})
+    assert cluster.dask_configuration_exists({"DASK_SCHEDULER_ADDRESS": "tcp://10.0.0.5:8786"})
+    assert cluster.dask_configuration_exists({"DASK_DISTRIBUTED__WORKER__MEMORY__TARGET": "0.6"})
+    for folder in (tmp_path / ".config" / "dask", tmp_path / "prefix" / "etc" / "dask", root):
+        folder.mkdir(parents=True)
+        (folder / "notes.txt").write_text("not configuration")
+        assert not cluster.dask_configuration_exists({})
+        (folder / "scheduler.yaml").write_text("scheduler-address: tcp://10.0.0.5:8786\n")
+        assert cluster.dask_configuration_exists({})
+        (folder / "scheduler.yaml").unlink()

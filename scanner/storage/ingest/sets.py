@@ -13,14 +13,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.io
 from isal import isal_zlib
 
+from scanner.lazy import library
 from scanner.scan import Recording, Trace
 from scanner.storage.files import atomic_write_bytes, atomic_writer, recover_swaps, staging_folder, swap_in
 from scanner.storage.ingest.mapping import _NAME, _SET, IngestError
 from scanner.storage.mat5 import write_variables
 from scanner.storage.matfile import COMPRESSION_LEVEL
+
+scipy_io = library("scipy.io")  # read a stored recording when one is loaded, not at every command's start
 
 RECORDINGS = "recordings"
 """Folder of imported recording sets inside a database."""
@@ -63,7 +65,7 @@ def write_recording(recording: Recording, path: str | os.PathLike[str]) -> None:
 
 
 def _plain(value: Any) -> Any:
-    if isinstance(value, scipy.io.matlab.mat_struct):
+    if isinstance(value, scipy_io.matlab.mat_struct):
         return {name: _plain(getattr(value, name)) for name in value._fieldnames}
     if isinstance(value, np.ndarray) and value.dtype.kind == "U":
         return "".join(value.ravel().tolist())
@@ -76,7 +78,7 @@ def read_recording(path: str | os.PathLike[str]) -> Recording:
     """A recording written by :func:`store_recordings`."""
     path = Path(path)
     try:
-        data = scipy.io.loadmat(path, squeeze_me=True, struct_as_record=False)
+        data = scipy_io.loadmat(path, squeeze_me=True, struct_as_record=False)
         meta = {k: _plain(v) for k, v in _plain(data["meta"]).items()}
         channels = {}
         for name, fs in dict(meta.get("fs") or {}).items():
