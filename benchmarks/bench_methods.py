@@ -20,10 +20,13 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from sklearn.base import BaseEstimator
 
-from features import related
 from scanner.simulation.recordings import array_recordings, biotac_recordings, soft3axis_recordings
 from taxonomy import related as methods
 from taxonomy.related import Dataset
+from taxonomy.related.chathuranga_features import chathuranga4, chathuranga_period
+from taxonomy.related.hoelscher_features import chu, mean23
+from taxonomy.related.huang_features import huang7
+from taxonomy.related.xie_features import xie_sequence_vector, xie_sequences
 
 SAMPLES = 40
 """Samples timed one at a time per measurement (the median is reported)."""
@@ -53,10 +56,10 @@ def line(what: str, seconds: float, paper: str, unit: str = "ms") -> None:
 def bench_xie() -> None:
     data = Dataset.from_recordings("array", array_recordings(trials=10))
     taxels = [r.role("taxels").data[:100] for r in data.recordings[:SAMPLES]]
-    vectors = np.array([related.xie_sequence_vector(r) for r in data.recordings])
+    vectors = np.array([xie_sequence_vector(r) for r in data.recordings])
     y = data.y("property")
     print(f"Xie et al. 2019: {len(data)} simulated 44 x 44 slides, property level")
-    line("images -> sequences S_a, S_v, S_s", per_sample(related.xie_sequences, taxels), "11.5 ms")
+    line("images -> sequences S_a, S_v, S_s", per_sample(xie_sequences, taxels), "11.5 ms")
     steps = methods.xie_pipeline(methods.xie_classifier("knn", 5, 0), 8).fit(vectors, y)
     line("standardise + 11 features", per_sample(lambda v: steps[:1].transform(v[None]), vectors[:SAMPLES]),
          "4.6 ms")
@@ -84,7 +87,7 @@ def bench_chathuranga() -> None:
     print(f"Chathuranga et al. 2015: {len(y)} simulated trials of 3 palpations, 8 materials")
 
     def classify(trial: list) -> object:
-        row = np.concatenate([list(related.chathuranga4(r).values()) for r in trial])
+        row = np.concatenate([list(chathuranga4(r).values()) for r in trial])
         return model.predict(row[None])
 
     line("features + elimination, 3 palpations", per_sample(classify, trials), "280 us", "us")
@@ -93,7 +96,7 @@ def bench_chathuranga() -> None:
     periods = cache.get("chathuranga_period").X[first]
     nearest = methods.NearestSpatialPeriod().fit(periods, y)
     line("spatial period: feature + nearest class",
-         per_sample(lambda r: nearest.predict([list(related.chathuranga_period(r[0]).values())]), trials),
+         per_sample(lambda r: nearest.predict([list(chathuranga_period(r[0]).values())]), trials),
          "8 us", "us")
 
 
@@ -103,11 +106,11 @@ def bench_huang() -> None:
     signals = [r.role("vibration") for r in data.recordings[:SAMPLES]]
     print(f"Huang and Wu 2021: {len(data)} simulated BioTac slides of "
           f"{signals[0].n} PAC samples")
-    line("huang7 features of one recording", per_sample(related.huang7, data.recordings[:SAMPLES]),
+    line("huang7 features of one recording", per_sample(huang7, data.recordings[:SAMPLES]),
          "0.47 s per set (MATLAB)")
     line("  reference: numpy rfft of the same signal", per_sample(lambda t: np.fft.rfft(t.data), signals),
          "-")
-    X = np.array([list(related.huang7(r).values()) for r in data.recordings])
+    X = np.array([list(huang7(r).values()) for r in data.recordings])
     y = data.y(data.label_level)
     for name in methods.HUANG_PAPER:
         model = methods.huang_classifier(name, 0).fit(X, y)
@@ -118,8 +121,8 @@ def bench_huang() -> None:
 def bench_hoelscher() -> None:
     data = Dataset.from_recordings("biotac", biotac_recordings(trials=4))
     print(f"Hoelscher et al. 2015: {len(data)} simulated BioTac recordings, 5 motions")
-    line("mean23 of one recording", per_sample(related.mean23, data.recordings[:SAMPLES]), "-")
-    line("chu of one recording", per_sample(related.chu, data.recordings[:SAMPLES]), "-")
+    line("mean23 of one recording", per_sample(mean23, data.recordings[:SAMPLES]), "-")
+    line("chu of one recording", per_sample(chu, data.recordings[:SAMPLES]), "-")
     X, first = methods.combined_table(data, methods.extract(data, "mean23"), data.motions())
     y = data.y(data.label_level, first)
     model = methods.MotionCombination(methods.hoelscher_features("mean23"),

@@ -9,10 +9,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from features import related
 from scanner.scan import Recording, Scan
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import Label
+from taxonomy.related.fishel_features import fishel3
+from taxonomy.related.inputs import RelatedFeatureError, scan_recording
+from taxonomy.related.sets import FEATURE_SETS, compute
+from taxonomy.related.xie_features import xie_sequence_vector
 
 SEED = 0
 REPEATS = 10
@@ -70,13 +73,13 @@ class Dataset:
 
     @classmethod
     def from_scans(cls, name: str, scans: Iterable[Scan]) -> Dataset:
-        """Scans as recordings (:func:`features.related.scan_recording`) labelled at the fine, medium and
+        """Scans as recordings (:func:`features.scan_recording`) labelled at the fine, medium and
         coarse taxonomy levels."""
         scans = tuple(scans)
         recordings = []
         for scan in scans:
             label = Label.parse(scan.meta.label)
-            recording = related.scan_recording(scan)
+            recording = scan_recording(scan)
             recordings.append(replace(recording, meta={"levels": {"medium": label.at("medium"),
                                                                   "coarse": label.at("coarse")}}))
         return cls(name, tuple(recordings), scans, "fine")
@@ -146,14 +149,14 @@ def _extractor(dataset: Dataset, name: str) -> Callable[[int], Mapping[str, floa
     if name == "fishel3":
         if not dataset.scans:
             raise MethodError(f"fishel3 needs scans; dataset {dataset.name!r} has recordings only")
-        return lambda i: related.fishel3(dataset.scans[i])
+        return lambda i: fishel3(dataset.scans[i])
     if name == "xie_sequences":
-        return lambda i: related.xie_sequence_vector(dataset.recordings[i])
-    return lambda i: related.compute(name, dataset.recordings[i])
+        return lambda i: xie_sequence_vector(dataset.recordings[i])
+    return lambda i: compute(name, dataset.recordings[i])
 
 
 def extract(dataset: Dataset, name: str, rows: Sequence[int] | None = None) -> Extracted:
-    """Feature set ``name`` (see :data:`features.related.FEATURE_SETS`, plus ``fishel3`` and
+    """Feature set ``name`` (see :data:`features.FEATURE_SETS`, plus ``fishel3`` and
     ``xie_sequences``) of the recordings ``rows``, timed per recording; failures are recorded, not raised."""
     function = _extractor(dataset, name)
     rows = range(len(dataset)) if rows is None else rows
@@ -165,7 +168,7 @@ def extract(dataset: Dataset, name: str, rows: Sequence[int] | None = None) -> E
         started = time.perf_counter()
         try:
             result = function(i)
-        except (related.RelatedFeatureError, ValueError) as exc:
+        except (RelatedFeatureError, ValueError) as exc:
             failed[i] = str(exc)
             continue
         seconds[i] = time.perf_counter() - started
@@ -206,4 +209,4 @@ def slides_first(dataset: Dataset, rows: Sequence[int]) -> tuple[list[int], str]
 
 
 def every(dataset: Dataset, set_name: str) -> bool:
-    return all(related.FEATURE_SETS[set_name].applies_to(r) for r in dataset.recordings)
+    return all(FEATURE_SETS[set_name].applies_to(r) for r in dataset.recordings)

@@ -15,10 +15,10 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC, LinearSVC
 
-from features import related
 from taxonomy.learning.results import Result
 from taxonomy.related.datasets import Dataset, ExtractedSets, slides_first
 from taxonomy.related.scoring import kfold_splits, score, scored, usable_rows
+from taxonomy.related.xie_features import XieFeatures
 
 XIE_CLASSIFIERS = ("linear-svm", "rbf-svm", "knn", "lda", "nb", "rf", "mlp")
 XIE_PAPER = {
@@ -51,7 +51,7 @@ def xie_classifier(name: str, k: int, seed: int) -> BaseEstimator:
 
 def xie_pipeline(classifier: BaseEstimator, dimensions: int) -> Pipeline:
     """Sequence vectors -> standardised sequences -> 11 features -> standardised -> PCA -> classifier."""
-    return Pipeline([("features", related.XieFeatures()), ("scale", StandardScaler()),
+    return Pipeline([("features", XieFeatures()), ("scale", StandardScaler()),
                      ("pca", PCA(n_components=dimensions)), ("classify", classifier)])
 
 
@@ -64,7 +64,7 @@ def pca_sweep(X: np.ndarray, y: np.ndarray, seed: int, folds: int = 5) -> np.nda
     most = min(XIE_MAX_DIMENSIONS, *(len(train) for train, _ in inner))
     accuracy = np.zeros(most)
     for train, test in inner:
-        features = Pipeline([("features", related.XieFeatures()), ("scale", StandardScaler())]).fit(X[train])
+        features = Pipeline([("features", XieFeatures()), ("scale", StandardScaler())]).fit(X[train])
         F_train, F_test = features.transform(X[train]), features.transform(X[test])
         for d in range(1, most + 1):
             pca = PCA(n_components=d).fit(F_train)

@@ -7,10 +7,10 @@ from sklearn.naive_bayes import GaussianNB
 from sklearn.preprocessing import StandardScaler
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from features import related
 from scanner.simulation import recordings as sim
 from taxonomy import related as methods
 from taxonomy.related import Dataset, compare
+from taxonomy.related.xie_features import XieFeatures
 
 
 def test_xie_end_to_end():
@@ -87,7 +87,7 @@ XIE_WIDTH = "XieFeatures takes 3n-vectors (n >= 2) of Xie's three sequences; thi
 
 
 def _expected_failures(estimator) -> dict[str, str]:
-    if not isinstance(estimator, related.XieFeatures):
+    if not isinstance(estimator, XieFeatures):
         return {}
     return dict.fromkeys((
         "check_fit_score_takes_y", "check_estimators_dtypes", "check_dtype_object", "check_pipeline_consistency",
@@ -100,7 +100,7 @@ def _expected_failures(estimator) -> dict[str, str]:
                           methods.ShrunkGaussian(),
                           methods.MotionCombination(StandardScaler(), methods.ShrunkGaussian(), blocks=1),
                           methods.MotionCombination(StandardScaler(), GaussianNB(), blocks=1, mode="voting"),
-                          related.XieFeatures()],
+                          XieFeatures()],
                          expected_failed_checks=_expected_failures)
 def test_scikit_learn_estimator_checks(estimator, check):
     check(estimator)

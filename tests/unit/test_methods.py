@@ -15,12 +15,13 @@ from sklearn.neighbors import KNeighborsClassifier
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
-from features import related
 from scanner.scan import Recording, Trace
 from scanner.simulation import recordings as sim
 from taxonomy import related as methods
 from taxonomy.learning.results import format_comparison, warning_notes
 from taxonomy.related import Dataset, MethodError, compare
+from taxonomy.related.inputs import RelatedFeatureError
+from taxonomy.related.xie_features import XieFeatures
 
 # -- simulated sensors -------------------------------------------------------------------------------
 
@@ -241,25 +242,25 @@ def test_xie_features_keep_the_estimator_contract_on_sequence_vectors():
     subsets, input types, an unchanged state after transform and a clear refusal of another width."""
     rng = np.random.default_rng(5)
     X = rng.normal(3.0, 1.5, (24, 3 * 100))  # 100 samples per sequence: wavelet level 4 without boundary effects
-    step = related.XieFeatures()
+    step = XieFeatures()
     assert step.fit(X) is step and clone(step).get_params() == {}
     out = step.transform(X)
     state = pickle.dumps(step.__dict__)
     assert np.array_equal(step.transform(X), out) and pickle.dumps(step.__dict__) == state
-    assert np.array_equal(related.XieFeatures().fit(X).transform(X), out)  # fit is idempotent
+    assert np.array_equal(XieFeatures().fit(X).transform(X), out)  # fit is idempotent
     assert np.array_equal(pickle.loads(pickle.dumps(step)).transform(X), out)
     order = rng.permutation(len(X))
     assert np.allclose(step.transform(X[order]), out[order], rtol=1e-12, atol=1e-12)
     assert np.allclose(step.transform(X[5:9]), out[5:9], rtol=1e-12, atol=1e-12)
     assert np.allclose(step.transform(X.tolist()), out, rtol=1e-12, atol=1e-12)
-    assert np.allclose(related.XieFeatures().fit(np.asfortranarray(X)).transform(X), out, rtol=1e-12, atol=1e-12)
+    assert np.allclose(XieFeatures().fit(np.asfortranarray(X)).transform(X), out, rtol=1e-12, atol=1e-12)
     whole = np.rint(X).astype(np.int64)
-    assert np.allclose(related.XieFeatures().fit(whole).transform(whole),
-                       related.XieFeatures().fit(whole.astype(np.float64)).transform(whole), rtol=1e-12)
+    assert np.allclose(XieFeatures().fit(whole).transform(whole),
+                       XieFeatures().fit(whole.astype(np.float64)).transform(whole), rtol=1e-12)
     with pytest.raises(ValueError, match="features"):  # scikit-learn's own check of the width seen in fit
         step.transform(X[:, :30])
-    with pytest.raises(related.RelatedFeatureError, match=r"3n >= 6 entries, got shape \(10,\)"):
-        related.XieFeatures().fit(X[:, :10]).transform(X[:, :10])
+    with pytest.raises(RelatedFeatureError, match=r"3n >= 6 entries, got shape \(10,\)"):
+        XieFeatures().fit(X[:, :10]).transform(X[:, :10])
 
 
 @pytest.mark.parametrize(("classes", "defined"), [(("C6S1M1P2X1", "C7S1M1P8X1", "C6S2M1P1X1"), True),

@@ -14,8 +14,11 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-PACKAGES = ("features", "taxonomy/learning")
-MODULES = sorted(path for package in PACKAGES for path in (ROOT / package).glob("*.py") if path.name != "__init__.py")
+PATTERNS = ("features/*.py", "taxonomy/learning/*.py", "taxonomy/related/*_features.py", "taxonomy/related/inputs.py",
+            "taxonomy/related/sets.py")
+"""The feature and learning code: the features of scans and recordings, the learning, and the related papers'
+features (each beside its method in ``taxonomy/related``)."""
+MODULES = sorted(path for pattern in PATTERNS for path in ROOT.glob(pattern) if path.name != "__init__.py")
 
 
 def _module_name(path: Path) -> str:

@@ -10,11 +10,39 @@ import pytest
 from conftest import make_meta
 from scipy import signal
 
-from features import related
-from features.related import RelatedFeatureError
 from features.tactum import mico
 from scanner.preprocess import slide_signal
 from scanner.scan import Recording, Scan, Trace
+from taxonomy.related.chathuranga_features import (
+    chathuranga4,
+    chathuranga_period,
+    covariance_frobenius,
+    friction_features,
+)
+from taxonomy.related.fishel_features import fishel3
+from taxonomy.related.hoelscher_features import (
+    MAX_EXPONENT,
+    _exponential,
+    chitta,
+    chu,
+    dallaire,
+    electrode_norm,
+    electrode_polynomials,
+    energy_spectral_density,
+    mean23,
+    pressure_statistics,
+    settled,
+    spectral_moments,
+    temperature,
+    threshold_crossings,
+    time_constant,
+    upper_spectrum_sum,
+    xu3,
+)
+from taxonomy.related.huang_features import band_means, huang7
+from taxonomy.related.inputs import RelatedFeatureError, scan_recording
+from taxonomy.related.sets import FEATURE_SETS, compute
+from taxonomy.related.xie_features import XieFeatures, wavelet_l1, xie11, xie11_from_sequences, xie_sequences
 
 HADAMARD = np.array([[1, 1, 1, 1], [1, -1, 1, -1], [1, 1, -1, -1], [1, -1, -1, 1]], dtype=float)
 
@@ -32,14 +60,14 @@ def recording(**roles: Trace) -> Recording:
 
 # -- inputs and errors -------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("name", sorted(related.FEATURE_SETS))
+@pytest.mark.parametrize("name", sorted(FEATURE_SETS))
 def test_every_set_names_the_roles_it_needs(name):
     bare = Recording("bare", {"x": Trace(np.zeros(10), 100.0, "-")})
     with pytest.raises(RelatedFeatureError) as info:
-        related.compute(name, bare)
+        compute(name, bare)
     message = str(info.value)
     assert "\n" not in message and name in message and "'bare'" in message
-    needed = ("taxels or electrodes",) if name == "xie11" else related.FEATURE_SETS[name].roles
+    needed = ("taxels or electrodes",) if name == "xie11" else FEATURE_SETS[name].roles
     assert all(role in message for role in needed)
 
 
@@ -47,12 +75,12 @@ def test_missing_role_lists_only_the_absent_ones():
     partial = recording(heat_flow=Trace(np.ones(10), 100.0, "-"))
     with pytest.raises(RelatedFeatureError, match="xu3 needs the role.*electrodes, vibration, heat_flow; "
                                                "recording 'r1' lacks electrodes, vibration$"):
-        related.xu3(partial)
+        xu3(partial)
 
 
 def test_unknown_set():
     with pytest.raises(RelatedFeatureError, match="unknown feature set 'nope'"):
-        related.compute("nope", recording(vibration=Trace(np.zeros(4), 10.0, "-")))
+        compute("nope", recording(vibration=Trace(np.zeros(4), 10.0, "-")))
 
 
 # -- fishel3 on scans --------------------------------------------------------------------------------
@@ -69,7 +97,7 @@ def _fishel_scan(amplitude: float = 0.4) -> Scan:
 
 def test_fishel3_traction_roughness_fineness():
     scan = _fishel_scan(0.4)
-    values = related.fishel3(scan)
+    values = fishel3(scan)
     # Normal force 2 N throughout, friction steps to 1 N: the sliding segment averages 1 / 2.
     assert values["fishel3.traction"] == pytest.approx(0.5, abs=1e-12)
     v = slide_signal(scan["v_ts"])
@@ -86,12 +114,12 @@ def test_fishel3_needs_the_friction_channels():
     partial = Scan(scan.meta, {"v_ts": scan["v_ts"], "f_frn": scan["f_frn"]})
     with pytest.raises(RelatedFeatureError, match="fishel3 needs the scan channels v_ts, f_frn, f_frt; scan "
                                                "granite-01-001 lacks f_frt"):
-        related.fishel3(partial)
+        fishel3(partial)
 
 
 def test_fishel3_without_a_slide_is_nan_not_an_error():
     scan = _fishel_scan(0.0)
-    values = related.fishel3(scan)
+    values = fishel3(scan)
     assert values["fishel3.traction"] == pytest.approx(0.5)
     assert math.isnan(values["fishel3.roughness"]) and math.isnan(values["fishel3.fineness"])
 
@@ -100,7 +128,7 @@ def test_fishel3_without_a_slide_is_nan_not_an_error():
 
 def test_xie_sequences_of_known_images():
     frames = np.array([[[0.0, 1.0], [2.0, 3.0]], [[0.0, 0.0], [0.0, 4.0]]])
-    s_a, s_v, s_s = related.xie_sequences(frames)
+    s_a, s_v, s_s = xie_sequences(frames)
     assert s_a.tolist() == [3.0, 1.0]
     assert s_v.tolist() == [1.25, 3.0]  # var(0, 1, 2, 3) and var(0, 0, 0, 4), population
     assert s_s.tolist() == [6.0, 4.0]
@@ -108,23 +136,23 @@ def test_xie_sequences_of_known_images():
 
 def test_wavelet_l1_of_a_constant_and_of_an_impulse():
     # db3 has vanishing moments, so a constant has no details; each cA4 coefficient is c * sqrt(2)^4.
-    l1 = related.wavelet_l1(np.full(100, 2.0))
+    l1 = wavelet_l1(np.full(100, 2.0))
     assert l1[0] == pytest.approx(10 * 4 * 2.0, rel=1e-12) and np.all(np.abs(l1[1:]) < 1e-12)
     # A unit impulse at an interior even index meets the odd-indexed taps of the decomposition high-pass.
     impulse = np.zeros(100)
     impulse[50] = 1.0
     taps = np.abs(np.array(__import__("pywt").Wavelet("db3").dec_hi))
-    assert related.wavelet_l1(impulse, level=1)[1] == pytest.approx(taps[1::2].sum(), rel=1e-12)
+    assert wavelet_l1(impulse, level=1)[1] == pytest.approx(taps[1::2].sum(), rel=1e-12)
 
 
 def test_xie11_from_known_sequences():
     n = 100
     s_a, s_v = np.full(n, 5.0), np.full(n, 0.5)
-    constant = related.xie11_from_sequences(s_a, s_v, np.full(n, 3.0))
+    constant = xie11_from_sequences(s_a, s_v, np.full(n, 3.0))
     assert constant.tolist()[:3] == [5.0, 0.5, 3.0]
     assert constant[3] == pytest.approx(10 * 4 * 3.0) and np.all(np.abs(constant[4:8]) < 1e-12)
     assert constant[8] == pytest.approx(n * 9.0) and constant[9] == 0.0 and constant[10] == 0.0
-    ramp = related.xie11_from_sequences(s_a, s_v, 0.25 * np.arange(n))
+    ramp = xie11_from_sequences(s_a, s_v, 0.25 * np.arange(n))
     assert ramp[9] == pytest.approx(0.25 * math.sqrt(n - 1), rel=1e-12)  # CID of a ramp, eq. (2)
     assert ramp[8] == pytest.approx(0.0625 * sum(i * i for i in range(n)), rel=1e-12)  # eq. (1)
     assert ramp[10] == pytest.approx(0.25 * math.sqrt((n * n - 1) / 12.0), rel=1e-12)
@@ -133,12 +161,12 @@ def test_xie11_from_known_sequences():
 def test_xie_features_standardise_on_training_rows_only():
     rng = np.random.default_rng(0)
     train, test = rng.normal(5.0, 2.0, (30, 300)), rng.normal(5.0, 2.0, (4, 300))
-    step = related.XieFeatures().fit(train)
+    step = XieFeatures().fit(train)
     out = step.transform(train)
     # Every column of the standardised training vectors has mean 0, so the three sequence means do too.
     assert out.shape == (30, 11) and np.allclose(out[:, :3].mean(axis=0), 0.0, atol=1e-12)
     assert np.allclose(step.transform(test), step.transform(np.vstack([test, train]))[:4])
-    unchanged = related.XieFeatures().fit(train).transform(test)
+    unchanged = XieFeatures().fit(train).transform(test)
     assert np.array_equal(unchanged, step.transform(test))
 
 
@@ -146,9 +174,9 @@ def test_xie11_needs_one_second_of_frames():
     short = recording(taxels=Trace(np.ones((50, 4, 4)), 100.0, "-"))
     with pytest.raises(RelatedFeatureError, match=r"xie11 needs 1 s of taxels \(100 frames at 100 Hz\); "
                                                   r"recording 'r1' has 50"):
-        related.xie11(short)
+        xie11(short)
     electrodes = recording(electrodes=Trace(np.arange(300.0).reshape(150, 2), 100.0, "-"))
-    assert related.xie11(electrodes)["xie11.mean_sa"] == pytest.approx(1.99)  # one zero electrode in row 0
+    assert xie11(electrodes)["xie11.mean_sa"] == pytest.approx(1.99)  # one zero electrode in row 0
 
 
 # -- huang7 ------------------------------------------------------------------------------------------
@@ -158,7 +186,7 @@ def test_band_means_of_a_sum_of_sines():
     x = 7.0 + tone(30.0, fs, 1.0, 3.0) + tone(75.0, fs, 1.0, 5.0) + tone(130.0, fs, 1.0, 2.0, 0.3)
     # 1 s: 1 Hz bins, 20 per band; a sine of amplitude A puts A / 2 into one bin. The offset is removed.
     expected = [0.0, 3.0 / 40, 0.0, 5.0 / 40, 0.0, 0.0, 2.0 / 40]
-    values = related.huang7(recording(vibration=Trace(x, fs, "bit")))
+    values = huang7(recording(vibration=Trace(x, fs, "bit")))
     assert list(values) == ["huang7.band_000_020", "huang7.band_020_040", "huang7.band_040_060",
                             "huang7.band_060_080", "huang7.band_080_100", "huang7.band_100_120",
                             "huang7.band_120_140"]
@@ -168,7 +196,7 @@ def test_band_means_of_a_sum_of_sines():
 def test_band_means_bins_at_band_edges_and_short_signals():
     # 0.5 s at 200 Hz: 2 Hz bins; 20 Hz belongs to band 1, not band 0; 100 Hz (Nyquist) is in band 5.
     x = tone(20.0, 200.0, 0.5, 2.0)
-    means = related.band_means(x, 200.0)
+    means = band_means(x, 200.0)
     assert means[0] == pytest.approx(0.0, abs=1e-12) and means[1] == pytest.approx(1.0 / 10)
     assert math.isnan(means[6])  # no bin at or above 120 Hz
 
@@ -180,10 +208,10 @@ def test_frobenius_norm_of_a_known_covariance():
     xyz = np.tile(np.column_stack([a * HADAMARD[:, 1], b * HADAMARD[:, 2], c * HADAMARD[:, 3]]), (2, 1))
     xyz += [1.0, -2.0, 4.0]
     # Orthogonal zero-mean columns: the covariance is diag(a^2, b^2, c^2).
-    assert related.covariance_frobenius(xyz) == pytest.approx(math.sqrt(a**4 + b**4 + c**4), rel=1e-12)
+    assert covariance_frobenius(xyz) == pytest.approx(math.sqrt(a**4 + b**4 + c**4), rel=1e-12)
     same = np.column_stack([HADAMARD[:, 1], HADAMARD[:, 1], np.zeros(4)])
-    assert related.covariance_frobenius(same) == pytest.approx(2.0)  # [[1, 1, 0], [1, 1, 0], [0, 0, 0]]
-    values = related.chathuranga4(recording(force_xyz=Trace(xyz, 1000.0, "V")))
+    assert covariance_frobenius(same) == pytest.approx(2.0)  # [[1, 1, 0], [1, 1, 0], [0, 0, 0]]
+    values = chathuranga4(recording(force_xyz=Trace(xyz, 1000.0, "V")))
     assert values == pytest.approx({"chathuranga4.frobenius": math.sqrt(a**4 + b**4 + c**4),
                                     "chathuranga4.mean_x": 1.0, "chathuranga4.mean_y": -2.0,
                                     "chathuranga4.mean_z": 4.0})
@@ -194,17 +222,17 @@ def test_spatial_period_is_velocity_over_principal_frequency():
     xyz = np.column_stack([x, np.zeros_like(x), np.ones_like(x)])
     r = Recording("p", {"s": Trace(xyz, 1000.0, "V")}, {"force_xyz": "s"}, "denim",
                   meta={"velocity_mm_s": 15.0})
-    assert related.chathuranga_period(r) == {"chathuranga_period.lambda": pytest.approx(3.0)}
+    assert chathuranga_period(r) == {"chathuranga_period.lambda": pytest.approx(3.0)}
     with pytest.raises(RelatedFeatureError, match="velocity_mm_s"):
-        related.chathuranga_period(Recording("p", {"s": Trace(xyz, 1000.0, "V")}, {"force_xyz": "s"}))
+        chathuranga_period(Recording("p", {"s": Trace(xyz, 1000.0, "V")}, {"force_xyz": "s"}))
 
 
 def test_friction_features():
     xyz = np.column_stack([np.full(8, 3.0), np.full(8, 4.0), np.full(8, 10.0)])
-    mu, var_x, kurt_x = related.friction_features(xyz)
+    mu, var_x, kurt_x = friction_features(xyz)
     assert mu == pytest.approx(0.5) and var_x == 0.0 and math.isnan(kurt_x)
     two_point = np.column_stack([np.tile([1.0, -1.0], 4), np.zeros(8), np.tile([1.0, 0.0], 4)])
-    mu, var_x, kurt_x = related.friction_features(two_point)
+    mu, var_x, kurt_x = friction_features(two_point)
     # z = 0 rows are left out of the ratio; +-1 has variance 1 and Pearson kurtosis 1.
     assert mu == pytest.approx(1.0) and var_x == pytest.approx(1.0) and kurt_x == pytest.approx(1.0)
 
@@ -219,7 +247,7 @@ def test_xu3():
     heat_flow = np.concatenate([np.linspace(0, 50, 100), np.linspace(50, -20, 100)])
     r = recording(electrodes=Trace(electrodes, 100.0, "bit"), vibration=Trace(vibration, fs, "bit"),
                   heat_flow=Trace(heat_flow, 100.0, "bit"))
-    values = related.xu3(r)
+    values = xu3(r)
     assert values["xu3.compliance"] == pytest.approx(1.0, rel=1e-12)  # ln(e)
     # The variance of a 0.2 sine well inside the pass band (filter edges leave a small deficit).
     assert values["xu3.texture"] == pytest.approx(math.log(0.02), abs=2e-3)
@@ -227,15 +255,15 @@ def test_xu3():
     # Fewer than 18 electrodes: the mean electrode; a flat one has ln(0) = NaN.
     few = recording(electrodes=Trace(np.ones((200, 3)), 100.0, "bit"), vibration=Trace(vibration, fs, "bit"),
                     heat_flow=Trace(heat_flow, 100.0, "bit"))
-    assert math.isnan(related.xu3(few)["xu3.compliance"])
+    assert math.isnan(xu3(few)["xu3.compliance"])
 
 
 # -- chu ---------------------------------------------------------------------------------------------
 
 def test_pressure_statistics_of_a_constant_and_a_ramp():
-    assert related.pressure_statistics(np.full(300, 4.0), 100.0).tolist() == pytest.approx([4.0, 4.0, 0.0])
+    assert pressure_statistics(np.full(300, 4.0), 100.0).tolist() == pytest.approx([4.0, 4.0, 0.0])
     ramp = 0.5 * np.arange(300.0)
-    high, mean, change = related.pressure_statistics(ramp, 100.0)
+    high, mean, change = pressure_statistics(ramp, 100.0)
     # A symmetric window keeps a ramp in the interior: slope 0.5 per sample = 50 per second.
     assert change == pytest.approx(50.0, rel=1e-12)
     assert mean < ramp.mean() + 1e-9 and high <= ramp[-1]
@@ -244,19 +272,19 @@ def test_pressure_statistics_of_a_constant_and_a_ramp():
 def test_spectral_moments_of_two_tones():
     fs = 1000.0
     x = tone(100.0, fs, 2.0, 1.0) + tone(300.0, fs, 2.0, 1.0)
-    frequency, energy = related.energy_spectral_density(x, fs)
-    area, centroid, variance, skewness, kurtosis = related.spectral_moments(frequency, energy)
+    frequency, energy = energy_spectral_density(x, fs)
+    area, centroid, variance, skewness, kurtosis = spectral_moments(frequency, energy)
     assert area == pytest.approx(np.sum(x**2) / fs, rel=1e-12)  # Parseval: the signal's energy
     assert centroid == pytest.approx(200.0) and variance == pytest.approx(100.0**2)
     assert skewness == pytest.approx(0.0, abs=1e-9) and kurtosis == pytest.approx(1.0)
-    one = related.spectral_moments(*related.energy_spectral_density(tone(125.0, fs, 1.0), fs))
+    one = spectral_moments(*energy_spectral_density(tone(125.0, fs, 1.0), fs))
     assert one[1] == pytest.approx(125.0) and one[2] == pytest.approx(0.0, abs=1e-6)
 
 
 def test_time_constant_of_an_exponential():
     t = np.arange(1500) / 100.0
-    assert related.time_constant(30.0 + 5.0 * np.exp(-t / 2.5), 100.0) == pytest.approx(2.5, rel=1e-6)
-    assert math.isnan(related.time_constant(np.full(100, 3.0), 100.0))
+    assert time_constant(30.0 + 5.0 * np.exp(-t / 2.5), 100.0) == pytest.approx(2.5, rel=1e-6)
+    assert math.isnan(time_constant(np.full(100, 3.0), 100.0))
 
 
 def test_time_constant_far_below_the_start_fits_without_overflow():
@@ -265,15 +293,15 @@ def test_time_constant_far_below_the_start_fits_without_overflow():
     t = np.arange(130) / 10.0
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        tau = related.time_constant(20.0 + 10.0 * np.exp(-t / 0.05), 10.0)
+        tau = time_constant(20.0 + 10.0 * np.exp(-t / 0.05), 10.0)
     # Exact samples: the fit ends on the generating tau within curve_fit's xtol, its relative step at the end.
     assert tau == pytest.approx(0.05, rel=1.49012e-8)
     # The capped model is the formula itself wherever exp does not overflow, and finite where it would.
-    np.testing.assert_array_equal(related._exponential(t, 20.0, 10.0, 0.05), 20.0 + 10.0 * np.exp(-t / 0.05))
+    np.testing.assert_array_equal(_exponential(t, 20.0, 10.0, 0.05), 20.0 + 10.0 * np.exp(-t / 0.05))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        growing = related._exponential(np.array([0.0, 1000.0]), 20.0, 10.0, -1.0)
-    assert growing[0] == 30.0 and growing[1] == 20.0 + 10.0 * math.exp(related.MAX_EXPONENT)
+        growing = _exponential(np.array([0.0, 1000.0]), 20.0, 10.0, -1.0)
+    assert growing[0] == 30.0 and growing[1] == 20.0 + 10.0 * math.exp(MAX_EXPONENT)
 
 
 def test_electrode_polynomials_of_known_components():
@@ -284,7 +312,7 @@ def test_electrode_polynomials_of_known_components():
     u1 = np.array([0.6, 0.8, 0.0])
     u2 = np.array([0.0, 0.0, -1.0])
     electrodes = 100.0 + np.outer(s1, u1) + np.outer(s2, u2)
-    coefficients = related.electrode_polynomials(electrodes)
+    coefficients = electrode_polynomials(electrodes)
     expected_pc1 = [0, 0, 0, 0, 3.0, -1.5]
     # PC2's loading -1 is flipped positive: scores -s2 = -0.5 t^2 + 0.5 t - (0.125 - 0.5 mean(...)).
     c0 = -0.5 * (0.25 - np.mean((t - 0.5) ** 2))
@@ -300,7 +328,7 @@ def test_chu_returns_22_values():
                   heat_flow=Trace(np.full(400, 2.0), 100.0, "bit"),
                   temperature=Trace(30 + 3 * np.exp(-t / 1.5), 100.0, "bit"),
                   electrodes=Trace(rng.normal(size=(400, 19)), 100.0, "bit"))
-    values = related.chu(r)
+    values = chu(r)
     assert len(values) == 22 and list(values)[-1] == "chu.pc2_p0"
     assert values["chu.tac_area"] == pytest.approx(8.0)
     assert values["chu.tdc_tau"] == pytest.approx(1.5, rel=1e-6)
@@ -314,7 +342,7 @@ def test_mean23_is_the_channel_means():
                   temperature=Trace(np.full(10, 3.0), 100.0, "-"),
                   heat_flow=Trace(np.full(10, 4.0), 100.0, "-"),
                   electrodes=Trace(np.tile(np.arange(19.0), (10, 1)), 100.0, "-"))
-    values = related.mean23(r)
+    values = mean23(r)
     assert len(values) == 23 and list(values.values()) == [1.0, 2.0, 3.0, 4.0, *range(19)]
     assert list(values)[4] == "mean23.electrode_01"
 
@@ -322,7 +350,7 @@ def test_mean23_is_the_channel_means():
 def test_dallaire_on_a_sine_and_a_ramp():
     n, period = 4000, 40  # fs / f = 40 samples: the samples include both peaks
     x = 2.0 * np.sin(2 * np.pi * np.arange(n) / period)
-    values = related.dallaire(recording(vibration=Trace(x, 4000.0, "-")))
+    values = dallaire(recording(vibration=Trace(x, 4000.0, "-")))
     assert values["dallaire.variance"] == pytest.approx(2.0)
     assert values["dallaire.skewness"] == pytest.approx(0.0, abs=1e-12)
     assert values["dallaire.kurtosis"] == pytest.approx(1.5)
@@ -332,26 +360,26 @@ def test_dallaire_on_a_sine_and_a_ramp():
     assert values["dallaire.total_variation"] == pytest.approx(expected, rel=1e-12)
     # 100 Hz of 4000 Hz is bin 100 < N / 4: nothing in the upper half of the spectrum.
     assert values["dallaire.upper_spectrum"] == pytest.approx(0.0, abs=1e-8)
-    assert related.threshold_crossings(np.linspace(-3.0, 5.0, 77)) == 20
-    assert related.threshold_crossings(np.array([0.0, 1.0, 0.0, 1.0])) == 60
+    assert threshold_crossings(np.linspace(-3.0, 5.0, 77)) == 20
+    assert threshold_crossings(np.array([0.0, 1.0, 0.0, 1.0])) == 60
 
 
 def test_upper_spectrum_sum_of_a_high_tone():
     n = 400
     high = 3.0 * np.cos(2 * np.pi * 150 * np.arange(n) / n)  # bin 150 >= 400 / 4
     low = np.cos(2 * np.pi * 20 * np.arange(n) / n)
-    assert related.upper_spectrum_sum(high + low) == pytest.approx(3.0 * n / 2)
+    assert upper_spectrum_sum(high + low) == pytest.approx(3.0 * n / 2)
 
 
 def test_chitta_electrode_norm():
-    assert related.chitta(recording(electrodes=Trace(np.full((500, 19), 7.0), 100.0, "-"))) == \
+    assert chitta(recording(electrodes=Trace(np.full((500, 19), 7.0), 100.0, "-"))) == \
         pytest.approx({"chitta.mean": 0.0, "chitta.variance": 0.0}, abs=1e-9)
     fs, f = 100.0, 20.0
     t = np.arange(2000) / fs
     pair = np.column_stack([np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t)])
     sos = signal.butter(1, 5.0, btype="highpass", fs=fs, output="sos")
     _, response = signal.sosfreqz(sos, worN=[f], fs=fs)
-    norm = related.electrode_norm(pair, fs)
+    norm = electrode_norm(pair, fs)
     # cos and sin pass with the same gain and phase: their norm is the gain (after the start transient).
     assert np.allclose(norm[200:], abs(response[0]), rtol=1e-9)
 
@@ -360,18 +388,18 @@ def test_temperature_features():
     fs = 100.0
     tac = np.concatenate([np.linspace(0.0, 10.0, 100), np.linspace(10.0, 4.0, 500), np.full(900, 4.0)])
     tdc = np.concatenate([np.full(600, 35.0), np.full(900, 31.0)])
-    values = related.temperature(recording(heat_flow=Trace(tac, fs, "-"), temperature=Trace(tdc, fs, "-")))
+    values = temperature(recording(heat_flow=Trace(tac, fs, "-"), temperature=Trace(tdc, fs, "-")))
     assert values == pytest.approx({"temperature.tac_mean": 4.0, "temperature.tdc_mean": 31.0,
                                     "temperature.tac_change": 6.0})
     # A 4 s slide has no 6 s to wait: the second half is used (interpretation).
-    assert related.settled(np.arange(400.0), fs).tolist() == list(np.arange(200.0, 400.0))
+    assert settled(np.arange(400.0), fs).tolist() == list(np.arange(200.0, 400.0))
 
 
 def test_scan_recording_roles():
     scan = _fishel_scan()
-    r = related.scan_recording(scan)
+    r = scan_recording(scan)
     assert dict(r.roles) == {"vibration": "v"} and r.label == scan.meta.label
     assert np.array_equal(r.channels["v"].data, slide_signal(scan["v_ts"])) and r.channels["v"].fs == 3000.0
-    resting = related.scan_recording(_fishel_scan(0.0))
+    resting = scan_recording(_fishel_scan(0.0))
     assert resting.channels["v"].n == 9000  # no slide: the whole band-limited recording
     assert dict(r.group) == {"object": "granite-01", "trial": "001"} and r.channels["f_frn"] == scan["f_frn"]
