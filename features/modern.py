@@ -396,13 +396,24 @@ def available(kind: str) -> bool:
     bool
         True where the kind's library can be imported, or the kind needs none.
 
+    Raises
+    ------
+    ParameterError
+        For any other kind (a misspelt ``catch23`` is not taken for one that needs no library).
+
     Examples
     --------
     >>> import importlib.util
     >>> from features.modern import available
     >>> available("signal"), available("catch22") == (importlib.util.find_spec("pycatch22") is not None)
     (True, True)
+    >>> available("catch23")
+    Traceback (most recent call last):
+    ...
+    taxonomy.errors.ParameterError: unknown modern feature kind 'catch23' (known: signal, catch22, scattering)
     """
+    if kind != "signal" and kind not in LIBRARIES:
+        raise ParameterError(f"unknown modern feature kind {kind!r} (known: signal, {', '.join(LIBRARIES)})")
     return kind not in LIBRARIES or importlib.util.find_spec(LIBRARIES[kind]) is not None
 
 

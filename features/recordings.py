@@ -1315,9 +1315,17 @@ def lacking(recordings: Sequence[Recording], found: Sequence[Sequence[str]], app
         without = [r.name for r, own in zip(recordings, found, strict=True) if not _has(own, name)]
         if without:
             shown = ", ".join(without[:first]) + (f" and {len(without) - first} more" if len(without) > first else "")
-            lines.append(f"{len(without)} of {len(recordings)} recording(s) lack the role {family.role} (at a "
-                         f"rate {name} applies to): its {len(family.columns)} column(s) are NaN there ({shown})")
+            roles = _roles_of(name, family)
+            needed = f"the role {roles[0]}" if len(roles) == 1 else f"one of the roles {', '.join(roles)}"
+            lines.append(f"{len(without)} of {len(recordings)} recording(s) lack {needed} (at a rate {name} "
+                         f"applies to): its {len(family.columns)} column(s) are NaN there ({shown})")
     return lines
+
+
+def _roles_of(name: str, family: RoleFamily) -> tuple[str, ...]:
+    """The roles a family reads: both channels of a ratio family (``ratio.<role>.<other>:...``), else its role."""
+    kind, _, rest = name.partition(".")
+    return tuple(rest.partition(":")[0].split(".")) if kind == "ratio" else (family.role,)
 
 
 def _map(function: Callable, jobs: Sequence, workers: int | None, progress: bool) -> list:

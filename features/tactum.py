@@ -699,6 +699,11 @@ def sliding_segment(f_frn: np.ndarray, f_frt: np.ndarray, lag: int = SLOPE_LAG) 
     (int, int)
         Start and end sample; the end is -1 if ``f_frn`` never exceeds 5 % of its maximum.
 
+    Raises
+    ------
+    ParameterError
+        If a force is not a non-empty 1-D array, or ``f_frt`` has no more than ``lag`` samples.
+
     Examples
     --------
     The friction force steps up at sample 50, so its largest 30-sample slope first starts at sample 20 and
@@ -711,6 +716,9 @@ def sliding_segment(f_frn: np.ndarray, f_frt: np.ndarray, lag: int = SLOPE_LAG) 
     >>> sliding_segment(f_frn, f_frt)
     (50, 89)
     """
+    f_frn, f_frt = _samples(f_frn, "f_frn"), _samples(f_frt, "f_frt")
+    if f_frt.size <= lag:
+        raise ParameterError(f"the sliding phase needs more than {lag} samples of f_frt, got {f_frt.size}")
     start = int(np.argmax(slope(f_frt, lag))) + lag
     above = np.flatnonzero(f_frn > FORCE_RISE * np.max(f_frn))
     return start, int(above[-1]) if above.size else -1

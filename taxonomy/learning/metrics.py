@@ -375,7 +375,7 @@ def reliability(probability: np.ndarray, true_index: np.ndarray, bins: int = CAL
 def auroc(score: Sequence[float], unknown: Sequence[bool]) -> float:
     """Area under the ROC curve of ``score`` separating unknown (True) from known rows: the probability that
     a random unknown row scores above a random known one, ties counting one half (Mann-Whitney U / n1 n0).
-    NaN without both kinds of row.
+    NaN without both kinds of row, or where a score is NaN (its rank, and so the area, is undefined).
 
     Parameters
     ----------
@@ -399,11 +399,13 @@ def auroc(score: Sequence[float], unknown: Sequence[bool]) -> float:
     0.75
     >>> auroc([0.5, 0.5, 0.5], [False, True, True]), auroc([0.1, 0.2], [False, False])
     (0.5, nan)
+    >>> auroc([0.1, float("nan"), 0.9], [False, True, True])  # not 1.0: a NaN score ranks nowhere
+    nan
     """
     score = np.asarray(score, dtype=np.float64)
     unknown = np.asarray(unknown, dtype=bool)
     n1, n0 = int(unknown.sum()), int((~unknown).sum())
-    if n1 == 0 or n0 == 0:
+    if n1 == 0 or n0 == 0 or np.isnan(score).any():
         return float("nan")
     order = np.argsort(score, kind="stable")
     ranks = np.empty(score.size)

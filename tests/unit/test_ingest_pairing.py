@@ -134,6 +134,20 @@ def test_recordings_lacking_a_role_are_listed():
     assert np.isnan(space.X[3, :2]).all() and not np.isnan(space.X[:3]).any()
 
 
+def test_a_recording_without_one_channel_of_a_ratio_is_named_by_both_roles():
+    # Current per speed reads two slow channels: the note names both roles, not only the numerator's.
+    rng = np.random.default_rng(4)
+    both = [Recording(f"r{k}", {"i": Trace(rng.uniform(1, 2, size=40), 6.5, "A"),
+                                "v": Trace(rng.uniform(0.1, 0.2, size=40), 6.5, "m/s")},
+                      {"signal_current": "i", "signal_speed": "v"}, "x") for k in range(3)]
+    current_only = Recording("r9", {"i": Trace(rng.uniform(1, 2, size=40), 6.5, "A")}, {"signal_current": "i"}, "x")
+    _, notes = feature_space([*both, current_only])
+    ratio = [n for n in notes if "ratio." in n]
+    assert len(ratio) == 1 and ratio[0].startswith("1 of 4 recording(s) lack one of the roles signal_current, "
+                                                   "signal_speed (at a rate ratio.signal_current.signal_speed:1x1")
+    assert ratio[0].endswith("(r9)")
+
+
 def test_a_flat_folder_of_photos_labelled_by_file_name_cut_into_rows(tmp_path):
     rng = np.random.default_rng(3)
     for name in ("cork_01", "cork_02", "felt_01"):

@@ -14,6 +14,7 @@ from features import corners, tactum
 from features.image import PreparedPhoto, tamura_contrast
 from scanner.preprocess import crop_image, grayscale, slide_signal
 from scanner.scan import Scan, ScanError, ScanMeta, Trace
+from taxonomy.errors import ParameterError
 
 FS = 3000.0
 
@@ -295,6 +296,14 @@ def test_frs_averages_over_the_sliding_segment():
     normal_sum = FN * (9000 - 930) + sum(FN * (1 - j / 310) for j in range(295))
     count = 9294 - 930 + 1
     assert tactum.frs(f_frn, f_frt) == pytest.approx(FT / (normal_sum / count), rel=1e-12)
+
+
+def test_a_friction_slide_too_short_for_its_slope_window_is_refused_by_name():
+    with pytest.raises(ParameterError, match="the sliding phase needs more than 30 samples of f_frt, got 30"):
+        tactum.sliding_segment(np.ones(100), np.ones(30))
+    with pytest.raises(ParameterError, match="f_frn must be a non-empty 1-D array"):
+        tactum.sliding_segment(np.ones((10, 2)), np.ones(100))
+    assert math.isnan(tactum.frs(np.ones(100), np.ones(30)))  # the feature of such a slide is undefined
 
 
 def test_friction_features_are_nan_when_undefined():
