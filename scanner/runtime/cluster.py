@@ -96,10 +96,12 @@ def _distributed():
 
 def scheduler_address(scheduler: str | None = None) -> str | None:
     """The scheduler to use: ``scheduler`` if given, else Dask's configured ``scheduler-address``
-    (``DASK_SCHEDULER_ADDRESS`` or a Dask YAML file), else None for processes on this machine."""
+    (``DASK_SCHEDULER_ADDRESS``, a Dask YAML file, or ``dask.config.set`` in this process), else None for
+    processes on this machine. Dask is imported for the question only where it could answer something
+    (:func:`dask_configuration_exists`, or Dask already imported)."""
     if scheduler:
         return scheduler.strip()
-    if not dask_configuration_exists():
+    if "dask.config" not in sys.modules and not dask_configuration_exists():
         return None  # nothing could name one: no need to import Dask (some 0.2-0.4 s of every command's start)
     try:
         import dask.config
