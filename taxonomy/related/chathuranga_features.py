@@ -209,9 +209,11 @@ def pearson_kurtosis(x: np.ndarray) -> float:
     >>> t = np.arange(100) / 100.0
     >>> round(pearson_kurtosis(np.sin(2 * np.pi * t)), 6), pearson_kurtosis(np.array([1.0, -1.0, 1.0, -1.0]))
     (1.5, 1.0)
-    >>> pearson_kurtosis(np.full(4, 2.0))
-    nan
+    >>> pearson_kurtosis(np.full(4, 2.0)), pearson_kurtosis(np.full(100, 0.2))
+    (nan, nan)
     """
+    if np.min(x) == np.max(x):  # constant: the rounding of its mean must not pass for a signal (0.2)
+        return math.nan
     centred = x - np.mean(x)
     variance = float(np.mean(centred**2))
     return _ratio(float(np.mean(centred**4)), variance**2)
