@@ -13,14 +13,21 @@ request thread exists (:func:`scanner.runtime.local.start_workers_from_a_server`
 server would inherit locks other request threads held (SQLite's memory mutex: a request hung for good).
 Every request and export job shares one bounded set of those workers (:func:`scanner.runtime.local.share_workers`,
 ``--workers``): a busy lab's concurrent requests queue for them rather than each starting its own.
+
+Where the settings (``--scheduler``) or Dask's configuration (``DASK_SCHEDULER_ADDRESS``) name a Dask cluster,
+the requests' extraction, the export jobs and the background trainings run on its workers instead
+(:func:`scanner.runtime.executors.chosen`), and this process starts no workers of its own: the cluster's
+workers are the bound then, and concurrent requests queue on its scheduler.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import signal
 import sys
 import threading
+from collections.abc import Iterator
 from dataclasses import replace
 
 from flask import Flask, Response, render_template
@@ -30,6 +37,7 @@ from werkzeug.exceptions import HTTPException, RequestEntityTooLarge
 from features import WORKER_SERVER_PRELOAD
 from gui import browser, operate, security
 from gui.context import LOOPBACK_HOSTS, Context, Settings, context
+from scanner.runtime.executors import LOCAL, Runtime, chosen
 from scanner.runtime.local import end_shared_workers, share_workers, start_workers_from_a_server
 
 MULTIPART_OVERHEAD = 1024 * 1024
@@ -129,6 +137,21 @@ def _stop(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+@contextlib.contextmanager
+def _local_workers(settings: Settings, runtime: Runtime) -> Iterator[None]:
+    """The server's one bounded set of workers, on this machine only (a cluster's workers bound the work)."""
+    if runtime is not LOCAL:
+        print(f"texplorer: extraction, exports and trainings run on {runtime.describe()}", file=sys.stderr)
+        yield
+        return
+    start_workers_from_a_server(WORKER_SERVER_PRELOAD)  # before the first request thread
+    share_workers(settings.workers)  # one bounded set of workers for every request and export job
+    try:
+        yield
+    finally:
+        end_shared_workers()
+
+
 def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None:
     """Run the app until Ctrl-C; warns on stderr when it listens beyond this computer.
 
@@ -140,8 +163,6 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None
     port : int
         TCP port; 0 picks a free one (printed).
     """
-    from werkzeug.serving import make_server
-
     if not is_loopback(host):
         print(f"texplorer: warning: listening on {host}:{port}: anyone who can reach this computer on the "
               "network can use the scanner and the database", file=sys.stderr)
@@ -149,9 +170,17 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None
     warning = model_warning(settings)
     if warning:
         print(f"texplorer: warning: {warning}", file=sys.stderr)
-    app = create_app(settings)
-    start_workers_from_a_server(WORKER_SERVER_PRELOAD)  # before the first request thread
-    share_workers(settings.workers)  # one bounded set of workers for every request and export job
+    with chosen(settings.scheduler, workers=settings.workers, ship_data=settings.ship_data) as runtime:
+        app = create_app(settings)
+        with _local_workers(settings, runtime):
+            _serve(app, settings, host, port)
+    print("texplorer: stopped", file=sys.stderr)
+
+
+def _serve(app: Flask, settings: Settings, host: str, port: int) -> None:
+    """Serve ``app`` until Ctrl-C or SIGTERM, then end its running work."""
+    from werkzeug.serving import make_server
+
     signal.signal(signal.SIGTERM, _stop)  # as Ctrl-C: a running scan aborted, an export's bundle deleted
     threading.Thread(target=app.extensions["texplorer"].warm_up, name="warm-up", daemon=True).start()
     server = make_server(host, port, app, threaded=True)
@@ -161,6 +190,4 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None
     finally:
         server.server_close()
         app.extensions["texplorer"].shutdown()
-        end_shared_workers()
-    print("texplorer: stopped", file=sys.stderr)
 

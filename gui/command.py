@@ -12,6 +12,7 @@ from pathlib import Path
 from gui.app import Settings, serve
 from scanner.acquisition.config import load_config
 from scanner.cli.base import UsageError, add_db_option
+from scanner.cli.common import add_cluster_options
 from scanner.photo import max_pixels
 from scanner.workflows.models import model_file
 
@@ -30,7 +31,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
     limit = int(args.upload_limit_mb * 1024 * 1024)
     model = model_file(args.db, args.model) if args.model is not None else None  # None: the current version
     settings = Settings(db=args.db, model=model, device_config=config, upload_limit=limit,
-                        max_photo_pixels=max_pixels(), workers=args.workers)
+                        max_photo_pixels=max_pixels(), workers=args.workers, scheduler=args.scheduler,
+                        ship_data=args.ship_data)
     serve(settings, args.host, args.port)
     return 0
 
@@ -53,4 +55,5 @@ def register(commands: argparse._SubParsersAction) -> None:
                          "(default 20)")
     serving.add_argument("--workers", type=int, help="worker processes every request and export shares for "
                          "feature extraction (default: number of cores); concurrent requests queue for them")
+    add_cluster_options(serving)
     serving.set_defaults(handler=cmd_serve)

@@ -38,7 +38,10 @@ class Settings:
     where export bundles are built before they are streamed (default: the system's temporary folder,
     ``$TMPDIR``); an export nobody has asked about for ``export_abandon_s`` is cancelled and its file
     deleted. ``prediction_timeout_s`` bounds the summary's wait for the model (loading it and predicting):
-    past it the summary says so in one line and the scan can be saved without a prediction. Paths are made
+    past it the summary says so in one line and the scan can be saved without a prediction. ``workers``
+    (processes on this machine) or ``scheduler`` (a Dask cluster, ``tcp://HOST:PORT`` or ``local:N``; default
+    Dask's configuration, else processes here) choose where extraction and training run, ``ship_data`` sends
+    the scans' files to the cluster's workers (:func:`scanner.runtime.executors.chosen`). Paths are made
     absolute when the settings are made.
     """
 
@@ -51,6 +54,8 @@ class Settings:
     secret_key: bytes = field(default_factory=lambda: secrets.token_bytes(32), repr=False)
     trusted_hosts: tuple[str, ...] | None = LOOPBACK_HOSTS
     workers: int | None = None
+    scheduler: str | None = None
+    ship_data: bool = False
     export_dir: Path | None = None
     export_abandon_s: float = 120.0
     prediction_timeout_s: float = 30.0

@@ -13,8 +13,7 @@ from pathlib import Path
 
 from features import REGISTRY, FeatureSpace, feature_sets
 from scanner.cli.base import UsageError, add_db_option, open_db
-from scanner.runtime.cluster import ClusterError
-from scanner.runtime.executors import LOCAL, Runtime, connect, using
+from scanner.runtime.executors import LOCAL, Runtime, chosen
 from scanner.workflows.database import extract_database
 
 ALL = "all"
@@ -82,14 +81,8 @@ def runtime_of(args: argparse.Namespace) -> Iterator[Runtime]:
     Dask cluster of ``--scheduler``, else of Dask's configuration (``DASK_SCHEDULER_ADDRESS``), else
     processes on this machine; an explicit ``--workers`` means processes on this machine. ``--ship-data``
     sends the scans' files to a cluster's workers."""
-    workers = getattr(args, "workers", None)
-    if args.scheduler and workers:
-        raise ClusterError("--workers sets processes on this machine, --scheduler a Dask cluster: give one")
-    if workers:
-        with using(LOCAL):
-            yield LOCAL
-        return
-    with connect(args.scheduler, ship_data=getattr(args, "ship_data", False)) as runtime:
+    with chosen(args.scheduler, workers=getattr(args, "workers", None),
+                ship_data=getattr(args, "ship_data", False)) as runtime:
         if runtime is LOCAL:
             yield runtime
             return

@@ -1,7 +1,7 @@
 """Where the work runs: worker processes on this machine or a Dask cluster, chosen once (docs/clusters.md).
 
-A command makes one runtime current (:func:`connect`: ``--scheduler``, Dask's configuration, else
-processes here); the code that runs work in parallel asks :func:`current` and never branches on it.
+A command or the web app makes one runtime current (:func:`chosen`: ``--workers`` for processes here, else
+:func:`connect`: ``--scheduler``, Dask's configuration, else processes here); the code that runs work in parallel asks :func:`current` and never branches on it.
 
 ======================  ================================================================================
 :mod:`.executors`       the one interface (:class:`Runtime`) and its two implementations, chosen once
@@ -13,6 +13,6 @@ processes here); the code that runs work in parallel asks :func:`current` and ne
 ======================  ================================================================================
 """
 
-from scanner.runtime.executors import LOCAL, DaskRuntime, LocalRuntime, Runtime, connect, current, using
+from scanner.runtime.executors import LOCAL, DaskRuntime, LocalRuntime, Runtime, chosen, connect, current, using
 
-__all__ = ["LOCAL", "DaskRuntime", "LocalRuntime", "Runtime", "connect", "current", "using"]
+__all__ = ["LOCAL", "DaskRuntime", "LocalRuntime", "Runtime", "chosen", "connect", "current", "using"]

@@ -1,7 +1,8 @@
 """One interface to where the work runs, chosen once: worker processes on this machine or a Dask cluster.
 
-A command chooses the runtime once (:func:`connect`, from ``--scheduler``, Dask's own configuration
-``DASK_SCHEDULER_ADDRESS`` or nothing: processes here) and makes it current while it runs (:func:`using`).
+A command or the web app chooses the runtime once (:func:`chosen`: ``--workers`` for processes here, else
+:func:`connect` from ``--scheduler``, Dask's own configuration ``DASK_SCHEDULER_ADDRESS`` or nothing:
+processes here) and makes it current while it runs (:func:`using`).
 The feature, learning and related-method code asks :func:`current` where to run and never branches on
 it: both runtimes answer the same methods, shaped as :class:`concurrent.futures.Executor`'s.
 
@@ -189,3 +190,24 @@ def connect(scheduler: str | None = None, *, ship_data: bool = False) -> Iterato
         runtime = LOCAL if client is None else DaskRuntime(client, ship_data=ship_data)
         with using(runtime):
             yield runtime
+
+
+@contextlib.contextmanager
+def chosen(scheduler: str | None = None, *, workers: int | None = None, ship_data: bool = False) -> Iterator[Runtime]:
+    """The runtime a command's or a server's settings choose, current until the block ends: processes on
+    this machine for ``workers`` (however Dask is configured), else :func:`connect`'s choice for
+    ``scheduler``.
+
+    Raises
+    ------
+    ClusterError
+        Both ``workers`` and ``scheduler`` are given, or the scheduler cannot be reached.
+    """
+    if workers and scheduler:
+        raise cluster.ClusterError("--workers sets processes on this machine, --scheduler a Dask cluster: give one")
+    if workers:
+        with using(LOCAL):
+            yield LOCAL
+        return
+    with connect(scheduler, ship_data=ship_data) as runtime:
+        yield runtime

@@ -153,8 +153,10 @@ def test_the_wait_for_a_worker_comes_from_the_environment(monkeypatch):
 def test_cli_refuses_both_workers_and_scheduler_and_an_unreachable_scheduler(pristine, capsys):
     from scanner.cli import main
 
-    assert main(["features", "--db", str(pristine), "--workers", "2", "--scheduler", "local:2"]) == 1
-    assert "--workers sets processes on this machine, --scheduler a Dask cluster" in capsys.readouterr().err
+    for command in ("features", "serve"):
+        assert main([command, "--db", str(pristine), "--workers", "2", "--scheduler", "local:2"]) == 1
+        assert "--workers sets processes on this machine, --scheduler a Dask cluster" in capsys.readouterr().err
+    assert not (pristine / ".gui").exists()  # the refused server made nothing in the database
     env = {**os.environ, "DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "1s"}
     run = subprocess.run([sys.executable, "-m", "scanner.cli", "features", "--db", str(pristine), "--scheduler",
                           "tcp://127.0.0.1:9"], capture_output=True, text=True, env=env, timeout=120)
@@ -409,6 +411,57 @@ def test_cli_honours_dask_scheduler_address_and_ships_to_workers_that_cannot_see
     assert "this machine sends each scan's files" in run.stderr
     reference = extract_many(sources_of(Database(pristine)), workers=1, progress=False)
     assert same_bits(FeatureSpace.from_csv(tmp_path / "lab-db" / "features.csv"), reference)
+
+
+def extract_keys_run(address: str) -> set[str]:
+    """The keys of feature-extraction tasks the cluster's scheduler has moved through its states (its
+    transition log)."""
+    with distributed.Client(address) as client:  # a lambda travels by value: the scheduler cannot import tests
+        return set(client.run_on_scheduler(lambda dask_scheduler: sorted(
+            {str(entry[0]) for entry in dask_scheduler.transition_log
+             if str(entry[0]).startswith("texplorer-extract-")})))
+
+
+@pytest.mark.parametrize("chosen_by", ["option", "environment"])
+def test_the_web_app_extracts_on_the_cluster_its_settings_name(dask_commands, pristine, tmp_path, chosen_by):
+    """``texplorer serve --scheduler ADDRESS`` or ``DASK_SCHEDULER_ADDRESS``: the server says where its work
+    runs, starts no workers of its own, and the features it serves were extracted by the cluster's workers,
+    bit for bit the serial run's."""
+    import urllib.request
+
+    address, _ = dask_commands
+    root = fresh_copy(pristine, tmp_path)
+    before = extract_keys_run(address)
+    option = ["--scheduler", address] if chosen_by == "option" else []
+    env = {**os.environ, "DASK_SCHEDULER_ADDRESS": address} if chosen_by == "environment" else None
+    process = subprocess.Popen([sys.executable, "-m", "scanner.cli", "serve", "--db", str(root), "--port", "0",
+                                *option], stderr=subprocess.PIPE, text=True, cwd=tmp_path, env=env)
+    try:
+        lines = []
+        for line in process.stderr:
+            lines.append(line.strip())
+            if " at http://" in line:
+                break
+        url = lines[-1].split(" at ", 1)[1].split("/ ", 1)[0]
+        assert lines[0].startswith(
+            f"texplorer: extraction, exports and trainings run on dask: 2 worker(s) (2 threads) at {address}"), lines
+        with urllib.request.urlopen(url + "/db/export/features.csv", timeout=200) as answer:
+            (tmp_path / "served.csv").write_bytes(answer.read())
+        children = [p for p in Path("/proc").glob("[0-9]*") if _parent_of(p) == process.pid]
+        assert not children, "a server on a cluster forks no workers of its own"
+    finally:
+        process.send_signal(signal.SIGINT)
+        process.wait(30)
+    reference = extract_many(sources_of(Database(pristine)), workers=1, progress=False)
+    assert same_bits(FeatureSpace.from_csv(tmp_path / "served.csv"), reference)
+    assert len(extract_keys_run(address) - before) == len(reference)
+
+
+def _parent_of(proc: Path) -> int | None:
+    try:
+        return int((proc / "stat").read_text().rsplit(")", 1)[1].split()[1])
+    except (OSError, ValueError, IndexError):
+        return None
 
 
 def test_ship_data_and_a_worker_that_sees_another_database_at_the_path(dask_commands, pristine, damaged,

@@ -94,3 +94,18 @@ def test_dask_is_asked_for_a_scheduler_only_where_it_could_be_configured(tmp_pat
         (folder / "scheduler.yaml").write_text("scheduler-address: tcp://10.0.0.5:8786\n")
         assert cluster.dask_configuration_exists({})
         (folder / "scheduler.yaml").unlink()
+
+
+def test_workers_choose_processes_here_whatever_dask_is_configured(monkeypatch):
+    """``--workers`` (a command's or the web app's) means this machine's processes, even where Dask's
+    configuration names a scheduler; together with a scheduler it is refused in one line."""
+    from scanner.runtime.cluster import ClusterError
+    from scanner.runtime.executors import chosen
+
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://127.0.0.1:9")  # nothing listens: asking would fail
+    with chosen(None, workers=2) as where:
+        assert where is LOCAL and runtime.current() is LOCAL
+    with pytest.raises(ClusterError, match="^--workers sets processes on this machine, --scheduler a Dask "
+                       "cluster: give one$"), chosen("tcp://127.0.0.1:9", workers=2):
+        pass
+    assert runtime.current() is LOCAL
