@@ -1,7 +1,8 @@
 """Where the work runs: worker processes on this machine or a Dask cluster, chosen once (docs/clusters.md).
 
 A command or the web app makes one runtime current (:func:`chosen`: ``--workers`` for processes here, else
-:func:`connect`: ``--scheduler``, Dask's configuration, else processes here); the code that runs work in parallel asks :func:`current` and never branches on it.
+:func:`connect`: ``--scheduler``, Dask's configuration, else processes here); the code that runs work in
+parallel asks :func:`current` and never branches on it.
 
 ======================  ================================================================================
 :mod:`.executors`       the one interface (:class:`Runtime`) and its two implementations, chosen once
