@@ -1042,8 +1042,10 @@ def recording_rows(recording: Recording, windowing: Windowing = Windowing(), bor
 
 def fold_group(recording: Recording, group_by: str | None = "auto") -> str:
     """The cross-validation group of a recording: its group ``group_by``; with ``auto`` the ``object``,
-    else the ``photo`` its patch was cut from, else the recording itself; ``recording`` (or None): every
-    recording alone, with its windows (``none``, every row alone, is :func:`feature_space`'s).
+    else the ``photo`` its patch was cut from, else the earlier recording whose samples it begins with
+    (``repeats``, set at import: ``scanner.storage.ingest.assembly.Repeats``), else the recording itself;
+    ``recording`` (or None): every recording alone, with its windows (``none``, every row alone, is
+    :func:`feature_space`'s).
 
     Parameters
     ----------
@@ -1069,11 +1071,14 @@ def fold_group(recording: Recording, group_by: str | None = "auto") -> str:
     >>> patch = Recording("patch-3", {"x": Trace(np.ones(4), 10.0, "-")}, group={"photo": "img-7", "site": "a"})
     >>> fold_group(patch), fold_group(patch, "site"), fold_group(patch, "recording")
     ('img-7', 'a', 'patch-3')
+    >>> fold_group(Recording("run-13", {"x": Trace(np.ones(4), 10.0, "-")}, group={"repeats": "run-12"}))
+    'run-12'
     """
     if group_by is None or group_by in ("none", "recording"):
         return recording.name
     if group_by == "auto":
-        return recording.group.get("object") or recording.group.get("photo") or recording.name
+        group = recording.group
+        return group.get("object") or group.get("photo") or group.get("repeats") or recording.name
     if group_by not in recording.group:
         raise ParameterError(f"recording {recording.name!r} has no group {group_by!r} "
                              f"(groups: {', '.join(recording.group) or 'none'})")

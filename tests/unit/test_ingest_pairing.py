@@ -310,3 +310,42 @@ def test_group_by_none_splits_the_windows_of_one_run_and_shows_the_leakage_besid
     difference = f"{100 * (leaked.accuracy_pooled - kept.accuracy_pooled):+.1f}"
     assert side[2].split() == ["rf", "all", "label", "all", f"{100 * kept.accuracy_pooled:.1f}",
                                f"{100 * leaked.accuracy_pooled:.1f}", difference, "points"]
+
+
+def _rows(path) -> list[str]:
+    return path.read_text().splitlines(keepends=True)
+
+
+def test_a_run_that_begins_with_another_runs_samples_shares_its_fold_group(tmp_path):
+    """A file holding a copy of an earlier run followed by more (two runs saved again as one, as in one of
+    BorealTC's snow runs): named in a note, and kept in the earlier run's cross-validation group, through a
+    chain; runs that only begin at rest alike (constant samples) are not taken for copies."""
+    write_terrain(tmp_path, runs=3)
+    gravel, grass = tmp_path / "gravel", tmp_path / "grass"
+    for kind in ("imu", "pro"):  # 01 = 00 + its own rows; 02 = 01 + its own rows
+        for later, earlier in (("01", "00"), ("02", "01")):
+            (gravel / f"{kind}_{later}.csv").write_text("".join(
+                _rows(gravel / f"{kind}_{earlier}.csv") + _rows(gravel / f"{kind}_{later}.csv")[1:]))
+    for stem in ("10", "11"):  # both begin with a second at rest
+        rows = _rows(grass / f"imu_{stem}.csv")
+        (grass / f"imu_{stem}.csv").write_text("".join(rows[:1] + ["0.0,0.0,0.0,GRASS\n"] * 100 + rows[1:]))
+    report = ingest.ingest(tmp_path, ingest.parse_mapping(TERRAIN, "terrain"))
+    assert [n.text for n in report.notes if n.kind == "repeats"] == [
+        "recording 01: at least its first 3.8 s (current, gyro) are the samples of recording 00: one "
+        "cross-validation group with it (group repeats = 00)",
+        "recording 02: at least its first 7.7 s (current, gyro) are the samples of recording 01: one "
+        "cross-validation group with it (group repeats = 00)"]
+    by = {r.name: r for r in report.recordings}
+    assert by["01"].channels["gyro"].data.shape == (800, 3) and "repeats" not in by["00"].group
+    space, _ = feature_space(report.recordings)
+    assert dict(zip(space.scan_ids, space.groups, strict=True)) == {
+        "00": "00", "01": "00", "02": "00", "10": "10", "11": "11", "12": "12"}
+
+
+def test_block_digests_skip_a_constant_start_and_count_whole_blocks():
+    ramp = np.arange(200.0)
+    assert len(ingest.assembly.block_digests(ramp)) == 3  # 200 // 64 whole blocks
+    assert ingest.assembly.block_digests(np.ones(200)) == []
+    assert ingest.assembly.block_digests(ramp[:63]) == []
+    copy = np.concatenate([ramp[:128], -ramp])
+    assert ingest.assembly.block_digests(copy)[:2] == ingest.assembly.block_digests(ramp)[:2]

@@ -326,6 +326,86 @@ def _patched(name: str, parts: _Parts, traces: Mapping[str, Trace], label: str, 
             for r, c, patch in patches(image, parts.grid)]
 
 
+REPEAT_BLOCK = 64
+"""Samples per block when recordings are compared for repeated samples (:class:`Repeats`): 0.64 s at 100 Hz,
+10 s at 6.5 Hz. Real sensor samples repeat block for block only where a file holds a copy of another's."""
+
+
+def block_digests(data: np.ndarray, block: int = REPEAT_BLOCK) -> list[bytes]:
+    """A digest of each whole block of ``block`` samples (rows) of ``data``, from the first sample; none when
+    the first block is constant (a channel at rest, or an unplugged one, starts alike in unrelated recordings)."""
+    rows = np.ascontiguousarray(data)
+    if len(rows) < block or np.ptp(rows[:block], axis=0).max(initial=0) == 0:
+        return []
+    return [hashlib.blake2b(rows[i:i + block].tobytes(), digest_size=16).digest()
+            for i in range(0, len(rows) - block + 1, block)]
+
+
+def _common_start(a: Sequence[bytes], b: Sequence[bytes]) -> int:
+    same = 0
+    for x, y in zip(a, b, strict=False):
+        if x != y:
+            break
+        same += 1
+    return same
+
+
+class Repeats:
+    """Recordings that begin with another recording's samples: a file that holds a copy of an earlier run
+    followed by more (two runs concatenated and saved again, say).
+
+    Windows of both would otherwise fall in training and test as different groups and share samples. A
+    recording whose every channel that both have (with at least one whole :data:`REPEAT_BLOCK` of samples
+    that is not constant) begins with the same samples as an earlier recording's gets the group ``repeats``
+    naming the first recording of the chain (so that the automatic fold grouping keeps them together,
+    :func:`features.recordings.fold_group`) and a note saying how many seconds of which channels repeat.
+    Only repeats from the first sample are found; memory is a digest per block of each recording.
+    """
+
+    def __init__(self) -> None:
+        self._starts: dict[tuple[str, bytes], list[str]] = {}
+        self._blocks: dict[str, dict[str, tuple[list[bytes], float]]] = {}
+        self._root: dict[str, str] = {}
+
+    def place(self, recordings: Sequence[Recording]) -> tuple[list[Recording], Note | None]:
+        """``recordings`` (those of one recording key: a photo's patches share their channels) with the group
+        ``repeats`` where their channels begin as an earlier recording's, and the note saying so."""
+        if not recordings:
+            return list(recordings), None
+        first = recordings[0]
+        blocks = {name: (digests, trace.fs) for name, trace in first.channels.items()
+                  if (digests := block_digests(trace.data))}
+        candidates = {other for name, (digests, _) in blocks.items()
+                      for other in self._starts.get((name, digests[0]), ())
+                      if self._repeats(blocks, self._blocks[other])}
+        for name, (digests, _) in blocks.items():
+            self._starts.setdefault((name, digests[0]), []).append(first.name)
+        self._blocks[first.name] = blocks
+        if not candidates:
+            return list(recordings), None
+        earlier = max(sorted(candidates), key=lambda other: self._seconds(blocks, self._blocks[other]))
+        root = self._root.setdefault(first.name, self._root.get(earlier, earlier))
+        seconds = self._seconds(blocks, self._blocks[earlier])
+        shared = ", ".join(sorted(set(blocks) & set(self._blocks[earlier])))
+        note = Note("repeats", first.name, seconds,
+                    f"recording {first.name}: at least its first {seconds:.1f} s ({shared}) are the samples of "
+                    f"recording {earlier}: one cross-validation group with it (group repeats = {root})")
+        return [replace(r, group={**r.group, "repeats": root}) for r in recordings], note
+
+    @staticmethod
+    def _seconds(blocks: Mapping[str, tuple[list[bytes], float]],
+                 other: Mapping[str, tuple[list[bytes], float]]) -> float:
+        """How long both begin alike, in whole blocks: the fastest channel tells it best."""
+        return max(_common_start(blocks[name][0], other[name][0]) * REPEAT_BLOCK / blocks[name][1]
+                   for name in set(blocks) & set(other))
+
+    @staticmethod
+    def _repeats(blocks: Mapping[str, tuple[list[bytes], float]],
+                 other: Mapping[str, tuple[list[bytes], float]]) -> bool:
+        shared = set(blocks) & set(other)
+        return bool(shared) and all(blocks[name][0][0] == other[name][0][0] for name in shared)
+
+
 def lacking_roles(recordings: Sequence[Recording | Made], first: int = 3) -> list[Note]:
     """A note per role that some recordings have and others lack (a file of the recording missing, say):
     how many lack it and the first few; the feature families that need the role are NaN there."""
@@ -438,9 +518,13 @@ def ingest(path: str | os.PathLike[str], mapping: IngestMapping,
     matched = unpaired(without_excluded(_matched(root, mapping, report), root, mapping, table, report), root,
                        mapping, report)
     names = recording_names(list(matched), root)
+    repeats = Repeats()
     for key, files in progress(list(matched.items())):
         report.files += len(files)
-        for recording in _recordings(key, names[key], files, root, mapping, table, report):
+        made, repeated = repeats.place(_recordings(key, names[key], files, root, mapping, table, report))
+        if repeated is not None:
+            report.notes.append(repeated)
+        for recording in made:
             report.made.append(Made.of(recording))
             if sink is None:
                 report.recordings.append(recording)

@@ -224,7 +224,8 @@ NOTE_KINDS = {"missing": "missing samples interpolated", "irregular": "irregular
               "roles": "recordings lacking a role the others have",
               "role": "channels without a role read as the generic role signal",
               "excluded": "classes left out as asked",
-              "class_roles": "classes lacking every recording of a role the other classes have"}
+              "class_roles": "classes lacking every recording of a role the other classes have",
+              "repeats": "recordings beginning with an earlier recording's samples, kept in its fold group"}
 
 
 def summarise_notes(notes: Sequence[Note], first: int = 3) -> list[str]:
