@@ -347,5 +347,6 @@ def test_block_digests_skip_a_constant_start_and_count_whole_blocks():
     assert len(ingest.assembly.block_digests(ramp)) == 3  # 200 // 64 whole blocks
     assert ingest.assembly.block_digests(np.ones(200)) == []
     assert ingest.assembly.block_digests(ramp[:63]) == []
+    assert len(ingest.assembly.block_digests(np.arange(64.0 * 2000))) == ingest.assembly.REPEAT_BLOCKS_KEPT
     copy = np.concatenate([ramp[:128], -ramp])
     assert ingest.assembly.block_digests(copy)[:2] == ingest.assembly.block_digests(ramp)[:2]

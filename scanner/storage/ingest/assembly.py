@@ -329,6 +329,9 @@ def _patched(name: str, parts: _Parts, traces: Mapping[str, Trace], label: str, 
 REPEAT_BLOCK = 64
 """Samples per block when recordings are compared for repeated samples (:class:`Repeats`): 0.64 s at 100 Hz,
 10 s at 6.5 Hz. Real sensor samples repeat block for block only where a file holds a copy of another's."""
+REPEAT_BLOCKS_KEPT = 1024
+"""Blocks of a channel compared at most (its first 65,536 samples): the digests kept stay under 100 kB per
+channel however long the recording; a longer repeat is reported as at least that long."""
 
 
 def block_digests(data: np.ndarray, block: int = REPEAT_BLOCK) -> list[bytes]:
@@ -337,8 +340,8 @@ def block_digests(data: np.ndarray, block: int = REPEAT_BLOCK) -> list[bytes]:
     rows = np.ascontiguousarray(data)
     if len(rows) < block or np.ptp(rows[:block], axis=0).max(initial=0) == 0:
         return []
-    return [hashlib.blake2b(rows[i:i + block].tobytes(), digest_size=16).digest()
-            for i in range(0, len(rows) - block + 1, block)]
+    whole = min(len(rows) // block, REPEAT_BLOCKS_KEPT)
+    return [hashlib.blake2b(rows[i * block:(i + 1) * block].tobytes(), digest_size=16).digest() for i in range(whole)]
 
 
 def _common_start(a: Sequence[bytes], b: Sequence[bytes]) -> int:
