@@ -24,6 +24,7 @@ Logits: ``decision_function`` where the classifier has no ``predict_proba`` (the
 
 from __future__ import annotations
 
+import inspect
 import warnings
 
 import numpy as np
@@ -90,6 +91,39 @@ def grouped_splits(y: np.ndarray, groups: np.ndarray | None, folds: int,
             return list(splitter.split(np.zeros(len(y)), y, groups))
         splitter = StratifiedKFold(n_splits=folds, shuffle=True, random_state=seed)
         return list(splitter.split(np.zeros(len(y)), y))
+
+
+def fit_grouped(classifier: BaseEstimator, X: np.ndarray, y: np.ndarray, groups: np.ndarray) -> BaseEstimator:
+    """``classifier.fit(X, y)``, with the rows' ``groups`` where its ``fit`` takes them (a family ensemble's
+    inner folds keep a group's rows together).
+
+    Parameters
+    ----------
+    classifier : BaseEstimator
+        An unfitted classifier.
+    X : numpy.ndarray, shape (n, f)
+        The training rows.
+    y : numpy.ndarray, shape (n,)
+        The class of each row.
+    groups : numpy.ndarray, shape (n,)
+        The group of each row.
+
+    Returns
+    -------
+    BaseEstimator
+        ``classifier``, fitted.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.naive_bayes import GaussianNB
+    >>> from taxonomy.learning.calibration import fit_grouped
+    >>> fit_grouped(GaussianNB(), np.array([[0.0], [1.0]]), np.array(["a", "b"]), np.array(["g1", "g2"])).classes_
+    array(['a', 'b'], dtype='<U1')
+    """
+    if "groups" in inspect.signature(classifier.fit).parameters:
+        return classifier.fit(X, y, groups=groups)
+    return classifier.fit(X, y)
 
 
 def logits(classifier: BaseEstimator, X: np.ndarray) -> np.ndarray:
@@ -233,14 +267,15 @@ class TemperatureScaledClassifier(ClassifierMixin, BaseEstimator):
         (4, 12, True)
         """
         X, y = np.asarray(X), np.asarray(y)
+        groups = None if groups is None else np.asarray(groups)
         materials = np.asarray(materials) if materials is not None else y
-        self.estimator_ = clone(self.estimator).fit(X, y)
+        self.estimator_ = fit_grouped(clone(self.estimator), X, y, groups)
         self.classes_ = self.estimator_.classes_
         index = {c: k for k, c in enumerate(self.classes_)}
         held_z, held_true = [], []
         splits = grouped_splits(y, groups, self.inner_folds, self.seed)
         for train, test in splits:
-            inner = clone(self.estimator).fit(X[train], y[train])
+            inner = fit_grouped(clone(self.estimator), X[train], y[train], None if groups is None else groups[train])
             columns = np.array([index[c] for c in inner.classes_])
             known = np.isin(y[test], inner.classes_) & np.isin(materials[test], materials[train])
             if not known.any() or columns.size < 2:

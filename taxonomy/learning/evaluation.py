@@ -57,7 +57,8 @@ from features.selection import FQSelector, KeepAll, PartwiseFQSelector
 from features.space import FeatureSpace
 from scanner.runtime import executors
 from scanner.runtime.threads import one_blas_thread
-from taxonomy.learning.calibration import TemperatureScaledClassifier
+from taxonomy.learning.calibration import TemperatureScaledClassifier, fit_grouped
+from taxonomy.learning.fusion import FamilyEnsembleClassifier
 from taxonomy.learning.metrics import present_class_f1
 from taxonomy.learning.openset import MAX_ACCURACY_DROP, class_folds, fit_rule, learn_rejection
 from taxonomy.learning.results import OWN_METHOD, EvaluationError, Result, warning_notes
@@ -1024,8 +1025,8 @@ def _fold(prepared: _Prepared, fold: int, protocol: str) -> _FoldOutcome:
         started = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught, one_blas_thread():
             warnings.simplefilter("always")
-            classifier = clone(pipeline[-1])
-            name = type(classifier).__name__
+            name = type(pipeline[-1]).__name__
+            classifier = by_family(clone(pipeline[-1]), shared, prepared.columns, prepared.seed)
             if prepared.calibrate:
                 classifier = TemperatureScaledClassifier(classifier, seed=prepared.seed)
                 classifier.fit(X_train, y[train], groups=prepared.groups[train], materials=prepared.materials[train])
@@ -1033,7 +1034,7 @@ def _fold(prepared: _Prepared, fold: int, protocol: str) -> _FoldOutcome:
                 probability[:, np.searchsorted(classes, classifier.classes_)] = classifier.predict_proba(X_test)
                 probabilities.append(probability)
             else:
-                classifier.fit(X_train, y[train])
+                fit_grouped(classifier, X_train, y[train], prepared.groups[train])
                 probabilities.append(None)
             predictions.append(classifier.predict(X_test))
         seconds.append(shared_seconds + time.perf_counter() - started)
@@ -1049,6 +1050,43 @@ def _selected_names(shared: Pipeline, columns: tuple[str, ...]) -> tuple[str, ..
     if "kernels" in shared.named_steps:
         columns = tuple(shared.named_steps["kernels"].get_feature_names_out())
     return tuple(columns[i] for i in shared.named_steps["select"].selected_)
+
+
+def by_family(classifier: BaseEstimator, shared: Pipeline, columns: tuple[str, ...], seed: int) -> BaseEstimator:
+    """``classifier`` for the columns the fitted ``shared`` steps pass on: as it is where they hold one
+    feature family, else a :class:`~taxonomy.learning.fusion.FamilyEnsembleClassifier` fitting it on each
+    family's columns (a fused set: :func:`features.feature_sets.column_parts`).
+
+    Parameters
+    ----------
+    classifier : BaseEstimator
+        An unfitted classifier.
+    shared : Pipeline
+        The fitted steps before it (random kernels, scaling, selection).
+    columns : tuple of str
+        The names of the input columns; none: one family.
+    seed : int
+        Seed of the ensemble's inner folds.
+
+    Returns
+    -------
+    BaseEstimator
+        ``classifier`` or the ensemble around it, unfitted.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.naive_bayes import GaussianNB
+    >>> X, y = np.array([[0.0, 1.0, 2.0], [1.0, 0.0, 5.0]]), np.array(["cork", "oak"])
+    >>> shared = make_pipeline("nb", None)[:-1].fit(X, y)
+    >>> type(by_family(GaussianNB(), shared, ("tactum.matx", "audio.tool.f0", "other.density"), 0)).__name__
+    'GaussianNB'
+    >>> fused = by_family(GaussianNB(), shared, ("tactum.matx", "catch22.v_ts.CO_f1ecac", "other.density"), 0)
+    >>> type(fused).__name__, fused.parts
+    ('FamilyEnsembleClassifier', (0, 1, 0))
+    """
+    parts = feature_sets.column_parts(_selected_names(shared, columns)) if columns else None
+    return classifier if parts is None else FamilyEnsembleClassifier(classifier, parts, seed=seed)
 
 
 def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],
@@ -1147,12 +1185,12 @@ def fit_pipeline(X: np.ndarray, y: np.ndarray, groups: np.ndarray, classifier: s
     pipeline = make_pipeline(classifier, n_features, seed, kernels, columns)
     with one_blas_thread():
         Z = pipeline[:-1].fit_transform(X, y)
-        estimator = pipeline.steps[-1][1]
+        estimator = by_family(pipeline.steps[-1][1], pipeline[:-1], tuple(columns), seed)
         if calibrate:
             estimator = TemperatureScaledClassifier(estimator, seed=seed).fit(Z, y, groups=np.asarray(groups),
                                                                               materials=materials)
         else:
-            estimator.fit(Z, y)
+            fit_grouped(estimator, Z, y, np.asarray(groups))
     pipeline.steps[-1] = ("classify", estimator)
     return pipeline
 
