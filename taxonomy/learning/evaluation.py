@@ -1053,9 +1053,11 @@ def _selected_names(shared: Pipeline, columns: tuple[str, ...]) -> tuple[str, ..
 
 
 def by_family(classifier: BaseEstimator, shared: Pipeline, columns: tuple[str, ...], seed: int) -> BaseEstimator:
-    """``classifier`` for the columns the fitted ``shared`` steps pass on: as it is where they hold one
-    feature family, else a :class:`~taxonomy.learning.fusion.FamilyEnsembleClassifier` fitting it on each
-    family's columns (a fused set: :func:`features.feature_sets.column_parts`).
+    """``classifier`` for the columns the fitted ``shared`` steps pass on: a
+    :class:`~taxonomy.learning.fusion.FamilyEnsembleClassifier` fitting it on each family's columns where they
+    hold every column of several families (a fused set, :func:`features.feature_sets.column_parts`, with
+    ``KeepAll``: the widest family would drown the others), else ``classifier`` as it is (one family, or
+    each family's ``n`` best kept by a :class:`~features.selection.PartwiseFQSelector`, balanced already).
 
     Parameters
     ----------
@@ -1085,7 +1087,9 @@ def by_family(classifier: BaseEstimator, shared: Pipeline, columns: tuple[str, .
     >>> type(fused).__name__, fused.parts
     ('FamilyEnsembleClassifier', (0, 1, 0))
     """
-    parts = feature_sets.column_parts(_selected_names(shared, columns)) if columns else None
+    if not columns or not isinstance(shared.named_steps["select"], KeepAll):
+        return classifier
+    parts = feature_sets.column_parts(_selected_names(shared, columns))
     return classifier if parts is None else FamilyEnsembleClassifier(classifier, parts, seed=seed)
 
 
