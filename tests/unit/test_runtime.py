@@ -103,9 +103,9 @@ def test_workers_choose_processes_here_whatever_dask_is_configured(monkeypatch):
     from scanner.runtime.executors import chosen
 
     monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://127.0.0.1:9")  # nothing listens: asking would fail
-    with chosen(None, workers=2) as where:
+    with chosen(None, workers=1) as where:
         assert where is LOCAL and runtime.current() is LOCAL
     with pytest.raises(ClusterError, match="^--workers sets processes on this machine, --scheduler a Dask "
-                       "cluster: give one$"), chosen("tcp://127.0.0.1:9", workers=2):
+                       "cluster: give one$"), chosen("tcp://127.0.0.1:9", workers=1):
         pass
     assert runtime.current() is LOCAL
