@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 from sklearn.ensemble import RandomForestClassifier
 from sklearn.naive_bayes import GaussianNB
-from unit.test_evaluation import labelled_space
 
 from features import FeatureSpace
 from taxonomy.learning.evaluation import evaluate, fit_pipeline
 from taxonomy.learning.fusion import FamilyEnsembleClassifier, ensemble_selection
+from unit.test_evaluation import labelled_space
 
 
 def test_selection_keeps_the_best_member_and_adds_one_only_where_the_loss_falls():
