@@ -51,7 +51,7 @@ from sklearn.tree import DecisionTreeClassifier
 
 from features import feature_sets
 from features.random_kernels import SIGNAL_PREFIX, RandomKernels
-from features.selection import FQSelector
+from features.selection import FQSelector, PartwiseFQSelector
 from features.space import FeatureSpace
 from scanner.storage.files import atomic_write_bytes, remove_stale_temp_files
 from scanner.version import __version__
@@ -88,6 +88,7 @@ TRUSTED_TYPES = (
     "features.modern.LengthRule",
     "features.random_kernels.RandomKernels",
     "features.selection.FQSelector",
+    "features.selection.PartwiseFQSelector",
     "taxonomy.learning.calibration.TemperatureScaledClassifier",
     "sklearn.metrics._dist_metrics.EuclideanDistance64",
     "sklearn.neighbors._kd_tree.KDTree",
@@ -100,6 +101,8 @@ TRUSTED_TYPES = (
 arrays and scikit-learn estimators); a file with any other such type is refused before it is loaded."""
 
 MODEL_TYPES = (MinMaxScaler, FQSelector, *(type(est) for est in classifier_estimators(SEED).values()))
+SELECTORS = (FQSelector, PartwiseFQSelector)
+"""A model's select step: FQ + Spearman over every column, or family by family for a fused feature set."""
 """The estimator classes a model's pipeline may consist of, step by step: scale, select, classify (the
 classifier bare, in a version 1 file, or inside a :class:`TemperatureScaledClassifier`)."""
 SKLEARN_PARTS = (Pipeline, MinMaxScaler, *MODEL_TYPES[2:], DecisionTreeClassifier, LabelBinarizer)
@@ -653,7 +656,7 @@ def _check_pipeline(path: Path, pipeline: Any) -> None:
     if isinstance(classify, TemperatureScaledClassifier):
         classify = getattr(classify, "estimator_", classify.estimator)
     kinds = (type(scale), type(select), type(classify))
-    if kinds[:2] != (MinMaxScaler, FQSelector) or kinds[2] not in MODEL_TYPES[2:]:
+    if kinds[0] is not MinMaxScaler or kinds[1] not in SELECTORS or kinds[2] not in MODEL_TYPES[2:]:
         raise ModelError(f"{path}: unexpected pipeline steps {' -> '.join(k.__name__ for k in kinds)}")
     calibrated = pipeline.steps[-1][1]
     if isinstance(calibrated, TemperatureScaledClassifier) and not isinstance(getattr(calibrated, "beta_", None),

@@ -92,6 +92,22 @@ def test_save_and_load_give_identical_predictions(space, tmp_path, classifier):
     assert [p.name for p in tmp_path.iterdir()] == ["model.skops"]
 
 
+def test_a_fused_sets_model_is_saved_and_loaded(space, tmp_path):
+    """A model of a fused feature set (the paper's columns and a modern family's, each family's n best) loads
+    as it was trained: its selector chooses family by family."""
+    rng = np.random.default_rng(5)
+    modern = tuple(f"catch22.v_ts.c{k:02d}" for k in range(6))
+    fused = FeatureSpace(np.c_[space.X, rng.normal(size=(len(space), len(modern)))], (*space.columns, *modern),
+                         space.scan_ids, space.label_text, space.groups)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        trained = train_model(fused, level="medium", n_features=2, feature_set="paper+catch22")
+    assert type(trained.pipeline.named_steps["select"]).__name__ == "PartwiseFQSelector"
+    loaded = load_model(save_model(trained, tmp_path / "fused.skops"))
+    np.testing.assert_array_equal(loaded.pipeline.predict_proba(fused.X), trained.pipeline.predict_proba(fused.X))
+    assert loaded.selected == trained.selected and any(name.startswith("catch22.") for name in loaded.selected)
+
+
 def test_a_classifier_without_probabilities_is_not_trained_into_a_model(space):
     with pytest.raises(ModelError, match="ridge gives no class probabilities"):
         train_model(space, level="medium", n_features=3, classifier="ridge")
