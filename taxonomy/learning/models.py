@@ -101,10 +101,10 @@ TRUSTED_TYPES = (
 arrays and scikit-learn estimators); a file with any other such type is refused before it is loaded."""
 
 MODEL_TYPES = (MinMaxScaler, FQSelector, *(type(est) for est in classifier_estimators(SEED).values()))
-SELECTORS = (FQSelector, PartwiseFQSelector)
-"""A model's select step: FQ + Spearman over every column, or family by family for a fused feature set."""
 """The estimator classes a model's pipeline may consist of, step by step: scale, select, classify (the
 classifier bare, in a version 1 file, or inside a :class:`TemperatureScaledClassifier`)."""
+SELECTORS = (FQSelector, PartwiseFQSelector)
+"""A model's select step: FQ + Spearman over every column, or family by family for a fused feature set."""
 SKLEARN_PARTS = (Pipeline, MinMaxScaler, *MODEL_TYPES[2:], DecisionTreeClassifier, LabelBinarizer)
 """The scikit-learn estimators a model file holds: the pipeline, its scaler, the classifiers and what they fit
 inside themselves (a forest's trees, a network's label binarizer). skops trusts these by default, in place of
