@@ -79,6 +79,25 @@ def test_a_model_loads_without_importing_the_rest_of_scikit_learn(tmp_path):
     assert run.stdout.split("\n")[-2] == "[] rf"
 
 
+def test_skops_trusts_the_same_names_imported_with_the_module_index():
+    # The model code imports skops with its search for an object's module answered from one index of the loaded
+    # modules: every name skops derives at its import (the ufuncs of numpy and scipy.special among them) is the one
+    # its own search gives, in a process that has loaded what classify loads.
+    lists = ("import json, sys\nimport skops.io._trusted_types as t\n"
+             "print(json.dumps({k: v for k, v in vars(t).items() if k.endswith('_NAMES')}, sort_keys=True))")
+    setup = "import sklearn.ensemble, scipy.stats, features, scanner.cli.models\nfrom taxonomy.learning import models\n"
+    ours = setup + "models._skops()\nimport skops, skops.io\nassert skops.io is sys.modules['skops.io']\n"
+    theirs = setup + "with models._estimators(models.SKLEARN_PARTS):\n    import skops.io\n"
+    found = []
+    for code in (ours, theirs):
+        run = subprocess.run([sys.executable, "-c", "import sys\n" + code + lists], capture_output=True, text=True,
+                             timeout=300)
+        assert run.returncode == 0, run.stderr
+        found.append(json.loads(run.stdout.splitlines()[-1]))
+    assert found[0] == found[1]
+    assert len(found[0]["SCIPY_UFUNC_TYPE_NAMES"]) > 100 and len(found[0]["NUMPY_UFUNC_TYPE_NAMES"]) > 50
+
+
 def test_classify_s_group_loads_neither_the_devices_nor_the_simulator():
     code = ("import scanner.cli.models, sys\nprint(sorted(m for m in sys.modules if m.startswith(("
             "'scanner.simulation', 'scanner.acquisition', 'cv2', 'scipy.signal', 'numba'))))")

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import sys
+import types
 import warnings
 import zipfile
 from dataclasses import replace
@@ -315,3 +317,27 @@ def test_skops_sees_the_model_s_own_estimators_only_while_it_is_first_imported()
     assert sklearn.utils.all_estimators is crawl
     assert set(listed.values()) == set(models.SKLEARN_PARTS)
     assert {"RandomForestClassifier", "Pipeline", "MinMaxScaler", "DecisionTreeClassifier"} <= set(listed)
+
+
+def test_the_module_index_names_the_first_module_holding_an_object_as_skops_search_does():
+    held, other, unsearched = object(), object(), object()
+    first, second, main = (types.ModuleType(name) for name in ("first", "second", "__main__"))
+    main.unsearched = unsearched
+    first.alias, second.held, second.other = held, held, other
+    holders = models._first_holders({"__main__": main, "first": first, "second": second, "broken": None})
+    assert (holders[id(held)], holders[id(other)]) == ("first", "second") and id(unsearched) not in holders
+    searched = []
+
+    def search(obj, name):
+        searched.append(name)
+        return "searched"
+
+    with pytest.MonkeyPatch.context() as patch:
+        for module in (first, second):
+            patch.setitem(sys.modules, module.__name__, module)
+        whichmodule = models._indexed(search)
+        # "first" holds `held` before "second" does, but as `alias`: skops' search answers for the name `held`
+        assert whichmodule(held, "held") == "searched" and searched == ["held"]
+        assert whichmodule(other, "other") == "second" and searched == ["held"]
+        assert whichmodule(models.save_model, "anything") == "taxonomy.learning.models"  # its own __module__
+        assert whichmodule(object(), "loose") == "searched"
