@@ -37,9 +37,9 @@ from sklearn.decomposition import PCA
 from sklearn.ensemble import IsolationForest
 from sklearn.metrics import euclidean_distances
 
-from features.space import FeatureSpace
+from features.space import FeatureSpace, drop_nan_columns
 from taxonomy.learning.calibration import grouped_splits
-from taxonomy.learning.evaluation import cv_splits, drop_nan_columns, evaluate_open_set, fit_pipeline
+from taxonomy.learning.evaluation import cv_splits, evaluate_open_set, fit_pipeline
 from taxonomy.learning.metrics import auroc
 from taxonomy.learning.openset import (
     MAX_ACCURACY_DROP,

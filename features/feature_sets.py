@@ -23,6 +23,7 @@ from collections.abc import Iterable, Sequence
 from features.modern import FITTED_KINDS, SIGNAL_PREFIX, role_families
 from features.modern import KINDS as EXTRACTED_KINDS
 from features.registry import REGISTRY, ROLE_REGISTRY
+from features.space import FeatureSpace, drop_nan_columns
 from taxonomy.errors import TexplorerError
 
 PAPER = "paper"
@@ -36,6 +37,10 @@ MODERN_SETS = ("catch22", "scattering", *FITTED_KINDS)
 OWN_PREFIXES = (*REGISTRY.modalities, "generic")
 """The column prefixes of ``paper``: the paper's modalities and, on imported recordings, the generic
 family of any sensor channel (``generic.signal_gyro.std``, slow channels and their ratios too)."""
+
+
+FeatureSet = str | Sequence[str] | None
+"""Columns to learn from: None or ``"all"`` (every column), a set name, a modality name, or column names."""
 
 
 class FeatureSetError(TexplorerError, ValueError):
@@ -384,3 +389,89 @@ def check_names(names: Iterable[str]) -> list[str]:
         if name != "all" and name not in REGISTRY.modalities:
             parts(name)
     return names
+
+
+def resolve_feature_set(space: FeatureSpace, feature_set: FeatureSet) -> tuple[FeatureSpace, str]:
+    """The columns of ``feature_set`` and its display name ("all", the modality, or "<n> columns").
+
+    Parameters
+    ----------
+    space : FeatureSpace
+        The feature space.
+    feature_set : FeatureSet
+        None or ``"all"``, a named set (:mod:`features.feature_sets`), a modality, or column names.
+
+    Returns
+    -------
+    subset : FeatureSpace
+        ``space`` with the set's columns only.
+    name : str
+        The set's display name.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> space = FeatureSpace(np.array([[1.0, 2.0, 3.0]]), ("tactum.matx", "other.density", "other.metal"),
+    ...                      ("scan1",), ("C1S1M1P1X1",), ("sample1",))
+    >>> from features.feature_sets import resolve_feature_set
+    >>> subset, name = resolve_feature_set(space, "other")
+    >>> subset.columns, name
+    (('other.density', 'other.metal'), 'other')
+    >>> resolve_feature_set(space, ["tactum.matx", "other.metal"])[1], resolve_feature_set(space, None)[1]
+    ('2 columns', 'all')
+    """
+    if feature_set is None or feature_set == "all":
+        return space, "all"
+    if isinstance(feature_set, str) and is_named_set(feature_set):
+        return space.subset(columns_of(space.columns, feature_set)), feature_set
+    if isinstance(feature_set, str):
+        return space.modality(feature_set), feature_set
+    columns = list(feature_set)
+    return space.subset(columns), f"{len(columns)} columns"
+
+
+def learning_subset(space: FeatureSpace, level: str, feature_set: FeatureSet) -> tuple[FeatureSpace, tuple[str, ...]]:
+    """The rows and columns of ``space`` a classifier of ``level`` learns ``feature_set`` from: the set's columns
+    (:func:`resolve_feature_set`), without the rows and columns that hold NaN, checked to be scalable
+    (:func:`features.space.drop_nan_columns`).
+
+    Parameters
+    ----------
+    space : FeatureSpace
+        The feature space.
+    level : str
+        The class level (``coarse``, ``medium``, ``fine``, or a level of a set's free labels).
+    feature_set : FeatureSet
+        None or ``"all"``, a named set, a modality, or column names.
+
+    Returns
+    -------
+    subset : FeatureSpace
+        The rows and columns kept.
+    dropped : tuple of str
+        The set's columns left out for NaN.
+
+    Raises
+    ------
+    FeatureSpaceError
+        ``space`` has no level ``level``, a column is missing, every row holds only NaN, or the values kept cannot
+        be scaled or are constant.
+    FeatureSetError
+        A set name that names nothing.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> from features.feature_sets import learning_subset
+    >>> X = np.array([[1.0, 5.0, 3.0], [2.0, np.nan, 1.0], [3.0, 4.0, 2.0]])
+    >>> space = FeatureSpace(X, ("tactum.matx", "other.metal", "other.density"), ("a", "b", "c"),
+    ...                      ("C1S1M1P1X1", "C2S1M1P1X1", "C2S1M1P1X1"), ("a", "b", "c"))
+    >>> subset, dropped = learning_subset(space, "fine", "other")
+    >>> subset.columns, dropped
+    (('other.density',), ('other.metal',))
+    """
+    space.check_level(level)
+    subset, _ = resolve_feature_set(space, feature_set)
+    return drop_nan_columns(subset)

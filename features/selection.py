@@ -23,8 +23,11 @@ from scipy.interpolate import CubicHermiteSpline
 from scipy.special import erfcinv
 from sklearn.base import BaseEstimator
 from sklearn.feature_selection import SelectorMixin
+from sklearn.preprocessing import MinMaxScaler
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from features.feature_sets import column_parts
+from features.random_kernels import RandomKernels
 from taxonomy.errors import ParameterError
 
 SF_TOLERANCE = 1e-9
@@ -728,3 +731,49 @@ def select_features(space: _LabelledSpace, level: str = "fine", n_features: int 
     ranking = tuple((space.columns[i], float(selector.fq_[i])) for i in order)
     selected = tuple(space.columns[i] for i in selector.selected_)
     return Selection(level, n_features, max_corr, ranking, selected, selector.rho_)
+
+
+def feature_steps(columns: Sequence[str] = (), n_features: int | None = 10, kernels: str | None = None,
+                  seed: int = 0) -> list[tuple[str, BaseEstimator]]:
+    """The steps of a classifier's pipeline before the classifier, unfitted: a ``kernels`` transform where
+    given (``minirocket``, ``multirocket``: :class:`features.random_kernels.RandomKernels` on the ``signal``
+    columns of ``columns``, seeded with ``seed``; fitted on the training folds, as the scaling and the
+    selection), min-max scaling, and the selection of ``n_features``: :class:`FQSelector`, or
+    :class:`PartwiseFQSelector` (``n_features`` per family) where ``columns`` hold several families (a fused set:
+    :func:`features.feature_sets.column_parts`), or :class:`KeepAll` for ``n_features`` None.
+
+    Parameters
+    ----------
+    columns : sequence of str
+        The names of the input columns.
+    n_features : int or None
+        Features the selector keeps; None keeps every one, unselected.
+    kernels : str, optional
+        ``minirocket`` or ``multirocket``: a random-kernel step first.
+    seed : int
+        Random state of the random kernels.
+
+    Returns
+    -------
+    list of (str, estimator)
+        ``[("kernels", ...)?, ("scale", MinMaxScaler), ("select", selector)]``.
+
+    Examples
+    --------
+    >>> from features.selection import feature_steps
+    >>> [(name, type(step).__name__) for name, step in feature_steps(("tactum.matx", "other.density"), 1)]
+    [('scale', 'MinMaxScaler'), ('select', 'FQSelector')]
+    >>> type(feature_steps(("tactum.matx", "catch22.v_tt.mode_5"), 1)[-1][1]).__name__
+    'PartwiseFQSelector'
+    >>> feature_steps(n_features=None)[-1][1]
+    KeepAll()
+    """
+    parts = column_parts(columns, kernels is not None)
+    if n_features is None:
+        select: BaseEstimator = KeepAll()
+    elif parts is None:
+        select = FQSelector(n_features=n_features)
+    else:
+        select = PartwiseFQSelector(n_features=n_features, parts=parts)
+    transform = [] if kernels is None else [("kernels", RandomKernels(kernels, tuple(columns), random_state=seed))]
+    return [*transform, ("scale", MinMaxScaler()), ("select", select)]

@@ -23,6 +23,7 @@ import html
 import io
 import math
 import os
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -639,3 +640,122 @@ def _html_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
         return "<tr>" + "".join(f"<{tag}>{html.escape(str(cell))}</{tag}>" for cell in cells) + "</tr>"
 
     return f"<table><thead>{row(header, 'th')}</thead><tbody>{''.join(row(r, 'td') for r in rows)}</tbody></table>"
+
+
+# -- the rows and columns a classifier can learn from ------------------------------------------------
+
+def drop_nan_columns(space: FeatureSpace) -> tuple[FeatureSpace, tuple[str, ...]]:
+    """Rows and columns with NaN left out before splitting: no classifier takes NaN.
+
+    A row that is NaN in every column (a recording lacking every role the families need) is left out with
+    a warning naming how many and the first few; then a column with NaN in any row is left out (it gets FQ
+    0 anyway) and listed in the result; when that would leave no column, the rows with NaN are left out
+    instead, with a warning.
+
+    Parameters
+    ----------
+    space : FeatureSpace
+        The feature space.
+
+    Returns
+    -------
+    subset : FeatureSpace
+        The rows and columns kept, checked by :func:`check_degenerate`.
+    dropped : tuple of str
+        The columns left out.
+
+    Raises
+    ------
+    FeatureSpaceError
+        Every row holds only NaN, or the values kept cannot be scaled or are constant.
+
+    Examples
+    --------
+    The metal value of one scan is missing: the column is left out, the scan kept:
+
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> X = np.array([[1.0, 5.0, 3.0], [2.0, np.nan, 1.0], [3.0, 4.0, 2.0]])
+    >>> space = FeatureSpace(X, ("tactum.matx", "other.metal", "other.density"), ("a", "b", "c"),
+    ...                      ("C1S1M1P1X1", "C2S1M1P1X1", "C2S1M1P1X1"), ("a", "b", "c"))
+    >>> from features.space import drop_nan_columns
+    >>> subset, dropped = drop_nan_columns(space)
+    >>> subset.columns, dropped, subset.scan_ids
+    (('tactum.matx', 'other.density'), ('other.metal',), ('a', 'b', 'c'))
+    """
+    empty = np.isnan(space.X).all(axis=1)
+    if empty.all():
+        raise FeatureSpaceError(f"every one of the {space.X.shape[0]} rows holds only NaN: no feature could be "
+                              "computed")
+    if empty.any():
+        space = _without_rows(space, empty, "have no feature value (every column NaN)")
+    has_nan = np.isnan(space.X).any(axis=0)
+    dropped = tuple(c for c, bad in zip(space.columns, has_nan, strict=True) if bad)
+    if not dropped:
+        return check_degenerate(space), ()
+    kept = [c for c, bad in zip(space.columns, has_nan, strict=True) if not bad]
+    if not kept:
+        return check_degenerate(_without_rows(space, np.isnan(space.X).any(axis=1), "hold NaN in some column")), ()
+    return check_degenerate(space.subset(kept)), dropped
+
+
+def check_degenerate(space: FeatureSpace, first: int = 3) -> FeatureSpace:
+    """``space`` itself if its values can be scaled and tell rows apart; else a :class:`FeatureSpaceError`
+    saying what is wrong with the data: a column whose values are infinite or span more than float64 holds
+    (+-1e308: the scaler's range overflows and every value becomes NaN), or every column constant.
+
+    Parameters
+    ----------
+    space : FeatureSpace
+        The feature space.
+    first : int
+        How many overflowing columns the message names.
+
+    Returns
+    -------
+    FeatureSpace
+        ``space`` itself.
+
+    Raises
+    ------
+    FeatureSpaceError
+        A column spans more than a float64 can scale, or every column is constant.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from features import FeatureSpace
+    >>> from features.space import check_degenerate
+    >>> labels, ids = ("C1S1M1P1X1", "C2S1M1P1X1"), ("a", "b")
+    >>> space = FeatureSpace(np.array([[1.0], [2.0]]), ("other.density",), ids, labels, ids)
+    >>> check_degenerate(space) is space
+    True
+    >>> constant = FeatureSpace(np.array([[1.0], [1.0]]), ("other.density",), ids, labels, ids)
+    >>> check_degenerate(constant)  # doctest: +NORMALIZE_WHITESPACE
+    Traceback (most recent call last):
+    ...
+    features.space.FeatureSpaceError: every one of the 1 feature column(s) is constant over the 2 rows
+    (other.density = 1, ...): no feature can tell the classes apart
+    """
+    X = space.X
+    with np.errstate(over="ignore", invalid="ignore"):
+        span = X.max(axis=0) - X.min(axis=0) if X.size else np.zeros(X.shape[1])
+    overflowing = np.flatnonzero(~np.isfinite(span))
+    if overflowing.size:
+        shown = ", ".join(f"{space.columns[k]} ({X[:, k].min():.3g} to {X[:, k].max():.3g})"
+                          for k in overflowing[:first])
+        raise FeatureSpaceError(f"{overflowing.size} feature column(s) hold infinite values or span more than a "
+                              f"64-bit float can scale: {shown}; check the data's units or scale")
+    if X.shape[1] and not np.any(span > 0):
+        raise FeatureSpaceError(f"every one of the {X.shape[1]} feature column(s) is constant over the "
+                              f"{X.shape[0]} rows ({space.columns[0]} = {X[0, 0]:.6g}, ...): no feature can tell "
+                              "the classes apart")
+    return space
+
+
+def _without_rows(space: FeatureSpace, bad: np.ndarray, why: str, first: int = 3) -> FeatureSpace:
+    """``space`` without the rows ``bad``, with a warning naming how many and the first few."""
+    names = [space.scan_ids[i] for i in np.flatnonzero(bad)]
+    shown = ", ".join(names[:first]) + (f" and {len(names) - first} more" if len(names) > first else "")
+    warnings.warn(f"{len(names)} of {len(space.scan_ids)} row(s) {why} and are left out: {shown}", stacklevel=3)
+    return space.rows(np.flatnonzero(~bad))

@@ -26,6 +26,7 @@ from werkzeug.wrappers import Response
 
 from features import extract, feature_sets
 from features.extraction import code_version
+from features.space import FeatureSpaceError
 from gui import figures
 from gui.context import context
 from gui.forms import (
@@ -191,7 +192,7 @@ def begin() -> tuple[str, int] | Response:
     if quick:
         try:
             identifier = ctx.quick_identifier()
-        except (EvaluationError, DatabaseError) as exc:
+        except (EvaluationError, FeatureSpaceError, DatabaseError) as exc:
             return render_start(form, {"quick": session_error(exc)}, 422)
     unlabelled = quick and not form["label"].strip()
     checked = dict(form, label=provisional_label(identifier, form["sample_id"]) if unlabelled else form["label"])

@@ -9,11 +9,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from features import FeatureSpace, code_version
+from features.feature_sets import FeatureSet
+from features.space import FeatureSpaceError
 from scanner.runtime.local import WorkerPool
 from scanner.storage.database import Database
 from scanner.workflows.database import extract_database
 from scanner.workflows.predictions import label_names
-from taxonomy.learning.evaluation import EvaluationError, FeatureSet, evaluate
+from taxonomy.learning.evaluation import EvaluationError, evaluate
 from taxonomy.learning.models import TrainedModel, train_model
 from taxonomy.learning.versions import (
     ModelVersion,
@@ -56,7 +58,7 @@ def cross_validated(space: FeatureSpace, level: str, n_features: int, classifier
     started = time.perf_counter()
     try:
         result = evaluate(space, classifier, level, n_features, seed=seed, calibrate=False, feature_set=feature_set)
-    except EvaluationError as exc:
+    except (EvaluationError, FeatureSpaceError) as exc:
         return {}, f"no cross-validated accuracy for this version: {exc}"
     return {"cv_accuracy": float(result.accuracy_pooled)}, (
         f"cross-validated accuracy of these settings: {100 * result.accuracy_pooled:.1f} % "

@@ -46,14 +46,13 @@ from sklearn.naive_bayes import GaussianNB
 from sklearn.neighbors import KNeighborsClassifier
 from sklearn.neural_network import MLPClassifier
 from sklearn.pipeline import Pipeline
-from sklearn.preprocessing import MinMaxScaler
 from sklearn.svm import SVC
 from tqdm import tqdm
 
 from features import feature_sets
-from features.random_kernels import RandomKernels
+from features.feature_sets import FeatureSet, learning_subset, resolve_feature_set
 from features.registry import REGISTRY
-from features.selection import FQSelector, KeepAll, PartwiseFQSelector
+from features.selection import KeepAll, feature_steps
 from features.space import FeatureSpace
 from scanner.runtime import executors
 from scanner.runtime.threads import one_blas_thread
@@ -67,9 +66,6 @@ PROTOCOLS = ("nested", "paper")
 
 SEED = 0
 """Default seed of every random choice: fold assignment, forest bootstraps, SVM Platt scaling, MLP weights."""
-
-FeatureSet = str | Sequence[str] | None
-"""Columns to evaluate: None or ``"all"`` (every column), a modality name, or an explicit list of names."""
 
 MLP_MAX_ITER = 200
 """The paper's MLP's limit of L-BFGS iterations (:func:`classifier_estimators`)."""
@@ -137,21 +133,9 @@ def classifier_estimators(seed: int) -> dict[str, BaseEstimator]:
     }
 
 
-def _pipeline(classifier: BaseEstimator, n_features: int | None, kernels: RandomKernels | None = None,
-              parts: tuple[int, ...] | None = None) -> Pipeline:
-    # A random-kernel transform is the first step: fitted on the training folds, as the scaling and selection.
-    if n_features is None:
-        select = KeepAll()
-    elif parts is None:
-        select = FQSelector(n_features=n_features)
-    else:
-        select = PartwiseFQSelector(n_features=n_features, parts=parts)
-    return Pipeline([
-        *([("kernels", kernels)] if kernels is not None else []),
-        ("scale", MinMaxScaler()),
-        ("select", select),
-        ("classify", classifier),
-    ])
+def _pipeline(classifier: BaseEstimator, n_features: int | None, kernels: str | None = None,
+              columns: Sequence[str] = (), seed: int = SEED) -> Pipeline:
+    return Pipeline([*feature_steps(columns, n_features, kernels, seed), ("classify", classifier)])
 
 
 CLASSIFIERS: dict[str, Pipeline] = {
@@ -219,8 +203,7 @@ def make_pipeline(classifier: str | BaseEstimator = "rf", n_features: int | None
             estimator.set_params(random_state=seed)
     else:
         raise EvaluationError(f"classifier must be a name or a scikit-learn estimator, got {classifier!r}")
-    step = None if kernels is None else RandomKernels(kernels, tuple(columns), random_state=seed)
-    return _pipeline(estimator, n_features, step, feature_sets.column_parts(columns, kernels is not None))
+    return _pipeline(estimator, n_features, kernels, columns, seed)
 
 
 def classifier_name(classifier: str | BaseEstimator) -> str:
@@ -459,160 +442,6 @@ def given_split(split: Sequence[str]) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 # -- evaluation --------------------------------------------------------------------------------------
-
-
-def resolve_feature_set(space: FeatureSpace, feature_set: FeatureSet) -> tuple[FeatureSpace, str]:
-    """The columns of ``feature_set`` and its display name ("all", the modality, or "<n> columns").
-
-    Parameters
-    ----------
-    space : FeatureSpace
-        The feature space.
-    feature_set : FeatureSet
-        None or ``"all"``, a named set (:mod:`features.feature_sets`), a modality, or column names.
-
-    Returns
-    -------
-    subset : FeatureSpace
-        ``space`` with the set's columns only.
-    name : str
-        The set's display name.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from features import FeatureSpace
-    >>> space = FeatureSpace(np.array([[1.0, 2.0, 3.0]]), ("tactum.matx", "other.density", "other.metal"),
-    ...                      ("scan1",), ("C1S1M1P1X1",), ("sample1",))
-    >>> subset, name = resolve_feature_set(space, "other")
-    >>> subset.columns, name
-    (('other.density', 'other.metal'), 'other')
-    >>> resolve_feature_set(space, ["tactum.matx", "other.metal"])[1], resolve_feature_set(space, None)[1]
-    ('2 columns', 'all')
-    """
-    if feature_set is None or feature_set == "all":
-        return space, "all"
-    if isinstance(feature_set, str) and feature_sets.is_named_set(feature_set):
-        return space.subset(feature_sets.columns_of(space.columns, feature_set)), feature_set
-    if isinstance(feature_set, str):
-        return space.modality(feature_set), feature_set
-    columns = list(feature_set)
-    return space.subset(columns), f"{len(columns)} columns"
-
-
-def drop_nan_columns(space: FeatureSpace) -> tuple[FeatureSpace, tuple[str, ...]]:
-    """Rows and columns with NaN left out before splitting: no classifier takes NaN.
-
-    A row that is NaN in every column (a recording lacking every role the families need) is left out with
-    a warning naming how many and the first few; then a column with NaN in any row is left out (it gets FQ
-    0 anyway) and listed in the result; when that would leave no column, the rows with NaN are left out
-    instead, with a warning.
-
-    Parameters
-    ----------
-    space : FeatureSpace
-        The feature space.
-
-    Returns
-    -------
-    subset : FeatureSpace
-        The rows and columns kept, checked by :func:`check_degenerate`.
-    dropped : tuple of str
-        The columns left out.
-
-    Raises
-    ------
-    EvaluationError
-        Every row holds only NaN, or the values kept cannot be scaled or are constant.
-
-    Examples
-    --------
-    The metal value of one scan is missing: the column is left out, the scan kept:
-
-    >>> import numpy as np
-    >>> from features import FeatureSpace
-    >>> X = np.array([[1.0, 5.0, 3.0], [2.0, np.nan, 1.0], [3.0, 4.0, 2.0]])
-    >>> space = FeatureSpace(X, ("tactum.matx", "other.metal", "other.density"), ("a", "b", "c"),
-    ...                      ("C1S1M1P1X1", "C2S1M1P1X1", "C2S1M1P1X1"), ("a", "b", "c"))
-    >>> subset, dropped = drop_nan_columns(space)
-    >>> subset.columns, dropped, subset.scan_ids
-    (('tactum.matx', 'other.density'), ('other.metal',), ('a', 'b', 'c'))
-    """
-    empty = np.isnan(space.X).all(axis=1)
-    if empty.all():
-        raise EvaluationError(f"every one of the {space.X.shape[0]} rows holds only NaN: no feature could be "
-                              "computed")
-    if empty.any():
-        space = _without_rows(space, empty, "have no feature value (every column NaN)")
-    has_nan = np.isnan(space.X).any(axis=0)
-    dropped = tuple(c for c, bad in zip(space.columns, has_nan, strict=True) if bad)
-    if not dropped:
-        return check_degenerate(space), ()
-    kept = [c for c, bad in zip(space.columns, has_nan, strict=True) if not bad]
-    if not kept:
-        return check_degenerate(_without_rows(space, np.isnan(space.X).any(axis=1), "hold NaN in some column")), ()
-    return check_degenerate(space.subset(kept)), dropped
-
-
-def check_degenerate(space: FeatureSpace, first: int = 3) -> FeatureSpace:
-    """``space`` itself if its values can be scaled and tell rows apart; else an :class:`EvaluationError`
-    saying what is wrong with the data: a column whose values are infinite or span more than float64 holds
-    (+-1e308: the scaler's range overflows and every value becomes NaN), or every column constant.
-
-    Parameters
-    ----------
-    space : FeatureSpace
-        The feature space.
-    first : int
-        How many overflowing columns the message names.
-
-    Returns
-    -------
-    FeatureSpace
-        ``space`` itself.
-
-    Raises
-    ------
-    EvaluationError
-        A column spans more than a float64 can scale, or every column is constant.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from features import FeatureSpace
-    >>> labels, ids = ("C1S1M1P1X1", "C2S1M1P1X1"), ("a", "b")
-    >>> space = FeatureSpace(np.array([[1.0], [2.0]]), ("other.density",), ids, labels, ids)
-    >>> check_degenerate(space) is space
-    True
-    >>> constant = FeatureSpace(np.array([[1.0], [1.0]]), ("other.density",), ids, labels, ids)
-    >>> check_degenerate(constant)  # doctest: +NORMALIZE_WHITESPACE
-    Traceback (most recent call last):
-    ...
-    taxonomy.learning.results.EvaluationError: every one of the 1 feature column(s) is constant over the 2 rows
-    (other.density = 1, ...): no feature can tell the classes apart
-    """
-    X = space.X
-    with np.errstate(over="ignore", invalid="ignore"):
-        span = X.max(axis=0) - X.min(axis=0) if X.size else np.zeros(X.shape[1])
-    overflowing = np.flatnonzero(~np.isfinite(span))
-    if overflowing.size:
-        shown = ", ".join(f"{space.columns[k]} ({X[:, k].min():.3g} to {X[:, k].max():.3g})"
-                          for k in overflowing[:first])
-        raise EvaluationError(f"{overflowing.size} feature column(s) hold infinite values or span more than a "
-                              f"64-bit float can scale: {shown}; check the data's units or scale")
-    if X.shape[1] and not np.any(span > 0):
-        raise EvaluationError(f"every one of the {X.shape[1]} feature column(s) is constant over the "
-                              f"{X.shape[0]} rows ({space.columns[0]} = {X[0, 0]:.6g}, ...): no feature can tell "
-                              "the classes apart")
-    return space
-
-
-def _without_rows(space: FeatureSpace, bad: np.ndarray, why: str, first: int = 3) -> FeatureSpace:
-    """``space`` without the rows ``bad``, with a warning naming how many and the first few."""
-    names = [space.scan_ids[i] for i in np.flatnonzero(bad)]
-    shown = ", ".join(names[:first]) + (f" and {len(names) - first} more" if len(names) > first else "")
-    warnings.warn(f"{len(names)} of {len(space.scan_ids)} row(s) {why} and are left out: {shown}", stacklevel=3)
-    return space.rows(np.flatnonzero(~bad))
 
 
 def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level: str = "fine",
@@ -929,12 +758,10 @@ def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells:
 def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseEstimator], folds: int,
              seed: int, protocol: str, use_split: bool = True, single_group: str = "train",
              calibrate: bool = True, group_by: str = "sample") -> _Prepared:
-    space.check_level(cell.level)
     own = use_split and bool(space.split)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        subset, _ = resolve_feature_set(space, cell.feature_set)
-        subset, dropped = drop_nan_columns(subset)
+        subset, dropped = learning_subset(space, cell.level, cell.feature_set)
         y = subset.y(cell.level)
         if own:
             splits, grouped = given_split(subset.split), False
@@ -1365,8 +1192,7 @@ def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = 
     level = space.check_level(level)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        subset, _ = resolve_feature_set(space, feature_set)
-        subset, dropped = drop_nan_columns(subset)
+        subset, dropped = learning_subset(space, level, feature_set)
         y = subset.y(level)
         groups = np.asarray(subset.groups)
         splits, grouped = cv_splits(y, groups, folds, seed, grouping_labels=subset.label_text)

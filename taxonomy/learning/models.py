@@ -52,6 +52,7 @@ from sklearn.preprocessing import LabelBinarizer, MinMaxScaler
 from sklearn.tree import DecisionTreeClassifier
 
 from features import feature_sets
+from features.feature_sets import FeatureSet, learning_subset
 from features.random_kernels import SIGNAL_PREFIX, RandomKernels
 from features.selection import FQSelector, PartwiseFQSelector
 from features.space import FeatureSpace
@@ -63,11 +64,8 @@ from taxonomy.learning.calibration import TemperatureScaledClassifier
 from taxonomy.learning.evaluation import (
     CLASSIFIERS,
     SEED,
-    FeatureSet,
     classifier_estimators,
-    drop_nan_columns,
     fit_pipeline,
-    resolve_feature_set,
 )
 from taxonomy.learning.openset import (
     MAX_ACCURACY_DROP,
@@ -339,8 +337,7 @@ def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, 
     if classifier in NO_PROBABILITIES:
         raise ModelError(f"{classifier} gives no class probabilities, which classify and the web application "
                          f"show; train one of {', '.join(c for c in CLASSIFIERS if c not in NO_PROBABILITIES)}")
-    subset, _ = resolve_feature_set(space, feature_set)
-    subset, dropped = drop_nan_columns(subset)
+    subset, dropped = learning_subset(space, level, feature_set)
     y = subset.y(level)
     kernels = feature_sets.kernels_of(feature_set) if feature_sets.is_named_set(feature_set) else None
     groups = np.asarray(subset.groups)

@@ -47,10 +47,10 @@ from sklearn.ensemble import ExtraTreesClassifier
 from sklearn.metrics.pairwise import euclidean_distances
 
 from features.registry import REGISTRY
-from features.space import FeatureSpace
+from features.space import FeatureSpace, drop_nan_columns
 from scanner.runtime import executors
 from taxonomy.learning.calibration import grouped_splits
-from taxonomy.learning.evaluation import SEED, EvaluationError, cv_splits, drop_nan_columns, fit_pipeline
+from taxonomy.learning.evaluation import SEED, EvaluationError, cv_splits, fit_pipeline
 from taxonomy.learning.openset import Neighbours, class_folds, fit_neighbours
 
 MIXTURE = 0.05

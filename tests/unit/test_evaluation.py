@@ -348,16 +348,16 @@ def _two_materials(X: np.ndarray) -> FeatureSpace:
 
 
 def test_constant_or_overflowing_features_are_named_instead_of_a_library_error():
-    from taxonomy.learning.evaluation import EvaluationError, evaluate
+    from taxonomy.learning.evaluation import evaluate
 
-    with pytest.raises(EvaluationError, match=r"every one of the 3 feature column\(s\) is constant over the 24 "
+    with pytest.raises(FeatureSpaceError, match=r"every one of the 3 feature column\(s\) is constant over the 24 "
                                               r"rows \(other.density = 1, ...\): no feature can tell the classes"):
         evaluate(_two_materials(np.ones((24, 3))), classifier="lda", level="fine", n_features=2)
     # +-1e308: the scaler's range (max - min) overflows to inf, and every scaled value becomes NaN.
     rng = np.random.default_rng(0)
     huge = rng.normal(size=(24, 3))
     huge[:, 1] = np.where(np.arange(24) % 2, -1e308, 1e308) * (1 - 0.1 * rng.random(24))
-    with pytest.raises(EvaluationError, match=r"1 feature column\(s\) hold infinite values or span more than "
+    with pytest.raises(FeatureSpaceError, match=r"1 feature column\(s\) hold infinite values or span more than "
                                               r"a 64-bit float can scale: other.metal \(-9.\d+e\+307 to "
                                               r"9.\d+e\+307\); check the data's units or scale"):
         evaluate(_two_materials(huge), classifier="lda", level="fine", n_features=2)
