@@ -22,7 +22,7 @@ from collections.abc import Iterable, Sequence
 
 from features.modern import FITTED_KINDS, SIGNAL_PREFIX, role_families
 from features.modern import KINDS as EXTRACTED_KINDS
-from features.registry import REGISTRY, ROLE_REGISTRY
+from features.registry import REGISTRY
 from features.space import FeatureSpace, drop_nan_columns
 from taxonomy.errors import TexplorerError
 
@@ -324,7 +324,7 @@ def role_families_for(names: Iterable[str | None]) -> tuple[str, ...] | None:
     True
     """
     kinds = extracted_kinds(names)
-    return None if not kinds else (*ROLE_REGISTRY.modalities, *role_families(kinds))
+    return None if not kinds else (*REGISTRY.roles.modalities, *role_families(kinds))
 
 
 def families_of(columns: Iterable[str]) -> tuple[str, ...] | None:

@@ -44,7 +44,7 @@ import numpy as np
 
 from features import recordings
 from features.prepared import PreparedScan
-from features.registry import REGISTRY, ROLE_REGISTRY, Family, RoleFamily
+from features.registry import REGISTRY, Family, RoleFamily
 from scanner.lazy import library
 from scanner.preprocess import QualityError, dft321
 from taxonomy.errors import ParameterError
@@ -760,7 +760,7 @@ def _role_compute(role: str, transform: Callable[[np.ndarray], np.ndarray]) -> C
 def _register_roles(kind: str, features: Callable[[LengthRule], Sequence[str]],
                     transform: Callable[[np.ndarray], np.ndarray], extra: Mapping[str, object]) -> None:
     for role, spec in ROLE_RULES.items():
-        ROLE_REGISTRY.register(RoleFamily(
+        REGISTRY.roles.register(RoleFamily(
             f"{kind}.{role}", role, tuple(f"{kind}.{role}.{f}" for f in features(spec.rule)),
             _role_compute(role, transform), applies=spec.applies, prepare=spec.prepare,
             params={"rule": spec.rule, **extra}, opt_in=True))
@@ -846,4 +846,4 @@ def role_families(kinds: Sequence[str]) -> tuple[str, ...]:
     >>> names[0], [name.removeprefix("signal.") for name in names]
     ('signal.audio', ['audio', 'vibration', 'force_xyz', 'pressure_dc', 'temperature', 'heat_flow'])
     """
-    return tuple(f.name for f in ROLE_REGISTRY.every if f.name.split(".")[0] in kinds and f.opt_in)
+    return tuple(f.name for f in REGISTRY.roles.every if f.name.split(".")[0] in kinds and f.opt_in)

@@ -37,7 +37,7 @@ toolbox's spectral features describe the spectrum's shape at any rate, but the P
 vibration lives in reaches ~500 Hz (Bensmaia and Hollins 2003), which needs fs >= 1 kHz. Below that the
 audio features would describe only the slow part of the contact, so they are left out.
 
-The families are registered in :data:`features.registry.ROLE_REGISTRY` (at the end of the section "the
+The families are registered in :data:`features.registry.REGISTRY.roles` (at the end of the section "the
 families, registered" below); the columns, the families that apply to a recording and the roles named
 when none does come from there, so a new family is one registration (``docs/extending.md``).
 
@@ -62,7 +62,7 @@ import numpy as np
 from tqdm import tqdm
 
 from features import audio, image, other, tactum
-from features.registry import ROLE_REGISTRY, RoleFamily
+from features.registry import REGISTRY, RoleFamily
 from features.space import FeatureSpace
 from scanner.lazy import library
 from scanner.preprocess import BAND_HZ, dft321
@@ -752,8 +752,8 @@ def ratio_family(role: str, other: str, width: int, other_width: int) -> RoleFam
 
 def _family(name: str) -> RoleFamily:
     """A registered family, or the generic, slow, ratio or modern generic family a name stands for."""
-    if name in ROLE_REGISTRY:
-        return ROLE_REGISTRY[name]
+    if name in REGISTRY.roles:
+        return REGISTRY.roles[name]
     kind, _, rest = name.partition(".")
     if kind in GENERIC_KINDS:
         return GENERIC_KINDS[kind](rest)
@@ -822,17 +822,17 @@ def _friction(xyz: np.ndarray, fs: float) -> list[float]:
     return list(friction_features(xyz, fs).values())
 
 
-AUDIO_AUDIO = ROLE_REGISTRY.register(RoleFamily(
+AUDIO_AUDIO = REGISTRY.roles.register(RoleFamily(
     "audio.audio", "audio", tuple(f"audio.audio.{name}" for name in audio.NAMES), _sound_audio,
     applies=_audio_rate_ok))
-AUDIO_VIBRATION = ROLE_REGISTRY.register(RoleFamily(
+AUDIO_VIBRATION = REGISTRY.roles.register(RoleFamily(
     "audio.vibration", "vibration", tuple(f"audio.vibration.{name}" for name in audio.NAMES), _vibration_audio,
     applies=_vibration_audio_rate_ok))
-IMAGE_PHOTO = ROLE_REGISTRY.register(RoleFamily(
+IMAGE_PHOTO = REGISTRY.roles.register(RoleFamily(
     "image.photo", "photo", tuple(f"image.photo.{name}" for name in image.NAMES), _photo))
-VIBRATION = ROLE_REGISTRY.register(RoleFamily(
+VIBRATION = REGISTRY.roles.register(RoleFamily(
     "vibration", "vibration", VIBRATION_NAMES, _vibration, applies=_vibration_band_ok, prepare=band_limited))
-FRICTION = ROLE_REGISTRY.register(RoleFamily("friction", "force_xyz", FRICTION_NAMES, _friction))
+FRICTION = REGISTRY.roles.register(RoleFamily("friction", "force_xyz", FRICTION_NAMES, _friction))
 
 
 def families(recording: Recording, chosen: Sequence[str] | None = None) -> list[str]:
@@ -877,8 +877,8 @@ def families(recording: Recording, chosen: Sequence[str] | None = None) -> list[
     """
     found = []
     kinds = _generic_kinds(chosen)
-    chosen = None if chosen is None else [n for n in chosen if n in ROLE_REGISTRY]
-    for family in ROLE_REGISTRY.chosen(chosen):
+    chosen = None if chosen is None else [n for n in chosen if n in REGISTRY.roles]
+    for family in REGISTRY.roles.chosen(chosen):
         if family.role in IMAGE_ROLES:
             applies = recording.image(family.role) is not None
         else:
@@ -1140,7 +1140,7 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     warnings raised while extracting (one line each, naming the recording).
 
     Columns are every family that applies to at least one recording (:func:`families`), in the order of
-    the registry (:data:`features.registry.ROLE_REGISTRY`); a recording without a family's role has NaN
+    the registry (:data:`features.registry.REGISTRY.roles`); a recording without a family's role has NaN
     there (evaluation then leaves the column out). Rows are in recording order (windows in time order with
     ``combine = "rows"``). ``group_by`` names the rows' cross-validation groups (:func:`fold_group`); ``none``
     makes every row its own group, so the windows of one recording fall in training and test (the
@@ -1219,7 +1219,7 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     applied = _applied({f for names in found for f in names}, chosen)
     if not applied:
         roles = sorted({role for r in recordings for role in r.roles})
-        needed = list(dict.fromkeys(family.role for family in ROLE_REGISTRY.chosen(chosen)))
+        needed = list(dict.fromkeys(family.role for family in REGISTRY.roles.chosen(chosen)))
         raise ParameterError(f"no feature family applies: the recordings have the roles "
                              f"{', '.join(roles) or 'none'}; the families need "
                              f"{', '.join(needed[:-1])} or {needed[-1]}")
@@ -1251,13 +1251,13 @@ def _applied(present: set[str], chosen: Sequence[str] | None = None) -> tuple[st
     order, then one generic family per generic role, as wide as its widest channel (a narrower one fills
     the columns it has)."""
     widest: dict[tuple[str, str], int] = {}
-    unregistered = present - {f.name for f in ROLE_REGISTRY.every}
+    unregistered = present - {f.name for f in REGISTRY.roles.every}
     for name in {n for n in unregistered if not _as_is(n)}:
         family, kind = _family(name), name.partition(".")[0]
         per_column = len(SLOW_NAMES if kind == "slow" else SIGNAL_NAMES)
         widest[kind, family.role] = max(widest.get((kind, family.role), 0), len(family.columns) // per_column)
     made = {"generic": generic_family, "slow": slow_family}
-    return (*(f.name for f in ROLE_REGISTRY.chosen(chosen) if f.name in present),
+    return (*(f.name for f in REGISTRY.roles.chosen(chosen) if f.name in present),
             *(made[kind](role, width).name for (kind, role), width in sorted(widest.items())),
             *sorted(n for n in unregistered if _as_is(n)))
 
@@ -1265,10 +1265,10 @@ def _applied(present: set[str], chosen: Sequence[str] | None = None) -> tuple[st
 def _has(own: Sequence[str], name: str) -> bool:
     """Whether families ``own`` (a recording's) cover ``name``: by name, or a generic or slow family by its
     kind and role."""
-    if name in ROLE_REGISTRY or _as_is(name):
+    if name in REGISTRY.roles or _as_is(name):
         return name in own
     kind, role = name.partition(".")[0], _family(name).role
-    return any(f not in ROLE_REGISTRY and f.partition(".")[0] == kind and _family(f).role == role for f in own)
+    return any(f not in REGISTRY.roles and f.partition(".")[0] == kind and _family(f).role == role for f in own)
 
 
 def _own(recording: Recording, applied: Sequence[str]) -> list[str]:

@@ -10,10 +10,11 @@ of every project module that module imports, so a change to the code never serve
 The registry holds the families' order; the column names of all of them, in that order, are the rows'
 order everywhere (CSV, ``.mat``, cache).
 
-Other labs' recordings have channel roles instead of the scanner's channels: :data:`ROLE_REGISTRY` holds
-the families computed on one role of a generic recording (:class:`RoleFamily`, registered by
-:mod:`features.recordings`), from which that module's columns, the families that apply to a recording and
-the roles they need are derived in the same way.
+Other labs' recordings have channel roles instead of the scanner's channels, and a scan read as a recording
+has them too (:func:`features.recordings.scan_recording`): the families computed on one role of a recording
+(:class:`RoleFamily`, registered by :mod:`features.recordings`) are in the same registry, shown by
+``REGISTRY.roles``; from there come that module's columns, the families that apply to a recording and the roles
+they need, in the same way.
 """
 
 from __future__ import annotations
@@ -145,16 +146,34 @@ def _check_columns(family: Family | RoleFamily, strays: Sequence[str], rule: str
 F = TypeVar("F", Family, RoleFamily)
 
 
+class _Store:
+    """The families of every kind in registration order, and every column they name: one namespace."""
+
+    def __init__(self) -> None:
+        self.families: dict[str, Family | RoleFamily] = {}
+        self.columns: set[str] = set()
+
+
 class Registry(Generic[F]):
     """Registered families, in extraction (column) order.
 
     Iteration, :attr:`names`, :attr:`modalities` and :meth:`code_version` cover the default families;
     :meth:`chosen` gives any families by name, the opt-in ones too, and :attr:`every` all of them.
+
+    A registry of one ``kind`` (:class:`Family` or :class:`RoleFamily`) shows the families of that kind of a
+    ``store`` it may share with a registry of the other kind: :data:`REGISTRY` holds the scan families, its
+    :attr:`ScanRegistry.roles` the role families of the same store, so a family's name and columns are unique
+    over both and either is registered the same way. Without a ``kind`` it shows every family of its store.
     """
 
-    def __init__(self) -> None:
-        self._families: dict[str, F] = {}
-        self._columns: set[str] = set()
+    def __init__(self, kind: type[F] | None = None, store: _Store | None = None) -> None:
+        self._kind = kind
+        self._store = _Store() if store is None else store
+
+    @property
+    def _families(self) -> dict[str, F]:
+        return {name: family for name, family in self._store.families.items()
+                if self._kind is None or isinstance(family, self._kind)}
 
     def register(self, family: F) -> F:
         """Add ``family`` after the others; returns it.
@@ -189,14 +208,17 @@ class Registry(Generic[F]):
         ...
         taxonomy.errors.ParameterError: a feature family 'toy' is already registered
         """
-        if family.name in self._families:
+        if self._kind is not None and not isinstance(family, self._kind):
+            raise ParameterError(f"family {family.name!r} is a {type(family).__name__}; this registry holds "
+                                 f"{self._kind.__name__} families")
+        if family.name in self._store.families:
             raise ParameterError(f"a feature family {family.name!r} is already registered")
-        taken = sorted(self._columns.intersection(family.columns))
+        taken = sorted(self._store.columns.intersection(family.columns))
         if taken:
             raise ParameterError(f"family {family.name!r}: column(s) already registered: {', '.join(taken[:3])}")
         fix_code_version(family.module)
-        self._families[family.name] = family
-        self._columns.update(family.columns)
+        self._store.families[family.name] = family
+        self._store.columns.update(family.columns)
         return family
 
     def unregister(self, name: str) -> F:
@@ -225,11 +247,10 @@ class Registry(Generic[F]):
         >>> registry.unregister("toy") is toy, "toy" in registry, registry.names
         (True, False, ())
         """
-        try:
-            family = self._families.pop(name)
-        except KeyError:
-            raise ParameterError(f"no feature family {name!r} (registered: {', '.join(self._families)})") from None
-        self._columns.difference_update(family.columns)
+        if name not in self._families:
+            raise ParameterError(f"no feature family {name!r} (registered: {', '.join(self._families)})")
+        family = self._store.families.pop(name)
+        self._store.columns.difference_update(family.columns)
         return family
 
     def __iter__(self) -> Iterator[F]:
@@ -401,7 +422,14 @@ class Registry(Generic[F]):
 
 
 class ScanRegistry(Registry[Family]):
-    """The scan families, with what only they carry: the web application's groups and solver tolerances."""
+    """The scan families, with what only they carry: the web application's groups and solver tolerances, and
+    the role families of the same store (:attr:`roles`)."""
+
+    def __init__(self, kind: type[Family] = Family, store: _Store | None = None) -> None:
+        super().__init__(kind, store)
+        self.roles: Registry[RoleFamily] = Registry(RoleFamily, self._store)
+        """The role families (:class:`RoleFamily`) registered beside the scan families: one store, so a name or
+        column of either kind is unique over both."""
 
     @property
     def groups(self) -> tuple[tuple[str, str], ...]:
@@ -484,12 +512,11 @@ class ScanRegistry(Registry[Family]):
         return [(title, tuple(indices)) for title, indices in grouped.items()]
 
 
-REGISTRY = ScanRegistry()
-"""The families every extraction computes (the paper's four, registered by :mod:`features.families`)."""
-
-ROLE_REGISTRY: Registry[RoleFamily] = Registry()
-"""The families computed on generic recordings by channel role (the project's five, registered by
-:mod:`features.recordings`)."""
+REGISTRY = ScanRegistry(Family)
+"""Every feature family: the scan families, which every extraction of a scan computes (the paper's four,
+registered by :mod:`features.families`; the opt-in modern ones by :mod:`features.modern`), and in
+:attr:`REGISTRY.roles <ScanRegistry.roles>` the families computed by channel role on recordings and on scans read
+as recordings (the project's five, registered by :mod:`features.recordings`; the modern ones per role)."""
 
 
 # -- the code a family depends on ---------------------------------------------------------------------

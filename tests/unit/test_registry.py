@@ -14,7 +14,7 @@ from conftest import make_scan
 from features import NAMES, REGISTRY, Family, FeatureSpace, code_version, extract, extract_many, registry
 from features.extraction import source_of
 from features.recordings import describe_families, families, feature_space
-from features.registry import ROLE_REGISTRY, ParameterError, RoleFamily
+from features.registry import ParameterError, RoleFamily
 from gui.browser import group_features
 from scanner import cli
 from scanner.acquisition.session import STEP_TITLES
@@ -136,10 +136,10 @@ def temperature_values(window: np.ndarray, fs: float) -> list[float]:
 
 @pytest.fixture
 def toy_role():
-    family = ROLE_REGISTRY.register(RoleFamily("temperature", "temperature", TOY_TEMPERATURE, temperature_values,
+    family = REGISTRY.roles.register(RoleFamily("temperature", "temperature", TOY_TEMPERATURE, temperature_values,
                                                applies=lambda fs: fs >= 1.0))
     yield family
-    ROLE_REGISTRY.unregister(family.name)
+    REGISTRY.roles.unregister(family.name)
 
 
 def warm(name: str, label: str, degrees: float) -> Recording:
@@ -148,8 +148,8 @@ def warm(name: str, label: str, degrees: float) -> Recording:
 
 
 def test_the_project_families_of_recordings_in_order():
-    assert ROLE_REGISTRY.modalities == ("audio.audio", "audio.vibration", "image.photo", "vibration", "friction")
-    assert [family.role for family in ROLE_REGISTRY] == ["audio", "vibration", "photo", "vibration", "force_xyz"]
+    assert REGISTRY.roles.modalities == ("audio.audio", "audio.vibration", "image.photo", "vibration", "friction")
+    assert [family.role for family in REGISTRY.roles] == ["audio", "vibration", "photo", "vibration", "force_xyz"]
 
 
 def test_a_toy_role_family_reaches_the_recordings_features(toy_role):
@@ -174,19 +174,40 @@ def test_a_role_family_is_refused_when_it_clashes():
     with pytest.raises(ParameterError, match="'<modality>.photo.<feature>'"):
         RoleFamily("toy", "photo", ("image.disp.lbp_0",), temperature_values)
     with pytest.raises(ParameterError, match="already registered: audio.audio.zcr"):
-        ROLE_REGISTRY.register(RoleFamily("sound again", "audio", ("audio.audio.zcr",), temperature_values))
+        REGISTRY.roles.register(RoleFamily("sound again", "audio", ("audio.audio.zcr",), temperature_values))
+
+
+def test_scan_and_role_families_share_one_registry(toy_role):
+    # One store: a name or a column is unique over both kinds, each view shows its own kind, and the scan
+    # families' columns (the rows of every scan table) do not change when a role family is registered.
+    assert toy_role.name in REGISTRY.roles and toy_role.name not in REGISTRY and len(REGISTRY.names) == 193
+    with pytest.raises(ParameterError, match="a feature family 'temperature' is already registered"):
+        REGISTRY.register(Family("temperature", "Toy", ("temperature.mean",), lambda prepared: {}))
+    clash = REGISTRY.register(Family("toy", "Toy", ("toy.temperature.mean",), lambda prepared: {}))
+    try:
+        with pytest.raises(ParameterError, match="already registered: toy.temperature.mean"):
+            REGISTRY.roles.register(RoleFamily("toy again", "temperature", ("toy.temperature.mean",),
+                                               temperature_values))
+    finally:
+        REGISTRY.unregister(clash.name)
+    with pytest.raises(ParameterError, match="'temperature twin' is a RoleFamily; this registry holds Family"):
+        REGISTRY.register(RoleFamily("temperature twin", "temperature", ("other.temperature.std",),
+                                     temperature_values))
+    with pytest.raises(ParameterError, match="no feature family 'tactum'"):
+        REGISTRY.roles.unregister("tactum")  # a scan family is not the role view's to remove
+    assert "tactum" in REGISTRY
 
 
 def test_unregistering_a_role_family_frees_its_columns(toy_role):
     twin = RoleFamily("temperature twin", "temperature", TOY_TEMPERATURE, temperature_values)
     with pytest.raises(ParameterError, match="already registered: other.temperature.mean"):
-        ROLE_REGISTRY.register(twin)
-    ROLE_REGISTRY.unregister(toy_role.name)
+        REGISTRY.roles.register(twin)
+    REGISTRY.roles.unregister(toy_role.name)
     try:
-        assert ROLE_REGISTRY.register(twin) is twin
+        assert REGISTRY.roles.register(twin) is twin
     finally:
-        ROLE_REGISTRY.unregister(twin.name)
-        ROLE_REGISTRY.register(toy_role)  # for the fixture to take away
+        REGISTRY.roles.unregister(twin.name)
+        REGISTRY.roles.register(toy_role)  # for the fixture to take away
 
 
 MODULE_TOP = """
