@@ -28,7 +28,7 @@ from pathlib import Path
 from joblib.externals.loky import get_reusable_executor
 
 from features import code_version
-from features.extraction import _extract_with_code
+from features.extraction import extract_source, with_code
 from scanner.runtime import LOCAL
 from scanner.runtime.local import release_workers
 from scanner.simulation.database import synthetic_database
@@ -89,7 +89,7 @@ def extraction(folder: Path) -> None:
     db = synthetic_database(folder / "db", MATERIALS, scans_per_material=2, seed=0, image_size=(512, 512),
                             progress=False, workers=WORKERS)
     sources = database_sources(db, db.records())
-    task = functools.partial(_extract_with_code, code_version(), None)
+    task = functools.partial(with_code, code_version(), code_version, extract_source)
     reference = min((timed(lambda: serial(task, sources)) for _ in range(ROUNDS)), key=lambda t: t[0])
     expected = reference[1]
     print(f"features of {len(sources)} scans (512x512), {WORKERS} workers, serial {reference[0]:.2f} s "

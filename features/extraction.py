@@ -12,9 +12,9 @@ import functools
 import os
 import sys
 import warnings
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, TypeVar
 
 import numpy as np
 from tqdm import tqdm
@@ -111,6 +111,9 @@ def without_short_channels(scan: Scan) -> Scan:
                   stacklevel=3)  # the caller of features.extract
     return dataclasses.replace(scan, traces={k: v for k, v in scan.traces.items() if k not in short})
 
+
+T = TypeVar("T")
+R = TypeVar("R")
 
 REUSE_FROM_PIXELS = 1 << 22
 """Photos from 4 megapixels on: their float64 gray image (32 MiB) and larger temporaries are above glibc's
@@ -291,8 +294,42 @@ def source_of(scan: Scan) -> ScanSource:
     return ScanSource(scan.scan_id, scan.meta.label, scan.meta.sample_id, functools.partial(_return, scan))
 
 
-def _extract_source(source: ScanSource,
-                    families: tuple[str, ...] | None = None) -> tuple[list[float] | None, str | None]:
+def _code_version_here(families: tuple[str, ...] | None) -> str:
+    """:func:`code_version` as the process that runs this has it (named here, so that a worker asks its own)."""
+    return code_version(families)
+
+
+def extract_source(source: ScanSource,
+                   families: tuple[str, ...] | None = None) -> tuple[list[float] | None, str | None]:
+    """One scan's step of :func:`run_extraction`: its features in column order, or why they could not be
+    computed (the scan's files unreadable or changed, a family's error), so that one broken scan does not stop
+    the others.
+
+    Parameters
+    ----------
+    source : ScanSource
+        The scan, loaded here.
+    families : tuple of str, optional
+        The families to compute (default: the default ones).
+
+    Returns
+    -------
+    (list of float or None, str or None)
+        ``(values, None)``, or ``(None, "<error type>: <message>")``.
+
+    Examples
+    --------
+    >>> from features.extraction import ScanSource, extract_source
+    >>> from scanner.simulation import synthetic_scan
+    >>> scan = synthetic_scan("oak-planed", seed=1, image_size=(320, 320))
+    >>> values, error = extract_source(ScanSource(scan.scan_id, "C1S1M1P4X1", "oak-01", lambda: scan))
+    >>> len(values), error
+    (193, None)
+    >>> def lost():
+    ...     raise FileNotFoundError("oak-01-001.mat")
+    >>> extract_source(ScanSource("oak-01-001", "C1S1M1P4X1", "oak-01", lost))
+    (None, 'FileNotFoundError: oak-01-001.mat')
+    """
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # missing-channel warnings are expected on partial scans
@@ -317,16 +354,107 @@ def _unverified(source: ScanSource) -> str | None:
     return None
 
 
-def _extract_with_code(version: str, families: tuple[str, ...] | None,
-                       source: ScanSource) -> tuple[list[float] | None, str | None]:
-    """:func:`_extract_source` in a worker process, refused where the worker's feature code is not ``version``
-    (the caller's): a worker started by a server (``scanner.runtime.local.start_workers_from_a_server``)
-    imported the code when that server started, which may be after the caller imported it and the files
-    changed."""
-    if code_version(families) != version:
-        return None, (f"this worker runs feature code {code_version(families)}, the calling process {version}: "
+def with_code(version: str, current: Callable[[], str], extract_one: Callable[[T], tuple[R | None, str | None]],
+              item: T) -> tuple[R | None, str | None]:
+    """``extract_one(item)`` -- ``(value, None)`` or ``(None, why it failed)`` -- in a worker process, refused
+    where the worker's feature code, ``current()``, is not ``version`` (the caller's): a worker started by a
+    server (``scanner.runtime.local.start_workers_from_a_server``) imported the code when that server started,
+    which may be after the caller imported it and the files changed.
+
+    Parameters
+    ----------
+    version : str
+        The calling process's feature code version.
+    current : callable returning str
+        The feature code version of the process this runs in (:func:`code_version` of the families).
+    extract_one : callable
+        Extracts one item; ``(value, None)``, or ``(None, reason)`` where the item failed.
+    item : object
+        The item.
+
+    Returns
+    -------
+    (value or None, str or None)
+        ``extract_one(item)``, or ``(None, reason)`` where the code differs.
+
+    Examples
+    --------
+    >>> from features.extraction import with_code
+    >>> with_code("abc", lambda: "abc", lambda x: (x * 2, None), 21)
+    (42, None)
+    >>> with_code("abc", lambda: "def", lambda x: (x * 2, None), 21)[1]  # doctest: +ELLIPSIS
+    'this worker runs feature code def, the calling process abc: the code changed on disk since the process ...'
+    """
+    if current() != version:
+        return None, (f"this worker runs feature code {current()}, the calling process {version}: "
                       "the code changed on disk since the process started; restart it")
-    return _extract_source(source, families)
+    return extract_one(item)
+
+
+def run_extraction(extract_one: Callable[[T], tuple[R | None, str | None]], items: Sequence[T],
+                   indices: Sequence[int], current: Callable[[], str], *, key: Hashable,
+                   keys: Sequence[Hashable | None] | None = None, workers: int | None = None,
+                   pool: WorkerPool | None = None, progress: bool = True,
+                   unit: str = "scan") -> Iterator[tuple[int, tuple[R | None, str | None]]]:
+    """The one way the features of scans and of recordings are computed: ``(indices[i], extract_one(items[i]))``
+    for every item, in completion order, where the current runtime runs the work
+    (:func:`scanner.runtime.current`: this machine's processes, kept between calls, or a Dask cluster), each
+    result from the feature code of this process (:func:`with_code`; a cluster stops the run), an item that
+    fails reported as ``(None, reason)`` while the others go on, with a progress bar; leaving early (Ctrl-C,
+    an error) ends the workers' tasks at once.
+
+    Parameters
+    ----------
+    extract_one : callable
+        Extracts one item in a worker: ``(value, None)``, or ``(None, reason)`` where the item failed. It and
+        the items are pickled to the workers.
+    items : sequence
+        ``ScanSource``-like items (a ``load`` attribute giving what to extract where it is processed).
+    indices : sequence of int
+        The items' indices, given back with their results.
+    current : callable returning str
+        The feature code version of the families computed (:func:`code_version`), asked here and in each
+        worker.
+    key : hashable
+        Names the work as a whole: workers kept for other work are not used.
+    keys : sequence of hashable or None, optional
+        Each item's work, for a server's shared workers (the same work queued twice runs once).
+    workers : int, optional
+        Processes of this machine (default: the number of cores; 1 = in this process).
+    pool : WorkerPool, optional
+        Workers of this machine kept across the calls of a job (default: the process's shared workers).
+    progress : bool
+        Show a progress bar.
+    unit : str
+        What an item is, for the progress bar.
+
+    Yields
+    ------
+    (int, (value or None, str or None))
+        Each item's index and result.
+
+    Examples
+    --------
+    >>> from features.extraction import run_extraction
+    >>> class Item:
+    ...     def __init__(self, value):
+    ...         self.load = lambda: value
+    >>> def halve(item):
+    ...     value = item.load()
+    ...     return (value / 2, None) if value else (None, "nothing to halve")
+    >>> sorted(run_extraction(halve, [Item(4), Item(0)], [0, 1], lambda: "v1", key="halves", workers=1,
+    ...                       progress=False))
+    [(0, (2.0, None)), (1, (None, 'nothing to halve'))]
+    """
+    bar = _Bar(total=len(items), desc="features", unit=unit, file=sys.stderr, disable=None if progress else True,
+               leave=False)
+    version = current()
+    results = executors.current().extract(
+        functools.partial(with_code, version, current, extract_one), items, indices, bar.update, version=current,
+        key=key, keys=[None] * len(items) if keys is None else keys, workers=workers, pool=pool)
+    with contextlib.closing(results):  # leaving early (Ctrl-C) ends the workers' tasks now, not at exit
+        yield from results
+    bar.close()
 
 
 def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None, *,
@@ -392,22 +520,18 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
             errors[i] = problem
         else:
             rows[i] = list(cached.values())
-    bar = _Bar(total=len(todo), desc="features", unit="scan", file=sys.stderr, disable=None if progress else True,
-               leave=False)
-    results = executors.current().extract(
-        functools.partial(_extract_with_code, version, families), [sources[i] for i in todo], todo, bar.update,
-        version=functools.partial(code_version, families), key=(version, names, _working_directory()),
+    results = run_extraction(
+        functools.partial(extract_source, families=families), [sources[i] for i in todo], todo,
+        functools.partial(_code_version_here, families), key=(version, names, _working_directory()),
         keys=[(version, sources[i].cache_key) if sources[i].cache_key else None for i in todo],
-        workers=workers, pool=pool)
-    with contextlib.closing(results):  # leaving early (Ctrl-C) ends the workers' tasks now, not at exit
-        for i, (row, error) in results:
-            if error is not None:
-                errors[i] = error
-                continue
-            rows[i] = row
-            if cache is not None and sources[i].cache_key:
-                cache.store_features(sources[i].cache_key, version, dict(zip(names, row, strict=True)))
-    bar.close()
+        workers=workers, pool=pool, progress=progress)
+    for i, (row, error) in results:
+        if error is not None:
+            errors[i] = error
+            continue
+        rows[i] = row
+        if cache is not None and sources[i].cache_key:
+            cache.store_features(sources[i].cache_key, version, dict(zip(names, row, strict=True)))
     kept = [i for i in range(len(sources)) if rows[i] is not None]
     return FeatureSpace(
         X=np.array([rows[i] for i in kept], dtype=np.float64).reshape(len(kept), len(names)),

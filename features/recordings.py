@@ -49,26 +49,23 @@ never split one recording's windows. Photos are not windowed.
 
 from __future__ import annotations
 
-import contextlib
+import functools
 import math
-import os
-import sys
 import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from tqdm import tqdm
 
 from features import audio, image, other, tactum
+from features.extraction import run_extraction
 from features.registry import REGISTRY, RoleFamily
 from features.space import FeatureSpace
 from scanner.lazy import library
-from scanner.preprocess import BAND_HZ, dft321
-from scanner.runtime import executors
+from scanner.preprocess import BAND_HZ, QualityError, band_limit, dft321, slide_signal
 from scanner.runtime.threads import one_blas_thread
-from scanner.scan import IMAGE_ROLES, Recording, Trace, is_generic
+from scanner.scan import IMAGE_ROLES, Recording, Scan, Trace, is_generic
 from taxonomy.errors import ParameterError
 
 signal = library("scipy.signal")
@@ -1038,6 +1035,87 @@ def recording_rows(recording: Recording, windowing: Windowing = Windowing(), bor
     return [{**fixed, **row} for row in rows]
 
 
+# -- a scan as a recording ----------------------------------------------------------------------------
+
+SCAN_ROLES = {"vibration": "v", "audio": "a_ts", "temperature": "t_cool"}
+"""Roles of a scan as a generic recording: the tool-slide signal ``v``, the tool-slide audio and the
+object temperature."""
+
+
+def slide_vibration(v_ts: Trace) -> Trace:
+    """The tool-slide signal ``v`` (docs/features.md#preprocessing: ``v_ts`` band-limited 10-1000 Hz, 1 s window,
+    DFT321).
+
+    When the slide check fails, the band-limited DFT321 of the whole recording, so the scan still has a
+    vibration (the other roles' methods would otherwise lose the whole database over one bad slide).
+
+    Parameters
+    ----------
+    v_ts : Trace
+        The tool-slide acceleration (n, 3) at 3000 Hz, in g.
+
+    Returns
+    -------
+    Trace
+        The 1-D signal at the rate and in the unit of ``v_ts``.
+
+    Examples
+    --------
+    A slide starting at 0.5 s gives its 1 s window; a recording without a slide keeps all its 3 s:
+
+    >>> import numpy as np
+    >>> from scanner import Trace
+    >>> from features.recordings import slide_vibration
+    >>> v_ts = np.zeros((9000, 3))
+    >>> v_ts[1500:, 0] = 0.4 * np.sin(2 * np.pi * 250.0 * np.arange(7500) / 3000.0)
+    >>> slide_vibration(Trace(v_ts, 3000.0, "g")).n, slide_vibration(Trace(np.zeros((9000, 3)), 3000.0, "g")).n
+    (3000, 9000)
+    """
+    try:
+        return Trace(slide_signal(v_ts), v_ts.fs, v_ts.unit)
+    except QualityError:
+        return Trace(dft321(band_limit(v_ts.data, v_ts.fs)), v_ts.fs, v_ts.unit)
+
+
+def scan_recording(scan: Scan) -> Recording:
+    """A scan as a generic :class:`Recording`: every channel under its name plus ``v``
+    (:func:`slide_vibration`), roles per :data:`SCAN_ROLES`.
+
+    The label is the scan's taxonomy label; the groups are the sample (``object``) and the scan index
+    (``trial``), so the scans of one sample count as repeated trials on one object.
+
+    Parameters
+    ----------
+    scan : Scan
+        Any scan.
+
+    Returns
+    -------
+    Recording
+        Named by the scan id, with the scan's channels, the roles found among them, label and groups.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scanner import Scan, ScanMeta, Trace
+    >>> meta = ScanMeta("C6S1M1P2X1", "ab", "granite-01", 1, "s-1", "2026-11-21T08:00:00+00:00")
+    >>> v_ts = np.zeros((9000, 3))
+    >>> v_ts[1500:, 0] = 0.4 * np.sin(2 * np.pi * 250.0 * np.arange(7500) / 3000.0)
+    >>> from features.recordings import scan_recording
+    >>> recording = scan_recording(Scan(meta, {"v_ts": Trace(v_ts, 3000.0, "g")}))
+    >>> recording.name, sorted(recording.channels), dict(recording.roles), recording.role("vibration").n
+    ('granite-01-001', ['v', 'v_ts'], {'vibration': 'v'}, 3000)
+    >>> recording.label, dict(recording.group)
+    ('C6S1M1P2X1', {'object': 'granite-01', 'trial': '001'})
+    """
+    channels = dict(scan.traces)
+    if "v_ts" in channels:
+        channels["v"] = slide_vibration(channels["v_ts"])
+    roles = {role: channel for role, channel in SCAN_ROLES.items() if channel in channels}
+    group = {"object": scan.meta.sample_id, "trial": f"{scan.meta.scan_index:03d}"}
+    return Recording(scan.scan_id, channels, roles, scan.meta.label, group)
+
+
 # -- a set -------------------------------------------------------------------------------------------
 
 def fold_group(recording: Recording, group_by: str | None = "auto") -> str:
@@ -1122,15 +1200,91 @@ def set_levels(recordings: Sequence[Recording]) -> tuple[str, dict[str, list[str
     return label_level, levels
 
 
-def _extract_one(job: tuple[Recording, Windowing, int, tuple[str, ...]]) -> tuple[list[dict[str, float]], list[str]]:
-    recording, windowing, border, applied = job
-    # One BLAS thread, as features.extract: the same bits here, in a pool and on a Dask worker.
-    with warnings.catch_warnings(record=True) as caught, one_blas_thread():
-        warnings.simplefilter("always")
-        rows = recording_rows(recording, windowing, border, _own(recording, applied))
+@dataclass(frozen=True)
+class RecordingJob:
+    """One recording of a set to extract (:func:`extract_recording`) and how: ``load`` gives the recording
+    where it is processed (it travels with its task), cut by ``windowing``, its photo cropped by ``border``,
+    the set's families ``applied``."""
+
+    name: str
+    load: Callable[[], Recording]
+    windowing: Windowing
+    border: int
+    applied: tuple[str, ...]
+
+
+def _given(recording: Recording) -> Recording:
+    return recording
+
+
+def extract_recording(job: RecordingJob) -> tuple[tuple[list[dict[str, float]], list[str]] | None, str | None]:
+    """One recording's step of :func:`features.extraction.run_extraction`: its rows (:func:`recording_rows`)
+    and the warnings raised meanwhile, one line each naming the recording; or why it could not be extracted,
+    so that one broken recording does not stop the others. BLAS runs on one thread, as in
+    :func:`features.extract`: the same bits here, in a worker process and on a Dask worker.
+
+    Parameters
+    ----------
+    job : RecordingJob
+        The recording and how to cut it.
+
+    Returns
+    -------
+    ((list of dict of str to float, list of str) or None, str or None)
+        ``((rows, warnings), None)``, or ``(None, "<error type>: <message>")``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scanner import Recording, Trace
+    >>> from features.recordings import RecordingJob, Windowing, extract_recording
+    >>> rising = Recording("r0", {"v": Trace(np.arange(40.0) / 10, 10.0, "m/s")}, {"signal_speed": "v"}, "grass")
+    >>> (rows, caught), error = extract_recording(RecordingJob("r0", lambda: rising, Windowing(2.0, "rows"), 0,
+    ...                                                        ("slow.signal_speed",)))
+    >>> [round(row["generic.signal_speed.mean"], 2) for row in rows], caught, error
+    ([0.95, 2.95], [], None)
+    >>> def lost():
+    ...     raise OSError("r1.mat: unreadable")
+    >>> extract_recording(RecordingJob("r1", lost, Windowing(), 0, ("slow.signal_speed",)))
+    (None, 'OSError: r1.mat: unreadable')
+    """
+    try:
+        recording = job.load()
+        # One BLAS thread, as features.extract: the same bits here, in a pool and on a Dask worker.
+        with warnings.catch_warnings(record=True) as caught, one_blas_thread():
+            warnings.simplefilter("always")
+            rows = recording_rows(recording, job.windowing, job.border, _own(recording, job.applied))
+    except Exception as exc:  # one broken recording must not stop the others; reported with its name
+        return None, f"{type(exc).__name__}: {exc}"
     messages = (str(w.message) for w in caught)
-    return rows, list(dict.fromkeys(m if m.startswith("recording ") else f"recording {recording.name!r}: {m}"
-                                    for m in messages))
+    return (rows, list(dict.fromkeys(m if m.startswith("recording ") else f"recording {recording.name!r}: {m}"
+                                     for m in messages))), None
+
+
+def set_code_version(applied: Sequence[str]) -> str:
+    """The feature code version of a set's families ``applied``: the source of the role families' modules, of
+    this module (the generic families it makes per set) and of the extraction, and the registered families'
+    names and parameters.
+
+    Parameters
+    ----------
+    applied : sequence of str
+        The set's families (:func:`families`' names).
+
+    Returns
+    -------
+    str
+        20 hexadecimal digits.
+
+    Examples
+    --------
+    >>> from features.recordings import set_code_version
+    >>> version = set_code_version(["audio.audio", "slow.signal_speed"])
+    >>> len(version), version == set_code_version(["audio.audio"]), version == set_code_version(["friction"])
+    (20, True, False)
+    """
+    registered = [name for name in applied if name in REGISTRY.roles]
+    return REGISTRY.roles.code_version(__name__, "features.extraction", families=registered)
 
 
 def feature_space(recordings: Sequence[Recording], windowing: Windowing = Windowing(), border: int = 0,
@@ -1147,9 +1301,10 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     protocol of published results that cut windows from runs, which leaks between them). ``workers``
     processes of this machine (1: in this process, None: one per core), or the workers of the current
     runtime's cluster (:func:`scanner.runtime.current`; the recordings are sent from here, the values are
-    the same). ``chosen``
-    names the registered families to compute (default: the default ones), opt-in ones too
-    (``catch22.audio``, ...: docs/modern-features.md).
+    the same): the recordings go the way scans go (:func:`features.extraction.run_extraction`, each from the
+    feature code of this process), and one that fails is left out, named in ``FeatureSpace.failed`` and in the
+    first notes, while the others are kept. ``chosen`` names the registered families to compute (default: the
+    default ones), opt-in ones too (``catch22.audio``, ...: docs/modern-features.md).
 
     Parameters
     ----------
@@ -1174,8 +1329,8 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     space : FeatureSpace
         One row per recording (or window), free labels at the set's level.
     notes : list of str
-        One line per family some recordings lack (:func:`lacking`), then each warning raised while
-        extracting, once.
+        One line per recording that could not be extracted, one per family some recordings lack
+        (:func:`lacking`), then each warning raised while extracting, once.
 
     Raises
     ------
@@ -1224,13 +1379,22 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
                              f"{', '.join(roles) or 'none'}; the families need "
                              f"{', '.join(needed[:-1])} or {needed[-1]}")
     columns = tuple(name for family in applied for name in family_names(family))
-    jobs = [(r, windowing, border, applied) for r in recordings]
-    results = _map(_extract_one, jobs, workers, progress)
+    jobs = [RecordingJob(r.name, functools.partial(_given, r), windowing, border, applied) for r in recordings]
+    current = functools.partial(set_code_version, applied)
+    results: list = [None] * len(jobs)
+    for i, result in run_extraction(extract_recording, jobs, range(len(jobs)), current,
+                                    key=("recordings", current(), columns), workers=workers, progress=progress,
+                                    unit="recording"):
+        results[i] = result
     missing = lacking(recordings, found, applied)
     label_level, levels = set_levels(recordings)
     X, ids, labels, groups, level_rows, split, notes = [], [], [], [], {k: [] for k in levels}, [], []
+    failed = [(r.name, error) for r, (_, error) in zip(recordings, results, strict=True) if error is not None]
     has_split = all(r.meta.get("split") in ("train", "test") for r in recordings)
-    for index, (recording, (rows, caught)) in enumerate(zip(recordings, results, strict=True)):
+    for index, (recording, (extracted, _)) in enumerate(zip(recordings, results, strict=True)):
+        if extracted is None:
+            continue
+        rows, caught = extracted
         notes += caught
         for k, row in enumerate(rows):
             X.append([row.get(name, math.nan) for name in columns])
@@ -1242,8 +1406,9 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
             if has_split:
                 split.append(recording.meta["split"])
     space = FeatureSpace(np.array(X, dtype=np.float64).reshape(len(X), len(columns)), columns, ids, labels,
-                         groups, (), label_level, level_rows, split)
-    return space, missing + list(dict.fromkeys(notes))
+                         groups, failed, label_level, level_rows, split)
+    failures = [f"recording {name!r} could not be extracted and is left out: {error}" for name, error in failed]
+    return space, failures + missing + list(dict.fromkeys(notes))
 
 
 def _applied(present: set[str], chosen: Sequence[str] | None = None) -> tuple[str, ...]:
@@ -1331,24 +1496,6 @@ def _roles_of(name: str, family: RoleFamily) -> tuple[str, ...]:
     """The roles a family reads: both channels of a ratio family (``ratio.<role>.<other>:...``), else its role."""
     kind, _, rest = name.partition(".")
     return tuple(rest.partition(":")[0].split(".")) if kind == "ratio" else (family.role,)
-
-
-def _map(function: Callable, jobs: Sequence, workers: int | None, progress: bool) -> list:
-    """``function`` of every job, in order, where the current runtime runs the work (in this process for
-    ``workers`` 1), with a progress bar. The jobs travel to a cluster once, not inside the tasks; leaving
-    early (Ctrl-C) drops the jobs not started."""
-    bar = tqdm(total=len(jobs), desc="features", unit="recording", file=sys.stderr,
-               disable=None if progress else True, leave=False)
-    runtime = executors.current()
-    results: list = [None] * len(jobs)
-    calls = [(job,) for job in runtime.share(jobs)]
-    count = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
-    done = runtime.map_unordered(function, calls, workers=count, name="texplorer-recording", tick=bar.update)
-    with contextlib.closing(done):
-        for i, result in done:
-            results[i] = result
-    bar.close()
-    return results
 
 
 def describe_families(names: Iterable[str]) -> str:

@@ -178,13 +178,15 @@ def cmd_set_features(args: argparse.Namespace) -> int:
     with runtime_of(args):
         space = set_space(args)
     out = args.out or folder / SET_TABLE
+    if args.out is None:  # the options of the table it replaces no longer describe it
+        (folder / SET_TABLE_OPTIONS).unlink(missing_ok=True)
     print(f"wrote {space.to_csv(out)}")
-    if args.out is None:
+    if args.out is None and not space.failed:  # a table without some recordings is not reused by evaluate
         atomic_write_bytes(folder / SET_TABLE_OPTIONS, json.dumps(
             {**set_table_options(args, folder), "content": recordings_content(folder)}).encode())
     if args.mat:
         print(f"wrote {space.to_mat(args.mat)}")
-    return 0
+    return EXIT_ERROR if space.failed else 0
 
 
 def add_set_options(parser: argparse.ArgumentParser) -> None:

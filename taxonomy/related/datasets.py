@@ -9,11 +9,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from features.recordings import scan_recording
 from scanner.scan import Recording, Scan
 from taxonomy.errors import TexplorerError
 from taxonomy.labels import Label
 from taxonomy.related.fishel_features import fishel3
-from taxonomy.related.inputs import RelatedFeatureError, scan_recording
+from taxonomy.related.inputs import RelatedFeatureError
 from taxonomy.related.sets import FEATURE_SETS, compute
 from taxonomy.related.xie_features import xie_sequence_vector
 

@@ -1,10 +1,12 @@
-"""What the related work's feature sets read: a recording's channels by role, checked, and a scan as a recording.
+"""What the related work's feature sets read: a recording's channels by role, checked (a scan is read as a
+recording by :func:`features.recordings.scan_recording`).
 
 Every set reads its inputs by channel **role** (docs/database.md: ``vibration``, ``pressure_dc``, ``temperature``,
 ``heat_flow``, ``electrodes`` (n, k), ``taxels`` (n, h, w), ``force_xyz`` (n, 3), ``audio``), so the same
 code runs on a BioTac recording, a pressure-array slide, a soft 3-axis sensor or a scan converted by
-:func:`scan_recording`. A recording without a role a set needs raises :class:`RelatedFeatureError`, whose
-one-line message names the set, the roles it needs and the ones missing (docs/features.md#related).
+:func:`features.recordings.scan_recording`. A recording without a role a set needs raises
+:class:`RelatedFeatureError`, whose one-line message names the set, the roles it needs and the ones missing
+(docs/features.md#related).
 """
 
 from __future__ import annotations
@@ -14,8 +16,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from scanner.preprocess import QualityError, band_limit, dft321, slide_signal
-from scanner.scan import Recording, Scan, Trace
+from scanner.preprocess import dft321
+from scanner.scan import Recording, Trace
 from taxonomy.errors import TexplorerError
 
 
@@ -84,82 +86,3 @@ def _ratio(numerator: float, denominator: float) -> float:
 def _log(value: float) -> float:
     """Natural logarithm, NaN (not -inf or an error) for a value that is not positive."""
     return math.log(value) if value > 0 else math.nan
-
-
-SCAN_ROLES = {"vibration": "v", "audio": "a_ts", "temperature": "t_cool"}
-"""Roles of a scan as a generic recording: the tool-slide signal ``v``, the tool-slide audio and the
-object temperature."""
-
-
-def slide_vibration(v_ts: Trace) -> Trace:
-    """The tool-slide signal ``v`` (docs/features.md#preprocessing: ``v_ts`` band-limited 10-1000 Hz, 1 s window,
-    DFT321).
-
-    When the slide check fails, the band-limited DFT321 of the whole recording, so the scan still has a
-    vibration (the other roles' methods would otherwise lose the whole database over one bad slide).
-
-    Parameters
-    ----------
-    v_ts : Trace
-        The tool-slide acceleration (n, 3) at 3000 Hz, in g.
-
-    Returns
-    -------
-    Trace
-        The 1-D signal at the rate and in the unit of ``v_ts``.
-
-    Examples
-    --------
-    A slide starting at 0.5 s gives its 1 s window; a recording without a slide keeps all its 3 s:
-
-    >>> import numpy as np
-    >>> from scanner import Trace
-    >>> from taxonomy.related.inputs import slide_vibration
-    >>> v_ts = np.zeros((9000, 3))
-    >>> v_ts[1500:, 0] = 0.4 * np.sin(2 * np.pi * 250.0 * np.arange(7500) / 3000.0)
-    >>> slide_vibration(Trace(v_ts, 3000.0, "g")).n, slide_vibration(Trace(np.zeros((9000, 3)), 3000.0, "g")).n
-    (3000, 9000)
-    """
-    try:
-        return Trace(slide_signal(v_ts), v_ts.fs, v_ts.unit)
-    except QualityError:
-        return Trace(dft321(band_limit(v_ts.data, v_ts.fs)), v_ts.fs, v_ts.unit)
-
-
-def scan_recording(scan: Scan) -> Recording:
-    """A scan as a generic :class:`Recording`: every channel under its name plus ``v``
-    (:func:`slide_vibration`), roles per :data:`SCAN_ROLES`.
-
-    The label is the scan's taxonomy label; the groups are the sample (``object``) and the scan index
-    (``trial``), so the scans of one sample count as repeated trials on one object.
-
-    Parameters
-    ----------
-    scan : Scan
-        Any scan.
-
-    Returns
-    -------
-    Recording
-        Named by the scan id, with the scan's channels, the roles found among them, label and groups.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from scanner import Scan, ScanMeta, Trace
-    >>> meta = ScanMeta("C6S1M1P2X1", "ab", "granite-01", 1, "s-1", "2026-11-21T08:00:00+00:00")
-    >>> v_ts = np.zeros((9000, 3))
-    >>> v_ts[1500:, 0] = 0.4 * np.sin(2 * np.pi * 250.0 * np.arange(7500) / 3000.0)
-    >>> from taxonomy.related.inputs import scan_recording
-    >>> recording = scan_recording(Scan(meta, {"v_ts": Trace(v_ts, 3000.0, "g")}))
-    >>> recording.name, sorted(recording.channels), dict(recording.roles), recording.role("vibration").n
-    ('granite-01-001', ['v', 'v_ts'], {'vibration': 'v'}, 3000)
-    >>> recording.label, dict(recording.group)
-    ('C6S1M1P2X1', {'object': 'granite-01', 'trial': '001'})
-    """
-    channels = dict(scan.traces)
-    if "v_ts" in channels:
-        channels["v"] = slide_vibration(channels["v_ts"])
-    roles = {role: channel for role, channel in SCAN_ROLES.items() if channel in channels}
-    group = {"object": scan.meta.sample_id, "trial": f"{scan.meta.scan_index:03d}"}
-    return Recording(scan.scan_id, channels, roles, scan.meta.label, group)

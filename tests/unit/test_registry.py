@@ -20,6 +20,8 @@ from scanner import cli
 from scanner.acquisition.session import STEP_TITLES
 from scanner.scan import CHANNELS, Recording, Trace
 from scanner.simulation import synthetic_scan
+from scanner.storage.database import Database
+from scanner.storage.ingest.sets import store_recordings
 from taxonomy.learning.evaluation import default_feature_sets, evaluate
 
 TOY = ("toy.peak_v_ts", "toy.samples_v_ts")
@@ -162,6 +164,44 @@ def test_a_toy_role_family_reaches_the_recordings_features(toy_role):
     assert describe_families(space.columns) == "other.temperature (2)"
     slow = Recording("c", {"t": Trace(np.ones(4), 0.5, "degC")}, {"temperature": "t"}, "cold")
     assert families(slow) == []  # its applies() refuses 0.5 Hz
+
+
+def fragile_values(window: np.ndarray, fs: float) -> list[float]:
+    """The toy family's values, failing as a bug would (not a ValueError of bad input) above 25 degrees."""
+    if window.mean() > 25.0:
+        raise RuntimeError("a bug met a warm window")
+    return temperature_values(window, fs)
+
+
+def test_a_recording_whose_extraction_fails_is_named_and_the_others_kept():
+    # The one extraction path of scans and recordings: a recording that fails is left out with its reason,
+    # as a broken scan is, instead of stopping the set.
+    family = REGISTRY.roles.register(RoleFamily("temperature", "temperature", TOY_TEMPERATURE, fragile_values))
+    try:
+        space, notes = feature_space([warm("a", "cold", 20.0), warm("b", "warm", 30.0), warm("c", "cold", 21.0)])
+    finally:
+        REGISTRY.roles.unregister(family.name)
+    assert space.scan_ids == ("a", "c") and space.X.tolist() == [[21.0, 2.0], [22.0, 2.0]]
+    assert space.failed == (("b", "RuntimeError: a bug met a warm window"),)
+    assert notes == ["recording 'b' could not be extracted and is left out: RuntimeError: a bug met a warm window"]
+
+
+def test_features_of_a_set_with_a_failed_recording_exit_1_and_are_not_reused(tmp_path, capsys):
+    # The table is written without the failed recording, which is named; its options are not, so evaluate
+    # extracts again instead of reusing a table that lacks a recording.
+    db = tmp_path / "db"
+    Database(db).close()
+    store_recordings(db, "warmth", [warm("a", "cold", 20.0), warm("b", "warm", 30.0), warm("c", "cold", 21.0),
+                                    warm("d", "warm", 32.0)])
+    family = REGISTRY.roles.register(RoleFamily("temperature", "temperature", TOY_TEMPERATURE, fragile_values))
+    try:
+        assert cli.main(["features", "set:warmth", "--db", str(db), "--workers", "1"]) == 1
+    finally:
+        REGISTRY.roles.unregister(family.name)
+    err = capsys.readouterr().err
+    assert "recording 'b' could not be extracted and is left out: RuntimeError: a bug met a warm window" in err
+    folder = db / "recordings" / "warmth"
+    assert (folder / "features.csv").read_text().count("\n") == 3 and not (folder / "features.json").exists()
 
 
 def test_the_roles_the_families_need_come_from_the_registry(toy_role):

@@ -10,6 +10,7 @@ import pytest
 from conftest import make_meta
 from scipy import signal
 
+from features.recordings import scan_recording
 from features.tactum import mico
 from scanner.preprocess import slide_signal
 from scanner.scan import Recording, Scan, Trace
@@ -40,7 +41,7 @@ from taxonomy.related.hoelscher_features import (
     xu3,
 )
 from taxonomy.related.huang_features import band_means, huang7
-from taxonomy.related.inputs import RelatedFeatureError, scan_recording
+from taxonomy.related.inputs import RelatedFeatureError
 from taxonomy.related.sets import FEATURE_SETS, compute
 from taxonomy.related.xie_features import XieFeatures, wavelet_l1, xie11, xie11_from_sequences, xie_sequences
 
