@@ -26,6 +26,7 @@ from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted
 
 from features.modern import EXTRA, FITTED_KINDS, GENERIC_RULE, ROLE_RULES, SCAN_SIGNALS, SIGNAL_PREFIX, LengthRule
+from scanner.lazy import optional
 from scanner.scan import is_generic
 from taxonomy.errors import ParameterError
 
@@ -61,12 +62,10 @@ def library(kind: str) -> type:
     """
     if kind not in KINDS:
         raise ParameterError(f"unknown random-kernel transform {kind!r} (known: {', '.join(KINDS)})")
-    try:
-        # Imported on first use: sktime takes seconds to import and is an optional extra.
-        from sktime.transformations.rocket import MiniRocket, MultiRocket
-    except ImportError:
-        raise ParameterError(f"{kind} needs {EXTRA} (pip install '{EXTRA}')") from None
-    return MiniRocket if kind == "minirocket" else MultiRocket
+    # Imported on first use: sktime takes seconds to import and is an optional extra.
+    rocket = optional("sktime.transformations.rocket", None, kind, install=f"pip install '{EXTRA}'",
+                      error=ParameterError)
+    return rocket.MiniRocket if kind == "minirocket" else rocket.MultiRocket
 
 
 def signal_rule(name: str) -> LengthRule:

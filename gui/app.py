@@ -33,6 +33,7 @@ from dataclasses import replace
 from flask import Flask, Response, render_template
 from flask.globals import request_ctx
 from werkzeug.exceptions import HTTPException, RequestEntityTooLarge
+from werkzeug.serving import make_server
 
 from features import WORKER_SERVER_PRELOAD
 from gui import browser, operate, security
@@ -179,8 +180,6 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8080) -> None
 
 def _serve(app: Flask, settings: Settings, host: str, port: int) -> None:
     """Serve ``app`` until Ctrl-C or SIGTERM, then end its running work."""
-    from werkzeug.serving import make_server
-
     signal.signal(signal.SIGTERM, _stop)  # as Ctrl-C: a running scan aborted, an export's bundle deleted
     threading.Thread(target=app.extensions["texplorer"].warm_up, name="warm-up", daemon=True).start()
     server = make_server(host, port, app, threaded=True)

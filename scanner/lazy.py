@@ -164,17 +164,22 @@ def _typeof_kernel(kernel: _Kernel, context: Any) -> Any:
     return numba_types.Dispatcher(kernel.dispatcher)
 
 
-def optional(name: str, extra: str, purpose: str) -> types.ModuleType:
-    """Import the optional library ``name``, or say in one line which extra installs it.
+def optional(name: str, extra: str | None, purpose: str, *, install: str | None = None,
+             error: type[Exception] = ModuleNotFoundError) -> types.ModuleType:
+    """Import the optional library ``name``, or say in one line what needs it and how to install it.
 
     Parameters
     ----------
     name : str
-        The library's module (``"pandas"``).
-    extra : str
-        The ``texplorer`` extra that installs it (``pip install 'texplorer[pandas]'``).
+        The library's module (``"pandas"``, ``"nidaqmx.stream_readers"``).
+    extra : str or None
+        The ``texplorer`` extra that installs it (``pip install 'texplorer[pandas]'``), if one does.
     purpose : str
         What needs it, for the message (``"FeatureSpace.to_pandas()"``).
+    install : str, optional
+        The command that installs it, where no extra does (``"pip install pyserial"``).
+    error : type of Exception
+        What is raised when it is missing (a device's ``DeviceUnavailable``, the cluster's ``ClusterError``).
 
     Returns
     -------
@@ -184,12 +189,25 @@ def optional(name: str, extra: str, purpose: str) -> types.ModuleType:
     Raises
     ------
     ModuleNotFoundError
-        The library is not installed.
+        Or ``error``: the library is not installed.
+
+    Examples
+    --------
+    >>> from scanner.lazy import optional
+    >>> optional("json", None, "reading settings").__name__
+    'json'
+    >>> optional("no_such_library", "cluster", "running on a Dask cluster")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ModuleNotFoundError: running on a Dask cluster needs no_such_library, which is not installed: pip install ...
     """
     try:
         return importlib.import_module(name)
     except ModuleNotFoundError as missing:
         if missing.name != name.split(".")[0] and missing.name != name:
             raise  # the library is there but something it needs is not: its own message says what
-        raise ModuleNotFoundError(f"{purpose} needs {name}, which is not installed: "
-                                  f"pip install 'texplorer[{extra}]'", name=name) from None
+        how = install or f"pip install 'texplorer[{extra}]'"
+        message = f"{purpose} needs {name}, which is not installed: {how}"
+        if error is ModuleNotFoundError:
+            raise ModuleNotFoundError(message, name=name) from None
+        raise error(message) from None

@@ -12,6 +12,7 @@ import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
+from datetime import datetime
 from types import MappingProxyType
 from typing import Any
 
@@ -437,8 +438,6 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def _is_iso8601(text: str) -> bool:
-    from datetime import datetime
-
     try:
         datetime.fromisoformat(text)
     except ValueError:

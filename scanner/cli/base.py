@@ -12,8 +12,11 @@ import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 
+from scanner.lazy import library
 from scanner.storage.database import Database
 from taxonomy.errors import TexplorerError
+
+tqdm = library("tqdm")  # loaded by the commands that show progress, not by every start
 
 DEFAULT_DB = "texplorer-data"
 
@@ -39,10 +42,8 @@ def default_db() -> Path:
 
 def progress(description: str, unit: str = "scan") -> Callable[[Iterable], Iterable]:
     """A tqdm progress bar on stderr counting ``unit`` (hidden when stderr is not a terminal)."""
-    from tqdm import tqdm  # loaded by the commands that show progress, not by every start
-
-    return lambda items: tqdm(items, desc=description, unit=unit, file=sys.stderr, disable=None,
-                              leave=False)
+    return lambda items: tqdm.tqdm(items, desc=description, unit=unit, file=sys.stderr, disable=None,
+                                   leave=False)
 
 
 def open_db(args: argparse.Namespace, *, create: bool = False) -> Database:

@@ -8,6 +8,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
+
 from features import REGISTRY, SOLVER_RTOL, FeatureSpace
 from scanner.cli.base import EXIT_ERROR, EXIT_PROBLEMS, UsageError, add_db_option, created_db, open_db, progress
 from scanner.cli.common import add_cluster_options, runtime_of
@@ -111,8 +113,6 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 
 def _print_replay(space, predicted: list | None, level: str | None) -> None:
-    import numpy as np
-
 
     header = f"{'scan':<28} {'label':<14} {'NaN':>4}"
     print(header + ("  prediction" if predicted else ""))
@@ -128,8 +128,6 @@ def _print_replay(space, predicted: list | None, level: str | None) -> None:
 
 
 def _play(paths: Sequence[Path], speed: float) -> None:
-    import numpy as np
-
 
     for path in paths:
         scan = load_scan(path)

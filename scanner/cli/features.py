@@ -13,6 +13,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from features import REGISTRY, code_version, feature_sets
 from features.recordings import Windowing, describe_families, feature_space
 from scanner.cli.base import EXIT_ERROR, UsageError, add_db_option, open_db
@@ -26,8 +28,6 @@ from taxonomy.learning.results import one_line
 
 
 def report_space(space, seconds: float) -> None:
-    import numpy as np
-
     nan_columns = int(np.isnan(space.X).any(axis=0).sum()) if len(space) else 0
     print(f"{len(space)} scans x {len(space.columns)} features in {seconds:.1f} s "
           f"({nan_columns} column(s) with NaN, {len(space.failed)} scan(s) failed)")

@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 from threadpoolctl import threadpool_limits
 
+from scanner.lazy import optional
 from taxonomy.errors import TexplorerError
 
 if TYPE_CHECKING:
@@ -86,12 +87,7 @@ class DataShipped(UserWarning):
 # -- connecting --------------------------------------------------------------------------------------
 
 def _distributed():
-    try:
-        import distributed
-    except ImportError:
-        raise ClusterError("running on a Dask cluster needs dask.distributed: "
-                           "pip install 'texplorer[cluster]'") from None
-    return distributed
+    return optional("distributed", "cluster", "running on a Dask cluster", error=ClusterError)
 
 
 def scheduler_address(scheduler: str | None = None) -> str | None:
@@ -104,12 +100,12 @@ def scheduler_address(scheduler: str | None = None) -> str | None:
     if "dask.config" not in sys.modules and not dask_configuration_exists():
         return None  # nothing could name one: no need to import Dask (some 0.2-0.4 s of every command's start)
     try:
-        import dask.config
-    except ImportError:
+        dask_config = optional("dask.config", "cluster", "a Dask scheduler address")
+    except ModuleNotFoundError:
         if os.environ.get("DASK_SCHEDULER_ADDRESS"):
             _distributed()  # the user asked for Dask: say what is missing
         return None
-    return dask.config.get("scheduler-address", None) or None
+    return dask_config.get("scheduler-address", None) or None
 
 
 CONFIGURATION_SUFFIXES = (".json", ".yaml", ".yml")
@@ -324,9 +320,7 @@ def _stored(source: Any) -> StoredLoader | None:
 def _versioned(fn: Callable[[Item], Any], version: Callable[[], str], item: Item) -> tuple[Any, str, str]:
     """On a worker: ``fn(item)`` (BLAS pinned as by :func:`pinned`), the worker's feature code version and
     its address."""
-    from distributed import get_worker
-
-    return pinned(fn, item), version(), get_worker().address
+    return pinned(fn, item), version(), _distributed().get_worker().address
 
 
 def blind_workers(client: Client, loader: StoredLoader) -> list[str]:
@@ -351,8 +345,7 @@ def extract(client: Client, fn: Callable[[Item], Any], sources: Sequence[Item], 
     lost with their worker more often than Dask's ``allowed-failures`` (each loss sends them again).
     """
     distributed = _distributed()
-    import dask.config
-
+    dask_config = optional("dask.config", "cluster", "running on a Dask cluster", error=ClusterError)
     if not ship_data:
         first = next((loader for loader in map(_stored, sources) if loader is not None), None)
         blind = blind_workers(client, first) if first is not None else []
@@ -362,7 +355,7 @@ def extract(client: Client, fn: Callable[[Item], Any], sources: Sequence[Item], 
                           stacklevel=3)
             ship_data = True
     expected = version()
-    allowed_losses = int(dask.config.get("distributed.scheduler.allowed-failures"))
+    allowed_losses = int(dask_config.get("distributed.scheduler.allowed-failures"))
     losses: dict[int, int] = {}
     token, submissions = uuid.uuid4().hex, itertools.count()
     queue = deque((index, source, ship_data) for index, source in zip(indices, sources, strict=True))

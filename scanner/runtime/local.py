@@ -19,15 +19,19 @@ import concurrent.futures
 import contextlib
 import functools
 import multiprocessing
+import multiprocessing.util
 import os
+import tempfile
 import threading
 from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 
-from scanner.lazy import preload
+from scanner.lazy import library, preload
 from scanner.runtime.memory import give_back_free_memory, keep_freed_memory
 from scanner.runtime.processes import end_with_parent
 from scanner.runtime.threads import one_thread_each, one_thread_for_good
 from taxonomy.errors import TexplorerError
+
+forkserver = library("multiprocessing.forkserver")  # where it exists (POSIX): imported when a server starts
 
 
 def _drop_tasks_not_started(futures: Iterable[concurrent.futures.Future]) -> None:
@@ -384,15 +388,11 @@ def start_workers_from_a_server(preload: Sequence[str] = ()) -> None:
         return
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload(list(preload))
-    from multiprocessing import forkserver  # noqa: PLC0415 (only where it exists)
-
     try:
         forkserver.ensure_running()
     except OSError as exc:
         if "AF_UNIX path too long" not in str(exc):
             raise
-        import tempfile  # noqa: PLC0415 (only to name the folder)
-
         raise TexplorerError(f"the worker server's socket does not fit in $TMPDIR ({tempfile.gettempdir()}): a "
                              "Unix socket's path holds at most 107 bytes; set TMPDIR to a shorter folder") from None
     _SERVER["context"] = context
@@ -405,13 +405,11 @@ def revive_worker_server() -> bool:
     is restarted by multiprocessing itself)."""
     if _SERVER["context"] is None or _SERVER["context"].get_start_method() != "forkserver":
         return False
-    from multiprocessing import forkserver, util  # noqa: PLC0415 (only where it exists)
-
     server = forkserver._forkserver  # multiprocessing's one instance; its state is what pools connect to
     with server._lock:
         address = server._forkserver_address
-        if server._forkserver_pid is None or address is None or util.is_abstract_socket_namespace(address) \
-                or os.path.exists(address):
+        if server._forkserver_pid is None or address is None \
+                or multiprocessing.util.is_abstract_socket_namespace(address) or os.path.exists(address):
             return False
         os.close(server._forkserver_alive_fd)  # the server ends when its "alive" pipe closes
         with contextlib.suppress(ChildProcessError):

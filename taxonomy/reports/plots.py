@@ -16,15 +16,19 @@ from typing import TYPE_CHECKING, Any, BinaryIO
 import numpy as np
 import scipy.stats
 
+from scanner.lazy import library
 from scanner.scan import Scan, Trace
 from taxonomy.errors import ParameterError
 from taxonomy.labels import LabelError, major_class
 from taxonomy.learning.results import Result
 from taxonomy.table import Taxonomy, load_taxonomy
 
-if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn (_new_figure)
+if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn (new_figure)
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
+
+figures = library("matplotlib.figure")  # imported when a figure is drawn (new_figure)
+agg = library("matplotlib.backends.backend_agg")
 
 Traces = Mapping[str, Trace]
 """Channel name -> trace: a scan's ``traces`` or one recorded step's."""
@@ -170,7 +174,7 @@ def plot_scan(scan: Scan, path: PlotTarget, title: str | None = None) -> None:
     the TU4 values, and the three photos. A channel the scan does not have is marked "not recorded"
     (the fold as skipped when the sample was flagged rigid).
     """
-    figure = _new_figure(figsize=(22, 17), layout="constrained")
+    figure = new_figure(figsize=(22, 17), layout="constrained")
     grid = figure.subplots(4, 4)
     traces = scan.traces
     for ax, step in zip(grid[0], ("finger_tap", "finger_slide", "tool_tap", "tool_slide"), strict=True):
@@ -235,7 +239,7 @@ def plot_step(traces: Traces, step: str, path: PlotTarget, title: str = "", *, t
     """
     panels = _step_panels(step, traces, t_amb, rigid)
     dpi = 125  # 6.4 in x 125 dpi = 800 px; text in points grows with the dpi, so it stays legible
-    figure = _new_figure(figsize=(STEP_PLOT_WIDTH_PX / dpi, 0.5 + 2.6 * len(panels)), layout="constrained")
+    figure = new_figure(figsize=(STEP_PLOT_WIDTH_PX / dpi, 0.5 + 2.6 * len(panels)), layout="constrained")
     axes = figure.subplots(len(panels), 1, squeeze=False)[:, 0]
     for ax, panel in zip(axes, panels, strict=True):
         panel(ax)
@@ -251,19 +255,16 @@ def _target(path: PlotTarget) -> str | BinaryIO:
 # -- evaluation plots (paper Figs. 14-18) -------------------------------------------------------------
 
 
-def _new_figure(*args: Any, **kwargs: Any) -> Figure:
+def new_figure(*args: Any, **kwargs: Any) -> Figure:
     """A matplotlib figure on an Agg canvas. matplotlib is imported here, when a figure is drawn: it takes a
     third of a second that every command and page drawing no figure would pay."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    figure = Figure(*args, **kwargs)
-    FigureCanvasAgg(figure)
+    figure = figures.Figure(*args, **kwargs)
+    agg.FigureCanvasAgg(figure)
     return figure
 
 
 def _canvas(width: float, height: float) -> Figure:
-    figure = _new_figure(figsize=(width, height), layout="constrained")
+    figure = new_figure(figsize=(width, height), layout="constrained")
     return figure
 
 
@@ -502,7 +503,7 @@ def plot_confusion(confusion: np.ndarray, classes: Sequence[str], path: str | os
     # The matrix gets a fixed size per class and the saved figure grows around it to hold every label
     # (bbox_inches="tight"): a layout engine shrinks a fixed-aspect image between long tick labels instead.
     side = float(np.clip(0.3 * n, 4.0, 12.0))
-    figure = _new_figure(figsize=(side + 1.0, side))
+    figure = new_figure(figsize=(side + 1.0, side))
     ax = figure.add_axes((0.0, 0.0, side / (side + 1.0), 1.0))
     image = ax.imshow(share, cmap="Blues", vmin=0, vmax=1, interpolation="nearest")
     xlabel = "predicted class"

@@ -38,6 +38,7 @@ from taxonomy.learning.metrics import auroc, bootstrap_interval
 from taxonomy.learning.quick import QuickResult
 from taxonomy.learning.results import COLUMNS, Result, best_per_method, format_r_c, major_class, result_notes, size_name
 from taxonomy.reports.plots import (
+    new_figure,
     plot_confusion,
     plot_feature_boxes,
     plot_fq_ranking,
@@ -691,11 +692,7 @@ def write_comparison(folder: str | os.PathLike[str], results: Sequence[Result], 
 
 def _plot_comparison(results: Sequence[Result], path: Path) -> Path:
     """Horizontal accuracy bars, one per result, coloured by method, with the majority-class rate."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    figure = Figure(figsize=(10, 1.5 + 0.22 * len(results)), layout="constrained")
-    FigureCanvasAgg(figure)
+    figure = new_figure(figsize=(10, 1.5 + 0.22 * len(results)), layout="constrained")
     ax = figure.subplots()
     methods = list(dict.fromkeys(r.method for r in results))
     y = np.arange(len(results))[::-1]

@@ -69,9 +69,10 @@ OPTIONAL_LIBRARY_MODULES = {"scanner.acquisition.emulators.daq_grpc"}
 are used, like the library itself, so that no other command loads it."""
 
 
-def _imports_in_functions(path: Path, root: Path = ROOT) -> list[str]:
-    """Project imports inside a function, and project modules imported by name at run time anywhere
-    (``importlib.import_module("scanner.x")``, ``__import__``): the contracts see neither."""
+def _imports_in_functions(path: Path, root: Path = ROOT, libraries: bool = False) -> list[str]:
+    """Project imports inside a function (any import there, with ``libraries``), and project modules imported
+    by name at run time anywhere (``importlib.import_module("scanner.x")``, ``__import__``): the contracts see
+    neither."""
     found = []
     tree = ast.parse(path.read_text())
     for node in ast.walk(tree):
@@ -80,7 +81,7 @@ def _imports_in_functions(path: Path, root: Path = ROOT) -> list[str]:
                 names = ([inner.module or ""] if isinstance(inner, ast.ImportFrom)
                          else [alias.name for alias in inner.names] if isinstance(inner, ast.Import) else [])
                 found += [f"{path.relative_to(root)}:{inner.lineno} {name}" for name in names
-                          if _project(name) and name not in OPTIONAL_LIBRARY_MODULES]
+                          if (libraries or _project(name)) and name not in OPTIONAL_LIBRARY_MODULES]
     for node in ast.walk(tree):
         if isinstance(node, ast.Call) and _imports_by_name(node.func) and node.args:
             name = node.args[0].value if isinstance(node.args[0], ast.Constant) else ""
@@ -111,6 +112,19 @@ def test_no_project_import_hides_in_a_function():
     assert hidden == []
 
 
+DEFERRING = "scanner/lazy.py"
+"""The one module that imports inside its functions: the stand-ins of deferred libraries and numba's loading."""
+
+
+def test_no_library_import_hides_in_a_function():
+    # One way to defer an import (docs/extending.md): scanner.lazy's library() at a module's top, optional()
+    # where an optional library is used, jit() for numba; the stdlib and numpy are imported at the top.
+    files = sorted(path for package in PACKAGES for path in (ROOT / package).rglob("*.py")
+                   if path.relative_to(ROOT).as_posix() != DEFERRING)
+    hidden = [line for path in files for line in _imports_in_functions(path, libraries=True)]
+    assert hidden == []
+
+
 def test_the_check_sees_an_import_in_a_function(tmp_path):
     sample = tmp_path / "sample.py"
     sample.write_text("import numpy\n\n\ndef f():\n    from scanner.scan import Scan\n    return Scan\n")
@@ -121,3 +135,10 @@ def test_the_check_sees_an_import_by_name(tmp_path):
     sample = tmp_path / "sample.py"
     sample.write_text("import importlib\n\nscan = importlib.import_module('scanner.scan')\nnp = __import__('numpy')\n")
     assert _imports_in_functions(sample, tmp_path) == ["sample.py:3 scanner.scan"]
+
+
+def test_the_library_check_sees_a_library_import_in_a_function(tmp_path):
+    sample = tmp_path / "sample.py"
+    sample.write_text("def f():\n    import sounddevice\n    return sounddevice\n")
+    assert _imports_in_functions(sample, tmp_path) == []
+    assert _imports_in_functions(sample, tmp_path, libraries=True) == ["sample.py:2 sounddevice"]

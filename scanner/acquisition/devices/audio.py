@@ -23,6 +23,7 @@ import numpy as np
 from scanner.acquisition.config import MicrophoneConfig
 from scanner.acquisition.devices.protocols import AcquisitionError, AudioCapture, DeviceError, DeviceUnavailable
 from scanner.acquisition.devices.sources import SignalSource
+from scanner.lazy import optional
 from scanner.pacing import Pacer
 
 FIRST_BLOCK_TIMEOUT_S = 2.0
@@ -34,14 +35,11 @@ FULL_SCALE = 32768.0
 
 def _import_sounddevice() -> Any:
     try:
-        import sounddevice
-    except ImportError:
-        raise DeviceUnavailable("the microphone needs the sounddevice package: "
-                                "pip install sounddevice") from None
+        return optional("sounddevice", None, "the microphone", install="pip install sounddevice",
+                        error=DeviceUnavailable)
     except OSError as exc:
         raise DeviceUnavailable(f"the microphone needs the PortAudio library ({exc}): install libportaudio2 "
                                 "(Debian/Ubuntu) or portaudio (Homebrew)") from None
-    return sounddevice
 
 
 def _device(name: str) -> int | str | None:

@@ -50,6 +50,7 @@ from scanner.acquisition.devices.protocols import (
     DeviceUnavailable,
 )
 from scanner.acquisition.devices.sources import SignalSource
+from scanner.lazy import optional
 from scanner.pacing import Pacer
 from taxonomy.errors import ParameterError, TexplorerError
 
@@ -239,11 +240,8 @@ def collect(board: Any, kind: str, hz: float, seconds: float, *, cancel: threadi
 
 
 def _import_serial() -> Any:
-    try:
-        import serial
-    except ImportError:
-        raise DeviceUnavailable("the serial sensor board needs pyserial: pip install pyserial") from None
-    return serial
+    return optional("serial", None, "the serial sensor board", install="pip install pyserial",
+                    error=DeviceUnavailable)
 
 
 class SerialBoard:

@@ -25,6 +25,7 @@ import numpy as np
 from scanner.acquisition.config import MAX_HEAT_S, Calibration, DaqConfig
 from scanner.acquisition.devices.protocols import AcquisitionError, DeviceError, DeviceUnavailable
 from scanner.acquisition.devices.sources import SignalSource
+from scanner.lazy import optional
 from scanner.pacing import Pacer
 from taxonomy.errors import ParameterError
 
@@ -36,21 +37,14 @@ TIMEOUT_ERROR = -200284
 
 
 def _import_nidaqmx() -> Any:
-    try:
-        import nidaqmx
-        import nidaqmx.stream_readers
-        import nidaqmx.stream_writers
-    except ImportError as exc:
-        raise DeviceUnavailable(f"the real DAQ needs the nidaqmx package ({exc.msg}): "
-                                "pip install nidaqmx") from None
-    return nidaqmx
+    for module in ("nidaqmx.stream_readers", "nidaqmx.stream_writers"):
+        optional(module, None, "the real DAQ", install="pip install nidaqmx", error=DeviceUnavailable)
+    return optional("nidaqmx", None, "the real DAQ", install="pip install nidaqmx", error=DeviceUnavailable)
 
 
 def _grpc_channel(address: str) -> Any:
-    try:
-        import grpc
-    except ImportError:
-        raise DeviceUnavailable("a remote DAQ (grpc://) needs grpcio: pip install 'nidaqmx[grpc]'") from None
+    grpc = optional("grpc", None, "a remote DAQ (grpc://)", install="pip install 'nidaqmx[grpc]'",
+                    error=DeviceUnavailable)
     return grpc.insecure_channel(address)
 
 
