@@ -44,7 +44,7 @@ from pathlib import Path  # noqa: E402
 import cv2  # noqa: E402
 
 from features import ScanSource, extract, extract_many, image, other, tactum  # noqa: E402
-from features.extraction import _extract_source  # noqa: E402
+from features.extraction import extract_source  # noqa: E402
 from features.families import audio_features  # noqa: E402
 from scanner.preprocess import crop_image, grayscale  # noqa: E402
 from scanner.runtime.local import WorkerPool, run_tasks  # noqa: E402
@@ -215,7 +215,7 @@ def _timed_extraction(source: ScanSource) -> tuple[int, float, float, int]:
     """extract_many's task on one source, with its process id, start and end times and page faults."""
     faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
     start = time.perf_counter()
-    _extract_source(source)
+    extract_source(source)
     end = time.perf_counter()
     return os.getpid(), start, end, resource.getrusage(resource.RUSAGE_SELF).ru_minflt - faults
 
@@ -245,7 +245,7 @@ def where_the_workers_time_goes(sources: list[ScanSource], rounds: int = 3) -> N
 def _serial_time(sources: list[ScanSource]) -> float:
     start = time.perf_counter()
     for source in sources:
-        _extract_source(source)
+        extract_source(source)
     return time.perf_counter() - start
 
 

@@ -525,13 +525,14 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
         functools.partial(_code_version_here, families), key=(version, names, _working_directory()),
         keys=[(version, sources[i].cache_key) if sources[i].cache_key else None for i in todo],
         workers=workers, pool=pool, progress=progress)
-    for i, (row, error) in results:
-        if error is not None:
-            errors[i] = error
-            continue
-        rows[i] = row
-        if cache is not None and sources[i].cache_key:
-            cache.store_features(sources[i].cache_key, version, dict(zip(names, row, strict=True)))
+    with contextlib.closing(results):  # an error here (the cache's disk full) ends the workers' tasks now
+        for i, (row, error) in results:
+            if error is not None:
+                errors[i] = error
+                continue
+            rows[i] = row
+            if cache is not None and sources[i].cache_key:
+                cache.store_features(sources[i].cache_key, version, dict(zip(names, row, strict=True)))
     kept = [i for i in range(len(sources)) if rows[i] is not None]
     return FeatureSpace(
         X=np.array([rows[i] for i in kept], dtype=np.float64).reshape(len(kept), len(names)),

@@ -49,6 +49,7 @@ never split one recording's windows. Photos are not windowed.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import warnings
@@ -1382,11 +1383,13 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
     jobs = [RecordingJob(r.name, functools.partial(_given, r), windowing, border, applied) for r in recordings]
     current = functools.partial(set_code_version, applied)
     results: list = [None] * len(jobs)
-    for i, result in run_extraction(extract_recording, jobs, range(len(jobs)), current,
-                                    key=("recordings", current(), columns), workers=workers, progress=progress,
-                                    unit="recording"):
-        results[i] = result
-    missing = lacking(recordings, found, applied)
+    with contextlib.closing(run_extraction(extract_recording, jobs, range(len(jobs)), current,
+                                           key=("recordings", current(), columns), workers=workers,
+                                           progress=progress, unit="recording")) as extracted:
+        for i, result in extracted:
+            results[i] = result
+    kept = [k for k, (rows, _) in enumerate(results) if rows is not None]
+    missing = lacking([recordings[k] for k in kept], [found[k] for k in kept], applied)
     label_level, levels = set_levels(recordings)
     X, ids, labels, groups, level_rows, split, notes = [], [], [], [], {k: [] for k in levels}, [], []
     failed = [(r.name, error) for r, (_, error) in zip(recordings, results, strict=True) if error is not None]

@@ -47,13 +47,16 @@ class _Library(types.ModuleType):
         return getattr(module, name)
 
 
-def library(name: str) -> types.ModuleType:
+def library(name: str, *, workers: bool = True) -> types.ModuleType:
     """The module ``name`` if it is already imported, else a stand-in that imports it at its first use.
 
     Parameters
     ----------
     name : str
         Dotted name of a third-party module (``"cv2"``, ``"scipy.signal"``).
+    workers : bool, default True
+        Whether worker processes use it: the libraries they use are imported before they are forked
+        (:func:`preload`); one only this process uses (matplotlib, which draws the reports) is not.
 
     Returns
     -------
@@ -70,7 +73,8 @@ def library(name: str) -> types.ModuleType:
     module = sys.modules.get(name)
     if module is None:
         module = _Library(name)
-        _waiting.add(name)
+        if workers:
+            _waiting.add(name)
     return module
 
 
@@ -189,7 +193,8 @@ def optional(name: str, extra: str | None, purpose: str, *, install: str | None 
     Raises
     ------
     ModuleNotFoundError
-        Or ``error``: the library is not installed.
+        Or ``error``: the library is not installed. With an ``error`` of its own, a library that is there but
+        cannot be imported (something it needs is missing or broken) raises ``error`` too, naming why.
 
     Examples
     --------
@@ -201,13 +206,19 @@ def optional(name: str, extra: str | None, purpose: str, *, install: str | None 
     ...
     ModuleNotFoundError: running on a Dask cluster needs no_such_library, which is not installed: pip install ...
     """
+    how = install or f"pip install 'texplorer[{extra}]'"
     try:
         return importlib.import_module(name)
     except ModuleNotFoundError as missing:
-        if missing.name != name.split(".")[0] and missing.name != name:
-            raise  # the library is there but something it needs is not: its own message says what
-        how = install or f"pip install 'texplorer[{extra}]'"
-        message = f"{purpose} needs {name}, which is not installed: {how}"
+        if missing.name in (name, name.split(".")[0]):
+            message = f"{purpose} needs {name}, which is not installed: {how}"
+            if error is ModuleNotFoundError:
+                raise ModuleNotFoundError(message, name=name) from None
+            raise error(message) from None
         if error is ModuleNotFoundError:
-            raise ModuleNotFoundError(message, name=name) from None
-        raise error(message) from None
+            raise  # the library is there but something it needs is not: its own message says what
+        raise error(f"{purpose} needs {name}, which cannot be imported ({missing}): {how}") from None
+    except ImportError as broken:
+        if error is ModuleNotFoundError:
+            raise
+        raise error(f"{purpose} needs {name}, which cannot be imported ({broken}): {how}") from None

@@ -101,7 +101,7 @@ def scheduler_address(scheduler: str | None = None) -> str | None:
         return None  # nothing could name one: no need to import Dask (some 0.2-0.4 s of every command's start)
     try:
         dask_config = optional("dask.config", "cluster", "a Dask scheduler address")
-    except ModuleNotFoundError:
+    except ImportError:  # not installed, or broken: no scheduler named by it
         if os.environ.get("DASK_SCHEDULER_ADDRESS"):
             _distributed()  # the user asked for Dask: say what is missing
         return None

@@ -31,7 +31,7 @@ from scanner.runtime.processes import end_with_parent
 from scanner.runtime.threads import one_thread_each, one_thread_for_good
 from taxonomy.errors import TexplorerError
 
-forkserver = library("multiprocessing.forkserver")  # where it exists (POSIX): imported when a server starts
+forkserver = library("multiprocessing.forkserver", workers=False)  # where it exists (POSIX): when a server starts
 
 
 def _drop_tasks_not_started(futures: Iterable[concurrent.futures.Future]) -> None:

@@ -566,9 +566,10 @@ def evaluate_grid(space: FeatureSpace, classifiers: Iterable[str | BaseEstimator
     Raises
     ------
     EvaluationError
-        An unknown classifier or protocol, too few rows per class for the folds, or only NaN columns.
+        An unknown classifier or protocol, or too few rows per class for the folds.
     FeatureSpaceError
-        A level the space does not have.
+        A level the space does not have, only NaN, or values that cannot be scaled or are constant
+        (:func:`learning_subset`).
 
     Examples
     --------

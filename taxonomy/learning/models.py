@@ -311,8 +311,9 @@ def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, 
     ------
     ModelError
         An unknown classifier, or one without class probabilities (:data:`NO_PROBABILITIES`).
-    EvaluationError
-        Only NaN columns.
+    FeatureSpaceError
+        An unknown level, only NaN, or values that cannot be scaled or are constant
+        (:func:`features.feature_sets.learning_subset`).
 
     Examples
     --------
@@ -368,15 +369,21 @@ def _skops() -> ModuleType:
     skops lists the estimators it trusts by default when it is imported, by importing every module of
     scikit-learn (``sklearn.utils.all_estimators``: a second of CPU, more than the rest of ``classify``).
     The first import here hands it :data:`SKLEARN_PARTS` instead, the estimators a model file may hold; the
-    check of a file's types (:func:`_loads`) is against the model's own lists either way.
+    check of a file's types (:func:`_loads`) is against the model's own lists either way. Threads wait for the
+    import under one lock (the package is in ``sys.modules`` before it has run), then share the module.
     """
-    if "skops.io" not in sys.modules:
-        with _import_lock, _estimators(SKLEARN_PARTS):
-            _import_with_module_index("skops.io", "_utils", "whichmodule")
-    return sys.modules["skops.io"]
+    if not _imported:
+        with _import_lock:
+            if not _imported:
+                with _estimators(SKLEARN_PARTS):
+                    _imported.append(sys.modules.get("skops.io")
+                                     or _import_with_module_index("skops.io", "_utils", "whichmodule"))
+    return _imported[0]
 
 
 _import_lock = threading.Lock()
+_imported: list[ModuleType] = []
+"""``skops.io`` once :func:`_skops` has it whole."""
 _PART_NAMES = frozenset(f"{part.__module__}.{part.__qualname__}" for part in SKLEARN_PARTS)
 _TRUSTED = [*TRUSTED_TYPES, *sorted(_PART_NAMES)]
 """Every type a model file may hold beyond builtins and numpy arrays, as skops names them."""

@@ -74,7 +74,7 @@ class Dataset:
 
     @classmethod
     def from_scans(cls, name: str, scans: Iterable[Scan]) -> Dataset:
-        """Scans as recordings (:func:`features.scan_recording`) labelled at the fine, medium and
+        """Scans as recordings (:func:`features.recordings.scan_recording`) labelled at the fine, medium and
         coarse taxonomy levels."""
         scans = tuple(scans)
         recordings = []

@@ -27,8 +27,8 @@ if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn (new_figure)
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-figures = library("matplotlib.figure")  # imported when a figure is drawn (new_figure)
-agg = library("matplotlib.backends.backend_agg")
+figures = library("matplotlib.figure", workers=False)  # imported when a figure is drawn (new_figure)
+agg = library("matplotlib.backends.backend_agg", workers=False)
 
 Traces = Mapping[str, Trace]
 """Channel name -> trace: a scan's ``traces`` or one recorded step's."""

@@ -113,3 +113,44 @@ def test_compile_kernels_leaves_nothing_for_a_database_of_scans_to_compile():
     compiled, added = run.stdout.split(maxsplit=1)
     assert int(compiled) >= 15  # the feature and preprocessing kernels (inlined helpers compile inside their callers)
     assert added.strip() == "{}"
+
+
+def test_a_library_workers_do_not_use_is_not_preloaded():
+    code = textwrap.dedent("""
+        import sys
+        from scanner import lazy
+        lazy.library("colorsys", workers=False)
+        lazy.library("wave")
+        lazy.preload()
+        print("colorsys" in sys.modules, "wave" in sys.modules)
+    """)
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split() == ["False", "True"]
+
+
+class _Unavailable(RuntimeError):
+    """A caller's own error (a device's DeviceUnavailable, the cluster's ClusterError)."""
+
+
+def test_an_optional_library_missing_or_broken_says_what_needs_it_in_the_caller_s_error(tmp_path, monkeypatch):
+    (tmp_path / "broken_driver.py").write_text("raise ImportError('libdriver.so.1: cannot open shared object file')\n")
+    (tmp_path / "needy_driver.py").write_text("import no_such_dependency_of_it\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(_Unavailable, match=r"^the board needs no_such_driver, which is not installed: "
+                                           r"pip install no-such-driver$"):
+        lazy.optional("no_such_driver", None, "the board", install="pip install no-such-driver", error=_Unavailable)
+    with pytest.raises(_Unavailable, match=r"^the board needs broken_driver, which cannot be imported "
+                                           r"\(libdriver.so.1: cannot open shared object file\): pip install x$"):
+        lazy.optional("broken_driver", None, "the board", install="pip install x", error=_Unavailable)
+    with pytest.raises(_Unavailable, match=r"needs needy_driver, which cannot be imported \(No module named "
+                                           r"'no_such_dependency_of_it'\)"):
+        lazy.optional("needy_driver", None, "the board", install="pip install x", error=_Unavailable)
+    # Without an error of the caller's: a missing library as ModuleNotFoundError naming the extra; a library
+    # that is there but broken keeps its own error.
+    with pytest.raises(ModuleNotFoundError, match=r"pip install 'texplorer\[cluster\]'$"):
+        lazy.optional("no_such_driver", "cluster", "the cluster")
+    with pytest.raises(ModuleNotFoundError, match="no_such_dependency_of_it"):
+        lazy.optional("needy_driver", "cluster", "the cluster")
+    with pytest.raises(ImportError, match="libdriver.so.1"):
+        lazy.optional("broken_driver", "cluster", "the cluster")
