@@ -23,3 +23,10 @@ class ParameterError(TexplorerError, ValueError):
     so the CLI and the web application show its one-line message like any other texplorer error, and a
     caller that catches ``ValueError`` still catches it.
     """
+
+
+class NotOnThisMachine(TexplorerError):
+    """A worker does not see a task's stored data as the client does (a stored scan's file: missing,
+    unreadable or other bytes): the client sends the data with the task instead. Raised by the loaders of
+    ``scanner.storage.stored``, caught by ``scanner.runtime.cluster``; here, below both, so that storage does
+    not import the runtime (nor the runtime storage), and opening a database loads no worker machinery."""

@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 from threadpoolctl import threadpool_limits
 
 from scanner.lazy import optional
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import NotOnThisMachine, TexplorerError
 
 if TYPE_CHECKING:
     from distributed import Client, Future
@@ -72,12 +72,6 @@ Item = TypeVar("Item")
 
 class ClusterError(TexplorerError, ValueError):
     """The cluster cannot run the work as asked (no Dask, unreachable scheduler, mismatched workers)."""
-
-
-class NotOnThisMachine(TexplorerError):
-    """A worker does not see a task's stored data as the client does (a stored scan's file: missing,
-    unreadable or other bytes): the client sends the data with the task instead. Raised by the loaders of
-    ``scanner.storage.stored``."""
 
 
 class DataShipped(UserWarning):

@@ -34,11 +34,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from scanner.photo import max_file_bytes
-from scanner.runtime.cluster import NotOnThisMachine
 from scanner.scan import Scan
 from scanner.storage.files import sha256_file
 from scanner.storage.matfile import MAX_SCAN_BYTES, load_scan, photo_names
-from taxonomy.errors import TexplorerError
+from taxonomy.errors import NotOnThisMachine, TexplorerError
 
 Catalogued = Mapping[str, tuple[int, str]]
 """File name (the ``.mat`` and each photo) -> (size in bytes, SHA-256) as the catalog recorded them."""

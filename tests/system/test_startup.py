@@ -54,6 +54,17 @@ def test_help_and_version_load_no_heavy_library_nor_any_command_group():
     assert groups == "['scanner.cli.base']" and heavy == "[]"
 
 
+def test_the_package_and_help_load_no_worker_machinery():
+    # Storage raises NotOnThisMachine from the ground layer, so opening the package (and a database) loads
+    # neither the runtime's pools and cluster code nor the stdlib they need.
+    code = _cli("--help") + "\nimport sys\nprint(sorted(m for m in ('scanner.runtime', 'concurrent.futures', " \
+        "'multiprocessing', 'logging') if m in sys.modules))"
+    run = subprocess.run([sys.executable, "-c", "import scanner\n" + code], capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.splitlines()[-1] == "[]"
+
+
 def test_db_list_loads_no_heavy_library(tmp_path):
     db = Database(tmp_path / "db")
     db.add(make_scan(0, sample_id="granite-01", scan_index=1))
