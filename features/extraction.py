@@ -452,9 +452,11 @@ def run_extraction(extract_one: Callable[[T], tuple[R | None, str | None]], item
     results = executors.current().extract(
         functools.partial(with_code, version, current, extract_one), items, indices, bar.update, version=current,
         key=key, keys=[None] * len(items) if keys is None else keys, workers=workers, pool=pool)
-    with contextlib.closing(results):  # leaving early (Ctrl-C) ends the workers' tasks now, not at exit
-        yield from results
-    bar.close()
+    try:
+        with contextlib.closing(results):  # leaving early (Ctrl-C) ends the workers' tasks now, not at exit
+            yield from results
+    finally:
+        bar.close()
 
 
 def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None, *,
