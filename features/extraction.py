@@ -294,11 +294,6 @@ def source_of(scan: Scan) -> ScanSource:
     return ScanSource(scan.scan_id, scan.meta.label, scan.meta.sample_id, functools.partial(_return, scan))
 
 
-def _code_version_here(families: tuple[str, ...] | None) -> str:
-    """:func:`code_version` as the process that runs this has it (named here, so that a worker asks its own)."""
-    return code_version(families)
-
-
 def extract_source(source: ScanSource,
                    families: tuple[str, ...] | None = None) -> tuple[list[float] | None, str | None]:
     """One scan's step of :func:`run_extraction`: its features in column order, or why they could not be
@@ -416,7 +411,8 @@ def run_extraction(extract_one: Callable[[T], tuple[R | None, str | None]], item
         The feature code version of the families computed (:func:`code_version`), asked here and in each
         worker.
     key : hashable
-        Names the work as a whole: workers kept for other work are not used.
+        Names the work as a whole, beside the feature code version: workers kept for other work, or for other
+        feature code, are not used.
     keys : sequence of hashable or None, optional
         Each item's work, for a server's shared workers (the same work queued twice runs once).
     workers : int, optional
@@ -451,7 +447,7 @@ def run_extraction(extract_one: Callable[[T], tuple[R | None, str | None]], item
     version = current()
     results = executors.current().extract(
         functools.partial(with_code, version, current, extract_one), items, indices, bar.update, version=current,
-        key=key, keys=[None] * len(items) if keys is None else keys, workers=workers, pool=pool)
+        key=(version, key), keys=[None] * len(items) if keys is None else keys, workers=workers, pool=pool)
     try:
         with contextlib.closing(results):  # leaving early (Ctrl-C) ends the workers' tasks now, not at exit
             yield from results
@@ -524,7 +520,7 @@ def extract_many(scans: Iterable[Scan | ScanSource], workers: int | None = None,
             rows[i] = list(cached.values())
     results = run_extraction(
         functools.partial(extract_source, families=families), [sources[i] for i in todo], todo,
-        functools.partial(_code_version_here, families), key=(version, names, _working_directory()),
+        functools.partial(code_version, families), key=(names, _working_directory()),
         keys=[(version, sources[i].cache_key) if sources[i].cache_key else None for i in todo],
         workers=workers, pool=pool, progress=progress)
     with contextlib.closing(results):  # an error here (the cache's disk full) ends the workers' tasks now

@@ -1207,7 +1207,6 @@ class RecordingJob:
     where it is processed (it travels with its task), cut by ``windowing``, its photo cropped by ``border``,
     the set's families ``applied``."""
 
-    name: str
     load: Callable[[], Recording]
     windowing: Windowing
     border: int
@@ -1240,13 +1239,13 @@ def extract_recording(job: RecordingJob) -> tuple[tuple[list[dict[str, float]], 
     >>> from scanner import Recording, Trace
     >>> from features.recordings import RecordingJob, Windowing, extract_recording
     >>> rising = Recording("r0", {"v": Trace(np.arange(40.0) / 10, 10.0, "m/s")}, {"signal_speed": "v"}, "grass")
-    >>> (rows, caught), error = extract_recording(RecordingJob("r0", lambda: rising, Windowing(2.0, "rows"), 0,
+    >>> (rows, caught), error = extract_recording(RecordingJob(lambda: rising, Windowing(2.0, "rows"), 0,
     ...                                                        ("slow.signal_speed",)))
     >>> [round(row["generic.signal_speed.mean"], 2) for row in rows], caught, error
     ([0.95, 2.95], [], None)
     >>> def lost():
     ...     raise OSError("r1.mat: unreadable")
-    >>> extract_recording(RecordingJob("r1", lost, Windowing(), 0, ("slow.signal_speed",)))
+    >>> extract_recording(RecordingJob(lost, Windowing(), 0, ("slow.signal_speed",)))
     (None, 'OSError: r1.mat: unreadable')
     """
     try:
@@ -1380,12 +1379,12 @@ def feature_space(recordings: Sequence[Recording], windowing: Windowing = Window
                              f"{', '.join(roles) or 'none'}; the families need "
                              f"{', '.join(needed[:-1])} or {needed[-1]}")
     columns = tuple(name for family in applied for name in family_names(family))
-    jobs = [RecordingJob(r.name, functools.partial(_given, r), windowing, border, applied) for r in recordings]
-    current = functools.partial(set_code_version, applied)
+    jobs = [RecordingJob(functools.partial(_given, r), windowing, border, applied) for r in recordings]
     results: list = [None] * len(jobs)
-    with contextlib.closing(run_extraction(extract_recording, jobs, range(len(jobs)), current,
-                                           key=("recordings", current(), columns), workers=workers,
-                                           progress=progress, unit="recording")) as extracted:
+    with contextlib.closing(run_extraction(extract_recording, jobs, range(len(jobs)),
+                                           functools.partial(set_code_version, applied),
+                                           key=("recordings", columns), workers=workers, progress=progress,
+                                           unit="recording")) as extracted:
         for i, result in extracted:
             results[i] = result
     kept = [k for k, (rows, _) in enumerate(results) if rows is not None]

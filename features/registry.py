@@ -147,13 +147,11 @@ F = TypeVar("F", Family, RoleFamily)
 
 
 class _Store:
-    """The families of every kind in registration order, and every column they name: one namespace.
-    ``changes`` counts registrations and removals (a registry view keeps its kind's families until it moves)."""
+    """The families of every kind in registration order, and every column they name: one namespace."""
 
     def __init__(self) -> None:
         self.families: dict[str, Family | RoleFamily] = {}
         self.columns: set[str] = set()
-        self.changes = 0
 
 
 class Registry(Generic[F]):
@@ -171,17 +169,12 @@ class Registry(Generic[F]):
     def __init__(self, kind: type[F] | None = None, store: _Store | None = None) -> None:
         self._kind = kind
         self._store = _Store() if store is None else store
-        self._seen: tuple[int, dict[str, F]] = (-1, {})
 
     @property
     def _families(self) -> dict[str, F]:
-        """The families of the store of this registry's kind, in order (kept until the store changes)."""
-        changes, families = self._seen
-        if changes != self._store.changes:
-            families = {name: family for name, family in self._store.families.items()
-                        if self._kind is None or isinstance(family, self._kind)}
-            self._seen = (self._store.changes, families)
-        return families
+        """The families of the store of this registry's kind, in order."""
+        return {name: family for name, family in self._store.families.items()
+                if self._kind is None or isinstance(family, self._kind)}
 
     def register(self, family: F) -> F:
         """Add ``family`` after the others; returns it.
@@ -227,7 +220,6 @@ class Registry(Generic[F]):
         fix_code_version(family.module)
         self._store.families[family.name] = family
         self._store.columns.update(family.columns)
-        self._store.changes += 1
         return family
 
     def unregister(self, name: str) -> F:
@@ -260,7 +252,6 @@ class Registry(Generic[F]):
             raise ParameterError(f"no feature family {name!r} (registered: {', '.join(self._families)})")
         family = self._store.families.pop(name)
         self._store.columns.difference_update(family.columns)
-        self._store.changes += 1
         return family
 
     def __iter__(self) -> Iterator[F]:

@@ -206,19 +206,15 @@ def optional(name: str, extra: str | None, purpose: str, *, install: str | None 
     ...
     ModuleNotFoundError: running on a Dask cluster needs no_such_library, which is not installed: pip install ...
     """
-    how = install or f"pip install 'texplorer[{extra}]'"
     try:
         return importlib.import_module(name)
-    except ModuleNotFoundError as missing:
-        if missing.name in (name, name.split(".")[0]):
-            message = f"{purpose} needs {name}, which is not installed: {how}"
-            if error is ModuleNotFoundError:
-                raise ModuleNotFoundError(message, name=name) from None
-            raise error(message) from None
+    except ImportError as failed:
+        absent = isinstance(failed, ModuleNotFoundError) and failed.name in (name, name.split(".")[0])
+        if not absent and error is ModuleNotFoundError:
+            raise  # the library is there but something it needs is not, or is broken: its own message says what
+        how = install or f"pip install 'texplorer[{extra}]'"
+        why = "which is not installed" if absent else f"which cannot be imported ({failed})"
+        message = f"{purpose} needs {name}, {why}: {how}"
         if error is ModuleNotFoundError:
-            raise  # the library is there but something it needs is not: its own message says what
-        raise error(f"{purpose} needs {name}, which cannot be imported ({missing}): {how}") from None
-    except ImportError as broken:
-        if error is ModuleNotFoundError:
-            raise
-        raise error(f"{purpose} needs {name}, which cannot be imported ({broken}): {how}") from None
+            raise ModuleNotFoundError(message, name=name) from None
+        raise error(message) from None

@@ -414,15 +414,19 @@ def _import_with_module_index(package: str, helper: str, function: str) -> Modul
     request) goes to skops' own search. The package is imported as the import system does it (the recipe
     "approximating importlib.import_module" of the importlib documentation: find its spec, make the module,
     run it, bind it in its parent), with ``helper`` imported, and ``function`` replaced, before the package
-    runs; the replacement is undone once it has run. A skops without ``function`` is imported as it is.
+    runs; the replacement is undone once it has run. A package imported already is given as it is, and one
+    without ``helper`` or ``function`` is imported as it is.
     """
+    if package in sys.modules:
+        return sys.modules[package]
     spec = importlib.util.find_spec(package)  # imports the parent package
     if spec is None or spec.loader is None:
         return importlib.import_module(package)  # ModuleNotFoundError, with the import system's own message
     module = importlib.util.module_from_spec(spec)
     sys.modules[package] = module
     try:
-        helpers = importlib.import_module(f"{package}.{helper}")
+        helpers = importlib.import_module(f"{package}.{helper}") if importlib.util.find_spec(
+            f"{package}.{helper}") is not None else None
         search = getattr(helpers, function, None)
         if callable(search):
             setattr(helpers, function, _indexed(search))

@@ -21,7 +21,7 @@ import pytest
 from unit.test_extraction import SIZE, _gated_mark, foam, foam_values
 
 import features
-from features import NAMES, ScanSource, extract, extract_many, extraction
+from features import NAMES, ScanSource, extract, extract_many
 from features.extraction import code_version, source_of
 from scanner.runtime import local
 from scanner.scan import Scan
@@ -252,7 +252,7 @@ def test_a_kept_pool_serving_other_code_forks_new_workers(tmp_path):
 def test_extract_many_serves_the_kept_pool_its_code_version_columns_and_directory():
     with local.WorkerPool(2) as pool:
         extract_many([foam(), foam()], pool=pool, progress=False)
-        assert pool._key == (code_version(), features.REGISTRY.names, os.getcwd())
+        assert pool._key == (code_version(), (features.REGISTRY.names, os.getcwd()))
 
 
 def test_leaving_a_batch_early_leaves_the_kept_pool_usable(tmp_path):
@@ -344,7 +344,7 @@ def test_kept_workers_are_forked_anew_for_other_code_another_number_or_another_d
     # Workers forked before a family was registered would compute the old columns under the new version; a
     # scan's relative paths would be found from the old directory.
     calls = [_workers_of_a_call(tmp_path)]
-    monkeypatch.setattr(extraction, "code_version", lambda *families: "other code")
+    monkeypatch.setattr(features.REGISTRY, "code_version", lambda *modules, families=None: "other code")
     calls.append(_workers_of_a_call(tmp_path))
     monkeypatch.chdir(tmp_path)
     calls.append(_workers_of_a_call(tmp_path))

@@ -341,3 +341,27 @@ def test_the_module_index_names_the_first_module_holding_an_object_as_skops_sear
         assert whichmodule(other, "other") == "second" and searched == ["held"]
         assert whichmodule(models.save_model, "anything") == "taxonomy.learning.models"  # its own __module__
         assert whichmodule(object(), "loose") == "searched"
+
+
+def test_a_package_runs_with_the_indexed_search_and_gets_its_own_back(tmp_path, monkeypatch):
+    # The stand-in must answer while the package runs (skops computes its trusted names then) and be undone after;
+    # a package without the function imports as it is.
+    package = tmp_path / "toylib"
+    package.mkdir()
+    (package / "_utils.py").write_text("def whichmodule(obj, name):\n    return 'searched'\n")
+    (package / "__init__.py").write_text(
+        "from toylib import _utils\nimport math\n"
+        "HOME = _utils.whichmodule(math.floor, 'floor')\nSTAND_IN = _utils.whichmodule.__name__\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    for name in ("toylib", "toylib._utils"):
+        monkeypatch.delitem(sys.modules, name, raising=False)
+    toylib = models._import_with_module_index("toylib", "_utils", "whichmodule")
+    assert toylib is sys.modules["toylib"] and toylib.STAND_IN == "whichmodule"  # the index's closure ran
+    assert toylib.HOME == "math"  # the first loaded module holding math.floor, not the package's own 'searched'
+    assert toylib._utils.whichmodule(None, "x") == "searched"  # restored once the package ran
+    assert models._import_with_module_index("json", "_utils", "whichmodule") is sys.modules["json"]  # imported
+    plain = tmp_path / "plainlib"
+    plain.mkdir()
+    (plain / "__init__.py").write_text("VALUE = 7\n")
+    monkeypatch.delitem(sys.modules, "plainlib", raising=False)
+    assert models._import_with_module_index("plainlib", "_utils", "whichmodule").VALUE == 7  # no helper module
