@@ -49,7 +49,7 @@ from taxonomy.reports.report import format_open_set, format_protocols, format_qu
 from taxonomy.table import load_taxonomy
 
 CLASSIFIER_NAMES = tuple(CLASSIFIERS)
-"""The paper's six classifiers, as ``--classifier`` offers them."""
+"""The classifiers ``--classifier`` offers (:func:`taxonomy.learning.evaluation.classifier_estimators`)."""
 
 
 def add_evaluation_options(parser: argparse.ArgumentParser, report_default: str | None, seed: bool = True) -> None:

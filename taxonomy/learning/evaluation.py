@@ -91,8 +91,9 @@ def default_feature_sets() -> dict[str, FeatureSet]:
 
 
 def classifier_estimators(seed: int) -> dict[str, BaseEstimator]:
-    """The paper's six classifiers (section V-B), each with its random state fixed to ``seed``, and a ridge
-    classifier, the usual head of random-kernel features (Dempster et al. 2020, section 3.3).
+    """The paper's six classifiers (section V-B), each with its random state fixed to ``seed``, a ridge
+    classifier, the usual head of random-kernel features (Dempster et al. 2020, section 3.3), and a random
+    forest for classes of unequal size.
 
     Interpretations where the paper used MATLAB defaults or gave no value: SVM with an RBF kernel and
     Platt-scaled probabilities (``predict_top`` needs them); kNN with k = 3 and distance weights (five
@@ -101,7 +102,12 @@ def classifier_estimators(seed: int) -> dict[str, BaseEstimator]:
     L-BFGS, scikit-learn's full-batch quasi-Newton solver, for at most 200 iterations; "bagged trees" is a
     random forest of 100 trees (MATLAB's Classification Learner bags 30), each split drawing sqrt(f)
     candidate features. ``ridge``: ``RidgeClassifierCV`` choosing its penalty among 10 values from 1e-3 to
-    1e3 by efficient leave-one-out on the training rows, as Dempster et al.
+    1e3 by efficient leave-one-out on the training rows, as Dempster et al. ``brf``: the same forest, each
+    tree grown on a bootstrap drawn with every class equally likely (row i drawn with probability
+    proportional to 1 / n_c(i), the rows of its class; scikit-learn's ``class_weight="balanced"``, which
+    draws the bootstrap by the weights since scikit-learn 1.9): the balanced random forest of Chen, Liaw and
+    Breiman 2004 ("Using random forest to learn imbalanced data"), whose trees see the classes as large as
+    each other, so the largest class of a lab's real runs or of a grouped fold does not take the doubtful rows.
 
     Parameters
     ----------
@@ -117,9 +123,11 @@ def classifier_estimators(seed: int) -> dict[str, BaseEstimator]:
     --------
     >>> estimators = classifier_estimators(seed=7)
     >>> list(estimators)
-    ['svm', 'lda', 'knn', 'mlp', 'rf', 'nb', 'ridge']
+    ['svm', 'lda', 'knn', 'mlp', 'rf', 'nb', 'ridge', 'brf']
     >>> estimators["rf"].random_state, estimators["rf"].n_estimators, estimators["knn"].n_neighbors
     (7, 100, 3)
+    >>> estimators["brf"].class_weight, estimators["brf"].n_estimators
+    ('balanced', 100)
     """
     return {
         "svm": SVC(kernel="rbf", probability=True, random_state=seed),
@@ -130,6 +138,7 @@ def classifier_estimators(seed: int) -> dict[str, BaseEstimator]:
         "rf": RandomForestClassifier(n_estimators=100, random_state=seed, n_jobs=1),
         "nb": GaussianNB(),
         "ridge": RidgeClassifierCV(alphas=np.logspace(-3, 3, 10)),
+        "brf": RandomForestClassifier(n_estimators=100, class_weight="balanced", random_state=seed, n_jobs=1),
     }
 
 
@@ -141,7 +150,8 @@ def _pipeline(classifier: BaseEstimator, n_features: int | None, kernels: str | 
 CLASSIFIERS: dict[str, Pipeline] = {
     name: _pipeline(estimator, 10) for name, estimator in classifier_estimators(SEED).items()
 }
-"""The six classifier pipelines (scale -> select 10 -> classify), unfitted; use :func:`make_pipeline`."""
+"""The classifier pipelines (scale -> select 10 -> classify) of :func:`classifier_estimators`, unfitted; use
+:func:`make_pipeline`."""
 
 
 def make_pipeline(classifier: str | BaseEstimator = "rf", n_features: int | None = 10,
@@ -456,7 +466,8 @@ def evaluate(space: FeatureSpace, classifier: str | BaseEstimator = "rf", level:
         Rows = scans; ``space.groups`` (sample ids) keep the scans of a sample in one fold, see
         :func:`cv_splits` for what happens when a class has a single sample.
     classifier : str or estimator
-        ``"svm"``, ``"lda"``, ``"knn"``, ``"mlp"``, ``"rf"``, ``"nb"`` or an unfitted scikit-learn classifier.
+        A key of :data:`CLASSIFIERS` (``"svm"``, ``"lda"``, ``"knn"``, ``"mlp"``, ``"rf"``, ``"nb"``, ``"ridge"``,
+        ``"brf"``) or an unfitted scikit-learn classifier.
     level : str
         ``"coarse"`` (C), ``"medium"`` (C+S) or ``"fine"`` (the full label); for free labels one of
         ``space.level_names`` (``"fine"`` is the label's own level).

@@ -53,7 +53,7 @@ def test_fishel_on_scans():
                                  image_size=(64, 64)))
     results = compare(scans, ["fishel"])
     assert {r.level for r in results} == {"coarse", "medium", "fine"}
-    assert {r.classifier for r in results} == {"svm", "lda", "knn", "mlp", "rf", "nb", "ridge"}
+    assert {r.classifier for r in results} == {"svm", "lda", "knn", "mlp", "rf", "nb", "ridge", "brf"}
     assert max(r.accuracy_mean for r in results if r.level == "fine") > 0.6  # chance 1/3
     assert methods.applicable(methods.Dataset.from_scans("db", scans)) == ["fishel", "huang", "hoelscher"]
 

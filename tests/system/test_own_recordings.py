@@ -135,7 +135,7 @@ def test_a_folder_of_wav_files(tmp_path, capsys):
     out = cli(capsys, "evaluate", "set:sounds", "--db", db, "--report", tmp_path / "report", "--workers", 1)
     cells = table(out)
     assert {key[0] for key in cells} == {"X3", "X10", "all"}
-    assert {key[1] for key in cells} == {"svm", "lda", "knn", "mlp", "rf", "nb", "ridge"}
+    assert {key[1] for key in cells} == {"svm", "lda", "knn", "mlp", "rf", "nb", "ridge", "brf"}
     assert np.mean(accuracies(cells, "material")) > 0.9  # chance: 1/3
     assert all(cell[-1] == "-" for cell in cells.values())  # r_C needs taxonomy codes
     assert "5 grouped folds" in out

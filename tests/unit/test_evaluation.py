@@ -115,6 +115,35 @@ def test_bad_fold_counts_are_refused(folds):
         cv_splits(["a", "b"] * 3, ["g"] * 6, folds=folds)
 
 
+# -- classifiers -------------------------------------------------------------------------------------
+
+
+def test_the_balanced_forest_draws_every_class_equally_often():
+    """Each tree's bootstrap draws n rows, row i with probability 1 / (k n_c(i)): every class 1 / k of them.
+    16 rows of ``a``, 8 of ``b``: the forest draws ``b`` a third of the time, the balanced forest half. The
+    mean share over 100 trees of 24 draws has the standard deviation sqrt(p (1 - p) / 2400) (binomial);
+    the test allows four of them."""
+    x, y = np.arange(24.0)[:, None], np.repeat(["a", "b"], [16, 8])
+    forests = evaluation.classifier_estimators(seed=0)
+    for name, share in (("rf", 1 / 3), ("brf", 1 / 2)):
+        forest = forests[name].fit(x, y)
+        drawn = np.mean([np.mean(y[rows] == "b") for rows in forest.estimators_samples_])
+        assert abs(drawn - share) < 4 * np.sqrt(share * (1 - share) / 2400), (name, drawn)
+
+
+def test_the_balanced_forest_gives_a_small_class_its_share_of_doubtful_rows():
+    """At x = 1 six rows of ``a`` and four of ``b`` cannot be split apart. The forest's bootstraps draw
+    there 6 / 24 x 24 = 6 ``a`` and 4 ``b`` on average: 0.6 ``a``; the balanced forest's draw a row of ``a``
+    with probability 1 / 32 and one of ``b`` with 1 / 16: 6 x 24 / 32 = 4.5 ``a`` against 4 x 24 / 16 = 6 ``b``,
+    0.43 ``a``. Elsewhere the classes are apart (10 ``a`` at 0, 4 ``b`` at 2) and both forests agree."""
+    x = np.repeat([0.0, 1.0, 1.0, 2.0], [10, 6, 4, 4])[:, None]
+    y = np.repeat(["a", "a", "b", "b"], [10, 6, 4, 4])
+    forests = evaluation.classifier_estimators(seed=0)
+    plain, balanced = forests["rf"].fit(x, y), forests["brf"].fit(x, y)
+    assert plain.predict([[0.0], [1.0], [2.0]]).tolist() == ["a", "a", "b"]
+    assert balanced.predict([[0.0], [1.0], [2.0]]).tolist() == ["a", "b", "b"]
+
+
 # -- evaluate ----------------------------------------------------------------------------------------
 
 
