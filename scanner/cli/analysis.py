@@ -40,6 +40,7 @@ from taxonomy.learning.evaluation import (
     iteration_limit_stops,
     present_feature_sets,
     recording_of,
+    running_vote,
     vote,
     with_values,
 )
@@ -50,6 +51,17 @@ from taxonomy.table import load_taxonomy
 
 CLASSIFIER_NAMES = tuple(CLASSIFIERS)
 """The classifiers ``--classifier`` offers (:func:`taxonomy.learning.evaluation.classifier_estimators`)."""
+
+
+def windows_before(value: str) -> int:
+    """An argparse type: ``--history``'s number of windows before each one, a whole number >= 0."""
+    try:
+        count = int(value)
+    except ValueError:
+        count = -1
+    if count < 0:
+        raise argparse.ArgumentTypeError(f"the history is a whole number of windows >= 0, got {value!r}")
+    return count
 
 
 def add_evaluation_options(parser: argparse.ArgumentParser, report_default: str | None, seed: bool = True) -> None:
@@ -129,6 +141,10 @@ def run_evaluation(space, args: argparse.Namespace) -> list:
     use_split = not getattr(args, "ignore_split", False)
     sizes = set_sizes(args.n, ("3", "10", ALL) if space.label_level is not None else ("3", "10"))
     group_by = set_grouping(args) if space.label_level is not None else scan_grouping(args)
+    history = getattr(args, "history", None)
+    if history is not None and (getattr(args, "quick", False) or getattr(args, "open_set", False)):
+        raise UsageError("--history votes over the windows of a closed-set evaluation; not with --quick or "
+                         "--open-set")
     if getattr(args, "quick", False):
         return run_quick(space, args, ["fine"] if args.level == [ALL] else levels)
     if getattr(args, "open_set", False):
@@ -150,6 +166,8 @@ def run_evaluation(space, args: argparse.Namespace) -> list:
             print("texplorer: warning: --vote: every recording is one row (no windows), so the vote changes "
                   "nothing", file=sys.stderr)
         reports = [vote(r, recordings) for r in reports]
+    if history is not None:
+        reports = [running_vote(r, space.scan_ids, history) for r in reports]
     print(format_table(reports))
     splitting = reports[0].splitting if reports else f"{args.folds} folds"
     print(f"{len(reports)} evaluations ({args.protocol} protocol, {splitting}) "
@@ -216,6 +234,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 def cmd_set_evaluate(args: argparse.Namespace) -> int:
     if args.features:
         raise UsageError("give either a set (set:NAME) or --features CSV, not both")
+    if getattr(args, "leakage", False) and (args.vote or args.history is not None):
+        raise UsageError(f"{'--vote' if args.vote else '--history'} scores a recording's windows together, "
+                         "which --leakage's second evaluation puts in different folds; run them apart")
     table, which = stored_set_table(args, set_folder(args.db, args.dataset[4:]))
     print(f"{args.dataset}: {which}")
     with runtime_of(args):
@@ -296,8 +317,12 @@ def register(commands: argparse._SubParsersAction) -> None:
     evaluate.add_argument("--single-group", choices=("train", "drop"), default="train",
                           help="a class with a single sample (group) cannot be tested in grouped folds: keep it "
                           "in training only (default) or leave it out; the other classes' folds stay grouped")
-    evaluate.add_argument("--vote", action="store_true", help="score each recording once, by the mean "
-                          "calibrated probability of its windows (sets with --combine rows)")
+    voting = evaluate.add_mutually_exclusive_group()
+    voting.add_argument("--vote", action="store_true", help="score each recording once, by the mean "
+                        "calibrated probability of its windows (sets with --combine rows)")
+    voting.add_argument("--history", type=windows_before, metavar="K", help="score each window by the mean "
+                        "calibrated probability of it and the K windows before it in its recording, as a robot "
+                        "driving on knows them (sets with --combine rows; nothing after a window is used)")
     evaluate.add_argument("--open-set", action="store_true", help="hold out whole classes per fold: AUROC of "
                           "the rejection score, known-class accuracy at the learned threshold and the share "
                           "of unknown scans rejected (docs/trust.md)")

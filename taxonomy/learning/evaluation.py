@@ -1136,6 +1136,118 @@ def vote(result: Result, recordings: Sequence[str]) -> Result:
         voted=True, splitting=f"{result.splitting}, recordings voted by their windows")
 
 
+def window_index(scan_id: str) -> int:
+    """The window a row holds: ``<recording>#w<k>`` is window k of a recording (``--combine rows``); a row
+    without the suffix is a whole recording, window 0.
+
+    Parameters
+    ----------
+    scan_id : str
+        A row's scan id.
+
+    Returns
+    -------
+    int
+        k.
+
+    Examples
+    --------
+    >>> window_index("SNOW_12#w017"), window_index("oak-01-003")
+    (17, 0)
+    """
+    _, _, k = scan_id.rpartition("#w")
+    return int(k) if "#w" in scan_id and k.isdigit() else 0
+
+
+def running_vote(result: Result, scan_ids: Sequence[str], before: int) -> Result:
+    """The result with every window scored by its own answer and those of the ``before`` windows that precede
+    it in its recording (``--history``): what a robot driving on, or an operator sliding on, knows at the end
+    of each window. Terrain classifiers combine such a history of window answers (Komma, Weiss and Zell
+    2009, "Adaptive Bayesian filtering for vibration-based terrain classification", a Bayes filter over the
+    answers); here the answer of window t is the class of the highest mean calibrated probability over
+    windows t - ``before`` .. t of its recording (fewer at its start), or where the result has no
+    probabilities the most frequent prediction among them, a tie going to the latest. Nothing after window
+    t is used. Every row stays a row, scored once; each window's answers come from the fold that tested
+    its recording, so the folds must keep a recording's windows together.
+
+    Parameters
+    ----------
+    result : Result
+        A result with its out-of-fold predictions (``y_true``, ``y_pred``, ``fold``), one row per window.
+    scan_ids : sequence of str
+        The scan id of every row (``<recording>#w<k>``, :func:`recording_of`, :func:`window_index`).
+    before : int
+        Windows before each one that join its vote (0: the result, unchanged).
+
+    Returns
+    -------
+    Result
+        The same rows with their running-vote predictions; accuracy, F1 and confusion recomputed, the
+        splitting naming the history.
+
+    Raises
+    ------
+    EvaluationError
+        A negative ``before``, a result without its out-of-fold predictions, or a recording whose windows
+        lie in different folds or classes.
+
+    Examples
+    --------
+    One recording of cork, five windows; the third looks like oak. With the window before it, its vote is
+    cork; the first window has no history and keeps its own answer:
+
+    >>> import numpy as np
+    >>> from taxonomy.learning.results import Result
+    >>> classes = ("C1S1M1P1X1", "C2S1M1P1X1")
+    >>> p = np.array([[0.9, 0.1], [0.8, 0.2], [0.4, 0.6], [0.7, 0.3], [0.9, 0.1]])
+    >>> result = Result("texplorer", "all", "rf", "fine", "nested", "1 fold", classes, accuracy=np.array([0.8]),
+    ...                 f1=np.array([0.44]), confusion=np.array([[4, 1], [0, 0]]), n_samples=5, seed=0,
+    ...                 y_true=np.array([classes[0]] * 5), y_pred=np.array(classes)[p.argmax(axis=1)],
+    ...                 fold=np.zeros(5, int), probability=p)
+    >>> ids = [f"cork-1#w{k:03d}" for k in range(5)]
+    >>> str(result.y_pred[2]), running_vote(result, ids, 1).y_pred.tolist() == [classes[0]] * 5
+    ('C2S1M1P1X1', True)
+    >>> running_vote(result, ids, 1).accuracy_pooled
+    1.0
+    """
+    if isinstance(before, bool) or not isinstance(before, int | np.integer) or before < 0:
+        raise EvaluationError(f"the history must be a whole number of windows >= 0, got {before!r}")
+    if result.y_true is None or result.y_pred is None or result.fold is None:
+        raise EvaluationError("only a result with its out-of-fold predictions can be voted")
+    if before == 0:
+        return result
+    recordings = np.array([recording_of(s) for s in scan_ids])
+    windows = np.array([window_index(s) for s in scan_ids])
+    classes = np.asarray(result.classes)
+    soft = result.probability is not None and bool(np.isfinite(result.probability).all())
+    y_pred = result.y_pred.copy()
+    for name in dict.fromkeys(recordings.tolist()):
+        rows = np.flatnonzero(recordings == name)
+        if np.unique(result.fold[rows]).size != 1 or np.unique(result.y_true[rows]).size != 1:
+            raise EvaluationError(f"recording {name!r}: its windows lie in different folds or classes; group "
+                                  "the folds by recording to vote over its windows")
+        rows = rows[np.argsort(windows[rows], kind="stable")]
+        for k, row in enumerate(rows):
+            history = rows[max(0, k - before):k + 1]
+            if soft:
+                y_pred[row] = classes[int(np.argmax(result.probability[history].mean(axis=0)))]
+            else:
+                latest = history[::-1]
+                counts = [int(np.sum(result.y_pred[history] == result.y_pred[r])) for r in latest]
+                y_pred[row] = result.y_pred[latest[int(np.argmax(counts))]]
+    fold = result.fold
+    folds = np.unique(fold[fold >= 0])
+    tested = fold >= 0
+    y_true = result.y_true
+    return replace(
+        result, y_pred=y_pred,
+        accuracy=np.array([np.mean(y_pred[fold == f] == y_true[fold == f]) for f in folds]),
+        f1=np.array([present_class_f1(y_true[fold == f], y_pred[fold == f]) for f in folds]),
+        confusion=confusion_matrix(y_true[tested], y_pred[tested], labels=classes),
+        splitting=f"{result.splitting}, each window voted with the {before} window{'s' * (before != 1)} before "
+                  "it in its recording")
+
+
 def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = "fine", n_features: int | None = 10,
                       folds: int = 5, seed: int = SEED, feature_set: FeatureSet = None,
                       group_by: str = "sample", max_accuracy_drop: float = MAX_ACCURACY_DROP,

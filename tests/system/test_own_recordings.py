@@ -242,6 +242,28 @@ def test_evaluate_uses_the_sets_table_written_with_the_same_options(tmp_path, ca
     assert table(again) == table(same)
 
 
+def test_windows_voted_with_those_before_them_and_the_history_refused_where_it_cannot_hold(tmp_path, capsys):
+    root, db = tmp_path / "sounds", tmp_path / "db"
+    write_sounds(root, {(m, o): m for m in SOUND_CLASSES for o in range(6)})
+    (tmp_path / "sounds.toml").write_text(SOUND_MAPPING)
+    cli(capsys, "ingest", root, "--mapping", tmp_path / "sounds.toml", "--db", db)
+    windows = ("--window", "0.25", "--combine", "rows", "--classifier", "nb", "--n", "3", "--level", "material",
+               "--workers", 1)
+    alone = cli(capsys, "evaluate", "set:sounds", "--db", db, *windows)
+    voted = cli(capsys, "evaluate", "set:sounds", "--db", db, *windows, "--history", "1")
+    assert "each window voted with the 1 window before it in its recording" in voted
+    assert table(voted).keys() == table(alone).keys()  # the same cells, every window still a row
+    assert table(cli(capsys, "evaluate", "set:sounds", "--db", db, *windows, "--history", "0")) == table(alone)
+    # --leakage's second evaluation splits a recording's windows over the folds: nothing to vote over.
+    code = main([str(a) for a in ("evaluate", "set:sounds", "--db", db, *windows, "--history", "1", "--leakage")])
+    assert code == 1 and "--history scores a recording's windows together" in capsys.readouterr().err
+    for bad, message in ((("--history", "-1"), "the history is a whole number of windows >= 0, got '-1'"),
+                         (("--history", "1", "--vote"), "not allowed with argument")):
+        with pytest.raises(SystemExit) as refused:
+            main([str(a) for a in ("evaluate", "set:sounds", "--db", db, *windows, *bad)])
+        assert refused.value.code == 2 and message in capsys.readouterr().err
+
+
 def test_a_set_table_is_reused_only_while_the_recordings_hold_what_it_was_computed_from(tmp_path, capsys):
     import os
     import shutil

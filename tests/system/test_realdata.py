@@ -29,6 +29,9 @@ UNGROUPED_FLOOR = 0.93
 BALANCED_GROUPED_FLOOR = 0.875
 """The same grouped by run with the balanced forest (brf): 0.885 when written (67 groups), where the forest's
 largest class, SNOW's 281 windows, no longer takes the doubtful runs of ASPHALT and ICE; a window is 0.11 point."""
+HISTORY_FLOOR = 0.895
+"""brf grouped by run, each window voted with the one before it (``--history 1``, calibrated probabilities):
+0.902 when written."""
 UNPAIRED = ("FLOORING/pro_04.csv", "FLOORING/pro_06.csv", "ICE/pro_01.csv")
 OPEN_SET_AUROC_FLOOR = 0.67
 """One terrain held out per fold, rf, 10 features: 0.690 when written, 0.683 in 67 groups (docs/trust.md: no
@@ -92,6 +95,11 @@ def test_borealtc_ingested_whole_and_evaluated_with_both_protocols(tmp_path, cap
     assert grouped >= GROUPED_FLOOR and ungrouped >= UNGROUPED_FLOOR, (grouped, ungrouped)
     balanced, _ = side_by_side(out, "brf")["all"]
     assert balanced >= BALANCED_GROUPED_FLOOR and balanced > grouped, (balanced, grouped)
+    code, out = run(capsys, "evaluate", "set:borealtc", "--db", db, "--window", 5, "--combine", "rows",
+                    "--classifier", "brf", "--n", "all", "--feature-set", "all", "--history", 1)
+    assert code == 0 and "each window voted with the 1 window before it in its recording" in out
+    (history,) = [float(m[1]) / 100 for m in re.finditer(r"^brf\s+all\s+([\d.]+)\s", out, re.MULTILINE)]
+    assert history >= HISTORY_FLOOR and history > balanced, (history, balanced)
 
     # Every sensor of a run used: the fused set is never below either file's own.
     space, _ = feature_space(load_recordings(set_folder(db, "borealtc")), Windowing(5.0, "rows"), workers=2)

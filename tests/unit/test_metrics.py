@@ -14,7 +14,7 @@ from sklearn.naive_bayes import GaussianNB
 from features.space import FeatureSpace
 from taxonomy.learning import metrics
 from taxonomy.learning.calibration import TemperatureScaledClassifier
-from taxonomy.learning.evaluation import evaluate, recording_of, vote
+from taxonomy.learning.evaluation import EvaluationError, evaluate, recording_of, running_vote, vote
 from taxonomy.learning.results import OWN_METHOD, Result
 
 # -- macro F1: per fold over present classes, pooled as the headline ------------------------------------
@@ -229,6 +229,53 @@ def test_a_recording_is_scored_once_by_its_windows_vote():
     np.testing.assert_array_equal(voted.y_pred, ["a", "b", "c", "a"])
     assert voted.voted and voted.accuracy_pooled == pytest.approx(3 / 4)
     assert voted.confusion.sum() == 4
+
+
+def windows_result(y_pred: list[str], probability: np.ndarray | None, fold: list[int] | None = None) -> Result:
+    """Two recordings of ``a``, three windows each, as ``ids`` names them (the second listed out of order)."""
+    y_true = np.array(["a"] * 6)
+    fold_a = np.array(fold or [0, 0, 0, 1, 1, 1])
+    return Result(method=OWN_METHOD, feature_set="all", classifier="x", level="fine", protocol="nested",
+                  splitting="2 grouped folds", classes=("a", "b"), n_samples=6, seed=0, taxonomy=False,
+                  accuracy=np.array([0.0, 0.0]), f1=np.array([0.0, 0.0]), confusion=np.zeros((2, 2), int),
+                  y_true=y_true, y_pred=np.array(y_pred), fold=fold_a, probability=probability)
+
+
+IDS = ["r0#w000", "r0#w001", "r0#w002", "r1#w002", "r1#w000", "r1#w001"]
+
+
+def test_a_running_vote_averages_each_window_with_those_before_it_and_never_after():
+    # r0: P(a) 0.9, 0.3, 0.45 -> with one window before: 0.9 (a), 0.6 (a), 0.375 (b).
+    # r1 in time order w000 0.2, w001 0.7, w002 0.8 -> 0.2 (b), 0.45 (b), 0.75 (a); listed w002, w000, w001.
+    p_a = np.array([0.9, 0.3, 0.45, 0.8, 0.2, 0.7])
+    probability = np.column_stack([p_a, 1 - p_a])
+    result = windows_result(["a", "b", "b", "a", "b", "a"], probability)
+    voted = running_vote(result, IDS, 1)
+    np.testing.assert_array_equal(voted.y_pred, ["a", "a", "b", "a", "b", "b"])
+    assert voted.accuracy_pooled == pytest.approx(3 / 6) and voted.confusion.sum() == 6
+    assert not voted.voted and "each window voted with the 1 window before it" in voted.splitting
+    # The whole history: r0 0.9, 0.6, 0.55 (a, a, a); r1 0.2, 0.45, 0.567 (b, b, a).
+    np.testing.assert_array_equal(running_vote(result, IDS, 5).y_pred, ["a", "a", "a", "a", "b", "b"])
+    assert running_vote(result, IDS, 0) is result
+
+
+def test_a_running_vote_without_probabilities_counts_answers_and_a_tie_goes_to_the_latest():
+    # r0 answers a, b, b: w001 ties a/b -> b (latest); w002 b, b -> b. r1 in time order b, a, a -> b, a, a.
+    result = windows_result(["a", "b", "b", "a", "b", "a"], None)
+    np.testing.assert_array_equal(running_vote(result, IDS, 1).y_pred, ["a", "b", "b", "a", "b", "a"])
+    np.testing.assert_array_equal(running_vote(result, IDS, 2).y_pred, ["a", "b", "b", "a", "b", "a"])
+
+
+@pytest.mark.parametrize("before", [-1, 1.5, True, "2"])
+def test_a_running_vote_refuses_a_history_that_is_not_a_count(before):
+    with pytest.raises(EvaluationError, match="whole number of windows"):
+        running_vote(windows_result(["a"] * 6, None), IDS, before)
+
+
+def test_a_running_vote_refuses_windows_of_one_recording_in_different_folds():
+    # Ungrouped folds: the window before would have been voted by a model trained on this very window.
+    with pytest.raises(EvaluationError, match="recording 'r0': its windows lie in different folds"):
+        running_vote(windows_result(["a"] * 6, None, fold=[0, 1, 0, 1, 1, 1]), IDS, 1)
 
 
 def test_intervals_of_every_resample_at_once_equal_those_resample_by_resample():
