@@ -393,11 +393,11 @@ def extract(client: Client, fn: Callable[[Item], Any], sources: Sequence[Item], 
                     queue.appendleft((index, source, ship))
                     submit()
                     continue
-                result = None, (f"KilledWorker: {losses[index]} Dask workers holding this scan's data died before "
+                result = None, (f"KilledWorker: {losses[index]} Dask workers holding its data died before "
                                 f"its features came back; see their logs")
             except distributed.KilledWorker as exc:
                 result = None, (f"KilledWorker: {exc.allowed_failures + 1} Dask workers died while extracting "
-                                f"this scan (the last {exc.last_worker.address}); see their logs")
+                                f"its features (the last {exc.last_worker.address}); see their logs")
             else:
                 if worker_version != expected:
                     raise ClusterError(f"Dask worker {worker} runs feature code {worker_version}, this machine "

@@ -338,10 +338,10 @@ def test_a_scan_that_kills_every_worker_it_meets_is_reported_and_the_others_kept
     assert same_bits(space, dataclasses.replace(reference, failed=space.failed))
     assert [scan_id for scan_id, _ in space.failed] == ["killer-001", "killer-002"]
     # The worker that dies may hold the scattered scan (it is sent again) or only run the task (Dask reruns it).
-    assert re.fullmatch(r"KilledWorker: 2 Dask workers (died while extracting this scan \(the last "
-                        r"tcp://127\.0\.0\.1:\d+\)|holding this scan's data died before its features came "
+    assert re.fullmatch(r"KilledWorker: 2 Dask workers (died while extracting its features \(the last "
+                        r"tcp://127\.0\.0\.1:\d+\)|holding its data died before its features came "
                         r"back); see their logs", space.failed[0][1])
-    assert re.fullmatch(r"KilledWorker: 2 Dask workers died while extracting this scan \(the last "
+    assert re.fullmatch(r"KilledWorker: 2 Dask workers died while extracting its features \(the last "
                         r"tcp://127\.0\.0\.1:\d+\); see their logs", space.failed[1][1])
 
 
