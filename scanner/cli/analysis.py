@@ -145,6 +145,9 @@ def run_evaluation(space, args: argparse.Namespace) -> list:
     if history is not None and (getattr(args, "quick", False) or getattr(args, "open_set", False)):
         raise UsageError("--history votes over the windows of a closed-set evaluation; not with --quick or "
                          "--open-set")
+    if history is not None and group_by == "none":
+        raise UsageError("--history answers a window with those before it in its recording, which --group-by "
+                         "none puts in other folds (their models were trained on this window); group by recording")
     if getattr(args, "quick", False):
         return run_quick(space, args, ["fine"] if args.level == [ALL] else levels)
     if getattr(args, "open_set", False):
@@ -166,7 +169,14 @@ def run_evaluation(space, args: argparse.Namespace) -> list:
             print("texplorer: warning: --vote: every recording is one row (no windows), so the vote changes "
                   "nothing", file=sys.stderr)
         reports = [vote(r, recordings) for r in reports]
-    if history is not None:
+    if history:
+        if len({recording_of(s) for s in space.scan_ids}) == len(space.scan_ids):
+            print(f"texplorer: warning: --history {history}: every recording is one row (no windows), so there is "
+                  "no window before any other and the history changes nothing", file=sys.stderr)
+        elif history == 1 and not calibrate:
+            print("texplorer: warning: --history 1 --no-calibration: without probabilities two windows' answers "
+                  "agree or tie, and a tie goes to the latest, so the history changes nothing; give 2 or more",
+                  file=sys.stderr)
         reports = [running_vote(r, space.scan_ids, history) for r in reports]
     print(format_table(reports))
     splitting = reports[0].splitting if reports else f"{args.folds} folds"
@@ -235,8 +245,8 @@ def cmd_set_evaluate(args: argparse.Namespace) -> int:
     if args.features:
         raise UsageError("give either a set (set:NAME) or --features CSV, not both")
     if getattr(args, "leakage", False) and (args.vote or args.history is not None):
-        raise UsageError(f"{'--vote' if args.vote else '--history'} scores a recording's windows together, "
-                         "which --leakage's second evaluation puts in different folds; run them apart")
+        raise UsageError(f"{'--vote' if args.vote else '--history'} answers with several windows of a recording, "
+                         "which --leakage's second evaluation puts in different folds; run them separately")
     table, which = stored_set_table(args, set_folder(args.db, args.dataset[4:]))
     print(f"{args.dataset}: {which}")
     with runtime_of(args):
@@ -320,9 +330,10 @@ def register(commands: argparse._SubParsersAction) -> None:
     voting = evaluate.add_mutually_exclusive_group()
     voting.add_argument("--vote", action="store_true", help="score each recording once, by the mean "
                         "calibrated probability of its windows (sets with --combine rows)")
-    voting.add_argument("--history", type=windows_before, metavar="K", help="score each window by the mean "
-                        "calibrated probability of it and the K windows before it in its recording, as a robot "
-                        "driving on knows them (sets with --combine rows; nothing after a window is used)")
+    voting.add_argument("--history", type=windows_before, metavar="K", help="answer each window by the class of "
+                        "highest mean calibrated probability over it and the K windows before it in its recording "
+                        "(only past windows, as a robot driving on knows them; without calibration the most "
+                        "frequent answer, a tie to the latest; sets with --combine rows, folds grouped by recording)")
     evaluate.add_argument("--open-set", action="store_true", help="hold out whole classes per fold: AUROC of "
                           "the rejection score, known-class accuracy at the learned threshold and the share "
                           "of unknown scans rejected (docs/trust.md)")

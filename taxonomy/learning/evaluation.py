@@ -732,6 +732,7 @@ class _Prepared:
     calibrate: bool = True
     group_by: str = "sample"
     seed: int = SEED
+    rows: np.ndarray | None = None
 
 
 def _run(space: FeatureSpace, classifiers: Sequence[str | BaseEstimator], cells: Sequence[_Cell], folds: int,
@@ -791,7 +792,13 @@ def _prepare(space: FeatureSpace, cell: _Cell, classifiers: Sequence[str | BaseE
     return _Prepared(cell, subset.X, y, np.asarray(subset.groups), np.asarray(subset.label_text), subset.columns,
                      dropped, splits, grouped, own,
                      space.label_level is None, pipelines, shared, warning_notes(caught), calibrate, group_by,
-                     seed)
+                     seed, _space_rows(space.scan_ids, subset.scan_ids))
+
+
+def _space_rows(ids: Sequence[str], kept: Sequence[str]) -> np.ndarray | None:
+    """The row of ``ids`` each of ``kept`` is (a subset keeps the rows' order); None where ids repeat."""
+    index = {scan_id: k for k, scan_id in enumerate(ids)}
+    return np.array([index[scan_id] for scan_id in kept], dtype=np.int64) if len(index) == len(ids) else None
 
 
 def _kernels(feature_set: FeatureSet, protocol: str) -> str | None:
@@ -961,7 +968,7 @@ def _reports(prepared: _Prepared, classifiers: Sequence[str | BaseEstimator],
             dropped=prepared.dropped, selected=selected, y_true=y, y_pred=y_pred, fold=fold_of_row,
             seconds=float(sum(outcome.seconds[k] for outcome in per_fold)),
             unconverged=(sum(o.unconverged[k][0] for o in per_fold), sum(o.unconverged[k][1] for o in per_fold)),
-            groups=prepared.groups, probability=probability, group_by=prepared.group_by,
+            groups=prepared.groups, probability=probability, group_by=prepared.group_by, rows=prepared.rows,
         ))
     return reports
 
@@ -1062,7 +1069,8 @@ def recording_of(scan_id: str) -> str:
 def vote(result: Result, recordings: Sequence[str]) -> Result:
     """The result with every recording scored once, by its windows' vote (``--vote``).
 
-    ``recordings`` names the recording of every row of the result. A recording's prediction is the class of
+    ``recordings`` names the recording of every row of the feature space evaluated (or of the result, where
+    it left no row out: :attr:`Result.rows`). A recording's prediction is the class of
     the highest mean calibrated probability over its windows (soft voting) where the result has
     probabilities, else the most frequent prediction (ties: the first in class order). Its fold is its
     windows' fold (they share one: folds keep a recording's windows together); a recording whose windows
@@ -1073,7 +1081,7 @@ def vote(result: Result, recordings: Sequence[str]) -> Result:
     result : Result
         A result with its out-of-fold predictions (``y_true``, ``y_pred``, ``fold``).
     recordings : sequence of str
-        The recording of every row (:func:`recording_of`).
+        The recording of every row of the space (:func:`recording_of`).
 
     Returns
     -------
@@ -1105,7 +1113,7 @@ def vote(result: Result, recordings: Sequence[str]) -> Result:
     """
     if result.y_true is None or result.y_pred is None or result.fold is None:
         raise EvaluationError("only a result with its out-of-fold predictions can be voted")
-    recordings = np.asarray(recordings)
+    recordings = _of_rows(result, recordings)
     names = list(dict.fromkeys(recordings.tolist()))
     classes = np.asarray(result.classes)
     y_true, y_pred, fold, groups, probability = [], [], [], [], []
@@ -1216,36 +1224,58 @@ def running_vote(result: Result, scan_ids: Sequence[str], before: int) -> Result
         raise EvaluationError("only a result with its out-of-fold predictions can be voted")
     if before == 0:
         return result
-    recordings = np.array([recording_of(s) for s in scan_ids])
-    windows = np.array([window_index(s) for s in scan_ids])
+    ids = _of_rows(result, scan_ids)
+    recordings = np.array([recording_of(s) for s in ids])
+    windows = np.array([window_index(s) for s in ids])
     classes = np.asarray(result.classes)
-    soft = result.probability is not None and bool(np.isfinite(result.probability).all())
     y_pred = result.y_pred.copy()
+    probability = None if result.probability is None else result.probability.copy()
     for name in dict.fromkeys(recordings.tolist()):
         rows = np.flatnonzero(recordings == name)
         if np.unique(result.fold[rows]).size != 1 or np.unique(result.y_true[rows]).size != 1:
             raise EvaluationError(f"recording {name!r}: its windows lie in different folds or classes; group "
                                   "the folds by recording to vote over its windows")
+        if result.fold[rows[0]] < 0:
+            continue  # a training row of the set's own split, or of a class kept in training only: not tested
         rows = rows[np.argsort(windows[rows], kind="stable")]
         for k, row in enumerate(rows):
             history = rows[max(0, k - before):k + 1]
-            if soft:
-                y_pred[row] = classes[int(np.argmax(result.probability[history].mean(axis=0)))]
-            else:
-                latest = history[::-1]
-                counts = [int(np.sum(result.y_pred[history] == result.y_pred[r])) for r in latest]
-                y_pred[row] = result.y_pred[latest[int(np.argmax(counts))]]
-    fold = result.fold
+            y_pred[row], mean = _history_answer(result, history, classes)
+            if probability is not None:
+                probability[row] = mean
+    fold, y_true = result.fold, result.y_true
     folds = np.unique(fold[fold >= 0])
     tested = fold >= 0
-    y_true = result.y_true
     return replace(
-        result, y_pred=y_pred,
+        result, y_pred=y_pred, probability=probability, history=before,
         accuracy=np.array([np.mean(y_pred[fold == f] == y_true[fold == f]) for f in folds]),
         f1=np.array([present_class_f1(y_true[fold == f], y_pred[fold == f]) for f in folds]),
         confusion=confusion_matrix(y_true[tested], y_pred[tested], labels=classes),
         splitting=f"{result.splitting}, each window voted with the {before} window{'s' * (before != 1)} before "
                   "it in its recording")
+
+
+def _history_answer(result: Result, history: np.ndarray, classes: np.ndarray) -> tuple[str, np.ndarray]:
+    """The answer of the last of ``history``'s rows voted with the others, and its probabilities: the class
+    of the highest mean calibrated probability where every row has them, else the most frequent answer, a
+    tie going to the latest (probabilities NaN)."""
+    if result.probability is not None and np.isfinite(result.probability[history]).all():
+        mean = result.probability[history].mean(axis=0)
+        return classes[int(np.argmax(mean))], mean
+    latest = history[::-1]
+    counts = [int(np.sum(result.y_pred[history] == result.y_pred[r])) for r in latest]
+    return result.y_pred[latest[int(np.argmax(counts))]], np.full(classes.size, np.nan)
+
+
+def _of_rows(result: Result, ids: Sequence[str]) -> np.ndarray:
+    """``ids`` of the space's rows as the result's rows: those it evaluated (:attr:`Result.rows`), where it
+    left rows out."""
+    ids = np.asarray(ids)
+    if result.rows is not None and len(ids) != len(result.y_true):
+        ids = ids[result.rows]
+    if len(ids) != len(result.y_true):
+        raise EvaluationError(f"{len(ids)} row names for a result of {len(result.y_true)} rows")
+    return ids
 
 
 def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = "fine", n_features: int | None = 10,

@@ -256,8 +256,11 @@ class Result:
     best FQ first), and per row of the feature space ``y_true``, ``y_pred`` (out-of-fold predictions),
     ``fold`` (the split that tested it; -1 for a training row of the set's own split), ``groups`` (what the
     folds kept together: ``group_by``, the sample by default) and ``probability`` (calibrated out-of-fold
-    class probabilities, columns in the order of ``classes``; None when not calibrated). ``voted``: each row
-    is a recording scored by the vote of its windows (:func:`taxonomy.learning.evaluation.vote`).
+    class probabilities, columns in the order of ``classes``; None when not calibrated), ``rows`` (the
+    feature-space row of each: rows holding no value are left out of an evaluation). ``voted``: each row
+    is a recording scored by the vote of its windows (:func:`taxonomy.learning.evaluation.vote`);
+    ``history``: each window answered with that many windows before it in its recording
+    (:func:`taxonomy.learning.evaluation.running_vote`), 0 for a window alone.
     ``seconds``: the wall time of fitting and predicting over all splits (the shared transform, scaling and
     selection, and this classifier). ``unconverged``: ``(n, m)``, n of the classifier's m fits (calibration's
     inner fits included) stopped at the paper's L-BFGS iteration limit before converging; counted for the
@@ -309,6 +312,7 @@ class Result:
     probability: np.ndarray | None = None
     group_by: str = "sample"
     voted: bool = False
+    history: int = 0
     rows: np.ndarray | None = None
     known: np.ndarray | None = None
     open_score: np.ndarray | None = None
@@ -728,7 +732,7 @@ class Result:
             "f1_pooled": number(self.f1_pooled), "accuracy_pooled": number(self.accuracy_pooled),
             "accuracy_ci": [number(v) for v in self.accuracy_ci], "f1_ci": [number(v) for v in self.f1_ci],
             "chance": number(self.chance), "chance_f1": number(self.chance_f1), "ece": number(self.ece),
-            "group_by": self.group_by, "voted": self.voted, "auroc": number(self.auroc),
+            "group_by": self.group_by, "voted": self.voted, "history": self.history, "auroc": number(self.auroc),
             "known_accuracy": number(self.known_accuracy), "unknown_rejected": number(self.unknown_rejected),
             "classes": list(self.classes), "confusion": self.confusion.tolist(),
             "selected": [list(s) for s in self.selected], "columns": list(self.columns),

@@ -10,7 +10,7 @@ classification split into feature extraction and the classifier itself.
 =============  =========================================================================================
 method         features, classifiers and protocol
 =============  =========================================================================================
-``fishel``     ``fishel3`` on scans (Strese et al. 2020, Fig. 18) with the project's six classifiers,
+``fishel``     ``fishel3`` on scans (Strese et al. 2020, Fig. 18) with the project's classifiers,
                5-fold CV grouped by sample, coarse, medium and fine levels.
 ``xie``        ``xie11`` (Xie et al. 2019): sequences standardised on the training rows -> 11 features ->
                standardised -> PCA -> linear SVM (L2 penalty, squared hinge, C = 1), RBF SVM (C = 1),

@@ -17,7 +17,7 @@ from taxonomy.related.scoring import score, scored, usable_rows
 
 
 def run_fishel(dataset: Dataset, cache: ExtractedSets, seed: int, repeats: int) -> list[Result]:
-    """``fishel3`` with the project's six classifiers, 5-fold CV grouped by sample (fewer folds when a class
+    """``fishel3`` with the project's classifiers, 5-fold CV grouped by sample (fewer folds when a class
     has fewer scans), every taxonomy level."""
     extracted = cache.get("fishel3")
     rows, columns, notes = usable_rows(extracted, range(len(dataset)))

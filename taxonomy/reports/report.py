@@ -174,6 +174,9 @@ def _block_title(chosen: Sequence[Result]) -> str:
         split = UNGROUPED_SENTENCE
     splits = "the set's train/test split" if first.given_split else f"{first.folds} folds {split}"
     voted = ", recordings voted by their windows" if first.voted else ""
+    if first.history:
+        voted = (f", each window voted with the {first.history} window{'s' * (first.history != 1)} before it in "
+                 "its recording")
     return f"{size_name(first.n_features)}, {first.protocol} protocol, {splits}{voted}, seed {first.seed}"
 
 

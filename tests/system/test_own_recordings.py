@@ -24,7 +24,7 @@ from features import FeatureSpace
 from features.recordings import Windowing, feature_space
 from scanner.cli import main
 from scanner.storage.ingest import load_recordings, set_folder
-from taxonomy.learning.evaluation import evaluate_grid
+from taxonomy.learning.evaluation import evaluate, evaluate_grid, running_vote
 from taxonomy.reports.report import cell_text
 
 
@@ -247,16 +247,22 @@ def test_windows_voted_with_those_before_them_and_the_history_refused_where_it_c
     write_sounds(root, {(m, o): m for m in SOUND_CLASSES for o in range(6)})
     (tmp_path / "sounds.toml").write_text(SOUND_MAPPING)
     cli(capsys, "ingest", root, "--mapping", tmp_path / "sounds.toml", "--db", db)
-    windows = ("--window", "0.25", "--combine", "rows", "--classifier", "nb", "--n", "3", "--level", "material",
+    windows = ("--window", "0.25", "--combine", "rows", "--classifier", "knn", "--n", "3", "--level", "material",
                "--workers", 1)
     alone = cli(capsys, "evaluate", "set:sounds", "--db", db, *windows)
     voted = cli(capsys, "evaluate", "set:sounds", "--db", db, *windows, "--history", "1")
     assert "each window voted with the 1 window before it in its recording" in voted
     assert table(voted).keys() == table(alone).keys()  # the same cells, every window still a row
+    assert table(voted) != table(alone)  # here the window before mends a window
     assert table(cli(capsys, "evaluate", "set:sounds", "--db", db, *windows, "--history", "0")) == table(alone)
+    # The figure the command prints is the running vote of the same evaluation through the API.
+    space, _ = feature_space(load_recordings(set_folder(db, "sounds")), Windowing(0.25, "rows"), workers=1)
+    result = evaluate(space, "knn", "material", 3, group_by="the set's groups")
+    (cell,) = table(voted).values()
+    assert cell[0] == f"{100 * running_vote(result, space.scan_ids, 1).accuracy_pooled:.1f}"
     # --leakage's second evaluation splits a recording's windows over the folds: nothing to vote over.
     code = main([str(a) for a in ("evaluate", "set:sounds", "--db", db, *windows, "--history", "1", "--leakage")])
-    assert code == 1 and "--history scores a recording's windows together" in capsys.readouterr().err
+    assert code == 1 and "--history answers with several windows of a recording" in capsys.readouterr().err
     for bad, message in ((("--history", "-1"), "the history is a whole number of windows >= 0, got '-1'"),
                          (("--history", "1", "--vote"), "not allowed with argument")):
         with pytest.raises(SystemExit) as refused:

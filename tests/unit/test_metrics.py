@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -176,8 +177,6 @@ GROUPINGS = {
 
 @pytest.mark.parametrize("group_by", list(GROUPINGS))
 def test_no_session_operator_or_recording_is_in_training_and_test_at_once(group_by):
-    from dataclasses import replace
-
     space = sessions_space()
     space = replace(space, groups=tuple(GROUPINGS[group_by](s) for s in space.scan_ids))
     result = evaluate(space, "nb", "fine", n_features=2, folds=2, group_by=group_by, calibrate=False)
@@ -259,11 +258,41 @@ def test_a_running_vote_averages_each_window_with_those_before_it_and_never_afte
     assert running_vote(result, IDS, 0) is result
 
 
+def test_a_running_vote_keeps_the_mean_probabilities_it_answered_by():
+    p_a = np.array([0.9, 0.3, 0.45, 0.8, 0.2, 0.7])
+    voted = running_vote(windows_result(["a"] * 6, np.column_stack([p_a, 1 - p_a])), IDS, 1)
+    np.testing.assert_allclose(voted.probability[:, 0], [0.9, 0.6, 0.375, 0.75, 0.2, 0.45])
+    assert voted.history == 1 and voted.to_dict()["history"] == 1
+
+
 def test_a_running_vote_without_probabilities_counts_answers_and_a_tie_goes_to_the_latest():
     # r0 answers a, b, b: w001 ties a/b -> b (latest); w002 b, b -> b. r1 in time order b, a, a -> b, a, a.
     result = windows_result(["a", "b", "b", "a", "b", "a"], None)
     np.testing.assert_array_equal(running_vote(result, IDS, 1).y_pred, ["a", "b", "b", "a", "b", "a"])
-    np.testing.assert_array_equal(running_vote(result, IDS, 2).y_pred, ["a", "b", "b", "a", "b", "a"])
+    # Two windows before outvote a window's own answer: r0 a, a, b -> a, a, a; r1 b, b, a -> b, b, b.
+    outvoted = windows_result(["a", "a", "b", "a", "b", "b"], None)
+    np.testing.assert_array_equal(running_vote(outvoted, IDS, 2).y_pred, ["a", "a", "a", "b", "b", "b"])
+
+
+def test_a_running_vote_leaves_untested_rows_alone_and_votes_softly_where_the_history_has_probabilities():
+    # r1 is a training row of the set's own split (fold -1, no probabilities); r0 is tested, its history
+    # soft: one NaN row elsewhere does not turn every recording to counting answers.
+    p_a = np.array([0.9, 0.3, 0.45, np.nan, np.nan, np.nan])
+    result = windows_result(["a", "b", "b", "a", "a", "a"], np.column_stack([p_a, 1 - p_a]),
+                            fold=[0, 0, 0, -1, -1, -1])
+    voted = running_vote(result, IDS, 1)
+    np.testing.assert_array_equal(voted.y_pred, ["a", "a", "b", "a", "a", "a"])
+    assert np.isnan(voted.probability[3:]).all() and voted.confusion.sum() == 3
+
+
+def test_votes_name_the_rows_an_evaluation_kept():
+    # The space's row 2 held no value and was left out: the result's rows are the space's 0, 1, 3, 4, 5, 6.
+    ids = ["r0#w000", "r0#w001", "r9#w000", "r0#w002", "r1#w000", "r1#w001", "r1#w002"]
+    result = replace(windows_result(["a", "b", "b", "b", "b", "a"], None), rows=np.array([0, 1, 3, 4, 5, 6]))
+    np.testing.assert_array_equal(running_vote(result, ids, 2).y_pred, ["a", "b", "b", "b", "b", "b"])
+    np.testing.assert_array_equal(vote(result, [recording_of(i) for i in ids]).y_pred, ["b", "b"])
+    with pytest.raises(EvaluationError, match="5 row names for a result of 6 rows"):
+        running_vote(replace(result, rows=None), ids[:5], 1)
 
 
 @pytest.mark.parametrize("before", [-1, 1.5, True, "2"])
