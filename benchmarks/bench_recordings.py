@@ -22,7 +22,7 @@ import numpy as np
 from bench_audio import numpy_reference
 from timing import best_time, median_time
 
-from features import audio, recordings
+from features import audio, recordings, signals
 from scanner.preprocess import gray_uint8, grayscale
 from scanner.scan import Recording, Trace
 
@@ -86,7 +86,7 @@ def main() -> None:
                      median_time(lambda mfcc=reference: mfcc(sound), 5))
         elif family == "vibration":
             line(family, ours, "sosfiltfilt band-pass alone",
-                 median_time(lambda: recordings.band_limited(sound, FS), 5))
+                 median_time(lambda: signals.band_limited(sound, FS), 5))
         else:
             force = recording.channels["f"].data
             line(family, ours, "mean of the force", median_time(lambda f=force: f.mean(axis=0), 15))

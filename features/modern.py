@@ -42,11 +42,11 @@ from functools import lru_cache
 
 import numpy as np
 
-from features import recordings
+from features import recordings, signals
 from features.prepared import PreparedScan
 from features.registry import REGISTRY, Family, RoleFamily
 from scanner.lazy import library
-from scanner.preprocess import QualityError, dft321
+from scanner.preprocess import BAND_HZ, QualityError, dft321
 from taxonomy.errors import ParameterError
 
 signal = library("scipy.signal")
@@ -738,8 +738,8 @@ class RoleSignal:
 
 ROLE_RULES: Mapping[str, RoleSignal] = {
     "audio": RoleSignal(_mono, LengthRule(2048, windows=8, rate=44100.0)),
-    "vibration": RoleSignal(_vibration, LengthRule(3000, windows=4, rate=3000.0), recordings.band_limited,
-                            lambda fs: recordings.vibration_band(fs)[1] > recordings.BAND_HZ[0]),
+    "vibration": RoleSignal(_vibration, LengthRule(3000, windows=4, rate=3000.0), signals.band_limited,
+                            lambda fs: signals.vibration_band(fs)[1] > BAND_HZ[0]),
     "force_xyz": RoleSignal(_tangential, LengthRule(1024, whole=True)),
     "pressure_dc": RoleSignal(_mono, LengthRule(1024, whole=True)),
     "temperature": RoleSignal(_mono, LengthRule(1024, whole=True)),

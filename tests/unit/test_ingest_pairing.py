@@ -7,7 +7,8 @@ import cv2
 import numpy as np
 import pytest
 
-from features.recordings import SIGNAL_NAMES, families, feature_space, signal_bands, signal_features
+from features.recordings import families, feature_space
+from features.signals import SIGNAL_NAMES, signal_bands, signal_features
 from scanner.scan import Recording, Trace
 from scanner.storage import ingest
 from scanner.storage.ingest import IngestError
@@ -227,7 +228,7 @@ def test_a_channel_mapped_without_a_role_is_a_generic_signal_with_a_note(tmp_pat
 
 
 def test_slow_features_of_a_ramp_and_a_square_wave_are_their_closed_forms():
-    from features.recordings import SLOW_NAMES, slow_features
+    from features.signals import SLOW_NAMES, slow_features
 
     fs = 6.5
     t = np.arange(33) / fs
@@ -244,7 +245,7 @@ def test_slow_features_of_a_ramp_and_a_square_wave_are_their_closed_forms():
 
 
 def test_the_level_ratio_is_the_log_of_current_per_speed_and_bounded_where_one_is_zero():
-    from features.recordings import RATIO_BOUND, log_ratio
+    from features.signals import RATIO_BOUND, log_ratio
 
     assert log_ratio(np.full(30, 4.0), np.full(30, -0.4)) == pytest.approx(1.0, rel=1e-12)  # 4 A per 0.4 m/s
     assert log_ratio(np.full(30, 4.0), np.zeros(30)) == RATIO_BOUND  # standing still: the bound, not inf
@@ -253,7 +254,7 @@ def test_the_level_ratio_is_the_log_of_current_per_speed_and_bounded_where_one_i
 
 
 def test_channels_at_a_few_hz_get_slow_features_and_ratios_not_spectra():
-    from features.recordings import SLOW_NAMES
+    from features.signals import SLOW_NAMES
 
     rng = np.random.default_rng(3)
     imu = Trace(rng.normal(size=(1000, 3)), 100.0, "rad/s")

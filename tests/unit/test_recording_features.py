@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from features import audio, image, recordings
+from features import audio, image, recordings, signals
 from features.recordings import Windowing
 from features.space import FeatureSpace
 from scanner.scan import Recording, Trace
@@ -15,14 +15,14 @@ from scanner.scan import Recording, Trace
 
 def test_whole_recording_audio_in_chunks_equals_the_one_pass_mean():
     x = np.random.default_rng(0).standard_normal(8000 * 20)  # 799 frames: four chunks
-    chunked, whole = recordings.audio_features(x, 8000.0), audio.compute(x, 8000.0)
+    chunked, whole = signals.audio_features(x, 8000.0), audio.compute(x, 8000.0)
     # The same frame rows, summed in another order: equal to float64 rounding of a 799-term mean.
     assert chunked == pytest.approx(whole, rel=1e-12, abs=1e-12)
 
 
 def test_the_vibration_band_follows_the_rate():
-    assert recordings.vibration_band(3000.0) == (10.0, 1000.0)
-    assert recordings.vibration_band(1000.0) == (10.0, 450.0)
+    assert signals.vibration_band(3000.0) == (10.0, 1000.0)
+    assert signals.vibration_band(1000.0) == (10.0, 450.0)
     quiet = Recording("slow", {"v": Trace(np.ones(100), 20.0, "g")}, {"vibration": "v"}, "x")
     # 0.45 x 20 Hz is below the 10 Hz lower edge: only the generic family of a slow vibration applies.
     assert recordings.families(quiet) == ["generic.vibration"]
@@ -33,7 +33,7 @@ def test_friction_of_a_constant_coefficient_is_that_coefficient():
     t = np.arange(400) / fs
     fz = np.clip((t - 0.2) * 10, 0, 3)  # no load during the first 0.1 s, so the tare is 0
     xyz = np.column_stack([0.3 * fz, 0.4 * fz, fz])  # |(x, y)| = 0.5 fz
-    values = recordings.friction_features(xyz, fs)
+    values = signals.friction_features(xyz, fs)
     assert values["tactum.force_xyz.frs"] == pytest.approx(0.5, rel=1e-12)
     assert values["tactum.force_xyz.fst"] == pytest.approx(0.5, rel=1e-12)  # slopes scale alike
 
@@ -58,7 +58,7 @@ def test_every_family_by_role_and_windows_combined_or_as_rows():
         rows = recordings.recording_rows(r, Windowing(0.5, "rows"))
         (mean,) = recordings.recording_rows(r, Windowing(0.5, "mean"))
     assert len(rows) == 4
-    first = recordings.audio_features(r.channels["a"].data[:2000], 4000.0)
+    first = signals.audio_features(r.channels["a"].data[:2000], 4000.0)
     assert rows[0]["audio.audio.zcr"] == first["zcr"]
     assert mean["audio.audio.zcr"] == pytest.approx(np.mean([row["audio.audio.zcr"] for row in rows]), rel=1e-15)
     assert all(row["image.photo.color"] == whole["image.photo.color"] for row in rows)  # photos are whole
