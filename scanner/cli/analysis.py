@@ -163,20 +163,18 @@ def run_evaluation(space, args: argparse.Namespace) -> list:
                             protocol=args.protocol, workers=args.workers, progress=True, use_split=use_split,
                             single_group=getattr(args, "single_group", "train"),
                             calibrate=calibrate, group_by=group_by, pairs=getattr(args, "pairs", None))
+    voting = "--vote" if getattr(args, "vote", False) else f"--history {history}" if history else None
+    recordings = [recording_of(s) for s in space.scan_ids]
+    if voting and len(set(recordings)) == len(recordings):
+        print(f"texplorer: warning: {voting}: every recording is one row (no windows), so the vote changes "
+              "nothing", file=sys.stderr)
+    elif history == 1 and not calibrate:
+        print("texplorer: warning: --history 1 --no-calibration: without probabilities two windows' answers "
+              "agree or tie, and a tie goes to the latest, so the history changes nothing; give 2 or more",
+              file=sys.stderr)
     if getattr(args, "vote", False):
-        recordings = [recording_of(s) for s in space.scan_ids]
-        if len(set(recordings)) == len(recordings):
-            print("texplorer: warning: --vote: every recording is one row (no windows), so the vote changes "
-                  "nothing", file=sys.stderr)
         reports = [vote(r, recordings) for r in reports]
     if history:
-        if len({recording_of(s) for s in space.scan_ids}) == len(space.scan_ids):
-            print(f"texplorer: warning: --history {history}: every recording is one row (no windows), so there is "
-                  "no window before any other and the history changes nothing", file=sys.stderr)
-        elif history == 1 and not calibrate:
-            print("texplorer: warning: --history 1 --no-calibration: without probabilities two windows' answers "
-                  "agree or tie, and a tie goes to the latest, so the history changes nothing; give 2 or more",
-                  file=sys.stderr)
         reports = [running_vote(r, space.scan_ids, history) for r in reports]
     print(format_table(reports))
     splitting = reports[0].splitting if reports else f"{args.folds} folds"

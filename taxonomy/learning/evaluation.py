@@ -60,7 +60,7 @@ from taxonomy.learning.calibration import TemperatureScaledClassifier, fit_group
 from taxonomy.learning.fusion import FamilyEnsembleClassifier
 from taxonomy.learning.metrics import present_class_f1
 from taxonomy.learning.openset import MAX_ACCURACY_DROP, class_folds, fit_rule, learn_rejection
-from taxonomy.learning.results import OWN_METHOD, EvaluationError, Result, warning_notes
+from taxonomy.learning.results import OWN_METHOD, EvaluationError, Result, history_words, warning_notes
 
 PROTOCOLS = ("nested", "paper")
 
@@ -1113,15 +1113,11 @@ def vote(result: Result, recordings: Sequence[str]) -> Result:
     """
     if result.y_true is None or result.y_pred is None or result.fold is None:
         raise EvaluationError("only a result with its out-of-fold predictions can be voted")
-    recordings = _of_rows(result, recordings)
-    names = list(dict.fromkeys(recordings.tolist()))
+    windows = _windows_by_recording(result, _of_rows(result, recordings))
+    names = list(windows)
     classes = np.asarray(result.classes)
     y_true, y_pred, fold, groups, probability = [], [], [], [], []
-    for name in names:
-        rows = np.flatnonzero(recordings == name)
-        if np.unique(result.fold[rows]).size != 1 or np.unique(result.y_true[rows]).size != 1:
-            raise EvaluationError(f"recording {name!r}: its windows lie in different folds or classes; group "
-                                  "the folds by recording to vote")
+    for name, rows in windows.items():
         if result.probability is not None and np.isfinite(result.probability[rows]).all():
             mean = result.probability[rows].mean(axis=0)
             probability.append(mean)
@@ -1225,16 +1221,11 @@ def running_vote(result: Result, scan_ids: Sequence[str], before: int) -> Result
     if before == 0:
         return result
     ids = _of_rows(result, scan_ids)
-    recordings = np.array([recording_of(s) for s in ids])
     windows = np.array([window_index(s) for s in ids])
     classes = np.asarray(result.classes)
     y_pred = result.y_pred.copy()
     probability = None if result.probability is None else result.probability.copy()
-    for name in dict.fromkeys(recordings.tolist()):
-        rows = np.flatnonzero(recordings == name)
-        if np.unique(result.fold[rows]).size != 1 or np.unique(result.y_true[rows]).size != 1:
-            raise EvaluationError(f"recording {name!r}: its windows lie in different folds or classes; group "
-                                  "the folds by recording to vote over its windows")
+    for rows in _windows_by_recording(result, [recording_of(s) for s in ids]).values():
         if result.fold[rows[0]] < 0:
             continue  # a training row of the set's own split, or of a class kept in training only: not tested
         rows = rows[np.argsort(windows[rows], kind="stable")]
@@ -1251,8 +1242,7 @@ def running_vote(result: Result, scan_ids: Sequence[str], before: int) -> Result
         accuracy=np.array([np.mean(y_pred[fold == f] == y_true[fold == f]) for f in folds]),
         f1=np.array([present_class_f1(y_true[fold == f], y_pred[fold == f]) for f in folds]),
         confusion=confusion_matrix(y_true[tested], y_pred[tested], labels=classes),
-        splitting=f"{result.splitting}, each window voted with the {before} window{'s' * (before != 1)} before "
-                  "it in its recording")
+        splitting=f"{result.splitting}, {history_words(before)}")
 
 
 def _history_answer(result: Result, history: np.ndarray, classes: np.ndarray) -> tuple[str, np.ndarray]:
@@ -1265,6 +1255,20 @@ def _history_answer(result: Result, history: np.ndarray, classes: np.ndarray) ->
     latest = history[::-1]
     counts = [int(np.sum(result.y_pred[history] == result.y_pred[r])) for r in latest]
     return result.y_pred[latest[int(np.argmax(counts))]], np.full(classes.size, np.nan)
+
+
+def _windows_by_recording(result: Result, recordings: Sequence[str]) -> dict[str, np.ndarray]:
+    """The result's rows of each recording, in order of first appearance; an :class:`EvaluationError` where a
+    recording's windows lie in different folds or classes (nothing to vote over together)."""
+    recordings = np.asarray(recordings)
+    windows = {}
+    for name in dict.fromkeys(recordings.tolist()):
+        rows = np.flatnonzero(recordings == name)
+        if np.unique(result.fold[rows]).size != 1 or np.unique(result.y_true[rows]).size != 1:
+            raise EvaluationError(f"recording {name!r}: its windows lie in different folds or classes; group "
+                                  "the folds by recording to vote over its windows")
+        windows[name] = rows
+    return windows
 
 
 def _of_rows(result: Result, ids: Sequence[str]) -> np.ndarray:

@@ -230,6 +230,30 @@ def _split_std(values: np.ndarray) -> float:
 
 # -- the result --------------------------------------------------------------------------------------
 
+
+def history_words(before: int) -> str:
+    """How the tables name a running vote (:func:`taxonomy.learning.evaluation.running_vote`).
+
+    Parameters
+    ----------
+    before : int
+        The windows before each one in its vote.
+
+    Returns
+    -------
+    str
+        The phrase.
+
+    Examples
+    --------
+    >>> history_words(1)
+    'each window voted with the 1 window before it in its recording'
+    >>> history_words(2)
+    'each window voted with the 2 windows before it in its recording'
+    """
+    return f"each window voted with the {before} window{'s' * (before != 1)} before it in its recording"
+
+
 @dataclass(frozen=True, eq=False)
 class Result:
     """One classifier on one feature set at one level, scored over the splits of a protocol.

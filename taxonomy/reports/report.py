@@ -36,7 +36,16 @@ from taxonomy.labels import LEVELS
 from taxonomy.learning.evaluation import MLP_MAX_ITER
 from taxonomy.learning.metrics import auroc, bootstrap_interval
 from taxonomy.learning.quick import QuickResult
-from taxonomy.learning.results import COLUMNS, Result, best_per_method, format_r_c, major_class, result_notes, size_name
+from taxonomy.learning.results import (
+    COLUMNS,
+    Result,
+    best_per_method,
+    format_r_c,
+    history_words,
+    major_class,
+    result_notes,
+    size_name,
+)
 from taxonomy.reports.plots import (
     new_figure,
     plot_confusion,
@@ -175,8 +184,7 @@ def _block_title(chosen: Sequence[Result]) -> str:
     splits = "the set's train/test split" if first.given_split else f"{first.folds} folds {split}"
     voted = ", recordings voted by their windows" if first.voted else ""
     if first.history:
-        voted = (f", each window voted with the {first.history} window{'s' * (first.history != 1)} before it in "
-                 "its recording")
+        voted = f", {history_words(first.history)}"
     return f"{size_name(first.n_features)}, {first.protocol} protocol, {splits}{voted}, seed {first.seed}"
 
 

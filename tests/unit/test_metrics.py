@@ -307,6 +307,22 @@ def test_a_running_vote_refuses_windows_of_one_recording_in_different_folds():
         running_vote(windows_result(["a"] * 6, None, fold=[0, 1, 0, 1, 1, 1]), IDS, 1)
 
 
+def test_an_evaluation_names_the_space_rows_it_kept_and_the_votes_follow_them():
+    # Six recordings of three windows, two classes; window 1 of r0 holds no value and is left out.
+    ids = tuple(f"r{r}#w{w:03d}" for r in range(6) for w in range(3))
+    rng = np.random.default_rng(2)
+    X = np.repeat([0.0, 3.0], 9)[:, None] + rng.standard_normal((18, 2))
+    X[1] = np.nan
+    space = FeatureSpace(X, ("other.a", "other.b"), ids, ("C1S1M1P1X1",) * 9 + ("C2S1M1P1X1",) * 9,
+                         tuple(recording_of(i) for i in ids))
+    result = evaluate(space, "nb", "coarse", n_features=None, folds=3, calibrate=False, group_by="recording")
+    assert any("1 of 18 row(s) have no feature value" in note for note in result.notes), result.notes
+    assert result.rows.tolist() == [0, *range(2, 18)] and len(result.y_true) == 17
+    assert len(vote(result, [recording_of(i) for i in ids]).y_true) == 6
+    voted = running_vote(result, ids, 2)
+    assert voted.history == 2 and voted.confusion.sum() == 17
+
+
 def test_intervals_of_every_resample_at_once_equal_those_resample_by_resample():
     # The result's intervals weigh all 1000 resamples in three products; the same weights through
     # bootstrap_interval, one weighted confusion matrix per resample, give the same bounds: the counts are
