@@ -20,7 +20,9 @@ training scan over all features, standardised, rows scaled to unit length (Sun e
 (``raw``); ``lw`` Mahalanobis over all features with a Ledoit-Wolf shrunk covariance shared by the classes
 (``pca`` in the principal components holding 95 % of the variance); ``iforest`` an isolation forest (Liu et
 al. 2008) over all features; ``groups-mean``/``groups-max`` the nearest-scan distance per feature group
-(:meth:`features.registry.ScanRegistry.column_groups`), standardised, averaged or the largest.
+(:meth:`features.registry.ScanRegistry.column_groups`), standardised, averaged or the largest; ``learned``
+a logistic regression on the standardised parts, fitted to tell the inner rounds' held-out classes from their
+known rows (stacked generalisation, Wolpert 1992), instead of their plain mean.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from scipy.stats import norm
 from sklearn.covariance import LedoitWolf
 from sklearn.decomposition import PCA
 from sklearn.ensemble import IsolationForest
+from sklearn.linear_model import LogisticRegression
 from sklearn.metrics import euclidean_distances
 
 from features.space import FeatureSpace, drop_nan_columns
@@ -141,6 +144,10 @@ COMBINATIONS = [("u",), ("m",), ("u", "m"), *((name,) for name in BASE), ("group
                 ("u", "m", "class-conditional"), ("u", "m", "groups-mean", "class-conditional"),
                 ("u", "m", "groups-mean")]
 
+LEARNED = {"learned (u, m, groups-mean)": ("u", "m", "groups-mean"),
+           "learned (every score above)": ("u", "m", "groups-mean", *BASE, "groups-max")}
+"""Combinations whose weights a logistic regression learns on the inner rounds (:func:`_learned`)."""
+
 
 def scores(pipeline, X_train, y_train, g_train, X_test, columns) -> dict[str, np.ndarray]:
     """Every base score of the rows ``X_test`` for a model fitted on ``X_train``; group distances by group."""
@@ -213,6 +220,8 @@ def compare(path: str) -> None:
     print(_row("u + m, normal threshold (the previous rule)", folds, lambda f, w: f[w]["u"] + f[w]["m"], normal=True))
     for combination in COMBINATIONS:
         print(_row(" + ".join(combination), folds, lambda f, w, c=combination: _combined(f, w, c)))
+    for name, combination in LEARNED.items():
+        print(_row(name, folds, lambda f, w, c=combination: _learned(f, w, c)))
     started = time.perf_counter()
     result = evaluate_open_set(space, "rf", "fine", 10, 5, SEED)
     rejected = result.rejected
@@ -245,6 +254,16 @@ def _combined(fold: dict, where: str, combination: tuple[str, ...]) -> np.ndarra
     if len(combination) == 1:
         return fold[where][combination[0]]
     return np.mean([_standardised(fold, where, lambda side, n=name: side[n]) for name in combination], axis=0)
+
+
+def _learned(fold: dict, where: str, combination: tuple[str, ...]) -> np.ndarray:
+    """The log-odds of "held out" by a logistic regression (balanced classes) on the standardised parts, fitted
+    on the inner rounds' rows; a missing part counts as its known rows' mean."""
+    def parts(side: str) -> np.ndarray:
+        return np.nan_to_num(np.column_stack([_standardised(fold, side, lambda s, n=name: s[n])
+                                              for name in combination]))
+    model = LogisticRegression(class_weight="balanced").fit(parts("inner"), fold["unknown"])
+    return model.decision_function(parts(where))
 
 
 def _row(name: str, folds: list[dict], score: Callable[[dict, str], np.ndarray], normal: bool = False) -> str:
