@@ -20,7 +20,8 @@ training scan over all features, standardised, rows scaled to unit length (Sun e
 (``raw``); ``lw`` Mahalanobis over all features with a Ledoit-Wolf shrunk covariance shared by the classes
 (``pca`` in the principal components holding 95 % of the variance); ``iforest`` an isolation forest (Liu et
 al. 2008) over all features; ``groups-mean``/``groups-max`` the nearest-scan distance per feature group
-(:meth:`features.registry.ScanRegistry.column_groups`), standardised, averaged or the largest; ``learned``
+(:meth:`features.registry.ScanRegistry.column_groups`), standardised, averaged or the largest; ``w`` the
+surprisal of a balanced random forest over every feature (:func:`taxonomy.learning.openset.fit_wide`); ``learned``
 a logistic regression on the standardised parts, fitted to tell the inner rounds' held-out classes from their
 known rows (stacked generalisation, Wolpert 1992), instead of their plain mean.
 """
@@ -53,8 +54,10 @@ from taxonomy.learning.openset import (
     feature_groups,
     fit_distance,
     fit_neighbours,
+    fit_wide,
     mahalanobis,
     unit_rows,
+    wide_surprisal,
 )
 
 SEED = 0
@@ -139,13 +142,13 @@ BASE: dict[str, Scorer] = {"knn-1": knn(1, True), "knn-1 raw": knn(1, False), "k
                            "knn-10": knn(10, True), "lw": ledoit_wolf(None), "lw pca": ledoit_wolf(0.95),
                            "class-conditional": class_conditional, "iforest": isolation_forest}
 
-COMBINATIONS = [("u",), ("m",), ("u", "m"), *((name,) for name in BASE), ("groups-mean",), ("groups-max",),
+COMBINATIONS = [("u",), ("m",), ("u", "m"), *((name,) for name in BASE), ("groups-mean",), ("groups-max",), ("w",),
                 ("u", "m", "knn-1"), ("u", "lw pca"), ("u", "m", "lw pca"), ("u", "m", "groups-max"),
                 ("u", "m", "class-conditional"), ("u", "m", "groups-mean", "class-conditional"),
-                ("u", "m", "groups-mean")]
+                ("u", "m", "groups-mean"), ("m", "groups-mean", "w"), ("u", "m", "groups-mean", "w")]
 
 LEARNED = {"learned (u, m, groups-mean)": ("u", "m", "groups-mean"),
-           "learned (every score above)": ("u", "m", "groups-mean", *BASE, "groups-max")}
+           "learned (every score above)": ("u", "m", "groups-mean", *BASE, "groups-max", "w")}
 """Combinations whose weights a logistic regression learns on the inner rounds (:func:`_learned`)."""
 
 
@@ -159,6 +162,7 @@ def scores(pipeline, X_train, y_train, g_train, X_test, columns) -> dict[str, np
         out[name] = fit(X_train, y_train)(X_test)
     neighbours = fit_neighbours(X_train, y_train, [str(c) for c in pipeline.classes_], columns)
     out["groups"] = neighbours.log_distances(X_test)
+    out["w"] = wide_surprisal(fit_wide(X_train, y_train, neighbours, SEED), neighbours, X_test)
     return out
 
 
@@ -217,7 +221,7 @@ def compare(path: str) -> None:
     print(f"\n{path}: {len(y)} rows, {np.unique(y).size} classes, {int(group_of.max()) + 1} feature groups")
     print("| candidate | AUROC | unseen rejected % | known rejected % | known accuracy % before -> after |")
     print("| --- | --- | --- | --- | --- |")
-    print(_row("u + m, normal threshold (the previous rule)", folds, lambda f, w: f[w]["u"] + f[w]["m"], normal=True))
+    print(_row("u + m, normal threshold (the first rule)", folds, lambda f, w: f[w]["u"] + f[w]["m"], normal=True))
     for combination in COMBINATIONS:
         print(_row(" + ".join(combination), folds, lambda f, w, c=combination: _combined(f, w, c)))
     for name, combination in LEARNED.items():

@@ -1383,7 +1383,7 @@ def evaluate_open_set(space: FeatureSpace, classifier: str = "rf", level: str = 
             learned = learn_rejection(subset.X[train], y[train], groups[train], fit, subset.columns, seed=seed,
                                       max_accuracy_drop=max_accuracy_drop)
             rule = fit_rule(pipeline, subset.X[train], y[train], groups[train], learned, subset.columns,
-                            max_accuracy_drop)
+                            max_accuracy_drop, seed)
             threshold = learned.threshold
             s = rule.score(pipeline, subset.X[test])
             predicted = pipeline.predict(subset.X[test])

@@ -3,21 +3,22 @@
 A model file is a skops archive (``skops.io``), a format that rebuilds objects from a declared schema and
 never executes code on load. It holds one dict::
 
-    format "texplorer-model", format_version 3, pipeline (MinMaxScaler -> FQSelector -> classifier),
+    format "texplorer-model", format_version 4, pipeline (MinMaxScaler -> FQSelector -> classifier),
     feature_names (input columns in order), level, classifier, n_features, selected (kept feature names,
     best FQ first), classes, seed, software_version, sklearn_version, dropped, n_rows,
     open_set (means, precision, distance_scale, threshold, max_accuracy_drop, inner_auroc, group_titles,
               group_of, fill, centre, spread, reference, reference_classes, group_mean, group_sd,
-              group_limit, term_mean, term_sd)
+              group_limit, term_mean, term_sd, wide_forest)
 
 The classifier is a :class:`~taxonomy.learning.calibration.TemperatureScaledClassifier`: its probabilities are
 calibrated on grouped out-of-fold scores inside the training scans. ``open_set`` is the rejection rule
 of :mod:`taxonomy.learning.openset`: the class means and shared precision matrix of the training scans in the
 model's feature space, the distance scale ``M_0``, the standardised training scans of the neighbour term with
-their feature groups, the scales of the three terms and the threshold ``t`` learned by leave-classes-out
-inside the training scans; a scan scoring above ``t`` is an unknown material. A version 2 file (before the
-neighbour term) loads with its previous score; a version 1 file (before calibration and the rule) as a model
-that never rejects.
+their feature groups, the balanced random forest over every feature, the scales of the four terms and the
+threshold ``t`` learned by leave-classes-out inside the training scans; a scan scoring above ``t`` is an
+unknown material. A version 3 file (before the forest over every feature) and a version 2 file (before the
+neighbour term) load with their previous scores; a version 1 file (before calibration and the rule) as a
+model that never rejects.
 
 Loading first lists the file's types that skops does not trust by default and refuses the file unless
 they are all in :data:`TRUSTED_TYPES`; then it checks that the dict has exactly this shape and that the
@@ -47,9 +48,11 @@ from typing import Any
 import numpy as np
 import sklearn
 import sklearn.utils
+from sklearn.ensemble import RandomForestClassifier
 from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import LabelBinarizer, MinMaxScaler
 from sklearn.tree import DecisionTreeClassifier
+from sklearn.tree._tree import Tree
 
 from features import feature_sets
 from features.feature_sets import FeatureSet, learning_subset
@@ -79,10 +82,11 @@ from taxonomy.learning.openset import (
 from taxonomy.table import Taxonomy
 
 MODEL_FORMAT = "texplorer-model"
-MODEL_FORMAT_VERSION = 3
-READABLE_VERSIONS = (1, 2, 3)
+MODEL_FORMAT_VERSION = 4
+READABLE_VERSIONS = (1, 2, 3, 4)
 """Version 1 files have no calibration and no rejection rule; they load as models that never reject. Version 2
-files have the rule's previous score (distance ratio and surprisal, without the neighbour term)."""
+files have the rule's first score (distance ratio and surprisal, without the neighbour term); version 3 files
+the mean of three terms (without the forest over every feature)."""
 
 TRUSTED_TYPES = (
     "features.modern.LengthRule",
@@ -116,6 +120,8 @@ _NEIGHBOUR_TYPES = {"group_titles": list, "group_of": np.ndarray, "fill": np.nda
                     "group_mean": np.ndarray, "group_sd": np.ndarray, "group_limit": np.ndarray,
                     "term_mean": np.ndarray, "term_sd": np.ndarray}
 """The open-set fields a version 3 file adds (:class:`taxonomy.learning.openset.Neighbours` and ``Scales``)."""
+_WIDE_TYPES = {"wide_forest": RandomForestClassifier}
+"""The open-set field a version 4 file adds: the forest over every feature (term ``w``)."""
 
 _STEPS = ("scale", "select", "classify")
 _META_TYPES: dict[str, type | tuple[type, ...]] = {
@@ -351,7 +357,7 @@ def train_model(space: FeatureSpace, level: str = "fine", n_features: int = 10, 
 
     learned = learn_rejection(subset.X, y, groups, fit, subset.columns, seed=seed,
                               max_accuracy_drop=max_accuracy_drop)
-    rule = fit_rule(pipeline, subset.X, y, groups, learned, subset.columns, max_accuracy_drop)
+    rule = fit_rule(pipeline, subset.X, y, groups, learned, subset.columns, max_accuracy_drop, seed)
     return TrainedModel(
         pipeline=pipeline, feature_names=subset.columns, level=level, classifier=classifier,
         n_features=n_features, selected=selected_names(pipeline, subset.columns),
@@ -529,6 +535,8 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
         payload["open_set"] = model.rejection.to_dict()
         if model.rejection.scales is None:  # fewer than three classes: nothing to learn the neighbour term on
             payload["format_version"] = 2
+        elif model.rejection.wide is None:
+            payload["format_version"] = 3
     else:
         payload["format_version"] = 1
     data = _skops().dumps(payload)
@@ -667,8 +675,9 @@ def _model_from(path: Path, payload: Any) -> TrainedModel:
 
 
 def _rule_from(path: Path, stored: Any, pipeline: Pipeline, inputs: Sequence[str], version: int) -> RejectionRule:
-    """The rejection rule of a version 2 or 3 file, after checking its fields' types and the arrays' shapes."""
-    kinds = _OPEN_SET_TYPES | (_NEIGHBOUR_TYPES if version >= 3 else {})
+    """The rejection rule of a version 2, 3 or 4 file, after checking its fields' types and the arrays'
+    shapes."""
+    kinds = _OPEN_SET_TYPES | (_NEIGHBOUR_TYPES if version >= 3 else {}) | (_WIDE_TYPES if version >= 4 else {})
     if not isinstance(stored, dict) or set(stored) != set(kinds):
         raise ModelError(f"{path}: the open_set field must hold {', '.join(kinds)}")
     for key, kind in kinds.items():
@@ -686,23 +695,48 @@ def _rule_from(path: Path, stored: Any, pipeline: Pipeline, inputs: Sequence[str
         raise ModelError(f"{path}: the open-set distance scale must be a positive number and the threshold a "
                          f"number or +inf (never reject), got {stored['distance_scale']!r} and "
                          f"{stored['threshold']!r}")
-    neighbours, scales = (_neighbours_from(path, stored, len(inputs), len(pipeline.classes_)) if version >= 3
-                          else (None, None))
+    terms = 4 if version >= 4 else 3
+    neighbours, scales = (_neighbours_from(path, stored, len(inputs), len(pipeline.classes_), terms)
+                          if version >= 3 else (None, None))
+    wide = stored["wide_forest"] if version >= 4 else None
+    if wide is not None:
+        _check_wide(path, wide, int(np.count_nonzero(neighbours.group_of >= 0)),
+                    [str(c) for c in pipeline.classes_])
     return RejectionRule(means, precision, stored["distance_scale"], stored["threshold"], stored["max_accuracy_drop"],
-                         stored["inner_auroc"], neighbours, scales)
+                         stored["inner_auroc"], neighbours, scales, wide)
 
 
-def _neighbours_from(path: Path, stored: dict[str, Any], inputs: int, classes: int) -> tuple[Neighbours, Scales]:
-    """The neighbour model and scales of a version 3 rule: every array of the shape the model's ``inputs``
-    columns, its groups and ``classes`` give, finite (a group's limit may be +inf), spreads and standard
-    deviations positive, indices inside what they index."""
+def _check_wide(path: Path, forest: RandomForestClassifier, inputs: int, classes: Sequence[str]) -> None:
+    """The forest over every feature of a version 4 rule: fitted on the model's ``inputs`` grouped columns
+    and its ``classes``, at most :data:`MAX_TREES` decision trees, each checked as the classifier's are."""
+    trees = getattr(forest, "estimators_", None)
+    if not isinstance(trees, list) or getattr(forest, "n_features_in_", None) != inputs \
+            or getattr(forest, "n_outputs_", None) != 1 or getattr(forest, "n_classes_", None) != len(classes) \
+            or [str(c) for c in getattr(forest, "classes_", ())] != list(classes):
+        raise ModelError(f"{path}: the open-set forest over every feature must be fitted on the model's {inputs} "
+                         f"grouped inputs and {len(classes)} classes")
+    if not 0 < len(trees) <= MAX_TREES:
+        raise ModelError(f"{path}: the open-set forest has {len(trees)} trees (1 to {MAX_TREES})")
+    for k, tree in enumerate(trees):
+        if not isinstance(tree, DecisionTreeClassifier) or getattr(tree, "n_classes_", None) != len(classes) \
+                or getattr(tree, "n_outputs_", None) != 1:
+            raise ModelError(f"{path}: the open-set forest's tree {k} is not a fitted decision tree of "
+                             f"{len(classes)} classes")
+        _check_tree(path, f"the open-set forest's tree {k}", tree.tree_, inputs, len(classes))
+
+
+def _neighbours_from(path: Path, stored: dict[str, Any], inputs: int, classes: int,
+                     terms: int) -> tuple[Neighbours, Scales]:
+    """The neighbour model and scales of a version 3 or 4 rule: every array of the shape the model's ``inputs``
+    columns, its groups, ``classes`` and score ``terms`` give, finite (a group's limit may be +inf), spreads
+    and standard deviations positive, indices inside what they index."""
     titles = stored["group_titles"]
     groups = len(titles)
     if not all(isinstance(t, str) for t in titles):
         raise ModelError(f"{path}: the open-set group titles must be text")
     shapes = {"group_of": (inputs,), "fill": (inputs,), "centre": (inputs,), "spread": (inputs,),
-              "group_mean": (groups,), "group_sd": (groups,), "group_limit": (groups,), "term_mean": (3,),
-              "term_sd": (3,)}
+              "group_mean": (groups,), "group_sd": (groups,), "group_limit": (groups,), "term_mean": (terms,),
+              "term_sd": (terms,)}
     reference, owners = stored["reference"], stored["reference_classes"]
     wrong = [key for key, shape in shapes.items() if stored[key].shape != shape]
     if reference.ndim != 2 or reference.shape[1:] != (inputs,) or owners.shape != reference.shape[:1] \
@@ -781,7 +815,7 @@ def _check_fitted_values(path: Path, pipeline: Pipeline, scale: MinMaxScaler, se
         if len(forest) > MAX_TREES:
             raise ModelError(f"{path}: a forest of {len(forest)} trees (at most {MAX_TREES})")
         for k, estimator in enumerate(forest):
-            _check_tree(path, f"tree {k}", estimator.tree_, inputs, len(classify.classes_))
+            _check_tree(path, f"tree {k}", getattr(estimator, "tree_", None), inputs, len(classify.classes_))
     index = getattr(classify, "_tree", None)
     if index is not None:
         _check_index(path, index, inputs)
@@ -811,6 +845,8 @@ def _check_tree(path: Path, where: str, tree: Any, inputs: int, classes: int) ->
     children after it and inside the tree (so every path ends at a leaf), its split feature below the
     model's input width and its threshold finite, every leaf's values finite, at most
     :data:`MAX_TREE_NODES` nodes."""
+    if not isinstance(tree, Tree):
+        raise ModelError(f"{path}: {where} is not a fitted tree but a {type(tree).__name__}")
     count = int(tree.node_count)
     if not 0 < count <= MAX_TREE_NODES:
         raise ModelError(f"{path}: {where} has {count:,} nodes (1 to {MAX_TREE_NODES:,})")

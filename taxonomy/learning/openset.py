@@ -1,7 +1,7 @@
 """Open-set recognition: a score of how unlike the trained materials a scan is, a threshold learned without
 test data, and which sensing steps make a rejected scan unlike them.
 
-The rejection score of a scan ``x`` averages three standardised terms (docs/trust.md compares them with
+The rejection score of a scan ``x`` averages four standardised terms (docs/trust.md compares them with
 the other candidates tried, on the simulated database and on BorealTC):
 
 - the surprisal of the classifier's top class, ``u(x) = -log max_c p(c | x)`` (the maximum softmax
@@ -30,11 +30,18 @@ the other candidates tried, on the simulated database and on BorealTC):
   and a distance is at most 2, so one very unlike group raises ``n`` by a bounded amount (docs/trust.md
   compares the largest group instead of the mean, and distances without the unit length: both rejected
   fewer held-out materials, or more known scans, on the simulated database).
+- the surprisal of a forest over every feature, ``w(x) = -log max_c q(c | x)``, ``q`` the class shares of
+  the trees of a balanced random forest (each tree's bootstrap drawn with every class equally likely: Chen,
+  Liaw and Breiman 2004) grown on every input feature of the training rows, a missing value at the training
+  median (:func:`fit_wide`): the model's classifier sees the selected features, this forest all of them, and
+  its trees disagree where a new material is like one known material in some features and another in the
+  others.
 
-``s(x) = mean_i (t_i(x) - alpha_i) / beta_i`` over the three terms ``t = (u, m, n)``, each standardised by
+``s(x) = mean_i (t_i(x) - alpha_i) / beta_i`` over the four terms ``t = (u, m, n, w)``, each standardised by
 its mean and standard deviation over the same known rows, so no term dominates by its units. A scan is
 rejected, "unknown material", where ``s(x) > t``. A model file written before the neighbour term (format
-version 2) keeps its score, ``s(x) = m(x) + u(x)``, and threshold.
+version 2) keeps its score, ``s(x) = m(x) + u(x)``, and threshold; one written before the forest over every
+feature (version 3) its mean of ``u``, ``m`` and ``n``.
 
 The rule is learned inside the training rows by leave-classes-out (Scheirer et al. 2013, "Toward Open Set
 Recognition", IEEE TPAMI 35(7), whose protocol holds out whole classes): in each of a few rounds a share of
@@ -59,6 +66,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
+from sklearn.ensemble import RandomForestClassifier
 from sklearn.metrics import euclidean_distances, pairwise_distances_argmin_min
 from sklearn.pipeline import Pipeline
 
@@ -76,8 +84,12 @@ ROUNDS = 5
 UNLIKE_QUANTILE = 0.98
 """A group is unlike the trained materials where its ``z_g`` exceeds this quantile of the known rows'."""
 
-TERMS = ("surprisal", "distance", "neighbours")
-"""The score's terms ``u``, ``m``, ``n`` (module docstring), in the order of :attr:`Scales.term_mean`."""
+TERMS = ("surprisal", "distance", "neighbours", "wide")
+"""The score's terms ``u``, ``m``, ``n``, ``w`` (module docstring), in the order of :attr:`Scales.term_mean`
+(a rule of format version 3 has the first three)."""
+
+WIDE_TREES = 100
+"""Trees of the forest over every feature (term ``w``), as many as the model's own random forest."""
 
 FitPipeline = Callable[[np.ndarray, np.ndarray, np.ndarray], Pipeline]
 """``fit(X, y, groups)`` -> a fitted ``scale -> select -> classify`` pipeline."""
@@ -142,6 +154,35 @@ class Neighbours:
         present = np.isfinite(X)
         filled = np.where(present, X, self.fill)
         return (filled - self.centre) / self.spread, present
+
+    def filled(self, X: np.ndarray) -> np.ndarray:
+        """The grouped input columns of ``X`` (those of a feature, not a raw signal's samples), a missing value
+        at its training median: what the forest over every feature (term ``w``) reads.
+
+        Parameters
+        ----------
+        X : numpy.ndarray
+            (n, columns) values of the input columns; NaN where missing.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, grouped columns) values.
+
+        Examples
+        --------
+        Training medians 1 and 20; the raw signal column is left out:
+
+        >>> import numpy as np
+        >>> from taxonomy.learning.openset import fit_neighbours
+        >>> neighbours = fit_neighbours(np.array([[0.0, 10.0, 5.0], [2.0, 30.0, 6.0]]), np.array(["a", "b"]),
+        ...                             ["a", "b"], ["tactum.matx", "other.density", "signal.v_ts.00001"])
+        >>> neighbours.filled(np.array([[4.0, np.nan, 7.0]])).tolist()
+        [[4.0, 20.0]]
+        """
+        X = np.asarray(X, dtype=np.float64)
+        grouped = self.group_of >= 0
+        return np.where(np.isfinite(X), X, self.fill)[:, grouped]
 
     def log_distances(self, X: np.ndarray) -> np.ndarray:
         """``log d_g`` of every row of ``X`` (n, groups) to the nearest reference row; NaN in a group where
@@ -228,7 +269,8 @@ class Neighbours:
 class Scales:
     """Where the known rows of the leave-classes-out rounds lie: per group the mean ``a_g``, standard
     deviation ``b_g`` and the :data:`UNLIKE_QUANTILE` of ``z_g`` (``limit``); per term of :data:`TERMS` the
-    mean ``alpha_i`` and standard deviation ``beta_i``."""
+    mean ``alpha_i`` and standard deviation ``beta_i`` (three terms in a rule of format version 3, which
+    has no ``w``)."""
 
     group_mean: np.ndarray
     group_sd: np.ndarray
@@ -260,13 +302,13 @@ class Scales:
         return (log_distances - self.group_mean) / self.group_sd
 
     def combine(self, terms: np.ndarray) -> np.ndarray:
-        """``s = mean_i (t_i - alpha_i) / beta_i`` of rows of terms (n, 3); a missing term (a scan with no
-        value in any group) is left out of the mean.
+        """``s = mean_i (t_i - alpha_i) / beta_i`` of rows of terms (n, 4); a missing term (a scan with no
+        value in any group) is left out of the mean, and so is every term after those the scales have.
 
         Parameters
         ----------
         terms : numpy.ndarray
-            (n, 3) raw terms ``(u, m, n)`` (:meth:`RejectionRule.terms`).
+            (n, 4) raw terms ``(u, m, n, w)`` (:meth:`RejectionRule.terms`), or their first three.
 
         Returns
         -------
@@ -284,7 +326,7 @@ class Scales:
         >>> np.round(scales.combine(np.array([[3.0, 2.0, 4.0], [3.0, 2.0, np.nan]])), 6).tolist()
         [1.666667, 2.0]
         """
-        return _mean_present((terms - self.term_mean) / self.term_sd)
+        return _mean_present((terms[:, :self.term_mean.size] - self.term_mean) / self.term_sd)
 
 
 @dataclass(frozen=True)
@@ -301,8 +343,9 @@ class Explanation:
 @dataclass(frozen=True)
 class RejectionRule:
     """What a model needs to reject a scan (module docstring): the class means ``mu_c`` and shared precision
-    ``Sigma^-1`` in its feature space, ``M_0``, the threshold ``t``, and the neighbour model and scales of
-    the combined score (None in a rule of the previous format, whose score is ``m + u``).
+    ``Sigma^-1`` in its feature space, ``M_0``, the threshold ``t``, the neighbour model and scales of
+    the combined score (None in a rule of format version 2, whose score is ``m + u``), and the forest over
+    every feature of term ``w`` (None in a rule of version 2 or 3).
 
     ``inner_auroc`` is the AUROC of the score on the held-out rounds inside training, ``max_accuracy_drop``
     the known-class accuracy ``t`` was allowed to cost there.
@@ -316,6 +359,7 @@ class RejectionRule:
     inner_auroc: float = float("nan")
     neighbours: Neighbours | None = None
     scales: Scales | None = None
+    wide: RandomForestClassifier | None = None
 
     def to_dict(self) -> dict[str, object]:
         """The rule as plain values and arrays, as a model file stores it.
@@ -324,7 +368,8 @@ class RejectionRule:
         -------
         dict of str to object
             Floats and float arrays; with a neighbour model and scales also their arrays, group titles and
-            each reference row's class.
+            each reference row's class; with the forest over every feature also that fitted forest
+            (``wide_forest``).
 
         Examples
         --------
@@ -351,11 +396,13 @@ class RejectionRule:
                 "reference_classes": np.asarray(n.classes, dtype=np.int64), "group_mean": s.group_mean,
                 "group_sd": s.group_sd, "group_limit": s.group_limit, "term_mean": s.term_mean,
                 "term_sd": s.term_sd})
+            if self.wide is not None:
+                stored["wide_forest"] = self.wide
         return stored
 
     def terms(self, pipeline: Pipeline, X: np.ndarray) -> np.ndarray:
-        """The raw terms ``(u, m, n)`` of every row of ``X`` (n, 3); ``n`` is NaN in a rule of the
-        previous format.
+        """The raw terms ``(u, m, n, w)`` of every row of ``X`` (n, 4); ``n`` is NaN in a rule of format
+        version 2, ``w`` in one of version 2 or 3.
 
         Parameters
         ----------
@@ -367,7 +414,8 @@ class RejectionRule:
         Returns
         -------
         numpy.ndarray
-            (n, 3) surprisal, log distance ratio and mean group ``z_g``.
+            (n, 4) surprisal, log distance ratio, mean group ``z_g`` and the surprisal of the forest over
+            every feature.
 
         Examples
         --------
@@ -384,10 +432,10 @@ class RejectionRule:
         >>> pipeline = fit_pipeline(X, y, groups, "nb", n_features=None, calibrate=False)
         >>> rule = fit_rule(pipeline, X, y, groups, Learned(1.0, float("nan"), None), ["other.density"])
         >>> np.round(rule.terms(pipeline, np.array([[0.2], [0.5]])), 4).tolist()
-        [[0.0, -0.6931, nan], [0.6931, 0.6931, nan]]
+        [[0.0, -0.6931, nan, nan], [0.6931, 0.6931, nan, nan]]
         """
         return score_terms(pipeline, X, Distance(self.means, self.precision, self.distance_scale),
-                           self.neighbours, self.scales)
+                           self.neighbours, self.scales, self.wide)
 
     def score(self, pipeline: Pipeline, X: np.ndarray) -> np.ndarray:
         """``s(x)`` of every row of ``X`` under ``pipeline``, the model this rule was fitted for.
@@ -474,10 +522,11 @@ class RejectionRule:
             return terms[:, 0] + terms[:, 1], [Explanation(classes[b], (), str(w))
                                                for b, w in zip(top, largest, strict=True)]
         distance = Distance(self.means, self.precision, self.distance_scale)
-        terms = score_terms(pipeline, X, distance, None, None)
+        terms = score_terms(pipeline, X, distance, self.neighbours, None, self.wide)
         z_groups = self.scales.group_z(self.neighbours.log_distances(X))
         terms[:, 2] = _mean_present(z_groups)
-        z_terms = (terms - self.scales.term_mean) / self.scales.term_sd
+        used = self.scales.term_mean.size
+        z_terms = (terms[:, :used] - self.scales.term_mean) / self.scales.term_sd
         by_class = self.scales.group_z(self.neighbours.class_log_distances(X).transpose(2, 0, 1))
         with warnings_ignored():  # a scan without a value in any group has no closest by distance
             closest = np.nanmean(by_class, axis=2).T  # (n, classes)
@@ -713,9 +762,10 @@ def confidence(pipeline: Pipeline, X: np.ndarray) -> np.ndarray:
 
 
 def score_terms(pipeline: Pipeline, X: np.ndarray, distance: Distance, neighbours: Neighbours | None,
-                scales: Scales | None) -> np.ndarray:
-    """``(u, m, n)`` of every row of ``X`` (module docstring); ``n`` is NaN without ``scales`` (it needs
-    the groups' ``a_g``, ``b_g``).
+                scales: Scales | None, wide: RandomForestClassifier | None = None) -> np.ndarray:
+    """``(u, m, n, w)`` of every row of ``X`` (module docstring); ``n`` is NaN without ``scales`` (it needs
+    the groups' ``a_g``, ``b_g``), ``w`` without ``wide`` or ``neighbours`` (whose training medians fill its
+    missing values).
 
     Parameters
     ----------
@@ -729,11 +779,14 @@ def score_terms(pipeline: Pipeline, X: np.ndarray, distance: Distance, neighbour
         The nearest-neighbour model of the training rows (:func:`fit_neighbours`).
     scales : Scales or None
         The groups' and terms' scales.
+    wide : RandomForestClassifier or None
+        The forest over every feature (:func:`fit_wide`).
 
     Returns
     -------
     numpy.ndarray
-        (n, 3) surprisal ``u``, log distance ratio ``m`` and mean group ``z_g`` ``n``.
+        (n, 4) surprisal ``u``, log distance ratio ``m``, mean group ``z_g`` ``n`` and the surprisal of the
+        forest over every feature ``w``.
 
     Examples
     --------
@@ -748,7 +801,7 @@ def score_terms(pipeline: Pipeline, X: np.ndarray, distance: Distance, neighbour
     >>> pipeline = fit_pipeline(X, y, groups, "nb", n_features=None, calibrate=False)
     >>> distance = fit_distance(pipeline[:-1].transform(X), y, groups)
     >>> np.round(score_terms(pipeline, np.array([[0.2], [0.5]]), distance, None, None), 4).tolist()
-    [[0.0, -0.6931, nan], [0.6931, 0.6931, nan]]
+    [[0.0, -0.6931, nan, nan], [0.6931, 0.6931, nan, nan]]
     """
     u = -np.log(np.maximum(confidence(pipeline, X), 1e-12))
     m = np.log(np.maximum(mahalanobis(pipeline[:-1].transform(X), distance.means, distance.precision)
@@ -756,7 +809,77 @@ def score_terms(pipeline: Pipeline, X: np.ndarray, distance: Distance, neighbour
     n = np.full(len(u), np.nan)
     if neighbours is not None and scales is not None:
         n = _mean_present(scales.group_z(neighbours.log_distances(X)))
-    return np.column_stack([u, m, n])
+    w = wide_surprisal(wide, neighbours, X) if wide is not None and neighbours is not None else np.full(len(u), np.nan)
+    return np.column_stack([u, m, n, w])
+
+
+def fit_wide(X: np.ndarray, y: np.ndarray, neighbours: Neighbours, seed: int) -> RandomForestClassifier:
+    """The forest of term ``w``: a balanced random forest of :data:`WIDE_TREES` trees (each tree's bootstrap
+    drawn with every class equally likely, Chen, Liaw and Breiman 2004) on every grouped input column of the
+    training rows ``X``, a missing value at the training median (:meth:`Neighbours.filled`).
+
+    Parameters
+    ----------
+    X : numpy.ndarray
+        (n, columns) the training rows; NaN where a value is missing.
+    y : numpy.ndarray
+        Each row's class.
+    neighbours : Neighbours
+        The neighbour model of the same rows (its groups and medians).
+    seed : int
+        The forest's random state.
+
+    Returns
+    -------
+    RandomForestClassifier
+        Fitted.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X, y = np.array([[0.0, 1.0], [0.2, 1.1], [0.8, 5.0], [1.0, 5.2]]), np.array(["cork", "cork", "oak", "oak"])
+    >>> neighbours = fit_neighbours(X, y, ["cork", "oak"], ["other.density", "tactum.matx"])
+    >>> forest = fit_wide(X, y, neighbours, seed=0)
+    >>> forest.n_features_in_, forest.class_weight, forest.predict(neighbours.filled([[0.1, np.nan]])).tolist()
+    (2, 'balanced', ['cork'])
+    """
+    forest = RandomForestClassifier(n_estimators=WIDE_TREES, class_weight="balanced", random_state=seed, n_jobs=1)
+    return forest.fit(neighbours.filled(X), np.asarray(y))
+
+
+def wide_surprisal(wide: RandomForestClassifier, neighbours: Neighbours, X: np.ndarray) -> np.ndarray:
+    """``w(x) = -log max_c q(c | x)`` of every row of ``X`` (module docstring).
+
+    Parameters
+    ----------
+    wide : RandomForestClassifier
+        The forest over every feature (:func:`fit_wide`).
+    neighbours : Neighbours
+        The neighbour model it was fitted with (its groups and medians).
+    X : numpy.ndarray
+        (n, columns) values of the input columns; NaN where missing.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) surprisals, 0 where every tree names one class, ``log K`` where ``K`` classes share the votes.
+
+    Examples
+    --------
+    Six scans of cork and of oak; either feature tells them apart on its own, and each tree splits on one
+    drawn at random. A scan of cork gets every vote (``w = 0``); one with cork's density and oak's TacTUM
+    value splits the trees about evenly (``w`` near ``log 2 = 0.69``):
+
+    >>> import numpy as np
+    >>> step = np.arange(6) / 10
+    >>> X = np.r_[np.c_[step, 5 + step], np.c_[1 + step, step]]
+    >>> y = np.repeat(["cork", "oak"], 6)
+    >>> neighbours = fit_neighbours(X, y, ["cork", "oak"], ["other.density", "tactum.matx"])
+    >>> w = wide_surprisal(fit_wide(X, y, neighbours, seed=0), neighbours, np.array([[0.2, 5.2], [0.2, 0.2]]))
+    >>> (np.round(w, 2) + 0.0).tolist()
+    [0.0, 0.67]
+    """
+    return -np.log(np.maximum(wide.predict_proba(neighbours.filled(X)).max(axis=1), 1e-12))
 
 
 def _mean_present(values: np.ndarray) -> np.ndarray:
@@ -862,13 +985,13 @@ class Learned:
 
 
 def fit_scales(terms: np.ndarray, log_distances: np.ndarray, known: np.ndarray) -> Scales:
-    """The :class:`Scales` from the rounds' raw terms ``u``, ``m`` (n, 2) and group ``log d_g`` (n, groups),
-    over the ``known`` rows.
+    """The :class:`Scales` from the rounds' raw terms ``u``, ``m`` and ``w`` (n, 3; or without ``w``, n, 2) and
+    group ``log d_g`` (n, groups), over the ``known`` rows; ``n`` takes its place between ``m`` and ``w``.
 
     Parameters
     ----------
     terms : numpy.ndarray
-        (n, 2) raw ``u`` and ``m`` of the rounds' test rows.
+        (n, 3) raw ``u``, ``m`` and ``w`` of the rounds' test rows, or (n, 2) without ``w``.
     log_distances : numpy.ndarray
         (n, groups) their ``log d_g``; NaN where a row has no value in a group.
     known : numpy.ndarray
@@ -903,7 +1026,7 @@ def fit_scales(terms: np.ndarray, log_distances: np.ndarray, known: np.ndarray) 
     with warnings_ignored():
         limit = np.nanquantile(z[known], UNLIKE_QUANTILE, axis=0) if known.any() else np.zeros(z.shape[1])
     neighbour = _mean_present(z)
-    term_mean, term_sd = mean_sd(np.column_stack([terms, neighbour])[known])
+    term_mean, term_sd = mean_sd(np.column_stack([terms[:, :2], neighbour, terms[:, 2:]])[known])
     return Scales(group_mean, group_sd, np.nan_to_num(limit, nan=np.inf), term_mean, term_sd)
 
 
@@ -934,8 +1057,9 @@ def warnings_ignored() -> Iterator[None]:
 
 
 def fit_models(pipeline: Pipeline, X: np.ndarray, y: np.ndarray, groups: np.ndarray,
-               columns: Sequence[str]) -> tuple[Distance, Neighbours]:
-    """The distance and neighbour models of a fitted ``pipeline``'s training rows (input ``columns``).
+               columns: Sequence[str], seed: int = 0) -> tuple[Distance, Neighbours, RandomForestClassifier]:
+    """The distance and neighbour models and the forest over every feature of a fitted ``pipeline``'s training
+    rows (input ``columns``).
 
     Parameters
     ----------
@@ -949,6 +1073,8 @@ def fit_models(pipeline: Pipeline, X: np.ndarray, y: np.ndarray, groups: np.ndar
         Each row's sample.
     columns : sequence of str
         The input column names.
+    seed : int
+        The random state of the forest over every feature.
 
     Returns
     -------
@@ -956,6 +1082,8 @@ def fit_models(pipeline: Pipeline, X: np.ndarray, y: np.ndarray, groups: np.ndar
         In the pipeline's feature space (:func:`fit_distance`).
     neighbours : Neighbours
         On the input columns (:func:`fit_neighbours`).
+    wide : RandomForestClassifier
+        On the grouped input columns (:func:`fit_wide`).
 
     Examples
     --------
@@ -966,18 +1094,18 @@ def fit_models(pipeline: Pipeline, X: np.ndarray, y: np.ndarray, groups: np.ndar
     >>> X, y = np.array([[0.0], [0.2], [0.8], [1.0]]), np.array(["cork", "cork", "oak", "oak"])
     >>> groups = np.array(["cork1", "cork2", "oak1", "oak2"])
     >>> pipeline = fit_pipeline(X, y, groups, "nb", n_features=None, calibrate=False)
-    >>> distance, neighbours = fit_models(pipeline, X, y, groups, ["other.density"])
-    >>> round(distance.scale, 4), neighbours.titles, neighbours.classes.tolist()
-    (2.0, ('other',), [0, 0, 1, 1])
+    >>> distance, neighbours, wide = fit_models(pipeline, X, y, groups, ["other.density"])
+    >>> round(distance.scale, 4), neighbours.titles, neighbours.classes.tolist(), wide.classes_.tolist()
+    (2.0, ('other',), [0, 0, 1, 1], ['cork', 'oak'])
     """
-    return (fit_distance(pipeline[:-1].transform(X), y, groups),
-            fit_neighbours(X, y, [str(c) for c in pipeline.classes_], columns))
+    neighbours = fit_neighbours(X, y, [str(c) for c in pipeline.classes_], columns)
+    return fit_distance(pipeline[:-1].transform(X), y, groups), neighbours, fit_wide(X, y, neighbours, seed)
 
 
 def fit_rule(pipeline: Pipeline, X: np.ndarray, y: np.ndarray, groups: np.ndarray, learned: Learned,
-             columns: Sequence[str], max_accuracy_drop: float = MAX_ACCURACY_DROP) -> RejectionRule:
-    """The rule of a fitted ``pipeline``: its distance and neighbour models on its training rows (input
-    ``columns``), and the threshold and scales that :func:`learn_rejection` learned.
+             columns: Sequence[str], max_accuracy_drop: float = MAX_ACCURACY_DROP, seed: int = 0) -> RejectionRule:
+    """The rule of a fitted ``pipeline``: its distance and neighbour models and forest over every feature on
+    its training rows (input ``columns``), and the threshold and scales that :func:`learn_rejection` learned.
 
     Parameters
     ----------
@@ -995,11 +1123,13 @@ def fit_rule(pipeline: Pipeline, X: np.ndarray, y: np.ndarray, groups: np.ndarra
         The input column names.
     max_accuracy_drop : float
         The known-class accuracy the threshold was allowed to cost, as a fraction.
+    seed : int
+        The random state of the forest over every feature.
 
     Returns
     -------
     RejectionRule
-        Without a neighbour model where ``learned`` has no scales (the previous format's score).
+        Without a neighbour model and forest where ``learned`` has no scales (format version 2's score).
 
     Examples
     --------
@@ -1014,9 +1144,11 @@ def fit_rule(pipeline: Pipeline, X: np.ndarray, y: np.ndarray, groups: np.ndarra
     >>> rule.threshold, rule.inner_auroc, round(rule.distance_scale, 4), rule.neighbours is None
     (1.5, 0.9, 2.0, True)
     """
-    distance, neighbours = fit_models(pipeline, X, y, groups, columns)
+    distance, neighbours, wide = fit_models(pipeline, X, y, groups, columns, seed)
+    scored = learned.scales is not None
     return RejectionRule(distance.means, distance.precision, distance.scale, learned.threshold, max_accuracy_drop,
-                         learned.inner_auroc, neighbours if learned.scales is not None else None, learned.scales)
+                         learned.inner_auroc, neighbours if scored else None, learned.scales,
+                         wide if scored else None)
 
 
 def learn_rejection(X: np.ndarray, y: np.ndarray, groups: np.ndarray, fit: FitPipeline, columns: Sequence[str],
@@ -1067,7 +1199,7 @@ def learn_rejection(X: np.ndarray, y: np.ndarray, groups: np.ndarray, fit: FitPi
     >>> fit = lambda X, y, g: fit_pipeline(X, y, g, "nb", n_features=None, calibrate=False)
     >>> learned = learn_rejection(X, y, groups, fit, ["other.density", "other.metal"], rounds=3)
     >>> learned.inner_auroc, bool(np.isfinite(learned.threshold)), learned.scales.term_mean.size
-    (1.0, True, 3)
+    (1.0, True, 4)
     >>> learn_rejection(X[:8], y[:8], groups[:8], fit, ["other.density", "other.metal"])
     Learned(threshold=inf, inner_auroc=nan, scales=None)
     """
@@ -1088,8 +1220,8 @@ def learn_rejection(X: np.ndarray, y: np.ndarray, groups: np.ndarray, fit: FitPi
             continue
         pipeline = fit(X[train], y[train], groups[train])
         test = np.concatenate([test_known, np.flatnonzero(is_held)])
-        distance, neighbours = fit_models(pipeline, X[train], y[train], groups[train], columns)
-        terms.append(score_terms(pipeline, X[test], distance, None, None)[:, :2])
+        distance, neighbours, wide = fit_models(pipeline, X[train], y[train], groups[train], columns, seed)
+        terms.append(score_terms(pipeline, X[test], distance, neighbours, None, wide)[:, [0, 1, 3]])
         distances.append(neighbours.log_distances(X[test]))
         # A held-out "known" row whose class lost its only sample to the held-out part is unknown to this model.
         unknowns.append(~np.isin(y[test], y[train]))
@@ -1099,8 +1231,8 @@ def learn_rejection(X: np.ndarray, y: np.ndarray, groups: np.ndarray, fit: FitPi
     unknown, correct = np.concatenate(unknowns), np.concatenate(corrects)
     log_distances = np.concatenate(distances)
     scales = fit_scales(np.concatenate(terms), log_distances, ~unknown)
-    raw = np.column_stack([np.concatenate(terms), _mean_present(scales.group_z(log_distances))])
-    score = scales.combine(raw)
+    raw = np.concatenate(terms)
+    score = scales.combine(np.column_stack([raw[:, :2], _mean_present(scales.group_z(log_distances)), raw[:, 2:]]))
     known = known_scores(X, y, groups, fit, columns, scales, rounds, seed)
     threshold = choose_threshold(*known, max_accuracy_drop=max_accuracy_drop) if known is not None else \
         choose_threshold(score, unknown, correct, max_accuracy_drop)
@@ -1171,8 +1303,8 @@ def known_scores(X: np.ndarray, y: np.ndarray, groups: np.ndarray, fit: FitPipel
         if np.unique(y[train]).size < 2:
             continue
         pipeline = fit(X[train], y[train], groups[train])
-        distance, neighbours = fit_models(pipeline, X[train], y[train], groups[train], columns)
-        scores.append(scales.combine(score_terms(pipeline, X[test], distance, neighbours, scales)))
+        distance, neighbours, wide = fit_models(pipeline, X[train], y[train], groups[train], columns, seed)
+        scores.append(scales.combine(score_terms(pipeline, X[test], distance, neighbours, scales, wide)))
         unknowns.append(~np.isin(y[test], y[train]))
         corrects.append(pipeline.predict(X[test]) == y[test])
     if not scores:

@@ -243,6 +243,10 @@ def _first_tree(payload):
     return payload["pipeline"].steps[-1][1].estimator_.estimators_[0].tree_
 
 
+def _wide_tree(payload):
+    return payload["open_set"]["wide_forest"].estimators_[0].tree_
+
+
 def _set(array, index, value):
     array[index] = value
 
@@ -268,6 +272,23 @@ def _set(array, index, value):
     (lambda p: _set(p["open_set"]["reference_classes"], 0, -3), "group or class indices outside their"),
     (lambda p: p["open_set"].update(group_titles=[1]), "group titles must be text"),
     (lambda p: p["open_set"].pop("fill"), "the open_set field must hold"),
+    (lambda p: p["open_set"].pop("wide_forest"), "the open_set field must hold .*wide_forest"),
+    (lambda p: p["open_set"].update(wide_forest=p["pipeline"].named_steps["scale"]),
+     "open_set field 'wide_forest' must be RandomForestClassifier"),
+    (lambda p: _set(_wide_tree(p).children_left, 0, 2**40),
+     r"the open-set forest's tree 0: a child index points back, to itself or outside the \d+ nodes"),
+    (lambda p: _set(_wide_tree(p).feature, 0, 6), "the open-set forest's tree 0 splits on feature 6 of a model with 6"),
+    (lambda p: p["open_set"]["wide_forest"].estimators_.__setitem__(0, MinMaxScaler()),
+     "the open-set forest's tree 0 is not a fitted decision tree of 4 classes"),
+    (lambda p: setattr(p["open_set"]["wide_forest"], "n_features_in_", 3),
+     "the open-set forest over every feature must be fitted on the model's 6 grouped inputs and 4 classes"),
+    (lambda p: p["open_set"]["wide_forest"].estimators_.clear(), "the open-set forest has 0 trees"),
+    (lambda p: setattr(p["open_set"]["wide_forest"].estimators_[0], "tree_", MinMaxScaler()),
+     "the open-set forest's tree 0 is not a fitted tree but a MinMaxScaler"),
+    (lambda p: setattr(p["pipeline"].steps[-1][1].estimator_.estimators_[1], "tree_", MinMaxScaler()),
+     "tree 1 is not a fitted tree but a MinMaxScaler"),
+    (lambda p: p["pipeline"].steps[-1][1].estimator_.estimators_.__setitem__(2, MinMaxScaler()),
+     "tree 2 is not a fitted tree but a NoneType"),
 ])
 def test_a_model_with_parameters_prediction_cannot_use_is_refused_naming_the_part(forest, tmp_path, change,
                                                                                   message):

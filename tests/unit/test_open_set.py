@@ -226,6 +226,20 @@ def test_new_materials_the_classifier_cannot_see_are_rejected_by_their_other_fea
     assert rejected[known].sum() <= 3
 
 
+def test_the_forest_over_every_feature_is_split_where_the_classifier_s_own_features_are_sure():
+    space, material, sample, model = known_and_new()
+    known, hidden = (material < 8) & (sample == 2), (material == 8) | (material == 9)
+    terms = model.rejection.terms(model.pipeline, space.X)
+    u, w = terms[:, 0], terms[:, 3]
+    is_hidden = np.r_[np.zeros(known.sum()), np.ones(hidden.sum())].astype(bool)
+    # Materials 8 and 9 have the TacTUM values of 0 and 1: the model's three TacTUM features are sure of them
+    # (surprisal at or below the known scans'), while the trees that split on the other groups name other
+    # materials: the forest over every feature puts every one of them above every known scan.
+    assert auroc(np.r_[u[known], u[hidden]], is_hidden) < 0.5
+    assert w[hidden].min() > w[known].max()
+    assert model.rejection.wide.n_features_in_ == space.X.shape[1] and model.rejection.wide.class_weight == "balanced"
+
+
 def test_an_unknown_scan_is_explained_by_its_unlike_groups_and_closest_material():
     space, material, sample, model = known_and_new()
     row = np.flatnonzero((material == 3) & (sample == 2))[0]
@@ -238,10 +252,11 @@ def test_an_unknown_scan_is_explained_by_its_unlike_groups_and_closest_material(
     assert verdict.explanation.unlike == ("audio: tool slide",)
     assert verdict.explanation.closest == space.label_text[row] == verdict.top[0][0]
     assert classify_values(model, values, 2).explanation.unlike == ()
-    # A new material in every group: rejected, named unlike in most of its groups, the neighbour term largest.
+    # A new material in every group: rejected, named unlike in most of its groups; the largest term is one of
+    # those that read every feature (the neighbours' or the forest's), not of the three the model selected.
     verdict = classify_values(model, dict(zip(space.columns, space.X[stranger], strict=True)), 2)
     assert verdict.unknown and len(verdict.explanation.unlike) >= 2
-    assert verdict.explanation.largest == "neighbours"
+    assert verdict.explanation.largest in ("neighbours", "wide")
 
 
 def test_a_model_of_the_previous_format_keeps_its_score(tmp_path):
@@ -251,9 +266,20 @@ def test_a_model_of_the_previous_format_keeps_its_score(tmp_path):
     assert loaded.rejection.scales is None and loaded.rejection.neighbours is None
     terms = model.rejection.terms(model.pipeline, space.X)
     np.testing.assert_allclose(loaded.rejection.score(loaded.pipeline, space.X), terms[:, 0] + terms[:, 1])
-    current = load_model(save_model(model, tmp_path / "v3.skops"))
+    # Version 3: the mean of u, m and n, without the forest over every feature.
+    scales = model.rejection.scales
+    three = replace(model, rejection=replace(model.rejection, wide=None, scales=replace(
+        scales, term_mean=scales.term_mean[:3], term_sd=scales.term_sd[:3])))
+    loaded = load_model(save_model(three, tmp_path / "v3.skops"))
+    assert loaded.rejection.wide is None and loaded.rejection.scales.term_mean.size == 3
+    z = (terms[:, :3] - scales.term_mean[:3]) / scales.term_sd[:3]
+    np.testing.assert_allclose(loaded.rejection.score(loaded.pipeline, space.X), z.mean(axis=1), rtol=1e-12)
+    current = load_model(save_model(model, tmp_path / "v4.skops"))
+    assert current.rejection.wide is not None
     np.testing.assert_array_equal(current.rejection.score(current.pipeline, space.X),
                                   model.rejection.score(model.pipeline, space.X))
+    np.testing.assert_allclose(model.rejection.score(model.pipeline, space.X),
+                               ((terms - scales.term_mean) / scales.term_sd).mean(axis=1), rtol=1e-12)
 
 
 def test_one_pass_gives_the_score_and_a_closest_class_even_without_group_values():
