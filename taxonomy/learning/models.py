@@ -120,8 +120,9 @@ _NEIGHBOUR_TYPES = {"group_titles": list, "group_of": np.ndarray, "fill": np.nda
                     "group_mean": np.ndarray, "group_sd": np.ndarray, "group_limit": np.ndarray,
                     "term_mean": np.ndarray, "term_sd": np.ndarray}
 """The open-set fields a version 3 file adds (:class:`taxonomy.learning.openset.Neighbours` and ``Scales``)."""
-_WIDE_TYPES = {"wide_forest": RandomForestClassifier}
-"""The open-set field a version 4 file adds: the forest over every feature (term ``w``)."""
+_WIDE_TYPES = {"wide_forest": (RandomForestClassifier, type(None))}
+"""The open-set field a version 4 file adds: the forest over every feature (term ``w``), None for a model whose
+inputs are all raw signal samples (no feature to grow it on)."""
 
 _STEPS = ("scale", "select", "classify")
 _META_TYPES: dict[str, type | tuple[type, ...]] = {
@@ -535,7 +536,7 @@ def save_model(model: TrainedModel, path: str | os.PathLike[str]) -> Path:
         payload["open_set"] = model.rejection.to_dict()
         if model.rejection.scales is None:  # fewer than three classes: nothing to learn the neighbour term on
             payload["format_version"] = 2
-        elif model.rejection.wide is None:
+        elif model.rejection.scales.term_mean.size == 3:  # a rule before the forest over every feature
             payload["format_version"] = 3
     else:
         payload["format_version"] = 1
@@ -682,7 +683,7 @@ def _rule_from(path: Path, stored: Any, pipeline: Pipeline, inputs: Sequence[str
         raise ModelError(f"{path}: the open_set field must hold {', '.join(kinds)}")
     for key, kind in kinds.items():
         if not isinstance(stored[key], kind):
-            raise ModelError(f"{path}: open_set field {key!r} must be {kind.__name__}")
+            raise ModelError(f"{path}: open_set field {key!r} must be {_type_names(kind)}")
     means, precision = stored["means"], stored["precision"]
     width = len(pipeline.named_steps["select"].selected_)
     if means.shape != (len(pipeline.classes_), width) or precision.shape != (width, width) \
@@ -699,16 +700,27 @@ def _rule_from(path: Path, stored: Any, pipeline: Pipeline, inputs: Sequence[str
     neighbours, scales = (_neighbours_from(path, stored, len(inputs), len(pipeline.classes_), terms)
                           if version >= 3 else (None, None))
     wide = stored["wide_forest"] if version >= 4 else None
-    if wide is not None:
+    if version >= 4:
         _check_wide(path, wide, int(np.count_nonzero(neighbours.group_of >= 0)),
                     [str(c) for c in pipeline.classes_])
     return RejectionRule(means, precision, stored["distance_scale"], stored["threshold"], stored["max_accuracy_drop"],
                          stored["inner_auroc"], neighbours, scales, wide)
 
 
-def _check_wide(path: Path, forest: RandomForestClassifier, inputs: int, classes: Sequence[str]) -> None:
-    """The forest over every feature of a version 4 rule: fitted on the model's ``inputs`` grouped columns
-    and its ``classes``, at most :data:`MAX_TREES` decision trees, each checked as the classifier's are."""
+def _type_names(kind: type | tuple[type, ...]) -> str:
+    kinds = kind if isinstance(kind, tuple) else (kind,)
+    return " or ".join("None" if k is type(None) else k.__name__ for k in kinds)
+
+
+def _check_wide(path: Path, forest: RandomForestClassifier | None, inputs: int, classes: Sequence[str]) -> None:
+    """The forest over every feature of a version 4 rule: None exactly where the model has no grouped input
+    column; else fitted on the model's ``inputs`` grouped columns and its ``classes``, at most
+    :data:`MAX_TREES` decision trees, each checked as the classifier's are."""
+    if (forest is None) != (inputs == 0):
+        raise ModelError(f"{path}: the open-set forest over every feature is {'missing' if forest is None else 'there'}"
+                         f" for a model of {inputs} grouped inputs")
+    if forest is None:
+        return
     trees = getattr(forest, "estimators_", None)
     if not isinstance(trees, list) or getattr(forest, "n_features_in_", None) != inputs \
             or getattr(forest, "n_outputs_", None) != 1 or getattr(forest, "n_classes_", None) != len(classes) \

@@ -396,7 +396,7 @@ class RejectionRule:
                 "reference_classes": np.asarray(n.classes, dtype=np.int64), "group_mean": s.group_mean,
                 "group_sd": s.group_sd, "group_limit": s.group_limit, "term_mean": s.term_mean,
                 "term_sd": s.term_sd})
-            if self.wide is not None:
+            if s.term_mean.size > 3:
                 stored["wide_forest"] = self.wide
         return stored
 
@@ -813,10 +813,11 @@ def score_terms(pipeline: Pipeline, X: np.ndarray, distance: Distance, neighbour
     return np.column_stack([u, m, n, w])
 
 
-def fit_wide(X: np.ndarray, y: np.ndarray, neighbours: Neighbours, seed: int) -> RandomForestClassifier:
+def fit_wide(X: np.ndarray, y: np.ndarray, neighbours: Neighbours, seed: int) -> RandomForestClassifier | None:
     """The forest of term ``w``: a balanced random forest of :data:`WIDE_TREES` trees (each tree's bootstrap
     drawn with every class equally likely, Chen, Liaw and Breiman 2004) on every grouped input column of the
-    training rows ``X``, a missing value at the training median (:meth:`Neighbours.filled`).
+    training rows ``X``, a missing value at the training median (:meth:`Neighbours.filled`); None where every
+    input column is a raw signal's samples (a random-kernel model's), which leaves ``w`` out of the score.
 
     Parameters
     ----------
@@ -831,8 +832,8 @@ def fit_wide(X: np.ndarray, y: np.ndarray, neighbours: Neighbours, seed: int) ->
 
     Returns
     -------
-    RandomForestClassifier
-        Fitted.
+    RandomForestClassifier or None
+        Fitted; None without a grouped input column.
 
     Examples
     --------
@@ -843,6 +844,8 @@ def fit_wide(X: np.ndarray, y: np.ndarray, neighbours: Neighbours, seed: int) ->
     >>> forest.n_features_in_, forest.class_weight, forest.predict(neighbours.filled([[0.1, np.nan]])).tolist()
     (2, 'balanced', ['cork'])
     """
+    if not np.any(neighbours.group_of >= 0):
+        return None
     forest = RandomForestClassifier(n_estimators=WIDE_TREES, class_weight="balanced", random_state=seed, n_jobs=1)
     return forest.fit(neighbours.filled(X), np.asarray(y))
 
@@ -1057,7 +1060,7 @@ def warnings_ignored() -> Iterator[None]:
 
 
 def fit_models(pipeline: Pipeline, X: np.ndarray, y: np.ndarray, groups: np.ndarray,
-               columns: Sequence[str], seed: int = 0) -> tuple[Distance, Neighbours, RandomForestClassifier]:
+               columns: Sequence[str], seed: int = 0) -> tuple[Distance, Neighbours, RandomForestClassifier | None]:
     """The distance and neighbour models and the forest over every feature of a fitted ``pipeline``'s training
     rows (input ``columns``).
 
@@ -1082,7 +1085,7 @@ def fit_models(pipeline: Pipeline, X: np.ndarray, y: np.ndarray, groups: np.ndar
         In the pipeline's feature space (:func:`fit_distance`).
     neighbours : Neighbours
         On the input columns (:func:`fit_neighbours`).
-    wide : RandomForestClassifier
+    wide : RandomForestClassifier or None
         On the grouped input columns (:func:`fit_wide`).
 
     Examples
