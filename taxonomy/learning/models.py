@@ -33,6 +33,7 @@ import importlib
 import importlib.util
 import io
 import math
+import numbers
 import os
 import sys
 import threading
@@ -721,20 +722,42 @@ def _check_wide(path: Path, forest: RandomForestClassifier | None, inputs: int, 
                          f" for a model of {inputs} grouped inputs")
     if forest is None:
         return
+    classes_ = getattr(forest, "classes_", None)
+    if not isinstance(classes_, np.ndarray) or classes_.ndim != 1 or [str(c) for c in classes_] != list(classes):
+        raise ModelError(f"{path}: the open-set forest over every feature must be fitted on the model's "
+                         f"{len(classes)} classes")
+    _check_forest(path, "the open-set forest", forest, inputs, len(classes))
+
+
+def _is_count(value: Any, expected: int) -> bool:
+    """``value`` is the whole number ``expected`` (not a float, an array or a bool that equals it)."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool) and value == expected
+
+
+def _check_forest(path: Path, where: str, forest: Any, inputs: int, classes: int) -> None:
+    """A fitted random forest, as scikit-learn's prediction reads it: 1 to :data:`MAX_TREES` decision trees and
+    as many estimators declared, one job and no progress output, whole-number counts of the ``inputs`` and
+    ``classes`` (forest and each tree), each tree's node arrays checked by :func:`_check_tree`. The
+    classifier's trees are named ``tree k``, another forest's ``<where>'s tree k``."""
     trees = getattr(forest, "estimators_", None)
-    if not isinstance(trees, list) or getattr(forest, "n_features_in_", None) != inputs \
-            or getattr(forest, "n_outputs_", None) != 1 or getattr(forest, "n_classes_", None) != len(classes) \
-            or [str(c) for c in getattr(forest, "classes_", ())] != list(classes):
-        raise ModelError(f"{path}: the open-set forest over every feature must be fitted on the model's {inputs} "
-                         f"grouped inputs and {len(classes)} classes")
-    if not 0 < len(trees) <= MAX_TREES:
-        raise ModelError(f"{path}: the open-set forest has {len(trees)} trees (1 to {MAX_TREES})")
+    if not isinstance(trees, list) or not 0 < len(trees) <= MAX_TREES:
+        count = len(trees) if isinstance(trees, list) else type(trees).__name__
+        raise ModelError(f"{path}: {where} must hold 1 to {MAX_TREES} trees, not {count}")
+    declared = {"n_estimators": len(trees), "n_outputs_": 1, "n_classes_": classes, "n_features_in_": inputs,
+                "verbose": 0}
+    wrong = [name for name, value in declared.items() if not _is_count(getattr(forest, name, None), value)]
+    jobs = getattr(forest, "n_jobs", None)
+    if wrong or not (jobs is None or _is_count(jobs, 1)):
+        raise ModelError(f"{path}: {where}'s {', '.join(wrong) or 'n_jobs'} must be whole numbers "
+                         f"({len(trees)} trees, 1 output, {classes} classes, {inputs} inputs, no output, one job)")
+    prefix = "" if where == "the classifier's forest" else f"{where}'s "
     for k, tree in enumerate(trees):
-        if not isinstance(tree, DecisionTreeClassifier) or getattr(tree, "n_classes_", None) != len(classes) \
-                or getattr(tree, "n_outputs_", None) != 1:
-            raise ModelError(f"{path}: the open-set forest's tree {k} is not a fitted decision tree of "
-                             f"{len(classes)} classes")
-        _check_tree(path, f"the open-set forest's tree {k}", tree.tree_, inputs, len(classes))
+        if not isinstance(tree, DecisionTreeClassifier) or not all(
+                _is_count(getattr(tree, name, None), value)
+                for name, value in (("n_classes_", classes), ("n_outputs_", 1), ("n_features_in_", inputs))):
+            raise ModelError(f"{path}: {prefix}tree {k} is not a fitted decision tree of {classes} classes and "
+                             f"{inputs} inputs")
+        _check_tree(path, f"{prefix}tree {k}", getattr(tree, "tree_", None), inputs, classes)
 
 
 def _neighbours_from(path: Path, stored: dict[str, Any], inputs: int, classes: int,
@@ -822,12 +845,8 @@ def _check_fitted_values(path: Path, pipeline: Pipeline, scale: MinMaxScaler, se
     bad = _non_finite(classify, type(classify).__name__)
     if bad:
         raise ModelError(f"{path}: the classifier's {bad} must be finite numbers")
-    forest = getattr(classify, "estimators_", None)
-    if forest is not None:
-        if len(forest) > MAX_TREES:
-            raise ModelError(f"{path}: a forest of {len(forest)} trees (at most {MAX_TREES})")
-        for k, estimator in enumerate(forest):
-            _check_tree(path, f"tree {k}", getattr(estimator, "tree_", None), inputs, len(classify.classes_))
+    if isinstance(classify, RandomForestClassifier):
+        _check_forest(path, "the classifier's forest", classify, inputs, len(classify.classes_))
     index = getattr(classify, "_tree", None)
     if index is not None:
         _check_index(path, index, inputs)
@@ -864,8 +883,8 @@ def _check_tree(path: Path, where: str, tree: Any, inputs: int, classes: int) ->
         raise ModelError(f"{path}: {where} has {count:,} nodes (1 to {MAX_TREE_NODES:,})")
     state = tree.__getstate__()
     nodes, values = state["nodes"], np.asarray(state["values"])
-    if nodes.shape != (count,) or values.shape[0] != count or int(tree.n_features) != inputs \
-            or values.shape[-1] != classes:
+    if nodes.shape != (count,) or values.shape != (count, 1, classes) or int(tree.n_features) != inputs \
+            or int(tree.n_outputs) != 1:
         raise ModelError(f"{path}: {where}'s arrays do not match its {count} nodes, {inputs} inputs and "
                          f"{classes} classes")
     left, right = nodes["left_child"], nodes["right_child"]

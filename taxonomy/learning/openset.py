@@ -157,7 +157,8 @@ class Neighbours:
 
     def filled(self, X: np.ndarray) -> np.ndarray:
         """The grouped input columns of ``X`` (those of a feature, not a raw signal's samples), a missing value
-        at its training median: what the forest over every feature (term ``w``) reads.
+        at its training median and a value beyond single precision at its largest (trees compare in float32):
+        what the forest over every feature (term ``w``) reads.
 
         Parameters
         ----------
@@ -177,12 +178,13 @@ class Neighbours:
         >>> from taxonomy.learning.openset import fit_neighbours
         >>> neighbours = fit_neighbours(np.array([[0.0, 10.0, 5.0], [2.0, 30.0, 6.0]]), np.array(["a", "b"]),
         ...                             ["a", "b"], ["tactum.matx", "other.density", "signal.v_ts.00001"])
-        >>> neighbours.filled(np.array([[4.0, np.nan, 7.0]])).tolist()
-        [[4.0, 20.0]]
+        >>> neighbours.filled(np.array([[4.0, np.nan, 7.0], [-1e39, 1e300, 7.0]])).tolist()
+        [[4.0, 20.0], [-3.4028234663852886e+38, 3.4028234663852886e+38]]
         """
         X = np.asarray(X, dtype=np.float64)
         grouped = self.group_of >= 0
-        return np.where(np.isfinite(X), X, self.fill)[:, grouped]
+        largest = float(np.finfo(np.float32).max)
+        return np.clip(np.where(np.isfinite(X), X, self.fill)[:, grouped], -largest, largest)
 
     def log_distances(self, X: np.ndarray) -> np.ndarray:
         """``log d_g`` of every row of ``X`` (n, groups) to the nearest reference row; NaN in a group where

@@ -240,6 +240,16 @@ def test_the_forest_over_every_feature_is_split_where_the_classifier_s_own_featu
     assert model.rejection.wide.n_features_in_ == space.X.shape[1] and model.rejection.wide.class_weight == "balanced"
 
 
+def test_a_value_beyond_single_precision_in_a_feature_the_model_does_not_select_still_gets_a_verdict():
+    space, material, sample, model = known_and_new()
+    row = np.flatnonzero((material == 3) & (sample == 2))[0]
+    values = dict(zip(space.columns, space.X[row], strict=True))
+    unselected = next(name for name in space.columns if name not in model.selected)
+    # 1e39 is finite in float64 and infinite in the float32 that trees compare in.
+    verdict = classify_values(model, {**values, unselected: 1e39}, 2)
+    assert np.isfinite(verdict.score) and verdict.top[0][0] == space.label_text[row]
+
+
 def test_an_unknown_scan_is_explained_by_its_unlike_groups_and_closest_material():
     space, material, sample, model = known_and_new()
     row = np.flatnonzero((material == 3) & (sample == 2))[0]
