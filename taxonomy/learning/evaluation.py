@@ -1129,15 +1129,20 @@ def vote(result: Result, recordings: Sequence[str]) -> Result:
         fold.append(result.fold[rows[0]])
         groups.append(result.groups[rows[0]] if result.groups is not None else name)
     y_true_a, y_pred_a, fold_a = np.array(y_true), np.array(y_pred), np.array(fold)
-    folds = np.unique(fold_a[fold_a >= 0])
-    tested = fold_a >= 0
     return replace(
         result, y_true=y_true_a, y_pred=y_pred_a, fold=fold_a, groups=np.array(groups),
         probability=np.array(probability) if len(probability) == len(names) else None,
-        accuracy=np.array([np.mean(y_pred_a[fold_a == f] == y_true_a[fold_a == f]) for f in folds]),
-        f1=np.array([present_class_f1(y_true_a[fold_a == f], y_pred_a[fold_a == f]) for f in folds]),
-        confusion=confusion_matrix(y_true_a[tested], y_pred_a[tested], labels=classes),
+        **_fold_scores(y_true_a, y_pred_a, fold_a, classes),
         voted=True, splitting=f"{result.splitting}, recordings voted by their windows")
+
+
+def _fold_scores(y_true: np.ndarray, y_pred: np.ndarray, fold: np.ndarray, classes: np.ndarray) -> dict:
+    """A result's scores of new predictions: accuracy and present-class F1 per fold, and the confusion of every
+    tested row (fold >= 0; -1 is a training row of the set's own split)."""
+    folds, tested = np.unique(fold[fold >= 0]), fold >= 0
+    return {"accuracy": np.array([np.mean(y_pred[fold == f] == y_true[fold == f]) for f in folds]),
+            "f1": np.array([present_class_f1(y_true[fold == f], y_pred[fold == f]) for f in folds]),
+            "confusion": confusion_matrix(y_true[tested], y_pred[tested], labels=classes)}
 
 
 def window_index(scan_id: str) -> int:
@@ -1234,15 +1239,9 @@ def running_vote(result: Result, scan_ids: Sequence[str], before: int) -> Result
             y_pred[row], mean = _history_answer(result, history, classes)
             if probability is not None:
                 probability[row] = mean
-    fold, y_true = result.fold, result.y_true
-    folds = np.unique(fold[fold >= 0])
-    tested = fold >= 0
-    return replace(
-        result, y_pred=y_pred, probability=probability, history=before,
-        accuracy=np.array([np.mean(y_pred[fold == f] == y_true[fold == f]) for f in folds]),
-        f1=np.array([present_class_f1(y_true[fold == f], y_pred[fold == f]) for f in folds]),
-        confusion=confusion_matrix(y_true[tested], y_pred[tested], labels=classes),
-        splitting=f"{result.splitting}, {history_words(before)}")
+    return replace(result, y_pred=y_pred, probability=probability, history=before,
+                   **_fold_scores(result.y_true, y_pred, result.fold, classes),
+                   splitting=f"{result.splitting}, {history_words(before)}")
 
 
 def _history_answer(result: Result, history: np.ndarray, classes: np.ndarray) -> tuple[str, np.ndarray]:

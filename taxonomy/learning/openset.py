@@ -1031,8 +1031,32 @@ def fit_scales(terms: np.ndarray, log_distances: np.ndarray, known: np.ndarray) 
     with warnings_ignored():
         limit = np.nanquantile(z[known], UNLIKE_QUANTILE, axis=0) if known.any() else np.zeros(z.shape[1])
     neighbour = _mean_present(z)
-    term_mean, term_sd = mean_sd(np.column_stack([terms[:, :2], neighbour, terms[:, 2:]])[known])
+    term_mean, term_sd = mean_sd(with_neighbours(terms, neighbour)[known])
     return Scales(group_mean, group_sd, np.nan_to_num(limit, nan=np.inf), term_mean, term_sd)
+
+
+def with_neighbours(terms: np.ndarray, neighbours: np.ndarray) -> np.ndarray:
+    """The terms in :data:`TERMS` order: ``n`` put between ``m`` and ``w`` of the rounds' ``(u, m[, w])``.
+
+    Parameters
+    ----------
+    terms : numpy.ndarray
+        (n, 2) or (n, 3) raw ``u``, ``m`` and, where the rule has it, ``w``.
+    neighbours : numpy.ndarray
+        (n,) the neighbour term ``n``.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 3) or (n, 4): ``(u, m, n[, w])``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> with_neighbours(np.array([[1.0, 2.0, 4.0]]), np.array([3.0])).tolist()
+    [[1.0, 2.0, 3.0, 4.0]]
+    """
+    return np.column_stack([terms[:, :2], neighbours, terms[:, 2:]])
 
 
 @contextmanager
@@ -1236,8 +1260,7 @@ def learn_rejection(X: np.ndarray, y: np.ndarray, groups: np.ndarray, fit: FitPi
     unknown, correct = np.concatenate(unknowns), np.concatenate(corrects)
     log_distances = np.concatenate(distances)
     scales = fit_scales(np.concatenate(terms), log_distances, ~unknown)
-    raw = np.concatenate(terms)
-    score = scales.combine(np.column_stack([raw[:, :2], _mean_present(scales.group_z(log_distances)), raw[:, 2:]]))
+    score = scales.combine(with_neighbours(np.concatenate(terms), _mean_present(scales.group_z(log_distances))))
     known = known_scores(X, y, groups, fit, columns, scales, rounds, seed)
     threshold = choose_threshold(*known, max_accuracy_drop=max_accuracy_drop) if known is not None else \
         choose_threshold(score, unknown, correct, max_accuracy_drop)
